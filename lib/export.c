@@ -1,0 +1,200 @@
+/* export.c — VTU, PVD, OBJ and PLY writers (see export.h). */
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "err.h"
+#include "export.h"
+
+/* ------------------------------------------------------------- base64 */
+
+static const char b64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+
+typedef struct {
+    FILE *f;
+    unsigned char buf[3];
+    int n;
+} b64w;
+
+static void b64_put(b64w *w, const void *data, size_t len)
+{
+    const unsigned char *p = data;
+    for (size_t i = 0; i < len; i++) {
+        w->buf[w->n++] = p[i];
+        if (w->n == 3) {
+            char out[4] = {b64[w->buf[0] >> 2], b64[((w->buf[0] & 3) << 4) | (w->buf[1] >> 4)],
+                           b64[((w->buf[1] & 15) << 2) | (w->buf[2] >> 6)], b64[w->buf[2] & 63]};
+            fwrite(out, 1, 4, w->f);
+            w->n = 0;
+        }
+    }
+}
+
+static void b64_end(b64w *w)
+{
+    if (w->n == 0)
+        return;
+    unsigned char b1 = w->n > 1 ? w->buf[1] : 0;
+    char out[4] = {b64[w->buf[0] >> 2], b64[((w->buf[0] & 3) << 4) | (b1 >> 4)],
+                   w->n > 1 ? b64[(b1 & 15) << 2] : '=', '='};
+    fwrite(out, 1, 4, w->f);
+    w->n = 0;
+}
+
+/* One binary DataArray: UInt32 byte count header, then the data, all base64
+ * as one stream (VTK's "binary" format without compression). */
+static void data_array(FILE *f, const char *type, const char *name, int ncomp,
+                       const void *data, size_t bytes)
+{
+    fprintf(f, "        <DataArray type=\"%s\" Name=\"%s\"", type, name);
+    if (ncomp > 1)
+        fprintf(f, " NumberOfComponents=\"%d\"", ncomp);
+    fprintf(f, " format=\"binary\">\n          ");
+    b64w w = {f, {0}, 0};
+    uint32_t hdr = (uint32_t)bytes;
+    b64_put(&w, &hdr, 4);
+    b64_put(&w, data, bytes);
+    b64_end(&w);
+    fprintf(f, "\n        </DataArray>\n");
+}
+
+int crom_export_vtu(FILE *f, const crom_mesh *m, const crom_pointfield *fields, int nfields)
+{
+    size_t nt = (size_t)m->nt, nv = (size_t)m->nv;
+    if (4 * nt * sizeof(int32_t) > UINT32_MAX || 3 * nv * sizeof(double) > UINT32_MAX)
+        return crom_err(CROM_EDATA, "mesh too large for a VTU with 32-bit headers");
+    int32_t *off = crom_malloc(sizeof(int32_t) * nt);
+    uint8_t *types = crom_malloc(nt ? nt : 1);
+    uint8_t *mask = crom_malloc(nv ? nv : 1);
+    if (!off || !types || !mask) {
+        free(off);
+        free(types);
+        free(mask);
+        return CROM_EINTERNAL;
+    }
+    for (size_t t = 0; t < nt; t++) {
+        off[t] = (int32_t)(4 * (t + 1));
+        types[t] = 10; /* VTK_TETRA */
+    }
+    fprintf(f, "<?xml version=\"1.0\"?>\n"
+               "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt32\">\n"
+               "  <UnstructuredGrid>\n"
+               "    <Piece NumberOfPoints=\"%zu\" NumberOfCells=\"%zu\">\n",
+            nv, nt);
+    fprintf(f, "      <Points>\n");
+    data_array(f, "Float64", "Points", 3, m->X, 3 * nv * sizeof(double));
+    fprintf(f, "      </Points>\n      <Cells>\n");
+    data_array(f, "Int32", "connectivity", 1, m->tets, 4 * nt * sizeof(int32_t));
+    data_array(f, "Int32", "offsets", 1, off, nt * sizeof(int32_t));
+    data_array(f, "UInt8", "types", 1, types, nt);
+    fprintf(f, "      </Cells>\n      <PointData>\n");
+    for (int i = 0; i < nfields; i++)
+        data_array(f, "Float64", fields[i].name, fields[i].ncomp, fields[i].data,
+                   nv * (size_t)fields[i].ncomp * sizeof(double));
+    for (int r = 0; r < m->nregions; r++) {
+        memset(mask, 0, nv);
+        for (int j = 0; j < m->regions[r].n; j++)
+            mask[m->regions[r].idx[j]] = 1;
+        char name[96];
+        snprintf(name, sizeof name, "region_%s", m->regions[r].name);
+        data_array(f, "UInt8", name, 1, mask, nv);
+    }
+    fprintf(f, "      </PointData>\n    </Piece>\n  </UnstructuredGrid>\n</VTKFile>\n");
+    free(off);
+    free(types);
+    free(mask);
+    return ferror(f) ? crom_err(CROM_EIO, "write failed") : 0;
+}
+
+int crom_export_pvd(FILE *f, const double *time, const char *const *file, int n)
+{
+    fprintf(f, "<?xml version=\"1.0\"?>\n"
+               "<VTKFile type=\"Collection\" version=\"1.0\" byte_order=\"LittleEndian\">\n"
+               "  <Collection>\n");
+    for (int i = 0; i < n; i++)
+        fprintf(f, "    <DataSet timestep=\"%.17g\" group=\"\" part=\"0\" file=\"%s\"/>\n", time[i],
+                file[i]);
+    fprintf(f, "  </Collection>\n</VTKFile>\n");
+    return ferror(f) ? crom_err(CROM_EIO, "write failed") : 0;
+}
+
+/* Boundary triangles and the compact list of the vertices they use. */
+static int surface(const crom_mesh *m, int *ntri, int **tris, int *nsv, int **sv, int **map)
+{
+    int rc = crom_mesh_boundary(m, ntri, tris, NULL);
+    if (rc)
+        return rc;
+    *map = crom_malloc(sizeof(int) * (size_t)m->nv);
+    *sv = crom_malloc(sizeof(int) * (size_t)m->nv);
+    if (!*map || !*sv) {
+        free(*tris);
+        free(*map);
+        free(*sv);
+        return CROM_EINTERNAL;
+    }
+    for (int i = 0; i < m->nv; i++)
+        (*map)[i] = -1;
+    int n = 0;
+    for (int k = 0; k < 3 * *ntri; k++) {
+        int v = (*tris)[k];
+        if ((*map)[v] < 0) {
+            (*map)[v] = n;
+            (*sv)[n++] = v;
+        }
+    }
+    *nsv = n;
+    return 0;
+}
+
+int crom_export_obj(FILE *f, const crom_mesh *m, const double *disp)
+{
+    int nt, *T, nsv, *sv, *map;
+    int rc = surface(m, &nt, &T, &nsv, &sv, &map);
+    if (rc)
+        return rc;
+    fprintf(f, "# crom surface: %d vertices, %d triangles\n", nsv, nt);
+    for (int i = 0; i < nsv; i++) {
+        const double *X = m->X + 3 * (size_t)sv[i];
+        const double *u = disp ? disp + 3 * (size_t)sv[i] : NULL;
+        fprintf(f, "v %.9g %.9g %.9g\n", X[0] + (u ? u[0] : 0), X[1] + (u ? u[1] : 0),
+                X[2] + (u ? u[2] : 0));
+    }
+    for (int t = 0; t < nt; t++)
+        fprintf(f, "f %d %d %d\n", map[T[3 * t]] + 1, map[T[3 * t + 1]] + 1, map[T[3 * t + 2]] + 1);
+    free(T);
+    free(sv);
+    free(map);
+    return ferror(f) ? crom_err(CROM_EIO, "write failed") : 0;
+}
+
+int crom_export_ply(FILE *f, const crom_mesh *m, const double *disp)
+{
+    int nt, *T, nsv, *sv, *map;
+    int rc = surface(m, &nt, &T, &nsv, &sv, &map);
+    if (rc)
+        return rc;
+    fprintf(f, "ply\nformat binary_little_endian 1.0\ncomment crom surface\n"
+               "element vertex %d\nproperty float x\nproperty float y\nproperty float z\n"
+               "property float u\nelement face %d\nproperty list uchar int vertex_indices\n"
+               "end_header\n",
+            nsv, nt);
+    for (int i = 0; i < nsv; i++) {
+        const double *X = m->X + 3 * (size_t)sv[i];
+        const double *u = disp ? disp + 3 * (size_t)sv[i] : NULL;
+        float rec[4] = {(float)(X[0] + (u ? u[0] : 0)), (float)(X[1] + (u ? u[1] : 0)),
+                        (float)(X[2] + (u ? u[2] : 0)),
+                        (float)(u ? sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) : 0)};
+        fwrite(rec, sizeof(float), 4, f);
+    }
+    for (int t = 0; t < nt; t++) {
+        unsigned char three = 3;
+        int32_t idx[3] = {map[T[3 * t]], map[T[3 * t + 1]], map[T[3 * t + 2]]};
+        fwrite(&three, 1, 1, f);
+        fwrite(idx, sizeof(int32_t), 3, f);
+    }
+    free(T);
+    free(sv);
+    free(map);
+    return ferror(f) ? crom_err(CROM_EIO, "write failed") : 0;
+}

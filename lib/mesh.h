@@ -1,0 +1,125 @@
+/* mesh.h — tetrahedral meshes with named vertex regions (crom/mesh).
+ *
+ * Positions are rest positions X in metres, row-major [nv][3]; tets are 0-based
+ * vertex indices [nt][4], positively oriented: det[x1-x0, x2-x0, x3-x0] > 0.
+ * Regions are named, sorted vertex-index sets (from predicates or gmsh physical
+ * groups).
+ */
+#ifndef CROM_MESH_H
+#define CROM_MESH_H
+
+#include <stddef.h>
+
+typedef struct {
+    char *name;   /* region name: [A-Za-z0-9_.-]+ */
+    char *source; /* how it was made: the predicate text, or "gmsh:GROUP" */
+    int n;        /* number of vertices */
+    int *idx;     /* sorted, unique 0-based vertex indices */
+} crom_region;
+
+typedef struct {
+    int nv, nt;
+    double *X;    /* [nv][3] rest positions (m) */
+    int *tets;    /* [nt][4] vertex indices, positively oriented */
+    int nregions;
+    crom_region *regions;
+} crom_mesh;
+
+
+#include <hdf5.h>
+
+/* ------------------------------------------------------------ geometry */
+
+/* Signed volume of tet (a,b,c,d): det[b-a, c-a, d-a] / 6. */
+double crom_tet_volume(const double *a, const double *b, const double *c, const double *d);
+
+/* Mean-ratio quality 12·(3|V|)^(2/3) / Σ edge² in (0, 1] (1 = regular),
+ * negated for inverted tets. */
+double crom_tet_quality(const double *a, const double *b, const double *c, const double *d);
+
+/* Sum of the signed tet volumes (m³). */
+double crom_mesh_volume(const crom_mesh *m);
+
+/* Worst and mean quality; *worst_tet gets the index of the worst one. */
+void crom_mesh_quality(const crom_mesh *m, double *worst, double *mean, int *worst_tet);
+
+/* Axis-aligned bounding box of the vertices. */
+void crom_mesh_bbox(const crom_mesh *m, double lo[3], double hi[3]);
+
+/* Make every tet positively oriented (swap two vertices of negative ones).
+ * Returns CROM_EDATA if a tet is degenerate (|V| <= 1e-14·bbox³). */
+int crom_mesh_orient(crom_mesh *m, int *nflipped);
+
+/* Drop vertices no tet uses, renumbering tets and regions. */
+int crom_mesh_compact(crom_mesh *m);
+
+/* Check a mesh read from anywhere: finite coordinates, indices in range,
+ * positive volumes, region indices in range. Returns 0 or CROM_EDATA with
+ * the first problem named. */
+int crom_mesh_validate(const crom_mesh *m);
+
+/* Boundary triangles (faces used by one tet), outward-oriented: tris gets
+ * [ntri][3] vertex indices (malloc'ed), tri_tet (may be NULL) the owning tet. */
+int crom_mesh_boundary(const crom_mesh *m, int *ntri, int **tris, int **tri_tet);
+
+/* Deep copy. */
+int crom_mesh_copy(const crom_mesh *src, crom_mesh *dst);
+
+void crom_mesh_free(crom_mesh *m);
+
+/* ------------------------------------------------------------ regions
+ * A predicate selects vertices by rest position:
+ *   x<V  x>V  x<=V  x>=V (also y, z)      half-spaces
+ *   box:X0,Y0,Z0,X1,Y1,Z1                  closed axis-aligned box
+ *   sphere:CX,CY,CZ,R                      closed ball
+ *   plane:NX,NY,NZ,D                       n·X >= D
+ *   all                                    every vertex
+ * joined by '&' for intersection ("y>0.4&x<0"). */
+
+#define CROM_PRED_MAX 8
+typedef struct {
+    int nterms;
+    struct {
+        int kind;
+        double a[6];
+    } term[CROM_PRED_MAX];
+} crom_pred;
+
+/* Parse a predicate; returns 0 or CROM_EUSAGE naming what is wrong. */
+int crom_pred_parse(const char *s, crom_pred *p);
+
+/* 1 if X satisfies the predicate. */
+int crom_pred_eval(const crom_pred *p, const double X[3]);
+
+/* 1 if s looks like a predicate rather than a region name. */
+int crom_pred_is(const char *s);
+
+/* The region named `name`, or NULL. */
+const crom_region *crom_mesh_region(const crom_mesh *m, const char *name);
+
+/* Add (or replace) a region from an index list (sorted and de-duplicated
+ * here). Names must match [A-Za-z0-9_.-]+. */
+int crom_mesh_add_region(crom_mesh *m, const char *name, const char *source,
+                         const int *idx, int n);
+
+/* Add region from "NAME=PRED"; CROM_EUSAGE if it selects no vertex. */
+int crom_mesh_region_spec(crom_mesh *m, const char *spec);
+
+/* Resolve a reference to vertices: a stored region name or an inline
+ * predicate. *idx is malloc'ed. CROM_EUSAGE for an unknown name (listing the
+ * known ones) or an empty selection. */
+int crom_mesh_select(const crom_mesh *m, const char *ref, int **idx, int *n);
+
+/* ------------------------------------------------------------ files */
+
+/* Write vertices, tets and regions under loc (the root of a crom/mesh file,
+ * or the /mesh group of a trajectory). */
+int crom_mesh_write(hid_t loc, const crom_mesh *m);
+
+/* Read and validate a mesh stored under loc. */
+int crom_mesh_read(hid_t loc, crom_mesh *m);
+
+#define CROM_MESH_SCHEMA "crom/mesh"
+#define CROM_MESH_VERSION 1
+
+#endif

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Install the Debian packages crom needs to build, test and make pictures.
+# Idempotent and non-interactive; uses sudo only when not root.
+set -euo pipefail
+PKGS="build-essential pkg-config libgmsh-dev gmsh libhdf5-dev hdf5-tools libmetis-dev
+libsuitesparse-dev libopenblas-dev liblapacke-dev libarpack2-dev python3 python3-meshio
+python3-h5py python3-numpy gnuplot-nox"
+missing=()
+for p in $PKGS; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+[ ${#missing[@]} -eq 0 ] && exit 0
+echo "crom: installing missing Debian packages: ${missing[*]}" >&2
+SUDO=""
+[ "$(id -u)" -eq 0 ] || SUDO="sudo"
+export DEBIAN_FRONTEND=noninteractive
+if ! $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}" >&2; then
+  $SUDO apt-get update -q >&2
+  $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}" >&2
+fi

@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# Run crom's whole test suite: unit tests of lib/ (BUILD/tests/test_*), then the
+# program and pipeline tests (tests/prog/*.sh) with BINDIR first on PATH.
+# Usage: tests/run.sh BUILD BINDIR [PATTERN]
+# Each test's output goes to BUILD/test-logs/NAME.log; failures are printed.
+set -uo pipefail
+BUILD=${1:-build}
+BINDIR=$(cd "${2:-bin}" && pwd)
+PATTERN=${3:-${TESTS:-}}
+TOP=$(cd "$(dirname "$0")/.." && pwd)
+LOGS="$TOP/$BUILD/test-logs"
+mkdir -p "$LOGS"
+export PATH="$BINDIR:$PATH" CROM_TOP="$TOP" CROM_BINDIR="$BINDIR" CROM_BUILD="$TOP/$BUILD"
+export OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1
+export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=0}
+export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$TOP/tests/lsan.supp:print_suppressions=0}
+export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+JOBS=${JOBS:-2}
+
+list=()
+for t in "$TOP/$BUILD"/tests/test_*; do
+  [ -x "$t" ] && [ "${t%.d}" = "$t" ] && [ "${t%.o}" = "$t" ] && list+=("$t")
+done
+for t in "$TOP"/tests/prog/*.sh; do [ -f "$t" ] && list+=("$t"); done
+if [ -n "$PATTERN" ]; then
+  sel=(); for t in "${list[@]}"; do [[ "$(basename "$t")" == *$PATTERN* ]] && sel+=("$t"); done
+  list=("${sel[@]}")
+fi
+
+run_one() {
+  t=$1; name=$(basename "$t"); name=${name%.sh}
+  log="$LOGS/$name.log"
+  start=$EPOCHREALTIME
+  if [[ "$t" == *.sh ]]; then ( cd "$TOP" && bash "$t" ) >"$log" 2>&1; else ( cd "$TOP" && "$t" ) >"$log" 2>&1; fi
+  rc=$?
+  secs=$(awk -v a="$start" -v b="$EPOCHREALTIME" 'BEGIN{print b-a}')
+  if [ $rc -eq 0 ]; then printf 'ok   %-28s %6.1fs\n' "$name" "$secs"
+  else printf 'FAIL %-28s %6.1fs  (exit %d, log %s)\n' "$name" "$secs" "$rc" "${log#$TOP/}"; fi
+}
+export -f run_one
+export LOGS TOP
+printf '%s\n' "${list[@]}" | xargs -P "$JOBS" -I{} bash -c 'run_one "$@"' _ {} | tee "$LOGS/summary.txt"
+fails=$(grep -c '^FAIL' "$LOGS/summary.txt")
+total=${#list[@]}
+if [ "$fails" -ne 0 ]; then
+  echo
+  for f in $(grep '^FAIL' "$LOGS/summary.txt" | awk '{print $2}'); do
+    echo "---- $f (last 30 lines) ----"; tail -n 30 "$LOGS/$f.log"
+  done
+  echo "tests: $fails of $total FAILED"
+  exit 1
+fi
+echo "tests: all $total passed"
