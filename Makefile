@@ -48,6 +48,7 @@ MANPAGES := $(patsubst bin/%.c,man/%.1,$(PROG_SRC))
 
 .PHONY: all test check demo bench deps install clean distclean man
 .DELETE_ON_ERROR:
+.SECONDARY:
 
 all: $(PROGS) $(MANPAGES)
 
@@ -74,6 +75,10 @@ $(BINDIR)/crom-%: $(BUILD)/bin/crom-%.o $(LIBA) | $(BINDIR)
 	$(CC) $(CFLAGS) $(LDFLAGS) $< $(LIBA) $(LDLIBS) -o $@
 
 $(BUILD)/tests/test_%: $(BUILD)/tests/test_%.o $(LIBA)
+	$(CC) $(CFLAGS) $(LDFLAGS) $< $(LIBA) $(LDLIBS) -o $@
+
+# micro-benchmarks of lib/ (not part of the suite; make bench runs them)
+$(BUILD)/tests/bench_%: $(BUILD)/tests/bench_%.o $(LIBA)
 	$(CC) $(CFLAGS) $(LDFLAGS) $< $(LIBA) $(LDLIBS) -o $@
 
 $(BUILD)/lib $(BUILD)/bin $(BUILD)/tests:

@@ -568,13 +568,19 @@ void crom_cli_parse(crom_cli *cli, const crom_doc *doc, int argc, char **argv,
                 crom_err(CROM_EUSAGE, "unknown option '%s'", a);
                 usage_exit(cli);
             }
-            if (a[2]) {
-                if (!o->arg) {
-                    crom_err(CROM_EUSAGE, "option '-%c' takes no value", a[1]);
+            /* clustered flags: -vv, -qv */
+            for (const char *c = a + 1; !o->arg && c[1]; c++) {
+                rc = is_common(o) ? common_option(cli, o, NULL) : fn(ctx, o->key, NULL);
+                if (rc)
+                    usage_exit(cli);
+                o = find_short(doc, c[1]);
+                if (!o || o->arg) {
+                    crom_err(CROM_EUSAGE, "unknown or misplaced option '-%c' in '%s'", c[1], a);
                     usage_exit(cli);
                 }
-                val = a + 2;
             }
+            if (o->arg && a[2])
+                val = a + 2;
         }
         if (o->arg && !val) {
             if (i + 1 >= sv.n) {

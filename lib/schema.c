@@ -33,7 +33,7 @@ static const crom_schema_attr traj_attrs[] = {
     {"poisson", "f64", 1, "Poisson ratio nu"},
     {"density", "f64", 1, "mass density rho (kg/m^3)"},
     {"gravity", "f64[3]", 1, "gravitational acceleration (m/s^2)"},
-    {"tolerance", "f64", 0, "Newton stopping tolerance on the relative gradient norm"},
+    {"tolerance", "f64", 0, "Newton stops when its correction is below tolerance times the bounding-box diagonal"},
     {NULL, NULL, 0, NULL}};
 
 static const crom_schema_dset traj_dsets[] = {
@@ -49,7 +49,7 @@ static const crom_schema_dset traj_dsets[] = {
     {"frames/external_energy", "f64", "F", 1, "J", "potential of gravity and applied forces, -f_ext . u"},
     {"frames/total_energy", "f64", "F", 1, "J", "kinetic + elastic + external"},
     {"frames/newton_iterations", "f64", "F", 1, "1", "Newton iterations of the step that produced the frame"},
-    {"frames/residual", "f64", "F", 1, "1", "final relative gradient norm of that step"},
+    {"frames/residual", "f64", "F", 1, "1", "last Newton correction of that step, max-norm, relative to the bounding-box diagonal"},
     {"frames/step_seconds", "f64", "F", 1, "s", "wall time of that step"},
     {NULL, NULL, NULL, 0, NULL, NULL}};
 

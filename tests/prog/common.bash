@@ -21,7 +21,7 @@ expect_error() {
   [ "$rc" -eq "$code" ] || fail "'$*' exited $rc, expected $code; stderr: $(cat "$TMP/stderr")"
   local lines; lines=$(wc -l <"$TMP/stderr")
   [ "$lines" -eq 1 ] || fail "'$*' printed $lines lines on stderr, expected one: $(cat "$TMP/stderr")"
-  grep -qE "$pat" "$TMP/stderr" || fail "'$*': message '$(cat "$TMP/stderr")' does not match /$pat/"
+  grep -qE -e "$pat" "$TMP/stderr" || fail "'$*': message '$(cat "$TMP/stderr")' does not match /$pat/"
   if [ "$out" != "-" ]; then
     [ ! -e "$out" ] || fail "'$*' left an output file $out"
     local d; d=$(dirname "$out")

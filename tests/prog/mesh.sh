@@ -92,9 +92,9 @@ grep -qE "[0-9]+ vertices, [0-9]+ tets, volume 0.166667 m\^3, quality worst 0\.[
 # 8. help and version on every program
 for p in "$CROM_BINDIR"/crom-*; do
   [ -x "$p" ] || continue
-  "$p" --help | grep -q "Usage:" || fail "$(basename "$p") --help"
-  "$p" --version | grep -q "crom" || fail "$(basename "$p") --version"
-  "$p" --help-man | grep -q '^\.SH SYNOPSIS' || fail "$(basename "$p") --help-man"
+  "$p" --help >"$TMP/help.txt" && grep -q "Usage:" "$TMP/help.txt" || fail "$(basename "$p") --help"
+  "$p" --version >"$TMP/help.txt" && grep -q "crom" "$TMP/help.txt" || fail "$(basename "$p") --version"
+  "$p" --help-man >"$TMP/help.txt" && grep -q '^\.SH SYNOPSIS' "$TMP/help.txt" || fail "$(basename "$p") --help-man"
   ok
 done
 done_checks

@@ -1,0 +1,30 @@
+/* contact.h — collision half-spaces with friction, per vertex, for both
+ * simulators (the reduced one evaluates the same terms at its contact
+ * points).
+ *
+ * Normal: a mass-scaled penalty  E_n = ½ k m φ²,  φ = max(0, d − n·x)
+ * (force k m φ along n; k in 1/s², so the resting depth under gravity g is
+ * g/k whatever the mass).
+ * Friction: Coulomb friction with a lagged normal force λ (from the start of
+ * the step) and the smoothed magnitude f0 of IPC (Li et al. 2020):
+ *   E_f = μ λ f0(‖T(x − x_prev)‖),  T = I − n nᵀ,
+ *   f0(y) = −y³/(3ε²) + y²/ε + ε/3 for y < ε, y otherwise, ε = ε_v h,
+ * so the friction force μλ points against the tangential motion of the step
+ * and fades to zero smoothly below speed ε_v. Both terms are C¹ with
+ * positive semi-definite Hessians. */
+#ifndef CROM_CONTACT_H
+#define CROM_CONTACT_H
+
+#include "scenario.h"
+
+/* Penetration depth φ = max(0, d − n·x) of point x. */
+double crom_contact_depth(const crom_plane *p, const double x[3]);
+
+/* Energy of one vertex (mass m) at x against plane p, with penalty rate k,
+ * lagged normal force lam (N) and smoothing length eps (m; ε_v h). Adds the
+ * gradient to g[3] and the Hessian to H[9] when they are non-NULL. */
+double crom_contact_eval(const crom_plane *p, double k, double m, const double x[3],
+                         const double xprev[3], double lam, double eps, double g[3],
+                         double H[9]);
+
+#endif

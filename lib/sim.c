@@ -1,0 +1,439 @@
+/* sim.c — full-space implicit Euler (see sim.h). */
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli.h"
+#include "contact.h"
+#include "err.h"
+#include "sim.h"
+
+/* CG that needs more iterations than this asks for a fresh factorization at
+ * the next Newton iteration; CG gives up (and we factor now) at CG_MAX. */
+#define CG_SLOW 12
+#define CG_MAX 60
+
+/* Relative accuracy asked of CG (inexact Newton): a Newton step only has
+ * to bring the correction near the tolerance, so CG stops at 0.1·tol/res of
+ * the right-hand side (res: the last correction), between 1e-4 and 1e-1. */
+static double cg_rtol(double res, double tol)
+{
+    double r = 0.1 * tol / res;
+    return r > 0.1 ? 0.1 : r < 1e-4 ? 1e-4 : r;
+}
+
+/* Resolve a list of region references to a CSR list of vertex indices. */
+static int resolve(const crom_mesh *m, int nref, const char *const *refs, int **ptr, int **idx)
+{
+    *ptr = crom_calloc((size_t)nref + 1, sizeof(int));
+    *idx = NULL;
+    if (!*ptr)
+        return CROM_EINTERNAL;
+    int total = 0;
+    for (int b = 0; b < nref; b++) {
+        int *v, n, rc = crom_mesh_select(m, refs[b], &v, &n);
+        if (rc)
+            return rc;
+        int *ni = crom_realloc(*idx, sizeof(int) * (size_t)(total + n));
+        if (!ni) {
+            free(v);
+            return CROM_EINTERNAL;
+        }
+        *idx = ni;
+        memcpy(*idx + total, v, sizeof(int) * (size_t)n);
+        free(v);
+        total += n;
+        (*ptr)[b + 1] = total;
+    }
+    return 0;
+}
+
+int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
+{
+    memset(s, 0, sizeof *s);
+    s->sc = sc;
+    s->mesh = mesh;
+    int rc = crom_scenario_check(sc);
+    if (rc)
+        return rc;
+    crom_material mat;
+    if ((rc = crom_material_init(&mat, sc->youngs, sc->poisson, sc->density)))
+        return rc;
+    if ((rc = crom_fem_init(&s->fem, mesh, &mat)))
+        return rc;
+    s->nv = mesh->nv;
+    s->n = 3 * mesh->nv;
+    size_t n = (size_t)s->n;
+    double lo[3], hi[3];
+    crom_mesh_bbox(mesh, lo, hi);
+    s->L = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    s->x = crom_malloc(sizeof(double) * n);
+    s->v = crom_calloc(n, sizeof(double));
+    s->xn = crom_malloc(sizeof(double) * n);
+    s->xhat = crom_malloc(sizeof(double) * n);
+    s->g = crom_malloc(sizeof(double) * n);
+    s->d = crom_malloc(sizeof(double) * n);
+    s->xt = crom_malloc(sizeof(double) * n);
+    s->m3 = crom_malloc(sizeof(double) * n);
+    s->fext = crom_malloc(sizeof(double) * n);
+    s->work = crom_malloc(sizeof(double) * 4 * n);
+    s->H = crom_malloc(sizeof(double) * (size_t)s->fem.nnz);
+    s->fixed = crom_calloc(n, 1);
+    s->lam = crom_calloc((size_t)(sc->nplanes ? sc->nplanes : 1) * (size_t)s->nv, sizeof(double));
+    if (!s->x || !s->v || !s->xn || !s->xhat || !s->g || !s->d || !s->xt || !s->m3 || !s->fext ||
+        !s->work || !s->H || !s->fixed || !s->lam) {
+        crom_sim_free(s);
+        return CROM_EINTERNAL;
+    }
+    crom_fem_mass_diag(&s->fem, s->m3);
+    /* boundary conditions */
+    const char *refs[CROM_SC_MAX];
+    int *pin_ptr = NULL;
+    for (int i = 0; i < sc->npins; i++)
+        refs[i] = sc->pins[i];
+    rc = resolve(mesh, sc->npins, refs, &pin_ptr, &s->pin);
+    if (!rc) {
+        s->npin = pin_ptr[sc->npins];
+        for (int i = 0; i < sc->nvel; i++)
+            refs[i] = sc->vel[i].ref;
+        s->nvel = sc->nvel;
+        rc = resolve(mesh, sc->nvel, refs, &s->vel_ptr, &s->vel_idx);
+    }
+    if (!rc) {
+        for (int i = 0; i < sc->nforce; i++)
+            refs[i] = sc->force[i].ref;
+        s->nforce = sc->nforce;
+        rc = resolve(mesh, sc->nforce, refs, &s->force_ptr, &s->force_idx);
+    }
+    free(pin_ptr);
+    if (rc) {
+        crom_err_ctx("scenario");
+        crom_sim_free(s);
+        return CROM_EUSAGE;
+    }
+    s->force_mass = crom_calloc((size_t)(s->nforce ? s->nforce : 1), sizeof(double));
+    if (!s->force_mass) {
+        crom_sim_free(s);
+        return CROM_EINTERNAL;
+    }
+    for (int b = 0; b < s->nforce; b++)
+        for (int k = s->force_ptr[b]; k < s->force_ptr[b + 1]; k++)
+            s->force_mass[b] += s->fem.mass[s->force_idx[k]];
+    for (int k = 0; k < s->npin; k++)
+        memset(s->fixed + 3 * (size_t)s->pin[k], 1, 3);
+    for (int k = 0; s->nvel && k < s->vel_ptr[s->nvel]; k++)
+        memset(s->fixed + 3 * (size_t)s->vel_idx[k], 1, 3);
+    /* initial state: rest, uniform velocity plus a spin about the centroid */
+    memcpy(s->x, mesh->X, sizeof(double) * n);
+    double c[3] = {0, 0, 0};
+    for (int i = 0; i < s->nv; i++)
+        for (int k = 0; k < 3; k++)
+            c[k] += s->fem.mass[i] * mesh->X[3 * i + k] / s->fem.total_mass;
+    const double *w = sc->spin;
+    for (int i = 0; i < s->nv; i++) {
+        const double *X = mesh->X + 3 * i;
+        double r[3] = {X[0] - c[0], X[1] - c[1], X[2] - c[2]};
+        double wr[3] = {w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2], w[0] * r[1] - w[1] * r[0]};
+        for (int k = 0; k < 3; k++)
+            s->v[3 * i + k] = sc->v0[k] + wr[k];
+    }
+    for (int b = 0; b < s->nvel; b++) {
+        double vb[3];
+        crom_bc_velocity(&sc->vel[b], 0, vb);
+        for (int k = s->vel_ptr[b]; k < s->vel_ptr[b + 1]; k++)
+            memcpy(s->v + 3 * (size_t)s->vel_idx[k], vb, sizeof vb);
+    }
+    for (int k = 0; k < s->npin; k++)
+        memset(s->v + 3 * (size_t)s->pin[k], 0, 3 * sizeof(double));
+    /* symbolic factorization, once per mesh */
+    s->chol = crom_chol_analyze(s->n, s->fem.colptr, s->fem.rowind, 3);
+    if (!s->chol) {
+        crom_sim_free(s);
+        return crom_errcode() ? crom_errcode() : CROM_EINTERNAL;
+    }
+    return 0;
+}
+
+void crom_sim_free(crom_sim *s)
+{
+    crom_fem_free(&s->fem);
+    crom_chol_free(s->chol);
+    free(s->x);
+    free(s->v);
+    free(s->xn);
+    free(s->xhat);
+    free(s->g);
+    free(s->d);
+    free(s->xt);
+    free(s->m3);
+    free(s->fext);
+    free(s->work);
+    free(s->H);
+    free(s->fixed);
+    free(s->lam);
+    free(s->pin);
+    free(s->vel_ptr);
+    free(s->vel_idx);
+    free(s->force_ptr);
+    free(s->force_idx);
+    free(s->force_mass);
+    memset(s, 0, sizeof *s);
+}
+
+/* External force at time t: gravity on every vertex plus region forces. */
+static void external_force(crom_sim *s, double t, double *f)
+{
+    const crom_scenario *sc = s->sc;
+    for (int i = 0; i < s->nv; i++)
+        for (int k = 0; k < 3; k++)
+            f[3 * i + k] = s->fem.mass[i] * sc->gravity[k];
+    for (int b = 0; b < s->nforce; b++) {
+        double F[3];
+        crom_bc_force(&sc->force[b], t, F);
+        for (int k = s->force_ptr[b]; k < s->force_ptr[b + 1]; k++) {
+            int i = s->force_idx[k];
+            for (int c = 0; c < 3; c++)
+                f[3 * i + c] += F[c] * s->fem.mass[i] / s->force_mass[b];
+        }
+    }
+}
+
+/* Incremental potential at x (J), without the constant terms; E is the
+ * elastic energy at x when already known (NAN: compute it). */
+static int potential(crom_sim *s, const double *x, double E, double *ip)
+{
+    const crom_scenario *sc = s->sc;
+    double h = sc->dt;
+    int rc = isnan(E) ? crom_fem_energy(&s->fem, x, &E) : 0;
+    if (rc)
+        return rc;
+    double kin = 0, damp = 0, ext = 0, con = 0;
+    for (int i = 0; i < s->n; i++) {
+        double a = x[i] - s->xhat[i], b = x[i] - s->xn[i];
+        kin += s->m3[i] * a * a;
+        damp += s->m3[i] * b * b;
+        ext += s->fext[i] * x[i];
+    }
+    for (int p = 0; p < sc->nplanes; p++)
+        for (int i = 0; i < s->nv; i++)
+            con += crom_contact_eval(&sc->plane[p], sc->contact_stiffness, s->fem.mass[i], x + 3 * i,
+                                     s->xn + 3 * i, s->lam[(size_t)p * s->nv + i],
+                                     sc->friction_eps * h, NULL, NULL);
+    *ip = kin / (2 * h * h) + sc->damping * damp / (2 * h) + E - ext + con;
+    return isfinite(*ip) ? 0 : crom_err(CROM_EDATA, "incremental potential is not finite");
+}
+
+/* Add contact gradient and 3×3 Hessian blocks of free vertices. */
+static void add_contact(crom_sim *s, const double *x, double *g, double *H)
+{
+    const crom_scenario *sc = s->sc;
+    const int *cp = s->fem.colptr;
+    for (int p = 0; p < sc->nplanes; p++)
+        for (int i = 0; i < s->nv; i++) {
+            if (s->fixed[3 * i])
+                continue;
+            double gi[3] = {0, 0, 0}, Hi[9] = {0};
+            double lam = s->lam[(size_t)p * s->nv + i];
+            if (crom_contact_depth(&sc->plane[p], x + 3 * i) <= 0 && !(lam > 0 && sc->plane[p].mu > 0))
+                continue;
+            crom_contact_eval(&sc->plane[p], sc->contact_stiffness, s->fem.mass[i], x + 3 * i,
+                              s->xn + 3 * i, lam, sc->friction_eps * sc->dt, gi, Hi);
+            for (int c = 0; c < 3; c++) {
+                g[3 * i + c] += gi[c];
+                /* column 3i+c ends with rows 3i..3i+c (diagonal last) */
+                for (int r = 0; r <= c; r++)
+                    H[cp[3 * i + c + 1] - 1 - (c - r)] += Hi[3 * r + c];
+            }
+        }
+}
+
+int crom_sim_step(crom_sim *s, crom_step_stats *st)
+{
+    const crom_scenario *sc = s->sc;
+    double h = sc->dt, t1 = s->t + h, tstart = crom_now();
+    size_t n = (size_t)s->n;
+    memset(st, 0, sizeof *st);
+    memcpy(s->xn, s->x, sizeof(double) * n);
+    for (size_t i = 0; i < n; i++)
+        s->xhat[i] = s->xn[i] + h * s->v[i];
+    /* lagged normal forces of the friction model, from the start of the step */
+    for (int p = 0; p < sc->nplanes; p++)
+        for (int i = 0; i < s->nv; i++)
+            s->lam[(size_t)p * s->nv + i] =
+                sc->contact_stiffness * s->fem.mass[i] * crom_contact_depth(&sc->plane[p], s->xn + 3 * i);
+    external_force(s, t1, s->fext);
+    /* initial guess: the inertial prediction; Dirichlet DOFs at their targets */
+    memcpy(s->x, s->xhat, sizeof(double) * n);
+    const double *X = s->mesh->X;
+    for (int b = 0; b < s->nvel; b++) {
+        double u[3];
+        crom_bc_displacement(&sc->vel[b], t1, u);
+        for (int k = s->vel_ptr[b]; k < s->vel_ptr[b + 1]; k++)
+            for (int c = 0; c < 3; c++) {
+                int i = 3 * s->vel_idx[k] + c;
+                s->x[i] = X[i] + u[c];
+            }
+    }
+    for (int k = 0; k < s->npin; k++)
+        memcpy(s->x + 3 * (size_t)s->pin[k], X + 3 * (size_t)s->pin[k], 3 * sizeof(double));
+
+    /* Newton on the true Hessian (plus M/h²), which converges quadratically;
+     * when it is not positive definite (CG meets negative curvature, the
+     * factorization fails, or the direction does not descend) the rest of
+     * the step uses per-element SPD-projected Hessians instead. */
+    crom_fem_opts fo = {0, 1.0 / (h * h) + sc->damping / h, s->fixed, 0};
+    st->residual = INFINITY;
+    crom_sym A = {s->n, s->fem.colptr, s->fem.rowind, s->H};
+    double ip = 0, E = 0;
+    int rc = 0, converged = 0, it = 0;
+    while (!rc) {
+        double t0 = crom_now();
+        if ((rc = crom_fem_assemble(&s->fem, s->x, &fo, &E, s->g, s->H)))
+            break;
+        for (size_t i = 0; i < n; i++)
+            s->g[i] += s->m3[i] * ((s->x[i] - s->xhat[i]) / (h * h) + sc->damping * (s->x[i] - s->xn[i]) / h) -
+                       s->fext[i];
+        add_contact(s, s->x, s->g, s->H);
+        for (size_t i = 0; i < n; i++)
+            if (s->fixed[i])
+                s->g[i] = 0;
+        st->t_assemble += crom_now() - t0;
+        if (it == sc->max_iter)
+            break;
+        /* Newton direction: H d = -g */
+        for (size_t i = 0; i < n; i++)
+            s->xt[i] = -s->g[i];
+        int cg = -1;
+        t0 = crom_now();
+        if (s->have_factor && !s->refactor) {
+            memset(s->d, 0, sizeof(double) * n);
+            cg = crom_pcg(&A, s->chol, s->xt, s->d, cg_rtol(st->residual, sc->tol), CG_MAX, s->work);
+            if (cg < -1) {
+                rc = -cg;
+                break;
+            }
+            if (cg >= 0)
+                st->cg += cg;
+            s->refactor = cg < 0 || cg > CG_SLOW;
+        }
+        st->t_solve += crom_now() - t0;
+        if (cg < 0) {
+            t0 = crom_now();
+            rc = crom_chol_factor(s->chol, s->H);
+            st->t_factor += crom_now() - t0;
+            st->factorizations++;
+            s->have_factor = rc == 0;
+            if (rc == CROM_EDATA && !fo.project) {
+                rc = 0; /* indefinite: project from now on */
+                fo.project = 1;
+                crom_err_clear();
+                continue;
+            }
+            if (rc) {
+                crom_err_ctx("step %ld", s->step + 1);
+                break;
+            }
+            s->refactor = 0;
+            t0 = crom_now();
+            if ((rc = crom_chol_solve(s->chol, s->xt, s->d)))
+                break;
+            st->t_solve += crom_now() - t0;
+        }
+        double slope = 0;
+        for (size_t i = 0; i < n; i++)
+            slope += s->g[i] * s->d[i];
+        if (!(slope < 0)) {
+            if (!fo.project) {
+                fo.project = 1;
+                continue;
+            }
+            /* cannot happen with an SPD matrix; fall back to a scaled gradient */
+            for (size_t i = 0; i < n; i++)
+                s->d[i] = -s->g[i] * h * h / s->m3[i];
+            slope = 0;
+            for (size_t i = 0; i < n; i++)
+                slope += s->g[i] * s->d[i];
+        }
+        it++;
+        st->newton++;
+        /* converged when the Newton correction is below tol of the body size:
+         * take it without a line search and stop */
+        double res = 0;
+        for (size_t i = 0; i < n; i++)
+            res = fmax(res, fabs(s->d[i]));
+        res /= s->L;
+        st->residual = res;
+        if (!isfinite(res)) {
+            rc = crom_err(CROM_EDATA, "step %ld: the state became non-finite", s->step + 1);
+            break;
+        }
+        if (res <= sc->tol) {
+            for (size_t i = 0; i < n; i++)
+                s->x[i] += s->d[i];
+            converged = 1;
+            break;
+        }
+        /* Armijo backtracking on the incremental potential; the test allows
+         * the potential's own round-off (a few ulps of its terms), without
+         * which no step could be accepted near convergence */
+        t0 = crom_now();
+        if ((rc = potential(s, s->x, E, &ip)))
+            break;
+        double alpha = 1, ipt = 0;
+        for (;;) {
+            for (size_t i = 0; i < n; i++)
+                s->xt[i] = s->x[i] + alpha * s->d[i];
+            int prc = potential(s, s->xt, NAN, &ipt);
+            if (prc == 0 && ipt <= ip + 1e-4 * alpha * slope + 64 * DBL_EPSILON * (fabs(ip) + fabs(E)))
+                break;
+            alpha *= 0.5;
+            st->cuts++;
+            if (alpha < 1e-12)
+                break;
+        }
+        crom_err_clear();
+        if (alpha >= 1e-12)
+            memcpy(s->x, s->xt, sizeof(double) * n);
+        else if (!fo.project)
+            fo.project = 1; /* no progress along this direction: project */
+        else
+            s->refactor = 1;
+        st->t_linesearch += crom_now() - t0;
+    }
+    if (!rc && !converged)
+        rc = crom_err(CROM_EDATA,
+                      "step %ld did not converge: residual %.3g > --tol %.3g after %d Newton iterations "
+                      "(try a smaller --dt, a larger --max-iter or a looser --tol)",
+                      s->step + 1, st->residual, sc->tol, sc->max_iter);
+    if (rc) {
+        st->t_total = crom_now() - tstart;
+        return rc;
+    }
+    for (size_t i = 0; i < n; i++)
+        s->v[i] = (s->x[i] - s->xn[i]) / h;
+    s->t = t1;
+    s->step++;
+    st->t_total = crom_now() - tstart;
+    return 0;
+}
+
+int crom_sim_energies(crom_sim *s, double *kinetic, double *elastic, double *external)
+{
+    double K = 0, W = 0;
+    external_force(s, s->t, s->fext);
+    for (int i = 0; i < s->n; i++) {
+        K += 0.5 * s->m3[i] * s->v[i] * s->v[i];
+        W -= s->fext[i] * (s->x[i] - s->mesh->X[i]);
+    }
+    *kinetic = K;
+    *external = W;
+    return crom_fem_energy(&s->fem, s->x, elastic);
+}
+
+void crom_sim_displacement(const crom_sim *s, double *u)
+{
+    for (int i = 0; i < s->n; i++)
+        u[i] = s->x[i] - s->mesh->X[i];
+}

@@ -1,0 +1,55 @@
+/* solve.h — linear solvers: sparse Cholesky (CHOLMOD, supernodal, with a
+ * METIS nested-dissection ordering of the vertex graph expanded to 3×3 DOF
+ * blocks, analyzed once per pattern), a symmetric sparse matrix–vector
+ * product, and preconditioned conjugate gradients that reuse a stale
+ * factorization as preconditioner. */
+#ifndef CROM_SOLVE_H
+#define CROM_SOLVE_H
+
+#include <stddef.h>
+
+/* A symmetric matrix stored as its upper triangle in compressed sparse
+ * columns (row <= col), int indices: the layout of crom_fem's Hessian. The
+ * arrays are borrowed, not owned. */
+typedef struct {
+    int n;
+    const int *colptr;   /* [n+1] */
+    const int *rowind;   /* [nnz] */
+    const double *val;   /* [nnz] */
+} crom_sym;
+
+/* y = A x for the full symmetric A. */
+void crom_sym_matvec(const crom_sym *A, const double *x, double *y);
+
+/* Sparse Cholesky factorization A = L Lᵀ of matrices sharing one pattern. */
+typedef struct crom_chol crom_chol;
+
+/* Analyze the pattern (ordering + symbolic factorization, once per mesh).
+ * block = 3 orders the n/3 vertices with METIS_NodeND and expands to their
+ * 3 DOFs (block = 1 orders DOFs directly). Returns NULL with an error
+ * recorded on failure. */
+crom_chol *crom_chol_analyze(int n, const int *colptr, const int *rowind, int block);
+
+/* Numeric factorization of values val (same pattern). Returns 0, or
+ * CROM_EDATA if the matrix is not positive definite. */
+int crom_chol_factor(crom_chol *c, const double *val);
+
+/* Solve A x = b with the last factorization (x may alias b). */
+int crom_chol_solve(crom_chol *c, const double *b, double *x);
+
+/* Seconds spent so far in analysis, factorizations and solves, and counts. */
+void crom_chol_stats(const crom_chol *c, double *t_analyze, double *t_factor,
+                     double *t_solve, long *nfactor, long *nsolve);
+
+void crom_chol_free(crom_chol *c);
+
+/* Preconditioned conjugate gradients for A x = b with M⁻¹ = the factor c
+ * (of some earlier matrix of the same pattern). x holds the initial guess
+ * (zero is fine). Stops when ‖b − A x‖ <= rtol ‖b‖ or after maxit
+ * iterations. Returns the iteration count (>= 0) when converged, -1 when it
+ * did not converge within maxit or met non-positive curvature (A not SPD),
+ * or -CROM_E* on an error. work holds 4n doubles. */
+int crom_pcg(const crom_sym *A, crom_chol *c, const double *b, double *x,
+             double rtol, int maxit, double *work);
+
+#endif

@@ -1,0 +1,355 @@
+/* test_sim.c — the full-space simulator against physics: contact
+ * derivatives, linear momentum, energy dissipation, free fall, a cantilever
+ * converging to Euler–Bernoulli, prescribed regions, contact resting depth. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "check.h"
+#include "contact.h"
+#include "err.h"
+#include "fem.h"
+#include "mesh.h"
+#include "meshgen.h"
+#include "scenario.h"
+#include "sim.h"
+
+/* ----------------------------------------------------------- contact */
+
+typedef struct {
+    crom_plane p;
+    double k, m, xprev[3], lam, eps;
+} cctx;
+
+static double c_energy(const double *x, void *ctx)
+{
+    cctx *c = ctx;
+    return crom_contact_eval(&c->p, c->k, c->m, x, c->xprev, c->lam, c->eps, NULL, NULL);
+}
+
+static void c_grad(const double *x, void *ctx, double *g)
+{
+    cctx *c = ctx;
+    g[0] = g[1] = g[2] = 0;
+    crom_contact_eval(&c->p, c->k, c->m, x, c->xprev, c->lam, c->eps, g, NULL);
+}
+
+static void test_contact_derivatives(void)
+{
+    cctx c = {{{0, 0.6, 0.8}, 0.1, 0.5}, 1e5, 0.3, {0.01, 0.02, -0.03}, 40, 1e-3};
+    /* points: penetrating and sliding fast, penetrating and sliding slowly
+     * (smoothed zone), outside the plane, tangentially at rest */
+    double pts[4][3] = {{0.05, 0.04, 0.02}, {0.0103, 0.05, 0.0306}, {0.3, 0.4, 0.5}, {0.01, 0.02 - 0.0032, -0.03 + 0.0024}};
+    for (int k = 0; k < 4; k++) {
+        double x[3], g[3] = {0}, H[9] = {0}, gfd[3], Hfd[9];
+        memcpy(x, pts[k], sizeof x);
+        crom_contact_eval(&c.p, c.k, c.m, x, c.xprev, c.lam, c.eps, g, H);
+        double h = k == 1 || k == 3 ? 1e-7 : 1e-6;
+        check_fd_gradient(c_energy, &c, x, 3, h, gfd);
+        check_fd_jacobian(c_grad, &c, x, 3, 3, h, Hfd);
+        CHECK_MSG(check_relerr(g, gfd, 3, 1e-3) < 1e-6, "contact gradient, point %d: %.3g", k,
+                  check_relerr(g, gfd, 3, 1e-3));
+        if (k != 3) /* at zero tangential motion the Hessian is the one-sided limit */
+            CHECK_MSG(check_relerr(H, Hfd, 9, 1) < 1e-5, "contact Hessian, point %d: %.3g", k,
+                      check_relerr(H, Hfd, 9, 1));
+        /* PSD: x^T H x >= 0 for random x */
+        double q = 0;
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++)
+                q += pts[0][i] * H[3 * i + j] * pts[0][j];
+        CHECK(q >= -1e-12);
+    }
+    /* the friction force never exceeds mu * lambda */
+    double x[3] = {1, 0.05, 1}, g[3] = {0};
+    c.lam = 10;
+    crom_contact_eval(&c.p, c.k, c.m, x, c.xprev, c.lam, c.eps, g, NULL);
+    double gt[3], gn = g[0] * c.p.n[0] + g[1] * c.p.n[1] + g[2] * c.p.n[2];
+    for (int i = 0; i < 3; i++)
+        gt[i] = g[i] - gn * c.p.n[i];
+    CHECK_NEAR(sqrt(gt[0] * gt[0] + gt[1] * gt[1] + gt[2] * gt[2]), c.p.mu * c.lam, 1e-9);
+}
+
+/* ---------------------------------------------------------- helpers */
+
+static void make_mesh(int shape, double size, const double *dims, crom_mesh *m)
+{
+    crom_meshgen_opts o;
+    crom_meshgen_defaults(&o, shape);
+    o.size = size;
+    if (dims)
+        memcpy(o.dims, dims, sizeof o.dims);
+    int rc = crom_meshgen(&o, m);
+    CHECK_MSG(rc == 0, "meshgen: %s", crom_errmsg());
+}
+
+static void momentum(const crom_sim *s, double P[3])
+{
+    P[0] = P[1] = P[2] = 0;
+    for (int i = 0; i < s->nv; i++)
+        for (int k = 0; k < 3; k++)
+            P[k] += s->fem.mass[i] * s->v[3 * i + k];
+}
+
+/* ------------------------------------------- momentum and dissipation */
+
+static void test_momentum_and_energy(void)
+{
+    crom_mesh m;
+    double dims[3] = {1, 0.3, 0.2};
+    make_mesh(CROM_SHAPE_BOX, 0.1, dims, &m);
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    sc.gravity[1] = 0;
+    sc.youngs = 1e5; /* soft: the spin deforms it visibly */
+    sc.dt = 0.01;
+    sc.tol = 1e-11;
+    sc.v0[0] = 0.3;
+    sc.v0[2] = -0.2;
+    sc.spin[1] = 4;
+    sc.spin[2] = 1;
+    crom_sim s;
+    CHECK(crom_sim_init(&s, &m, &sc) == 0);
+    double P0[3], P[3], K, E, W, prev = INFINITY, maxrise = 0, Emax = 0;
+    momentum(&s, P0);
+    double Pn = sqrt(P0[0] * P0[0] + P0[1] * P0[1] + P0[2] * P0[2]);
+    double worst = 0;
+    for (int k = 0; k < 40; k++) {
+        crom_step_stats st;
+        int rc = crom_sim_step(&s, &st);
+        CHECK_MSG(rc == 0, "step %d: %s", k, crom_errmsg());
+        if (rc)
+            break;
+        momentum(&s, P);
+        for (int c = 0; c < 3; c++)
+            worst = fmax(worst, fabs(P[c] - P0[c]) / Pn);
+        crom_sim_energies(&s, &K, &E, &W);
+        double tot = K + E;
+        if (tot - prev > maxrise)
+            maxrise = tot - prev;
+        prev = tot;
+        Emax = fmax(Emax, E);
+    }
+    fprintf(stderr, "momentum drift %.2e (relative), largest energy rise %.2e J, peak elastic %.3g J, final %.6g J\n",
+            worst, maxrise, Emax, prev);
+    CHECK_LT(worst, 1e-9);     /* conserved to the solver tolerance */
+    CHECK(Emax > 1e-3);         /* the body really deformed */
+    CHECK(maxrise <= 1e-9 * prev); /* implicit Euler never gains energy */
+    crom_sim_free(&s);
+    crom_mesh_free(&m);
+}
+
+/* ---------------------------------------------------------- free fall */
+
+static void test_free_fall(void)
+{
+    crom_mesh m;
+    make_mesh(CROM_SHAPE_SPHERE, 0.2, NULL, &m);
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    sc.dt = 0.02;
+    crom_sim s;
+    CHECK(crom_sim_init(&s, &m, &sc) == 0);
+    double worst = 0, g = sc.gravity[1];
+    for (int n = 1; n <= 25; n++) {
+        crom_step_stats st;
+        CHECK(crom_sim_step(&s, &st) == 0);
+        /* implicit Euler: v_n = n h g, x_n = X + h² g n(n+1)/2 = ½ g t (t + h) */
+        double t = n * sc.dt, uy = 0.5 * g * t * (t + sc.dt);
+        for (int i = 0; i < s.nv; i++) {
+            worst = fmax(worst, fabs(s.x[3 * i + 1] - m.X[3 * i + 1] - uy) / fabs(uy));
+            worst = fmax(worst, fabs(s.x[3 * i] - m.X[3 * i]) + fabs(s.x[3 * i + 2] - m.X[3 * i + 2]));
+            worst = fmax(worst, fabs(s.v[3 * i + 1] - n * sc.dt * g) / fabs(n * sc.dt * g));
+        }
+    }
+    fprintf(stderr, "free fall: largest relative deviation from 1/2 g t (t+h) %.2e\n", worst);
+    CHECK_LT(worst, 1e-12);
+    crom_sim_free(&s);
+    crom_mesh_free(&m);
+}
+
+/* --------------------------------------------------------- cantilever */
+
+/* Static deflection of a beam clamped at x = 0 under its own weight: one
+ * implicit Euler step with a huge time step is the static equilibrium.
+ * Euler–Bernoulli: tip deflection q L⁴ / (8 E I), q = ρ g A, I = b h³/12. */
+static double cantilever_error(double size)
+{
+    double L = 1, b = 0.1, dims[3] = {L, b, b};
+    crom_mesh m;
+    make_mesh(CROM_SHAPE_BOX, size, dims, &m);
+    for (int i = 0; i < m.nv; i++)
+        m.X[3 * i] += L / 2; /* x in [0, L] */
+    CHECK(crom_mesh_region_spec(&m, "clamp=x<1e-9") == 0);
+    CHECK(crom_mesh_region_spec(&m, "tip=x>0.999999") == 0);
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    sc.youngs = 1e8;
+    sc.poisson = 0; /* Euler–Bernoulli ignores the Poisson effect */
+    sc.density = 1000;
+    sc.dt = 1e3;
+    sc.steps = 1;
+    sc.tol = 1e-10; /* 0.1 nm on a 1 m beam; round-off stops near 1e-12 */
+    strcpy(sc.pins[sc.npins++], "clamp");
+    crom_sim s;
+    CHECK(crom_sim_init(&s, &m, &sc) == 0);
+    crom_step_stats st;
+    int rc = crom_sim_step(&s, &st);
+    CHECK_MSG(rc == 0, "cantilever: %s", crom_errmsg());
+    const crom_region *tip = crom_mesh_region(&m, "tip");
+    double d = 0;
+    for (int k = 0; k < tip->n; k++)
+        d += s.x[3 * tip->idx[k] + 1] - m.X[3 * tip->idx[k] + 1];
+    d /= tip->n;
+    double q = sc.density * 9.81 * b * b, I = b * b * b * b / 12;
+    double eb = -q * L * L * L * L / (8 * sc.youngs * I);
+    double err = fabs(d - eb) / fabs(eb);
+    fprintf(stderr, "cantilever h=%.4f: %d tets, tip deflection %.6e m, Euler-Bernoulli %.6e m, error %.3f\n",
+            size, m.nt, d, eb, err);
+    crom_sim_free(&s);
+    crom_mesh_free(&m);
+    return err;
+}
+
+static void test_cantilever(void)
+{
+    double e1 = cantilever_error(0.05), e2 = cantilever_error(0.033), e3 = cantilever_error(0.025);
+    CHECK_LT(e2, e1);
+    CHECK_LT(e3, e2);
+    CHECK_LT(e3, 0.2);
+}
+
+/* ----------------------------------------- prescribed regions, contact */
+
+static void test_prescribed_and_contact(void)
+{
+    crom_mesh m;
+    make_mesh(CROM_SHAPE_BOX, 0.15, NULL, &m);
+    CHECK(crom_mesh_region_spec(&m, "top=y>0.45") == 0);
+    CHECK(crom_mesh_region_spec(&m, "bottom=y<-0.45") == 0);
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    sc.gravity[1] = 0;
+    sc.dt = 0.01;
+    CHECK(crom_scenario_option(&sc, 0x1000 + 8, "top=0,-2,0@0:0.05") == 0); /* --velocity */
+    strcpy(sc.pins[sc.npins++], "bottom");
+    crom_sim s;
+    CHECK(crom_sim_init(&s, &m, &sc) == 0);
+    crom_step_stats st;
+    for (int k = 0; k < 8; k++)
+        CHECK(crom_sim_step(&s, &st) == 0);
+    const crom_region *top = crom_mesh_region(&m, "top"), *bot = crom_mesh_region(&m, "bottom");
+    double etop = 0, ebot = 0;
+    for (int k = 0; k < top->n; k++) /* moved 2 m/s for 0.05 s, then held: -0.1 m */
+        etop = fmax(etop, fabs(s.x[3 * top->idx[k] + 1] - m.X[3 * top->idx[k] + 1] + 0.1));
+    for (int k = 0; k < bot->n; k++)
+        for (int c = 0; c < 3; c++)
+            ebot = fmax(ebot, fabs(s.x[3 * bot->idx[k] + c] - m.X[3 * bot->idx[k] + c]));
+    CHECK_LT(etop, 1e-14);
+    CHECK(ebot == 0);
+    crom_sim_free(&s);
+
+    /* a block resting on a floor under gravity settles at depth g/k */
+    crom_scenario_defaults(&sc);
+    sc.dt = 0.01;
+    sc.damping = 20;
+    sc.nplanes = 1;
+    sc.plane[0] = (crom_plane){{0, 1, 0}, -0.5, 0.5};
+    CHECK(crom_sim_init(&s, &m, &sc) == 0);
+    for (int k = 0; k < 60; k++)
+        CHECK(crom_sim_step(&s, &st) == 0);
+    double depth = 0, n = 0, mbottom = 0;
+    for (int i = 0; i < s.nv; i++)
+        if (m.X[3 * i + 1] < -0.499) {
+            depth += -0.5 - s.x[3 * i + 1];
+            mbottom += s.fem.mass[i];
+            n++;
+        }
+    depth /= n;
+    /* the bottom layer carries the whole weight: k d Σ m_bottom = M g */
+    double expect = 9.81 * s.fem.total_mass / (sc.contact_stiffness * mbottom);
+    fprintf(stderr, "resting depth %.4e m, expected about %.4e m\n", depth, expect);
+    CHECK(depth > 0.7 * expect && depth < 1.3 * expect);
+    /* at rest: velocities nearly zero */
+    double vmax = 0;
+    for (int i = 0; i < s.n; i++)
+        vmax = fmax(vmax, fabs(s.v[i]));
+    CHECK_LT(vmax, 1e-2);
+    crom_sim_free(&s);
+    crom_mesh_free(&m);
+}
+
+static void test_bad_scenarios(void)
+{
+    crom_mesh m;
+    make_mesh(CROM_SHAPE_BOX, 0.3, NULL, &m);
+    crom_scenario sc;
+    crom_sim s;
+    struct {
+        const char *what;
+        double E, nu, rho;
+    } bad[] = {{"E = 0", 0, 0.25, 1000}, {"E < 0", -1, 0.25, 1000}, {"rho = 0", 1e6, 0.25, 0},
+               {"nu = 0.5", 1e6, 0.5, 1000}, {"nu = -1", 1e6, -1, 1000}, {"NaN E", NAN, 0.25, 1000}};
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        crom_scenario_defaults(&sc);
+        sc.youngs = bad[i].E;
+        sc.poisson = bad[i].nu;
+        sc.density = bad[i].rho;
+        CHECK_MSG(crom_sim_init(&s, &m, &sc) == CROM_EUSAGE, "%s accepted", bad[i].what);
+    }
+    crom_scenario_defaults(&sc);
+    strcpy(sc.pins[sc.npins++], "nosuch");
+    CHECK(crom_sim_init(&s, &m, &sc) == CROM_EUSAGE);
+    CHECK(strstr(crom_errmsg(), "unknown region 'nosuch'") != NULL);
+    crom_scenario_defaults(&sc);
+    strcpy(sc.pins[sc.npins++], "y>7");
+    CHECK(crom_sim_init(&s, &m, &sc) == CROM_EUSAGE);
+    CHECK(strstr(crom_errmsg(), "selects no vertex") != NULL);
+    /* option parsing */
+    crom_scenario_defaults(&sc);
+    CHECK(crom_scenario_option(&sc, 0x1000 + 3, "nan") == CROM_EUSAGE);     /* --dt */
+    CHECK(crom_scenario_option(&sc, 0x1000 + 3, "-0.1") == CROM_EUSAGE);
+    CHECK(crom_scenario_option(&sc, 0x1000 + 6, "0,nan,0") == CROM_EUSAGE); /* --gravity */
+    CHECK(crom_scenario_option(&sc, 0x1000 + 8, "top=1,2") == CROM_EUSAGE); /* --velocity */
+    CHECK(crom_scenario_option(&sc, 0x1000 + 8, "top=1,2,3@0.5:0.1") == CROM_EUSAGE);
+    CHECK(crom_scenario_option(&sc, 0x1000 + 10, "0,0,0,1") == CROM_EUSAGE); /* --plane */
+    /* the canonical text parses back to the same scenario */
+    crom_scenario a, b;
+    crom_scenario_defaults(&a);
+    crom_scenario_option(&a, 0x1000 + 8, "y>0.45=0,-2,0@0:0.1");
+    crom_scenario_option(&a, 0x1000 + 9, "tip=0,0,5@0.2:");
+    crom_scenario_option(&a, 0x1000 + 10, "0,1,1,-0.5,0.3");
+    strcpy(a.pins[a.npins++], "bottom");
+    char *text = crom_scenario_text(&a);
+    crom_scenario_defaults(&b);
+    char *save = NULL, *line = strtok_r(text, "\n", &save);
+    int ok = 1;
+    for (; line; line = strtok_r(NULL, "\n", &save)) {
+        char *sp = strchr(line, ' ');
+        *sp = 0;
+        int key = -1;
+        for (const crom_opt *o = crom_scenario_opts; o->name; o++)
+            if (!strcmp(o->name, line + 2))
+                key = o->key;
+        if (key == 0x1000 + 7)
+            strcpy(b.pins[b.npins++], sp + 1);
+        else
+            ok &= crom_scenario_option(&b, key, sp + 1) == 0;
+    }
+    free(text);
+    CHECK(ok);
+    CHECK(memcmp(&a, &b, sizeof a) == 0);
+    crom_mesh_free(&m);
+}
+
+int main(void)
+{
+    check_begin("test_sim");
+    test_contact_derivatives();
+    test_free_fall();
+    test_momentum_and_energy();
+    test_prescribed_and_contact();
+    test_bad_scenarios();
+    test_cantilever();
+    return check_done();
+}
