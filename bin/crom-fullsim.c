@@ -11,12 +11,13 @@
 #include "scenario.h"
 #include "sim.h"
 
-enum { O_STREAM = 300, O_HDF5 };
+enum { O_STREAM = 300, O_HDF5, O_STATS };
 
 static const crom_opt out_opts[] = {
     {"output", 'o', "OUT", "Write the trajectory to OUT (default: stdout; a frame stream into a pipe, HDF5 when redirected to a file)."},
     {"stream", O_STREAM, NULL, "Write a frame stream even to a file."},
     {"hdf5", O_HDF5, NULL, "Write HDF5 even into a pipe (the next stage then starts when the run ends)."},
+    {"stats", O_STATS, "CSV", "Write one line per step to CSV: Newton and CG iterations, factorizations, residual, and the wall-time split (total, assembly, factorization, solves, line search) in seconds."},
     {NULL, 0, NULL, NULL}};
 
 static const crom_optgroup groups[] = {
@@ -52,7 +53,7 @@ static const crom_doc doc = {
 
 typedef struct {
     crom_scenario sc;
-    const char *input, *out;
+    const char *input, *out, *stats;
     int kind;
 } args;
 
@@ -71,6 +72,7 @@ static int on_opt(void *ctx, int key, const char *v)
     case 'o': a->out = v; return 0;
     case O_STREAM: a->kind = CROM_OUT_SERIES_STREAM; return 0;
     case O_HDF5: a->kind = CROM_OUT_SERIES_H5; return 0;
+    case O_STATS: a->stats = v; return 0;
     }
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
@@ -159,6 +161,9 @@ static int run(crom_cli *cli, args *a)
         rc = CROM_EINTERNAL;
     if (!rc)
         rc = put_frame(&o, &s, &st, u);
+    crom_fileout csv = {0};
+    if (!rc && a->stats && !(rc = crom_fileout_open(&csv, a->stats, 0)))
+        fprintf(csv.f, "step,newton,cg,factorizations,residual,seconds,assembly,factorization,solves,line_search\n");
     crom_progress prog;
     crom_progress_start(&prog, cli, "fullsim", a->sc.steps);
     for (int k = 1; k <= a->sc.steps && !rc; k++) {
@@ -177,6 +182,10 @@ static int run(crom_cli *cli, args *a)
                                "(assembly %.3f, factor %.3f, solve %.3f, line search %.3f)",
                           k, s.t, st.newton, st.cg, st.factorizations, st.residual, st.t_total,
                           st.t_assemble, st.t_factor, st.t_solve, st.t_linesearch);
+        if (csv.f)
+            fprintf(csv.f, "%d,%d,%d,%d,%.3e,%.6f,%.6f,%.6f,%.6f,%.6f\n", k, st.newton, st.cg,
+                    st.factorizations, st.residual, st.t_total, st.t_assemble, st.t_factor, st.t_solve,
+                    st.t_linesearch);
         if (k % a->sc.every == 0)
             rc = put_frame(&o, &s, &st, u);
         char extra[64];
@@ -185,6 +194,12 @@ static int run(crom_cli *cli, args *a)
     }
     crom_progress_end(&prog);
     free(u);
+    if (csv.f) {
+        if (rc)
+            crom_fileout_abort(&csv);
+        else if ((rc = crom_fileout_commit(&csv)))
+            crom_out_fail(&o);
+    }
     if (rc) {
         int kept = crom_out_fail(&o) == 0;
         if (kept)

@@ -14,14 +14,13 @@
 #define CG_SLOW 12
 #define CG_MAX 60
 
-/* Relative accuracy asked of CG (inexact Newton): a Newton step only has
- * to bring the correction near the tolerance, so CG stops at 0.1·tol/res of
- * the right-hand side (res: the last correction), between 1e-4 and 1e-1. */
-static double cg_rtol(double res, double tol)
-{
-    double r = 0.1 * tol / res;
-    return r > 0.1 ? 0.1 : r < 1e-4 ? 1e-4 : r;
-}
+/* Relative accuracy asked of CG (inexact Newton). Measured on the 19K-vertex
+ * compression benchmark, 3% beat both tighter fixed values and
+ * tolerance-aware forcing terms: Newton still converges in about three
+ * iterations, each needing about three CG iterations with the reused factor.
+ * When Newton stops contracting (ill-conditioned, e.g. static, systems) CG is
+ * tightened tenfold each time, down to an exact solve with a fresh factor. */
+#define CG_RTOL 0.03
 
 /* Resolve a list of region references to a CSR list of vertex indices. */
 static int resolve(const crom_mesh *m, int nref, const char *const *refs, int **ptr, int **idx)
@@ -200,21 +199,26 @@ static void external_force(crom_sim *s, double t, double *f)
     }
 }
 
-/* Incremental potential at x (J), without the constant terms; E is the
- * elastic energy at x when already known (NAN: compute it). */
-static int potential(crom_sim *s, const double *x, double E, double *ip)
+/* Incremental potential at x (J), up to a constant: the external work is
+ * taken relative to the start of the step, f·(x − x_n), so that large
+ * f·x terms do not cancel each other in floating point. E is the elastic
+ * energy at x when already known (NAN: compute it). *noise (may be NULL)
+ * gets 64 ulps of the magnitudes summed into it, a floor for what a
+ * difference of two potentials can resolve. */
+static int potential(crom_sim *s, const double *x, double E, double *ip, double *noise)
 {
     const crom_scenario *sc = s->sc;
     double h = sc->dt;
     int rc = isnan(E) ? crom_fem_energy(&s->fem, x, &E) : 0;
     if (rc)
         return rc;
-    double kin = 0, damp = 0, ext = 0, con = 0;
+    double kin = 0, damp = 0, ext = 0, extabs = 0, con = 0;
     for (int i = 0; i < s->n; i++) {
         double a = x[i] - s->xhat[i], b = x[i] - s->xn[i];
         kin += s->m3[i] * a * a;
         damp += s->m3[i] * b * b;
-        ext += s->fext[i] * x[i];
+        ext += s->fext[i] * b;
+        extabs += fabs(s->fext[i] * b);
     }
     for (int p = 0; p < sc->nplanes; p++)
         for (int i = 0; i < s->nv; i++)
@@ -222,6 +226,8 @@ static int potential(crom_sim *s, const double *x, double E, double *ip)
                                      s->xn + 3 * i, s->lam[(size_t)p * s->nv + i],
                                      sc->friction_eps * h, NULL, NULL);
     *ip = kin / (2 * h * h) + sc->damping * damp / (2 * h) + E - ext + con;
+    if (noise)
+        *noise = 64 * DBL_EPSILON * (fabs(*ip) + fabs(E) + extabs + con + kin / (2 * h * h));
     return isfinite(*ip) ? 0 : crom_err(CROM_EDATA, "incremental potential is not finite");
 }
 
@@ -239,14 +245,34 @@ static void add_contact(crom_sim *s, const double *x, double *g, double *H)
             if (crom_contact_depth(&sc->plane[p], x + 3 * i) <= 0 && !(lam > 0 && sc->plane[p].mu > 0))
                 continue;
             crom_contact_eval(&sc->plane[p], sc->contact_stiffness, s->fem.mass[i], x + 3 * i,
-                              s->xn + 3 * i, lam, sc->friction_eps * sc->dt, gi, Hi);
+                              s->xn + 3 * i, lam, sc->friction_eps * sc->dt, gi, H ? Hi : NULL);
             for (int c = 0; c < 3; c++) {
                 g[3 * i + c] += gi[c];
                 /* column 3i+c ends with rows 3i..3i+c (diagonal last) */
-                for (int r = 0; r <= c; r++)
+                for (int r = 0; H && r <= c; r++)
                     H[cp[3 * i + c + 1] - 1 - (c - r)] += Hi[3 * r + c];
             }
         }
+}
+
+/* Gradient of the incremental potential at x into g (fixed DOFs zeroed),
+ * with the elastic energy in *E and, when H is non-NULL, the Hessian (true
+ * or projected per fo, plus M/h² and damping) in H. */
+static int ip_gradient(crom_sim *s, const double *x, const crom_fem_opts *fo, double *E, double *g,
+                       double *H)
+{
+    const crom_scenario *sc = s->sc;
+    double h = sc->dt;
+    int rc = crom_fem_assemble(&s->fem, x, fo, E, g, H);
+    if (rc)
+        return rc;
+    for (int i = 0; i < s->n; i++)
+        g[i] += s->m3[i] * ((x[i] - s->xhat[i]) / (h * h) + sc->damping * (x[i] - s->xn[i]) / h) - s->fext[i];
+    add_contact(s, x, g, H);
+    for (int i = 0; i < s->n; i++)
+        if (s->fixed[i])
+            g[i] = 0;
+    return 0;
 }
 
 int crom_sim_step(crom_sim *s, crom_step_stats *st)
@@ -285,20 +311,14 @@ int crom_sim_step(crom_sim *s, crom_step_stats *st)
      * the step uses per-element SPD-projected Hessians instead. */
     crom_fem_opts fo = {0, 1.0 / (h * h) + sc->damping / h, s->fixed, 0};
     st->residual = INFINITY;
+    double rtol = CG_RTOL, prev_res = INFINITY;
     crom_sym A = {s->n, s->fem.colptr, s->fem.rowind, s->H};
     double ip = 0, E = 0;
     int rc = 0, converged = 0, it = 0;
     while (!rc) {
         double t0 = crom_now();
-        if ((rc = crom_fem_assemble(&s->fem, s->x, &fo, &E, s->g, s->H)))
+        if ((rc = ip_gradient(s, s->x, &fo, &E, s->g, s->H)))
             break;
-        for (size_t i = 0; i < n; i++)
-            s->g[i] += s->m3[i] * ((s->x[i] - s->xhat[i]) / (h * h) + sc->damping * (s->x[i] - s->xn[i]) / h) -
-                       s->fext[i];
-        add_contact(s, s->x, s->g, s->H);
-        for (size_t i = 0; i < n; i++)
-            if (s->fixed[i])
-                s->g[i] = 0;
         st->t_assemble += crom_now() - t0;
         if (it == sc->max_iter)
             break;
@@ -309,7 +329,7 @@ int crom_sim_step(crom_sim *s, crom_step_stats *st)
         t0 = crom_now();
         if (s->have_factor && !s->refactor) {
             memset(s->d, 0, sizeof(double) * n);
-            cg = crom_pcg(&A, s->chol, s->xt, s->d, cg_rtol(st->residual, sc->tol), CG_MAX, s->work);
+            cg = crom_pcg(&A, s->chol, s->xt, s->d, rtol, CG_MAX, s->work);
             if (cg < -1) {
                 rc = -cg;
                 break;
@@ -375,19 +395,41 @@ int crom_sim_step(crom_sim *s, crom_step_stats *st)
             converged = 1;
             break;
         }
+        if (res > 0.5 * prev_res) { /* not contracting: solve more exactly */
+            rtol *= 0.1;
+            if (rtol < 1e-6)
+                s->refactor = 1;
+        }
+        prev_res = res;
         /* Armijo backtracking on the incremental potential; the test allows
          * the potential's own round-off (a few ulps of its terms), without
          * which no step could be accepted near convergence */
         t0 = crom_now();
-        if ((rc = potential(s, s->x, E, &ip)))
+        double noise;
+        if ((rc = potential(s, s->x, E, &ip, &noise)))
             break;
+        /* a predicted decrease this small is below what the potential's
+         * floating-point value resolves (its terms carry ~1e-12 relative
+         * round-off): judge such steps by the directional derivative
+         * φ'(α) = ∇IP(x + αd)·d instead, |φ'(α)| <= ½|φ'(0)| */
+        int tiny = -slope < 1e-8 * noise / (64 * DBL_EPSILON);
+        crom_fem_opts gopt = fo;
         double alpha = 1, ipt = 0;
         for (;;) {
             for (size_t i = 0; i < n; i++)
                 s->xt[i] = s->x[i] + alpha * s->d[i];
-            int prc = potential(s, s->xt, NAN, &ipt);
-            if (prc == 0 && ipt <= ip + 1e-4 * alpha * slope + 64 * DBL_EPSILON * (fabs(ip) + fabs(E)))
+            int prc = potential(s, s->xt, NAN, &ipt, NULL);
+            if (prc == 0 && ipt <= ip + 1e-4 * alpha * slope + noise)
                 break;
+            if (prc == 0 && tiny) {
+                double Et, dphi = 0;
+                if (ip_gradient(s, s->xt, &gopt, &Et, s->work, NULL) == 0) {
+                    for (size_t i = 0; i < n; i++)
+                        dphi += s->work[i] * s->d[i];
+                    if (fabs(dphi) <= 0.5 * fabs(slope))
+                        break;
+                }
+            }
             alpha *= 0.5;
             st->cuts++;
             if (alpha < 1e-12)
