@@ -888,6 +888,15 @@ int crom_fileout_open(crom_fileout *o, const char *path, int binary)
         o->to_stdout = 1;
         return 0;
     }
+    struct stat tst;
+    if (stat(path, &tst) == 0 && !S_ISREG(tst.st_mode)) { /* a device or FIFO: write in place */
+        if (S_ISDIR(tst.st_mode))
+            return crom_err(CROM_ECANTCREAT, "cannot create %s: is a directory", path);
+        if (!(o->f = fopen(path, "wb")))
+            return crom_err(CROM_ECANTCREAT, "cannot open %s: %s", path, strerror(errno));
+        o->in_place = 1;
+        return 0;
+    }
     crom_out tmp;
     memset(&tmp, 0, sizeof tmp);
     int rc = make_tmp(&tmp, path);
@@ -906,6 +915,12 @@ int crom_fileout_open(crom_fileout *o, const char *path, int binary)
 int crom_fileout_commit(crom_fileout *o)
 {
     int rc = 0;
+    if (o->in_place) {
+        if (ferror(o->f) | fclose(o->f))
+            rc = crom_err(CROM_EIO, "write failed: %s", strerror(errno));
+        o->f = NULL;
+        return rc;
+    }
     if (o->to_stdout) {
         if (fflush(stdout))
             rc = crom_err(CROM_EIO, "stdout: write failed: %s", strerror(errno));
@@ -976,6 +991,17 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
     if (o->to_stdout && isatty(1))
         return crom_err(CROM_EUSAGE, "refusing to write binary output to a terminal: "
                                      "use -o FILE or a pipe");
+    /* a named target that exists and is not a regular file (/dev/null, a
+     * FIFO) is written in place like stdout: renaming over it would replace
+     * the device with a file */
+    struct stat tst;
+    if (!o->to_stdout && stat(path, &tst) == 0 && !S_ISREG(tst.st_mode)) {
+        if (S_ISDIR(tst.st_mode))
+            return crom_err(CROM_ECANTCREAT, "cannot create %s: is a directory", path);
+        if (!(o->out = fopen(path, "wb")))
+            return crom_err(CROM_ECANTCREAT, "cannot open %s: %s", path, strerror(errno));
+        o->to_stdout = 1;
+    }
     o->form = CROM_FORM_H5;
     if (kind == CROM_OUT_SERIES_STREAM)
         o->form = CROM_FORM_STREAM;
@@ -1004,7 +1030,7 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
     }
     if (o->form == CROM_FORM_STREAM) {
         if (o->to_stdout)
-            o->fp = stdout;
+            o->fp = o->out ? o->out : stdout;
         else if (!(o->fp = fopen(o->tmp, "wb"))) {
             rc = crom_err(CROM_ECANTCREAT, "cannot create %s: %s", o->name, strerror(errno));
             H5Fclose(o->h5);
@@ -1209,13 +1235,14 @@ static int finish_h5(crom_out *o, int complete)
     if (o->to_stdout) {
         void *img = NULL;
         size_t len = 0;
+        FILE *f = o->out ? o->out : stdout;
         if (!rc)
             rc = get_image(o->h5, &img, &len, o->name);
         H5Fclose(o->h5);
         o->h5 = -1;
         if (!rc)
-            rc = write_all(stdout, img, len, o->name);
-        if (!rc && fflush(stdout))
+            rc = write_all(f, img, len, o->name);
+        if (!rc && fflush(f))
             rc = crom_err(CROM_EIO, "%s: write failed: %s", o->name, strerror(errno));
         free(img);
         return rc;
@@ -1247,7 +1274,7 @@ static int finish_stream(crom_out *o, int complete)
     if (!rc)
         rc = write_all(o->fp, &count, 8, o->name);
     if (o->to_stdout) {
-        if (fflush(stdout) && !rc)
+        if (fflush(o->fp) && !rc)
             rc = crom_err(CROM_EIO, "%s: write failed: %s", o->name, strerror(errno));
         return rc;
     }
@@ -1272,9 +1299,12 @@ static void release(crom_out *o)
     if (o->h5 >= 0)
         H5Fclose(o->h5);
     o->h5 = -1;
-    if (o->fp && o->fp != stdout)
+    if (o->fp && o->fp != stdout && o->fp != o->out)
         fclose(o->fp);
     o->fp = NULL;
+    if (o->out)
+        fclose(o->out);
+    o->out = NULL;
     drop_tmp(o);
     free(o->target);
     o->target = NULL;

@@ -9,7 +9,8 @@
  * Readers accept both forms, from a path or from stdin ("-" or NULL).
  *
  * Outputs: a named output is written to a temporary file beside it and renamed
- * on success; stdout gets an HDF5 image (when stdout is a regular file, or for
+ * on success (a target that is a device or FIFO, such as /dev/null, is
+ * written in place instead); stdout gets an HDF5 image (when stdout is a regular file, or for
  * non-series files) or a stream (series into a pipe). Binary output to a
  * terminal is refused.
  */
@@ -111,6 +112,7 @@ typedef struct {
     /* private */
     char *target, *tmp;
     FILE *fp;             /* stream output */
+    FILE *out;            /* a named device or FIFO written in place */
     int done;
 } crom_out;
 
@@ -155,6 +157,7 @@ typedef struct {
     FILE *f;
     char *target, *tmp;
     int to_stdout;
+    int in_place;        /* target is a device or FIFO: written directly */
 } crom_fileout;
 
 /* Open for writing; binary = 1 refuses a terminal on stdout. */

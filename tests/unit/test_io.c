@@ -230,6 +230,27 @@ static void test_bad_inputs(void)
     CHECK(crom_in_open(&in, p) == CROM_EDATA && strstr(crom_errmsg(), "impossible length"));
 }
 
+/* Named targets that are devices are written in place: renaming a temporary
+ * file over /dev/null would replace the device with a regular file. */
+static void test_device_targets(void)
+{
+    struct stat st;
+    CHECK(stat("/dev/null", &st) == 0 && S_ISCHR(st.st_mode));
+    CHECK(write_series("/dev/null", CROM_OUT_SERIES, 3, -1) == 0);
+    CHECK(write_series("/dev/null", CROM_OUT_SERIES_STREAM, 3, -1) == 0);
+    crom_out o;
+    CHECK(crom_out_create(&o, "/dev/null", CROM_MESH_SCHEMA, 1, NULL, NULL, CROM_OUT_PLAIN) == 0);
+    CHECK(crom_out_commit(&o) == 0);
+    crom_fileout fo;
+    CHECK(crom_fileout_open(&fo, "/dev/null", 1) == 0);
+    fputs("text", fo.f);
+    CHECK(crom_fileout_commit(&fo) == 0);
+    CHECK(stat("/dev/null", &st) == 0 && S_ISCHR(st.st_mode));
+    char p[256];
+    snprintf(p, sizeof p, "%s", dir);
+    CHECK(crom_out_create(&o, p, CROM_MESH_SCHEMA, 1, NULL, NULL, CROM_OUT_PLAIN) == CROM_ECANTCREAT);
+}
+
 static void test_history_reproducible(void)
 {
     setenv("SOURCE_DATE_EPOCH", "0", 1);
@@ -249,6 +270,7 @@ int main(void)
     test_series();
     test_plain();
     test_bad_inputs();
+    test_device_targets();
     test_history_reproducible();
     char cmd[300];
     snprintf(cmd, sizeof cmd, "rm -rf %s", dir);

@@ -1,0 +1,372 @@
+/* test_rom.c — reduced dynamics on a cubature: gradient and Hessian against
+ * finite differences, the Galerkin projection of the full equations
+ * (independent evaluation through the full FEM assembly), cubature schemes,
+ * cubature switches, boundary conditions. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cblas.h>
+#include <lapacke.h>
+
+#include "check.h"
+#include "cubature.h"
+#include "err.h"
+#include "fem.h"
+#include "meshgen.h"
+#include "rom.h"
+
+/* An analytic basis: translations, linear fields and a few quadratic
+ * bending fields, W [nv][3][r]. */
+#define R 15
+static void analytic_basis(const crom_mesh *m, double *W)
+{
+    for (int v = 0; v < m->nv; v++) {
+        const double *X = m->X + 3 * v;
+        double f[3][R] = {{0}};
+        int j = 0;
+        for (int c = 0; c < 3; c++, j++) /* translations */
+            f[c][j] = 1;
+        for (int c = 0; c < 3; c++) /* linear: u_c = X_k */
+            for (int k = 0; k < 3; k++, j++)
+                f[c][j] = X[k];
+        f[1][j++] = X[0] * X[0];         /* bending in y along x */
+        f[2][j++] = X[0] * X[0];         /* bending in z along x */
+        f[0][j] = -X[0] * X[1];          /* a compatible axial correction */
+        f[1][j++] = 0.5 * X[0] * X[0];
+        for (int c = 0; c < 3; c++)
+            for (int jj = 0; jj < R; jj++)
+                W[((size_t)v * 3 + c) * R + jj] = f[c][jj];
+    }
+}
+
+static void make(crom_mesh *m, double size, const double dims[3])
+{
+    crom_meshgen_opts o;
+    crom_meshgen_defaults(&o, CROM_SHAPE_BOX);
+    o.size = size;
+    memcpy(o.dims, dims, sizeof o.dims);
+    CHECK(crom_meshgen(&o, m) == 0);
+    CHECK(crom_mesh_region_spec(m, "left=x<-0.49") == 0);
+    CHECK(crom_mesh_region_spec(m, "right=x>0.49") == 0);
+}
+
+static crom_rsim *g_sim;
+static int g_project;
+static double obj(const double *q, void *ctx)
+{
+    (void)ctx;
+    double E;
+    crom_rsim_objective(g_sim, q, &E, NULL, NULL, g_project);
+    return E;
+}
+static void grad(const double *q, void *ctx, double *g)
+{
+    (void)ctx;
+    double E;
+    crom_rsim_objective(g_sim, q, &E, g, NULL, g_project);
+}
+
+static void test_derivatives(void)
+{
+    crom_mesh m;
+    double dims[3] = {1, 0.3, 0.3};
+    make(&m, 0.12, dims);
+    double *W = malloc(sizeof(double) * 3 * R * m.nv);
+    analytic_basis(&m, W);
+    crom_cub c;
+    crom_cub_opts o = {CROM_CUB_RANDOM, 20, 0, 0, NULL, 0, 2.5e6, 0.25};
+    crom_rng rng;
+    crom_rng_seed(&rng, 3);
+    CHECK(crom_cub_build(&c, &m, W, R, "test", &o, &rng) == 0);
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    sc.damping = 3;
+    strcpy(sc.pins[sc.npins++], "left");
+    crom_scenario_option(&sc, 0x1000 + 8, "right=0.5,-1,0@0:0.3"); /* --velocity */
+    crom_scenario_option(&sc, 0x1000 + 9, "y>0.1=0,0,40");          /* --force */
+    crom_scenario_option(&sc, 0x1000 + 10, "0,1,0,-0.16,0.4");       /* --plane */
+    crom_rsim s;
+    double q0[R], qd0[R];
+    crom_rng_seed(&rng, 7);
+    for (int i = 0; i < R; i++) {
+        q0[i] = 0.02 * crom_rng_normal(&rng);
+        qd0[i] = 0.3 * crom_rng_normal(&rng);
+    }
+    CHECK(crom_rsim_init(&s, &c, &sc, CROM_SOLVER_NEWTON, 1e5, q0, qd0) == 0);
+    crom_rsim_begin_step(&s);
+    g_sim = &s;
+    for (g_project = 0; g_project <= 1; g_project++) {
+        double q[R], g[R], H[R * R], gfd[R], Hfd[R * R], E;
+        for (int i = 0; i < R; i++)
+            q[i] = q0[i] + 0.01 * crom_rng_normal(&rng);
+        CHECK(crom_rsim_objective(&s, q, &E, g, H, g_project) == 0);
+        check_fd_gradient(obj, NULL, q, R, 1e-6, gfd);
+        check_fd_jacobian(grad, NULL, q, R, R, 1e-6, Hfd);
+        double eg = check_relerr(g, gfd, R, 1e-8), eh = check_relerr(H, Hfd, R * R, 1e-8);
+        fprintf(stderr, "reduced gradient vs FD %.2e, Hessian vs FD %.2e (project %d)\n", eg, eh, g_project);
+        CHECK_LT(eg, 1e-6);
+        if (!g_project)
+            CHECK_LT(eh, 1e-5);
+        /* symmetric */
+        double asym = 0;
+        for (int i = 0; i < R; i++)
+            for (int j = 0; j < R; j++)
+                asym = fmax(asym, fabs(H[i * R + j] - H[j * R + i]));
+        CHECK_LT(asym, 1e-9 * fabs(H[0]));
+    }
+    crom_rsim_free(&s);
+    crom_cub_free(&c);
+    free(W);
+    crom_mesh_free(&m);
+}
+
+/* Independent Galerkin step: minimize the full incremental potential over
+ * x = X + W q with full assembly: g = Wᵀ∇IP, H = Wᵀ(∇²IP)W, plus the same
+ * pin penalty. */
+static void galerkin_step(const crom_fem *fem, const crom_mesh *m, const double *W, const double *grav,
+                          double h, double kappa, const crom_region *pin, double *q, double *qd)
+{
+    int n = 3 * m->nv;
+    double *x = malloc(sizeof(double) * n), *gf = malloc(sizeof(double) * n), *Hv = malloc(sizeof(double) * fem->nnz);
+    double *HW = malloc(sizeof(double) * n * R), qn[R], qhat[R];
+    for (int i = 0; i < R; i++) {
+        qn[i] = q[i];
+        qhat[i] = q[i] + h * qd[i];
+        q[i] = qhat[i];
+    }
+    for (int it = 0; it < 30; it++) {
+        for (int i = 0; i < n; i++)
+            x[i] = m->X[i];
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, n, R, 1.0, W, R, q, 1, 1.0, x, 1);
+        double E;
+        crom_fem_opts fo = {0, 0, NULL, 1};
+        crom_fem_assemble(fem, x, &fo, &E, gf, Hv);
+        /* full gradient: elastic + M (x - x̂)/h² - m g, with x̂ = X + W q̂ */
+        for (int v = 0; v < m->nv; v++)
+            for (int c = 0; c < 3; c++) {
+                double dq = 0;
+                for (int j = 0; j < R; j++)
+                    dq += W[((size_t)v * 3 + c) * R + j] * (q[j] - qhat[j]);
+                gf[3 * v + c] += fem->mass[v] * (dq / (h * h) - grav[c]);
+            }
+        double g[R] = {0}, H[R * R] = {0};
+        cblas_dgemv(CblasRowMajor, CblasTrans, n, R, 1.0, W, R, gf, 1, 0.0, g, 1);
+        /* H = Wᵀ (K + M/h²) W: K from the CSC upper triangle */
+        memset(HW, 0, sizeof(double) * n * R);
+        for (int j = 0; j < n; j++)
+            for (int k = fem->colptr[j]; k < fem->colptr[j + 1]; k++) {
+                int i = fem->rowind[k];
+                for (int a = 0; a < R; a++) {
+                    HW[i * R + a] += Hv[k] * W[j * R + a];
+                    if (i != j)
+                        HW[j * R + a] += Hv[k] * W[i * R + a];
+                }
+            }
+        for (int i = 0; i < n; i++)
+            for (int a = 0; a < R; a++)
+                HW[i * R + a] += fem->mass[i / 3] / (h * h) * W[i * R + a];
+        cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, R, R, n, 1.0, W, R, HW, R, 0.0, H, R);
+        /* pin penalty κ/2 Σ m ‖W_v q‖² */
+        for (int k = 0; pin && k < pin->n; k++) {
+            int v = pin->idx[k];
+            const double *Wv = W + (size_t)v * 3 * R;
+            double u[3] = {0, 0, 0};
+            cblas_dgemv(CblasRowMajor, CblasNoTrans, 3, R, 1.0, Wv, R, q, 1, 0.0, u, 1);
+            cblas_dgemv(CblasRowMajor, CblasTrans, 3, R, kappa * fem->mass[v], Wv, R, u, 1, 1.0, g, 1);
+            cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, R, R, 3, kappa * fem->mass[v], Wv, R, Wv, R, 1.0, H, R);
+        }
+        double d[R];
+        for (int i = 0; i < R; i++)
+            d[i] = -g[i];
+        LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', R, 1, H, R, d, 1);
+        double dn = 0;
+        for (int i = 0; i < R; i++) {
+            q[i] += d[i];
+            dn = fmax(dn, fabs(d[i]));
+        }
+        if (dn < 1e-14)
+            break;
+    }
+    for (int i = 0; i < R; i++)
+        qd[i] = (q[i] - qn[i]) / h;
+    free(x);
+    free(gf);
+    free(Hv);
+    free(HW);
+}
+
+static void test_galerkin(void)
+{
+    crom_mesh m;
+    double dims[3] = {1, 0.25, 0.25};
+    make(&m, 0.1, dims);
+    double *W = malloc(sizeof(double) * 3 * R * m.nv);
+    analytic_basis(&m, W);
+    crom_cub c;
+    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25};
+    crom_rng rng;
+    crom_rng_seed(&rng, 1);
+    CHECK(crom_cub_build(&c, &m, W, R, "test", &o, &rng) == 0);
+    CHECK(c.k == m.nt);
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    sc.youngs = 5e5;
+    sc.dt = 0.01;
+    sc.tol = 1e-13;
+    strcpy(sc.pins[sc.npins++], "left");
+    double kappa = 1e6;
+    crom_rsim s;
+    CHECK(crom_rsim_init(&s, &c, &sc, CROM_SOLVER_NEWTON, kappa, NULL, NULL) == 0);
+    crom_material mat;
+    crom_material_init(&mat, sc.youngs, sc.poisson, sc.density);
+    crom_fem fem;
+    CHECK(crom_fem_init(&fem, &m, &mat) == 0);
+    double q[R] = {0}, qd[R] = {0}, worst = 0, qmax = 0;
+    const crom_region *pin = crom_mesh_region(&m, "left");
+    for (int k = 0; k < 12; k++) {
+        crom_rstep_stats st;
+        int rc = crom_rsim_step(&s, &st);
+        CHECK_MSG(rc == 0, "reduced step %d: %s", k, crom_errmsg());
+        galerkin_step(&fem, &m, W, sc.gravity, sc.dt, kappa, pin, q, qd);
+        for (int i = 0; i < R; i++) {
+            worst = fmax(worst, fabs(s.q[i] - q[i]));
+            qmax = fmax(qmax, fabs(q[i]));
+        }
+    }
+    fprintf(stderr, "Galerkin: largest |q_reduced - q_galerkin| %.2e over 12 steps (|q| up to %.3g)\n", worst, qmax);
+    CHECK(qmax > 1e-3); /* it moved */
+    CHECK_LT(worst, 1e-9 * qmax);
+    /* the exact reduced mass equals Wᵀ M W of the full lumped mass */
+    double dm = 0, mm = 0;
+    for (int i = 0; i < R; i++)
+        for (int j = 0; j < R; j++) {
+            double Mij = 0;
+            for (int v = 0; v < m.nv; v++)
+                for (int cc = 0; cc < 3; cc++)
+                    Mij += fem.mass[v] * W[((size_t)v * 3 + cc) * R + i] * W[((size_t)v * 3 + cc) * R + j];
+            dm = fmax(dm, fabs(Mij - s.Mr[i * R + j]));
+            mm = fmax(mm, fabs(Mij));
+        }
+    CHECK_LT(dm, 1e-12 * mm);
+    crom_fem_free(&fem);
+    crom_rsim_free(&s);
+    crom_cub_free(&c);
+    free(W);
+    crom_mesh_free(&m);
+}
+
+static void test_schemes_and_switch(void)
+{
+    crom_mesh m;
+    double dims[3] = {1, 0.3, 0.3};
+    make(&m, 0.08, dims);
+    double *W = malloc(sizeof(double) * 3 * R * m.nv);
+    analytic_basis(&m, W);
+    crom_rng rng;
+    crom_rng_seed(&rng, 5);
+    crom_material mat;
+    crom_material_init(&mat, 2.5e6, 0.25, 1000);
+    /* training poses: random small deformations */
+    double poses[8 * R];
+    for (int i = 0; i < 8 * R; i++)
+        poses[i] = (i % R < 3 ? 0 : 0.02) * crom_rng_normal(&rng);
+    crom_cub all, rnd, met, opt;
+    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25};
+    CHECK(crom_cub_build(&all, &m, W, R, "id", &o, &rng) == 0);
+    o.scheme = CROM_CUB_RANDOM;
+    o.count = 60;
+    CHECK(crom_cub_build(&rnd, &m, W, R, "id", &o, &rng) == 0);
+    o.scheme = CROM_CUB_METIS;
+    o.count = 40;
+    CHECK(crom_cub_build(&met, &m, W, R, "id", &o, &rng) == 0);
+    CHECK(met.k == 40);
+    o.scheme = CROM_CUB_OPTIMIZED;
+    o.count = 60;
+    o.tol = 1e-3;
+    o.poses = poses;
+    o.npose = 8;
+    CHECK(crom_cub_build(&opt, &m, W, R, "id", &o, &rng) == 0);
+    /* weighted volumes integrate the mesh volume (random, metis exactly) */
+    double vr = 0, vm = 0;
+    for (int k = 0; k < rnd.k; k++)
+        vr += rnd.weight[k] * rnd.vol[k];
+    for (int k = 0; k < met.k; k++)
+        vm += met.weight[k] * met.vol[k];
+    CHECK_NEAR(vr, all.mesh_volume, 1e-12);
+    CHECK_NEAR(vm, all.mesh_volume, 1e-12);
+    double eE[4], eF[4];
+    const crom_cub *cs[4] = {&all, &rnd, &met, &opt};
+    for (int i = 0; i < 4; i++)
+        CHECK(crom_cub_error(cs[i], &mat, poses, 8, &eE[i], &eF[i]) == 0);
+    fprintf(stderr, "cubature errors (energy, force): all %.1e %.1e, random(%d tets) %.3f %.3f, metis(%d) %.3f %.3f, optimized(%d) %.4f %.4f\n",
+            eE[0], eF[0], rnd.k, eE[1], eF[1], met.k, eE[2], eF[2], opt.k, eE[3], eF[3]);
+    CHECK_LT(eE[0], 1e-12);
+    CHECK_LT(eF[0], 1e-12);
+    CHECK_LT(eF[3], 0.01);   /* the optimized fit reproduces its training forces */
+    CHECK(opt.k <= 60);
+    CHECK_LT(eF[3], eF[1]);  /* and beats random with fewer tets */
+    /* switching cubature mid-run keeps q and q̇ and the energy finite */
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    strcpy(sc.pins[sc.npins++], "left");
+    crom_rsim s;
+    CHECK(crom_rsim_init(&s, &met, &sc, CROM_SOLVER_NEWTON, 0, NULL, NULL) == 0);
+    crom_rstep_stats st;
+    for (int k = 0; k < 5; k++)
+        CHECK(crom_rsim_step(&s, &st) == 0);
+    double qb[R], qdb[R];
+    memcpy(qb, s.q, sizeof qb);
+    memcpy(qdb, s.qd, sizeof qdb);
+    CHECK(crom_rsim_set_cubature(&s, &opt) == 0);
+    CHECK(memcmp(qb, s.q, sizeof qb) == 0 && memcmp(qdb, s.qd, sizeof qdb) == 0);
+    double K, E, X;
+    CHECK(crom_rsim_energies(&s, &K, &E, &X) == 0);
+    CHECK(isfinite(K) && isfinite(E) && isfinite(X));
+    for (int k = 0; k < 5; k++)
+        CHECK(crom_rsim_step(&s, &st) == 0);
+    /* pinned vertices stay pinned (penalty): the constraint residual is tiny */
+    fprintf(stderr, "constraint residual after 10 steps %.2e m\n", st.constraint_residual);
+    CHECK_LT(st.constraint_residual, 1e-4);
+    /* gd (LiCROM §5) converges to newton's step where it can: a soft body,
+     * where inertia keeps G = WᵀW a good preconditioner. (On stiff bodies
+     * it converges slowly; the paper stops it after a fixed count.) */
+    crom_rsim g;
+    sc.youngs = 2e3;
+    sc.max_iter = 2000;
+    sc.tol = 1e-10;
+    CHECK(crom_rsim_init(&g, &met, &sc, CROM_SOLVER_GD, 0, NULL, NULL) == 0);
+    crom_rsim nw;
+    CHECK(crom_rsim_init(&nw, &met, &sc, CROM_SOLVER_NEWTON, 0, NULL, NULL) == 0);
+    for (int k = 0; k < 3; k++) {
+        CHECK(crom_rsim_step(&g, &st) == 0);
+        CHECK(crom_rsim_step(&nw, &st) == 0);
+    }
+    double dq = 0, qn = 0;
+    for (int i = 0; i < R; i++) {
+        dq += (g.q[i] - nw.q[i]) * (g.q[i] - nw.q[i]);
+        qn += nw.q[i] * nw.q[i];
+    }
+    fprintf(stderr, "gd vs newton after 3 steps: relative difference %.2e\n", sqrt(dq / qn));
+    CHECK_LT(sqrt(dq / qn), 0.05);
+    crom_rsim_free(&g);
+    crom_rsim_free(&nw);
+    /* a cubature of another model is refused */
+    snprintf(met.model_id, sizeof met.model_id, "other");
+    CHECK(crom_rsim_set_cubature(&s, &met) == CROM_EDATA);
+    crom_rsim_free(&s);
+    for (int i = 0; i < 4; i++)
+        crom_cub_free((crom_cub *)cs[i]);
+    free(W);
+    crom_mesh_free(&m);
+}
+
+int main(void)
+{
+    check_begin("test_rom");
+    test_derivatives();
+    test_galerkin();
+    test_schemes_and_switch();
+    return check_done();
+}
