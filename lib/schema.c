@@ -77,6 +77,13 @@ static const crom_schema_attr model_attrs[] = {
     {"activation", "str", 0, "elu or sine (mlp bases)"},
     {"reconstruction_error", "f64", 0, "relative error ||Wq - u|| / ||u|| over the training frames"},
     {"training_seconds", "f64", 0, "wall time of training"},
+    {"scenario", "str", 0, "material and pinned regions as flags, one per line (modes)"},
+    {"youngs", "f64", 0, "Young's modulus E (Pa) of the modes"},
+    {"poisson", "f64", 0, "Poisson ratio of the modes"},
+    {"density", "f64", 0, "density (kg/m^3) of the modes"},
+    {"mass", "f64", 0, "mass m of the body (kg): W / sqrt(m) is M-orthonormal (modes)"},
+    {"rigid_modes", "i64", 0, "rigid-body (zero-frequency) modes detected (modes)"},
+    {"rigid_kept", "i64", 0, "1 if they lead the basis, 0 if dropped (modes)"},
     {NULL, NULL, 0, NULL}};
 
 static const crom_schema_dset model_dsets[] = {
@@ -91,6 +98,8 @@ static const crom_schema_dset model_dsets[] = {
     {"encoder/point_widths", "i32", "?", 0, "1", "PointNet per-point MLP widths (6 -> ...)"},
     {"encoder/head_widths", "i32", "?", 0, "1", "PointNet head MLP widths (... -> r)"},
     {"encoder/params", "f32", "?", 0, "1", "all PointNet parameters"},
+    {"encoder/input_shift", "f64", "6", 0, "m", "PointNet input normalization of (X, u): (p - shift) / scale"},
+    {"encoder/input_scale", "f64", "6", 0, "m", "PointNet input normalization scale"},
     {"training/loss", "f64", "E", 0, "m^2", "training loss per epoch"},
     {"training/seconds", "f64", "E", 0, "s", "wall time at the end of each epoch"},
     {NULL, NULL, NULL, 0, NULL, NULL}};

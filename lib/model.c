@@ -1,0 +1,539 @@
+/* model.c — crom/model read, write, evaluation and identity (see model.h). */
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "err.h"
+#include "model.h"
+
+void crom_model_clear(crom_model *m)
+{
+    memset(m, 0, sizeof *m);
+    m->reconstruction_error = NAN;
+    m->training_seconds = NAN;
+}
+
+void crom_model_free(crom_model *m)
+{
+    if (!m)
+        return;
+    crom_nn_mlp_free(&m->mlp);
+    crom_locate_free(&m->loc);
+    crom_mesh_free(&m->mesh);
+    free(m->basis_v);
+    free(m->frequencies);
+    crom_nn_pointnet_free(&m->enc);
+    free(m->loss);
+    free(m->seconds);
+    crom_model_clear(m);
+}
+
+const char *crom_model_encoder_name(int enc)
+{
+    return enc == CROM_ENC_POINTNET ? "pointnet" : enc == CROM_ENC_LSQ ? "lsq" : "none";
+}
+
+/* ------------------------------------------------------------------ id */
+
+typedef struct {
+    uint64_t h;
+} fnv;
+
+static void fnv_bytes(fnv *s, const void *p, size_t n)
+{
+    const unsigned char *b = p;
+    uint64_t h = s->h;
+    for (size_t i = 0; i < n; i++) {
+        h ^= b[i];
+        h *= 0x100000001b3ULL;
+    }
+    s->h = h;
+}
+
+static void fnv_i64(fnv *s, long long v)
+{
+    int64_t x = v;
+    fnv_bytes(s, &x, 8);
+}
+
+const char *crom_model_id(const crom_model *m, char id[17])
+{
+    fnv s = {0xcbf29ce484222325ULL};
+    fnv_bytes(&s, m->basis, strlen(m->basis) + 1);
+    fnv_i64(&s, m->rank);
+    if (m->field == CROM_FIELD_MLP) {
+        const crom_nn_spec *sp = &m->mlp.spec;
+        for (int l = 0; l <= sp->nlayers; l++) {
+            int32_t w = sp->width[l];
+            fnv_bytes(&s, &w, 4);
+        }
+        const char *act = crom_nn_act_name(sp->act);
+        fnv_bytes(&s, act, strlen(act) + 1);
+        for (int i = 0; i < 3; i++) {
+            double v = m->mlp.shift[i];
+            fnv_bytes(&s, &v, 8);
+        }
+        for (int i = 0; i < 3; i++) {
+            double v = m->mlp.scale[i];
+            fnv_bytes(&s, &v, 8);
+        }
+        fnv_bytes(&s, m->mlp.params, sizeof(float) * m->mlp.nparams);
+    } else if (m->field == CROM_FIELD_MESH) {
+        fnv_i64(&s, m->mesh.nv);
+        fnv_i64(&s, m->mesh.nt);
+        fnv_bytes(&s, m->mesh.X, sizeof(double) * 3 * (size_t)m->mesh.nv);
+        fnv_bytes(&s, m->mesh.tets, sizeof(int) * 4 * (size_t)m->mesh.nt);
+        fnv_bytes(&s, m->basis_v, sizeof(double) * 3 * (size_t)m->rank * m->mesh.nv);
+    }
+    snprintf(id, 17, "%016llx", (unsigned long long)s.h);
+    return id;
+}
+
+/* --------------------------------------------------------- construction */
+
+static int copy_pointnet(crom_nn_pointnet *dst, const crom_nn_pointnet *src)
+{
+    return crom_nn_pointnet_from_params(dst, &src->point.spec, &src->head.spec, src->params,
+                                        src->nparams, src->point.shift, src->point.scale);
+}
+
+int crom_model_from_mlp(crom_model *m, const crom_nn_mlp *W, const crom_nn_pointnet *enc)
+{
+    crom_model_clear(m);
+    int out = W->spec.width[W->spec.nlayers];
+    if (W->spec.width[0] != 3 || out < 3 || out % 3)
+        return crom_err(CROM_EUSAGE, "a field MLP maps 3 inputs to 3r outputs (got %d -> %d)",
+                        W->spec.width[0], out);
+    snprintf(m->basis, sizeof m->basis, "mlp");
+    m->field = CROM_FIELD_MLP;
+    m->rank = out / 3;
+    m->encoder = enc ? CROM_ENC_POINTNET : CROM_ENC_LSQ;
+    int rc = crom_nn_mlp_from_params(&m->mlp, &W->spec, W->params, W->nparams, W->shift, W->scale);
+    if (!rc && enc) {
+        if (enc->head.spec.width[enc->head.spec.nlayers] != m->rank || enc->point.spec.width[0] != 6)
+            rc = crom_err(CROM_EUSAGE, "the encoder must map (X, u) points to %d latents", m->rank);
+        else
+            rc = copy_pointnet(&m->enc, enc);
+    }
+    if (rc)
+        crom_model_free(m);
+    else
+        crom_model_id(m, m->model_id);
+    return rc;
+}
+
+int crom_model_from_mesh(crom_model *m, const char *basis, const crom_mesh *mesh,
+                         const double *basis_v, int rank)
+{
+    crom_model_clear(m);
+    if (rank < 1)
+        return crom_err(CROM_EUSAGE, "rank %d must be positive", rank);
+    snprintf(m->basis, sizeof m->basis, "%s", basis);
+    m->field = CROM_FIELD_MESH;
+    m->rank = rank;
+    m->encoder = CROM_ENC_LSQ;
+    m->mesh.nv = mesh->nv;
+    m->mesh.nt = mesh->nt;
+    size_t nb = (size_t)mesh->nv * 3 * rank;
+    m->mesh.X = crom_malloc(sizeof(double) * 3 * (size_t)mesh->nv);
+    m->mesh.tets = crom_malloc(sizeof(int) * 4 * (size_t)mesh->nt);
+    m->basis_v = crom_malloc(sizeof(double) * nb);
+    if (!m->mesh.X || !m->mesh.tets || !m->basis_v) {
+        crom_model_free(m);
+        return CROM_EINTERNAL;
+    }
+    memcpy(m->mesh.X, mesh->X, sizeof(double) * 3 * (size_t)mesh->nv);
+    memcpy(m->mesh.tets, mesh->tets, sizeof(int) * 4 * (size_t)mesh->nt);
+    memcpy(m->basis_v, basis_v, sizeof(double) * nb);
+    int rc = crom_locate_init(&m->loc, &m->mesh);
+    if (rc)
+        crom_model_free(m);
+    else
+        crom_model_id(m, m->model_id);
+    return rc;
+}
+
+/* ----------------------------------------------------------------- write */
+
+static int write_widths(hid_t loc, const char *name, const crom_nn_spec *s, const char *desc)
+{
+    int w[CROM_NN_MAX_LAYERS + 1];
+    for (int l = 0; l <= s->nlayers; l++)
+        w[l] = s->width[l];
+    hsize_t d = (hsize_t)s->nlayers + 1;
+    return crom_h5_write_i32(loc, name, 1, &d, w, "1", desc);
+}
+
+int crom_model_write(hid_t loc, crom_model *m)
+{
+    crom_model_id(m, m->model_id);
+    int rc = crom_h5_set_str(loc, ".", "basis", m->basis);
+    if (!rc)
+        rc = crom_h5_set_i64(loc, ".", "rank", m->rank);
+    if (!rc)
+        rc = crom_h5_set_str(loc, ".", "encoder", crom_model_encoder_name(m->encoder));
+    if (!rc)
+        rc = crom_h5_set_str(loc, ".", "model_id", m->model_id);
+    if (!rc && isfinite(m->reconstruction_error))
+        rc = crom_h5_set_f64(loc, ".", "reconstruction_error", &m->reconstruction_error, 1);
+    if (!rc && isfinite(m->training_seconds))
+        rc = crom_h5_set_f64(loc, ".", "training_seconds", &m->training_seconds, 1);
+    if (rc)
+        return rc;
+    if (m->field == CROM_FIELD_MLP) {
+        const crom_nn_mlp *W = &m->mlp;
+        double sh[3], sc[3];
+        for (int i = 0; i < 3; i++) {
+            sh[i] = W->shift[i];
+            sc[i] = W->scale[i];
+        }
+        hsize_t np = W->nparams, d3 = 3;
+        rc = crom_h5_set_str(loc, ".", "activation", crom_nn_act_name(W->spec.act));
+        if (!rc)
+            rc = write_widths(loc, "field/widths", &W->spec,
+                              "layer widths of the MLP W: R^3 -> R^(3r), input first");
+        if (!rc)
+            rc = crom_h5_write_f32(loc, "field/params", 1, &np, W->params, "1",
+                                   "all MLP weights and biases, layer by layer (W row-major [out][in], then b)");
+        if (!rc)
+            rc = crom_h5_write_f64(loc, "field/input_shift", 1, &d3, sh, "m",
+                                   "input normalization: X_hat = (X - shift) / scale");
+        if (!rc)
+            rc = crom_h5_write_f64(loc, "field/input_scale", 1, &d3, sc, "m",
+                                   "input normalization scale");
+    } else {
+        hsize_t dv[2] = {(hsize_t)m->mesh.nv, 3}, dt[2] = {(hsize_t)m->mesh.nt, 4};
+        hsize_t db[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)m->rank}, dr = (hsize_t)m->rank;
+        rc = crom_h5_write_f64(loc, "field/mesh/vertices", 2, dv, m->mesh.X, "m",
+                               "mesh of a piecewise-linear basis");
+        if (!rc)
+            rc = crom_h5_write_i32(loc, "field/mesh/tets", 2, dt, m->mesh.tets, "1",
+                                   "tetrahedra of that mesh");
+        if (!rc)
+            rc = crom_h5_write_f64(loc, "field/basis", 3, db, m->basis_v, "1",
+                                   "basis vectors at the mesh vertices, [nv][3][r]");
+        if (!rc && m->frequencies)
+            rc = crom_h5_write_f64(loc, "frequencies", 1, &dr, m->frequencies, "Hz",
+                                   "natural frequencies of linear modes");
+    }
+    if (!rc && m->encoder == CROM_ENC_POINTNET) {
+        const crom_nn_pointnet *P = &m->enc;
+        double sh[6], sc[6];
+        for (int i = 0; i < 6; i++) {
+            sh[i] = P->point.shift[i];
+            sc[i] = P->point.scale[i];
+        }
+        hsize_t np = P->nparams, d6 = 6;
+        rc = write_widths(loc, "encoder/point_widths", &P->point.spec,
+                          "PointNet per-point MLP widths (6 -> ...)");
+        if (!rc)
+            rc = write_widths(loc, "encoder/head_widths", &P->head.spec,
+                              "PointNet head MLP widths (... -> r)");
+        if (!rc)
+            rc = crom_h5_write_f32(loc, "encoder/params", 1, &np, P->params, "1",
+                                   "all PointNet parameters: per-point MLP, then head");
+        if (!rc)
+            rc = crom_h5_write_f64(loc, "encoder/input_shift", 1, &d6, sh, "m",
+                                   "PointNet input normalization of (X, u): (p - shift) / scale");
+        if (!rc)
+            rc = crom_h5_write_f64(loc, "encoder/input_scale", 1, &d6, sc, "m",
+                                   "PointNet input normalization scale");
+    }
+    if (!rc && m->nepochs > 0) {
+        hsize_t de = (hsize_t)m->nepochs;
+        rc = crom_h5_write_f64(loc, "training/loss", 1, &de, m->loss, "m^2",
+                               "training loss per epoch (mean squared displacement error)");
+        if (!rc)
+            rc = crom_h5_write_f64(loc, "training/seconds", 1, &de, m->seconds, "s",
+                                   "wall time at the end of each epoch");
+    }
+    return rc;
+}
+
+/* ------------------------------------------------------------------ read */
+
+static int read_widths(hid_t h, const char *name, int *w, int *n)
+{
+    hsize_t d;
+    int *v = NULL;
+    int rc = crom_h5_read_i32(h, name, 1, &d, &v);
+    if (rc)
+        return rc;
+    if (d < 2 || d > CROM_NN_MAX_LAYERS + 1) {
+        free(v);
+        return crom_err(CROM_EDATA, "%s has %llu entries (2..%d expected)", name,
+                        (unsigned long long)d, CROM_NN_MAX_LAYERS + 1);
+    }
+    memcpy(w, v, sizeof(int) * d);
+    *n = (int)d;
+    free(v);
+    return 0;
+}
+
+static int read_vec(hid_t h, const char *name, int n, double *out, int required)
+{
+    if (!crom_h5_has(h, name)) {
+        if (required)
+            return crom_err(CROM_EDATA, "missing dataset '%s'", name);
+        return 1;
+    }
+    hsize_t d;
+    double *v = NULL;
+    int rc = crom_h5_read_f64(h, name, 1, &d, &v);
+    if (!rc && d != (hsize_t)n)
+        rc = crom_err(CROM_EDATA, "%s has %llu entries, expected %d", name, (unsigned long long)d, n);
+    if (!rc)
+        memcpy(out, v, sizeof(double) * n);
+    free(v);
+    return rc;
+}
+
+static int all_finite_f(const float *p, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        if (!isfinite(p[i]))
+            return 0;
+    return 1;
+}
+
+static int all_finite_d(const double *p, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        if (!isfinite(p[i]))
+            return 0;
+    return 1;
+}
+
+static int read_mlp(hid_t h, crom_model *m, char *act)
+{
+    int w[CROM_NN_MAX_LAYERS + 1], nw;
+    int rc = read_widths(h, "field/widths", w, &nw);
+    if (rc)
+        return rc;
+    crom_nn_act a;
+    if (crom_nn_act_parse(act, &a) || (a != CROM_NN_ELU && a != CROM_NN_SINE && a != CROM_NN_GELU))
+        return crom_err(CROM_EDATA, "unknown activation '%s' (elu or sine)", act);
+    crom_nn_spec spec;
+    if (crom_nn_spec_set(&spec, nw, w, a))
+        return crom_err(CROM_EDATA, "field/widths: %s", crom_errmsg());
+    if (w[0] != 3 || w[nw - 1] != 3 * m->rank)
+        return crom_err(CROM_EDATA, "field/widths go %d -> %d, expected 3 -> 3r = %d", w[0],
+                        w[nw - 1], 3 * m->rank);
+    hsize_t np;
+    float *params = NULL;
+    double sh[3], sc[3];
+    if ((rc = crom_h5_read_f32(h, "field/params", 1, &np, &params)) ||
+        (rc = read_vec(h, "field/input_shift", 3, sh, 1)) ||
+        (rc = read_vec(h, "field/input_scale", 3, sc, 1))) {
+        free(params);
+        return rc;
+    }
+    if (!all_finite_f(params, np) || !all_finite_d(sh, 3) || !all_finite_d(sc, 3)) {
+        free(params);
+        return crom_err(CROM_EDATA, "the field has non-finite parameters");
+    }
+    float fsh[3], fsc[3];
+    for (int i = 0; i < 3; i++) {
+        fsh[i] = (float)sh[i];
+        fsc[i] = (float)sc[i];
+    }
+    rc = crom_nn_mlp_from_params(&m->mlp, &spec, params, np, fsh, fsc);
+    free(params);
+    return rc ? crom_err_ctx("field") : 0;
+}
+
+static int read_mesh_field(hid_t h, crom_model *m)
+{
+    hid_t g = H5Gopen2(h, "field/mesh", H5P_DEFAULT);
+    if (g < 0)
+        return crom_err(CROM_EDATA, "missing group field/mesh");
+    int rc = crom_mesh_read(g, &m->mesh);
+    H5Gclose(g);
+    if (rc)
+        return crom_err_ctx("field/mesh");
+    hsize_t d[3];
+    if ((rc = crom_h5_read_f64(h, "field/basis", 3, d, &m->basis_v)))
+        return rc;
+    if (d[0] != (hsize_t)m->mesh.nv || d[1] != 3 || d[2] != (hsize_t)m->rank)
+        return crom_err(CROM_EDATA, "field/basis is [%llu, %llu, %llu], expected [%d, 3, %d]",
+                        (unsigned long long)d[0], (unsigned long long)d[1],
+                        (unsigned long long)d[2], m->mesh.nv, m->rank);
+    if (!all_finite_d(m->basis_v, (size_t)m->mesh.nv * 3 * m->rank))
+        return crom_err(CROM_EDATA, "field/basis has non-finite values");
+    if (crom_h5_has(h, "frequencies")) {
+        m->frequencies = crom_malloc(sizeof(double) * (size_t)m->rank);
+        if (!m->frequencies)
+            return CROM_EINTERNAL;
+        if ((rc = read_vec(h, "frequencies", m->rank, m->frequencies, 1)))
+            return rc;
+    }
+    return crom_locate_init(&m->loc, &m->mesh);
+}
+
+static int read_encoder(hid_t h, crom_model *m)
+{
+    int pw[CROM_NN_MAX_LAYERS + 1], hw[CROM_NN_MAX_LAYERS + 1], npw, nhw;
+    int rc = read_widths(h, "encoder/point_widths", pw, &npw);
+    if (!rc)
+        rc = read_widths(h, "encoder/head_widths", hw, &nhw);
+    if (rc)
+        return rc;
+    crom_nn_spec ps, hs;
+    if (crom_nn_pointnet_spec(&ps, &hs, npw, pw, nhw, hw))
+        return crom_err(CROM_EDATA, "encoder: %s", crom_errmsg());
+    if (pw[0] != 6 || hw[nhw - 1] != m->rank)
+        return crom_err(CROM_EDATA, "the encoder maps %d inputs to %d latents, expected 6 -> %d",
+                        pw[0], hw[nhw - 1], m->rank);
+    hsize_t np;
+    float *params = NULL;
+    double sh[6] = {0, 0, 0, 0, 0, 0}, sc[6] = {1, 1, 1, 1, 1, 1};
+    if ((rc = crom_h5_read_f32(h, "encoder/params", 1, &np, &params)))
+        return rc;
+    int r1 = read_vec(h, "encoder/input_shift", 6, sh, 0);
+    int r2 = read_vec(h, "encoder/input_scale", 6, sc, 0);
+    if ((r1 && r1 != 1) || (r2 && r2 != 1)) {
+        free(params);
+        return r1 && r1 != 1 ? r1 : r2;
+    }
+    if (!all_finite_f(params, np) || !all_finite_d(sh, 6) || !all_finite_d(sc, 6)) {
+        free(params);
+        return crom_err(CROM_EDATA, "the encoder has non-finite parameters");
+    }
+    float fsh[6], fsc[6];
+    for (int i = 0; i < 6; i++) {
+        fsh[i] = (float)sh[i];
+        fsc[i] = (float)sc[i];
+    }
+    rc = crom_nn_pointnet_from_params(&m->enc, &ps, &hs, params, np, fsh, fsc);
+    free(params);
+    return rc ? crom_err_ctx("encoder") : 0;
+}
+
+int crom_model_read(crom_in *in, crom_model *m)
+{
+    crom_model_clear(m);
+    int rc = crom_in_expect(in, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION);
+    if (rc)
+        return rc;
+    hid_t h = in->h5;
+    char *basis = NULL, *enc = NULL, *id = NULL, *act = NULL;
+    long long rank = 0;
+    if ((rc = crom_h5_get_str(h, ".", "basis", &basis)) ||
+        (rc = crom_h5_get_i64(h, ".", "rank", &rank)) ||
+        (rc = crom_h5_get_str(h, ".", "encoder", &enc)) ||
+        (rc = crom_h5_get_str(h, ".", "model_id", &id))) {
+        rc = crom_err(CROM_EDATA, "%s: %s", in->name, crom_errmsg());
+        goto out;
+    }
+    snprintf(m->basis, sizeof m->basis, "%s", basis);
+    if (rank < 1 || rank > 100000) {
+        rc = crom_err(CROM_EDATA, "%s: rank %lld is not valid", in->name, rank);
+        goto out;
+    }
+    m->rank = (int)rank;
+    if (!strcmp(enc, "pointnet"))
+        m->encoder = CROM_ENC_POINTNET;
+    else if (!strcmp(enc, "lsq"))
+        m->encoder = CROM_ENC_LSQ;
+    else if (!strcmp(enc, "none"))
+        m->encoder = CROM_ENC_NONE;
+    else {
+        rc = crom_err(CROM_EDATA, "%s: unknown encoder '%s' (pointnet, lsq or none)", in->name, enc);
+        goto out;
+    }
+    /* representation: by kind, or by the datasets present for later kinds */
+    if (!strcmp(basis, "mlp") || (strcmp(basis, "pod") && strcmp(basis, "modes") &&
+                                  crom_h5_has(h, "field/params")))
+        m->field = CROM_FIELD_MLP;
+    else if (!strcmp(basis, "pod") || !strcmp(basis, "modes") || crom_h5_has(h, "field/basis"))
+        m->field = CROM_FIELD_MESH;
+    else {
+        rc = crom_err(CROM_EDATA, "%s: basis '%s' has neither field/params nor field/basis",
+                      in->name, basis);
+        goto out;
+    }
+    if (m->field == CROM_FIELD_MLP) {
+        if (crom_h5_has_attr(h, ".", "activation"))
+            crom_h5_get_str(h, ".", "activation", &act);
+        rc = read_mlp(h, m, act ? act : "elu");
+    } else {
+        rc = read_mesh_field(h, m);
+    }
+    if (!rc && m->encoder == CROM_ENC_POINTNET)
+        rc = read_encoder(h, m);
+    if (rc) {
+        rc = crom_err(CROM_EDATA, "%s: %s", in->name, crom_errmsg());
+        goto out;
+    }
+    if (crom_h5_has_attr(h, ".", "reconstruction_error"))
+        crom_h5_get_f64(h, ".", "reconstruction_error", &m->reconstruction_error, 1);
+    if (crom_h5_has_attr(h, ".", "training_seconds"))
+        crom_h5_get_f64(h, ".", "training_seconds", &m->training_seconds, 1);
+    crom_err_clear();
+    crom_model_id(m, m->model_id);
+    if (strcmp(id, m->model_id)) {
+        rc = crom_err(CROM_EDATA, "%s: model_id %s does not match the basis parameters (digest %s): "
+                      "the file was changed or is corrupt", in->name, id, m->model_id);
+        goto out;
+    }
+out:
+    free(basis);
+    free(enc);
+    free(id);
+    free(act);
+    if (rc)
+        crom_model_free(m);
+    return rc;
+}
+
+int crom_model_load(const char *path, crom_model *m)
+{
+    crom_in in;
+    crom_model_clear(m);
+    int rc = crom_in_open(&in, path);
+    if (rc)
+        return rc;
+    rc = crom_model_read(&in, m);
+    crom_in_close(&in);
+    return rc;
+}
+
+/* ------------------------------------------------------------ evaluation */
+
+int crom_model_eval(const crom_model *m, size_t n, const double *X, double *W,
+                    size_t *noutside)
+{
+    if (noutside)
+        *noutside = 0;
+    if (n == 0)
+        return 0;
+    if (m->field == CROM_FIELD_MESH) {
+        crom_locate_interp(&m->loc, n, X, 3 * m->rank, m->basis_v, W, noutside);
+        return 0;
+    }
+    if (m->field != CROM_FIELD_MLP)
+        return crom_err(CROM_EINTERNAL, "model has no basis");
+    crom_nn_ws ws;
+    int rc = crom_nn_ws_init(&ws, &m->mlp, n < 4096 ? (int)n : 4096, 1);
+    if (rc)
+        return rc;
+    rc = crom_nn_mlp_eval(&m->mlp, &ws, n, X, W, NULL);
+    crom_nn_ws_free(&ws);
+    return rc;
+}
+
+int crom_model_encode_pointnet(const crom_model *m, size_t n, const double *pts, double *q)
+{
+    if (m->encoder != CROM_ENC_POINTNET || !m->enc.params)
+        return crom_err(CROM_EUSAGE, "the model has no PointNet encoder (its encoder is %s)",
+                        crom_model_encoder_name(m->encoder));
+    crom_nn_pointnet_ws ws;
+    int rc = crom_nn_pointnet_ws_init(&ws, &m->enc, 1, n < 4096 ? (int)n : 4096, 1);
+    if (rc)
+        return rc;
+    rc = crom_nn_pointnet_encode(&m->enc, &ws, n, pts, q);
+    crom_nn_pointnet_ws_free(&ws);
+    return rc;
+}

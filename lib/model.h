@@ -1,0 +1,120 @@
+/* model.h — crom/model: a subspace basis W: R^3 -> R^{3 x r} and its encoder
+ * (schemas/model.md).
+ *
+ * The reduced kinematics are u(X) = W(X) q with W dimensionless and q in
+ * metres. An evaluated W at n points is stored [n][3][r] row-major: row c of
+ * the 3 x r matrix holds the c-components of the r basis fields. Two
+ * representations exist, chosen by the datasets (the `basis` attribute names
+ * the kind, and later kinds reuse these representations):
+ *
+ *   CROM_FIELD_MLP  (basis "mlp"): a neural field, an MLP 3 -> ... -> 3r whose
+ *                   3r outputs are W(X) in the [3][r] order above (output
+ *                   c*r + j is component c of field j), with the input
+ *                   normalization X_hat = (X - shift) / scale stored.
+ *   CROM_FIELD_MESH (basis "pod", "modes"): a piecewise-linear field on a
+ *                   stored tet mesh: W at the mesh vertices, [nv][3][r],
+ *                   interpolated barycentrically inside each tet. A point
+ *                   outside the mesh takes the value at the closest point of
+ *                   the nearest tet (lib/locate.h), i.e. W is extended
+ *                   constantly along the normal direction.
+ *
+ * model_id: 16 lowercase hex digits, the 64-bit FNV-1a digest of the basis:
+ * the `basis` string (with its NUL), the rank (int64), then for an MLP the
+ * widths (int32), the activation name (with its NUL), input shift and scale
+ * (float64) and the parameters (float32); for a mesh field nv and nt (int64),
+ * the vertices (float64), the tets (int32) and the basis (float64); all
+ * little-endian, exactly as stored. The encoder and the training record are
+ * not part of it: latent coordinates and cached W depend on W alone.
+ */
+#ifndef CROM_MODEL_H
+#define CROM_MODEL_H
+
+#include <stddef.h>
+
+#include <hdf5.h>
+
+#include "io.h"
+#include "locate.h"
+#include "mesh.h"
+#include "nn.h"
+
+#define CROM_MODEL_SCHEMA "crom/model"
+#define CROM_MODEL_VERSION 1
+
+enum { CROM_FIELD_MLP = 1, CROM_FIELD_MESH = 2 };
+enum { CROM_ENC_NONE = 0, CROM_ENC_LSQ = 1, CROM_ENC_POINTNET = 2 };
+
+typedef struct {
+    char basis[16];      /* the `basis` attribute: mlp, pod, modes, ... */
+    int field;           /* CROM_FIELD_MLP or CROM_FIELD_MESH */
+    int rank;            /* r */
+    int encoder;         /* CROM_ENC_* */
+    char model_id[17];   /* filled by read, write and crom_model_id */
+    /* CROM_FIELD_MLP */
+    crom_nn_mlp mlp;     /* 3 -> ... -> 3r, owns its parameters */
+    /* CROM_FIELD_MESH */
+    crom_mesh mesh;      /* vertices and tets */
+    double *basis_v;     /* [nv][3][r] W at the vertices */
+    crom_locator loc;    /* point location on mesh */
+    double *frequencies; /* [r] natural frequencies (modes), or NULL */
+    /* encoder (CROM_ENC_POINTNET): maps points (X, u) [n][6] to q in metres */
+    crom_nn_pointnet enc;
+    /* training record (NULL / NAN when absent) */
+    int nepochs;
+    double *loss;        /* [nepochs] training loss (m^2) */
+    double *seconds;     /* [nepochs] cumulative wall time (s) */
+    double reconstruction_error; /* relative, over the training frames */
+    double training_seconds;
+} crom_model;
+
+/* An empty model (safe to free), with NAN training figures. */
+void crom_model_clear(crom_model *m);
+
+/* Make an MLP model from a trained field (copied: widths 3 -> ... -> 3r) and
+ * an optional PointNet encoder (copied; NULL: encoder "lsq"). CROM_EUSAGE if
+ * the output width is not a positive multiple of 3 or the encoder does not
+ * output r values; CROM_EINTERNAL when out of memory. */
+int crom_model_from_mlp(crom_model *m, const crom_nn_mlp *W, const crom_nn_pointnet *enc);
+
+/* Make a mesh-field model of kind `basis` ("pod", "modes") from a mesh
+ * (copied, regions dropped) and W at its vertices, basis [nv][3][r]
+ * (copied). Builds the point locator. Errors as crom_locate_init. */
+int crom_model_from_mesh(crom_model *m, const char *basis, const crom_mesh *mesh,
+                         const double *basis_v, int rank);
+
+/* Read a crom/model input (schema and version are checked here) and validate
+ * it: shapes, finite parameters, a model_id that matches the parameters.
+ * Returns 0, or CROM_EDATA with a message naming the input. */
+int crom_model_read(crom_in *in, crom_model *m);
+
+/* Open path ("-" for stdin) and read the model in it. Returns as
+ * crom_in_open and crom_model_read. */
+int crom_model_load(const char *path, crom_model *m);
+
+/* Write the model under loc (the root of a crom/model output): attributes
+ * basis, rank, encoder, model_id, activation (mlp), reconstruction_error and
+ * training_seconds (when known), and the datasets of its kind. Also stores
+ * the model_id in m (hence not const). Returns 0 or an HDF5 error. */
+int crom_model_write(hid_t loc, crom_model *m);
+
+/* The model_id digest of the basis into id[17] (see above); returns id. */
+const char *crom_model_id(const crom_model *m, char id[17]);
+
+/* W at n points X [n][3] into W [n][3][r] (double). An MLP runs in float32
+ * inside (crom_nn_mlp_eval); a mesh field interpolates. *noutside (may be
+ * NULL) gets how many points lay outside a mesh field's mesh. Returns 0 or
+ * CROM_EINTERNAL (out of memory). */
+int crom_model_eval(const crom_model *m, size_t n, const double *X, double *W,
+                    size_t *noutside);
+
+/* Encode one frame with the model's PointNet: n points pts [n][6] = (X, u) in
+ * metres into q [r] (metres). CROM_EUSAGE if the model has no PointNet. */
+int crom_model_encode_pointnet(const crom_model *m, size_t n, const double *pts, double *q);
+
+/* Free everything; m becomes empty (crom_model_clear). */
+void crom_model_free(crom_model *m);
+
+/* Name of an encoder code ("none", "lsq", "pointnet"). */
+const char *crom_model_encoder_name(int enc);
+
+#endif

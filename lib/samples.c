@@ -1,0 +1,286 @@
+/* samples.c — crom/samples read and write (see samples.h). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "err.h"
+#include "samples.h"
+
+void crom_samples_free(crom_samples *s)
+{
+    if (!s)
+        return;
+    free(s->X);
+    free(s->U);
+    free(s->vertex);
+    free(s->source);
+    free(s->time);
+    for (int k = 0; k < s->nsources; k++) {
+        if (s->src)
+            crom_mesh_free(&s->src[k]);
+        if (s->src_file)
+            free(s->src_file[k]);
+    }
+    free(s->src);
+    free(s->src_file);
+    free(s->history);
+    memset(s, 0, sizeof *s);
+}
+
+int crom_samples_nonzero_frames(const crom_samples *s)
+{
+    int n = 0;
+    for (int f = 0; f < s->F; f++) {
+        const float *u = s->U + (size_t)f * s->N * 3;
+        for (size_t i = 0; i < (size_t)s->N * 3; i++)
+            if (u[i] != 0) {
+                n++;
+                break;
+            }
+    }
+    return n;
+}
+
+/* Source group name of index k among n: zero-padded, at least 3 digits. */
+static void source_name(int k, int n, char *buf, size_t len)
+{
+    size_t digits = 3;
+    for (int m = n - 1; m >= 1000; m /= 10)
+        digits++;
+    char num[16];
+    int w = snprintf(num, sizeof num, "%d", k);
+    size_t pad = w > 0 && (size_t)w < digits ? digits - (size_t)w : 0, i = 0;
+    for (; i < pad && i + 1 < len; i++)
+        buf[i] = '0';
+    snprintf(buf + i, len - i, "%s", num);
+}
+
+int crom_samples_write(hid_t loc, const crom_samples *s)
+{
+    int rc = crom_h5_set_str(loc, ".", "mode", s->mode);
+    if (!rc)
+        rc = crom_h5_set_i64(loc, ".", "points_per_frame", s->N);
+    if (!rc)
+        rc = crom_h5_set_i64(loc, ".", "seed", s->seed);
+    hsize_t d3[3] = {(hsize_t)s->F, (hsize_t)s->N, 3}, d1 = (hsize_t)s->F;
+    if (!rc)
+        rc = crom_h5_write_f32(loc, "points", 3, d3, s->X, "m", "rest positions X of the samples");
+    if (!rc)
+        rc = crom_h5_write_f32(loc, "displacements", 3, d3, s->U, "m",
+                               "displacement u(X) at the samples");
+    if (!rc)
+        rc = crom_h5_write_i32(loc, "vertex", 2, d3, s->vertex, "1",
+                               "vertex index of each sample in its source mesh, -1 for interior points");
+    if (!rc)
+        rc = crom_h5_write_i32(loc, "frame_source", 1, &d1, s->source, "1",
+                               "which source (index into /sources) each frame comes from");
+    if (!rc)
+        rc = crom_h5_write_f64(loc, "frame_time", 1, &d1, s->time, "s",
+                               "simulated time of each frame");
+    hid_t g = rc ? -1 : crom_h5_group(loc, "sources");
+    if (!rc && g < 0)
+        rc = CROM_EINTERNAL;
+    for (int k = 0; !rc && k < s->nsources; k++) {
+        char name[32];
+        source_name(k, s->nsources, name, sizeof name);
+        hid_t sg = crom_h5_group(g, name);
+        if (sg < 0) {
+            rc = CROM_EINTERNAL;
+            break;
+        }
+        const crom_mesh *m = &s->src[k];
+        hsize_t dv[2] = {(hsize_t)m->nv, 3}, dt[2] = {(hsize_t)m->nt, 4};
+        rc = crom_h5_write_f64(sg, "vertices", 2, dv, m->X, "m",
+                               "rest positions of the source trajectory's mesh");
+        if (!rc)
+            rc = crom_h5_write_i32(sg, "tets", 2, dt, m->tets, "1", "tetrahedra of that mesh");
+        if (!rc)
+            rc = crom_h5_set_str(sg, ".", "file", s->src_file && s->src_file[k] ? s->src_file[k] : "");
+        H5Gclose(sg);
+    }
+    if (g >= 0)
+        H5Gclose(g);
+    return rc;
+}
+
+static herr_t collect_names(hid_t g, const char *name, const H5L_info_t *info, void *data)
+{
+    (void)g;
+    (void)info;
+    char ***list = data;
+    size_t n = 0;
+    while ((*list)[n])
+        n++;
+    char **nl = realloc(*list, sizeof(char *) * (n + 2));
+    if (!nl)
+        return -1;
+    nl[n] = strdup(name);
+    nl[n + 1] = NULL;
+    *list = nl;
+    return nl[n] ? 0 : -1;
+}
+
+/* Read a mesh stored as vertices + tets under group g (no regions needed). */
+static int read_source(hid_t g, const char *name, crom_mesh *m)
+{
+    hid_t sg = H5Gopen2(g, name, H5P_DEFAULT);
+    if (sg < 0)
+        return crom_err(CROM_EDATA, "/sources/%s is not a group", name);
+    int rc = crom_mesh_read(sg, m);
+    H5Gclose(sg);
+    return rc ? crom_err_ctx("/sources/%s", name) : 0;
+}
+
+int crom_samples_read(crom_in *in, crom_samples *s)
+{
+    memset(s, 0, sizeof *s);
+    hid_t h = in->h5;
+    int rc = 0;
+    char *mode = NULL;
+    long long N = 0;
+    if ((rc = crom_h5_get_str(h, ".", "mode", &mode)) ||
+        (rc = crom_h5_get_i64(h, ".", "points_per_frame", &N)) ||
+        (rc = crom_h5_get_i64(h, ".", "seed", &s->seed))) {
+        free(mode);
+        return crom_err(CROM_EDATA, "%s: %s", in->name, crom_errmsg());
+    }
+    snprintf(s->mode, sizeof s->mode, "%s", mode);
+    free(mode);
+    if (strcmp(s->mode, "vertices") && strcmp(s->mode, "interior")) {
+        rc = crom_err(CROM_EDATA, "%s: unknown sample mode '%s' (vertices or interior)", in->name, s->mode);
+        goto fail;
+    }
+    hsize_t d[4], d2[4];
+    if ((rc = crom_h5_read_f32(h, "points", 3, d, &s->X)) ||
+        (rc = crom_h5_read_f32(h, "displacements", 3, d2, &s->U))) {
+        rc = crom_err(CROM_EDATA, "%s: %s", in->name, crom_errmsg());
+        goto fail;
+    }
+    if (d[2] != 3 || d2[0] != d[0] || d2[1] != d[1] || d2[2] != 3 || d[0] > 0x7fffffff ||
+        d[1] > 0x7fffffff) {
+        rc = crom_err(CROM_EDATA, "%s: points and displacements must both be [F, N, 3]", in->name);
+        goto fail;
+    }
+    s->F = (int)d[0];
+    s->N = (int)d[1];
+    if (N != s->N) {
+        rc = crom_err(CROM_EDATA, "%s: points_per_frame is %lld but the datasets hold %d points per frame",
+                      in->name, N, s->N);
+        goto fail;
+    }
+    if ((rc = crom_h5_read_i32(h, "vertex", 2, d2, &s->vertex)) ||
+        (d2[0] != d[0] || d2[1] != d[1])) {
+        rc = crom_err(CROM_EDATA, "%s: %s", in->name, rc ? crom_errmsg() : "vertex must be [F, N]");
+        goto fail;
+    }
+    if ((rc = crom_h5_read_i32(h, "frame_source", 1, d2, &s->source)) || d2[0] != d[0]) {
+        rc = crom_err(CROM_EDATA, "%s: %s", in->name, rc ? crom_errmsg() : "frame_source must be [F]");
+        goto fail;
+    }
+    if ((rc = crom_h5_read_f64(h, "frame_time", 1, d2, &s->time)) || d2[0] != d[0]) {
+        rc = crom_err(CROM_EDATA, "%s: %s", in->name, rc ? crom_errmsg() : "frame_time must be [F]");
+        goto fail;
+    }
+    /* sources */
+    if (!crom_h5_has(h, "sources")) {
+        rc = crom_err(CROM_EDATA, "%s: no /sources group", in->name);
+        goto fail;
+    }
+    hid_t g = H5Gopen2(h, "sources", H5P_DEFAULT);
+    char **names = calloc(1, sizeof(char *));
+    if (g < 0 || !names || H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, NULL, collect_names, &names) < 0) {
+        if (g >= 0)
+            H5Gclose(g);
+        for (int i = 0; names && names[i]; i++)
+            free(names[i]);
+        free(names);
+        rc = crom_err(CROM_EDATA, "%s: cannot list /sources", in->name);
+        goto fail;
+    }
+    int ns = 0;
+    while (names[ns])
+        ns++;
+    s->src = crom_calloc(ns ? (size_t)ns : 1, sizeof(crom_mesh));
+    s->src_file = crom_calloc(ns ? (size_t)ns : 1, sizeof(char *));
+    rc = !s->src || !s->src_file ? CROM_EINTERNAL : 0;
+    for (int k = 0; !rc && k < ns; k++) {
+        char *end;
+        long idx = strtol(names[k], &end, 10);
+        if (*end || idx != k) {
+            rc = crom_err(CROM_EDATA, "%s: source group /sources/%s should be named by its index %d",
+                          in->name, names[k], k);
+            break;
+        }
+        if ((rc = read_source(g, names[k], &s->src[k]))) {
+            rc = crom_err(CROM_EDATA, "%s: %s", in->name, crom_errmsg());
+            break;
+        }
+        s->nsources = k + 1;
+        char path[64];
+        snprintf(path, sizeof path, "sources/%s", names[k]);
+        if (crom_h5_has_attr(h, path, "file"))
+            crom_h5_get_str(h, path, "file", &s->src_file[k]);
+        crom_err_clear();
+    }
+    H5Gclose(g);
+    for (int i = 0; names[i]; i++)
+        free(names[i]);
+    free(names);
+    if (rc)
+        goto fail;
+    /* values */
+    size_t n3 = (size_t)s->F * s->N * 3;
+    for (size_t i = 0; i < n3; i++) {
+        if (!isfinite(s->X[i])) {
+            rc = crom_err(CROM_EDATA, "%s: frame %zu sample %zu has a non-finite position", in->name,
+                          i / 3 / s->N, i / 3 % s->N);
+            goto fail;
+        }
+        if (!isfinite(s->U[i])) {
+            rc = crom_err(CROM_EDATA, "%s: frame %zu sample %zu has a non-finite displacement",
+                          in->name, i / 3 / s->N, i / 3 % s->N);
+            goto fail;
+        }
+    }
+    for (int f = 0; f < s->F; f++) {
+        if (!isfinite(s->time[f])) {
+            rc = crom_err(CROM_EDATA, "%s: frame %d has a non-finite time", in->name, f);
+            goto fail;
+        }
+        int k = s->source[f];
+        if (k < 0 || k >= s->nsources) {
+            rc = crom_err(CROM_EDATA, "%s: frame %d names source %d, but there are %d", in->name, f,
+                          k, s->nsources);
+            goto fail;
+        }
+        const crom_mesh *m = &s->src[k];
+        double lo[3], hi[3], L = 0;
+        crom_mesh_bbox(m, lo, hi);
+        for (int c = 0; c < 3; c++)
+            L = fmax(L, hi[c] - lo[c]);
+        for (int i = 0; i < s->N; i++) {
+            size_t j = (size_t)f * s->N + i;
+            int v = s->vertex[j];
+            if (v < -1 || v >= m->nv) {
+                rc = crom_err(CROM_EDATA, "%s: frame %d sample %d names vertex %d of a %d-vertex mesh",
+                              in->name, f, i, v, m->nv);
+                goto fail;
+            }
+            if (v >= 0)
+                for (int c = 0; c < 3; c++)
+                    if (fabs(s->X[3 * j + c] - m->X[3 * (size_t)v + c]) > 1e-6 * L + 1e-30) {
+                        rc = crom_err(CROM_EDATA,
+                                      "%s: frame %d sample %d is not at the position of its vertex %d",
+                                      in->name, f, i, v);
+                        goto fail;
+                    }
+        }
+    }
+    if (in->history)
+        s->history = crom_strdup(in->history);
+    return 0;
+fail:
+    crom_samples_free(s);
+    return rc;
+}
