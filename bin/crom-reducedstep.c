@@ -13,7 +13,7 @@
 #include "rom.h"
 #include "scenario.h"
 
-enum { O_CUB = 300, O_INIT, O_SCHED, O_SOLVER, O_KAPPA, O_STATS, O_STREAM, O_HDF5, O_INITFRAME };
+enum { O_CUB = 300, O_INIT, O_SCHED, O_SOLVER, O_KAPPA, O_STATS, O_STREAM, O_HDF5, O_INITFRAME, O_BCTHR };
 
 static const crom_opt red_opts[] = {
     {"cubature", O_CUB, "CUB", "The crom/cubature to integrate over (required): its mesh, regions and cached W."},
@@ -22,6 +22,7 @@ static const crom_opt red_opts[] = {
     {"schedule", O_SCHED, "FILE", "Switch cubatures during the run: lines 'STEP CUBATURE' (# comments), steps increasing; before step STEP the cubature changes, q and qdot carry over unchanged (LiCROM §4)."},
     {"solver", O_SOLVER, "NAME", "newton (default: exact reduced Hessian, converged to --tol) or gd (LiCROM §5 descent, --max-iter iterations per step)."},
     {"bc-stiffness", O_KAPPA, "K", "Penalty rate of pinned and prescribed regions in 1/s^2 (default 1e4/dt^2)."},
+    {"bc-threshold", O_BCTHR, "T", "The penalty acts on the latent directions that move the boundary-condition vertices: those carrying at least T times the BC regions' mass fraction of their motion (default 0.1; 0 = every direction). A learned basis is only nearly zero where its training data was pinned; penalizing every direction would freeze the body."},
     {"stats", O_STATS, "CSV", "Write one line per step: iterations, residual, constraint residual, seconds."},
     {"output", 'o', "OUT", "Write the latent trajectory to OUT (default stdout: a frame stream into a pipe)."},
     {"stream", O_STREAM, NULL, "Write a frame stream even to a file."},
@@ -61,7 +62,7 @@ typedef struct {
     const char *cub, *init, *sched, *out, *stats;
     long init_frame;
     int solver, kind;
-    double kappa;
+    double kappa, bc_threshold;
 } args;
 
 static int on_opt(void *ctx, int key, const char *v)
@@ -86,6 +87,10 @@ static int on_opt(void *ctx, int key, const char *v)
             return crom_err(CROM_EUSAGE, "--solver: '%s' is not newton or gd", v);
         return 0;
     case O_KAPPA: return crom_parse_positive(v, "--bc-stiffness", &a->kappa);
+    case O_BCTHR:
+        if (crom_parse_double(v, "--bc-threshold", &a->bc_threshold) || a->bc_threshold < 0)
+            return crom_err(CROM_EUSAGE, "--bc-threshold must be a number >= 0, got %s", v);
+        return 0;
     case O_STATS: a->stats = v; return 0;
     case O_STREAM: a->kind = CROM_OUT_SERIES_STREAM; return 0;
     case O_HDF5: a->kind = CROM_OUT_SERIES_H5; return 0;
@@ -266,6 +271,14 @@ static int run(crom_cli *cli, args *a)
         goto out;
     if ((rc = crom_rsim_init(&s, &sch[0].cub, &a->sc, a->solver, a->kappa, q0, qd0)))
         goto out;
+    if (a->bc_threshold != 0.1) { /* rebuild with the asked threshold */
+        s.bc_threshold = a->bc_threshold;
+        if ((rc = crom_rsim_set_cubature(&s, &sch[0].cub)))
+            goto out;
+    }
+    if (cli->verbose && s.nbc)
+        crom_cli_info(cli, "boundary conditions constrain %d of %d latent directions (penalty rate %.3g 1/s^2)",
+                      s.nconstrained, r, s.kappa);
     if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli, sch[0].history, a->kind)))
         goto out;
     have_out = 1;
@@ -370,6 +383,7 @@ int main(int argc, char **argv)
     crom_scenario_defaults(&a.sc);
     a.kind = CROM_OUT_SERIES;
     a.init_frame = -1;
+    a.bc_threshold = 0.1;
     crom_cli_parse(&cli, &doc, argc, argv, on_opt, &a);
     if (!a.cub)
         return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--cubature CUB is required (see crom-reducedstep --help)"));

@@ -72,6 +72,75 @@ static int region_sums(const crom_cub *c, double rho, const char *ref, crom_rbc 
     return 0;
 }
 
+/* Which latent directions the boundary conditions constrain. With P the
+ * mass-weighted sum of W_vᵀW_v over BC vertices, the generalized eigenpairs
+ * P v = μ M_r v (VᵀM_rV = I) give for each direction the fraction μ of its
+ * motion carried by those vertices. A learned basis is only nearly zero
+ * where its training data was pinned: the directions the data determined
+ * have small μ, while weakly determined ones move the pins freely. A stiff
+ * penalty on all of them would freeze the body, so the penalty acts on the
+ * M-orthogonal projection Πq (Π = V_c V_cᵀ M_r) onto the directions with
+ * μ >= τ = threshold × (BC mass / total mass) only: P_b ← ΠᵀP_bΠ,
+ * S_b ← ΠᵀS_b. threshold 0 constrains every direction (a plain penalty). */
+static int constrain_directions(crom_rsim *s)
+{
+    int r = s->r, rc = 0;
+    size_t rr = (size_t)r * r;
+    double *P = crom_calloc(rr, sizeof(double)), *M = crom_malloc(sizeof(double) * rr);
+    double *mu = crom_malloc(sizeof(double) * (size_t)r), *Pi = crom_calloc(rr, sizeof(double));
+    double *T = crom_malloc(sizeof(double) * rr * 3);
+    if (!P || !M || !mu || !Pi || !T) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    double mbc = 0, mtot = s->sc->density * s->cub->mesh_volume;
+    for (int b = 0; b < s->nbc; b++) {
+        for (size_t i = 0; i < rr; i++)
+            P[i] += s->bc[b].P[i];
+        mbc += s->bc[b].mass;
+    }
+    memcpy(M, s->Mr, sizeof(double) * rr);
+    /* P v = μ M v: eigenvectors overwrite P (columns, M-orthonormal) */
+    if (LAPACKE_dsygv(LAPACK_ROW_MAJOR, 1, 'V', 'U', r, P, r, M, r, mu) != 0) {
+        rc = crom_err(CROM_EDATA, "the reduced mass matrix is not positive definite");
+        goto out;
+    }
+    double tau = s->bc_threshold * mbc / mtot;
+    s->nconstrained = 0;
+    /* Π = V_c V_cᵀ M_r */
+    for (int k = 0; k < r; k++) {
+        if (mu[k] < tau)
+            continue;
+        s->nconstrained++;
+        for (int i = 0; i < r; i++) {
+            double vi = P[i * r + k];
+            for (int j = 0; j < r; j++) {
+                double vMj = 0; /* (vᵀ M)_j */
+                for (int l = 0; l < r; l++)
+                    vMj += P[l * r + k] * s->Mr[l * r + j];
+                Pi[i * r + j] += vi * vMj;
+            }
+        }
+    }
+    for (int b = 0; b < s->nbc; b++) {
+        /* P_b ← Πᵀ P_b Π, S_b ← Πᵀ S_b */
+        cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, r, r, r, 1.0, s->bc[b].P, r, Pi, r, 0.0, T, r);
+        cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, r, r, 1.0, Pi, r, T, r, 0.0, s->bc[b].P, r);
+        cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, 3, r, 1.0, Pi, r, s->bc[b].S, 3, 0.0, T, 3);
+        memcpy(s->bc[b].S, T, sizeof(double) * 3 * (size_t)r);
+        for (int i = 0; i < r; i++) /* keep it exactly symmetric */
+            for (int j = 0; j < i; j++)
+                s->bc[b].P[i * r + j] = s->bc[b].P[j * r + i] = 0.5 * (s->bc[b].P[i * r + j] + s->bc[b].P[j * r + i]);
+    }
+out:
+    free(P);
+    free(M);
+    free(mu);
+    free(Pi);
+    free(T);
+    return rc;
+}
+
 static int build(crom_rsim *s)
 {
     const crom_cub *c = s->cub;
@@ -127,6 +196,8 @@ static int build(crom_rsim *s)
         crom_err_ctx("scenario");
         return CROM_EUSAGE;
     }
+    if (s->nbc && s->bc_threshold > 0 && (rc = constrain_directions(s)))
+        return rc;
     /* the gd preconditioner: G = Σ_e w_e V_e/4 Σ_{a in e} W_aᵀ W_a (LiCROM
      * eq. 10, each cubature point weighted by its share of volume), scaled by
      * ρ/h² to mass units (the cubature's estimate of M_r/h²), plus the boundary-condition penalty's
@@ -170,6 +241,7 @@ int crom_rsim_init(crom_rsim *s, const crom_cub *cub, const crom_scenario *sc, i
     s->cub = cub;
     s->solver = solver;
     s->kappa = kappa > 0 ? kappa : 1e4 / (sc->dt * sc->dt);
+    s->bc_threshold = 0.1;
     s->r = cub->r;
     s->q = crom_calloc((size_t)s->r, sizeof(double));
     s->qd = crom_calloc((size_t)s->r, sizeof(double));

@@ -8,8 +8,8 @@
  *   q̂ = q_n + h q̇_n,
  * with the exact reduced mass M_r = ρ WᵀVW (lumped volumes), the elastic
  * energy by cubature (weights w_e), reduced gravity and forces f_r, pinned and
- * prescribed-velocity regions as a stiff penalty of rate κ (their largest
- * miss is reported), and the same frictional planes as the full simulator at
+ * prescribed-velocity regions as a stiff penalty of rate κ on the latent
+ * directions that move them (their largest miss is reported), and the same frictional planes as the full simulator at
  * every surface vertex. Solvers:
  *   newton  exact reduced gradient and Hessian Σ w_e W_eᵀ H_e W_e (LiCROM §7),
  *           true element Hessians, projected to SPD when the sum is not
@@ -52,6 +52,8 @@ typedef struct {
     crom_material mat;
     int r, solver;
     double kappa;       /* BC penalty rate (1/s²) */
+    double bc_threshold;/* constrained directions: μ >= threshold × BC mass fraction */
+    int nconstrained;   /* how many latent directions the BCs constrain */
     double t;
     long step;
     double *q, *qd;     /* state (m, m/s) */
@@ -65,7 +67,10 @@ typedef struct {
 
 /* Set up on a cubature (borrowed) with a scenario (borrowed); q = q0 and
  * q̇ = qd0 (NULL: rest). Regions resolve against the cubature's mesh: an
- * unknown or empty one is CROM_EUSAGE. kappa <= 0 picks 1e4/h². */
+ * unknown or empty one is CROM_EUSAGE. kappa <= 0 picks 1e4/h². The penalty
+ * acts only on the latent directions that move the BC vertices (see
+ * rom.c, constrain_directions: threshold 0.1 of the BC mass fraction);
+ * set s->bc_threshold and call crom_rsim_set_cubature to change it. */
 int crom_rsim_init(crom_rsim *s, const crom_cub *cub, const crom_scenario *sc, int solver,
                    double kappa, const double *q0, const double *qd0);
 

@@ -1,0 +1,192 @@
+/* result.c — results as displacement frames on a mesh (see result.h). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cblas.h>
+
+#include "err.h"
+#include "model.h"
+#include "result.h"
+
+int crom_mesh_load(const char *path, crom_mesh *m)
+{
+    crom_in in;
+    int rc = crom_in_open(&in, path);
+    if (rc)
+        return rc;
+    const char *group = NULL;
+    if (!strcmp(in.schema, "crom/mesh"))
+        rc = crom_in_expect(&in, "crom/mesh", 1), group = "/";
+    else if (!strcmp(in.schema, "crom/trajectory") || !strcmp(in.schema, "crom/cubature"))
+        rc = crom_in_expect(&in, in.schema, 1), group = "mesh";
+    else
+        rc = crom_err(CROM_EDATA, "%s is %s v%d, expected a crom/mesh (or a file carrying one)", in.name,
+                      in.schema, in.version);
+    if (!rc) {
+        hid_t g = H5Gopen2(in.h5, group, H5P_DEFAULT);
+        rc = g < 0 ? crom_err(CROM_EDATA, "%s has no mesh", in.name) : crom_mesh_read(g, m);
+        if (g >= 0)
+            H5Gclose(g);
+        if (rc && g >= 0)
+            crom_err_ctx("%s", in.name);
+    }
+    crom_in_close(&in);
+    return rc;
+}
+
+int crom_result_open(crom_result *res, const char *path, const char *mesh_path, const char *model_path)
+{
+    crom_in in;
+    int rc = crom_in_open(&in, path);
+    if (rc) {
+        memset(res, 0, sizeof *res);
+        return rc;
+    }
+    return crom_result_adopt(res, &in, mesh_path, model_path);
+}
+
+int crom_result_adopt(crom_result *res, crom_in *opened, const char *mesh_path, const char *model_path)
+{
+    memset(res, 0, sizeof *res);
+    res->in = *opened;
+    memset(opened, 0, sizeof *opened);
+    opened->h5 = -1;
+    int rc = 0;
+    crom_in *in = &res->in;
+    if (!strcmp(in->schema, "crom/latent")) {
+        res->latent = 1;
+        if ((rc = crom_in_expect(in, "crom/latent", 1)))
+            goto fail;
+        if (!model_path || !mesh_path) {
+            rc = crom_err(CROM_EUSAGE, "%s is a crom/latent: decoding it needs --model and --mesh", in->name);
+            goto fail;
+        }
+        char *id = NULL;
+        if ((rc = crom_h5_get_str(in->h5, ".", "model_id", &id))) {
+            crom_err_ctx("%s", in->name);
+            goto fail;
+        }
+        snprintf(res->model_id, sizeof res->model_id, "%s", id);
+        free(id);
+        res->ft = crom_in_field(in, "time");
+        res->fu = crom_in_field(in, "q");
+        if (res->ft < 0 || res->fu < 0) {
+            rc = CROM_EDATA;
+            goto fail;
+        }
+        res->fv = crom_in_field(in, "qdot");
+        crom_err_clear();
+        crom_model model;
+        if ((rc = crom_model_load(model_path, &model)))
+            goto fail;
+        if (strcmp(model.model_id, res->model_id)) {
+            rc = crom_err(CROM_EDATA, "%s holds coordinates of model %s, but --model %s is model %s", in->name,
+                          res->model_id, model_path, model.model_id);
+            crom_model_free(&model);
+            goto fail;
+        }
+        res->r = model.rank;
+        if ((int)in->fields[res->fu].count != res->r) {
+            rc = crom_err(CROM_EDATA, "%s: q has %zu entries, the model's rank is %d", in->name,
+                          in->fields[res->fu].count, res->r);
+            crom_model_free(&model);
+            goto fail;
+        }
+        if ((rc = crom_mesh_load(mesh_path, &res->mesh))) {
+            crom_model_free(&model);
+            goto fail;
+        }
+        res->W = crom_malloc(sizeof(double) * 3 * (size_t)res->r * (size_t)res->mesh.nv);
+        rc = res->W ? crom_model_eval(&model, (size_t)res->mesh.nv, res->mesh.X, res->W, &res->outside)
+                    : CROM_EINTERNAL;
+        crom_model_free(&model);
+        if (rc)
+            goto fail;
+        return 0;
+    }
+    if ((rc = crom_in_expect(in, "crom/trajectory", 1)))
+        goto fail;
+    res->ft = crom_in_field(in, "time");
+    res->fu = crom_in_field(in, "displacement");
+    if (res->ft < 0 || res->fu < 0) {
+        rc = CROM_EDATA;
+        goto fail;
+    }
+    res->fv = crom_in_field(in, "velocity");
+    crom_err_clear();
+    hid_t g = H5Gopen2(in->h5, "mesh", H5P_DEFAULT);
+    crom_mesh own;
+    rc = g < 0 ? crom_err(CROM_EDATA, "%s has no mesh", in->name) : crom_mesh_read(g, &own);
+    if (g >= 0)
+        H5Gclose(g);
+    if (rc) {
+        crom_err_ctx("%s", in->name);
+        goto fail;
+    }
+    if (mesh_path) {
+        if ((rc = crom_mesh_load(mesh_path, &res->mesh))) {
+            crom_mesh_free(&own);
+            goto fail;
+        }
+        int same = res->mesh.nv == own.nv;
+        for (int i = 0; same && i < 3 * own.nv; i++)
+            same = fabs(res->mesh.X[i] - own.X[i]) <= 1e-9 * (1 + fabs(own.X[i]));
+        crom_mesh_free(&own);
+        if (!same) {
+            rc = crom_err(CROM_EDATA, "--mesh %s does not have the vertices of the mesh %s was computed on (a "
+                                      "trajectory lives on its own mesh; decode a crom/latent to move between meshes)",
+                          mesh_path, in->name);
+            goto fail;
+        }
+    } else {
+        res->mesh = own;
+    }
+    if (in->fields[res->fu].count != 3 * (size_t)res->mesh.nv) {
+        rc = crom_err(CROM_EDATA, "%s: displacement has %zu values per frame, the mesh needs %d", in->name,
+                      in->fields[res->fu].count, 3 * res->mesh.nv);
+        goto fail;
+    }
+    return 0;
+fail:
+    crom_result_close(res);
+    return rc;
+}
+
+int crom_result_next(crom_result *res, double *t, double *u, double *v)
+{
+    int rc = crom_in_next(&res->in);
+    if (rc != 1)
+        return rc;
+    *t = crom_in_get(&res->in, res->ft)[0];
+    int n = 3 * res->mesh.nv;
+    if (!res->latent) {
+        memcpy(u, crom_in_get(&res->in, res->fu), sizeof(double) * (size_t)n);
+        if (v) {
+            if (res->fv >= 0)
+                memcpy(v, crom_in_get(&res->in, res->fv), sizeof(double) * (size_t)n);
+            else
+                memset(v, 0, sizeof(double) * (size_t)n);
+        }
+        return 1;
+    }
+    /* u = W q: W is [nv·3][r] */
+    cblas_dgemv(CblasRowMajor, CblasNoTrans, n, res->r, 1.0, res->W, res->r, crom_in_get(&res->in, res->fu), 1,
+                0.0, u, 1);
+    if (v) {
+        if (res->fv >= 0)
+            cblas_dgemv(CblasRowMajor, CblasNoTrans, n, res->r, 1.0, res->W, res->r,
+                        crom_in_get(&res->in, res->fv), 1, 0.0, v, 1);
+        else
+            memset(v, 0, sizeof(double) * (size_t)n);
+    }
+    return 1;
+}
+
+void crom_result_close(crom_result *res)
+{
+    crom_in_close(&res->in);
+    crom_mesh_free(&res->mesh);
+    free(res->W);
+    res->W = NULL;
+}
