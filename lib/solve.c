@@ -185,6 +185,21 @@ int crom_chol_solve(crom_chol *c, const double *b, double *x)
     return 0;
 }
 
+int crom_chol_solve_many(crom_chol *c, int nrhs, const double *b, double *x)
+{
+    double t0 = crom_now();
+    cholmod_dense B = c->B;
+    B.ncol = (size_t)nrhs;
+    B.nzmax = B.d * (size_t)nrhs;
+    B.x = (void *)b;
+    if (!cholmod_solve2(CHOLMOD_A, c->L, &B, NULL, &c->X, NULL, &c->Y, &c->E, &c->cc))
+        return crom_err(CROM_EINTERNAL, "CHOLMOD solve failed (status %d)", c->cc.status);
+    memcpy(x, c->X->x, sizeof(double) * (size_t)c->n * (size_t)nrhs);
+    c->t_solve += crom_now() - t0;
+    c->nsolve += nrhs;
+    return 0;
+}
+
 void crom_chol_stats(const crom_chol *c, double *ta, double *tf, double *ts, long *nf, long *ns)
 {
     if (ta) *ta = c->t_analyze;

@@ -37,6 +37,10 @@ int crom_chol_factor(crom_chol *c, const double *val);
 /* Solve A x = b with the last factorization (x may alias b). */
 int crom_chol_solve(crom_chol *c, const double *b, double *x);
 
+/* Solve A X = B for nrhs right-hand sides at once, B and X n x nrhs
+ * column-major (X may alias B): cheaper per column than one at a time. */
+int crom_chol_solve_many(crom_chol *c, int nrhs, const double *b, double *x);
+
 /* Seconds spent so far in analysis, factorizations and solves, and counts. */
 void crom_chol_stats(const crom_chol *c, double *t_analyze, double *t_factor,
                      double *t_solve, long *nfactor, long *nsolve);

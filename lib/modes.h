@@ -1,0 +1,115 @@
+/* modes.h — linear vibration modes of an elastic body at rest (crom-modes).
+ *
+ * The generalized eigenproblem K φ = ω² M φ with K the stiffness of the
+ * stable neo-Hookean energy at the rest state (the unprojected Hessian at
+ * x = X, positive semidefinite there) and M the lumped mass. Pinned degrees
+ * of freedom are eliminated: the problem is set up on the free DOFs only (the
+ * rows and columns of K and M that are not fixed), so no spurious eigenvalue
+ * of a penalty or of the fixed identity block can appear. Vertices used by no
+ * tet (mass 0) are eliminated too.
+ *
+ * The lowest pairs come from a block Lanczos iteration in shift-invert mode
+ * on the operator A = (K − σM)⁻¹ M, which is self-adjoint in the M inner
+ * product: its largest eigenvalues θ are the λ = ω² nearest above the shift,
+ * λ = σ + 1/θ. σ < 0, so K − σM is symmetric positive definite even for a
+ * free body (K singular) and one sparse Cholesky factor (CHOLMOD, METIS
+ * block ordering; lib/solve.h) serves every solve. The basis is kept
+ * M-orthonormal by full reorthogonalization (classical Gram–Schmidt twice),
+ * the Rayleigh–Ritz matrix is dense, and the iteration restarts thickly
+ * (keeping the best Ritz vectors) when the basis is full, until the Ritz
+ * residuals ‖A y − θ y‖_M <= tol·θ for all wanted pairs.
+ *
+ * Why not ARPACK (installed): dsaupd's mode 3 is single-vector Lanczos, which
+ * in exact arithmetic finds one vector per distinct eigenvalue, while a free
+ * body's rigid modes form a six-fold zero eigenvalue (and symmetric bodies
+ * have degenerate pairs); a block of 6 start vectors finds every copy
+ * directly instead of waiting for round-off to reveal them. Our own loop also
+ * keeps the M inner product and the free-DOF reduction in one place, is
+ * deterministic for a seed, and needs no Fortran reverse-communication glue
+ * nor another library on the link line.
+ *
+ * Rigid modes are detected, not assumed: a computed ω² below rigid_tol times
+ * the mean eigenvalue of M⁻¹K (Σ K_ii/m_i / n, a property of the mesh and
+ * material, not of how many modes were asked for) counts as rigid. A free
+ * body has six, one pinned at a single vertex three, a body pinned along a
+ * line one, several disconnected pieces six each.
+ */
+#ifndef CROM_MODES_H
+#define CROM_MODES_H
+
+#include <stdint.h>
+
+#include "fem.h"
+#include "mesh.h"
+
+typedef struct {
+    int count;         /* modes wanted in the result (>= 1); see keep_rigid */
+    int keep_rigid;    /* 1: the rigid modes found lead the result and count
+                          towards `count`; 0 (default): they are dropped and
+                          `count` deformation modes are returned */
+    double shift;      /* σ (rad²/s², < 0); 0 picks −0.01·E/(ρ D²), D the
+                          bounding-box diagonal */
+    double tol;        /* Ritz residual tolerance relative to θ (default 1e-12) */
+    double rigid_tol;  /* ω² <= rigid_tol·λ_mean is rigid (default 1e-12) */
+    int block;         /* Lanczos block size (default 6, the rigid multiplicity) */
+    int basis;         /* Lanczos basis size before a restart (0: automatic) */
+    long max_solves;   /* limit on solves with the factor (0: 200·(k + 6) + 2000) */
+    uint64_t seed;     /* start block (default 1) */
+    int nthreads;      /* assembly threads (0: OpenMP default) */
+} crom_modes_opts;
+
+/* Defaults as documented above, count = 20. */
+void crom_modes_defaults(crom_modes_opts *o);
+
+typedef struct {
+    int n;             /* 3 nv degrees of freedom */
+    int nfree;         /* free degrees of freedom (not fixed, on some tet) */
+    int k;             /* modes returned */
+    int nrigid;        /* rigid modes detected among the computed ones */
+    int rigid_kept;    /* 1: the first nrigid modes returned are the rigid
+                          ones; 0: none of the returned modes is rigid */
+    double *omega2;    /* [k] ω² (rad²/s²), ascending (rigid ones ~0, may be
+                          slightly negative from round-off) */
+    double *freq;      /* [k] f = sqrt(max(ω², 0)) / 2π (Hz) */
+    double *phi;       /* [n][k] row-major mode shapes: ΦᵀMΦ = I, zero on
+                          eliminated DOFs; sign: largest entry positive. Kept
+                          rigid modes are re-expressed in their span as
+                          translations x, y, z then rotations about x, y, z
+                          (about the centre of mass), as far as they lie in
+                          it, M-orthonormalized in that order */
+    double *residual;  /* [k] ‖Kφ − ω²Mφ‖ / ‖Kφ‖ (rigid: / (λ_mean ‖Mφ‖)) */
+    double sigma;      /* the shift used (rad²/s²) */
+    double lambda_mean;      /* mean eigenvalue of M⁻¹K on the free DOFs */
+    double rigid_threshold;  /* rigid_tol · lambda_mean */
+    double next_omega2;      /* the next Ritz value ω² above the returned
+                                ones, not necessarily converged (an upper
+                                bound of the next eigenvalue; NAN if none) */
+    /* statistics */
+    long solves;       /* solves with the factor (operator applications) */
+    int restarts;      /* thick restarts */
+    int basis_max;     /* Lanczos basis size */
+    double t_assemble, t_analyze, t_factor, t_lanczos; /* seconds */
+    double t_solve;    /* the part of t_lanczos spent in solves */
+} crom_modes;
+
+/* The lowest modes of the mesh with material mat (its density gives M) and
+ * the DOFs marked in fixed[3nv] eliminated (NULL: a free body). Returns 0,
+ * CROM_EUSAGE when more modes are asked for than the free DOFs allow (the
+ * message says how many there are) or every DOF is fixed, CROM_EDATA for a
+ * bad mesh or a stiffness that is not positive semidefinite, CROM_EINTERNAL
+ * when Lanczos does not converge within max_solves or memory runs out. On
+ * failure *out holds nothing to free. */
+int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat,
+                       const unsigned char *fixed, const crom_modes_opts *o,
+                       crom_modes *out);
+
+/* Release the arrays of a result (NULL-safe, idempotent). */
+void crom_modes_free(crom_modes *m);
+
+/* The DOF mask fixed[3nv] (malloc'ed) of the vertices of n pin references
+ * (region names or predicates, crom_mesh_select), and how many vertices it
+ * holds. CROM_EUSAGE for an unknown region or an empty selection. */
+int crom_modes_pins(const crom_mesh *m, int n, const char *const *refs,
+                    unsigned char **fixed, int *npinned);
+
+#endif
