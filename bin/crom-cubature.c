@@ -10,7 +10,7 @@
 #include "io.h"
 #include "model.h"
 
-enum { O_MODEL = 300, O_SCHEME, O_COUNT, O_POSES, O_TOL, O_CAND, O_YOUNGS, O_POISSON, O_MAXPOSE };
+enum { O_MODEL = 300, O_SCHEME, O_COUNT, O_POSES, O_TOL, O_CAND, O_YOUNGS, O_POISSON, O_MAXPOSE, O_SHRINK };
 
 static const crom_opt cub_opts[] = {
     {"model", O_MODEL, "MODEL", "The crom/model whose basis W is cached (required)."},
@@ -22,6 +22,7 @@ static const crom_opt cub_opts[] = {
     {"candidates", O_CAND, "N", "optimized: tets scored per greedy pick (default 256)."},
     {"youngs", O_YOUNGS, "E", "optimized: Young's modulus of the forces fitted (default 2.5e6)."},
     {"poisson", O_POISSON, "NU", "optimized: Poisson ratio of the forces fitted (default 0.25)."},
+    {"crack-offset", O_SHRINK, "S", "Vertices that share their rest position with another (the copies crom-remesh cut makes along a crack) sample W a fraction S of the way toward the centroid of their own tets (default 0.25; 0 = at X). At X both copies would get the same displacement and the crack could never open; on their own sides they follow the jump a basis learned from cut data."},
     {"output", 'o', "OUT", "Write the cubature to OUT (default stdout)."},
     {NULL, 0, NULL, NULL}};
 
@@ -53,6 +54,7 @@ typedef struct {
     int nposes;
     crom_cub_opts o;
     int count_given, maxpose;
+    double crack_offset;
 } args;
 
 static int on_opt(void *ctx, int key, const char *v)
@@ -94,6 +96,10 @@ static int on_opt(void *ctx, int key, const char *v)
         a->o.candidates = (int)n;
         return 0;
     case O_YOUNGS: return crom_parse_positive(v, "--youngs", &a->o.youngs);
+    case O_SHRINK:
+        if (crom_parse_double(v, "--crack-offset", &a->crack_offset) || !(a->crack_offset >= 0 && a->crack_offset < 1))
+            return crom_err(CROM_EUSAGE, "--crack-offset must be in [0, 1), got %s", v);
+        return 0;
     case O_POISSON: return crom_parse_double(v, "--poisson", &a->o.poisson);
     }
     return crom_err(CROM_EINTERNAL, "unhandled option");
@@ -234,8 +240,19 @@ static int run(crom_cli *cli, args *a)
     double t0 = crom_now();
     W = crom_malloc(sizeof(double) * 3 * (size_t)r * (size_t)m.nv);
     size_t outside = 0;
-    if (!W || (rc = crom_model_eval(&model, (size_t)m.nv, m.X, W, &outside)))
+    int nshift = 0;
+    double *P = crom_cub_sample_points(&m, a->crack_offset, &nshift); /* see --crack-offset */
+    if (!W || !P) {
+        free(P);
+        rc = CROM_EINTERNAL;
         goto out;
+    }
+    rc = crom_model_eval(&model, (size_t)m.nv, P, W, &outside);
+    free(P);
+    if (rc)
+        goto out;
+    if (nshift)
+        crom_cli_info(cli, "%d vertices along cracks sample W on their own side (--crack-offset %g)", nshift, a->crack_offset);
     double tW = crom_now() - t0;
     if (outside)
         crom_cli_warn(cli, "%zu of %d vertices lie outside the model's mesh: W is extended there", outside, m.nv);
@@ -289,6 +306,7 @@ int main(int argc, char **argv)
     a.o.youngs = 2.5e6;
     a.o.poisson = 0.25;
     a.maxpose = 40;
+    a.crack_offset = 0.25;
     crom_cli_parse(&cli, &doc, argc, argv, on_opt, &a);
     if (!a.model)
         return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--model MODEL is required (see crom-cubature --help)"));

@@ -380,14 +380,9 @@ int crom_rsim_objective(crom_rsim *s, const double *q, double *Eout, double *g, 
     }
     /* elastic energy by cubature */
     for (int k = 0; k < c->k; k++) {
-        const int *e = c->mesh.tets + 4 * (size_t)c->elem[k];
-        double Xe[12];
-        for (int v = 0; v < 4; v++) {
-            memcpy(Xe + 3 * v, c->mesh.X + 3 * (size_t)e[v], 3 * sizeof(double));
-            memcpy(W4 + (size_t)v * 3 * r, c->W + (size_t)e[v] * 3 * r, 3 * (size_t)r * sizeof(double));
-        }
-        double Ee = crom_cub_tet(&s->mat, Xe, W4, r, c->Dminv + 9 * (size_t)k, c->vol[k], c->weight[k], q,
-                                 project, g, H, kw);
+        double Xe[12], Dk[9];
+        crom_cub_gather(c, k, Xe, W4, Dk);
+        double Ee = crom_cub_tet(&s->mat, Xe, W4, r, Dk, c->vol[k], c->weight[k], q, project, g, H, kw);
         if (!isfinite(Ee))
             return crom_err(CROM_EDATA, "cubature tet %d: non-finite elastic energy", k);
         E += c->weight[k] * Ee;
@@ -578,14 +573,9 @@ int crom_rsim_energies(crom_rsim *s, double *kinetic, double *elastic, double *e
         W -= f[i] * s->q[i];
     double *W4 = s->work, *kw = s->work + 12 * (size_t)r;
     for (int k = 0; k < c->k; k++) {
-        const int *e = c->mesh.tets + 4 * (size_t)c->elem[k];
-        double Xe[12];
-        for (int v = 0; v < 4; v++) {
-            memcpy(Xe + 3 * v, c->mesh.X + 3 * (size_t)e[v], 3 * sizeof(double));
-            memcpy(W4 + (size_t)v * 3 * r, c->W + (size_t)e[v] * 3 * r, 3 * (size_t)r * sizeof(double));
-        }
-        double E = crom_cub_tet(&s->mat, Xe, W4, r, c->Dminv + 9 * (size_t)k, c->vol[k], 1.0, s->q, 0, NULL,
-                                NULL, kw);
+        double Xe[12], Dk[9];
+        crom_cub_gather(c, k, Xe, W4, Dk);
+        double E = crom_cub_tet(&s->mat, Xe, W4, r, Dk, c->vol[k], 1.0, s->q, 0, NULL, NULL, kw);
         if (!isfinite(E))
             return crom_err(CROM_EDATA, "non-finite elastic energy");
         Ee += c->weight[k] * E;

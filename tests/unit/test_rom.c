@@ -15,6 +15,7 @@
 #include "err.h"
 #include "fem.h"
 #include "meshgen.h"
+#include "remesh.h"
 #include "rom.h"
 
 /* An analytic basis: translations, linear fields and a few quadratic
@@ -362,9 +363,95 @@ static void test_schemes_and_switch(void)
     crom_mesh_free(&m);
 }
 
+/* A crack must be able to open: on a grid cut exactly along x = 0.5, with a
+ * one-field basis that jumps across that plane (u_y = q H(x − 0.5), H a
+ * steep step), the intact body resists the jump (its tets next to the plane
+ * see the jump through their shared vertices) while the cut body lets it open
+ * (the copies sample W on their own sides: crom_cub_sample_points). */
+static double jump_energy(const crom_mesh *m, double offset, double q)
+{
+    int ns = 0;
+    double *P = crom_cub_sample_points(m, offset, &ns), *W = malloc(sizeof(double) * 3 * m->nv);
+    for (int v = 0; v < m->nv; v++) {
+        W[3 * v] = W[3 * v + 2] = 0;
+        W[3 * v + 1] = 0.5 * (1 + tanh((P[3 * v] - 0.5) / 1e-4));
+    }
+    crom_cub c;
+    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 1e5, 0.25};
+    crom_rng rng;
+    crom_rng_seed(&rng, 1);
+    CHECK(crom_cub_build(&c, m, W, 1, "jump", &o, &rng) == 0);
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    sc.youngs = 1e5;
+    crom_rsim s;
+    CHECK(crom_rsim_init(&s, &c, &sc, CROM_SOLVER_NEWTON, 0, &q, NULL) == 0);
+    double K, E, X;
+    CHECK(crom_rsim_energies(&s, &K, &E, &X) == 0);
+    crom_rsim_free(&s);
+    crom_cub_free(&c);
+    free(P);
+    free(W);
+    return E;
+}
+
+static void test_crack_opens(void)
+{
+    /* a 4×4×4 Kuhn grid on [0,1]^3: no tet crosses the plane x = 0.5 */
+    crom_mesh m;
+    memset(&m, 0, sizeof m);
+    int n = 4, nv = (n + 1) * (n + 1) * (n + 1);
+    m.nv = nv;
+    m.X = malloc(sizeof(double) * 3 * nv);
+    for (int k = 0; k <= n; k++)
+        for (int j = 0; j <= n; j++)
+            for (int i = 0; i <= n; i++) {
+                double *x = m.X + 3 * (i + (n + 1) * (j + (n + 1) * k));
+                x[0] = (double)i / n;
+                x[1] = (double)j / n;
+                x[2] = (double)k / n;
+            }
+    m.nt = 6 * n * n * n;
+    m.tets = malloc(sizeof(int) * 4 * m.nt);
+    static const int perm[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+    for (int k = 0, t = 0; k < n; k++)
+        for (int j = 0; j < n; j++)
+            for (int i = 0; i < n; i++)
+                for (int p = 0; p < 6; p++, t++) {
+                    int c[3] = {i, j, k}, *e = m.tets + 4 * t;
+                    e[0] = c[0] + (n + 1) * (c[1] + (n + 1) * c[2]);
+                    for (int s = 0; s < 3; s++) {
+                        c[perm[p][s]]++;
+                        e[s + 1] = c[0] + (n + 1) * (c[1] + (n + 1) * c[2]);
+                    }
+                }
+    CHECK(crom_mesh_orient(&m, NULL) == 0);
+    static const double seg[4] = {0.5, -1, 0.5, 2};
+    crom_cut cut = {2, 1, seg, 1, 1}; /* a wall at x = 0.5, extruded along z */
+    crom_mesh cm;
+    crom_cut_stats st;
+    CHECK(crom_remesh_cut(&m, &cut, &cm, &st, NULL, NULL) == 0);
+    CHECK(cm.nv == m.nv + 25);
+    int ns = 0;
+    double *P = crom_cub_sample_points(&m, 0.25, &ns);
+    CHECK(ns == 0); /* an intact mesh has no duplicated vertices */
+    free(P);
+    P = crom_cub_sample_points(&cm, 0.25, &ns);
+    CHECK(ns == 50); /* 25 vertices on the plane, two copies each */
+    free(P);
+    double q = 0.05, Ei = jump_energy(&m, 0.25, q), Ec = jump_energy(&cm, 0.25, q), Ec0 = jump_energy(&cm, 0, q);
+    fprintf(stderr, "jump mode of 5 cm: elastic energy intact %.4g J, cut %.3g J, cut sampled at X %.4g J\n", Ei, Ec, Ec0);
+    CHECK(Ei > 1);             /* the intact body resists the jump */
+    CHECK_LT(Ec, 1e-6 * Ei);   /* the cut one opens freely */
+    CHECK_NEAR(Ec0, Ei, 1e-9 * Ei); /* sampled at X the cut would be invisible */
+    crom_mesh_free(&cm);
+    crom_mesh_free(&m);
+}
+
 int main(void)
 {
     check_begin("test_rom");
+    test_crack_opens();
     test_derivatives();
     test_galerkin();
     test_schemes_and_switch();

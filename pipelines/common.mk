@@ -1,0 +1,38 @@
+# common.mk — what every experiment Makefile shares: strict shell, deletion
+# of half-made targets, the programs on PATH, and the stage variables that
+# swap one stage for an experiment (ENCODER=pointnet, CUBATURE=metis, ...).
+SHELL := /bin/bash
+.DEFAULT_GOAL := all
+.SHELLFLAGS := -euo pipefail -c
+.DELETE_ON_ERROR:
+.SECONDARY:
+TOP := $(abspath $(dir $(lastword $(MAKEFILE_LIST)))/..)
+BINDIR ?= $(TOP)/bin
+export PATH := $(BINDIR):$(PATH)
+
+# stage variables (one variable swaps one stage)
+RANK ?= 20
+BASIS ?= mlp
+ENCODER ?= lsq
+EPOCHS ?= 3000
+MINUTES ?=
+POINTS ?= 2048
+CUBATURE ?= optimized
+COUNT ?= 200
+SOLVER ?= newton
+SEED ?= 1
+QUIET ?= -q
+FIT_FLAGS = --basis $(BASIS) --rank $(RANK) --seed $(SEED) $(if $(filter mlp,$(BASIS)),--encoder $(ENCODER) --epochs $(EPOCHS) $(if $(MINUTES),--minutes $(MINUTES)))
+
+# Stage flag stamps: $(OUT)/flags/NAME holds the flags of a stage and is
+# rewritten only when they change, so a target that depends on it is rebuilt
+# exactly when its stage's variables change (make -j then reruns that stage and
+# what follows, and reuses the rest). Use: $(call stamp,NAME,FLAGS) as a
+# prerequisite.
+.PHONY: FORCE
+FORCE:
+stamp = $(OUT)/flags/$(1)
+define stamp_rule
+$(OUT)/flags/$(1): FORCE
+	@mkdir -p $$(@D); printf '%s\n' '$(2)' | cmp -s - $$@ || printf '%s\n' '$(2)' > $$@
+endef

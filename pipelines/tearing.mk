@@ -1,0 +1,86 @@
+# tearing.mk — LiCROM §6.1, Fig. 6: a plate clamped at its border sags under
+# gravity; one basis is trained on the intact plate and on the plate with a
+# full Y-shaped cut; the reduced run then grows the cut progressively by
+# switching cubature meshes mid-run (the state stays in q).
+#
+#   make -f pipelines/tearing.mk              # runs/tearing/table.md, strip.png, pvd/
+#   make -f pipelines/tearing.mk SIZE=0.02 STAGES=8   # finer plate
+include $(dir $(lastword $(MAKEFILE_LIST)))common.mk
+
+OUT ?= runs/tearing
+SIZE ?= 0.04
+THICK ?= 0.04
+STEPS ?= 60
+DT ?= 0.01
+STAGES ?= 5
+COUNT ?= 150
+YOUNGS ?= 1e5
+# the plate lies in the xz-plane, thin along y; its border is clamped
+SCENARIO = --youngs $(YOUNGS) --pin 'x<-0.49' --pin 'x>0.49' --pin 'z<-0.49' --pin 'z>0.49' \
+           --gravity 0,-9.81,0 --dt $(DT) --steps $(STEPS)
+# the Y: a stem from z = -0.35 up to the fork at the centre, two branches to the far side
+Y = --segment 0,-0.35,0,0 --segment 0,0,-0.25,0.3 --segment 0,0,0.25,0.3
+
+.PHONY: all
+all: $(OUT)/table.md $(OUT)/strip.png $(OUT)/pvd/frame.pvd
+	@cat $(OUT)/table.md; echo "pictures: $(OUT)/strip.png; ParaView: $(OUT)/pvd/frame.pvd"
+
+$(OUT)/intact.h5:
+	@mkdir -p $(@D)
+	crom-mesh plate --dims 1,$(THICK),1 --size $(SIZE) -o $@
+
+# stage_K.h5 for K = 1..STAGES; stage_$(STAGES) is the full Y
+$(OUT)/stages/stage_$(STAGES).h5: $(OUT)/intact.h5
+	crom-remesh cut $(Y) --axis y --stages $(STAGES) --all-stages $(OUT)/stages $(QUIET) < $<
+$(OUT)/cut.h5: $(OUT)/stages/stage_$(STAGES).h5
+	cp $< $@
+
+# training data: the intact and the fully cut plate
+$(OUT)/full-%.h5 $(OUT)/full-%.csv &: $(OUT)/%.h5
+	crom-fullsim $(SCENARIO) $(QUIET) --stats $(OUT)/full-$*.csv -o $(OUT)/full-$*.h5 $<
+
+$(OUT)/samples.h5: $(OUT)/full-intact.h5 $(OUT)/full-cut.h5
+	crom-sample --points $(POINTS) --mode interior --seed $(SEED) -o $@ $^
+
+$(OUT)/model.h5: $(OUT)/samples.h5
+	crom-fitfield $(FIT_FLAGS) -o $@ < $<
+
+$(OUT)/poses-%.h5: $(OUT)/model.h5 $(OUT)/full-%.h5
+	crom-encode --model $< $(QUIET) -o $@ < $(OUT)/full-$*.h5
+
+POSES = --poses $(OUT)/poses-intact.h5 --poses $(OUT)/poses-cut.h5
+CUBFLAGS = --scheme $(CUBATURE) --count $(COUNT) $(POSES) --seed $(SEED) $(QUIET)
+$(OUT)/cub-intact.h5 $(OUT)/cub-cut.h5: $(OUT)/cub-%.h5: $(OUT)/model.h5 $(OUT)/%.h5 $(OUT)/poses-intact.h5 $(OUT)/poses-cut.h5
+	crom-cubature --model $< $(CUBFLAGS) -o $@ $(OUT)/$*.h5
+$(OUT)/cub-stage-%.h5: $(OUT)/model.h5 $(OUT)/stages/stage_$(STAGES).h5 $(OUT)/poses-intact.h5 $(OUT)/poses-cut.h5
+	crom-cubature --model $< $(CUBFLAGS) -o $@ $(OUT)/stages/stage_$*.h5
+
+# reduced runs on the two training meshes, judged against the full runs
+$(OUT)/red-%.h5 $(OUT)/red-%.csv &: $(OUT)/cub-%.h5
+	crom-reducedstep --cubature $< --solver $(SOLVER) $(SCENARIO) $(QUIET) --stats $(OUT)/red-$*.csv -o $(OUT)/red-$*.h5
+$(OUT)/diff-%.txt: $(OUT)/red-%.h5 $(OUT)/full-%.h5 $(OUT)/model.h5
+	crom-diff $< $(OUT)/full-$*.h5 --model $(OUT)/model.h5 > $@
+
+# the progressive tear: the cut grows during the second half of the run
+STAGE_LIST := $(shell seq 1 $(STAGES))
+$(OUT)/schedule.txt: $(foreach k,$(STAGE_LIST),$(OUT)/cub-stage-$(k).h5)
+	for k in $(STAGE_LIST); do echo "$$(( $(STEPS) / 2 + (k - 1) * $(STEPS) / (2 * $(STAGES)) + 1 )) $(OUT)/cub-stage-$$k.h5"; done > $@
+$(OUT)/tear.h5 $(OUT)/tear.csv &: $(OUT)/cub-intact.h5 $(OUT)/schedule.txt
+	crom-reducedstep --cubature $< --schedule $(OUT)/schedule.txt --solver $(SOLVER) $(SCENARIO) $(QUIET) \
+	  --stats $(OUT)/tear.csv -o $(OUT)/tear.h5
+$(OUT)/diff-tear.txt: $(OUT)/tear.h5 $(OUT)/full-intact.h5 $(OUT)/model.h5
+	crom-diff $< $(OUT)/full-intact.h5 --model $(OUT)/model.h5 > $@
+
+$(OUT)/rows.txt: $(OUT)/diff-intact.txt $(OUT)/diff-cut.txt $(OUT)/diff-tear.txt
+	( echo "intact $(OUT)/full-intact.csv $(OUT)/red-intact.csv $(OUT)/diff-intact.txt $(OUT)/cub-intact.h5 $(OUT)/model.h5"; \
+	  echo "Y-cut $(OUT)/full-cut.csv $(OUT)/red-cut.csv $(OUT)/diff-cut.txt $(OUT)/cub-cut.h5 $(OUT)/model.h5"; \
+	  echo "progressive-tear(vs-intact) $(OUT)/full-intact.csv $(OUT)/tear.csv $(OUT)/diff-tear.txt $(OUT)/cub-stage-$(STAGES).h5 $(OUT)/model.h5" ) > $@
+$(OUT)/table.md: $(OUT)/rows.txt
+	$(TOP)/pipelines/table.sh "tearing: intact and Y-cut plate, cut grown during the reduced run (LiCROM Fig. 6)" $< > $@
+
+# pictures: the torn run on the cut mesh over the full runs of both meshes
+$(OUT)/strip.png: $(OUT)/tear.h5 $(OUT)/full-cut.h5 $(OUT)/full-intact.h5
+	crom-export --format strip --model $(OUT)/model.h5 --mesh $(OUT)/cut.h5 --compare $(OUT)/full-cut.h5 \
+	  --compare $(OUT)/full-intact.h5 --columns 5 $(QUIET) -o $@ $<
+$(OUT)/pvd/frame.pvd: $(OUT)/tear.h5
+	crom-export --format pvd --model $(OUT)/model.h5 --mesh $(OUT)/cut.h5 $(QUIET) -o $(OUT)/pvd $<
