@@ -241,7 +241,7 @@ static int run(crom_cli *cli, args *a)
     W = crom_malloc(sizeof(double) * 3 * (size_t)r * (size_t)m.nv);
     size_t outside = 0;
     int nshift = 0;
-    double *P = crom_cub_sample_points(&m, a->crack_offset, &nshift); /* see --crack-offset */
+    double *P = crom_mesh_field_points(&m, a->crack_offset, &nshift); /* see --crack-offset */
     if (!W || !P) {
         free(P);
         rc = CROM_EINTERNAL;
@@ -306,7 +306,7 @@ int main(int argc, char **argv)
     a.o.youngs = 2.5e6;
     a.o.poisson = 0.25;
     a.maxpose = 40;
-    a.crack_offset = 0.25;
+    a.crack_offset = CROM_CRACK_OFFSET;
     crom_cli_parse(&cli, &doc, argc, argv, on_opt, &a);
     if (!a.model)
         return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--model MODEL is required (see crom-cubature --help)"));

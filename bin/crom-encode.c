@@ -223,7 +223,10 @@ static int run(crom_cli *cli, args *a)
         goto out;
     }
     size_t nout = 0;
-    if ((rc = crom_model_eval(&M, (size_t)m.nv, m.X, Wv, &nout)))
+    double *fp = crom_mesh_field_points(&m, CROM_CRACK_OFFSET, NULL); /* see mesh.h */
+    rc = fp ? crom_model_eval(&M, (size_t)m.nv, fp, Wv, &nout) : CROM_EINTERNAL;
+    free(fp);
+    if (rc)
         goto out;
     if (nout && cli->verbose)
         crom_cli_info(cli, "%zu of %d vertices lie outside the model's mesh: W is extended there", nout, m.nv);

@@ -207,6 +207,7 @@ static int sample_source(crom_cli *cli, args *a, acc *A, const char *path, int k
     }
     crom_samples *s = &A->s;
     int *perm = NULL;
+    double *fp = NULL; /* where W is sampled at each vertex: crom_mesh_field_points */
     double *cum = NULL;
     int fd = crom_in_field(&in, "displacement"), ft = crom_in_field(&in, "time");
     if (fd < 0 || ft < 0) {
@@ -235,7 +236,8 @@ static int sample_source(crom_cli *cli, args *a, acc *A, const char *path, int k
     }
     perm = crom_malloc(sizeof(int) * (size_t)m.nv);
     cum = crom_malloc(sizeof(double) * (size_t)m.nt);
-    if (!perm || !cum) {
+    fp = crom_mesh_field_points(&m, CROM_CRACK_OFFSET, NULL);
+    if (!perm || !cum || !fp) {
         rc = CROM_EINTERNAL;
         goto out;
     }
@@ -289,7 +291,7 @@ static int sample_source(crom_cli *cli, args *a, acc *A, const char *path, int k
                 int v = perm[i];
                 vx[i] = v;
                 for (int d = 0; d < 3; d++) {
-                    X[3 * i + d] = (float)m.X[3 * (size_t)v + d];
+                    X[3 * i + d] = (float)fp[3 * (size_t)v + d]; /* see crom_mesh_field_points */
                     U[3 * i + d] = (float)u[3 * (size_t)v + d];
                 }
             }
@@ -356,6 +358,7 @@ endloop:
     s->nsources = k + 1;
     merge_history(history, in.history);
 out:
+    free(fp);
     free(perm);
     free(cum);
     crom_mesh_free(&m);

@@ -70,16 +70,6 @@ int crom_cub_build(crom_cub *c, const crom_mesh *mesh, const double *W, int r,
  * corners, the [4][3][r] block of W at them, and its Dm⁻¹. */
 void crom_cub_gather(const crom_cub *c, int k, double Xe[12], double *W4, double Dminv[9]);
 
-/* Where to sample the basis W for each vertex of a mesh [nv][3]
- * (malloc'ed): the rest position X, except for vertices that share their
- * position with another — the copies a cut made (crom-remesh cut): each of
- * those samples W a fraction s of the way toward the centroid of its own
- * tets. A field sampled at X gives both copies the same displacement, so the
- * crack could never open; sampled on their own sides of the crack, the copies
- * follow the jump a basis learned from cut data, while an intact body still
- * sees the jump through its shared vertices and resists it. *nshifted gets
- * how many vertices were moved. */
-double *crom_cub_sample_points(const crom_mesh *m, double s, int *nshifted);
 
 /* Relative errors of the cubature against the exact integral over all tets
  * at poses [npose][r]: elastic energy (|Σ_pose ΔE| / Σ|E|) and reduced force

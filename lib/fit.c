@@ -1241,7 +1241,10 @@ int crom_fit_error(const crom_model *m, const crom_samples *S, double tik, int u
                 rc = CROM_EINTERNAL;
                 goto done;
             }
-            if ((rc = crom_model_eval(m, (size_t)sm->nv, sm->X, cache[k], NULL)))
+            double *fp = crom_mesh_field_points(sm, CROM_CRACK_OFFSET, NULL);
+            rc = fp ? crom_model_eval(m, (size_t)sm->nv, fp, cache[k], NULL) : CROM_EINTERNAL;
+            free(fp);
+            if (rc)
                 goto done;
         }
         for (size_t i = 0; i < 3 * (size_t)N; i++) {

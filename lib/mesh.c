@@ -249,6 +249,74 @@ int crom_mesh_boundary(const crom_mesh *m, int *ntri, int **tris, int **tri_tet)
     return 0;
 }
 
+/* ----------------------------------------------------------- field points */
+
+typedef struct {
+    double x[3];
+    int v;
+} vpos;
+
+static int vpos_cmp(const void *a, const void *b)
+{
+    const vpos *p = a, *q = b;
+    for (int i = 0; i < 3; i++)
+        if (p->x[i] != q->x[i])
+            return p->x[i] < q->x[i] ? -1 : 1;
+    return (p->v > q->v) - (p->v < q->v);
+}
+
+double *crom_mesh_field_points(const crom_mesh *m, double s, int *nshifted)
+{
+    int nv = m->nv, nt = m->nt;
+    double *P = crom_malloc(sizeof(double) * 3 * (size_t)nv), *ctr = crom_calloc(3 * (size_t)nv, sizeof(double));
+    int *cnt = crom_calloc((size_t)nv, sizeof(int));
+    vpos *k = crom_malloc(sizeof(vpos) * (size_t)nv);
+    unsigned char *dup = crom_calloc((size_t)nv, 1);
+    if (!P || !ctr || !cnt || !k || !dup) {
+        free(P);
+        P = NULL;
+        goto out;
+    }
+    memcpy(P, m->X, sizeof(double) * 3 * (size_t)nv);
+    for (int v = 0; v < nv; v++) {
+        memcpy(k[v].x, m->X + 3 * (size_t)v, 3 * sizeof(double));
+        k[v].v = v;
+    }
+    qsort(k, (size_t)nv, sizeof *k, vpos_cmp);
+    for (int i = 1; i < nv; i++)
+        if (!memcmp(k[i].x, k[i - 1].x, 3 * sizeof(double)))
+            dup[k[i].v] = dup[k[i - 1].v] = 1;
+    /* centroid of each duplicated vertex's own tets */
+    for (int t = 0; t < nt; t++) {
+        const int *e = m->tets + 4 * (size_t)t;
+        double c[3] = {0, 0, 0};
+        for (int a = 0; a < 4; a++)
+            for (int i = 0; i < 3; i++)
+                c[i] += 0.25 * m->X[3 * (size_t)e[a] + i];
+        for (int a = 0; a < 4; a++)
+            if (dup[e[a]]) {
+                for (int i = 0; i < 3; i++)
+                    ctr[3 * (size_t)e[a] + i] += c[i];
+                cnt[e[a]]++;
+            }
+    }
+    int n = 0;
+    for (int v = 0; v < nv; v++)
+        if (dup[v] && cnt[v]) {
+            for (int i = 0; i < 3; i++)
+                P[3 * (size_t)v + i] += s * (ctr[3 * (size_t)v + i] / cnt[v] - P[3 * (size_t)v + i]);
+            n++;
+        }
+    if (nshifted)
+        *nshifted = n;
+out:
+    free(ctr);
+    free(cnt);
+    free(k);
+    free(dup);
+    return P;
+}
+
 /* ------------------------------------------------------------ copy & free */
 
 static void free_regions(crom_region *r, int n)

@@ -62,6 +62,20 @@ int crom_mesh_validate(const crom_mesh *m);
  * [ntri][3] vertex indices (malloc'ed), tri_tet (may be NULL) the owning tet. */
 int crom_mesh_boundary(const crom_mesh *m, int *ntri, int **tris, int **tri_tet);
 
+/* Where a continuous field (a basis W(X)) is sampled for each vertex
+ * [nv][3] (malloc'ed): the rest position X, except for vertices that share
+ * their position with another — the copies a cut made (crom-remesh cut) —
+ * each of which samples a fraction s (CROM_CRACK_OFFSET) of the way toward
+ * the centroid of its own tets. At X both copies of a crack vertex would get
+ * the same displacement and the crack could never open; on their own sides
+ * they follow the jump a basis learned from cut data, while an intact body
+ * still sees the jump through its shared vertices. Every program that
+ * evaluates a field at mesh vertices uses this, so sampling, training,
+ * cubature, encoding and decoding agree. *nshifted (may be NULL) gets how
+ * many vertices moved; NULL when out of memory. */
+#define CROM_CRACK_OFFSET 0.25
+double *crom_mesh_field_points(const crom_mesh *m, double s, int *nshifted);
+
 /* Deep copy. */
 int crom_mesh_copy(const crom_mesh *src, crom_mesh *dst);
 

@@ -98,8 +98,10 @@ int crom_result_adopt(crom_result *res, crom_in *opened, const char *mesh_path, 
             goto fail;
         }
         res->W = crom_malloc(sizeof(double) * 3 * (size_t)res->r * (size_t)res->mesh.nv);
-        rc = res->W ? crom_model_eval(&model, (size_t)res->mesh.nv, res->mesh.X, res->W, &res->outside)
-                    : CROM_EINTERNAL;
+        double *P = crom_mesh_field_points(&res->mesh, CROM_CRACK_OFFSET, NULL);
+        rc = res->W && P ? crom_model_eval(&model, (size_t)res->mesh.nv, P, res->W, &res->outside)
+                         : CROM_EINTERNAL;
+        free(P);
         crom_model_free(&model);
         if (rc)
             goto fail;

@@ -138,6 +138,7 @@ int crom_samples_read(crom_in *in, crom_samples *s)
     hid_t h = in->h5;
     int rc = 0;
     char *mode = NULL;
+    double **fps = NULL; /* field points per source mesh */
     long long N = 0;
     if ((rc = crom_h5_get_str(h, ".", "mode", &mode)) ||
         (rc = crom_h5_get_i64(h, ".", "points_per_frame", &N)) ||
@@ -243,6 +244,13 @@ int crom_samples_read(crom_in *in, crom_samples *s)
             goto fail;
         }
     }
+    /* vertex samples must sit where fields are sampled at their vertex (the
+     * rest position, or inside its tets along a crack: crom_mesh_field_points) */
+    fps = crom_calloc((size_t)(s->nsources ? s->nsources : 1), sizeof(double *));
+    if (!fps) {
+        rc = CROM_EINTERNAL;
+        goto fail;
+    }
     for (int f = 0; f < s->F; f++) {
         if (!isfinite(s->time[f])) {
             rc = crom_err(CROM_EDATA, "%s: frame %d has a non-finite time", in->name, f);
@@ -255,6 +263,11 @@ int crom_samples_read(crom_in *in, crom_samples *s)
             goto fail;
         }
         const crom_mesh *m = &s->src[k];
+        if (!fps[k] && !(fps[k] = crom_mesh_field_points(m, CROM_CRACK_OFFSET, NULL))) {
+            rc = CROM_EINTERNAL;
+            goto fail;
+        }
+        const double *fp = fps[k];
         double lo[3], hi[3], L = 0;
         crom_mesh_bbox(m, lo, hi);
         for (int c = 0; c < 3; c++)
@@ -269,7 +282,7 @@ int crom_samples_read(crom_in *in, crom_samples *s)
             }
             if (v >= 0)
                 for (int c = 0; c < 3; c++)
-                    if (fabs(s->X[3 * j + c] - m->X[3 * (size_t)v + c]) > 1e-6 * L + 1e-30) {
+                    if (fabs(s->X[3 * j + c] - fp[3 * (size_t)v + c]) > 1e-6 * L + 1e-30) {
                         rc = crom_err(CROM_EDATA,
                                       "%s: frame %d sample %d is not at the position of its vertex %d",
                                       in->name, f, i, v);
@@ -279,8 +292,14 @@ int crom_samples_read(crom_in *in, crom_samples *s)
     }
     if (in->history)
         s->history = crom_strdup(in->history);
+    for (int k = 0; fps && k < s->nsources; k++)
+        free(fps[k]);
+    free(fps);
     return 0;
 fail:
+    for (int k = 0; fps && k < s->nsources; k++)
+        free(fps[k]);
+    free(fps);
     crom_samples_free(s);
     return rc;
 }

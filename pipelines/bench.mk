@@ -1,34 +1,111 @@
-# make bench — timing tables (medians over steps) for crom's stages, written
-# as markdown and CSV under bench/results/. Run through the top-level Makefile
-# (`make bench`). Sizes can be changed on the command line, e.g.
-#   make bench FULL_SIZES="0.056 0.0355" FULL_STEPS=10
-SHELL := /bin/bash
-.SHELLFLAGS := -euo pipefail -c
-.DELETE_ON_ERROR:
-.SECONDARY:
-BINDIR ?= $(CURDIR)/bin
-export PATH := $(BINDIR):$(PATH)
-OUT ?= bench/results
-TOP := $(CURDIR)
+# make bench — crom's versions of LiCROM's Tables 1 and 2 and the speed
+# figures the issues ask for, as markdown and CSV under bench/results/ with
+# PNG plots. Medians over steps, one core. Run through the top-level Makefile
+# (`make bench`); sizes are variables, e.g.
+#   make bench T_SIZES="0.056" FULL_SIZES="0.056"      # a quick one
+# About 25 minutes at the defaults on this 2-core machine.
+include $(dir $(lastword $(MAKEFILE_LIST)))common.mk
+.SECONDEXPANSION:
 
-# full-space compression (LiCROM §6.1): a unit cube, top pushed down at 2 m/s
-# for 0.1 s, bottom held; mesh sizes for about 5K, 20K and 80K vertices
+OUT ?= bench/results
+QUIET ?= -q
+
+# --- full-space simulator (issue 3): compression of a unit cube at about 5K,
+#     20K and 65K vertices
 FULL_SIZES ?= 0.056 0.0355 0.0224
 FULL_STEPS ?= 10
 FULL_SCENARIO = --velocity 'top=0,-2,0@0:0.1' --pin bottom --gravity 0,0,0 --dt 0.01
 
-.PHONY: bench fullsim
-bench: fullsim
-	@echo; cat $(OUT)/fullsim.md
+# --- Tables 1 and 2 (issues 4-5): two loadings of a unit cube, compressed from
+#     the top and sheared at the top, at about 5K and 20K vertices; r = 20
+T_SIZES ?= 0.056 0.0355
+T_STEPS ?= 40
+T_MINUTES ?= 3
+T_COUNT ?= 200
+LOAD_compress = --velocity 'top=0,-2,0@0:0.1' --pin bottom --gravity 0,-9.81,0 --dt 0.01 --steps $(T_STEPS)
+LOAD_shear    = --velocity 'top=1.5,0,0@0:0.1' --pin bottom --gravity 0,-9.81,0 --dt 0.01 --steps $(T_STEPS)
+LOADS = compress shear
 
+# --- training (issue 4): the five cube-to-sphere shapes at a few thousand
+#     vertices each, compressed; lsq until 2% (budget TRAIN_MINUTES) and
+#     pointnet with the same budget
+TRAIN_SIZE ?= 0.06
+TRAIN_MINUTES ?= 10
+TRAIN_SHAPES = 2 2.5 3.5 6 box
+
+.PHONY: all fullsim tables training plots
+all: fullsim tables training plots
+	@cat $(OUT)/fullsim.md $(OUT)/tables.md $(OUT)/training.md
+	@echo "plots: $(OUT)/steps.png $(OUT)/training.png"
+
+# ---------------------------------------------------------------- fullsim
 fullsim: $(OUT)/fullsim.md
-
 $(OUT)/mesh-%.h5:
 	@mkdir -p $(@D)
 	crom-mesh box --size $* --algorithm hxt --region top='y>0.499' --region bottom='y<-0.499' -o $@
-
 $(OUT)/fullsim-%.csv: $(OUT)/mesh-%.h5
-	crom-fullsim $(FULL_SCENARIO) --steps $(FULL_STEPS) --stats $@ -q -o /dev/null $<
-
+	crom-fullsim $(FULL_SCENARIO) --steps $(FULL_STEPS) --stats $@ $(QUIET) -o /dev/null $<
 $(OUT)/fullsim.md: $(foreach s,$(FULL_SIZES),$(OUT)/fullsim-$(s).csv)
-	$(TOP)/tests/benchtab.sh fullsim $(OUT) $(FULL_SIZES) > $@.tmp && mv $@.tmp $@
+	( echo "### crom-fullsim: compression of a unit cube (issue 3)"; echo; \
+	  $(TOP)/tests/benchtab.sh fullsim $(OUT) $(FULL_SIZES) ) > $@.tmp && mv $@.tmp $@
+
+# ----------------------------------------------------------------- tables
+tables: $(OUT)/tables.md
+$(OUT)/t-mesh-%.h5:
+	@mkdir -p $(@D)
+	crom-mesh box --size $* --algorithm hxt --region top='y>0.45' --region bottom='y<-0.45' -o $@
+# full runs: the training data and the reference (data generation is timed)
+$(OUT)/t-full-%.h5 $(OUT)/t-full-%.csv &: $(OUT)/t-mesh-$$(word 1,$$(subst -, ,$$*)).h5
+	crom-fullsim $(LOAD_$(word 2,$(subst -, ,$*))) --stats $(OUT)/t-full-$*.csv $(QUIET) -o $(OUT)/t-full-$*.h5 $<
+$(OUT)/t-samples-%.h5: $$(foreach l,$(LOADS),$(OUT)/t-full-$$*-$$(l).h5)
+	crom-sample --points 2048 --seed $(SEED) -o $@ $^
+$(OUT)/t-model-%.h5: $(OUT)/t-samples-%.h5
+	crom-fitfield --rank 20 --minutes $(T_MINUTES) --epochs 100000 --seed $(SEED) -o $@ < $<
+$(OUT)/t-poses-%.h5: $(OUT)/t-full-%.h5 $$(OUT)/t-model-$$(word 1,$$(subst -, ,$$*)).h5
+	crom-encode --model $(OUT)/t-model-$(word 1,$(subst -, ,$*)).h5 $(QUIET) -o $@ < $<
+$(OUT)/t-cub-%.h5: $(OUT)/t-model-%.h5 $(OUT)/t-mesh-%.h5 $$(foreach l,$(LOADS),$(OUT)/t-poses-$$*-$$(l).h5)
+	crom-cubature --model $< --scheme optimized --count $(T_COUNT) $(foreach l,$(LOADS),--poses $(OUT)/t-poses-$*-$(l).h5) \
+	  $(QUIET) -o $@ $(OUT)/t-mesh-$*.h5
+$(OUT)/t-red-%.h5 $(OUT)/t-red-%.csv &: $$(OUT)/t-cub-$$(word 1,$$(subst -, ,$$*)).h5
+	crom-reducedstep --cubature $< $(LOAD_$(word 2,$(subst -, ,$*))) --stats $(OUT)/t-red-$*.csv $(QUIET) -o $(OUT)/t-red-$*.h5
+$(OUT)/t-diff-%.txt: $(OUT)/t-red-%.h5 $(OUT)/t-full-%.h5
+	crom-diff $< $(OUT)/t-full-$*.h5 --model $(OUT)/t-model-$(word 1,$(subst -, ,$*)).h5 > $@
+RUNS = $(foreach s,$(T_SIZES),$(foreach l,$(LOADS),$(s)-$(l)))
+$(OUT)/tables.md: $(foreach r,$(RUNS),$(OUT)/t-diff-$(r).txt $(OUT)/t-red-$(r).csv)
+	/usr/bin/python3 $(TOP)/pipelines/benchtab.py tables $(OUT) "$(T_SIZES)" "$(LOADS)" > $@.tmp && mv $@.tmp $@
+
+# --------------------------------------------------------------- training
+training: $(OUT)/training.md
+$(OUT)/tr-mesh-box.h5:
+	@mkdir -p $(@D)
+	crom-mesh box --size $(TRAIN_SIZE) --region top='y>0.45' --region bottom='y<-0.45' -o $@
+$(OUT)/tr-mesh-%.h5:
+	@mkdir -p $(@D)
+	crom-mesh superquadric --exponent $* --size $(TRAIN_SIZE) --region top='y>0.45' --region bottom='y<-0.45' -o $@
+$(OUT)/tr-full-%.h5: $(OUT)/tr-mesh-%.h5
+	crom-fullsim --velocity 'top=0,-2,0@0:0.1' --pin bottom --gravity 0,0,0 --dt 0.01 --steps 40 $(QUIET) -o $@ $<
+$(OUT)/tr-samples.h5: $(foreach s,$(TRAIN_SHAPES),$(OUT)/tr-full-$(s).h5)
+	crom-sample --points 2048 --seed $(SEED) -o $@ $^
+$(OUT)/tr-lsq.h5 $(OUT)/tr-lsq.log &: $(OUT)/tr-samples.h5
+	crom-fitfield --rank 20 --encoder lsq --minutes $(TRAIN_MINUTES) --epochs 4000 --seed $(SEED) -v \
+	  -o $(OUT)/tr-lsq.h5 < $< 2> $(OUT)/tr-lsq.log
+$(OUT)/tr-pointnet.h5 $(OUT)/tr-pointnet.log &: $(OUT)/tr-samples.h5
+	crom-fitfield --rank 20 --encoder pointnet --minutes $(TRAIN_MINUTES) --seed $(SEED) -v \
+	  -o $(OUT)/tr-pointnet.h5 < $< 2> $(OUT)/tr-pointnet.log
+$(OUT)/training.md: $(OUT)/tr-lsq.h5 $(OUT)/tr-pointnet.h5
+	/usr/bin/python3 $(TOP)/pipelines/benchtab.py training $(OUT) > $@.tmp && mv $@.tmp $@
+
+# ------------------------------------------------------------------ plots
+plots: $(OUT)/steps.png $(OUT)/training.png
+$(OUT)/steps.png: $(OUT)/tables.md
+	gnuplot -e "set terminal pngcairo size 900,500; set output '$@'; set datafile separator ','; \
+	  set style data histogram; set style histogram clustered; set style fill solid 0.8; set logscale y; \
+	  set ylabel 'median step cost (ms)'; set title 'crom: full vs reduced step cost (one core)'; \
+	  set xtics rotate by -20; plot '$(OUT)/table1.csv' using 6:xtic(1) title 'full', '' using 7 title 'reduced'"
+$(OUT)/training.png: $(OUT)/training.md
+	gnuplot -e "set terminal pngcairo size 900,500; set output '$@'; set datafile separator ','; \
+	  set logscale y; set xlabel 'training time (s)'; set ylabel 'relative reconstruction error'; \
+	  set title 'crom-fitfield on five shapes, r = 20, one core'; set key top right; \
+	  plot '$(OUT)/training-lsq.csv' using 2:3 with lines lw 2 title 'lsq (variable projection)', \
+	       '$(OUT)/training-pointnet.csv' using 2:3 with lines lw 2 title 'pointnet (joint, LiCROM eq. 4)', \
+	       0.02 with lines dt 2 title '2%'"

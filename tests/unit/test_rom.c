@@ -367,11 +367,11 @@ static void test_schemes_and_switch(void)
  * one-field basis that jumps across that plane (u_y = q H(x − 0.5), H a
  * steep step), the intact body resists the jump (its tets next to the plane
  * see the jump through their shared vertices) while the cut body lets it open
- * (the copies sample W on their own sides: crom_cub_sample_points). */
+ * (the copies sample W on their own sides: crom_mesh_field_points). */
 static double jump_energy(const crom_mesh *m, double offset, double q)
 {
     int ns = 0;
-    double *P = crom_cub_sample_points(m, offset, &ns), *W = malloc(sizeof(double) * 3 * m->nv);
+    double *P = crom_mesh_field_points(m, offset, &ns), *W = malloc(sizeof(double) * 3 * m->nv);
     for (int v = 0; v < m->nv; v++) {
         W[3 * v] = W[3 * v + 2] = 0;
         W[3 * v + 1] = 0.5 * (1 + tanh((P[3 * v] - 0.5) / 1e-4));
@@ -433,10 +433,10 @@ static void test_crack_opens(void)
     CHECK(crom_remesh_cut(&m, &cut, &cm, &st, NULL, NULL) == 0);
     CHECK(cm.nv == m.nv + 25);
     int ns = 0;
-    double *P = crom_cub_sample_points(&m, 0.25, &ns);
+    double *P = crom_mesh_field_points(&m, 0.25, &ns);
     CHECK(ns == 0); /* an intact mesh has no duplicated vertices */
     free(P);
-    P = crom_cub_sample_points(&cm, 0.25, &ns);
+    P = crom_mesh_field_points(&cm, 0.25, &ns);
     CHECK(ns == 50); /* 25 vertices on the plane, two copies each */
     free(P);
     double q = 0.05, Ei = jump_energy(&m, 0.25, q), Ec = jump_energy(&cm, 0.25, q), Ec0 = jump_energy(&cm, 0, q);
