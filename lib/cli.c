@@ -135,25 +135,31 @@ static void troff(FILE *f, const char *s)
     }
 }
 
+/* The next paragraph of *p (paragraphs are separated by a blank line),
+ * malloc'ed, advancing *p; NULL at the end (or out of memory). */
+static char *next_paragraph(const char **p)
+{
+    if (!**p)
+        return NULL;
+    const char *e = strstr(*p, "\n\n");
+    size_t len = e ? (size_t)(e - *p) : strlen(*p);
+    char *para = malloc(len + 1);
+    if (para) {
+        memcpy(para, *p, len);
+        para[len] = 0;
+    }
+    *p += len;
+    while (**p == '\n')
+        (*p)++;
+    return para;
+}
+
 static void print_paragraphs_man(FILE *f, const char *s)
 {
-    /* blank line = new paragraph */
-    const char *p = s;
-    while (*p) {
-        const char *e = strstr(p, "\n\n");
-        size_t len = e ? (size_t)(e - p) : strlen(p);
-        char *para = malloc(len + 1);
-        if (!para)
-            return;
-        memcpy(para, p, len);
-        para[len] = 0;
+    for (char *para; (para = next_paragraph(&s)); free(para)) {
         fputs(".PP\n", f);
         troff(f, para);
         fputc('\n', f);
-        free(para);
-        p += len;
-        while (*p == '\n')
-            p++;
     }
 }
 
@@ -249,23 +255,12 @@ void crom_cli_print_doc(const crom_doc *d, FILE *f, int man)
     fputc('\n', f);
     /* description paragraphs */
     const char *p = d->description;
-    while (*p) {
-        const char *e = strstr(p, "\n\n");
-        size_t len = e ? (size_t)(e - p) : strlen(p);
-        char *para = malloc(len + 1);
-        if (!para)
-            return;
-        memcpy(para, p, len);
-        para[len] = 0;
+    for (char *para; (para = next_paragraph(&p)); free(para)) {
         for (char *c = para; *c; c++)
             if (*c == '\n')
                 *c = ' ';
         wrap(f, para, 0, 0, 79);
         fputc('\n', f);
-        free(para);
-        p += len;
-        while (*p == '\n')
-            p++;
     }
     for (const crom_optgroup *g = d->groups; g && g->opts; g++) {
         fprintf(f, "%s:\n", g->heading);

@@ -156,17 +156,29 @@ int crom_h5_set_str(hid_t loc, const char *obj, const char *name, const char *va
     return rc;
 }
 
+/* Open attribute `name` of object obj under loc; *o gets the object (close
+ * both). Returns the attribute, or -1 with an error recorded. */
+static hid_t open_attr(hid_t loc, const char *obj, const char *name, hid_t *o)
+{
+    *o = open_obj(loc, obj);
+    if (*o < 0) {
+        crom_err(CROM_EDATA, "no object '%s'", obj ? obj : ".");
+        return -1;
+    }
+    if (H5Aexists(*o, name) <= 0) {
+        H5Oclose(*o);
+        crom_err(CROM_EDATA, "missing attribute '%s'", name);
+        return -1;
+    }
+    return H5Aopen(*o, name, H5P_DEFAULT);
+}
+
 int crom_h5_get_str(hid_t loc, const char *obj, const char *name, char **value)
 {
     *value = NULL;
-    hid_t o = open_obj(loc, obj);
-    if (o < 0)
-        return crom_err(CROM_EDATA, "no object '%s'", obj ? obj : ".");
-    if (H5Aexists(o, name) <= 0) {
-        H5Oclose(o);
-        return crom_err(CROM_EDATA, "missing attribute '%s'", name);
-    }
-    hid_t a = H5Aopen(o, name, H5P_DEFAULT);
+    hid_t o, a = open_attr(loc, obj, name, &o);
+    if (a < 0)
+        return CROM_EDATA;
     hid_t ft = H5Aget_type(a);
     int rc = 0;
     if (H5Tget_class(ft) != H5T_STRING) {
@@ -223,14 +235,9 @@ int crom_h5_set_i64(hid_t loc, const char *obj, const char *name, long long v)
 static int get_num_attr(hid_t loc, const char *obj, const char *name, hid_t mt,
                         void *v, int n)
 {
-    hid_t o = open_obj(loc, obj);
-    if (o < 0)
-        return crom_err(CROM_EDATA, "no object '%s'", obj ? obj : ".");
-    if (H5Aexists(o, name) <= 0) {
-        H5Oclose(o);
-        return crom_err(CROM_EDATA, "missing attribute '%s'", name);
-    }
-    hid_t a = H5Aopen(o, name, H5P_DEFAULT);
+    hid_t o, a = open_attr(loc, obj, name, &o);
+    if (a < 0)
+        return CROM_EDATA;
     hid_t s = H5Aget_space(a);
     hssize_t np = H5Sget_simple_extent_npoints(s);
     hid_t ft = H5Aget_type(a);
@@ -278,6 +285,44 @@ int crom_h5_has(hid_t loc, const char *path)
             *p = c;
         }
     }
+}
+
+static herr_t list_member(hid_t g, const char *name, const H5L_info_t *info, void *data)
+{
+    (void)g;
+    (void)info;
+    char ***list = data;
+    size_t n = 0;
+    while ((*list)[n])
+        n++;
+    char **nl = realloc(*list, sizeof(char *) * (n + 2));
+    if (!nl)
+        return -1;
+    *list = nl;
+    nl[n + 1] = NULL;
+    return (nl[n] = strdup(name)) ? 0 : -1;
+}
+
+void crom_h5_list_free(char **list)
+{
+    for (size_t i = 0; list && list[i]; i++)
+        free(list[i]);
+    free(list);
+}
+
+char **crom_h5_list(hid_t loc, const char *path)
+{
+    char **list = calloc(1, sizeof(char *));
+    hid_t g = list ? H5Gopen2(loc, path, H5P_DEFAULT) : -1;
+    herr_t e = g < 0 ? -1 : H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, NULL, list_member, &list);
+    if (g >= 0)
+        H5Gclose(g);
+    if (e < 0) {
+        crom_h5_list_free(list);
+        crom_err(CROM_EDATA, "cannot list group '%s'", path);
+        return NULL;
+    }
+    return list;
 }
 
 hid_t crom_h5_group(hid_t loc, const char *name)

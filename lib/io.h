@@ -198,6 +198,12 @@ int crom_h5_shape(hid_t loc, const char *name, int *rank, hsize_t *dims);
 /* 1 if the link exists (path may have several components), else 0. */
 int crom_h5_has(hid_t loc, const char *path);
 
+/* Names of the members of group `path` under loc, sorted by name: a
+ * NULL-terminated malloc'ed list (free with crom_h5_list_free). NULL with
+ * an error recorded when the group cannot be opened or listed. */
+char **crom_h5_list(hid_t loc, const char *path);
+void crom_h5_list_free(char **list);
+
 /* Create a group (or open an existing one); returns the id or a negative
  * value with an error recorded. */
 hid_t crom_h5_group(hid_t loc, const char *name);

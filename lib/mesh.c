@@ -634,38 +634,6 @@ int crom_mesh_write(hid_t loc, const crom_mesh *m)
     return rc;
 }
 
-static herr_t collect_names(hid_t g, const char *name, const H5L_info_t *info, void *data)
-{
-    (void)g;
-    (void)info;
-    char ***list = data;
-    size_t n = 0;
-    while ((*list)[n])
-        n++;
-    char **nl = realloc(*list, sizeof(char *) * (n + 2));
-    if (!nl)
-        return -1;
-    nl[n] = strdup(name);
-    nl[n + 1] = NULL;
-    *list = nl;
-    return nl[n] ? 0 : -1;
-}
-
-/* Names of the links in group `path` under loc, in creation-independent
- * (name) order; a NULL-terminated malloc'ed list. */
-static char **group_names(hid_t loc, const char *path)
-{
-    char **list = calloc(1, sizeof(char *));
-    if (!list)
-        return NULL;
-    hid_t g = H5Gopen2(loc, path, H5P_DEFAULT);
-    if (g < 0)
-        return list;
-    H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, NULL, collect_names, &list);
-    H5Gclose(g);
-    return list;
-}
-
 int crom_mesh_read(hid_t loc, crom_mesh *m)
 {
     memset(m, 0, sizeof *m);
@@ -686,7 +654,9 @@ int crom_mesh_read(hid_t loc, crom_mesh *m)
     m->nv = (int)dv[0];
     m->nt = (int)dt[0];
     if (crom_h5_has(loc, "regions")) {
-        char **names = group_names(loc, "regions");
+        char **names = crom_h5_list(loc, "regions");
+        if (!names)
+            rc = CROM_EDATA;
         for (int i = 0; names && names[i] && !rc; i++) {
             char path[128];
             snprintf(path, sizeof path, "regions/%s", names[i]);
@@ -702,9 +672,7 @@ int crom_mesh_read(hid_t loc, crom_mesh *m)
             free(src);
             free(idx);
         }
-        for (int i = 0; names && names[i]; i++)
-            free(names[i]);
-        free(names);
+        crom_h5_list_free(names);
     }
     if (!rc)
         rc = crom_mesh_validate(m);

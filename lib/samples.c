@@ -104,22 +104,6 @@ int crom_samples_write(hid_t loc, const crom_samples *s)
     return rc;
 }
 
-static herr_t collect_names(hid_t g, const char *name, const H5L_info_t *info, void *data)
-{
-    (void)g;
-    (void)info;
-    char ***list = data;
-    size_t n = 0;
-    while ((*list)[n])
-        n++;
-    char **nl = realloc(*list, sizeof(char *) * (n + 2));
-    if (!nl)
-        return -1;
-    nl[n] = strdup(name);
-    nl[n + 1] = NULL;
-    *list = nl;
-    return nl[n] ? 0 : -1;
-}
 
 /* Read a mesh stored as vertices + tets under group g (no regions needed). */
 static int read_source(hid_t g, const char *name, crom_mesh *m)
@@ -188,14 +172,12 @@ int crom_samples_read(crom_in *in, crom_samples *s)
         rc = crom_err(CROM_EDATA, "%s: no /sources group", in->name);
         goto fail;
     }
+    char **names = crom_h5_list(h, "sources");
     hid_t g = H5Gopen2(h, "sources", H5P_DEFAULT);
-    char **names = calloc(1, sizeof(char *));
-    if (g < 0 || !names || H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, NULL, collect_names, &names) < 0) {
+    if (!names || g < 0) {
         if (g >= 0)
             H5Gclose(g);
-        for (int i = 0; names && names[i]; i++)
-            free(names[i]);
-        free(names);
+        crom_h5_list_free(names);
         rc = crom_err(CROM_EDATA, "%s: cannot list /sources", in->name);
         goto fail;
     }
@@ -225,9 +207,7 @@ int crom_samples_read(crom_in *in, crom_samples *s)
         crom_err_clear();
     }
     H5Gclose(g);
-    for (int i = 0; names[i]; i++)
-        free(names[i]);
-    free(names);
+    crom_h5_list_free(names);
     if (rc)
         goto fail;
     /* values */

@@ -289,23 +289,6 @@ static void check_dset(ctx *c, hid_t root, const char *path, const crom_schema_d
     H5Dclose(ds);
 }
 
-static herr_t list_cb(hid_t g, const char *name, const H5L_info_t *info, void *data)
-{
-    (void)g;
-    (void)info;
-    char ***list = data;
-    size_t n = 0;
-    while ((*list)[n])
-        n++;
-    char **nl = realloc(*list, sizeof(char *) * (n + 2));
-    if (!nl)
-        return -1;
-    nl[n] = strdup(name);
-    nl[n + 1] = NULL;
-    *list = nl;
-    return 0;
-}
-
 static void check_attr(ctx *c, hid_t root, const crom_schema_attr *a)
 {
     if (!crom_h5_has_attr(root, ".", a->name)) {
@@ -392,19 +375,15 @@ int crom_schema_check(crom_in *in, FILE *report)
                 violation(&c, "missing group /%s", group);
             continue;
         }
-        char **names = calloc(1, sizeof(char *));
-        hid_t g = H5Gopen2(in->h5, group, H5P_DEFAULT);
-        if (g >= 0) {
-            H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, NULL, list_cb, &names);
-            H5Gclose(g);
-        }
+        char **names = crom_h5_list(in->h5, group);
+        if (!names)
+            violation(&c, "group /%s cannot be listed", group);
         for (int i = 0; names && names[i]; i++) {
             char path[256];
             snprintf(path, sizeof path, "%s/%s%s", group, names[i], star + 1);
             check_dset(&c, in->h5, path, d);
-            free(names[i]);
         }
-        free(names);
+        crom_h5_list_free(names);
     }
     /* semantic checks */
     if (!strcmp(s->schema, "crom/mesh") || !strcmp(s->schema, "crom/trajectory")) {
