@@ -1,5 +1,8 @@
 /* crom-fitfield — learn a displacement basis W(X) (crom/model) from point
- * samples (crom/samples): a neural field, or a classic POD basis. */
+ * samples (crom/samples): a neural field, or a classic POD basis; or, with
+ * no data at all, a nonlinear subspace of one mesh from its energy
+ * (--objective energy: Sharp et al. 2023; --objective neuralmodes: Wang et
+ * al. 2024). */
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -9,20 +12,39 @@
 #include <string.h>
 
 #include "cli.h"
+#include "datafree.h"
 #include "err.h"
 #include "fit.h"
 #include "io.h"
+#include "map.h"
+#include "mesh.h"
 #include "model.h"
+#include "modes.h"
 #include "samples.h"
+#include "scenario.h"
 
 enum { O_RANK = 300, O_ENCODER, O_BASIS, O_EPOCHS, O_MINUTES, O_LR, O_BATCH, O_PPS, O_ENCPTS,
-       O_ACT, O_WIDTH, O_DEPTH, O_TIK };
+       O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX,
+       O_ORTHO, O_ORIGIN, O_STEPS };
 
 static const crom_opt fit_opts[] = {
     {"output", 'o', "OUT", "Write the model to OUT (default: stdout, which must not be a terminal)."},
-    {"rank", O_RANK, "R", "Number of basis fields r, the latent dimension (default 20). At most the number of frames with a non-zero displacement (for pod: the numerical rank of the snapshots)."},
+    {"objective", O_OBJECTIVE, "KIND", "samples (default): fit a basis to the samples read from SAMPLES. energy: learn a nonlinear subspace of the mesh given with --mesh from its energy alone, no data (Sharp et al. 2023). neuralmodes: nonlinear modes x(z) = X + Phi z + y(z) on the linear modes of --modes (Wang et al. 2024)."},
+    {"rank", O_RANK, "R", "Number of basis fields r, the latent dimension (default 20; energy: 8; neuralmodes: every mode of --modes). At most the number of frames with a non-zero displacement (for pod: the numerical rank of the snapshots; data-free: the free degrees of freedom; neuralmodes: the modes in --modes)."},
     {"basis", O_BASIS, "KIND", "mlp (default): a neural field W(X), usable on any mesh. pod: classic POD of samples of ONE mesh taken with crom-sample --points all, stored as a piecewise-linear field on that mesh."},
     {"encoder", O_ENCODER, "KIND", "How q is found for a frame during and after training (mlp only). lsq (default): the least-squares fit of W to the frame's samples, re-solved at every step (variable projection; fast). pointnet: the paper's PointNet encoder, trained jointly with W (LiCROM eq. 4) and stored in the model."},
+    {NULL, 0, NULL, NULL}};
+
+static const crom_opt df_opts[] = {
+    {"mesh", O_MESH, "MESH", "The crom/mesh the data-free subspace maps (required with --objective energy|neuralmodes; '-' for stdin). Its regions resolve --pin. The model stores it: the subspace lives on this mesh."},
+    {"modes", O_MODES, "MODEL", "neuralmodes (required): a crom/model of linear modes of the same mesh, from crom-modes. Its lowest --rank modes are the linear part Phi; its pins are kept, its material is the default."},
+    {"steps", O_STEPS, "N", "Training steps of a data-free objective (default 2000), each on --batch samples (default 32). The learning rate is --lr (default 1e-3), halved after each quarter of the steps."},
+    {"sigma", O_SIGMA, "S", "energy: isometry scale in metres: the subspace should move the body by S (RMS displacement) per unit of latent distance, |f(z) - f(z')|_M / sqrt(m) ~ S |z - z'|, z ~ N(0, I) (default 0.05 times the bounding-box diagonal). Sharp et al.'s sigma divided by sqrt(body mass)."},
+    {"lambda", O_LAMBDA, "L", "energy: weight of the isometry term, the squared log-ratio of mass-norm distances to S |z - z'| over all pairs of a batch, against the energy in units of E V (Young's modulus times volume) (default 1)."},
+    {"ramp", O_RAMP, "F", "energy: the seed-state blend rho grows linearly from 0 to 1 over the first fraction F of the steps, then stays 1 (default 0.5; Sharp et al. §4.1). The seed state is the rest shape."},
+    {"box", O_BOX, "A", "neuralmodes: the modal coordinates z are drawn uniformly from [-A, A]^r, in metres of RMS displacement (default 0.1 times the bounding-box diagonal)."},
+    {"ortho-weight", O_ORTHO, "W", "neuralmodes: weight of the penalty |Phi^T M y(z)|^2 keeping the correction M-orthogonal to the linear modes, relative to the linear energy of the highest mode at the box size (default 1e4)."},
+    {"origin-weight", O_ORIGIN, "W", "neuralmodes: weight of the penalty |y(0)|_M^2 (default 1e4)."},
     {NULL, 0, NULL, NULL}};
 
 static const crom_opt train_opts[] = {
@@ -32,18 +54,25 @@ static const crom_opt train_opts[] = {
     {"batch", O_BATCH, "B", "Frames per step (default 16)."},
     {"points-per-step", O_PPS, "P", "Samples of each frame used per step (default: 128 for lsq, every sample for pointnet). For vertex samples, a step evaluates W once at a random subset of one mesh's vertices, shared by all frames of the batch; P sets its size (about P x vertices / samples-per-frame). Interior samples are evaluated frame by frame, which costs about --batch times more per step."},
     {"encoder-points", O_ENCPTS, "N", "Points per frame the PointNet encoder sees, a random subsample (default 2500, or all if fewer)."},
-    {"activation", O_ACT, "ACT", "Hidden activation of W: elu (default) or sine (SIREN, omega0 = 30). With omega0 = 30 a sine field can interpolate the training points and oscillate between them: check it with crom-encode on another mesh."},
-    {"width", O_WIDTH, "W", "Hidden width of the field MLP (default 60)."},
-    {"depth", O_DEPTH, "D", "Dense layers of the field MLP (default 5: 3 -> 60 -> 60 -> 60 -> 60 -> 3r)."},
+    {"activation", O_ACT, "ACT", "Hidden activation of W: elu (default) or sine (SIREN, omega0 = 30). With omega0 = 30 a sine field can interpolate the training points and oscillate between them: check it with crom-encode on another mesh. Data-free maps: elu (energy default), gelu (neuralmodes default) or sine."},
+    {"width", O_WIDTH, "W", "Hidden width of the field MLP (default 60; data-free maps: 64)."},
+    {"depth", O_DEPTH, "D", "Dense layers of the field MLP (default 5: 3 -> 60 -> 60 -> 60 -> 60 -> 3r; data-free maps: 6, i.e. r -> 64 x 5 -> 3nv)."},
     {"tikhonov", O_TIK, "T", "Relative Tikhonov weight of the lsq fits: lambda = T tr(W^T W) / r (default 1e-6)."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", fit_opts}, {"Training", train_opts}, {NULL, NULL}};
+static const crom_optgroup groups[] = {{"Options", fit_opts},
+                                       {"Training", train_opts},
+                                       {"Data-free subspaces (--objective energy|neuralmodes)", df_opts},
+                                       {"Scenario options of data-free training (the flags of crom-fullsim: material, gravity and "
+                                        "--pin are used, the others accepted and ignored)", crom_scenario_opts},
+                                       {NULL, NULL}};
 
 static const crom_doc doc = {
     "crom-fitfield",
     "learn a displacement basis W(X) from point samples",
-    "crom-fitfield [--rank R] [--encoder lsq|pointnet] [--basis mlp|pod] [--epochs N] [--minutes M] [--seed S] [-o OUT] [SAMPLES]",
+    "crom-fitfield [--rank R] [--encoder lsq|pointnet] [--basis mlp|pod] [--epochs N] [--minutes M] [--seed S] [-o OUT] [SAMPLES]\n"
+    "crom-fitfield --objective energy --mesh MESH [--rank R] [--sigma S] [--lambda L] [--steps N] [scenario] [-o OUT]\n"
+    "crom-fitfield --objective neuralmodes --mesh MESH --modes MODEL [--rank R] [--box A] [--steps N] [-o OUT]",
     "Reads a crom/samples file (a path, or stdin) and writes a crom/model: a basis W(X) of r "
     "displacement fields, so that u(X) = W(X) q for a latent q in metres (LiCROM §3).\n\n"
     "--basis mlp trains a neural field: an MLP with ELU activations (5 layers of width 60 by "
@@ -67,26 +96,131 @@ static const crom_doc doc = {
     "frames (q by least squares, or by the encoder for pointnet) is printed on stderr and "
     "stored in the model with the training log (loss and wall time per epoch). A progress bar "
     "shows on a terminal. The same samples, options and --seed give the same bytes (set "
-    "SOURCE_DATE_EPOCH for the stored times; --threads changes the last bits).",
+    "SOURCE_DATE_EPOCH for the stored times; --threads changes the last bits).\n\n"
+    "Data-free subspaces need no samples, only a mesh (--mesh), a material, and the pins and "
+    "gravity of the scenario flags. They are nonlinear maps from a latent z to the positions of "
+    "every vertex of that mesh, stored as models of basis 'energy' or 'neuralmodes' with the "
+    "mesh (and its regions): crom-reducedstep --model simulates in them, crom-export and crom-diff "
+    "decode them on that mesh, crom-metrics measures them. Pinned vertices are built into the "
+    "map (held exactly at rest).\n\n"
+    "--objective energy (Sharp et al. 2023, eq. 4 and §4.1): x(z) = X + N(z) with N an ELU MLP "
+    "r -> 64 x 5 -> 3nv, trained on batches of z ~ N(0, I) to minimize the mean potential energy "
+    "(stable neo-Hookean plus gravity, in units of E V) of the samples plus --lambda times the "
+    "mean over all pairs of the batch of (log(|N(z) - N(z')|_M / sqrt(m) / (S |z - z'|)))^2, "
+    "the isometry term that keeps the subspace from collapsing to the lowest-energy state. The "
+    "seed-state blend X + rho N(z) grows rho from 0 to 1 over the first --ramp of the steps. "
+    "A free body under gravity is refused (it has no lowest energy).\n\n"
+    "--objective neuralmodes (Wang et al. 2024, eq. 12-13): x(z) = X + W z + y(z) on the lowest "
+    "--rank linear modes W of --modes (computed by crom-modes on the same mesh; W^T M W = m I, so z "
+    "is in metres), with a GELU MLP correction y trained from zero on z uniform in [-A, A]^r to "
+    "minimize the elastic energy plus penalties on the projection W^T M y(z) and on y(0). The "
+    "training log (objective, mean energy, penalty per block of steps) is stored in the model.\n\n"
+    "Training a data-free map costs --batch energy evaluations of the whole mesh per step; "
+    "--threads evaluates them in parallel (the result does not depend on the thread count).",
     groups,
     "crom-sample run*.h5 | crom-fitfield --rank 20 -o model.h5\n"
     "crom-fitfield --encoder pointnet --epochs 3750 -o model.h5 samples.h5\n"
-    "crom-sample --points all run.h5 | crom-fitfield --basis pod --rank 10 -o pod.h5",
-    "crom-sample(1), crom-encode(1), crom-cubature(1), crom-info(1)"};
+    "crom-sample --points all run.h5 | crom-fitfield --basis pod --rank 10 -o pod.h5\n"
+    "crom-fitfield --objective energy --mesh bar.h5 --pin clamp --youngs 1e6 --rank 3 -o df.h5\n"
+    "crom-modes --pin clamp --youngs 1e6 --count 6 -o modes.h5 bar.h5\n"
+    "crom-fitfield --objective neuralmodes --mesh bar.h5 --modes modes.h5 -o nm.h5",
+    "crom-sample(1), crom-encode(1), crom-cubature(1), crom-modes(1), crom-reducedstep(1), crom-metrics(1), crom-info(1)"};
 
 typedef struct {
     const char *input, *out;
     int pod;
     crom_fit_opts fit;
     int encoder_given;
+    /* data-free */
+    int objective;               /* 0: samples, else CROM_DF_* */
+    const char *mesh, *modes;
+    crom_df_opts df;
+    crom_scenario sc;
+    const char *samples_only;    /* a samples-only option given, for the message */
+    int rank_given, act_given, width_given, depth_given, lr_given, batch_given, minutes_given;
+    int material_given;
+    const char *df_only;         /* a data-free-only option given */
+    char df_flag[48];
 } args;
+
+/* The scenario option of a key, or NULL. */
+static const char *scenario_name(int key)
+{
+    for (const crom_opt *o = crom_scenario_opts; o->name; o++)
+        if (o->key == key)
+            return o->name;
+    return NULL;
+}
 
 static int on_opt(void *ctx, int key, const char *v)
 {
     args *a = ctx;
     long n;
     double d;
+    const char *scn = scenario_name(key);
+    if (scn) {
+        if (!strcmp(scn, "youngs") || !strcmp(scn, "poisson") || !strcmp(scn, "density"))
+            a->material_given = 1;
+        if (!a->df_only) {
+            snprintf(a->df_flag, sizeof a->df_flag, "--%s", scn);
+            a->df_only = a->df_flag;
+        }
+        return crom_scenario_option(&a->sc, key, v);
+    }
     switch (key) {
+    case O_RANK: case O_WIDTH: case O_DEPTH: case O_LR: case O_BATCH: case O_ACT: case O_MINUTES: break;
+    case O_EPOCHS: a->samples_only = "--epochs"; break;
+    case O_BASIS: a->samples_only = "--basis"; break;
+    case O_ENCODER: a->samples_only = "--encoder"; break;
+    case O_PPS: a->samples_only = "--points-per-step"; break;
+    case O_ENCPTS: a->samples_only = "--encoder-points"; break;
+    case O_TIK: a->samples_only = "--tikhonov"; break;
+    case O_MESH: a->df_only = "--mesh"; break;
+    case O_MODES: a->df_only = "--modes"; break;
+    case O_STEPS: a->df_only = "--steps"; break;
+    case O_SIGMA: a->df_only = "--sigma"; break;
+    case O_LAMBDA: a->df_only = "--lambda"; break;
+    case O_RAMP: a->df_only = "--ramp"; break;
+    case O_BOX: a->df_only = "--box"; break;
+    case O_ORTHO: a->df_only = "--ortho-weight"; break;
+    case O_ORIGIN: a->df_only = "--origin-weight"; break;
+    }
+    switch (key) {
+    case O_OBJECTIVE:
+        if (!strcmp(v, "samples"))
+            a->objective = 0;
+        else if (!strcmp(v, "energy"))
+            a->objective = CROM_DF_ENERGY;
+        else if (!strcmp(v, "neuralmodes"))
+            a->objective = CROM_DF_NEURALMODES;
+        else
+            return crom_err(CROM_EUSAGE, "--objective: '%s' is not samples, energy or neuralmodes", v);
+        return 0;
+    case O_MESH: a->mesh = v; return 0;
+    case O_MODES: a->modes = v; return 0;
+    case O_STEPS:
+        if (crom_parse_int(v, "--steps", 1, 1000000000L, &n))
+            return CROM_EUSAGE;
+        a->df.steps = (int)n;
+        return 0;
+    case O_SIGMA: return crom_parse_positive(v, "--sigma", &a->df.sigma);
+    case O_LAMBDA:
+        if (crom_parse_double(v, "--lambda", &a->df.lambda))
+            return CROM_EUSAGE;
+        return a->df.lambda >= 0 ? 0 : crom_err(CROM_EUSAGE, "--lambda must be >= 0, got %s", v);
+    case O_RAMP:
+        if (crom_parse_double(v, "--ramp", &a->df.ramp))
+            return CROM_EUSAGE;
+        return a->df.ramp >= 0 && a->df.ramp <= 1 ? 0 : crom_err(CROM_EUSAGE, "--ramp must be in [0, 1], got %s", v);
+    case O_BOX: return crom_parse_positive(v, "--box", &a->df.box);
+    case O_ORTHO:
+        if (crom_parse_double(v, "--ortho-weight", &a->df.ortho_weight))
+            return CROM_EUSAGE;
+        return a->df.ortho_weight >= 0 ? 0 : crom_err(CROM_EUSAGE, "--ortho-weight must be >= 0, got %s", v);
+    case O_ORIGIN:
+        if (crom_parse_double(v, "--origin-weight", &a->df.origin_weight))
+            return CROM_EUSAGE;
+        return a->df.origin_weight >= 0 ? 0 : crom_err(CROM_EUSAGE, "--origin-weight must be >= 0, got %s", v);
     case 0:
         if (a->input)
             return crom_err(CROM_EUSAGE, "unexpected operand '%s' (one samples file)", v);
@@ -97,6 +231,7 @@ static int on_opt(void *ctx, int key, const char *v)
         if (crom_parse_int(v, "--rank", 1, 10000, &n))
             return CROM_EUSAGE;
         a->fit.rank = (int)n;
+        a->rank_given = 1;
         return 0;
     case O_BASIS:
         if (!strcmp(v, "mlp"))
@@ -120,12 +255,13 @@ static int on_opt(void *ctx, int key, const char *v)
             return CROM_EUSAGE;
         a->fit.epochs = (int)n;
         return 0;
-    case O_MINUTES: return crom_parse_positive(v, "--minutes", &a->fit.minutes);
-    case O_LR: return crom_parse_positive(v, "--lr", &a->fit.lr);
+    case O_MINUTES: a->minutes_given = 1; return crom_parse_positive(v, "--minutes", &a->fit.minutes);
+    case O_LR: a->lr_given = 1; return crom_parse_positive(v, "--lr", &a->fit.lr);
     case O_BATCH:
         if (crom_parse_int(v, "--batch", 1, 1000000L, &n))
             return CROM_EUSAGE;
         a->fit.batch = (int)n;
+        a->batch_given = 1;
         return 0;
     case O_PPS:
         if (crom_parse_int(v, "--points-per-step", 1, 100000000L, &n))
@@ -142,18 +278,23 @@ static int on_opt(void *ctx, int key, const char *v)
             a->fit.act = CROM_NN_ELU;
         else if (!strcmp(v, "sine"))
             a->fit.act = CROM_NN_SINE;
+        else if (!strcmp(v, "gelu"))
+            a->fit.act = CROM_NN_GELU;
         else
-            return crom_err(CROM_EUSAGE, "--activation: '%s' is not elu or sine", v);
+            return crom_err(CROM_EUSAGE, "--activation: '%s' is not elu or sine (or gelu, for data-free maps)", v);
+        a->act_given = 1;
         return 0;
     case O_WIDTH:
         if (crom_parse_int(v, "--width", 1, 4096, &n))
             return CROM_EUSAGE;
         a->fit.width = (int)n;
+        a->width_given = 1;
         return 0;
     case O_DEPTH:
         if (crom_parse_int(v, "--depth", 2, CROM_NN_MAX_LAYERS, &n))
             return CROM_EUSAGE;
         a->fit.depth = (int)n;
+        a->depth_given = 1;
         return 0;
     case O_TIK:
         if (crom_parse_double(v, "--tikhonov", &d))
@@ -166,14 +307,69 @@ static int on_opt(void *ctx, int key, const char *v)
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
 
+static void usage_exit(crom_cli *cli) { exit(crom_cli_exit(cli, CROM_EUSAGE)); }
+
 static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
 {
     memset(a, 0, sizeof *a);
     crom_fit_defaults(&a->fit);
+    crom_df_defaults(&a->df, CROM_DF_ENERGY);
+    crom_scenario_defaults(&a->sc);
     crom_cli_parse(cli, &doc, argc, argv, on_opt, a);
     if (a->pod && a->encoder_given && a->fit.encoder == CROM_ENC_POINTNET) {
         crom_err(CROM_EUSAGE, "--basis pod has no neural encoder: its q is the lsq projection (drop --encoder pointnet)");
         exit(crom_cli_exit(cli, CROM_EUSAGE));
+    }
+    if (!a->objective && a->df_only) {
+        crom_err(CROM_EUSAGE, "%s applies to a data-free subspace (--objective energy|neuralmodes)", a->df_only);
+        usage_exit(cli);
+    }
+    if (a->objective) {
+        const char *name = a->objective == CROM_DF_ENERGY ? "energy" : "neuralmodes";
+        if (a->samples_only) {
+            crom_err(CROM_EUSAGE, "%s applies to --objective samples, not %s%s", a->samples_only, name,
+                     !strcmp(a->samples_only, "--epochs") ? " (use --steps)" : "");
+            usage_exit(cli);
+        }
+        if (a->input) {
+            crom_err(CROM_EUSAGE, "--objective %s learns from no samples: drop the operand '%s' (the mesh comes "
+                                  "with --mesh)", name, a->input);
+            usage_exit(cli);
+        }
+        if (!a->mesh) {
+            crom_err(CROM_EUSAGE, "--objective %s needs the mesh it maps: --mesh MESH", name);
+            usage_exit(cli);
+        }
+        if (a->objective == CROM_DF_NEURALMODES && !a->modes) {
+            crom_err(CROM_EUSAGE, "--objective neuralmodes needs the linear modes it builds on: --modes MODEL "
+                                  "(from crom-modes on the same mesh)");
+            usage_exit(cli);
+        }
+        if (a->objective == CROM_DF_ENERGY && a->modes) {
+            crom_err(CROM_EUSAGE, "--modes applies to --objective neuralmodes");
+            usage_exit(cli);
+        }
+        crom_df_opts d;
+        crom_df_defaults(&d, a->objective);
+        d.rank = a->rank_given ? a->fit.rank : d.rank;
+        d.act = a->act_given ? a->fit.act : d.act;
+        d.width = a->width_given ? a->fit.width : d.width;
+        d.depth = a->depth_given ? a->fit.depth : d.depth;
+        d.lr = a->lr_given ? a->fit.lr : d.lr;
+        d.batch = a->batch_given ? a->fit.batch : d.batch;
+        d.minutes = a->minutes_given ? a->fit.minutes : 0;
+        d.steps = a->df.steps;
+        d.sigma = a->df.sigma;
+        d.lambda = a->df.lambda;
+        d.ramp = a->df.ramp;
+        d.box = a->df.box;
+        d.ortho_weight = a->df.ortho_weight;
+        d.origin_weight = a->df.origin_weight;
+        d.seed = cli->seed;
+        a->df = d;
+    } else if (a->fit.act == CROM_NN_GELU) {
+        crom_err(CROM_EUSAGE, "--activation: gelu is for data-free maps; a neural field is elu or sine");
+        usage_exit(cli);
     }
     a->fit.seed = cli->seed;
 #ifdef _OPENMP
@@ -181,6 +377,7 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
 #else
     a->fit.threads = 1;
 #endif
+    a->df.threads = a->fit.threads;
 }
 
 static void on_progress(void *ctx, int epoch, double frac, double loss)
@@ -190,8 +387,220 @@ static void on_progress(void *ctx, int epoch, double frac, double loss)
     crom_progress_update(ctx, (long)(frac * 1000), buf);
 }
 
+static void on_df_progress(void *ctx, long step, double frac, double obj)
+{
+    char buf[64];
+    snprintf(buf, sizeof buf, "step %ld, objective %.4g", step, obj);
+    crom_progress_update(ctx, (long)(frac * 1000), buf);
+}
+
+static int read_mesh(const char *path, crom_mesh *m, char **history)
+{
+    crom_in in;
+    int rc = crom_in_open(&in, path);
+    if (rc)
+        return rc;
+    if ((rc = crom_in_expect(&in, CROM_MESH_SCHEMA, CROM_MESH_VERSION))) {
+        crom_err_ctx("--mesh");
+        crom_in_close(&in);
+        return rc;
+    }
+    hid_t root = H5Gopen2(in.h5, "/", H5P_DEFAULT);
+    rc = crom_mesh_read(root, m);
+    H5Gclose(root);
+    if (rc)
+        crom_err_ctx("%s", in.name);
+    else {
+        *history = in.history;
+        in.history = NULL;
+    }
+    crom_in_close(&in);
+    return rc;
+}
+
+/* The pins recorded in a modes model's scenario text, appended to sc. */
+static int add_model_pins(crom_scenario *sc, const char *text)
+{
+    crom_scenario tmp;
+    crom_scenario_defaults(&tmp);
+    int rc = crom_df_scenario_parse(text, &tmp);
+    for (int i = 0; !rc && i < tmp.npins; i++) {
+        int dup = 0;
+        for (int j = 0; j < sc->npins; j++)
+            dup |= !strcmp(sc->pins[j], tmp.pins[i]);
+        if (dup)
+            continue;
+        if (sc->npins == CROM_SC_MAX)
+            return crom_err(CROM_EUSAGE, "too many pins (at most %d)", CROM_SC_MAX);
+        snprintf(sc->pins[sc->npins++], sizeof sc->pins[0], "%s", tmp.pins[i]);
+    }
+    return rc;
+}
+
+/* The material, gravity (energy) and pins as flags, one per line. */
+static char *df_scenario_text(const crom_scenario *s, int energy)
+{
+    size_t cap = 512 + (size_t)s->npins * 140;
+    char *t = crom_malloc(cap);
+    if (!t)
+        return NULL;
+    size_t l = (size_t)snprintf(t, cap, "--youngs %.17g\n--poisson %.17g\n--density %.17g\n", s->youngs, s->poisson,
+                                s->density);
+    if (energy)
+        l += (size_t)snprintf(t + l, cap - l, "--gravity %.17g,%.17g,%.17g\n", s->gravity[0], s->gravity[1],
+                              s->gravity[2]);
+    for (int i = 0; i < s->npins; i++)
+        l += (size_t)snprintf(t + l, cap - l, "--pin %s\n", s->pins[i]);
+    return t;
+}
+
+static int run_datafree(crom_cli *cli, args *a)
+{
+    int nm = a->objective == CROM_DF_NEURALMODES, rc;
+    const char *name = nm ? "neuralmodes" : "energy";
+    crom_mesh mesh;
+    char *hist = NULL, *text = NULL;
+    unsigned char *fixed = NULL;
+    double *W = NULL, *freq = NULL;
+    crom_model modes, out;
+    crom_model_clear(&modes);
+    crom_model_clear(&out);
+    crom_df_log log;
+    memset(&log, 0, sizeof log);
+    memset(&mesh, 0, sizeof mesh);
+    if ((rc = read_mesh(a->mesh, &mesh, &hist)))
+        return rc;
+    if (nm) {
+        if ((rc = crom_model_load(a->modes, &modes))) {
+            crom_err_ctx("--modes");
+            goto out;
+        }
+        if (strcmp(modes.basis, "modes")) {
+            rc = crom_err(CROM_EDATA, "--modes %s is a '%s' model; neuralmodes builds on linear vibration modes "
+                          "(basis 'modes', from crom-modes)", a->modes, modes.basis);
+            goto out;
+        }
+        if (crom_map_same_mesh(&modes.mesh, &mesh)) {
+            rc = crom_err(CROM_EDATA, "--modes %s was computed on another mesh (%d vertices, %d tets) than --mesh %s "
+                          "(%d vertices, %d tets)", a->modes, modes.mesh.nv, modes.mesh.nt, a->mesh, mesh.nv, mesh.nt);
+            goto out;
+        }
+        if (!a->rank_given)
+            a->df.rank = modes.rank;
+        else if (a->df.rank > modes.rank) {
+            rc = crom_err(CROM_EUSAGE, "--rank %d: --modes %s has only %d modes", a->df.rank, a->modes, modes.rank);
+            goto out;
+        }
+        if (!a->material_given && isfinite(modes.youngs) && isfinite(modes.poisson) && isfinite(modes.density)) {
+            a->sc.youngs = modes.youngs;
+            a->sc.poisson = modes.poisson;
+            a->sc.density = modes.density;
+        } else if (isfinite(modes.youngs) && (modes.youngs != a->sc.youngs || modes.poisson != a->sc.poisson ||
+                                             modes.density != a->sc.density)) {
+            crom_cli_warn(cli, "the modes were computed with E = %g, nu = %g, rho = %g; training uses E = %g, nu = %g, "
+                          "rho = %g", modes.youngs, modes.poisson, modes.density, a->sc.youngs, a->sc.poisson,
+                          a->sc.density);
+        }
+        if ((rc = add_model_pins(&a->sc, modes.scenario)))
+            goto out;
+    }
+    if ((rc = crom_scenario_check(&a->sc)))
+        goto out;
+    crom_material mat;
+    if ((rc = crom_material_init(&mat, a->sc.youngs, a->sc.poisson, a->sc.density)))
+        goto out;
+    const char *refs[CROM_SC_MAX];
+    int npinned = 0;
+    for (int i = 0; i < a->sc.npins; i++)
+        refs[i] = a->sc.pins[i];
+    if ((rc = crom_modes_pins(&mesh, a->sc.npins, refs, &fixed, &npinned)))
+        goto out;
+    int r = a->df.rank, n = 3 * mesh.nv;
+    if (nm) {
+        /* the lowest r modes, [nv][3][r]; they must not move a pinned vertex */
+        W = crom_malloc(sizeof(double) * (size_t)n * r);
+        freq = crom_malloc(sizeof(double) * (size_t)r);
+        if (!W || !freq) {
+            rc = CROM_EINTERNAL;
+            goto out;
+        }
+        for (int i = 0; i < n; i++)
+            for (int k = 0; k < r; k++) {
+                double w = modes.basis_v[(size_t)i * modes.rank + k];
+                W[(size_t)i * r + k] = w;
+                if (fixed[i] && w != 0) {
+                    rc = crom_err(CROM_EDATA, "--modes %s moves vertex %d, which is pinned here: compute the modes "
+                                  "with the same --pin", a->modes, i / 3);
+                    goto out;
+                }
+            }
+        for (int k = 0; k < r; k++)
+            freq[k] = modes.frequencies ? modes.frequencies[k] : 0;
+    }
+    crom_df_problem P = {&mesh, mat, {a->sc.gravity[0], a->sc.gravity[1], a->sc.gravity[2]}, fixed, W, freq};
+    if (nm)
+        P.gravity[0] = P.gravity[1] = P.gravity[2] = 0;
+    crom_progress prog;
+    crom_progress_start(&prog, cli, "fitfield", 1000);
+    a->df.progress = on_df_progress;
+    a->df.progress_ctx = &prog;
+    double t0 = crom_now();
+    rc = crom_df_train(&P, &a->df, &out, &log);
+    crom_progress_end(&prog);
+    if (rc)
+        goto out;
+    text = df_scenario_text(&a->sc, !nm);
+    if (!text) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    out.scenario = crom_strdup(text);
+    out.youngs = a->sc.youngs;
+    out.poisson = a->sc.poisson;
+    out.density = a->sc.density;
+    crom_out o;
+    if ((rc = crom_out_create(&o, a->out, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cli, hist, CROM_OUT_PLAIN)))
+        goto out;
+    rc = crom_model_write(o.h5, &out);
+    if (!rc)
+        rc = crom_df_write_record(o.h5, &a->df, &P, &log, mat.rho * crom_mesh_volume(&mesh),
+                                  nm ? modes.model_id : NULL);
+    if (!rc)
+        rc = crom_out_commit(&o);
+    else
+        crom_out_fail(&o);
+    if (rc)
+        goto out;
+    int j = log.nblocks - 1;
+    if (nm)
+        crom_cli_info(cli, "neuralmodes map, rank %d on %d vertices (%d pinned): %ld steps in %.1f s; last objective "
+                      "%.4g, mean elastic energy %.4g J, orthogonality penalty %.3g (box %.4g m)",
+                      r, mesh.nv, npinned, log.steps, crom_now() - t0, log.objective[j], log.energy[j],
+                      log.penalty[j], log.box);
+    else
+        crom_cli_info(cli, "energy map, rank %d on %d vertices (%d pinned): %ld steps in %.1f s; last objective %.4g, "
+                      "mean potential energy %.4g J, mean squared log isometry ratio %.3g (sigma %.4g m)",
+                      r, mesh.nv, npinned, log.steps, crom_now() - t0, log.objective[j], log.energy[j],
+                      log.penalty[j], log.sigma);
+    if (cli->verbose)
+        crom_cli_info(cli, "%s: reference energy %.4g J; model_id %s", name, log.Eref, out.model_id);
+out:
+    crom_df_log_free(&log);
+    crom_model_free(&out);
+    crom_model_free(&modes);
+    crom_mesh_free(&mesh);
+    free(hist);
+    free(text);
+    free(fixed);
+    free(W);
+    free(freq);
+    return rc;
+}
+
 static int run(crom_cli *cli, args *a)
 {
+    if (a->objective)
+        return run_datafree(cli, a);
     crom_in in;
     int rc = crom_in_open(&in, a->input);
     if (rc)

@@ -1,6 +1,7 @@
 /* crom-reducedstep — simulate in a model's latent space: implicit Euler over q
  * with cubature (LiCROM §4–5), the same scenario as crom-fullsim, on any mesh,
- * switching meshes mid-run without touching the state. */
+ * switching meshes mid-run without touching the state; or over the latent z
+ * of a nonlinear one-mesh map (data-free subspaces) with Gauss–Newton. */
 #include <errno.h>
 #include <math.h>
 #include <stdlib.h>
@@ -10,19 +11,26 @@
 #include "cubature.h"
 #include "err.h"
 #include "io.h"
+#include "map.h"
+#include "model.h"
+#include "nlrom.h"
+#include "result.h"
 #include "rom.h"
 #include "scenario.h"
 
-enum { O_CUB = 300, O_INIT, O_SCHED, O_SOLVER, O_KAPPA, O_STATS, O_STREAM, O_HDF5, O_INITFRAME, O_BCTHR };
+enum { O_CUB = 300, O_INIT, O_SCHED, O_SOLVER, O_KAPPA, O_STATS, O_STREAM, O_HDF5, O_INITFRAME, O_BCTHR,
+       O_MODEL, O_MESH };
 
 static const crom_opt red_opts[] = {
-    {"cubature", O_CUB, "CUB", "The crom/cubature to integrate over (required): its mesh, regions and cached W."},
+    {"cubature", O_CUB, "CUB", "The crom/cubature to integrate over (this or --model is required): its mesh, regions and cached W."},
+    {"model", O_MODEL, "MODEL", "Simulate in the subspace of a model of ONE mesh instead of a cubature: a data-free map (energy, neuralmodes: the mesh is in the model) or a linear basis laid on its mesh (pod, modes; an mlp field needs --mesh). Implicit Euler over the latent with Gauss-Newton on the full-space incremental potential, the elastic energy summed over every tet of the mesh (no cubature: these are small meshes). q in the output is the map's latent z."},
+    {"mesh", O_MESH, "MESH", "With --model: the mesh whose regions resolve --pin, --velocity and --force (it must have the model's vertices; default: the model's own mesh and regions), or the mesh to lay an mlp field on."},
     {"init", O_INIT, "LATENT", "Start from a frame of a crom/latent (crom-encode of a full state, or an earlier run): its q and qdot (default: rest)."},
     {"init-frame", O_INITFRAME, "K", "Which frame of --init (default -1, the last)."},
     {"schedule", O_SCHED, "FILE", "Switch cubatures during the run: lines 'STEP CUBATURE' (# comments), steps increasing; before step STEP the cubature changes, q and qdot carry over unchanged (LiCROM §4)."},
-    {"solver", O_SOLVER, "NAME", "newton (default: exact reduced Hessian, converged to --tol) or gd (LiCROM §5 descent, --max-iter iterations per step)."},
+    {"solver", O_SOLVER, "NAME", "newton (default: exact reduced Hessian, converged to --tol; with --model: Gauss-Newton with the map's Jacobian) or gd (LiCROM §5 descent, --max-iter iterations per step; cubatures only)."},
     {"bc-stiffness", O_KAPPA, "K", "Penalty rate of pinned and prescribed regions in 1/s^2 (default 1e4/dt^2)."},
-    {"bc-threshold", O_BCTHR, "T", "The penalty acts on the latent directions that move the boundary-condition vertices: those carrying at least T times the BC regions' mass fraction of their motion (default 0.1; 0 = every direction). A learned basis is only nearly zero where its training data was pinned; penalizing every direction would freeze the body."},
+    {"bc-threshold", O_BCTHR, "T", "The penalty acts on the latent directions that move the boundary-condition vertices: those carrying at least T times the BC regions' mass fraction of their motion (default 0.1; 0 = every direction). A learned basis is only nearly zero where its training data was pinned; penalizing every direction would freeze the body. (Cubatures only: with --model the penalty acts on the vertices themselves; a data-free map holds its training pins by construction.)"},
     {"stats", O_STATS, "CSV", "Write one line per step: iterations, residual, constraint residual, seconds."},
     {"output", 'o', "OUT", "Write the latent trajectory to OUT (default stdout: a frame stream into a pipe)."},
     {"stream", O_STREAM, NULL, "Write a frame stream even to a file."},
@@ -38,7 +46,8 @@ static const crom_doc doc = {
     "crom-reducedstep",
     "implicit Euler in a model's latent space, on any mesh, across mesh changes",
     "crom-reducedstep --cubature CUB [scenario options] [--init LATENT] [--schedule FILE]\n"
-    "                 [--solver newton|gd] [-o OUT]",
+    "                 [--solver newton|gd] [-o OUT]\n"
+    "crom-reducedstep --model MODEL [--mesh MESH] [scenario options] [--init LATENT] [-o OUT]",
     "Each step minimizes LiCROM's eq. 5 over the latent coordinates q: the kinetic term with the "
     "exact reduced mass W^T M W, the elastic energy summed over the cubature tets (eq. 8), gravity "
     "and scheduled forces projected onto the basis, pinned and prescribed-velocity regions as a "
@@ -50,18 +59,29 @@ static const crom_doc doc = {
     "paper's projected gradient descent.\n\n"
     "The output is a crom/latent: q, qdot, energies, iterations, residuals and the schedule entry "
     "per frame, streamed frame by frame. Decode it on any mesh with crom-export --model, compare "
-    "with a full run using crom-diff.",
+    "with a full run using crom-diff.\n\n"
+    "--model MODEL simulates in a subspace of one mesh given as a map x(z): the data-free maps of "
+    "crom-fitfield --objective energy|neuralmodes (nonlinear), or a linear basis on its mesh. Each "
+    "step minimizes the full-space incremental potential over z (Sharp et al. eq. 6): inertia "
+    "1/(2h^2)|x(z) - x_n - h v_n|_M^2 with the full-space velocity, the elastic energy of every tet, "
+    "gravity and forces, pinned and prescribed regions as a stiff mass-weighted penalty, and the "
+    "collision planes at the boundary vertices. Gauss-Newton with the map's exact Jacobian J (the "
+    "network is evaluated in double precision) and line search; converged when the correction's "
+    "RMS displacement is below --tol of the size. For a linear basis this is the same step as "
+    "--cubature with --scheme all. The output's q is the latent z and kinetic_energy is that of the "
+    "full-space velocity; crom-export and crom-diff decode it with --model (on the model's own mesh).",
     groups,
     "crom-reducedstep --cubature cub.h5 --velocity 'top=0,-2,0@0:0.1' --pin bottom --gravity 0,0,0 \\\n"
     "    --dt 0.01 --steps 40 -o latent.h5\n"
-    "crom-reducedstep --cubature cut0.h5 --schedule cuts.txt @plate.flags -o tear.h5",
-    "crom-cubature(1), crom-encode(1), crom-fullsim(1), crom-diff(1), crom-export(1)"};
+    "crom-reducedstep --cubature cut0.h5 --schedule cuts.txt @plate.flags -o tear.h5\n"
+    "crom-reducedstep --model df.h5 --pin clamp --youngs 1e6 --dt 0.01 --steps 100 -o df_run.h5",
+    "crom-cubature(1), crom-encode(1), crom-fullsim(1), crom-fitfield(1), crom-diff(1), crom-export(1)"};
 
 typedef struct {
     crom_scenario sc;
-    const char *cub, *init, *sched, *out, *stats;
+    const char *cub, *init, *sched, *out, *stats, *model, *mesh;
     long init_frame;
-    int solver, kind;
+    int solver, kind, bcthr_given, threads;
     double kappa, bc_threshold;
 } args;
 
@@ -72,9 +92,11 @@ static int on_opt(void *ctx, int key, const char *v)
     if (rc >= 0)
         return rc;
     switch (key) {
-    case 0: return crom_err(CROM_EUSAGE, "unexpected operand '%s' (the mesh comes with --cubature)", v);
+    case 0: return crom_err(CROM_EUSAGE, "unexpected operand '%s' (the mesh comes with --cubature or --model)", v);
     case 'o': a->out = v; return 0;
     case O_CUB: a->cub = v; return 0;
+    case O_MODEL: a->model = v; return 0;
+    case O_MESH: a->mesh = v; return 0;
     case O_INIT: a->init = v; return 0;
     case O_INITFRAME: return crom_parse_int(v, "--init-frame", -1000000000L, 1000000000L, &a->init_frame);
     case O_SCHED: a->sched = v; return 0;
@@ -88,6 +110,7 @@ static int on_opt(void *ctx, int key, const char *v)
         return 0;
     case O_KAPPA: return crom_parse_positive(v, "--bc-stiffness", &a->kappa);
     case O_BCTHR:
+        a->bcthr_given = 1;
         if (crom_parse_double(v, "--bc-threshold", &a->bc_threshold) || a->bc_threshold < 0)
             return crom_err(CROM_EUSAGE, "--bc-threshold must be a number >= 0, got %s", v);
         return 0;
@@ -236,17 +259,161 @@ out:
     return rc;
 }
 
+static int put_values(crom_out *o, double t, long nstep, const double *q, const double *qd, double K, double E,
+                      double W, const crom_rstep_stats *st, int entry)
+{
+    double step = (double)nstep, tot = K + E + W, it = st->iterations, res = st->residual,
+           cres = st->constraint_residual, cub = entry, secs = crom_wall(st->seconds);
+    const double *vals[] = {&t, &step, q, qd, &K, &E, &W, &tot, &it, &res, &cres, &cub, &secs};
+    return crom_out_frame(o, vals);
+}
+
 static int put_frame(crom_out *o, crom_rsim *s, const crom_rstep_stats *st, int entry)
 {
     double K, E, W;
     int rc = crom_rsim_energies(s, &K, &E, &W);
     if (rc)
         return rc;
-    double step = (double)s->step, tot = K + E + W, it = st->iterations, res = st->residual,
-           cres = st->constraint_residual, cub = entry, secs = crom_wall(st->seconds);
-    const double *vals[] = {&s->t, &step, s->q, s->qd, &K, &E, &W, &tot, &it, &res, &cres, &cub, &secs};
-    return crom_out_frame(o, vals);
+    return put_values(o, s->t, s->step, s->q, s->qd, K, E, W, st, entry);
 }
+
+/* The latent output's attributes and frame fields (elastic: what the
+ * elastic energy sums over). */
+static int start_output(crom_out *o, const args *a, const char *model_id, int r, const char *solver,
+                        const char *elastic)
+{
+    int rc = crom_h5_set_str(o->h5, ".", "model_id", model_id);
+    if (!rc)
+        rc = crom_h5_set_i64(o->h5, ".", "rank", r);
+    if (!rc)
+        rc = crom_scenario_write_attrs(o->h5, &a->sc);
+    if (!rc)
+        rc = crom_h5_set_str(o->h5, ".", "solver", solver);
+    hsize_t dr = (hsize_t)r;
+    const struct {
+        const char *name, *units, *desc;
+        int vec;
+    } f[] = {{"time", "s", "simulated time of each frame", 0},
+             {"step", "1", "time-step index (0 = initial state)", 0},
+             {"q", "m", "latent coordinates: u(X) = W(X) q", 1},
+             {"qdot", "m/s", "latent velocity (q_n - q_{n-1}) / h", 1},
+             {"kinetic_energy", "J", "1/2 qdot^T M_r qdot", 0},
+             {"elastic_energy", "J", elastic, 0},
+             {"external_energy", "J", "potential of gravity and applied forces, -f_r . q", 0},
+             {"total_energy", "J", "kinetic + elastic + external", 0},
+             {"iterations", "1", "solver iterations of the step", 0},
+             {"residual", "1", "last correction of the step: RMS displacement relative to the bounding-box diagonal", 0},
+             {"constraint_residual", "m", "largest distance of a pinned/prescribed vertex from its target", 0},
+             {"cubature", "1", "index of the schedule entry (cubature) in use", 0},
+             {"step_seconds", "s", "wall time of the step (0 when SOURCE_DATE_EPOCH is set)", 0}};
+    for (size_t i = 0; i < sizeof f / sizeof *f && !rc; i++)
+        rc = crom_out_field(o, f[i].name, f[i].vec, &dr, f[i].units, f[i].desc);
+    if (!rc)
+        rc = crom_out_begin(o);
+    return rc;
+}
+
+/* A run in the subspace of a one-mesh model (--model): Gauss–Newton over
+ * its latent on every tet of its mesh. */
+static int run_map(crom_cli *cli, args *a)
+{
+    crom_in in;
+    int rc = crom_in_open(&in, a->model);
+    if (rc)
+        return rc;
+    crom_model model;
+    crom_mesh mesh;
+    memset(&mesh, 0, sizeof mesh);
+    crom_map map;
+    memset(&map, 0, sizeof map);
+    crom_nlsim s;
+    memset(&s, 0, sizeof s);
+    crom_out o;
+    crom_fileout csv = {0};
+    int have_out = 0;
+    double *q0 = NULL, *qd0 = NULL;
+    char *hist = in.history;
+    in.history = NULL;
+    rc = crom_model_read(&in, &model);
+    crom_in_close(&in);
+    if (rc) {
+        free(hist);
+        return rc;
+    }
+    if (a->mesh && (rc = crom_mesh_load(a->mesh, &mesh)))
+        goto out;
+    if ((rc = crom_map_init(&map, &model, a->mesh ? &mesh : NULL)))
+        goto out;
+    int r = map.r;
+    q0 = crom_calloc((size_t)r, sizeof(double));
+    qd0 = crom_calloc((size_t)r, sizeof(double));
+    if (!q0 || !qd0) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    if (a->init && (rc = read_init(a, model.model_id, r, q0, qd0)))
+        goto out;
+    if ((rc = crom_nlsim_init(&s, &map, &a->sc, a->kappa, q0, a->init ? qd0 : NULL, a->threads)))
+        goto out;
+    if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli, hist, a->kind)))
+        goto out;
+    have_out = 1;
+    if ((rc = start_output(&o, a, model.model_id, r, "gauss-newton", "elastic energy of every tet of the model's mesh")))
+        goto out;
+    crom_rstep_stats st = {0, 0, crom_nlsim_constraint_residual(&s), 0, 1};
+    double K, E, W;
+    if (!(rc = crom_nlsim_energies(&s, &K, &E, &W)))
+        rc = put_values(&o, s.t, s.step, s.q, s.qd, K, E, W, &st, 0);
+    if (!rc && a->stats && !(rc = crom_fileout_open(&csv, a->stats, 0)))
+        fprintf(csv.f, "step,iterations,residual,constraint_residual,seconds,cubature_tets\n");
+    crom_progress prog;
+    crom_progress_start(&prog, cli, "reducedstep", a->sc.steps);
+    double tsum = 0;
+    long iters = 0;
+    for (int k = 1; k <= a->sc.steps && !rc; k++) {
+        if ((rc = crom_nlsim_step(&s, &st)))
+            break;
+        tsum += st.seconds;
+        iters += st.iterations;
+        if (csv.f)
+            fprintf(csv.f, "%d,%d,%.3e,%.3e,%.6e,%d\n", k, st.iterations, st.residual, st.constraint_residual,
+                    st.seconds, map.mesh.nt);
+        if (k % a->sc.every == 0 && !(rc = crom_nlsim_energies(&s, &K, &E, &W)))
+            rc = put_values(&o, s.t, s.step, s.q, s.qd, K, E, W, &st, 0);
+        crom_progress_update(&prog, k, NULL);
+    }
+    crom_progress_end(&prog);
+    if (csv.f) {
+        if (rc)
+            crom_fileout_abort(&csv);
+        else
+            rc = crom_fileout_commit(&csv);
+    }
+    if (rc) {
+        if (crom_out_fail(&o) == 0)
+            crom_err_ctx("%s keeps the %ld frames done, marked incomplete", o.name, o.nframes);
+        have_out = 0;
+        goto out;
+    }
+    rc = crom_out_commit(&o);
+    have_out = 0;
+    if (!rc && cli->verbose && a->sc.steps > 0)
+        crom_cli_info(cli, "%d steps, %s map of rank %d on %d vertices, %d tets: %.3f ms/step, %.2f Gauss-Newton "
+                      "iterations/step", a->sc.steps, model.basis, r, map.nv, map.mesh.nt, 1e3 * tsum / a->sc.steps,
+                      (double)iters / a->sc.steps);
+out:
+    if (have_out)
+        crom_out_fail(&o);
+    crom_nlsim_free(&s);
+    crom_map_free(&map);
+    crom_mesh_free(&mesh);
+    crom_model_free(&model);
+    free(q0);
+    free(qd0);
+    free(hist);
+    return rc;
+}
+
 
 static int run(crom_cli *cli, args *a)
 {
@@ -282,14 +449,7 @@ static int run(crom_cli *cli, args *a)
     if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli, sch[0].history, a->kind)))
         goto out;
     have_out = 1;
-    rc = crom_h5_set_str(o.h5, ".", "model_id", sch[0].cub.model_id);
-    if (!rc)
-        rc = crom_h5_set_i64(o.h5, ".", "rank", r);
-    if (!rc)
-        rc = crom_scenario_write_attrs(o.h5, &a->sc);
-    if (!rc)
-        rc = crom_h5_set_str(o.h5, ".", "solver", a->solver == CROM_SOLVER_GD ? "gd" : "newton");
-    if (!rc) {
+    {
         size_t len = 1;
         for (int i = 0; i < nsch; i++)
             len += strlen(sch[i].path) + 32;
@@ -299,27 +459,9 @@ static int run(crom_cli *cli, args *a)
         rc = list ? crom_h5_set_str(o.h5, ".", "cubatures", list) : CROM_EINTERNAL;
         free(list);
     }
-    hsize_t dr = (hsize_t)r;
-    static const struct {
-        const char *name, *units, *desc;
-        int vec;
-    } f[] = {{"time", "s", "simulated time of each frame", 0},
-             {"step", "1", "time-step index (0 = initial state)", 0},
-             {"q", "m", "latent coordinates: u(X) = W(X) q", 1},
-             {"qdot", "m/s", "latent velocity (q_n - q_{n-1}) / h", 1},
-             {"kinetic_energy", "J", "1/2 qdot^T M_r qdot", 0},
-             {"elastic_energy", "J", "elastic energy by cubature", 0},
-             {"external_energy", "J", "potential of gravity and applied forces, -f_r . q", 0},
-             {"total_energy", "J", "kinetic + elastic + external", 0},
-             {"iterations", "1", "solver iterations of the step", 0},
-             {"residual", "1", "last correction of the step: RMS displacement relative to the bounding-box diagonal", 0},
-             {"constraint_residual", "m", "largest distance of a pinned/prescribed vertex from its target", 0},
-             {"cubature", "1", "index of the schedule entry (cubature) in use", 0},
-             {"step_seconds", "s", "wall time of the step (0 when SOURCE_DATE_EPOCH is set)", 0}};
-    for (size_t i = 0; i < sizeof f / sizeof *f && !rc; i++)
-        rc = crom_out_field(&o, f[i].name, f[i].vec, &dr, f[i].units, f[i].desc);
     if (!rc)
-        rc = crom_out_begin(&o);
+        rc = start_output(&o, a, sch[0].cub.model_id, r, a->solver == CROM_SOLVER_GD ? "gd" : "newton",
+                          "elastic energy by cubature");
     crom_rstep_stats st = {0, 0, crom_rsim_constraint_residual(&s), 0, 1};
     if (!rc)
         rc = put_frame(&o, &s, &st, 0);
@@ -385,7 +527,18 @@ int main(int argc, char **argv)
     a.init_frame = -1;
     a.bc_threshold = 0.1;
     crom_cli_parse(&cli, &doc, argc, argv, on_opt, &a);
+    a.threads = cli.threads > 0 ? cli.threads : 1; /* resolved by crom_cli_parse */
+    if (a.model) {
+        const char *bad = a.cub ? "--cubature" : a.sched ? "--schedule" : a.bcthr_given ? "--bc-threshold" : NULL;
+        if (bad)
+            return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--model runs on the model's mesh: %s does not apply", bad));
+        if (a.solver == CROM_SOLVER_GD)
+            return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--solver gd needs a cubature; --model uses Gauss-Newton"));
+        return crom_cli_exit(&cli, run_map(&cli, &a));
+    }
+    if (a.mesh)
+        return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--mesh applies to --model (a cubature carries its mesh)"));
     if (!a.cub)
-        return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--cubature CUB is required (see crom-reducedstep --help)"));
+        return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--cubature CUB is required, or --model MODEL (see crom-reducedstep --help)"));
     return crom_cli_exit(&cli, run(&cli, &a));
 }

@@ -13,6 +13,7 @@ void crom_model_clear(crom_model *m)
     memset(m, 0, sizeof *m);
     m->reconstruction_error = NAN;
     m->training_seconds = NAN;
+    m->youngs = m->poisson = m->density = NAN;
 }
 
 void crom_model_free(crom_model *m)
@@ -27,6 +28,7 @@ void crom_model_free(crom_model *m)
     crom_nn_pointnet_free(&m->enc);
     free(m->loss);
     free(m->seconds);
+    free(m->scenario);
     crom_model_clear(m);
 }
 
@@ -80,6 +82,21 @@ const char *crom_model_id(const crom_model *m, char id[17])
             fnv_bytes(&s, &v, 8);
         }
         fnv_bytes(&s, m->mlp.params, sizeof(float) * m->mlp.nparams);
+    } else if (m->field == CROM_FIELD_MAP) {
+        const crom_nn_spec *sp = &m->mlp.spec;
+        for (int l = 0; l <= sp->nlayers; l++) {
+            int32_t w = sp->width[l];
+            fnv_bytes(&s, &w, 4);
+        }
+        const char *act = crom_nn_act_name(sp->act);
+        fnv_bytes(&s, act, strlen(act) + 1);
+        fnv_bytes(&s, m->mlp.params, sizeof(float) * m->mlp.nparams);
+        fnv_i64(&s, m->mesh.nv);
+        fnv_i64(&s, m->mesh.nt);
+        fnv_bytes(&s, m->mesh.X, sizeof(double) * 3 * (size_t)m->mesh.nv);
+        fnv_bytes(&s, m->mesh.tets, sizeof(int) * 4 * (size_t)m->mesh.nt);
+        if (m->basis_v)
+            fnv_bytes(&s, m->basis_v, sizeof(double) * 3 * (size_t)m->rank * m->mesh.nv);
     } else if (m->field == CROM_FIELD_MESH) {
         fnv_i64(&s, m->mesh.nv);
         fnv_i64(&s, m->mesh.nt);
@@ -155,6 +172,43 @@ int crom_model_from_mesh(crom_model *m, const char *basis, const crom_mesh *mesh
     return rc;
 }
 
+int crom_model_is_map_kind(const char *basis)
+{
+    return basis && (!strcmp(basis, "energy") || !strcmp(basis, "neuralmodes"));
+}
+
+int crom_model_from_map(crom_model *m, const char *basis, const crom_nn_mlp *net,
+                        const crom_mesh *mesh, const double *basis_v)
+{
+    crom_model_clear(m);
+    const crom_nn_spec *sp = &net->spec;
+    int r = sp->width[0], out = sp->width[sp->nlayers];
+    if (!crom_model_is_map_kind(basis))
+        return crom_err(CROM_EUSAGE, "'%s' is not a map kind (energy, neuralmodes)", basis);
+    if (r < 1 || out != 3 * mesh->nv)
+        return crom_err(CROM_EUSAGE, "a map network goes r -> 3nv = %d, got %d -> %d", 3 * mesh->nv, r, out);
+    snprintf(m->basis, sizeof m->basis, "%s", basis);
+    m->field = CROM_FIELD_MAP;
+    m->rank = r;
+    m->encoder = CROM_ENC_NONE;
+    int rc = crom_nn_mlp_from_params(&m->mlp, sp, net->params, net->nparams, NULL, NULL);
+    if (!rc)
+        rc = crom_mesh_copy(mesh, &m->mesh);
+    if (!rc && basis_v) {
+        size_t nb = (size_t)mesh->nv * 3 * r;
+        m->basis_v = crom_malloc(sizeof(double) * nb);
+        if (!m->basis_v)
+            rc = CROM_EINTERNAL;
+        else
+            memcpy(m->basis_v, basis_v, sizeof(double) * nb);
+    }
+    if (rc)
+        crom_model_free(m);
+    else
+        crom_model_id(m, m->model_id);
+    return rc;
+}
+
 /* ----------------------------------------------------------------- write */
 
 static int write_widths(hid_t loc, const char *name, const crom_nn_spec *s, const char *desc)
@@ -180,9 +234,40 @@ int crom_model_write(hid_t loc, crom_model *m)
         rc = crom_h5_set_f64(loc, ".", "reconstruction_error", &m->reconstruction_error, 1);
     if (!rc && isfinite(m->training_seconds))
         rc = crom_h5_set_f64(loc, ".", "training_seconds", &m->training_seconds, 1);
+    if (!rc && m->scenario)
+        rc = crom_h5_set_str(loc, ".", "scenario", m->scenario);
+    if (!rc && isfinite(m->youngs))
+        rc = crom_h5_set_f64(loc, ".", "youngs", &m->youngs, 1);
+    if (!rc && isfinite(m->poisson))
+        rc = crom_h5_set_f64(loc, ".", "poisson", &m->poisson, 1);
+    if (!rc && isfinite(m->density))
+        rc = crom_h5_set_f64(loc, ".", "density", &m->density, 1);
     if (rc)
         return rc;
-    if (m->field == CROM_FIELD_MLP) {
+    if (m->field == CROM_FIELD_MAP) {
+        hsize_t np = m->mlp.nparams, dr = (hsize_t)m->rank;
+        rc = crom_h5_set_str(loc, ".", "activation", crom_nn_act_name(m->mlp.spec.act));
+        if (!rc)
+            rc = write_widths(loc, "field/widths", &m->mlp.spec,
+                              "layer widths of the map's MLP: R^r -> R^(3nv), input first");
+        if (!rc)
+            rc = crom_h5_write_f32(loc, "field/params", 1, &np, m->mlp.params, "1",
+                                   "all MLP weights and biases, layer by layer (W row-major [out][in], then b)");
+        if (!rc) {
+            hid_t g = crom_h5_group(loc, "field/mesh");
+            rc = g < 0 ? CROM_EINTERNAL : crom_mesh_write(g, &m->mesh);
+            if (g >= 0)
+                H5Gclose(g);
+        }
+        if (!rc && m->basis_v) {
+            hsize_t db[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)m->rank};
+            rc = crom_h5_write_f64(loc, "field/basis", 3, db, m->basis_v, "1",
+                                   "linear part W of the map at the mesh vertices, [nv][3][r]");
+        }
+        if (!rc && m->frequencies)
+            rc = crom_h5_write_f64(loc, "frequencies", 1, &dr, m->frequencies, "Hz",
+                                   "natural frequencies of the linear modes");
+    } else if (m->field == CROM_FIELD_MLP) {
         const crom_nn_mlp *W = &m->mlp;
         double sh[3], sc[3];
         for (int i = 0; i < 3; i++) {
@@ -372,6 +457,64 @@ static int read_mesh_field(hid_t h, crom_model *m)
     return crom_locate_init(&m->loc, &m->mesh);
 }
 
+/* A map: the network r -> 3nv, its mesh (with regions), the linear part
+ * (required for neuralmodes) and the frequencies (optional). */
+static int read_map(hid_t h, crom_model *m, const char *act)
+{
+    hid_t g = H5Gopen2(h, "field/mesh", H5P_DEFAULT);
+    if (g < 0)
+        return crom_err(CROM_EDATA, "missing group field/mesh");
+    int rc = crom_mesh_read(g, &m->mesh);
+    H5Gclose(g);
+    if (rc)
+        return crom_err_ctx("field/mesh");
+    int w[CROM_NN_MAX_LAYERS + 1], nw;
+    if ((rc = read_widths(h, "field/widths", w, &nw)))
+        return rc;
+    crom_nn_act a;
+    if (crom_nn_act_parse(act, &a) || (a != CROM_NN_ELU && a != CROM_NN_SINE && a != CROM_NN_GELU))
+        return crom_err(CROM_EDATA, "unknown activation '%s' (elu, gelu or sine)", act);
+    crom_nn_spec spec;
+    if (crom_nn_spec_set(&spec, nw, w, a))
+        return crom_err(CROM_EDATA, "field/widths: %s", crom_errmsg());
+    if (w[0] != m->rank || w[nw - 1] != 3 * m->mesh.nv)
+        return crom_err(CROM_EDATA, "field/widths go %d -> %d, expected r -> 3nv = %d -> %d", w[0], w[nw - 1],
+                        m->rank, 3 * m->mesh.nv);
+    hsize_t np;
+    float *params = NULL;
+    if ((rc = crom_h5_read_f32(h, "field/params", 1, &np, &params)))
+        return rc;
+    if (!all_finite_f(params, np)) {
+        free(params);
+        return crom_err(CROM_EDATA, "the map has non-finite parameters");
+    }
+    rc = crom_nn_mlp_from_params(&m->mlp, &spec, params, np, NULL, NULL);
+    free(params);
+    if (rc)
+        return crom_err_ctx("field");
+    if (crom_h5_has(h, "field/basis")) {
+        hsize_t d[3];
+        if ((rc = crom_h5_read_f64(h, "field/basis", 3, d, &m->basis_v)))
+            return rc;
+        if (d[0] != (hsize_t)m->mesh.nv || d[1] != 3 || d[2] != (hsize_t)m->rank)
+            return crom_err(CROM_EDATA, "field/basis is [%llu, %llu, %llu], expected [%d, 3, %d]",
+                            (unsigned long long)d[0], (unsigned long long)d[1], (unsigned long long)d[2],
+                            m->mesh.nv, m->rank);
+        if (!all_finite_d(m->basis_v, (size_t)m->mesh.nv * 3 * m->rank))
+            return crom_err(CROM_EDATA, "field/basis has non-finite values");
+    } else if (!strcmp(m->basis, "neuralmodes")) {
+        return crom_err(CROM_EDATA, "a neuralmodes map needs its linear modes field/basis");
+    }
+    if (crom_h5_has(h, "frequencies")) {
+        m->frequencies = crom_malloc(sizeof(double) * (size_t)m->rank);
+        if (!m->frequencies)
+            return CROM_EINTERNAL;
+        if ((rc = read_vec(h, "frequencies", m->rank, m->frequencies, 1)))
+            return rc;
+    }
+    return 0;
+}
+
 static int read_encoder(hid_t h, crom_model *m)
 {
     int pw[CROM_NN_MAX_LAYERS + 1], hw[CROM_NN_MAX_LAYERS + 1], npw, nhw;
@@ -444,8 +587,10 @@ int crom_model_read(crom_in *in, crom_model *m)
         goto out;
     }
     /* representation: by kind, or by the datasets present for later kinds */
-    if (!strcmp(basis, "mlp") || (strcmp(basis, "pod") && strcmp(basis, "modes") &&
-                                  crom_h5_has(h, "field/params")))
+    if (crom_model_is_map_kind(basis))
+        m->field = CROM_FIELD_MAP;
+    else if (!strcmp(basis, "mlp") || (strcmp(basis, "pod") && strcmp(basis, "modes") &&
+                                       crom_h5_has(h, "field/params")))
         m->field = CROM_FIELD_MLP;
     else if (!strcmp(basis, "pod") || !strcmp(basis, "modes") || crom_h5_has(h, "field/basis"))
         m->field = CROM_FIELD_MESH;
@@ -454,7 +599,11 @@ int crom_model_read(crom_in *in, crom_model *m)
                       in->name, basis);
         goto out;
     }
-    if (m->field == CROM_FIELD_MLP) {
+    if (m->field == CROM_FIELD_MAP) {
+        if (crom_h5_has_attr(h, ".", "activation"))
+            crom_h5_get_str(h, ".", "activation", &act);
+        rc = read_map(h, m, act ? act : "elu");
+    } else if (m->field == CROM_FIELD_MLP) {
         if (crom_h5_has_attr(h, ".", "activation"))
             crom_h5_get_str(h, ".", "activation", &act);
         rc = read_mlp(h, m, act ? act : "elu");
@@ -471,6 +620,14 @@ int crom_model_read(crom_in *in, crom_model *m)
         crom_h5_get_f64(h, ".", "reconstruction_error", &m->reconstruction_error, 1);
     if (crom_h5_has_attr(h, ".", "training_seconds"))
         crom_h5_get_f64(h, ".", "training_seconds", &m->training_seconds, 1);
+    if (crom_h5_has_attr(h, ".", "scenario"))
+        crom_h5_get_str(h, ".", "scenario", &m->scenario);
+    if (crom_h5_has_attr(h, ".", "youngs"))
+        crom_h5_get_f64(h, ".", "youngs", &m->youngs, 1);
+    if (crom_h5_has_attr(h, ".", "poisson"))
+        crom_h5_get_f64(h, ".", "poisson", &m->poisson, 1);
+    if (crom_h5_has_attr(h, ".", "density"))
+        crom_h5_get_f64(h, ".", "density", &m->density, 1);
     crom_err_clear();
     crom_model_id(m, m->model_id);
     if (strcmp(id, m->model_id)) {
@@ -513,6 +670,10 @@ int crom_model_eval(const crom_model *m, size_t n, const double *X, double *W,
         crom_locate_interp(&m->loc, n, X, 3 * m->rank, m->basis_v, W, noutside);
         return 0;
     }
+    if (m->field == CROM_FIELD_MAP)
+        return crom_err(CROM_EDATA, "model %s is a nonlinear map of one mesh (basis '%s'), not a basis field "
+                        "W(X): it has no cubature or encoding; simulate it with crom-reducedstep --model",
+                        m->model_id, m->basis);
     if (m->field != CROM_FIELD_MLP)
         return crom_err(CROM_EINTERNAL, "model has no basis");
     crom_nn_ws ws;

@@ -17,13 +17,24 @@
  *                   outside the mesh takes the value at the closest point of
  *                   the nearest tet (lib/locate.h), i.e. W is extended
  *                   constantly along the normal direction.
+ *   CROM_FIELD_MAP  (basis "energy", "neuralmodes"): a NONLINEAR map of the
+ *                   latent to the positions of every vertex of ONE stored
+ *                   mesh (the data-free subspaces, lib/datafree.h):
+ *                   x(q) = X + W q + N(q), with N an MLP r -> ... -> 3nv
+ *                   (output 3v + c is component c of vertex v, metres, no
+ *                   input normalization) and W [nv][3][r] the linear modes
+ *                   for "neuralmodes" (absent, i.e. 0, for "energy"). It is
+ *                   no basis field W(X): crom_model_eval refuses it; lib/map.h
+ *                   evaluates it (and its Jacobian) on its own mesh.
  *
  * model_id: 16 lowercase hex digits, the 64-bit FNV-1a digest of the basis:
  * the `basis` string (with its NUL), the rank (int64), then for an MLP the
  * widths (int32), the activation name (with its NUL), input shift and scale
  * (float64) and the parameters (float32); for a mesh field nv and nt (int64),
- * the vertices (float64), the tets (int32) and the basis (float64); all
- * little-endian, exactly as stored. The encoder and the training record are
+ * the vertices (float64), the tets (int32) and the basis (float64); for a map
+ * the widths, the activation name, the parameters, then nv and nt, the
+ * vertices, the tets and (neuralmodes) the linear basis; all little-endian,
+ * exactly as stored. The encoder and the training record are
  * not part of it: latent coordinates and cached W depend on W alone.
  */
 #ifndef CROM_MODEL_H
@@ -41,20 +52,20 @@
 #define CROM_MODEL_SCHEMA "crom/model"
 #define CROM_MODEL_VERSION 1
 
-enum { CROM_FIELD_MLP = 1, CROM_FIELD_MESH = 2 };
+enum { CROM_FIELD_MLP = 1, CROM_FIELD_MESH = 2, CROM_FIELD_MAP = 3 };
 enum { CROM_ENC_NONE = 0, CROM_ENC_LSQ = 1, CROM_ENC_POINTNET = 2 };
 
 typedef struct {
     char basis[16];      /* the `basis` attribute: mlp, pod, modes, ... */
-    int field;           /* CROM_FIELD_MLP or CROM_FIELD_MESH */
+    int field;           /* CROM_FIELD_MLP, CROM_FIELD_MESH or CROM_FIELD_MAP */
     int rank;            /* r */
     int encoder;         /* CROM_ENC_* */
     char model_id[17];   /* filled by read, write and crom_model_id */
-    /* CROM_FIELD_MLP */
+    /* CROM_FIELD_MLP (and CROM_FIELD_MAP: the map's network r -> 3nv) */
     crom_nn_mlp mlp;     /* 3 -> ... -> 3r, owns its parameters */
-    /* CROM_FIELD_MESH */
+    /* CROM_FIELD_MESH (and CROM_FIELD_MAP: its mesh, with regions) */
     crom_mesh mesh;      /* vertices and tets */
-    double *basis_v;     /* [nv][3][r] W at the vertices */
+    double *basis_v;     /* [nv][3][r] W at the vertices (MAP: linear part or NULL) */
     crom_locator loc;    /* point location on mesh */
     double *frequencies; /* [r] natural frequencies (modes), or NULL */
     /* encoder (CROM_ENC_POINTNET): maps points (X, u) [n][6] to q in metres */
@@ -65,6 +76,10 @@ typedef struct {
     double *seconds;     /* [nepochs] cumulative wall time (s) */
     double reconstruction_error; /* relative, over the training frames */
     double training_seconds;
+    /* recorded physics (modes, data-free; NULL / NAN when absent): written
+     * by crom_model_write when set, read back by crom_model_read */
+    char *scenario;      /* material, gravity and pins as flags, one per line */
+    double youngs, poisson, density;
 } crom_model;
 
 /* An empty model (safe to free), with NAN training figures. */
@@ -81,6 +96,17 @@ int crom_model_from_mlp(crom_model *m, const crom_nn_mlp *W, const crom_nn_point
  * (copied). Builds the point locator. Errors as crom_locate_init. */
 int crom_model_from_mesh(crom_model *m, const char *basis, const crom_mesh *mesh,
                          const double *basis_v, int rank);
+
+/* Make a map model of kind `basis` ("energy", "neuralmodes") from a
+ * network net (copied; r -> ... -> 3nv, identity input normalization), the
+ * mesh it maps (copied with its regions) and, for neuralmodes, the linear
+ * part basis_v [nv][3][r] (copied; NULL for none). Encoder "none".
+ * CROM_EUSAGE on mismatched shapes, CROM_EINTERNAL when out of memory. */
+int crom_model_from_map(crom_model *m, const char *basis, const crom_nn_mlp *net,
+                        const crom_mesh *mesh, const double *basis_v);
+
+/* 1 if `basis` names a map kind (energy, neuralmodes). */
+int crom_model_is_map_kind(const char *basis);
 
 /* Read a crom/model input (schema and version are checked here) and validate
  * it: shapes, finite parameters, a model_id that matches the parameters.
@@ -102,8 +128,9 @@ const char *crom_model_id(const crom_model *m, char id[17]);
 
 /* W at n points X [n][3] into W [n][3][r] (double). An MLP runs in float32
  * inside (crom_nn_mlp_eval); a mesh field interpolates. *noutside (may be
- * NULL) gets how many points lay outside a mesh field's mesh. Returns 0 or
- * CROM_EINTERNAL (out of memory). */
+ * NULL) gets how many points lay outside a mesh field's mesh. Returns 0,
+ * CROM_EDATA for a map model (it has no basis field), or CROM_EINTERNAL
+ * (out of memory). */
 int crom_model_eval(const crom_model *m, size_t n, const double *X, double *W,
                     size_t *noutside);
 

@@ -6,6 +6,7 @@
 #include <cblas.h>
 
 #include "err.h"
+#include "map.h"
 #include "model.h"
 #include "result.h"
 
@@ -58,7 +59,7 @@ int crom_result_adopt(crom_result *res, crom_in *opened, const char *mesh_path, 
         res->latent = 1;
         if ((rc = crom_in_expect(in, "crom/latent", 1)))
             goto fail;
-        if (!model_path || !mesh_path) {
+        if (!model_path) {
             rc = crom_err(CROM_EUSAGE, "%s is a crom/latent: decoding it needs --model and --mesh", in->name);
             goto fail;
         }
@@ -90,6 +91,36 @@ int crom_result_adopt(crom_result *res, crom_in *opened, const char *mesh_path, 
         if ((int)in->fields[res->fu].count != res->r) {
             rc = crom_err(CROM_EDATA, "%s: q has %zu entries, the model's rank is %d", in->name,
                           in->fields[res->fu].count, res->r);
+            crom_model_free(&model);
+            goto fail;
+        }
+        if (model.field == CROM_FIELD_MAP) {
+            /* a nonlinear map of one mesh: x(q) on that mesh only */
+            crom_mesh given;
+            memset(&given, 0, sizeof given);
+            res->map = crom_calloc(1, sizeof *res->map);
+            if (!res->map)
+                rc = CROM_EINTERNAL;
+            if (!rc && mesh_path)
+                rc = crom_mesh_load(mesh_path, &given);
+            if (!rc) {
+                rc = crom_map_init(res->map, &model, mesh_path ? &given : NULL);
+                if (rc && mesh_path)
+                    crom_err_ctx("--mesh %s", mesh_path);
+            }
+            crom_mesh_free(&given);
+            crom_model_free(&model);
+            if (!rc)
+                rc = crom_mesh_copy(&res->map->mesh, &res->mesh);
+            res->J = rc ? NULL : crom_malloc(sizeof(double) * 3 * (size_t)res->r * (size_t)res->mesh.nv);
+            if (!rc && !res->J)
+                rc = CROM_EINTERNAL;
+            if (rc)
+                goto fail;
+            return 0;
+        }
+        if (!mesh_path) {
+            rc = crom_err(CROM_EUSAGE, "%s is a crom/latent: decoding it needs --model and --mesh", in->name);
             crom_model_free(&model);
             goto fail;
         }
@@ -172,6 +203,21 @@ int crom_result_next(crom_result *res, double *t, double *u, double *v)
         }
         return 1;
     }
+    if (res->map) { /* u = x(q) − X, v = J(q) q̇ */
+        rc = crom_map_eval(res->map, crom_in_get(&res->in, res->fu), u, v ? res->J : NULL);
+        if (rc)
+            return rc;
+        for (int i = 0; i < n; i++)
+            u[i] -= res->mesh.X[i];
+        if (v) {
+            if (res->fv >= 0)
+                cblas_dgemv(CblasRowMajor, CblasNoTrans, n, res->r, 1.0, res->J, res->r,
+                            crom_in_get(&res->in, res->fv), 1, 0.0, v, 1);
+            else
+                memset(v, 0, sizeof(double) * (size_t)n);
+        }
+        return 1;
+    }
     /* u = W q: W is [nv·3][r] */
     cblas_dgemv(CblasRowMajor, CblasNoTrans, n, res->r, 1.0, res->W, res->r, crom_in_get(&res->in, res->fu), 1,
                 0.0, u, 1);
@@ -191,4 +237,10 @@ void crom_result_close(crom_result *res)
     crom_mesh_free(&res->mesh);
     free(res->W);
     res->W = NULL;
+    if (res->map)
+        crom_map_free(res->map);
+    free(res->map);
+    res->map = NULL;
+    free(res->J);
+    res->J = NULL;
 }

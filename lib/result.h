@@ -1,8 +1,10 @@
 /* result.h — any simulation result as displacement frames on a mesh: a
  * crom/trajectory (its own mesh, or a given mesh with the same vertices), or a
  * crom/latent decoded through a model's basis, u = W(X) q, onto any mesh
- * (the training mesh, a finer display mesh, another shape). Used by
- * crom-export and crom-diff so both decode the same way. */
+ * (the training mesh, a finer display mesh, another shape), or through a
+ * nonlinear one-mesh map (data-free models: u = x(q) − X, velocity J(q) q̇)
+ * onto its own mesh only. Used by crom-export and crom-diff so both decode
+ * the same way. */
 #ifndef CROM_RESULT_H
 #define CROM_RESULT_H
 
@@ -15,6 +17,8 @@ typedef struct {
     crom_mesh mesh;     /* where the displacements live */
     int r;
     double *W;          /* latent: [nv][3][r] */
+    struct crom_map_s *map; /* latent of a nonlinear map model: its evaluator (else NULL) */
+    double *J;          /* map: [3nv][r] Jacobian scratch */
     char model_id[17];
     int ft, fu, fv;     /* frame fields: time, displacement or q, velocity or qdot */
     size_t outside;     /* latent: mesh vertices outside a mesh-field model */
@@ -23,8 +27,10 @@ typedef struct {
 /* Open path (a trajectory or a latent). mesh_path (may be NULL) names a
  * crom/mesh (or a file carrying one: trajectory, cubature) to use; model_path
  * (may be NULL) the crom/model to decode a latent. A latent needs both (its
- * model_id must match the model's); a trajectory needs neither, and a given
- * mesh must have its vertices. Returns 0 or an error naming the problem. */
+ * model_id must match the model's), except for a map model (energy,
+ * neuralmodes), which brings its mesh and accepts only a mesh with the same
+ * vertices; a trajectory needs neither, and a given mesh must have its
+ * vertices. Returns 0 or an error naming the problem. */
 int crom_result_open(crom_result *res, const char *path, const char *mesh_path,
                      const char *model_path);
 

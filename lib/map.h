@@ -1,0 +1,64 @@
+/* map.h — a subspace of ONE mesh as a map from the latent q in R^r to the
+ * positions of every vertex, evaluated in double with its Jacobian:
+ *
+ *     x(q) = X + W q + N(q),        J(q) = dx/dq = W + dN/dq,
+ *
+ * the common form of every model that can be laid on a mesh:
+ *   - a data-free map (crom/model basis "energy": W = 0; "neuralmodes": W the
+ *     linear modes, N the learned correction y(q)) on its own mesh;
+ *   - a linear basis (pod, modes, or an mlp neural field) sampled at the
+ *     vertices of a mesh: N = 0 and W = W(X_v).
+ *
+ * The network N runs in double precision from the stored float32 weights
+ * (converted once), so x(q) is smooth to round-off: Gauss–Newton on it
+ * (lib/nlrom.h) and finite-difference checks see no float noise. Output
+ * 3v + c of N is component c of vertex v in metres; there is no input
+ * normalization (the latent enters as is).
+ *
+ * A map holds work buffers: one map per thread.
+ */
+#ifndef CROM_MAP_H
+#define CROM_MAP_H
+
+#include "mesh.h"
+#include "model.h"
+#include "nn.h"
+
+typedef struct crom_map_s {
+    int r;               /* latent dimension */
+    int nv, n;           /* vertices and 3 nv */
+    int nonlinear;       /* 1 if N is present */
+    crom_mesh mesh;      /* the mesh (owned copy, with regions) */
+    double *W;           /* [n][r] linear part, or NULL (zero) */
+    /* N in double: layer l maps width[l] to width[l+1] */
+    int nlayers, width[CROM_NN_MAX_LAYERS + 1];
+    crom_nn_act act;     /* hidden activation; the output layer is linear */
+    double omega0;
+    double *w[CROM_NN_MAX_LAYERS], *b[CROM_NN_MAX_LAYERS];
+    double *mem;
+    /* scratch: activations and tangents of the widest hidden layer */
+    double *a0, *a1, *z1, *t0, *t1;
+} crom_map;
+
+/* Build the map of a model. A map model (energy, neuralmodes) lives on its
+ * own mesh: mesh must be NULL or have the same vertices and tets (its
+ * regions are then used), else CROM_EDATA ("decodes only onto its own
+ * mesh"). A mesh field (pod, modes) is sampled on mesh (NULL: its own mesh;
+ * another mesh: interpolated as crom_model_eval does). A neural field (mlp)
+ * needs a mesh (CROM_EUSAGE without one). CROM_EINTERNAL when out of
+ * memory. On failure *map holds nothing to free. */
+int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh);
+
+/* Positions x [n] (NULL to skip) and Jacobian J [n][r] row-major (NULL to
+ * skip) at latent q [r]. Returns 0 or CROM_EDATA when the result is not
+ * finite. */
+int crom_map_eval(crom_map *map, const double *q, double *x, double *J);
+
+/* Release what init allocated (NULL-safe). */
+void crom_map_free(crom_map *map);
+
+/* 0 if meshes a and b have the same vertices (within 1e-9 relative) and
+ * tets; else 1. */
+int crom_map_same_mesh(const crom_mesh *a, const crom_mesh *b);
+
+#endif

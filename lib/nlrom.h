@@ -1,0 +1,107 @@
+/* nlrom.h — implicit Euler in the latent space of a one-mesh subspace map
+ * x(q) (lib/map.h: data-free maps, or any linear basis laid on its mesh),
+ * the nonlinear counterpart of rom.h with the same scenario.
+ *
+ * Each step minimizes over q (Sharp et al. 2023 eq. 6, Fulton et al. 2019)
+ *
+ *   Φ(q) = 1/(2h²) ‖x(q) − x̂‖²_M + A/(2h) ‖x(q) − x_n‖²_M + E(x(q))
+ *        − f_ext·(x(q) − x_n) + κ/2 Σ_bc Σ_v m_v ‖x_v(q) − X_v − ū_v(t)‖²
+ *        + contact(x(q) at the surface vertices),
+ *
+ *   x̂ = x_n + h v_n,  v_n = (x_n − x_{n−1}) / h,
+ *
+ * the full-space incremental potential restricted to the map: inertia with
+ * the full-space velocity (so momentum is that of the body, not of q), the
+ * elastic energy E over EVERY tet of the mesh (no cubature: data-free maps
+ * live on small meshes; the cost per iteration is a pass over the tets with
+ * 12 x r Jacobian blocks), gravity and scheduled forces, pinned and
+ * prescribed-velocity regions as a stiff mass-weighted penalty (a
+ * data-free map holds its training pins by construction, so the penalty
+ * only matters for other regions), and the frictional planes of the full
+ * simulator.
+ *
+ * Solver: Gauss–Newton with line search. With J = ∂x/∂q (exact, from the
+ * map in double precision) the gradient is Jᵀ ∇_xΦ and the matrix
+ * H = Jᵀ (M (1/h² + A/h) + κ M_bc + K + C) J, with K the element Hessians
+ * (true ones first, projected to SPD when H is not positive definite or
+ * gives no descent, as rom.c does) and C the contact Hessians; it omits the
+ * curvature of the map, Σ_i (∇_xΦ)_i ∇²x_i, which vanishes for a linear
+ * basis (then this is rom.c's Newton on the same energy). Gauss–Newton
+ * converges only linearly where that term matters (large forces along
+ * curved or nearly collapsed latent directions), so from the third
+ * iteration of a step on, a nonlinear map gets Newton steps with the
+ * curvature added (by central differences of Jᵀ∇_xΦ: 2r evaluations of the
+ * map's Jacobian) whenever that matrix is positive definite and gives
+ * descent, and Gauss–Newton steps otherwise. Converged when the
+ * RMS displacement of the correction, ‖J d‖_M / sqrt(m), is below tol times
+ * the bounding-box diagonal. Afterwards v = (x_{n+1} − x_n)/h and
+ * q̇ = (q_{n+1} − q_n)/h.
+ */
+#ifndef CROM_NLROM_H
+#define CROM_NLROM_H
+
+#include "fem.h"
+#include "map.h"
+#include "rom.h"
+#include "scenario.h"
+
+typedef struct {
+    int *idx;          /* vertices */
+    int n;
+    double mass;       /* Σ m_v */
+    const crom_bc *bc; /* NULL for a pin */
+} crom_nlbc;
+
+typedef struct {
+    const crom_scenario *sc;
+    crom_map *map;      /* borrowed */
+    crom_fem fem;       /* the map's mesh with the scenario's material */
+    int r, n, nthreads;
+    double L, kappa;
+    double t;
+    long step;
+    double *q, *qd;     /* latent state and velocity */
+    double *x, *v;      /* positions x(q) and full-space velocity */
+    /* private */
+    double *qn, *xn, *xhat, *xt, *fext, *gx, *wd, *J, *Jt, *g, *H, *Hc, *d, *qt, *Gm, *lam, *zero, *tw, *tH, *tg,
+        *tE;
+    int nbc, nforce, nsurf, *surf;
+    crom_nlbc *bc, *force;
+} crom_nlsim;
+
+/* Set up on map (borrowed; its mesh's regions resolve the scenario's) with
+ * scenario sc (borrowed); q = q0 (NULL: 0), q̇ = qd0 (NULL: from the
+ * scenario's initial velocity and spin, projected: q̇ minimizes
+ * ‖J q̇ − v‖_M). kappa <= 0 picks 1e4/h². nthreads splits the passes over
+ * tets (deterministic for a given count). CROM_EUSAGE for an unknown or
+ * empty region, CROM_EDATA for a bad mesh or state. */
+int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, double kappa, const double *q0,
+                    const double *qd0, int nthreads);
+
+/* Advance one step. CROM_EDATA when the iteration does not converge in
+ * max_iter iterations or the state goes non-finite. */
+int crom_nlsim_step(crom_nlsim *s, crom_rstep_stats *st);
+
+/* Prepare the step's predictor, loads and lagged contact forces (for tests). */
+void crom_nlsim_begin_step(crom_nlsim *s);
+
+/* Φ(q) of the current step, its gradient g [r] and the Gauss–Newton matrix
+ * H [r][r] (either may be NULL); project: SPD-projected element Hessians. */
+int crom_nlsim_objective(crom_nlsim *s, const double *q, double *E, double *g, double *H, int project);
+
+/* The map's curvature term C [r][r] of the Hessian of Φ at q,
+ * Σ_i (∇_xΦ)_i ∂²x_i/∂q∂q (central differences of Jᵀ∇_xΦ), so that
+ * H + C is the exact Hessian (true element Hessians). Call right after
+ * crom_nlsim_objective at the same q with H requested. */
+int crom_nlsim_curvature(crom_nlsim *s, const double *q, double *C);
+
+/* Kinetic ½vᵀMv, elastic E(x) and external −f_ext(t)·(x − X) energies of
+ * the current state. */
+int crom_nlsim_energies(crom_nlsim *s, double *kinetic, double *elastic, double *external);
+
+/* Largest ‖x_v − X_v − ū_v(t)‖ over BC vertices (m). */
+double crom_nlsim_constraint_residual(const crom_nlsim *s);
+
+void crom_nlsim_free(crom_nlsim *s);
+
+#endif

@@ -1,0 +1,190 @@
+#!/usr/bin/env bash
+# Data-free subspaces end to end: crom-fitfield --objective energy|neuralmodes
+# (valid models that record what they were trained on, pins built in,
+# reproducible bytes whatever --threads), crom-metrics (energy below the
+# linear modes at the same displacements, no collapsed dimension),
+# crom-reducedstep --model (valid latent runs that dissipate energy; a linear
+# basis through --model is the cubature run), decoding with crom-export and
+# crom-diff on the model's own mesh only, and bad input.
+. "$CROM_TOP/tests/prog/common.bash"
+cd "$TMP"
+crom-mesh box --dims 1,0.2,0.2 --size 0.1 --region clamp='x<-0.49' --region tip='x>0.49' -o bar.h5
+MAT=(--youngs 1e6 --poisson 0.3 --density 1000)
+TRAIN=(--steps 300 --batch 16 --width 32)
+crom-modes "${MAT[@]}" --pin clamp --count 3 -q -o modes.h5 bar.h5
+
+# 1. an energy map of the clamped bar under gravity (Sharp et al.)
+crom-fitfield --objective energy --mesh bar.h5 "${MAT[@]}" --pin clamp --rank 2 "${TRAIN[@]}" -o df.h5 2>df.log
+cat df.log
+crom-info --check df.h5 >/dev/null || fail "crom-info --check df.h5"; ok
+grep -q "crom-fitfield: energy map, rank 2 on 110 vertices (12 pinned): 300 steps" df.log || fail "summary line"; ok
+$PY - df.h5 bar.h5 <<'PYEOF' || fail "energy model"
+import sys, h5py, numpy as np
+f, b = h5py.File(sys.argv[1]), h5py.File(sys.argv[2])
+s = lambda v: v.decode() if isinstance(v, bytes) else v
+assert s(f.attrs["basis"]) == "energy" and f.attrs["rank"] == 2 and s(f.attrs["encoder"]) == "none"
+assert s(f.attrs["activation"]) == "elu" and f.attrs["training_steps"] == 300
+sc = s(f.attrs["scenario"])
+assert "--youngs 1000000" in sc and "--pin clamp" in sc and "--gravity 0,-9.81" in sc, sc
+assert np.allclose(f.attrs["gravity"], [0, -9.81, 0]) and f.attrs["isometry_weight"] == 1
+assert abs(f.attrs["sigma"] - 0.05 * np.sqrt(1 + 0.04 + 0.04)) < 1e-12      # default: 5% of the diagonal
+assert abs(f.attrs["mass"] - 40) < 1e-9
+w = f["field/widths"][()]
+assert list(w) == [2, 32, 32, 32, 32, 32, 330], w
+assert np.array_equal(f["field/mesh/vertices"][()], b["vertices"][()])
+assert np.array_equal(f["field/mesh/regions/clamp"][()], b["regions/clamp"][()])
+assert len(f["training/objective"]) == 100 and "field/basis" not in f
+# the last layer: pinned vertices' rows are exactly zero
+p = f["field/params"][()]; n = 330; h = 32
+Wl = p[-(n * h + n):-n].reshape(n, h); bl = p[-n:]
+pin = b["regions/clamp"][()]
+dofs = np.concatenate([3 * pin + c for c in range(3)])
+assert np.all(Wl[dofs] == 0) and np.all(bl[dofs] == 0)
+obj = f["training/objective"][()]
+print("energy map: objective %.4g -> %.4g over the run" % (obj[0], obj[-1]))
+assert obj[-1] < obj[0]
+PYEOF
+ok
+# the same bytes again (the same command line: it is in the history), the
+# same model with 2 threads, and with the mesh through a pipe
+QUICK=(--objective energy "${MAT[@]}" --pin clamp --rank 2 --steps 40 --batch 8 --width 16)
+crom-fitfield "${QUICK[@]}" --mesh bar.h5 -q >df1.h5
+crom-fitfield "${QUICK[@]}" --mesh bar.h5 -q >df2.h5
+crom-fitfield "${QUICK[@]}" --mesh - --threads 2 -q <bar.h5 >df3.h5
+cmp -s df1.h5 df2.h5 || fail "same inputs and seed, different bytes"; ok
+$PY -c "
+import h5py, numpy as np
+a, b = h5py.File('df1.h5'), h5py.File('df3.h5')
+assert a.attrs['model_id'] == b.attrs['model_id'] and np.array_equal(a['field/params'][()], b['field/params'][()])" \
+  || fail "--threads 2 or a piped mesh changed the model"; ok
+crom-fitfield "${QUICK[@]}" --mesh bar.h5 --seed 2 -q >df4.h5
+! cmp -s df1.h5 df4.h5 || fail "--seed has no effect"; ok
+
+# metrics: samples of the energy map have much less elastic energy than the
+# linear modes at the same RMS displacements (measured ratio 0.27), it is
+# nearly isometric, and no dimension collapsed
+crom-metrics --compare modes.h5 --samples 128 df.h5 >met_df.txt
+cat met_df.txt
+ratio=$(sed -n 's/^compare: .* ratio \([0-9.e+-]*\)$/\1/p' met_df.txt)
+$PY -c "import sys; sys.exit(0 if 0 < $ratio < 0.5 else 1)" || fail "energy map vs linear modes: ratio $ratio"; ok
+grep -q "^collapse: 0 of 2 dimensions below 0.01" met_df.txt || fail "energy map collapsed"; ok
+med=$(sed -n 's/^isometry: .* median \([0-9.e+-]*\),.*/\1/p' met_df.txt)
+close "$med" 1 0.1 "median isometry ratio of the energy map"
+grep -q "material: E 1e+06 Pa, nu 0.3, rho 1000 kg/m^3 (recorded in the model); gravity 0,-9.81,0" met_df.txt \
+  || fail "metrics material"; ok
+
+# 2. Neural Modes on the 3 modes (Wang et al.)
+crom-fitfield --objective neuralmodes --mesh bar.h5 --modes modes.h5 "${TRAIN[@]}" -o nm.h5 2>nm.log
+cat nm.log
+crom-info --check nm.h5 >/dev/null || fail "crom-info --check nm.h5"; ok
+$PY - nm.h5 modes.h5 <<'PYEOF' || fail "neuralmodes model"
+import sys, h5py, numpy as np
+f, m = h5py.File(sys.argv[1]), h5py.File(sys.argv[2])
+s = lambda v: v.decode() if isinstance(v, bytes) else v
+assert s(f.attrs["basis"]) == "neuralmodes" and f.attrs["rank"] == 3 and s(f.attrs["activation"]) == "gelu"
+assert s(f.attrs["modes_id"]) == s(m.attrs["model_id"])
+assert np.array_equal(f["field/basis"][()], m["field/basis"][()])
+assert np.array_equal(f["frequencies"][()], m["frequencies"][()])
+assert f.attrs["youngs"] == 1e6 and f.attrs["poisson"] == 0.3   # the material of the modes
+assert "--pin clamp" in s(f.attrs["scenario"]) and "gravity" not in s(f.attrs["scenario"])
+assert abs(f.attrs["latent_box"] - 0.1 * np.sqrt(1.08)) < 1e-12
+PYEOF
+ok
+# no collapsed dimension (Wang et al. §4.4): J = W + dy/dz at 0 with y
+# M-orthogonal to W, so r J^T M J / tr stays far from 0 (measured 0.79 after
+# these 300 steps; the paper's collapsed dimensions are 0.0)
+crom-metrics --compare modes.h5 --samples 128 nm.h5 >met_nm.txt
+cat met_nm.txt
+low=$(sed -n 's/^collapse: 0 of 3 dimensions below 0.01 (smallest normalized eigenvalue \([0-9.e+-]*\);.*/\1/p' met_nm.txt)
+[ -n "$low" ] || fail "neuralmodes collapsed: $(grep collapse met_nm.txt)"
+$PY -c "import sys; sys.exit(0 if $low > 0.5 else 1)" || fail "smallest normalized Gram eigenvalue $low <= 0.5"; ok
+# the linear modes themselves: M-orthonormal, all eigenvalues 1
+crom-metrics --sphere 0.05 modes.h5 | grep -q "^gram_eigenvalues: 1 1 1$" || fail "modes Gram eigenvalues"; ok
+
+# 3. latent dynamics: a clamped bar under gravity in both maps
+SC=(--pin clamp --dt 0.01 --steps 30 --gravity 0,-9.81,0)
+for m in df nm; do
+  crom-reducedstep --model $m.h5 "${MAT[@]}" "${SC[@]}" -v -o run_$m.h5 2>run_$m.log
+  cat run_$m.log
+  crom-info --check run_$m.h5 >/dev/null || fail "latent $m invalid"; ok
+  $PY - run_$m.h5 $m.h5 <<'PYEOF' || fail "run $m"
+import sys, h5py, numpy as np
+r, f = h5py.File(sys.argv[1]), h5py.File(sys.argv[2])
+s = lambda v: v.decode() if isinstance(v, bytes) else v
+assert s(r.attrs["model_id"]) == s(f.attrs["model_id"]) and r.attrs["rank"] == f.attrs["rank"]
+assert s(r.attrs["solver"]) == "gauss-newton"
+T = r["frames/total_energy"][()]; K = r["frames/kinetic_energy"][()]
+scale = np.abs(r["frames/elastic_energy"][()]).max() + np.abs(r["frames/external_energy"][()]).max()
+rise = np.diff(T).max()
+print("%s: total energy %.4g -> %.4g J, largest rise %.3g J (scale %.4g J), largest kinetic energy %.4g J, %.2f iterations/step"
+      % (sys.argv[1], T[0], T[-1], rise, scale, K.max(), r["frames/iterations"][1:].mean()))
+assert np.all(np.isfinite(r["frames/q"][()])) and K.max() > 1e-3 * scale
+assert rise <= 1e-6 * scale
+assert r["frames/constraint_residual"][()].max() == 0        # the pins are built into the map
+PYEOF
+  ok
+done
+# the same run streamed through a pipe
+crom-reducedstep --model df.h5 "${MAT[@]}" "${SC[@]}" | crom-diff - run_df.h5 --model df.h5 -q \
+  | grep -q "relative displacement error 0 over 31 frames" || fail "streamed run differs"; ok
+
+# a linear basis through --model is the cubature run (same Newton steps)
+crom-cubature --model modes.h5 --scheme all -q -o cub.h5 bar.h5
+crom-reducedstep --cubature cub.h5 "${MAT[@]}" "${SC[@]}" --tol 1e-10 -q -o lin_cub.h5
+crom-reducedstep --model modes.h5 --mesh bar.h5 "${MAT[@]}" "${SC[@]}" --tol 1e-10 -q -o lin_map.h5
+e=$(crom-diff lin_map.h5 lin_cub.h5 --model modes.h5 --mesh bar.h5 -q | sed -n 's/relative displacement error \([0-9.e+-]*\) over.*/\1/p')
+echo "modes through --model vs through a cubature of every tet: $e"
+close "$e" 0 1e-9 "linear basis: --model vs --cubature"
+
+# 4. decoding on the model's own mesh: export needs no --mesh, accepts the
+#    same mesh, and a full run of the same mesh compares
+crom-export --format vtu --model df.h5 -o df_last.vtu run_df.h5
+crom-export --format vtu --model df.h5 --mesh bar.h5 -o df_last2.vtu run_df.h5
+cmp -s df_last.vtu df_last2.vtu || fail "export with and without --mesh differ"; ok
+$PY - df_last.vtu run_df.h5 df.h5 <<'PYEOF' || fail "decoded displacement"
+import sys, meshio, h5py, numpy as np
+v = meshio.read(sys.argv[1]); r = h5py.File(sys.argv[2]); f = h5py.File(sys.argv[3])
+u = v.point_data["displacement"]; pin = f["field/mesh/regions/clamp"][()]
+assert np.abs(u[pin]).max() == 0 and np.abs(u).max() > 0.01
+print("decoded last frame: tip displacement", u[np.argmax(v.points[:, 0])])
+PYEOF
+ok
+crom-fullsim "${MAT[@]}" "${SC[@]}" -q -o full.h5 bar.h5
+crom-diff run_nm.h5 full.h5 --model nm.h5 -q | grep -q "over 31 frames" || fail "diff against a full run"; ok
+
+# 5. bad input: one line, the right status, no output left
+O=out; mkdir -p $O
+crom-mesh box --dims 1,0.2,0.2 --size 0.15 --region clamp='x<-0.49' -o other.h5
+crom-mesh box --size 0.6 -o tiny.h5
+nv=$($PY -c "import h5py; print(len(h5py.File('tiny.h5')['vertices']))")
+crom-modes "${MAT[@]}" --count 3 -q -o modes_free.h5 bar.h5
+crom-modes "${MAT[@]}" --pin clamp --count 3 -q -o modes_other.h5 other.h5
+DF=(--objective energy --steps 2)
+expect_error 64 "--rank 5000: a 5000-dimensional latent for a body with only $((3 * nv)) free degrees of freedom" $O/m.h5 -- crom-fitfield "${DF[@]}" --mesh tiny.h5 --gravity 0,0,0 --rank 5000 -o $O/m.h5
+expect_error 64 "--objective neuralmodes needs the linear modes it builds on: --modes MODEL" $O/m.h5 -- crom-fitfield --objective neuralmodes --mesh bar.h5 -o $O/m.h5
+expect_error 64 "--lambda: .* is not a finite number" $O/m.h5 -- crom-fitfield "${DF[@]}" --mesh bar.h5 --pin clamp --lambda nan -o $O/m.h5
+expect_error 64 "--sigma: .* is not a finite number" $O/m.h5 -- crom-fitfield "${DF[@]}" --mesh bar.h5 --pin clamp --sigma inf -o $O/m.h5
+expect_error 64 "--sigma.* (positive|> 0)" $O/m.h5 -- crom-fitfield "${DF[@]}" --mesh bar.h5 --pin clamp --sigma -1 -o $O/m.h5
+expect_error 64 "--lambda must be >= 0, got -2" $O/m.h5 -- crom-fitfield "${DF[@]}" --mesh bar.h5 --pin clamp --lambda=-2 -o $O/m.h5
+expect_error 65 "--modes modes_other.h5 was computed on another mesh \(.* vertices, .* tets\) than --mesh bar.h5" $O/m.h5 -- crom-fitfield --objective neuralmodes --mesh bar.h5 --modes modes_other.h5 -o $O/m.h5
+expect_error 65 "--modes modes_free.h5 moves vertex [0-9]+, which is pinned here" $O/m.h5 -- crom-fitfield --objective neuralmodes --mesh bar.h5 --modes modes_free.h5 --pin clamp -o $O/m.h5
+expect_error 65 "--modes df.h5 is a 'energy' model; neuralmodes builds on linear vibration modes" $O/m.h5 -- crom-fitfield --objective neuralmodes --mesh bar.h5 --modes df.h5 -o $O/m.h5
+expect_error 64 "--rank 5: --modes modes.h5 has only 3 modes" $O/m.h5 -- crom-fitfield --objective neuralmodes --mesh bar.h5 --modes modes.h5 --rank 5 -o $O/m.h5
+expect_error 64 "a free body under gravity has no lowest energy" $O/m.h5 -- crom-fitfield "${DF[@]}" --mesh bar.h5 -o $O/m.h5
+expect_error 64 "--objective energy needs the mesh it maps: --mesh MESH" $O/m.h5 -- crom-fitfield --objective energy -o $O/m.h5
+expect_error 64 "--objective energy learns from no samples" $O/m.h5 -- crom-fitfield "${DF[@]}" --mesh bar.h5 -o $O/m.h5 bar.h5
+expect_error 64 "--epochs applies to --objective samples, not energy \(use --steps\)" $O/m.h5 -- crom-fitfield "${DF[@]}" --mesh bar.h5 --epochs 3 -o $O/m.h5
+expect_error 64 "--mesh applies to a data-free subspace" $O/m.h5 -- crom-fitfield --mesh bar.h5 -o $O/m.h5
+expect_error 64 "--pin applies to a data-free subspace" $O/m.h5 -- crom-fitfield --pin clamp -o $O/m.h5
+expect_error 64 "unknown region 'lid'" $O/m.h5 -- crom-fitfield "${DF[@]}" --mesh bar.h5 --pin lid -o $O/m.h5
+expect_error 65 "is crom/model v1, expected crom/mesh" $O/m.h5 -- crom-fitfield "${DF[@]}" --mesh df.h5 -o $O/m.h5
+expect_error 64 "--model runs on the model's mesh: --cubature does not apply" $O/x.h5 -- crom-reducedstep --model df.h5 --cubature cub.h5 -o $O/x.h5
+expect_error 64 "--solver gd needs a cubature" $O/x.h5 -- crom-reducedstep --model df.h5 --solver gd -o $O/x.h5
+expect_error 65 "decodes only onto its own mesh \(110 vertices, 254 tets\); the given mesh has" $O/x.h5 -- crom-reducedstep --model df.h5 --mesh other.h5 -o $O/x.h5
+expect_error 64 "unknown region 'lid'" $O/x.h5 -- crom-reducedstep --model df.h5 --pin lid -o $O/x.h5
+expect_error 65 "--init .* is a state of model" $O/x.h5 -- crom-reducedstep --model df.h5 --init run_nm.h5 "${MAT[@]}" -o $O/x.h5
+expect_error 65 "decodes only onto its own mesh" $O/x.vtu -- crom-export --format vtu --model df.h5 --mesh other.h5 -o $O/x.vtu run_df.h5
+expect_error 65 "is a nonlinear map of one mesh \(basis 'energy'\), not a basis field" $O/c.h5 -- crom-cubature --model df.h5 -o $O/c.h5 bar.h5
+expect_error 64 "--compare df.h5 is a nonlinear map \('energy'\); the comparison needs a linear basis" - -- crom-metrics --compare df.h5 nm.h5
+expect_error 65 "decodes only onto its own mesh" - -- crom-metrics --mesh other.h5 df.h5
+done_checks

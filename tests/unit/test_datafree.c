@@ -1,0 +1,670 @@
+/* test_datafree.c — lib/datafree, lib/map, lib/nlrom, lib/metrics: the
+ * data-free subspaces of Sharp et al. 2023 (energy + isometry) and Wang et
+ * al. 2024 (Neural Modes) and the latent dynamics on them.
+ *
+ *  - gradient checks of both training losses against central differences
+ *    (float network, double loss, step 1e-3 on the float parameters,
+ *    relative error of the whole gradient vector below 2e-3, as in
+ *    test_fit.c), with pins, gravity and every term active;
+ *  - the map's double-precision Jacobian against differences of the map;
+ *  - a small energy-trained subspace of a clamped bar under gravity has
+ *    samples whose mean elastic energy is below that of the linear modes at
+ *    the same displacement magnitude;
+ *  - a Neural-Modes subspace has no collapsed dimension (Wang et al. §4.4);
+ *  - latent dynamics: the reduced objective's gradient and Gauss–Newton
+ *    matrix against differences, a finite and energy-dissipating run of a
+ *    clamped bar under gravity, and with the linear part alone the same
+ *    trajectory as the linear modal ROM of lib/rom.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <lapacke.h>
+
+#include "check.h"
+#include "cubature.h"
+#include "datafree.h"
+#include "err.h"
+#include "fem.h"
+#include "map.h"
+#include "meshgen.h"
+#include "metrics.h"
+#include "model.h"
+#include "modes.h"
+#include "nlrom.h"
+#include "nn.h"
+#include "rom.h"
+
+#define FD_H 1e-3
+#define FD_TOL 2e-3
+
+static void make_bar(crom_mesh *m, double size)
+{
+    crom_meshgen_opts o;
+    crom_meshgen_defaults(&o, CROM_SHAPE_BOX);
+    o.size = size;
+    o.dims[0] = 1;
+    o.dims[1] = 0.2;
+    o.dims[2] = 0.2;
+    int rc = crom_meshgen(&o, m);
+    CHECK_MSG(rc == 0, "meshgen: %s", crom_errmsg());
+    CHECK(crom_mesh_region_spec(m, "clamp=x<-0.49") == 0);
+}
+
+static unsigned char *clamp_mask(const crom_mesh *m)
+{
+    unsigned char *f = calloc(3 * (size_t)m->nv, 1);
+    for (int v = 0; v < m->nv; v++)
+        if (m->X[3 * v] < -0.49)
+            memset(f + 3 * v, 1, 3);
+    return f;
+}
+
+/* the lowest k modes of the clamped bar as W = Φ sqrt(m) [nv][3][k] */
+static double *bar_modes(const crom_mesh *m, const crom_material *mat, const unsigned char *fixed, int k,
+                         double **freq)
+{
+    crom_modes_opts o;
+    crom_modes_defaults(&o);
+    o.count = k;
+    crom_modes res;
+    int rc = crom_modes_compute(m, mat, fixed, &o, &res);
+    CHECK_MSG(rc == 0, "modes: %s", crom_errmsg());
+    double mass = mat->rho * crom_mesh_volume(m), s = sqrt(mass);
+    double *W = malloc(sizeof(double) * 3 * m->nv * k);
+    for (int i = 0; i < 3 * m->nv * k; i++)
+        W[i] = res.phi[i] * s;
+    *freq = malloc(sizeof(double) * k);
+    memcpy(*freq, res.freq, sizeof(double) * k);
+    crom_modes_free(&res);
+    return W;
+}
+
+/* ------------------------------------------------------- gradient checks */
+
+typedef struct {
+    crom_df_ctx *c;
+    float *p;
+    int n, B;
+    const double *z;
+    double rho;
+} fd_case;
+
+static double loss_at(const double *x, void *v)
+{
+    fd_case *t = v;
+    for (int i = 0; i < t->n; i++)
+        t->p[i] = (float)x[i];
+    crom_df_terms tm;
+    if (crom_df_loss(t->c, t->B, t->z, t->rho, &tm, NULL))
+        return NAN;
+    return tm.objective;
+}
+
+static void gradient_check(int objective)
+{
+    crom_mesh m;
+    make_bar(&m, 0.2);
+    crom_material mat;
+    crom_material_init(&mat, 1e6, 0.3, 1000);
+    unsigned char *fixed = clamp_mask(&m);
+    int r = 3, B = 5;
+    double *freq = NULL, *W = NULL;
+    if (objective == CROM_DF_NEURALMODES)
+        W = bar_modes(&m, &mat, fixed, r, &freq);
+    crom_df_problem P = {&m, mat, {0, -9.81, 0}, fixed, W, freq};
+    crom_df_opts o;
+    crom_df_defaults(&o, objective);
+    o.rank = r;
+    o.sigma = 0.04;
+    o.lambda = 0.7;
+    o.box = 0.1;
+    o.ortho_weight = 3; /* weights of the size of the energy term, so every term shows */
+    o.origin_weight = 2;
+    int widths[] = {r, 12, 12, 3 * m.nv};
+    crom_nn_spec spec;
+    CHECK(crom_nn_spec_set(&spec, 4, widths, o.act) == 0);
+    crom_nn_mlp net;
+    crom_rng rng;
+    crom_rng_seed(&rng, 5);
+    CHECK(crom_nn_mlp_init(&net, &spec, NULL, &rng) == 0);
+    /* a small random last layer: displacements of a few cm, no inversions */
+    crom_nn_layer *ly = &net.layer[2];
+    for (int i = 0; i < ly->out * ly->in; i++)
+        ly->W[i] *= 0.3f;
+    for (int i = 0; i < ly->out; i++)
+        ly->b[i] = (float)(0.01 * crom_rng_normal(&rng));
+    crom_df_ctx c;
+    CHECK(crom_df_ctx_init(&c, &P, &o, &net, B) == 0);
+    double z[5 * 3];
+    for (int i = 0; i < B * r; i++)
+        z[i] = objective == CROM_DF_ENERGY ? crom_rng_normal(&rng) : o.box * (2 * crom_rng_uniform(&rng) - 1);
+    int n = (int)net.nparams;
+    float *g = malloc(sizeof(float) * n);
+    double *ga = malloc(sizeof(double) * n), *gf = malloc(sizeof(double) * n), *x = malloc(sizeof(double) * n);
+    double rhos[2] = {0.6, 0.0};
+    for (int k = 0; k < (objective == CROM_DF_ENERGY ? 2 : 1); k++) {
+        crom_df_terms tm;
+        int rc = crom_df_loss(&c, B, z, rhos[k], &tm, g);
+        CHECK_MSG(rc == 0, "loss: %s", crom_errmsg());
+        for (int i = 0; i < n; i++) {
+            ga[i] = g[i];
+            x[i] = net.params[i];
+        }
+        fd_case fc = {&c, net.params, n, B, z, rhos[k]};
+        check_fd_gradient(loss_at, &fc, x, n, FD_H, gf);
+        for (int i = 0; i < n; i++)
+            net.params[i] = (float)x[i];
+        double e = check_relerr(ga, gf, n, 1e-12);
+        fprintf(stderr, "%s loss (rho %.1f): objective %.4g (energy %.4g J, penalty %.4g, origin %.4g); "
+                        "gradient vs FD %.2e over %d parameters\n",
+                objective == CROM_DF_ENERGY ? "energy+isometry" : "neuralmodes", rhos[k], tm.objective, tm.energy,
+                tm.penalty, tm.origin, e, n);
+        CHECK_LT(e, FD_TOL);
+        CHECK(tm.penalty > 0);
+        if (objective == CROM_DF_NEURALMODES)
+            CHECK(tm.origin > 0);
+        /* pinned outputs get no gradient: the last layer's pinned rows */
+        double gp = 0;
+        for (int i = 0; i < 3 * m.nv; i++)
+            if (fixed[i])
+                gp += fabs(ga[ly->boff + i]);
+        CHECK(gp == 0);
+    }
+    crom_df_ctx_free(&c);
+    crom_nn_mlp_free(&net);
+    free(g);
+    free(ga);
+    free(gf);
+    free(x);
+    free(W);
+    free(freq);
+    free(fixed);
+    crom_mesh_free(&m);
+}
+
+/* ------------------------------------------------- the map in double */
+
+typedef struct {
+    crom_map *map;
+    double *x;
+} map_case;
+
+static void map_at(const double *q, void *v, double *out)
+{
+    map_case *t = v;
+    crom_map_eval(t->map, q, out, NULL);
+}
+
+/* A map model with a random network (and modes for neuralmodes): its
+ * double Jacobian against differences, its positions against the float
+ * network, pins exactly at rest after zeroing their rows. */
+static void test_map(void)
+{
+    crom_mesh m;
+    make_bar(&m, 0.2);
+    int r = 3, n = 3 * m.nv;
+    int widths[] = {r, 10, 10, n};
+    for (int kind = 0; kind < 2; kind++) {
+        crom_nn_spec spec;
+        CHECK(crom_nn_spec_set(&spec, 4, widths, kind ? CROM_NN_GELU : CROM_NN_ELU) == 0);
+        crom_nn_mlp net;
+        crom_rng rng;
+        crom_rng_seed(&rng, 11 + kind);
+        CHECK(crom_nn_mlp_init(&net, &spec, NULL, &rng) == 0);
+        for (int i = 0; i < (int)net.nparams; i++) /* biases too */
+            if (net.params[i] == 0)
+                net.params[i] = (float)(0.1 * crom_rng_normal(&rng));
+        double *W = NULL;
+        if (kind) {
+            W = malloc(sizeof(double) * n * r);
+            for (int i = 0; i < n * r; i++)
+                W[i] = crom_rng_normal(&rng);
+        }
+        crom_model model;
+        CHECK(crom_model_from_map(&model, kind ? "neuralmodes" : "energy", &net, &m, W) == 0);
+        crom_map map;
+        int rc = crom_map_init(&map, &model, NULL);
+        CHECK_MSG(rc == 0, "map: %s", crom_errmsg());
+        double q[3] = {0.3, -0.7, 0.45}, *x = malloc(sizeof(double) * n), *J = malloc(sizeof(double) * n * r);
+        double *Jfd = malloc(sizeof(double) * n * r);
+        CHECK(crom_map_eval(&map, q, x, J) == 0);
+        map_case mc = {&map, NULL};
+        check_fd_jacobian(map_at, &mc, q, r, n, 1e-6, Jfd);
+        double ej = check_relerr(J, Jfd, n * r, 1e-12);
+        /* against the float network: x - X - W q = N(q) */
+        crom_nn_ws ws;
+        CHECK(crom_nn_ws_init(&ws, &net, 1, 1) == 0);
+        float qf[3] = {0.3f, -0.7f, 0.45f}, *y = malloc(sizeof(float) * n);
+        CHECK(crom_nn_mlp_forward(&net, &ws, 1, qf, y) == 0);
+        double dn = 0, nn = 0;
+        for (int i = 0; i < n; i++) {
+            double lin = 0;
+            for (int k = 0; W && k < r; k++)
+                lin += W[i * r + k] * q[k];
+            double d = x[i] - m.X[i] - lin - y[i];
+            dn += d * d;
+            nn += (double)y[i] * y[i];
+        }
+        fprintf(stderr, "%s map: Jacobian vs FD %.2e, positions vs float network %.2e\n",
+                kind ? "neuralmodes" : "energy", ej, sqrt(dn / nn));
+        CHECK_LT(ej, 1e-7);
+        CHECK_LT(sqrt(dn / nn), 1e-5);
+        /* a map decodes only on its own mesh */
+        crom_mesh other;
+        make_bar(&other, 0.15);
+        crom_map bad;
+        CHECK(crom_map_init(&bad, &model, &other) == CROM_EDATA);
+        CHECK(strstr(crom_errmsg(), "decodes only onto its own mesh") != NULL);
+        crom_mesh_free(&other);
+        /* model_id covers the network, the mesh and W */
+        char id0[17], id1[17];
+        crom_model_id(&model, id0);
+        model.mlp.params[7] += 1e-3f;
+        crom_model_id(&model, id1);
+        CHECK(strcmp(id0, id1) != 0);
+        model.mlp.params[7] -= 1e-3f;
+        if (W) {
+            model.basis_v[5] += 1;
+            crom_model_id(&model, id1);
+            CHECK(strcmp(id0, id1) != 0);
+            model.basis_v[5] -= 1;
+        }
+        crom_nn_ws_free(&ws);
+        crom_map_free(&map);
+        crom_model_free(&model);
+        crom_nn_mlp_free(&net);
+        free(W);
+        free(x);
+        free(J);
+        free(Jfd);
+        free(y);
+    }
+    crom_mesh_free(&m);
+}
+
+/* ------------------------------------------------------ trained maps */
+
+/* The clamped bar of the subspace tests: 1 x 0.2 x 0.2 m, E = 1 MPa (soft:
+ * its static sag under gravity is about 0.35 m at the tip), clamped at
+ * x = -0.5. */
+typedef struct {
+    crom_mesh mesh;
+    crom_material mat;
+    unsigned char *fixed;
+    crom_fem fem;
+    double *modes, *freq;
+    int nmodes;
+} bar_case;
+
+static void bar_setup(bar_case *b, int nmodes)
+{
+    make_bar(&b->mesh, 0.1);
+    crom_material_init(&b->mat, 1e6, 0.3, 1000);
+    b->fixed = clamp_mask(&b->mesh);
+    CHECK(crom_fem_init(&b->fem, &b->mesh, &b->mat) == 0);
+    b->nmodes = nmodes;
+    b->modes = bar_modes(&b->mesh, &b->mat, b->fixed, nmodes, &b->freq);
+}
+
+static void bar_free(bar_case *b)
+{
+    crom_fem_free(&b->fem);
+    free(b->fixed);
+    free(b->modes);
+    free(b->freq);
+    crom_mesh_free(&b->mesh);
+}
+
+/* A linear map model of the modes (kind neuralmodes with a zero network:
+ * x = X + W q exactly). */
+static void linear_modes_model(const bar_case *b, crom_model *out)
+{
+    int r = b->nmodes, widths[] = {r, 4, 3 * b->mesh.nv};
+    crom_nn_spec spec;
+    crom_nn_spec_set(&spec, 3, widths, CROM_NN_GELU);
+    crom_nn_mlp net;
+    CHECK(crom_nn_mlp_init(&net, &spec, NULL, NULL) == 0); /* zero parameters */
+    CHECK(crom_model_from_map(out, "neuralmodes", &net, &b->mesh, b->modes) == 0);
+    crom_nn_mlp_free(&net);
+}
+
+/* The modes as a crom-modes-like mesh-field model (a linear basis). */
+static void modes_model(const bar_case *b, crom_model *out)
+{
+    CHECK(crom_model_from_mesh(out, "modes", &b->mesh, b->modes, b->nmodes) == 0);
+}
+
+static crom_model g_energy_model; /* trained once, used by the dynamics tests */
+
+/* Sharp et al.: a rank-2 energy map of the clamped bar under gravity, 400
+ * steps of 16 samples. Its random samples (z ~ N(0, I)) have less elastic
+ * energy than the two lowest linear modes at the same RMS displacements:
+ * below half (measured 567 J against 2206 J, ratio 0.26); it is nearly
+ * isometric at scale sigma (ratio within [0.7, 1.3] for 90 % of the pairs;
+ * measured 0.84 .. 1.12), and pins stay exactly at rest. */
+static void test_energy_subspace(bar_case *b)
+{
+    crom_df_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL};
+    crom_df_opts o;
+    crom_df_defaults(&o, CROM_DF_ENERGY);
+    o.rank = 2;
+    o.steps = 400;
+    o.batch = 16;
+    o.width = 32;
+    o.seed = 3;
+    crom_df_log log;
+    int rc = crom_df_train(&P, &o, &g_energy_model, &log);
+    CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
+    if (rc)
+        return;
+    CHECK(!strcmp(g_energy_model.basis, "energy") && g_energy_model.rank == 2 && log.steps == 400);
+    CHECK(log.nblocks == 100 && log.objective[99] < log.objective[0]);
+    crom_map map, lin;
+    crom_model lm;
+    modes_model(b, &lm);
+    CHECK(crom_map_init(&map, &g_energy_model, NULL) == 0);
+    CHECK(crom_map_init(&lin, &lm, NULL) == 0);
+    crom_metrics_opts mo;
+    crom_metrics_defaults(&mo);
+    mo.samples = 64;
+    mo.sigma = log.sigma;
+    crom_metrics res;
+    double g[3] = {0, -9.81, 0};
+    rc = crom_metrics_compute(&map, &b->fem, g, &mo, &lin, &res);
+    CHECK_MSG(rc == 0, "metrics: %s", crom_errmsg());
+    fprintf(stderr, "energy map (rank 2, 400 steps): mean elastic energy %.4g J at mean RMS displacement %.4g m; "
+                    "linear modes at the same displacements %.4g J (ratio %.3g); isometry ratio q05 %.3f median "
+                    "%.3f q95 %.3f; Gram eigenvalues %.3f %.3f\n",
+            res.energy_mean, res.rms_mean, res.cmp_energy_mean, res.energy_mean / res.cmp_energy_mean, res.iso_q05,
+            res.iso_median, res.iso_q95, res.gram_eig[0], res.gram_eig[1]);
+    CHECK_LT(res.energy_mean, 0.5 * res.cmp_energy_mean);
+    CHECK(res.iso_q05 > 0.7 && res.iso_q95 < 1.3);
+    /* pinned vertices exactly at rest for any z */
+    double q[2] = {1.7, -2.3}, *x = malloc(sizeof(double) * map.n), dmax = 0;
+    CHECK(crom_map_eval(&map, q, x, NULL) == 0);
+    for (int i = 0; i < map.n; i++)
+        if (b->fixed[i])
+            dmax = fmax(dmax, fabs(x[i] - b->mesh.X[i]));
+    CHECK(dmax == 0);
+    free(x);
+    crom_metrics_free(&res);
+    crom_map_free(&map);
+    crom_map_free(&lin);
+    crom_model_free(&lm);
+    crom_df_log_free(&log);
+}
+
+/* Wang et al.: Neural Modes on the 3 lowest modes, 400 steps of 16 samples
+ * in the box [-0.1, 0.1]^3 m. No latent dimension collapses (§4.4: the
+ * smallest eigenvalue of r JᵀMJ / tr at 0 is above 0.8; measured 0.92, the
+ * paper's collapsed ones are 0.0), y stays M-orthogonal to the modes and
+ * near 0 at the origin (within 1 % of the box; measured 4e-4 and 3e-4), and
+ * the samples of the box have less energy than the linear modes at the
+ * same z (measured 359 J against 5508 J). */
+static void test_neuralmodes_subspace(bar_case *b)
+{
+    crom_df_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq};
+    crom_df_opts o;
+    crom_df_defaults(&o, CROM_DF_NEURALMODES);
+    o.rank = b->nmodes;
+    o.steps = 400;
+    o.batch = 16;
+    o.width = 32;
+    o.box = 0.1;
+    crom_df_log log;
+    crom_model nm;
+    int rc = crom_df_train(&P, &o, &nm, &log);
+    CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
+    if (rc)
+        return;
+    crom_map map, lin;
+    crom_model lm;
+    modes_model(b, &lm);
+    CHECK(crom_map_init(&map, &nm, NULL) == 0);
+    CHECK(crom_map_init(&lin, &lm, NULL) == 0);
+    crom_metrics_opts mo;
+    crom_metrics_defaults(&mo);
+    mo.samples = 64;
+    mo.dist = CROM_METRICS_BOX;
+    mo.radius = 0.1;
+    crom_metrics res, rl;
+    double g[3] = {0, 0, 0};
+    CHECK(crom_metrics_compute(&map, &b->fem, g, &mo, NULL, &res) == 0);
+    CHECK(crom_metrics_compute(&lin, &b->fem, g, &mo, NULL, &rl) == 0);
+    /* orthogonality and origin: |W^T M y / m| and |y(0)|_M / sqrt(m) relative to the box */
+    int n = map.n, r = map.r;
+    double *x = malloc(sizeof(double) * n), leak = 0, y0 = 0;
+    crom_rng rng;
+    crom_rng_seed(&rng, 9);
+    for (int s = 0; s < 20; s++) {
+        double q[8], c[8] = {0};
+        for (int k = 0; k < r; k++)
+            q[k] = 0.1 * (2 * crom_rng_uniform(&rng) - 1);
+        crom_map_eval(&map, q, x, NULL);
+        for (int i = 0; i < n; i++) {
+            double lin2 = 0;
+            for (int k = 0; k < r; k++)
+                lin2 += b->modes[i * r + k] * q[k];
+            double y = x[i] - b->mesh.X[i] - lin2;
+            for (int k = 0; k < r; k++)
+                c[k] += b->fem.mass[i / 3] * b->modes[i * r + k] * y / b->fem.total_mass;
+        }
+        for (int k = 0; k < r; k++)
+            leak = fmax(leak, fabs(c[k]) / 0.1);
+    }
+    double q0[8] = {0};
+    crom_map_eval(&map, q0, x, NULL);
+    for (int i = 0; i < n; i++)
+        y0 += b->fem.mass[i / 3] * (x[i] - b->mesh.X[i]) * (x[i] - b->mesh.X[i]);
+    y0 = sqrt(y0 / b->fem.total_mass) / 0.1;
+    fprintf(stderr, "neuralmodes (rank %d, 400 steps): Gram eigenvalues %.4f %.4f %.4f, correlation %.4f .. %.4f; "
+                    "largest projection of y on a mode %.2e of the box, |y(0)| %.2e of the box; mean elastic "
+                    "energy %.4g J (linear modes at the same z: %.4g J)\n",
+            r, res.gram_eig[0], res.gram_eig[1], res.gram_eig[2], res.corr_eig[0], res.corr_eig[r - 1], leak, y0,
+            res.energy_mean, rl.energy_mean);
+    CHECK(res.gram_eig[0] > 0.8);
+    CHECK_LT(leak, 0.01);
+    CHECK_LT(y0, 0.01);
+    CHECK_LT(res.energy_mean, rl.energy_mean);
+    /* the linear modes themselves: exactly M-orthonormal, all eigenvalues 1 */
+    CHECK(fabs(rl.gram_eig[0] - 1) < 1e-9 && fabs(rl.gram_eig[r - 1] - 1) < 1e-9);
+    free(x);
+    crom_metrics_free(&res);
+    crom_metrics_free(&rl);
+    crom_map_free(&map);
+    crom_map_free(&lin);
+    crom_model_free(&lm);
+    crom_model_free(&nm);
+    crom_df_log_free(&log);
+}
+
+/* ------------------------------------------------------ latent dynamics */
+
+static crom_nlsim *g_nl;
+static int g_nlproject;
+static double nl_obj(const double *q, void *ctx)
+{
+    (void)ctx;
+    double E;
+    crom_nlsim_objective(g_nl, q, &E, NULL, NULL, g_nlproject);
+    return E;
+}
+static void nl_grad(const double *q, void *ctx, double *g)
+{
+    (void)ctx;
+    double E;
+    crom_nlsim_objective(g_nl, q, &E, g, NULL, g_nlproject);
+}
+
+static void scenario_bar(crom_scenario *sc)
+{
+    crom_scenario_defaults(sc);
+    sc->youngs = 1e6;
+    sc->poisson = 0.3;
+    sc->dt = 0.01;
+    sc->tol = 1e-9;
+}
+
+/* The reduced objective of the energy map: gradient against differences,
+ * with every term (inertia, damping, gravity, a force, a pin penalty on a
+ * region the map moves, a frictional plane the bar touches), and the
+ * Newton matrix (Gauss–Newton plus the map's curvature) against differences
+ * of the gradient; then a free run: finite, and its total energy never
+ * increases (implicit Euler dissipates). */
+static void test_dynamics(bar_case *b)
+{
+    if (!g_energy_model.rank)
+        return;
+    crom_map map;
+    CHECK(crom_map_init(&map, &g_energy_model, &b->mesh) == 0);
+    int r = map.r;
+    crom_scenario sc;
+    scenario_bar(&sc);
+    sc.damping = 2;
+    strcpy(sc.pins[sc.npins++], "x>0.45");
+    snprintf(sc.force[0].ref, sizeof sc.force[0].ref, "y>0.09");
+    sc.force[0].v[2] = 30;
+    sc.force[0].t0 = 0;
+    sc.force[0].t1 = INFINITY;
+    sc.nforce = 1;
+    sc.plane[0].n[1] = 1;
+    sc.plane[0].d = -0.2;
+    sc.plane[0].mu = 0.3;
+    sc.nplanes = 1;
+    crom_nlsim s;
+    double q0[2] = {0.4, -0.3}, qd0[2] = {2, 1};
+    int rc = crom_nlsim_init(&s, &map, &sc, 1e5, q0, qd0, 1);
+    CHECK_MSG(rc == 0, "nlsim: %s", crom_errmsg());
+    crom_nlsim_begin_step(&s);
+    g_nl = &s;
+    for (g_nlproject = 0; g_nlproject <= 1; g_nlproject++) {
+        double q[2] = {0.45, -0.2}, g[2], H[4], gfd[2], E;
+        CHECK(crom_nlsim_objective(&s, q, &E, g, H, g_nlproject) == 0);
+        check_fd_gradient(nl_obj, NULL, q, r, 1e-6, gfd);
+        double eg = check_relerr(g, gfd, r, 1e-9);
+        fprintf(stderr, "energy map: reduced gradient vs FD %.2e (project %d); Gauss-Newton matrix [%.4g %.4g; %.4g "
+                        "%.4g]\n", eg, g_nlproject, H[0], H[1], H[2], H[3]);
+        CHECK_LT(eg, 1e-6);
+        CHECK(H[0] > 0 && H[0] * H[3] - H[1] * H[2] > 0 && fabs(H[1] - H[2]) <= 1e-12 * H[0]);
+        if (!g_nlproject) { /* Newton: Gauss-Newton plus the map's curvature is the exact Hessian */
+            double C[4], Hn[4], Hfd[4];
+            CHECK(crom_nlsim_curvature(&s, q, C) == 0);
+            for (int i = 0; i < 4; i++)
+                Hn[i] = H[i] + C[i];
+            check_fd_jacobian(nl_grad, NULL, q, r, r, 1e-6, Hfd);
+            double eh = check_relerr(Hn, Hfd, 4, 1e-9), egn = check_relerr(H, Hfd, 4, 1e-9);
+            fprintf(stderr, "energy map: Gauss-Newton + curvature vs FD Hessian %.2e (Gauss-Newton alone %.2e)\n", eh,
+                    egn);
+            CHECK_LT(eh, 1e-5);
+        }
+    }
+    crom_nlsim_free(&s);
+    /* a free run under gravity from f(0): finite, total energy non-increasing */
+    crom_scenario fr;
+    scenario_bar(&fr);
+    CHECK(crom_nlsim_init(&s, &map, &fr, 0, NULL, NULL, 1) == 0);
+    double Eprev = NAN, worst = -INFINITY, scale = 0, tmax = 0;
+    int steps = 60, fin = 1;
+    for (int k = 0; k <= steps; k++) {
+        crom_rstep_stats st;
+        if (k > 0) {
+            rc = crom_nlsim_step(&s, &st);
+            CHECK_MSG(rc == 0, "step %d: %s", k, crom_errmsg());
+            if (rc)
+                break;
+        }
+        double K, Ee, W;
+        CHECK(crom_nlsim_energies(&s, &K, &Ee, &W) == 0);
+        double T = K + Ee + W;
+        fin &= isfinite(T);
+        scale = fmax(scale, fabs(Ee) + fabs(W) + K);
+        tmax = fmax(tmax, K);
+        if (k > 0)
+            worst = fmax(worst, T - Eprev);
+        Eprev = T;
+    }
+    fprintf(stderr, "energy map, free run of %d steps under gravity: largest rise of the total energy %.3g J (energy "
+                    "scale %.4g J, largest kinetic energy %.4g J)\n", steps, worst, scale, tmax);
+    CHECK(fin);
+    CHECK(tmax > 1e-3 * scale); /* it moved */
+    CHECK_LT(worst, 1e-6 * scale);
+    crom_nlsim_free(&s);
+    crom_map_free(&map);
+}
+
+/* With its network zero, a Neural-Modes map is the linear modal basis:
+ * Gauss–Newton is Newton and the run matches lib/rom's linear modal ROM
+ * on a cubature of every tet, step by step; the Gauss-Newton matrix is then
+ * the exact Hessian (against differences of the gradient). */
+static void test_linear_equivalence(bar_case *b)
+{
+    crom_model lm;
+    linear_modes_model(b, &lm);
+    crom_map map;
+    CHECK(crom_map_init(&map, &lm, &b->mesh) == 0);
+    int r = map.r;
+    crom_scenario sc;
+    scenario_bar(&sc);
+    sc.tol = 1e-12;
+    sc.gravity[1] = -3;
+    sc.damping = 0.5;
+    crom_nlsim s;
+    CHECK(crom_nlsim_init(&s, &map, &sc, 0, NULL, NULL, 1) == 0);
+    /* exact Hessian of a linear map */
+    crom_nlsim_begin_step(&s);
+    g_nl = &s;
+    g_nlproject = 0;
+    double q[8] = {0.05, -0.03, 0.02}, H[64], Hfd[64], E;
+    CHECK(crom_nlsim_objective(&s, q, &E, NULL, H, 0) == 0);
+    check_fd_jacobian(nl_grad, NULL, q, r, r, 1e-7, Hfd);
+    double eh = check_relerr(H, Hfd, r * r, 1e-9);
+    CHECK_LT(eh, 1e-5);
+    crom_cub cub;
+    crom_cub_opts co = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, sc.youngs, sc.poisson};
+    crom_rng rng;
+    crom_rng_seed(&rng, 1);
+    CHECK(crom_cub_build(&cub, &b->mesh, b->modes, r, "lin", &co, &rng) == 0);
+    crom_rsim rs;
+    CHECK(crom_rsim_init(&rs, &cub, &sc, CROM_SOLVER_NEWTON, 0, NULL, NULL) == 0);
+    crom_nlsim_free(&s);
+    CHECK(crom_nlsim_init(&s, &map, &sc, 0, NULL, NULL, 1) == 0);
+    double worst = 0, qmax = 0;
+    for (int k = 0; k < 25; k++) {
+        crom_rstep_stats a, c;
+        int rc1 = crom_rsim_step(&rs, &a), rc2 = crom_nlsim_step(&s, &c);
+        CHECK_MSG(rc1 == 0 && rc2 == 0, "step %d: %s", k, crom_errmsg());
+        for (int i = 0; i < r; i++) {
+            worst = fmax(worst, fabs(rs.q[i] - s.q[i]));
+            qmax = fmax(qmax, fabs(rs.q[i]));
+        }
+    }
+    fprintf(stderr, "linear part only: Gauss-Newton matrix vs FD Hessian %.2e; largest |q_map - q_rom| %.2e over 25 "
+                    "steps (|q| up to %.3g m)\n", eh, worst, qmax);
+    CHECK(qmax > 1e-3);
+    CHECK_LT(worst, 1e-8 * qmax);
+    crom_rsim_free(&rs);
+    crom_cub_free(&cub);
+    crom_nlsim_free(&s);
+    crom_map_free(&map);
+    crom_model_free(&lm);
+}
+
+int main(void)
+{
+    check_begin("test_datafree");
+    gradient_check(CROM_DF_ENERGY);
+    gradient_check(CROM_DF_NEURALMODES);
+    test_map();
+    bar_case b;
+    bar_setup(&b, 3);
+    test_energy_subspace(&b);
+    test_neuralmodes_subspace(&b);
+    test_dynamics(&b);
+    test_linear_equivalence(&b);
+    crom_model_free(&g_energy_model);
+    bar_free(&b);
+    return check_done();
+}
