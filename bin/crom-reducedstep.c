@@ -436,7 +436,7 @@ static int run(crom_cli *cli, args *a)
     }
     if (a->init && (rc = read_init(a, sch[0].cub.model_id, r, q0, qd0)))
         goto out;
-    if ((rc = crom_rsim_init(&s, &sch[0].cub, &a->sc, a->solver, a->kappa, q0, qd0)))
+    if ((rc = crom_rsim_init(&s, &sch[0].cub, &a->sc, a->solver, a->kappa, q0, a->init ? qd0 : NULL)))
         goto out;
     if (a->bc_threshold != 0.1) { /* rebuild with the asked threshold */
         s.bc_threshold = a->bc_threshold;

@@ -87,11 +87,9 @@ static int initial_velocity(crom_nlsim *s)
     }
     for (int k = 0; k < 3; k++)
         c[k] /= m;
-    const double *w = sc->spin;
     for (int v = 0; v < s->map->nv; v++) {
-        double p[3] = {X[3 * v] - c[0], X[3 * v + 1] - c[1], X[3 * v + 2] - c[2]};
-        double vv[3] = {sc->v0[0] + w[1] * p[2] - w[2] * p[1], sc->v0[1] + w[2] * p[0] - w[0] * p[2],
-                        sc->v0[2] + w[0] * p[1] - w[1] * p[0]};
+        double vv[3];
+        crom_scenario_initial_velocity(sc, c, X + 3 * v, vv);
         for (int k = 0; k < 3; k++)
             s->gx[3 * v + k] = s->fem.mass[v] * vv[k];
     }

@@ -228,6 +228,42 @@ static int build(crom_rsim *s)
     return 0;
 }
 
+/* The scenario's initial velocity field (uniform plus spin, the same as the
+ * full simulation's) projected onto the subspace in the mass norm: the q̇ that
+ * minimizes Σ_v m_v |W_v q̇ − v_v|², i.e. M_r q̇ = Σ_v m_v W_vᵀ v_v. */
+static int initial_velocity(crom_rsim *s)
+{
+    const crom_scenario *sc = s->sc;
+    const crom_cub *c = s->cub;
+    if (!sc->v0[0] && !sc->v0[1] && !sc->v0[2] && !sc->spin[0] && !sc->spin[1] && !sc->spin[2])
+        return 0;
+    int r = s->r, nv = c->mesh.nv;
+    double cen[3] = {0, 0, 0}, vol = 0;
+    for (int v = 0; v < nv; v++) {
+        vol += c->vvol[v];
+        for (int k = 0; k < 3; k++)
+            cen[k] += c->vvol[v] * c->mesh.X[3 * v + k];
+    }
+    for (int k = 0; k < 3; k++)
+        cen[k] /= vol;
+    double *M = crom_malloc(sizeof(double) * (size_t)r * r);
+    if (!M)
+        return CROM_EINTERNAL;
+    memcpy(M, s->Mr, sizeof(double) * (size_t)r * r);
+    memset(s->qd, 0, sizeof(double) * (size_t)r);
+    for (int v = 0; v < nv; v++) {
+        double vel[3];
+        crom_scenario_initial_velocity(sc, cen, c->mesh.X + 3 * v, vel);
+        cblas_dgemv(CblasRowMajor, CblasTrans, 3, r, sc->density * c->vvol[v], c->W + (size_t)v * 3 * r, r, vel,
+                    1, 1.0, s->qd, 1);
+    }
+    int info = LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, M, r, s->qd, 1);
+    free(M);
+    if (info)
+        return crom_err(CROM_EDATA, "the reduced mass matrix is not positive definite");
+    return 0;
+}
+
 int crom_rsim_init(crom_rsim *s, const crom_cub *cub, const crom_scenario *sc, int solver,
                    double kappa, const double *q0, const double *qd0)
 {
@@ -253,7 +289,7 @@ int crom_rsim_init(crom_rsim *s, const crom_cub *cub, const crom_scenario *sc, i
         memcpy(s->q, q0, sizeof(double) * (size_t)s->r);
     if (qd0)
         memcpy(s->qd, qd0, sizeof(double) * (size_t)s->r);
-    if ((rc = build(s))) {
+    if ((rc = build(s)) || (!qd0 && (rc = initial_velocity(s)))) {
         crom_rsim_free(s);
         return rc;
     }

@@ -248,6 +248,15 @@ static double window(const crom_bc *b, double t)
     return e > b->t0 ? e - b->t0 : 0;
 }
 
+void crom_scenario_initial_velocity(const crom_scenario *s, const double c[3], const double X[3], double v[3])
+{
+    const double *w = s->spin;
+    double r[3] = {X[0] - c[0], X[1] - c[1], X[2] - c[2]};
+    v[0] = s->v0[0] + w[1] * r[2] - w[2] * r[1];
+    v[1] = s->v0[1] + w[2] * r[0] - w[0] * r[2];
+    v[2] = s->v0[2] + w[0] * r[1] - w[1] * r[0];
+}
+
 void crom_bc_velocity(const crom_bc *b, double t, double v[3])
 {
     int on = t >= b->t0 && t <= b->t1;

@@ -69,6 +69,10 @@ int crom_scenario_check(const crom_scenario *s);
 /* Canonical flag text, one flag per line (malloc'ed). */
 char *crom_scenario_text(const crom_scenario *s);
 
+/* Initial velocity of the material point at X: the uniform velocity plus
+ * the spin about the centroid c, v = v0 + ω × (X − c). */
+void crom_scenario_initial_velocity(const crom_scenario *s, const double c[3], const double X[3], double v[3]);
+
 /* Velocity of prescribed-velocity BC b at time t (zero outside its window),
  * and the displacement it has accumulated by time t. */
 void crom_bc_velocity(const crom_bc *b, double t, double v[3]);

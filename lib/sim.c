@@ -130,14 +130,8 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
     for (int i = 0; i < s->nv; i++)
         for (int k = 0; k < 3; k++)
             c[k] += s->fem.mass[i] * mesh->X[3 * i + k] / s->fem.total_mass;
-    const double *w = sc->spin;
-    for (int i = 0; i < s->nv; i++) {
-        const double *X = mesh->X + 3 * i;
-        double r[3] = {X[0] - c[0], X[1] - c[1], X[2] - c[2]};
-        double wr[3] = {w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2], w[0] * r[1] - w[1] * r[0]};
-        for (int k = 0; k < 3; k++)
-            s->v[3 * i + k] = sc->v0[k] + wr[k];
-    }
+    for (int i = 0; i < s->nv; i++)
+        crom_scenario_initial_velocity(sc, c, mesh->X + 3 * i, s->v + 3 * i);
     for (int b = 0; b < s->nvel; b++) {
         double vb[3];
         crom_bc_velocity(&sc->vel[b], 0, vb);

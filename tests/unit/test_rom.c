@@ -448,6 +448,59 @@ static void test_crack_opens(void)
     crom_mesh_free(&m);
 }
 
+/* The scenario's initial velocity (uniform plus spin) projected onto the
+ * subspace: the analytic basis holds translations and every linear field, so
+ * v0 + ω × (X − c) is in its span and must come back exactly at every vertex,
+ * with the body's momentum M v0. */
+static void test_initial_velocity(void)
+{
+    crom_mesh m;
+    double dims[3] = {1, 0.3, 0.3};
+    make(&m, 0.12, dims);
+    double *W = malloc(sizeof(double) * 3 * R * m.nv);
+    analytic_basis(&m, W);
+    crom_cub c;
+    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25};
+    CHECK(crom_cub_build(&c, &m, W, R, "test", &o, NULL) == 0);
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    double v0[3] = {1, -2, 0.5}, w[3] = {0.3, 0.7, -1.1};
+    memcpy(sc.v0, v0, sizeof v0);
+    memcpy(sc.spin, w, sizeof w);
+    crom_rsim s;
+    CHECK(crom_rsim_init(&s, &c, &sc, CROM_SOLVER_NEWTON, 0, NULL, NULL) == 0);
+    double cen[3] = {0, 0, 0}, vol = 0, P[3] = {0, 0, 0}, err = 0, vmax = 0;
+    for (int v = 0; v < m.nv; v++) {
+        vol += c.vvol[v];
+        for (int k = 0; k < 3; k++)
+            cen[k] += c.vvol[v] * m.X[3 * v + k];
+    }
+    for (int k = 0; k < 3; k++)
+        cen[k] /= vol;
+    for (int v = 0; v < m.nv; v++) {
+        double want[3], got[3] = {0, 0, 0};
+        crom_scenario_initial_velocity(&sc, cen, m.X + 3 * v, want);
+        for (int k = 0; k < 3; k++) {
+            for (int j = 0; j < R; j++)
+                got[k] += W[((size_t)v * 3 + k) * R + j] * s.qd[j];
+            err = fmax(err, fabs(got[k] - want[k]));
+            vmax = fmax(vmax, fabs(want[k]));
+            P[k] += sc.density * c.vvol[v] * got[k];
+        }
+    }
+    double M = sc.density * vol;
+    fprintf(stderr, "initial velocity in the subspace: max error %.2e of %.2f m/s, momentum error %.2e\n", err, vmax,
+            fabs(P[0] - M) + fabs(P[1] + 2 * M) + fabs(P[2] - 0.5 * M));
+    CHECK_LT(err, 1e-9 * vmax);
+    CHECK_NEAR(P[0], M * 1, 1e-9 * M);
+    CHECK_NEAR(P[1], M * -2, 1e-9 * M);
+    CHECK_NEAR(P[2], M * 0.5, 1e-9 * M);
+    crom_rsim_free(&s);
+    crom_cub_free(&c);
+    free(W);
+    crom_mesh_free(&m);
+}
+
 int main(void)
 {
     check_begin("test_rom");
@@ -455,5 +508,6 @@ int main(void)
     test_derivatives();
     test_galerkin();
     test_schemes_and_switch();
+    test_initial_velocity();
     return check_done();
 }
