@@ -1,4 +1,4 @@
-/* export.c — VTU, PVD, OBJ and PLY writers (see export.h). */
+/* export.c — VTU, PVD, XDMF, OBJ and PLY writers (see export.h). */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -6,6 +6,7 @@
 
 #include "err.h"
 #include "export.h"
+#include "io.h"
 
 /* ------------------------------------------------------------- base64 */
 
@@ -196,5 +197,129 @@ int crom_export_ply(FILE *f, const crom_mesh *m, const double *disp)
     free(T);
     free(sv);
     free(map);
+    return ferror(f) ? crom_err(CROM_EIO, "write failed") : 0;
+}
+
+/* ------------------------------------------------------------------ XDMF */
+
+int crom_xdmf_write_mesh(hid_t loc, const char *group, const crom_mesh *m)
+{
+    char name[160];
+    hsize_t d[2] = {(hsize_t)m->nv, 3};
+    snprintf(name, sizeof name, "%s/vertices", group);
+    int rc = crom_h5_write_f64(loc, name, 2, d, m->X, "m", "rest positions X of the vertices");
+    d[0] = (hsize_t)m->nt;
+    d[1] = 4;
+    snprintf(name, sizeof name, "%s/tets", group);
+    if (!rc)
+        rc = crom_h5_write_i32(loc, name, 2, d, m->tets, NULL, "vertex indices of the tetrahedra (0-based)");
+    if (rc || m->nregions == 0)
+        return rc;
+    int *mask = crom_malloc(sizeof(int) * (size_t)(m->nv ? m->nv : 1));
+    if (!mask)
+        return CROM_EINTERNAL;
+    for (int r = 0; r < m->nregions && !rc; r++) {
+        memset(mask, 0, sizeof(int) * (size_t)m->nv);
+        for (int j = 0; j < m->regions[r].n; j++)
+            mask[m->regions[r].idx[j]] = 1;
+        snprintf(name, sizeof name, "%s/region_%s", group, m->regions[r].name);
+        d[0] = (hsize_t)m->nv;
+        rc = crom_h5_write_i32(loc, name, 1, d, mask, NULL, "1 for the vertices of the region");
+    }
+    free(mask);
+    return rc;
+}
+
+int crom_xdmf_write_frame(hid_t loc, const char *name, int k, int nv, const double *data)
+{
+    char path[96];
+    snprintf(path, sizeof path, "%s/%05d", name, k);
+    hsize_t d[2] = {(hsize_t)nv, 3};
+    return crom_h5_write_f64(loc, path, 2, d, data, "m", NULL);
+}
+
+/* text with the five XML specials escaped */
+static void xml_text(FILE *f, const char *s)
+{
+    for (; *s; s++)
+        switch (*s) {
+        case '&': fputs("&amp;", f); break;
+        case '<': fputs("&lt;", f); break;
+        case '>': fputs("&gt;", f); break;
+        case '"': fputs("&quot;", f); break;
+        case '\'': fputs("&apos;", f); break;
+        default: fputc(*s, f);
+        }
+}
+
+static void xdmf_item(FILE *f, const char *indent, const char *type, int prec, long n0, int n1,
+                      const char *h5name, const char *group, const char *name)
+{
+    fprintf(f, "%s<DataItem DataType=\"%s\" Precision=\"%d\" Format=\"HDF\" Dimensions=\"%ld", indent, type,
+            prec, n0);
+    if (n1 > 0)
+        fprintf(f, " %d", n1);
+    fputs("\">", f);
+    xml_text(f, h5name);
+    fputs(":/", f);
+    if (group) {
+        xml_text(f, group);
+        fputc('/', f);
+    }
+    xml_text(f, name);
+    fputs("</DataItem>\n", f);
+}
+
+/* one Uniform grid; k < 0: a bare mesh (no time, no fields) */
+static void xdmf_grid(FILE *f, const char *in, const char *h5name, const crom_mesh *m, const char *group,
+                      int k, double t, const char *const *fields, int nfields)
+{
+    char sub[64], sub2[64], name[64];
+    snprintf(sub, sizeof sub, "%s  ", in);
+    snprintf(sub2, sizeof sub2, "%s    ", in);
+    if (k < 0)
+        fprintf(f, "%s<Grid Name=\"mesh\" GridType=\"Uniform\">\n", in);
+    else
+        fprintf(f, "%s<Grid Name=\"frame_%05d\" GridType=\"Uniform\">\n%s<Time Value=\"%.17g\"/>\n", in, k,
+                sub, t);
+    fprintf(f, "%s<Topology TopologyType=\"Tetrahedron\" NumberOfElements=\"%d\" NodesPerElement=\"4\">\n", sub,
+            m->nt);
+    xdmf_item(f, sub2, "Int", 4, m->nt, 4, h5name, group, "tets");
+    fprintf(f, "%s</Topology>\n%s<Geometry GeometryType=\"XYZ\">\n", sub, sub);
+    xdmf_item(f, sub2, "Float", 8, m->nv, 3, h5name, group, "vertices");
+    fprintf(f, "%s</Geometry>\n", sub);
+    for (int i = 0; i < nfields && k >= 0; i++) {
+        fprintf(f, "%s<Attribute Name=\"", sub);
+        xml_text(f, fields[i]);
+        fputs("\" AttributeType=\"Vector\" Center=\"Node\">\n", f);
+        snprintf(name, sizeof name, "%05d", k);
+        xdmf_item(f, sub2, "Float", 8, m->nv, 3, h5name, fields[i], name);
+        fprintf(f, "%s</Attribute>\n", sub);
+    }
+    for (int r = 0; r < m->nregions; r++) {
+        snprintf(name, sizeof name, "region_%s", m->regions[r].name);
+        fprintf(f, "%s<Attribute Name=\"", sub);
+        xml_text(f, name);
+        fputs("\" AttributeType=\"Scalar\" Center=\"Node\">\n", f);
+        xdmf_item(f, sub2, "Int", 4, m->nv, 0, h5name, group, name);
+        fprintf(f, "%s</Attribute>\n", sub);
+    }
+    fprintf(f, "%s</Grid>\n", in);
+}
+
+int crom_export_xdmf(FILE *f, const char *h5name, const crom_mesh *const *meshes,
+                     const char *const *groups, const double *time, const int *mesh_of, int nframes,
+                     const char *const *fields, int nfields)
+{
+    fputs("<?xml version=\"1.0\"?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n", f);
+    if (nframes == 0) {
+        xdmf_grid(f, "    ", h5name, meshes[0], groups[0], -1, 0, NULL, 0);
+    } else {
+        fputs("    <Grid Name=\"frames\" GridType=\"Collection\" CollectionType=\"Temporal\">\n", f);
+        for (int k = 0; k < nframes; k++)
+            xdmf_grid(f, "      ", h5name, meshes[mesh_of[k]], groups[mesh_of[k]], k, time[k], fields, nfields);
+        fputs("    </Grid>\n", f);
+    }
+    fputs("  </Domain>\n</Xdmf>\n", f);
     return ferror(f) ? crom_err(CROM_EIO, "write failed") : 0;
 }

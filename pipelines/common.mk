@@ -28,11 +28,12 @@ FIT_FLAGS = --basis $(BASIS) --rank $(RANK) --seed $(SEED) $(if $(filter mlp,$(B
 # rewritten only when they change, so a target that depends on it is rebuilt
 # exactly when its stage's variables change (make -j then reruns that stage and
 # what follows, and reuses the rest). Use: $(call stamp,NAME,FLAGS) as a
-# prerequisite.
+# prerequisite. Single quotes are dropped from the stamped text (they only
+# matter to the shell, and inside printf's quoted argument they would end it).
 .PHONY: FORCE
 FORCE:
 stamp = $(OUT)/flags/$(1)
 define stamp_rule
 $(OUT)/flags/$(1): FORCE
-	@mkdir -p $$(@D); printf '%s\n' '$(2)' | cmp -s - $$@ || printf '%s\n' '$(2)' > $$@
+	@mkdir -p $$(@D); printf '%s\n' '$(subst ',,$(2))' | cmp -s - $$@ || printf '%s\n' '$(subst ',,$(2))' > $$@
 endef

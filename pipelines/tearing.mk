@@ -78,9 +78,10 @@ $(OUT)/rows.txt: $(OUT)/diff-intact.txt $(OUT)/diff-cut.txt $(OUT)/diff-tear.txt
 $(OUT)/table.md: $(OUT)/rows.txt
 	$(TOP)/pipelines/table.sh "tearing: intact and Y-cut plate, cut grown during the reduced run (LiCROM Fig. 6)" $< > $@
 
-# pictures: the torn run on the cut mesh over the full runs of both meshes
+# pictures: the torn run, each frame on the mesh cut so far, over the full
+# runs of both meshes
 $(OUT)/strip.png: $(OUT)/tear.h5 $(OUT)/full-cut.h5 $(OUT)/full-intact.h5
-	crom-export --format strip --model $(OUT)/model.h5 --mesh $(OUT)/cut.h5 --compare $(OUT)/full-cut.h5 \
+	crom-export --format strip --model $(OUT)/model.h5 --follow-schedule --compare $(OUT)/full-cut.h5 \
 	  --compare $(OUT)/full-intact.h5 --columns 5 $(QUIET) -o $@ $<
 $(OUT)/pvd/frame.pvd: $(OUT)/tear.h5
-	crom-export --format pvd --model $(OUT)/model.h5 --mesh $(OUT)/cut.h5 $(QUIET) -o $(OUT)/pvd $<
+	crom-export --format pvd --model $(OUT)/model.h5 --follow-schedule $(QUIET) -o $(OUT)/pvd $<

@@ -62,6 +62,11 @@ assert c[0] == 0 and c[-1] == 2 and np.all(np.diff(c) >= 0), c   # the cut grew 
 assert np.all(np.isfinite(t['frames/total_energy'][()]))
 " "$P/tear.h5" || fail "progressive tear schedule"; ok
 [ -s "$P/strip.png" ] && [ -s "$P/pvd/frame.pvd" ] || fail "tearing pictures"; ok
+# the ParaView frames follow the cut: the last frame's mesh has the duplicated
+# crack vertices the first one lacks
+n0=$(grep -o 'NumberOfPoints="[0-9]*"' "$P/pvd/frame_00000.vtu" | tr -dc 0-9)
+n1=$(grep -o 'NumberOfPoints="[0-9]*"' "$(ls "$P"/pvd/frame_*.vtu | tail -1)" | tr -dc 0-9)
+[ "$n1" -gt "$n0" ] || fail "tearing frames not on the cut meshes ($n0 -> $n1 vertices)"; ok
 
 # a corrupt intermediate stops make with that stage's message, and leaves no
 # stale target behind
