@@ -11,8 +11,8 @@ OUT ?= bench/results
 QUIET ?= -q
 
 # --- full-space simulator (issue 3): compression of a unit cube at about 5K,
-#     20K and 65K vertices
-FULL_SIZES ?= 0.056 0.0355 0.0224
+#     20K and 80K vertices
+FULL_SIZES ?= 0.056 0.0355 0.0207
 FULL_STEPS ?= 10
 FULL_SCENARIO = --velocity 'top=0,-2,0@0:0.1' --pin bottom --gravity 0,0,0 --dt 0.01
 
