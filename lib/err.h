@@ -8,6 +8,8 @@
 #ifndef CROM_ERR_H
 #define CROM_ERR_H
 
+#include <stddef.h>
+
 enum {
     CROM_OK        = 0,
     CROM_EUSAGE    = 64,  /* bad command line */

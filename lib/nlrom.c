@@ -15,6 +15,7 @@
 #include "contact.h"
 #include "cubature.h"
 #include "err.h"
+#include "linesearch.h"
 #include "nlrom.h"
 
 #define TW(r) (168 + 24 * (size_t)(r) + 12) /* per-thread tet scratch: crom_cub_tet's, J4, xe */
@@ -434,6 +435,17 @@ static double rms_disp(const crom_nlsim *s, const double *d)
     return sqrt(fmax(v, 0)) / s->L;
 }
 
+/* the step's objective and its gradient for the line search */
+typedef struct {
+    crom_nlsim *s;
+    int project;
+} obj_ctx;
+static int obj_eval(void *ctx, const double *q, double *f, double *g)
+{
+    obj_ctx *c = ctx;
+    return crom_nlsim_objective(c->s, q, f, g, NULL, c->project);
+}
+
 int crom_nlsim_step(crom_nlsim *s, crom_rstep_stats *st)
 {
     const crom_scenario *sc = s->sc;
@@ -515,30 +527,12 @@ int crom_nlsim_step(crom_nlsim *s, crom_rstep_stats *st)
             break;
         }
         /* Armijo line search; below the energy's resolution the directional
-         * derivative decides (as in rom.c) */
-        double alpha = 1, Et = 0, scale = fabs(E) + 1e-300;
-        int tiny = -slope < 1e-10 * scale;
-        for (;;) {
-            for (int i = 0; i < r; i++)
-                s->qt[i] = s->q[i] + alpha * s->d[i];
-            int prc = crom_nlsim_objective(s, s->qt, &Et, NULL, NULL, project);
-            if (prc == 0 && Et <= E + 1e-4 * alpha * slope + 64 * DBL_EPSILON * scale)
-                break;
-            if (prc == 0 && tiny) {
-                double Eg, dphi = 0;
-                if (crom_nlsim_objective(s, s->qt, &Eg, gt, NULL, project) == 0) {
-                    for (int i = 0; i < r; i++)
-                        dphi += gt[i] * s->d[i];
-                    if (fabs(dphi) <= 0.5 * fabs(slope))
-                        break;
-                }
-            }
-            alpha *= 0.5;
-            if (alpha < 1e-12)
-                break;
-        }
-        crom_err_clear();
-        if (alpha < 1e-12) {
+         * derivative decides */
+        double scale = fabs(E) + 1e-300;
+        obj_ctx lc = {s, project};
+        double alpha = crom_linesearch(obj_eval, &lc, (size_t)r, s->q, s->d, E, slope, 64 * DBL_EPSILON * scale,
+                                       -slope < 1e-10 * scale, s->qt, gt, NULL);
+        if (alpha == 0) {
             if (!project) {
                 project = 1;
                 continue;

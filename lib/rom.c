@@ -10,6 +10,7 @@
 #include "cli.h"
 #include "contact.h"
 #include "err.h"
+#include "linesearch.h"
 #include "rom.h"
 
 static void free_bcs(crom_rbc *b, int n)
@@ -466,6 +467,17 @@ static double rms_disp(const crom_rsim *s, const double *d)
     return sqrt(fmax(v, 0) / s->cub->mesh_volume) / s->L;
 }
 
+/* the step's objective and its gradient for the line search */
+typedef struct {
+    crom_rsim *s;
+    int project;
+} obj_ctx;
+static int obj_eval(void *ctx, const double *q, double *f, double *g)
+{
+    obj_ctx *c = ctx;
+    return crom_rsim_objective(c->s, q, f, g, NULL, c->project);
+}
+
 int crom_rsim_step(crom_rsim *s, crom_rstep_stats *st)
 {
     const crom_scenario *sc = s->sc;
@@ -521,31 +533,13 @@ int crom_rsim_step(crom_rsim *s, crom_rstep_stats *st)
             st->converged = 1;
             break;
         }
-        /* Armijo line search; below the energy's resolution, the directional
-         * derivative decides (as in sim.c) */
-        double alpha = 1, Et = 0, scale = fabs(E) + 1e-300;
-        int tiny = -slope < 1e-10 * scale;
-        for (;;) {
-            for (int i = 0; i < r; i++)
-                s->qt[i] = s->q[i] + alpha * s->d[i];
-            int prc = crom_rsim_objective(s, s->qt, &Et, NULL, NULL, project);
-            if (prc == 0 && Et <= E + 1e-4 * alpha * slope + 64 * DBL_EPSILON * scale)
-                break;
-            if (prc == 0 && tiny) {
-                double Eg, dphi = 0, *gt2 = Hc; /* Hc is free here */
-                if (crom_rsim_objective(s, s->qt, &Eg, gt2, NULL, project) == 0) {
-                    for (int i = 0; i < r; i++)
-                        dphi += gt2[i] * s->d[i];
-                    if (fabs(dphi) <= 0.5 * fabs(slope))
-                        break;
-                }
-            }
-            alpha *= 0.5;
-            if (alpha < 1e-12)
-                break;
-        }
-        crom_err_clear();
-        if (alpha < 1e-12) {
+        /* Armijo line search; below the energy's resolution the directional
+         * derivative decides */
+        double scale = fabs(E) + 1e-300;
+        obj_ctx lc = {s, project};
+        double alpha = crom_linesearch(obj_eval, &lc, (size_t)r, s->q, s->d, E, slope, 64 * DBL_EPSILON * scale,
+                                       -slope < 1e-10 * scale, s->qt, Hc /* free here */, NULL);
+        if (alpha == 0) {
             if (!gd && !project) {
                 project = 1;
                 continue;

@@ -7,6 +7,7 @@
 #include "cli.h"
 #include "contact.h"
 #include "err.h"
+#include "linesearch.h"
 #include "sim.h"
 
 /* CG that needs more iterations than this asks for a fresh factorization at
@@ -269,6 +270,19 @@ static int ip_gradient(crom_sim *s, const double *x, const crom_fem_opts *fo, do
     return 0;
 }
 
+/* the incremental potential and its gradient for the line search */
+typedef struct {
+    crom_sim *s;
+    const crom_fem_opts *fo;
+} ip_ctx;
+static int ip_eval(void *ctx, const double *x, double *f, double *g)
+{
+    ip_ctx *c = ctx;
+    double E = NAN;
+    int rc = g ? ip_gradient(c->s, x, c->fo, &E, g, NULL) : 0;
+    return rc ? rc : potential(c->s, x, E, f, NULL);
+}
+
 int crom_sim_step(crom_sim *s, crom_step_stats *st)
 {
     const crom_scenario *sc = s->sc;
@@ -407,30 +421,9 @@ int crom_sim_step(crom_sim *s, crom_step_stats *st)
          * round-off): judge such steps by the directional derivative
          * φ'(α) = ∇IP(x + αd)·d instead, |φ'(α)| <= ½|φ'(0)| */
         int tiny = -slope < 1e-8 * noise / (64 * DBL_EPSILON);
-        crom_fem_opts gopt = fo;
-        double alpha = 1, ipt = 0;
-        for (;;) {
-            for (size_t i = 0; i < n; i++)
-                s->xt[i] = s->x[i] + alpha * s->d[i];
-            int prc = potential(s, s->xt, NAN, &ipt, NULL);
-            if (prc == 0 && ipt <= ip + 1e-4 * alpha * slope + noise)
-                break;
-            if (prc == 0 && tiny) {
-                double Et, dphi = 0;
-                if (ip_gradient(s, s->xt, &gopt, &Et, s->work, NULL) == 0) {
-                    for (size_t i = 0; i < n; i++)
-                        dphi += s->work[i] * s->d[i];
-                    if (fabs(dphi) <= 0.5 * fabs(slope))
-                        break;
-                }
-            }
-            alpha *= 0.5;
-            st->cuts++;
-            if (alpha < 1e-12)
-                break;
-        }
-        crom_err_clear();
-        if (alpha >= 1e-12)
+        ip_ctx lc = {s, &fo};
+        double alpha = crom_linesearch(ip_eval, &lc, n, s->x, s->d, ip, slope, noise, tiny, s->xt, s->work, &st->cuts);
+        if (alpha > 0)
             memcpy(s->x, s->xt, sizeof(double) * n);
         else if (!fo.project)
             fo.project = 1; /* no progress along this direction: project */
