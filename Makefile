@@ -25,7 +25,7 @@ CPPFLAGS := -Ilib $(DEPINC) -D_DEFAULT_SOURCE -DCROM_VERSION='"$(VERSION)"'
 CFLAGS  ?= -g $(OPT)
 CFLAGS  += -std=c17 $(WARN) -fopenmp
 LDLIBS  := -L/usr/lib/x86_64-linux-gnu/hdf5/serial -lhdf5_hl -lhdf5 -lgmsh -lmetis \
-           -lcholmod -lsuitesparseconfig -llapacke -lopenblas -lpng -lm
+           -lcholmod -lsuitesparseconfig -larpack -llapacke -lopenblas -lpng -lm
 
 ifeq ($(SANITIZE),1)
 BUILD   := build-san

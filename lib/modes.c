@@ -1,10 +1,14 @@
-/* modes.c — linear vibration modes by shift-invert block Lanczos with full
- * reorthogonalization and thick restarts (see modes.h for the method and
- * why it is ours rather than ARPACK's). */
+/* modes.c — linear vibration modes, the lowest eigenpairs of K φ = λ M φ
+ * at rest (the "linear modes" of modal analysis that Neural Modes, Wang et
+ * al. 2024, §1–2, start from): ARPACK's implicitly restarted Lanczos
+ * iteration in shift-invert mode on one CHOLMOD factor of K − σM, in the
+ * M-orthogonal complement of the rigid motions, which are built rather
+ * than searched for (see modes.h). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include <arpack/arpack.h>
 #include <cblas.h>
 #include <lapacke.h>
 
@@ -20,7 +24,6 @@ void crom_modes_defaults(crom_modes_opts *o)
     o->count = 20;
     o->tol = 1e-10;
     o->rigid_tol = 1e-12;
-    o->block = 6;
     o->seed = 1;
 }
 
@@ -59,285 +62,180 @@ int crom_modes_pins(const crom_mesh *m, int n, const char *const *refs, unsigned
     return 0;
 }
 
-/* ------------------------------------------------------------ Lanczos */
+/* ------------------------------------------------------- rigid motions */
 
-/* The eigenproblem on the free DOFs and the state of the iteration. Vectors
- * are columns of length n stored one after another (column-major, leading
- * dimension n). */
-typedef struct {
-    int n;             /* free DOFs */
-    const double *m;   /* [n] lumped mass of each free DOF */
-    crom_chol *chol;   /* factor of K − σM */
-    int b;             /* block size */
-    int mcap;          /* capacity of the basis (columns of T) */
-    double *V;         /* [(mcap + b) n] basis, then the next block */
-    double *T;         /* [mcap mcap] Rayleigh–Ritz matrix, ld mcap */
-    double *W, *MW;    /* [b n] images A v of a block, and M times them */
-    double *H;         /* [(mcap + b) b] projections */
-    double *R;         /* [b b] coupling of the next block to the last one */
-    double *tmp;       /* [n] */
-    double *MX;        /* [b n] M times a block being orthogonalized */
-    double *nrm;       /* [b] column norms */
-    crom_rng rng;
-    long solves;
-} lanczos;
-
-/* ‖x‖_M */
-static double mnorm(const lanczos *L, const double *x)
+/* Rigid motion a at a DOF (coordinate k of the vertex at X): a < 3 the unit
+ * translation along axis a, a >= 3 the infinitesimal rotation
+ * e_{a−3} × (X − c) about the point c, divided by len. */
+static double rigid_motion(int a, const double X[3], int k, const double c[3], double len)
 {
-    double s = 0;
-    for (int i = 0; i < L->n; i++)
-        s += L->m[i] * x[i] * x[i];
-    return sqrt(s);
+    if (a < 3)
+        return k == a;
+    int ax = a - 3;
+    double d[3] = {X[0] - c[0], X[1] - c[1], X[2] - c[2]};
+    /* e_x × d = (0, −d_z, d_y), and cyclically */
+    if (k == (ax + 1) % 3)
+        return -d[(ax + 2) % 3] / len;
+    if (k == (ax + 2) % 3)
+        return d[(ax + 1) % 3] / len;
+    return 0;
 }
 
-/* One classical Gram–Schmidt pass of x against the c columns of V in the
- * M inner product (h: c scratch entries). */
-static void cgs_pass(lanczos *L, int c, double *x, double *h)
+/* The parent of v in a union-find forest, with path halving. */
+static int uf_root(int *parent, int v)
 {
-    if (c == 0)
-        return;
-    for (int i = 0; i < L->n; i++)
-        L->tmp[i] = L->m[i] * x[i];
-    cblas_dgemv(CblasColMajor, CblasTrans, L->n, c, 1.0, L->V, L->n, L->tmp, 1, 0.0, h, 1);
-    cblas_dgemv(CblasColMajor, CblasNoTrans, L->n, c, -1.0, L->V, L->n, h, 1, 1.0, x, 1);
+    while (parent[v] != v)
+        v = parent[v] = parent[parent[v]];
+    return v;
 }
 
-/* Finish M-orthonormalizing x against the first c columns of V after one
- * Gram–Schmidt pass: more passes until one removes little (twice is enough,
- * a third for heavy cancellation). norm0 is x's norm before the first pass.
- * Returns 1 if x was kept (normalized), 0 if it lies in their span. */
-static int orth_one(lanczos *L, int c, double *x, double norm0, double *h)
+/* The rigid motions the pins leave free, as nr M-orthonormal columns R
+ * [nr][n] on the n free DOFs (dof[j] their global index, mf their masses).
+ * Each connected piece of the mesh (vertices joined by tets) moves as
+ * u(X) = t + ω × (X − c), c its centre of mass: the six parameters (t, ω)
+ * that make u vanish on the piece's fixed DOFs are the null space of the
+ * 6×6 matrix Gᵀ G, G holding the six generators' values at those DOFs (its
+ * eigenvalues below 1e-9 of the largest count as zero). Their motions on the
+ * free DOFs are M-orthonormalized by Gram–Schmidt, twice. A free body gets
+ * six, one pinned at a vertex the three rotations about it, one pinned
+ * along a line the rotation about the line, each further free piece six. */
+static int rigid_basis(const crom_mesh *mesh, const crom_fem *fem, const unsigned char *fixed, int n,
+                       const int *dof, const double *mf, double **Rout, int *nrout)
 {
-    double nrm = mnorm(L, x);
-    for (int pass = 0; pass < 3 && nrm > 1e-10 * norm0; pass++) {
-        double before = nrm;
-        cgs_pass(L, c, x, h);
-        nrm = mnorm(L, x);
-        if (nrm > 0.5 * before)
-            break;
+    int nv = fem->nv, np = 0, nr = 0, rc = 0;
+    *Rout = NULL;
+    *nrout = 0;
+    int *root = crom_malloc(sizeof(int) * (size_t)nv), *piece = crom_malloc(sizeof(int) * (size_t)nv);
+    int *nnull = NULL, *first = NULL;
+    double *c = NULL, *G = NULL, *R = NULL;
+    if (!root || !piece) {
+        rc = CROM_EINTERNAL;
+        goto out;
     }
-    if (!(nrm > 1e-10 * norm0))
-        return 0;
-    for (int i = 0; i < L->n; i++)
-        x[i] /= nrm;
-    return 1;
-}
-
-/* Make the bs columns at V[nb..] M-orthonormal to V[0..nb) and to each
- * other. passes block Gram–Schmidt passes against V[0..nb) come first (two,
- * or one when the caller has done the first), as matrix products that read
- * the basis once per block; then each column is orthogonalized against the
- * block's earlier ones (twice), with one more full pass if that cancelled
- * much. A column in the span of the others (an invariant subspace was found)
- * is replaced by a random one; a column that cannot be completed (the basis
- * spans everything) is dropped. Returns how many columns remain. */
-static int orth_block(lanczos *L, int nb, int bs, int passes, double *h)
-{
-    int n = L->n, kept = 0;
-    double *X = L->V + (size_t)nb * n;
-    for (int c = 0; c < bs; c++)
-        L->nrm[c] = mnorm(L, X + (size_t)c * n);
-    for (int p = 0; p < passes && nb > 0; p++) {
-        for (int c = 0; c < bs; c++)
-            for (int i = 0; i < n; i++)
-                L->MX[(size_t)c * n + i] = L->m[i] * X[(size_t)c * n + i];
-        cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, nb, bs, n, 1.0, L->V, n, L->MX, n, 0.0, h, nb);
-        cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, n, bs, nb, -1.0, L->V, n, h, nb, 1.0, X, n);
-    }
-    for (int c = 0; c < bs; c++) {
-        double *x = L->V + (size_t)(nb + kept) * n;
-        if (kept != c)
-            memmove(x, L->V + (size_t)(nb + c) * n, sizeof(double) * (size_t)n);
-        double n0 = L->nrm[c], before = mnorm(L, x), nrm = before;
-        for (int pass = 0; pass < 2 && kept > 0; pass++)
-            for (int q = 0; q < kept; q++) {
-                const double *v = L->V + (size_t)(nb + q) * n;
-                double sdot = 0;
-                for (int i = 0; i < n; i++)
-                    sdot += L->m[i] * v[i] * x[i];
-                for (int i = 0; i < n; i++)
-                    x[i] -= sdot * v[i];
-            }
-        if (kept > 0)
-            nrm = mnorm(L, x);
-        if (nrm < 0.5 * before && nrm > 1e-10 * n0) {
-            cgs_pass(L, nb + kept, x, h); /* heavy cancellation: once more against everything */
-            nrm = mnorm(L, x);
+    for (int v = 0; v < nv; v++)
+        root[v] = v;
+    for (int t = 0; t < mesh->nt; t++)
+        for (int a = 1; a < 4; a++) {
+            int r0 = uf_root(root, mesh->tets[4 * (size_t)t]), r1 = uf_root(root, mesh->tets[4 * (size_t)t + a]);
+            if (r0 != r1)
+                root[r1] = r0;
         }
-        if (n0 > 0 && nrm > 1e-10 * n0) {
+    /* piece[v]: the index of v's piece (−1: on no tet), numbered at its root */
+    for (int v = 0; v < nv; v++)
+        piece[v] = -1;
+    for (int v = 0; v < nv; v++)
+        if (fem->mass[v] > 0) {
+            int r = uf_root(root, v);
+            if (piece[r] < 0)
+                piece[r] = np++;
+            piece[v] = piece[r];
+        }
+    /* per piece: centre of mass c, radius of gyration (the rotations' scale),
+     * mass, then the Gram matrix of the constraints */
+    c = crom_calloc(5 * (size_t)np, sizeof(double));
+    G = crom_calloc(36 * (size_t)np, sizeof(double));
+    nnull = crom_calloc((size_t)np, sizeof(int));
+    first = crom_calloc((size_t)np + 1, sizeof(int));
+    if (!c || !G || !nnull || !first) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    for (int v = 0; v < nv; v++)
+        if (piece[v] >= 0) {
+            double *ck = c + 5 * (size_t)piece[v];
+            for (int t = 0; t < 3; t++)
+                ck[t] += fem->mass[v] * mesh->X[3 * (size_t)v + t];
+            ck[4] += fem->mass[v];
+        }
+    for (int p = 0; p < np; p++)
+        for (int t = 0; t < 3; t++)
+            c[5 * (size_t)p + t] /= c[5 * (size_t)p + 4];
+    for (int v = 0; v < nv; v++)
+        if (piece[v] >= 0) {
+            double *ck = c + 5 * (size_t)piece[v];
+            for (int t = 0; t < 3; t++)
+                ck[3] += fem->mass[v] * (mesh->X[3 * (size_t)v + t] - ck[t]) * (mesh->X[3 * (size_t)v + t] - ck[t]);
+        }
+    for (int p = 0; p < np; p++)
+        c[5 * (size_t)p + 3] = sqrt(c[5 * (size_t)p + 3] / c[5 * (size_t)p + 4]);
+    for (int d = 0; fixed && d < 3 * nv; d++) {
+        int p = piece[d / 3];
+        if (!fixed[d] || p < 0)
+            continue;
+        const double *ck = c + 5 * (size_t)p;
+        double g[6];
+        for (int a = 0; a < 6; a++)
+            g[a] = rigid_motion(a, mesh->X + 3 * (size_t)(d / 3), d % 3, ck, ck[3]);
+        for (int a = 0; a < 6; a++)
+            for (int b = 0; b < 6; b++)
+                G[36 * (size_t)p + 6 * a + b] += g[a] * g[b];
+    }
+    /* the null space of each Gram matrix: its eigenvectors (columns of the
+     * row-major G after dsyev, ascending) of eigenvalue ~0 */
+    for (int p = 0; p < np; p++) {
+        double w[6], *Gp = G + 36 * (size_t)p;
+        if (LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'V', 'U', 6, Gp, 6, w) != 0) {
+            rc = crom_err(CROM_EINTERNAL, "LAPACK dsyev failed on the pins' rigid constraints");
+            goto out;
+        }
+        while (nnull[p] < 6 && w[nnull[p]] <= 1e-9 * w[5])
+            nnull[p]++;
+        first[p + 1] = first[p] + nnull[p];
+    }
+    nr = first[np];
+    if (nr > 0) {
+        R = crom_calloc((size_t)n * nr, sizeof(double));
+        if (!R) {
+            rc = CROM_EINTERNAL;
+            goto out;
+        }
+    }
+    for (int j = 0; j < n && nr > 0; j++) {
+        int v = dof[j] / 3, p = piece[v];
+        const double *ck = c + 5 * (size_t)p, *Gp = G + 36 * (size_t)p;
+        for (int a = 0; a < 6; a++) {
+            double g = rigid_motion(a, mesh->X + 3 * (size_t)v, dof[j] % 3, ck, ck[3]);
+            for (int q = 0; q < nnull[p]; q++)
+                R[(size_t)(first[p] + q) * n + j] += Gp[6 * a + q] * g;
+        }
+    }
+    /* M-orthonormal, within each piece (the pieces' columns are disjoint) */
+    for (int p = 0; p < np; p++)
+        for (int q = first[p]; q < first[p + 1]; q++) {
+            double *x = R + (size_t)q * n;
+            for (int pass = 0; pass < 2; pass++)
+                for (int s = first[p]; s < q; s++) {
+                    const double *y = R + (size_t)s * n;
+                    double dot = 0;
+                    for (int i = 0; i < n; i++)
+                        dot += mf[i] * y[i] * x[i];
+                    for (int i = 0; i < n; i++)
+                        x[i] -= dot * y[i];
+                }
+            double nrm = 0;
+            for (int i = 0; i < n; i++)
+                nrm += mf[i] * x[i] * x[i];
+            nrm = sqrt(nrm);
+            if (!(nrm > 0)) {
+                rc = crom_err(CROM_EINTERNAL, "a rigid motion allowed by the pins vanishes on the free DOFs");
+                goto out;
+            }
             for (int i = 0; i < n; i++)
                 x[i] /= nrm;
-            kept++;
-            continue;
         }
-        /* deficient: try random directions */
-        int ok = 0;
-        for (int t = 0; t < 3 && !ok; t++) {
-            for (int i = 0; i < n; i++)
-                x[i] = crom_rng_uniform(&L->rng) - 0.5;
-            double r0 = mnorm(L, x);
-            cgs_pass(L, nb + kept, x, h);
-            ok = orth_one(L, nb + kept, x, r0, h);
-        }
-        if (ok)
-            kept++;
-    }
-    return kept;
+    *Rout = R;
+    *nrout = nr;
+    R = NULL;
+out:
+    free(root);
+    free(piece);
+    free(c);
+    free(G);
+    free(nnull);
+    free(first);
+    free(R);
+    return rc;
 }
-
-/* The p Ritz vectors V[0..nb) Y[:, cols] written over V[0..p), in place, by
- * row chunks. Y is nb x nb column-major, cols are its columns j0..j0+p-1. */
-static int ritz_in_place(lanczos *L, int nb, const double *Y, int j0, int p)
-{
-    enum { CH = 256 };
-    double *buf = crom_malloc(sizeof(double) * CH * (size_t)p);
-    if (!buf)
-        return CROM_EINTERNAL;
-    for (int r0 = 0; r0 < L->n; r0 += CH) {
-        int rows = L->n - r0 < CH ? L->n - r0 : CH;
-        cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, rows, p, nb, 1.0, L->V + r0, L->n,
-                    Y + (size_t)j0 * nb, nb, 0.0, buf, rows);
-        for (int j = 0; j < p; j++)
-            memcpy(L->V + (size_t)j * L->n + r0, buf + (size_t)j * rows, sizeof(double) * (size_t)rows);
-    }
-    free(buf);
-    return 0;
-}
-
-/* Grow the basis capacity to mcap columns (keeping V and T). */
-static int lanczos_grow(lanczos *L, int mcap)
-{
-    if (mcap <= L->mcap)
-        return 0;
-    size_t n = (size_t)L->n;
-    double *V = crom_realloc(L->V, sizeof(double) * n * (size_t)(mcap + L->b));
-    if (!V)
-        return CROM_EINTERNAL;
-    L->V = V;
-    double *T = crom_calloc((size_t)mcap * mcap, sizeof(double));
-    double *H = crom_realloc(L->H, sizeof(double) * (size_t)(mcap + L->b) * L->b);
-    if (!T || !H) {
-        free(T);
-        if (H)
-            L->H = H;
-        return CROM_EINTERNAL;
-    }
-    L->H = H;
-    for (int j = 0; j < L->mcap; j++)
-        memcpy(T + (size_t)j * mcap, L->T + (size_t)j * L->mcap, sizeof(double) * (size_t)L->mcap);
-    free(L->T);
-    L->T = T;
-    L->mcap = mcap;
-    return 0;
-}
-
-/* Basis size for nev wanted pairs: nev plus room for max(nev, 6 blocks, 30)
- * more (a restart keeps half of that room, so each cycle adds at least three
- * blocks: fewer made clustered spectra stagnate), the whole space when that
- * is nearly as small; `want` (> 0) overrides it. */
-static int basis_size(int nev, int b, int n, int want)
-{
-    if (want > 0)
-        return want < nev + 2 * b ? (nev + 2 * b < n ? nev + 2 * b : n) : (want < n ? want : n);
-    int room = nev > 6 * b ? nev : 6 * b;
-    if (room < 30)
-        room = 30;
-    long m = (long)nev + room;
-    return m + b >= n ? n : (int)m;
-}
-
-/* State carried between Rayleigh–Ritz rounds. */
-typedef struct {
-    int nb;       /* processed basis vectors (T is nb x nb) */
-    int bs;       /* size of the next block, at V[nb..] */
-    int bl;       /* size of the last processed block (rows of R's columns) */
-    double *Y;    /* [mcap mcap] eigenvectors of T */
-    double *theta;/* [mcap] its eigenvalues, ascending */
-    double *res;  /* [mcap] Ritz residuals ‖A y − θ y‖_M */
-} lz_state;
-
-/* Expand the basis block by block up to mmax vectors (or until the space is
- * exhausted), then solve the Rayleigh–Ritz problem. */
-static int lanczos_round(lanczos *L, lz_state *S, int mmax)
-{
-    int n = L->n, rc;
-    while (S->bs > 0 && S->nb + S->bs <= mmax) {
-        int nb = S->nb, bs = S->bs, tot = nb + bs;
-        const double *blk = L->V + (size_t)nb * n;
-        /* W = (K − σM)⁻¹ M V_blk, all columns in one solve */
-        for (int c = 0; c < bs; c++)
-            for (int i = 0; i < n; i++)
-                L->MW[(size_t)c * n + i] = L->m[i] * blk[(size_t)c * n + i];
-        if ((rc = crom_chol_solve_many(L->chol, bs, L->MW, L->W)))
-            return rc;
-        L->solves += bs;
-        for (int c = 0; c < bs; c++)
-            for (int i = 0; i < n; i++)
-                L->MW[(size_t)c * n + i] = L->m[i] * L->W[(size_t)c * n + i];
-        /* H = V[0..tot)ᵀ M W: the new columns of T */
-        cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, tot, bs, n, 1.0, L->V, n, L->MW, n,
-                    0.0, L->H, tot);
-        double *T = L->T;
-        int ld = L->mcap;
-        for (int c = 0; c < bs; c++) {
-            for (int i = 0; i < nb; i++)
-                T[(size_t)(nb + c) * ld + i] = T[(size_t)i * ld + nb + c] = L->H[(size_t)c * tot + i];
-            for (int i = 0; i <= c; i++) {
-                double a = 0.5 * (L->H[(size_t)c * tot + nb + i] + L->H[(size_t)i * tot + nb + c]);
-                T[(size_t)(nb + c) * ld + nb + i] = T[(size_t)(nb + i) * ld + nb + c] = a;
-            }
-        }
-        /* next block: W − V H (the first Gram–Schmidt pass), then orthonormalize */
-        double *next = L->V + (size_t)tot * n;
-        memcpy(next, L->W, sizeof(double) * (size_t)bs * n);
-        cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, n, bs, tot, -1.0, L->V, n, L->H, tot,
-                    1.0, next, n);
-        int kept = orth_block(L, tot, bs, 1, L->H);
-        /* R = V_nextᵀ M W, so that A V_blk = V H + V_next R */
-        if (kept)
-            cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, kept, bs, n, 1.0, next, n, L->MW, n,
-                        0.0, L->R, kept);
-        S->nb = tot;
-        S->bl = bs;
-        S->bs = kept;
-    }
-    /* Rayleigh–Ritz */
-    int nb = S->nb;
-    for (int j = 0; j < nb; j++)
-        memcpy(S->Y + (size_t)j * nb, L->T + (size_t)j * L->mcap, sizeof(double) * (size_t)nb);
-    if (LAPACKE_dsyev(LAPACK_COL_MAJOR, 'V', 'U', nb, S->Y, nb, S->theta) != 0)
-        return crom_err(CROM_EINTERNAL, "Lanczos: the Rayleigh-Ritz eigensolve failed");
-    for (int j = 0; j < nb; j++) {
-        double s = 0;
-        for (int i = 0; i < S->bs; i++) {
-            double r = 0;
-            for (int c = 0; c < S->bl; c++)
-                r += L->R[(size_t)c * S->bs + i] * S->Y[(size_t)j * nb + nb - S->bl + c];
-            s += r * r;
-        }
-        S->res[j] = sqrt(s);
-    }
-    return 0;
-}
-
-/* Thick restart: keep the p largest Ritz pairs and the next block. */
-static int lanczos_restart(lanczos *L, lz_state *S, int p)
-{
-    int nb = S->nb, n = L->n;
-    int rc = ritz_in_place(L, nb, S->Y, nb - p, p);
-    if (rc)
-        return rc;
-    memmove(L->V + (size_t)p * n, L->V + (size_t)nb * n, sizeof(double) * (size_t)S->bs * n);
-    for (int j = 0; j < p; j++) {
-        memset(L->T + (size_t)j * L->mcap, 0, sizeof(double) * (size_t)L->mcap);
-        L->T[(size_t)j * L->mcap + j] = S->theta[nb - p + j];
-    }
-    S->nb = p;
-    return 0;
-}
-
-/* ------------------------------------------------------- rigid modes */
 
 /* Re-express the r0 M-orthonormal rigid modes P (columns of length n,
  * stride ld, at P[j]) in their span as translations x, y, z and rotations
@@ -360,21 +258,7 @@ static int canonical_rigid(int n, const double *m, const double *X3, const int *
         double nc = 0;
         if (cand < 6) {
             for (int i = 0; i < n; i++) {
-                if (cand < 3)
-                    c[i] = comp[i] == cand;
-                else {
-                    /* (e_axis × (X − xc)) component comp[i] */
-                    int ax = cand - 3, k = comp[i];
-                    double d[3];
-                    for (int t = 0; t < 3; t++)
-                        d[t] = X3[3 * (size_t)i + t] - xc[t];
-                    double e[3] = {0, 0, 0}, u[3];
-                    e[ax] = 1;
-                    u[0] = e[1] * d[2] - e[2] * d[1];
-                    u[1] = e[2] * d[0] - e[0] * d[2];
-                    u[2] = e[0] * d[1] - e[1] * d[0];
-                    c[i] = u[k];
-                }
+                c[i] = rigid_motion(cand, X3 + 3 * (size_t)i, comp[i], xc, 1);
                 nc += m[i] * c[i] * c[i];
             }
             nc = sqrt(nc);
@@ -426,6 +310,296 @@ static int canonical_rigid(int n, const double *m, const double *X3, const int *
     return 0;
 }
 
+/* ------------------------------------------------------------ eigensolves */
+
+/* The eigenproblem on the free DOFs: the masses, the factor of K − σM, and
+ * the rigid motions to keep out of it. */
+typedef struct {
+    int n;             /* free DOFs */
+    const double *m;   /* [n] lumped mass of each free DOF */
+    crom_chol *chol;   /* factor of K − σM */
+    int nr;            /* rigid motions */
+    const double *R;   /* [nr][n] M-orthonormal columns */
+    double *mx, *h;    /* scratch: [n] and [nr] */
+    long solves;       /* solves with the factor */
+} eigprob;
+
+/* x ← (I − R Rᵀ M) x, the part of x M-orthogonal to the rigid motions. */
+static void project_rigid(eigprob *P, double *x)
+{
+    if (P->nr == 0)
+        return;
+    for (int i = 0; i < P->n; i++)
+        P->mx[i] = P->m[i] * x[i];
+    cblas_dgemv(CblasColMajor, CblasTrans, P->n, P->nr, 1.0, P->R, P->n, P->mx, 1, 0.0, P->h, 1);
+    cblas_dgemv(CblasColMajor, CblasNoTrans, P->n, P->nr, -1.0, P->R, P->n, P->h, 1, 1.0, x, 1);
+}
+
+/* What dsaupd's and dseupd's error codes mean (ARPACK's documentation). */
+static const char *arpack_info(int info)
+{
+    switch (info) {
+    case 1: return "the maximum number of iterations was taken";
+    case 3: return "no shifts could be applied during an implicit restart (more Lanczos vectors may help)";
+    case -8: return "the tridiagonal eigensolve failed";
+    case -9: return "the start vector is zero";
+    case -14: return "no Ritz value converged";
+    case -17: return "dseupd counted a different number of converged Ritz values than dsaupd";
+    case -9999: return "no Lanczos factorization could be built";
+    default: return info < 0 ? "a bad argument" : "an unexpected status";
+    }
+}
+
+/* The nev eigenpairs of K φ = λ M φ nearest above σ in the M-orthogonal
+ * complement of the rigid motions, by ARPACK's implicitly restarted Lanczos
+ * iteration (dsaupd, then dseupd for the vectors) in its generalized
+ * shift-invert mode 3: OP = (K − σM)⁻¹ M, self-adjoint in the M inner
+ * product B = M, whose largest eigenvalues θ = 1/(λ − σ) ("LM") are the
+ * lowest λ. The start vector (uniform from seed) and every OP x are
+ * projected with I − R Rᵀ M, so no rigid motion (θ = −1/σ, the largest)
+ * enters the Krylov space and each copy of a repeated λ is one ARPACK must
+ * find by itself, with ncv Lanczos vectors and residuals
+ * ‖OP y − θ y‖_M <= tol·θ. lam gets λ ascending, Y [nev][n] the
+ * M-orthonormal eigenvectors, *iters ARPACK's restart count. CROM_EINTERNAL
+ * after max_solves solves or when ARPACK fails. ARPACK keeps its state in
+ * Fortran SAVE variables: one call at a time per process. */
+static int arpack_lowest(eigprob *P, int nev, int ncv, double sigma, double tol, long max_solves,
+                         uint64_t seed, double *lam, double *Y, int *iters)
+{
+    int n = P->n, lworkl = ncv * (ncv + 8), rc = 0;
+    double *resid = crom_malloc(sizeof(double) * (size_t)n), *V = crom_malloc(sizeof(double) * (size_t)n * ncv);
+    double *workd = crom_malloc(sizeof(double) * 3 * (size_t)n), *workl = crom_malloc(sizeof(double) * (size_t)lworkl);
+    double *d = crom_malloc(sizeof(double) * (size_t)nev), *Z = crom_malloc(sizeof(double) * (size_t)n * nev);
+    int *sel = crom_calloc((size_t)ncv, sizeof(int)), *order = crom_malloc(sizeof(int) * (size_t)nev);
+    if (!resid || !V || !workd || !workl || !d || !Z || !sel || !order) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    crom_rng rng;
+    crom_rng_seed(&rng, seed);
+    for (int i = 0; i < n; i++)
+        resid[i] = crom_rng_uniform(&rng) - 0.5;
+    project_rigid(P, resid);
+    int ido = 0, info = 1, iparam[11] = {0}, ipntr[14] = {0};
+    iparam[0] = 1;       /* exact shifts */
+    iparam[2] = 1000000; /* iterations: max_solves is the limit */
+    iparam[6] = 3;       /* shift-invert */
+    for (;;) {
+        dsaupd_c(&ido, "G", n, "LM", nev, tol, resid, ncv, V, n, iparam, ipntr, workd, workl, lworkl, &info);
+        if (ido == 99 || info < 0)
+            break;
+        const double *x = workd + ipntr[0] - 1;
+        double *y = workd + ipntr[1] - 1;
+        if (ido == 2) { /* y = M x */
+            for (int i = 0; i < n; i++)
+                y[i] = P->m[i] * x[i];
+            continue;
+        }
+        if (ido != -1 && ido != 1) {
+            rc = crom_err(CROM_EINTERNAL, "ARPACK dsaupd asked for operation %d", ido);
+            goto out;
+        }
+        if (P->solves >= max_solves) {
+            rc = crom_err(CROM_EINTERNAL, "ARPACK dsaupd did not converge to %d modes within %ld solves "
+                                          "(%d Lanczos vectors)", nev, P->solves, ncv);
+            goto out;
+        }
+        /* y = (K − σM)⁻¹ M x; ido 1 hands M x over at ipntr[2] */
+        const double *mx = P->mx;
+        if (ido == 1)
+            mx = workd + ipntr[2] - 1;
+        else
+            for (int i = 0; i < n; i++)
+                P->mx[i] = P->m[i] * x[i];
+        if ((rc = crom_chol_solve(P->chol, mx, y)))
+            goto out;
+        P->solves++;
+        project_rigid(P, y);
+    }
+    if (info != 0) {
+        rc = crom_err(CROM_EINTERNAL, "ARPACK dsaupd failed with info %d: %s (%d modes, %d Lanczos vectors)",
+                      info, arpack_info(info), nev, ncv);
+        goto out;
+    }
+    *iters = iparam[2];
+    dseupd_c(1, "A", sel, d, Z, n, sigma, "G", n, "LM", nev, tol, resid, ncv, V, n, iparam, ipntr, workd,
+             workl, lworkl, &info);
+    if (info != 0 || iparam[4] < nev) {
+        rc = crom_err(CROM_EINTERNAL, "ARPACK dseupd failed with info %d: %s (%d of %d modes)", info,
+                      arpack_info(info), iparam[4], nev);
+        goto out;
+    }
+    /* ascending λ (dseupd's order is its own) */
+    for (int j = 0; j < nev; j++) {
+        int i = j;
+        for (; i > 0 && d[order[i - 1]] > d[j]; i--)
+            order[i] = order[i - 1];
+        order[i] = j;
+    }
+    for (int j = 0; j < nev; j++) {
+        lam[j] = d[order[j]];
+        memcpy(Y + (size_t)j * n, Z + (size_t)order[j] * n, sizeof(double) * (size_t)n);
+        project_rigid(P, Y + (size_t)j * n);
+    }
+out:
+    free(resid);
+    free(V);
+    free(workd);
+    free(workl);
+    free(d);
+    free(Z);
+    free(sel);
+    free(order);
+    return rc;
+}
+
+/* Free DOFs up to which a dense eigensolve stands in for ARPACK. */
+enum { DENSE_MAX = 3000 };
+
+/* The same nev pairs from a dense eigensolve (LAPACK dsyevr), for when they
+ * are every mode of the complement, which ARPACK cannot give (it needs
+ * nev < ncv <= its dimension): C = M^−½ K M^−½, with the rigid directions
+ * Q = M^½ R moved above its spectrum, (I − QQᵀ) C (I − QQᵀ) + s QQᵀ with
+ * s = 1 + max row sum of |C| > ‖C‖₂; its lowest eigenvectors z give
+ * φ = M^−½ z. */
+static int dense_lowest(const crom_sym *K, eigprob *P, int nev, double *lam, double *Y)
+{
+    int n = P->n, nr = P->nr, found = 0, rc = 0;
+    if (n > DENSE_MAX)
+        return crom_err(CROM_EUSAGE, "every deformation mode asked for: that takes a dense eigensolve, done "
+                                     "up to %d free degrees of freedom (the body has %d)", DENSE_MAX, n);
+    double *C = crom_calloc((size_t)n * n, sizeof(double)), *scale = crom_malloc(sizeof(double) * (size_t)n);
+    double *Q = crom_malloc(sizeof(double) * ((size_t)n * nr + 1)), *W = crom_malloc(sizeof(double) * ((size_t)n * nr + 1));
+    double *B = crom_malloc(sizeof(double) * ((size_t)nr * nr + 1)), *w = crom_malloc(sizeof(double) * (size_t)n);
+    int *isuppz = crom_malloc(sizeof(int) * 2 * (size_t)n);
+    if (!C || !scale || !Q || !W || !B || !w || !isuppz) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    for (int i = 0; i < n; i++)
+        scale[i] = 1 / sqrt(P->m[i]);
+    double shift = 0;
+    for (int j = 0; j < n; j++)
+        for (int k = K->colptr[j]; k < K->colptr[j + 1]; k++) {
+            int i = K->rowind[k];
+            C[(size_t)j * n + i] = C[(size_t)i * n + j] = K->val[k] * scale[i] * scale[j];
+        }
+    for (int j = 0; j < n; j++) {
+        double rs = 0;
+        for (int i = 0; i < n; i++)
+            rs += fabs(C[(size_t)j * n + i]);
+        shift = fmax(shift, rs);
+    }
+    shift = 1 + shift;
+    if (nr > 0) {
+        for (int q = 0; q < nr; q++)
+            for (int i = 0; i < n; i++)
+                Q[(size_t)q * n + i] = P->R[(size_t)q * n + i] / scale[i];
+        /* W = C Q, B = Qᵀ W + s I; C ← C − Q Wᵀ − W Qᵀ + Q B Qᵀ (upper triangle) */
+        cblas_dsymm(CblasColMajor, CblasLeft, CblasUpper, n, nr, 1.0, C, n, Q, n, 0.0, W, n);
+        cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, nr, nr, n, 1.0, Q, n, W, n, 0.0, B, nr);
+        for (int q = 0; q < nr; q++)
+            B[(size_t)q * nr + q] += shift;
+        cblas_dsyr2k(CblasColMajor, CblasUpper, CblasNoTrans, n, nr, -1.0, Q, n, W, n, 1.0, C, n);
+        cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, n, nr, nr, 1.0, Q, n, B, nr, 0.0, W, n);
+        cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, n, n, nr, 1.0, W, n, Q, n, 1.0, C, n);
+    }
+    if (LAPACKE_dsyevr(LAPACK_COL_MAJOR, 'V', 'I', 'U', n, C, n, 0, 0, 1, nev, 0, &found, w, Y, n, isuppz) != 0 ||
+        found != nev) {
+        rc = crom_err(CROM_EINTERNAL, "LAPACK dsyevr failed on the dense %d x %d eigenproblem", n, n);
+        goto out;
+    }
+    for (int j = 0; j < nev; j++) {
+        lam[j] = w[j];
+        for (int i = 0; i < n; i++)
+            Y[(size_t)j * n + i] *= scale[i];
+        project_rigid(P, Y + (size_t)j * n);
+    }
+out:
+    free(C);
+    free(scale);
+    free(Q);
+    free(W);
+    free(B);
+    free(w);
+    free(isuppz);
+    return rc;
+}
+
+/* Lanczos vectors for nev pairs in a space of dimension nc: max(2 nev + 1,
+ * nev + 20), or basis if larger, at most nc. */
+static int lanczos_size(int nev, int basis, int nc)
+{
+    int ncv = 2 * nev + 1 > nev + 20 ? 2 * nev + 1 : nev + 20;
+    if (basis > ncv)
+        ncv = basis;
+    return ncv < nc ? ncv : nc;
+}
+
+/* Fill in the copies of repeated eigenvalues that ARPACK missed among the
+ * nev pairs lam, Y it found. A single-vector Krylov space holds one
+ * direction of each eigenspace; round-off has to bring in the others, and
+ * the iteration may converge first (one start vector in 40 on a square
+ * beam). So the lowest pair of the complement of the rigid motions and of
+ * all nev found ones is computed from another start vector: a missed copy
+ * is there, below the largest found λ, and takes its place (the largest
+ * goes); this repeats until the complement has nothing below. */
+static int fill_missed(eigprob *P, const crom_modes_opts *o, double sigma, long max_solves, int nev,
+                       double *lam, double *Y)
+{
+    int n = P->n, nr = P->nr, nc = n - nr - nev, rc = 0, iters;
+    if (nc < 2)
+        return 0; /* ARPACK needs nev < ncv <= nc */
+    double *RF = crom_malloc(sizeof(double) * (size_t)n * (nr + nev)), *h = crom_malloc(sizeof(double) * (size_t)(nr + nev));
+    double *y = crom_malloc(sizeof(double) * (size_t)n);
+    if (!RF || !h || !y) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    for (int round = 0; round < nev; round++) {
+        if (nr > 0)
+            memcpy(RF, P->R, sizeof(double) * (size_t)n * nr);
+        memcpy(RF + (size_t)n * nr, Y, sizeof(double) * (size_t)n * nev);
+        eigprob Q = {n, P->m, P->chol, nr + nev, RF, P->mx, h, 0};
+        double mu;
+        rc = arpack_lowest(&Q, 1, lanczos_size(1, 0, nc), sigma, o->tol, max_solves - P->solves,
+                           o->seed + 1 + (uint64_t)round, &mu, y, &iters);
+        P->solves += Q.solves;
+        if (rc || !(mu < lam[nev - 1] - 1e-9 * fabs(lam[nev - 1])))
+            break;
+        int j = nev - 1;
+        for (; j > 0 && lam[j - 1] > mu; j--) {
+            lam[j] = lam[j - 1];
+            memcpy(Y + (size_t)j * n, Y + (size_t)(j - 1) * n, sizeof(double) * (size_t)n);
+        }
+        lam[j] = mu;
+        memcpy(Y + (size_t)j * n, y, sizeof(double) * (size_t)n);
+    }
+out:
+    free(RF);
+    free(h);
+    free(y);
+    return rc;
+}
+
+/* The nev lowest pairs of the complement of the rigid motions (nc = n − nr
+ * its dimension) into lam[nev] and Y[nev][n]: ARPACK, then the check for
+ * missed copies; a dense solve when nev is all of them. */
+static int lowest_modes(eigprob *P, const crom_sym *K, const crom_modes_opts *o, double sigma, int nev,
+                        double *lam, double *Y, crom_modes *out)
+{
+    int nc = P->n - P->nr;
+    if (nev >= nc) {
+        out->basis_max = nc;
+        return dense_lowest(K, P, nev, lam, Y);
+    }
+    int ncv = lanczos_size(nev, o->basis, nc);
+    long max_solves = o->max_solves > 0 ? o->max_solves : 200L * (o->count + 6) + 2000;
+    out->basis_max = ncv;
+    int rc = arpack_lowest(P, nev, ncv, sigma, o->tol, max_solves, o->seed, lam, Y, &out->restarts);
+    return rc ? rc : fill_missed(P, o, sigma, max_solves, nev, lam, Y);
+}
+
 /* ------------------------------------------------------------- driver */
 
 int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const unsigned char *fixed,
@@ -440,8 +614,6 @@ int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const un
     out->next_omega2 = NAN;
     if (o.count < 1)
         return crom_err(CROM_EUSAGE, "the number of modes must be positive, got %d", o.count);
-    if (o.block < 1)
-        o.block = 6;
     if (!(o.tol > 0))
         o.tol = 1e-10;
     if (!(o.rigid_tol > 0))
@@ -457,10 +629,10 @@ int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const un
     int N = fem.n;
     int *map = NULL, *dof = NULL, *cp = NULL, *ri = NULL, *comp = NULL;
     double *Hval = NULL, *Kf = NULL, *Af = NULL, *mf = NULL, *X3 = NULL, *Phi = NULL;
-    lanczos L;
-    memset(&L, 0, sizeof L);
-    lz_state S;
-    memset(&S, 0, sizeof S);
+    double *R = NULL, *lam = NULL, *Y = NULL;
+    int nr = 0;
+    crom_chol *chol = NULL;
+    eigprob P = {0};
     Hval = crom_malloc(sizeof(double) * (size_t)fem.nnz);
     map = crom_malloc(sizeof(int) * (size_t)N);
     if (!Hval || !map) {
@@ -552,6 +724,7 @@ int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const un
     out->rigid_threshold = o.rigid_tol * out->lambda_mean;
     out->t_assemble = crom_now() - t0;
 
+    crom_sym K = {nf, cp, ri, Kf};
     /* shift: a small fraction of the lowest frequencies' scale E/(ρ D²) */
     double sigma = o.shift;
     if (sigma == 0) {
@@ -561,8 +734,8 @@ int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const un
             D2 += (hi[t] - lo[t]) * (hi[t] - lo[t]);
         sigma = -0.01 * mat->E / (mat->rho * D2);
     }
-    L.chol = crom_chol_analyze(nf, cp, ri, whole ? 3 : 1);
-    if (!L.chol) {
+    chol = crom_chol_analyze(nf, cp, ri, whole ? 3 : 1);
+    if (!chol) {
         rc = crom_errcode() ? crom_errcode() : CROM_EINTERNAL;
         goto out;
     }
@@ -570,7 +743,7 @@ int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const un
         memcpy(Af, Kf, sizeof(double) * (size_t)nnz);
         for (int j = 0; j < nf; j++)
             Af[cp[j + 1] - 1] -= sigma * mf[j];
-        if (!(rc = crom_chol_factor(L.chol, Af)))
+        if (!(rc = crom_chol_factor(chol, Af)))
             break;
         if (rc != CROM_EDATA || attempt == 3 || o.shift != 0) {
             if (rc == CROM_EDATA)
@@ -581,117 +754,61 @@ int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const un
         sigma *= 10; /* round-off beat a tiny shift: move it further */
     }
     out->sigma = sigma;
-    crom_chol_stats(L.chol, &out->t_analyze, &out->t_factor, NULL, NULL, NULL);
+    crom_chol_stats(chol, &out->t_analyze, &out->t_factor, NULL, NULL, NULL);
     double tl = crom_now();
 
-    /* Lanczos */
-    int b = o.block < nf ? o.block : nf;
-    int nev = o.count;
-    L.n = nf;
-    L.m = mf;
-    L.b = b;
-    crom_rng_seed(&L.rng, o.seed);
-    L.W = crom_malloc(sizeof(double) * (size_t)b * nf);
-    L.MW = crom_malloc(sizeof(double) * (size_t)b * nf);
-    L.R = crom_malloc(sizeof(double) * (size_t)b * b);
-    L.tmp = crom_malloc(sizeof(double) * (size_t)nf);
-    L.MX = crom_malloc(sizeof(double) * (size_t)b * nf);
-    L.nrm = crom_malloc(sizeof(double) * (size_t)b);
-    if (!L.W || !L.MW || !L.R || !L.tmp || !L.MX || !L.nrm) {
+    /* the rigid motions, built, and the lowest modes of their complement */
+    if ((rc = rigid_basis(mesh, &fem, fixed, nf, dof, mf, &R, &nr)))
+        goto out;
+    P = (eigprob){nf, mf, chol, nr, R, crom_malloc(sizeof(double) * (size_t)nf),
+                  crom_malloc(sizeof(double) * ((size_t)nr + 1)), 0};
+    if (!P.mx || !P.h) {
         rc = CROM_EINTERNAL;
         goto out;
     }
-    int mmax = basis_size(nev, b, nf, o.basis);
-    if ((rc = lanczos_grow(&L, mmax)))
-        goto out;
-    S.Y = crom_malloc(sizeof(double) * (size_t)mmax * mmax);
-    S.theta = crom_malloc(sizeof(double) * (size_t)mmax);
-    S.res = crom_malloc(sizeof(double) * (size_t)mmax);
-    if (!S.Y || !S.theta || !S.res) {
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
-    for (size_t i = 0; i < (size_t)b * nf; i++)
-        L.V[i] = crom_rng_uniform(&L.rng) - 0.5;
-    S.bs = orth_block(&L, 0, b, 2, L.H);
-    long max_solves = o.max_solves > 0 ? o.max_solves : 200L * (o.count + 6) + 2000;
-    int nrigid = 0;
+    /* how many the result needs: o.count deformation modes after the z
+     * zero-energy ones among them (dropped), or o.count in all after the
+     * nr + z rigid ones (kept); one more to see where the zero block ends
+     * and for next_omega2 */
+    int nc = nf - nr, z = 0, have = 0, k = o.count;
+    double thr = out->rigid_threshold;
     for (;;) {
-        if ((rc = lanczos_round(&L, &S, mmax)))
-            goto out;
-        int nb = S.nb, conv = 0;
-        for (int j = nb - 1; j >= nb - nev && j >= 0; j--)
-            if (S.res[j] <= o.tol * fabs(S.theta[j]) || S.bs == 0)
-                conv++;
-            else
-                break;
-        if (nb >= nev && conv >= nev) {
-            /* rigid modes among the converged: their ω² are ~0 */
-            nrigid = 0;
-            for (int j = nb - 1; j >= nb - nev; j--)
-                nrigid += sigma + 1 / S.theta[j] <= out->rigid_threshold;
-            /* all of them, and one deformation mode beyond to be sure */
-            int need = o.keep_rigid ? (o.count > nrigid ? o.count : nrigid + 1) : o.count + nrigid;
-            if (need > nf && o.keep_rigid)
-                need = nf;
-            if (need <= nev)
-                break;
-            if (need > nf) {
-                rc = crom_err(CROM_EUSAGE,
-                              "%d deformation modes asked for, but the body has only %d (%d free degrees "
-                              "of freedom, %d rigid modes)",
-                              o.count, nf - nrigid, nf, nrigid);
-                goto out;
-            }
-            nev = need;
-            int m2 = basis_size(nev, b, nf, o.basis);
-            if (m2 > mmax) {
-                double *Y = crom_realloc(S.Y, sizeof(double) * (size_t)m2 * m2);
-                if (Y)
-                    S.Y = Y;
-                double *th = crom_realloc(S.theta, sizeof(double) * (size_t)m2);
-                if (th)
-                    S.theta = th;
-                double *rs = crom_realloc(S.res, sizeof(double) * (size_t)m2);
-                if (rs)
-                    S.res = rs;
-                if (!Y || !th || !rs || (rc = lanczos_grow(&L, m2))) {
-                    rc = CROM_EINTERNAL;
-                    goto out;
-                }
-                mmax = m2;
-            }
-            if (S.bs == 0 || S.nb + S.bs <= mmax)
-                continue; /* room left (or the space is spanned): go on */
-        }
-        if (S.bs == 0) {
-            rc = crom_err(CROM_EINTERNAL, "Lanczos: the basis spans the space but %d of %d pairs did not "
-                                          "converge", nev - conv, nev);
+        if (!o.keep_rigid && k + z > nc) {
+            rc = crom_err(CROM_EUSAGE,
+                          "%d deformation modes asked for, but the body has only %d (%d free degrees "
+                          "of freedom, %d rigid modes)",
+                          k, nc - z, nf, nr + z);
             goto out;
         }
-        if (L.solves > max_solves) {
-            rc = crom_err(CROM_EINTERNAL, "Lanczos did not converge: %d of %d modes after %ld solves",
-                          conv, nev, L.solves);
+        int req = o.keep_rigid ? (k - nr > z ? k - nr : z) : k + z;
+        int need = req < nc ? req + 1 : nc;
+        if (need == nc && req < nc && nf > DENSE_MAX)
+            need = req; /* the one more is not worth a dense solve */
+        if (need <= have)
+            break;
+        free(lam);
+        free(Y);
+        lam = crom_malloc(sizeof(double) * (size_t)need);
+        Y = crom_malloc(sizeof(double) * (size_t)nf * need);
+        if (!lam || !Y) {
+            rc = CROM_EINTERNAL;
             goto out;
         }
-        int p = nev + (mmax - nev) / 2;
-        if (p > mmax - b)
-            p = mmax - b;
-        if (p < nev)
-            p = nev;
-        if (p > nb)
-            p = nb;
-        if ((rc = lanczos_restart(&L, &S, p)))
+        if ((rc = lowest_modes(&P, &K, &o, sigma, need, lam, Y, out)))
             goto out;
-        out->restarts++;
+        have = need;
+        z = 0;
+        while (z < have && lam[z] <= thr)
+            z++;
     }
-    out->solves = L.solves;
-    out->basis_max = mmax;
-    crom_chol_stats(L.chol, NULL, NULL, &out->t_solve, NULL, NULL);
+    out->solves = P.solves;
+    crom_chol_stats(chol, NULL, NULL, &out->t_solve, NULL, NULL);
 
-    /* the wanted Ritz vectors, ascending ω² */
-    int nb = S.nb, skip = o.keep_rigid ? 0 : nrigid, k = o.count;
-    Phi = crom_malloc(sizeof(double) * (size_t)nf * k);
+    /* the result: kept, the rigid block (ω² 0 for the built motions, λ for
+     * the zero-energy modes found), canonical; then the deformation modes */
+    int nrigid = nr + z, nkr = o.keep_rigid ? (nrigid < k ? nrigid : k) : 0;
+    int skip = o.keep_rigid ? nrigid : 0; /* Y[z + j − skip] is result j >= nkr */
+    Phi = crom_malloc(sizeof(double) * (size_t)nf * (k > nrigid ? k : nrigid));
     out->omega2 = crom_malloc(sizeof(double) * (size_t)k);
     out->freq = crom_malloc(sizeof(double) * (size_t)k);
     out->residual = crom_malloc(sizeof(double) * (size_t)k);
@@ -700,36 +817,32 @@ int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const un
         rc = CROM_EINTERNAL;
         goto out;
     }
-    /* column nb-1-j of Y is the j-th smallest ω² */
-    for (int j = 0; j < k; j++)
-        cblas_dgemv(CblasColMajor, CblasNoTrans, nf, nb, 1.0, L.V, nf,
-                    S.Y + (size_t)(nb - 1 - skip - j) * nb, 1, 0.0, Phi + (size_t)j * nf, 1);
-    for (int j = 0; j < k; j++)
-        out->omega2[j] = sigma + 1 / S.theta[nb - 1 - skip - j];
-    if (nb - 1 - skip - k >= 0)
-        out->next_omega2 = sigma + 1 / S.theta[nb - 1 - skip - k];
     out->nrigid = nrigid;
     out->rigid_kept = o.keep_rigid && nrigid > 0;
-    int nr = o.keep_rigid ? (nrigid < k ? nrigid : k) : 0;
-    if (nr > 0) {
-        /* the rigid block: all nrigid of them (even beyond k), canonical */
-        double *P = crom_malloc(sizeof(double) * (size_t)nf * nrigid);
-        if (!P) {
-            rc = CROM_EINTERNAL;
+    for (int j = nkr; j < k; j++) {
+        memcpy(Phi + (size_t)j * nf, Y + (size_t)(z + j - skip) * nf, sizeof(double) * (size_t)nf);
+        out->omega2[j] = lam[z + j - skip];
+    }
+    if (k >= skip && z + k - skip < have)
+        out->next_omega2 = lam[z + k - skip];
+    if (nkr > 0) {
+        /* all nrigid of them (even beyond k), then the first nkr */
+        if (nr > 0)
+            memcpy(Phi, R, sizeof(double) * (size_t)nf * nr);
+        if (z > 0)
+            memcpy(Phi + (size_t)nf * nr, Y, sizeof(double) * (size_t)nf * z);
+        if ((rc = canonical_rigid(nf, mf, X3, comp, xc, Phi, nf, nrigid)))
             goto out;
+        /* their ω², ascending: the z found (<= thr, maybe below 0) among nr zeros */
+        for (int j = 0, a = 0, b = 0; j < nrigid; j++) {
+            double w = a < z && (b == nr || lam[a] < 0) ? lam[a++] : (b++, 0.0);
+            if (j < k)
+                out->omega2[j] = w;
+            else if (j == k)
+                out->next_omega2 = w;
         }
-        for (int j = 0; j < nrigid; j++)
-            cblas_dgemv(CblasColMajor, CblasNoTrans, nf, nb, 1.0, L.V, nf, S.Y + (size_t)(nb - 1 - j) * nb,
-                        1, 0.0, P + (size_t)j * nf, 1);
-        rc = canonical_rigid(nf, mf, X3, comp, xc, P, nf, nrigid);
-        if (!rc)
-            memcpy(Phi, P, sizeof(double) * (size_t)nf * nr);
-        free(P);
-        if (rc)
-            goto out;
     }
     /* M-normalize (already so up to round-off), sign, residuals, scatter */
-    crom_sym K = {nf, cp, ri, Kf};
     double *kx = crom_malloc(sizeof(double) * (size_t)nf);
     if (!kx) {
         rc = CROM_EINTERNAL;
@@ -751,16 +864,15 @@ int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const un
             for (int i = 0; i < nf; i++)
                 x[i] = -x[i];
         crom_sym_matvec(&K, x, kx);
-        double lam = out->omega2[j], rn = 0, kn = 0, mn = 0;
+        double w = out->omega2[j], rn = 0, kn = 0, mn = 0;
         for (int i = 0; i < nf; i++) {
-            double r = kx[i] - lam * mf[i] * x[i];
+            double r = kx[i] - w * mf[i] * x[i];
             rn += r * r;
             kn += kx[i] * kx[i];
             mn += mf[i] * mf[i] * x[i] * x[i];
         }
-        int rigid = j < nr;
-        out->residual[j] = rigid ? sqrt(rn) / (out->lambda_mean * sqrt(mn)) : sqrt(rn) / sqrt(kn);
-        out->freq[j] = sqrt(lam > 0 ? lam : 0) / (2 * M_PI);
+        out->residual[j] = j < nkr ? sqrt(rn) / (out->lambda_mean * sqrt(mn)) : sqrt(rn) / sqrt(kn);
+        out->freq[j] = sqrt(w > 0 ? w : 0) / (2 * M_PI);
         for (int i = 0; i < nf; i++)
             out->phi[(size_t)dof[i] * k + j] = x[i];
     }
@@ -772,19 +884,12 @@ out:
         crom_modes_free(out);
         out->next_omega2 = NAN;
     }
-    crom_chol_free(L.chol);
-    free(L.V);
-    free(L.T);
-    free(L.W);
-    free(L.MW);
-    free(L.H);
-    free(L.R);
-    free(L.tmp);
-    free(L.MX);
-    free(L.nrm);
-    free(S.Y);
-    free(S.theta);
-    free(S.res);
+    crom_chol_free(chol);
+    free(P.mx);
+    free(P.h);
+    free(R);
+    free(lam);
+    free(Y);
     free(Phi);
     free(Hval);
     free(map);

@@ -8,31 +8,36 @@
  * of a penalty or of the fixed identity block can appear. Vertices used by no
  * tet (mass 0) are eliminated too.
  *
- * The lowest pairs come from a block Lanczos iteration in shift-invert mode
- * on the operator A = (K − σM)⁻¹ M, which is self-adjoint in the M inner
- * product: its largest eigenvalues θ are the λ = ω² nearest above the shift,
+ * The lowest pairs come from ARPACK's implicitly restarted Lanczos
+ * iteration (dsaupd/dseupd) in its generalized shift-invert mode on the
+ * operator A = (K − σM)⁻¹ M, which is self-adjoint in the M inner product:
+ * its largest eigenvalues θ are the λ = ω² nearest above the shift,
  * λ = σ + 1/θ. σ < 0, so K − σM is symmetric positive definite even for a
  * free body (K singular) and one sparse Cholesky factor (CHOLMOD, METIS
- * block ordering; lib/solve.h) serves every solve. The basis is kept
- * M-orthonormal by full reorthogonalization (classical Gram–Schmidt twice),
- * the Rayleigh–Ritz matrix is dense, and the iteration restarts thickly
- * (keeping the best Ritz vectors) when the basis is full, until the Ritz
- * residuals ‖A y − θ y‖_M <= tol·θ for all wanted pairs.
+ * block ordering; lib/solve.h) serves every solve. A dense LAPACK solve
+ * stands in when every deformation mode is asked for (ARPACK gives fewer).
  *
- * Why not ARPACK (installed): dsaupd's mode 3 is single-vector Lanczos, which
- * in exact arithmetic finds one vector per distinct eigenvalue, while a free
- * body's rigid modes form a six-fold zero eigenvalue (and symmetric bodies
- * have degenerate pairs); a block of 6 start vectors finds every copy
- * directly instead of waiting for round-off to reveal them. Our own loop also
- * keeps the M inner product and the free-DOF reduction in one place, is
- * deterministic for a seed, and needs no Fortran reverse-communication glue
- * nor another library on the link line.
+ * Rigid modes are built, not searched for: a single-vector Krylov space
+ * holds one direction of each eigenspace, so the six-fold zero of a free
+ * body would come out once, or any number of times. For each connected
+ * piece of the mesh the translations and infinitesimal rotations about its
+ * centre of mass that the pins allow (those vanishing on its fixed DOFs)
+ * are M-orthonormalized, and ARPACK works in their M-orthogonal complement:
+ * its start vector and every A x are projected with I − R Rᵀ M. A free body
+ * has six, one pinned at a single vertex three, a body pinned along a line
+ * one, several disconnected pieces six each. Repeated deformation
+ * eigenvalues (a square beam's bending pairs) get max(2k + 1, k + 20)
+ * Lanczos vectors, and after convergence the lowest pair of the complement
+ * of all found ones is computed from another start vector: a copy ARPACK
+ * missed lies below the largest found λ and takes its place.
  *
- * Rigid modes are detected, not assumed: a computed ω² below rigid_tol times
- * the mean eigenvalue of M⁻¹K (Σ K_ii/m_i / n, a property of the mesh and
- * material, not of how many modes were asked for) counts as rigid. A free
- * body has six, one pinned at a single vertex three, a body pinned along a
- * line one, several disconnected pieces six each.
+ * A computed ω² below rigid_tol times the mean eigenvalue of M⁻¹K
+ * (Σ K_ii/m_i / n, a property of the mesh and material, not of how many
+ * modes were asked for) is a zero-energy mode beyond the rigid motions
+ * (say two pieces joined at one vertex) and counts as rigid too.
+ *
+ * ARPACK keeps its state in Fortran SAVE variables: one computation at a
+ * time per process.
  */
 #ifndef CROM_MODES_H
 #define CROM_MODES_H
@@ -49,12 +54,12 @@ typedef struct {
                           `count` deformation modes are returned */
     double shift;      /* σ (rad²/s², < 0); 0 picks −0.01·E/(ρ D²), D the
                           bounding-box diagonal */
-    double tol;        /* Ritz residual tolerance relative to θ (default 1e-12) */
+    double tol;        /* Ritz residual tolerance relative to θ (default 1e-10) */
     double rigid_tol;  /* ω² <= rigid_tol·λ_mean is rigid (default 1e-12) */
-    int block;         /* Lanczos block size (default 6, the rigid multiplicity) */
-    int basis;         /* Lanczos basis size before a restart (0: automatic) */
+    int basis;         /* Lanczos vectors, ARPACK's ncv (0 or fewer than
+                          the automatic max(2k + 1, k + 20): automatic) */
     long max_solves;   /* limit on solves with the factor (0: 200·(k + 6) + 2000) */
-    uint64_t seed;     /* start block (default 1) */
+    uint64_t seed;     /* start vector (default 1) */
     int nthreads;      /* assembly threads (0: OpenMP default) */
 } crom_modes_opts;
 
@@ -65,10 +70,12 @@ typedef struct {
     int n;             /* 3 nv degrees of freedom */
     int nfree;         /* free degrees of freedom (not fixed, on some tet) */
     int k;             /* modes returned */
-    int nrigid;        /* rigid modes detected among the computed ones */
+    int nrigid;        /* rigid modes: the rigid motions the pins allow,
+                          and zero-energy modes found beyond them */
     int rigid_kept;    /* 1: the first nrigid modes returned are the rigid
                           ones; 0: none of the returned modes is rigid */
-    double *omega2;    /* [k] ω² (rad²/s²), ascending (rigid ones ~0, may be
+    double *omega2;    /* [k] ω² (rad²/s²), ascending (rigid motions 0;
+                          zero-energy modes found beyond them ~0, maybe
                           slightly negative from round-off) */
     double *freq;      /* [k] f = sqrt(max(ω², 0)) / 2π (Hz) */
     double *phi;       /* [n][k] row-major mode shapes: ΦᵀMΦ = I, zero on
@@ -81,13 +88,12 @@ typedef struct {
     double sigma;      /* the shift used (rad²/s²) */
     double lambda_mean;      /* mean eigenvalue of M⁻¹K on the free DOFs */
     double rigid_threshold;  /* rigid_tol · lambda_mean */
-    double next_omega2;      /* the next Ritz value ω² above the returned
-                                ones, not necessarily converged (an upper
-                                bound of the next eigenvalue; NAN if none) */
+    double next_omega2;      /* the next eigenvalue ω² above the returned
+                                ones (computed with them; NAN if none) */
     /* statistics */
     long solves;       /* solves with the factor (operator applications) */
-    int restarts;      /* thick restarts */
-    int basis_max;     /* Lanczos basis size */
+    int restarts;      /* ARPACK's implicit restarts (dsaupd iterations) */
+    int basis_max;     /* Lanczos vectors (ncv; the dense size if dense) */
     double t_assemble, t_analyze, t_factor, t_lanczos; /* seconds */
     double t_solve;    /* the part of t_lanczos spent in solves */
 } crom_modes;
@@ -97,8 +103,8 @@ typedef struct {
  * CROM_EUSAGE when more modes are asked for than the free DOFs allow (the
  * message says how many there are) or every DOF is fixed, CROM_EDATA for a
  * bad mesh or a stiffness that is not positive semidefinite, CROM_EINTERNAL
- * when Lanczos does not converge within max_solves or memory runs out. On
- * failure *out holds nothing to free. */
+ * when ARPACK fails or does not converge within max_solves, or memory runs
+ * out. On failure *out holds nothing to free. */
 int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat,
                        const unsigned char *fixed, const crom_modes_opts *o,
                        crom_modes *out);
