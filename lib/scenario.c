@@ -31,7 +31,7 @@ const crom_opt crom_scenario_opts[] = {
     {"damping", SC_DAMPING, "A", "Mass-proportional damping rate in 1/s (default 0): a drag force A m v."},
     {"contact-stiffness", SC_CONTACT_K, "K", "Penalty rate of the collision planes in 1/s^2: a vertex of mass m at depth d feels K m d (default 1e5)."},
     {"friction-eps", SC_FRICTION_EPS, "V", "Tangential speed in m/s below which friction is smoothed (default 1e-3)."},
-    {"tol", SC_TOL, "TOL", "Newton stops when its correction to any vertex position is below TOL times the bounding-box diagonal (default 1e-7)."},
+    {"tol", SC_TOL, "TOL", "Newton stops when its correction to any vertex position is below TOL times the bounding-box diagonal (default 1e-7); near convergence crom-fullsim first tries a cheaper simplified Newton correction with its reused factor, accepted below TOL/2."},
     {"max-iter", SC_MAXIT, "N", "Newton iterations allowed per step before the run fails (default 50)."},
     {"initial-velocity", SC_V0, "VX,VY,VZ", "Uniform initial velocity in m/s (default 0)."},
     {"spin", SC_SPIN, "WX,WY,WZ", "Initial angular velocity about the centroid in rad/s (default 0)."},

@@ -1,6 +1,7 @@
 /* test_sim.c — the full-space simulator against physics: contact
  * derivatives, linear momentum, energy dissipation, free fall, a cantilever
- * converging to Euler–Bernoulli, prescribed regions, contact resting depth. */
+ * converging to Euler–Bernoulli, prescribed regions, contact resting depth,
+ * the state returned within --tol of the converged one. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -279,6 +280,53 @@ static void test_prescribed_and_contact(void)
     crom_mesh_free(&m);
 }
 
+/* ------------------------------------------------- convergence tolerance */
+
+/* Newton stops when its correction is below --tol of the body size, measured
+ * on the last Newton direction or, when Newton contracts fast, on a
+ * simplified Newton correction with the reused factor. Either way the state
+ * it returns must lie within tol of the exact solution of the step: compare
+ * every step, started from the same state, with one converged to 1e-12. */
+static void test_tolerance(void)
+{
+    crom_mesh m;
+    make_mesh(CROM_SHAPE_BOX, 0.08, NULL, &m);
+    CHECK(crom_mesh_region_spec(&m, "top=y>0.45") == 0);
+    CHECK(crom_mesh_region_spec(&m, "bottom=y<-0.45") == 0);
+    crom_scenario loose, tight;
+    crom_scenario_defaults(&loose);
+    loose.gravity[1] = 0;
+    loose.dt = 0.01;
+    CHECK(crom_scenario_option(&loose, 0x1000 + 8, "top=0,-2,0@0:0.1") == 0); /* --velocity */
+    strcpy(loose.pins[loose.npins++], "bottom");
+    tight = loose;
+    tight.tol = 1e-12;
+    crom_sim a, b;
+    CHECK(crom_sim_init(&a, &m, &loose) == 0);
+    CHECK(crom_sim_init(&b, &m, &tight) == 0);
+    double worst = 0;
+    int newton = 0, solves = 0;
+    for (int k = 0; k < 12; k++) {
+        crom_step_stats sa, sb;
+        memcpy(a.x, b.x, sizeof(double) * (size_t)a.n);
+        memcpy(a.v, b.v, sizeof(double) * (size_t)a.n);
+        CHECK(crom_sim_step(&a, &sa) == 0);
+        CHECK(crom_sim_step(&b, &sb) == 0);
+        CHECK(sa.residual <= loose.tol);
+        newton += sa.newton;
+        solves += sa.cg;
+        for (int i = 0; i < a.n; i++)
+            worst = fmax(worst, fabs(a.x[i] - b.x[i]) / a.L);
+    }
+    fprintf(stderr, "tol %.0e: worst distance to the converged state %.2e of the body size "
+            "(%d Newton iterations, %d solves in 12 steps)\n", loose.tol, worst, newton, solves);
+    CHECK_LT(worst, loose.tol);
+    CHECK(worst > 0); /* the loose run really stopped earlier */
+    crom_sim_free(&a);
+    crom_sim_free(&b);
+    crom_mesh_free(&m);
+}
+
 static void test_bad_scenarios(void)
 {
     crom_mesh m;
@@ -349,6 +397,7 @@ int main(void)
     test_free_fall();
     test_momentum_and_energy();
     test_prescribed_and_contact();
+    test_tolerance();
     test_bad_scenarios();
     test_cantilever();
     return check_done();
