@@ -100,8 +100,10 @@ plots: $(OUT)/steps.png $(OUT)/training.png
 $(OUT)/steps.png: $(OUT)/tables.md
 	gnuplot -e "set terminal pngcairo size 900,500; set output '$@'; set datafile separator ','; \
 	  set style data histogram; set style histogram clustered; set style fill solid 0.8; set logscale y; \
-	  set ylabel 'median step cost (ms)'; set title 'crom: full vs reduced step cost (one core)'; \
-	  set xtics rotate by -20; plot '$(OUT)/table1.csv' using 6:xtic(1) title 'full', '' using 7 title 'reduced'"
+	  set yrange [0.1:*]; set key top left; set ylabel 'median step cost (ms)'; \
+	  set title 'crom: full vs reduced step cost (one core)'; set xtics rotate by -20; \
+	  plot '$(OUT)/table1.csv' every ::1 using 6:xtic(sprintf('%s, %.0fK vertices', strcol(1), column(2)/1000)) \
+	    title 'full', '' every ::1 using 7 title 'reduced'"
 $(OUT)/training.png: $(OUT)/training.md
 	gnuplot -e "set terminal pngcairo size 900,500; set output '$@'; set datafile separator ','; \
 	  set logscale y; set xlabel 'training time (s)'; set ylabel 'relative reconstruction error'; \

@@ -38,7 +38,7 @@ def tables(out, sizes, loads):
             red = col(f"{out}/t-red-{s}-{l}.csv", "seconds")
             gen += sum(full)
             fm, rm = statistics.median(full), statistics.median(red)
-            t1.append([f"cube, {l}", nv, nt, cverts, len(elems), 1e3 * fm, 1e3 * rm, fm / rm,
+            t1.append([f"cube {l}", nv, nt, cverts, len(elems), 1e3 * fm, 1e3 * rm, fm / rm,
                        diff_error(f"{out}/t-diff-{s}-{l}.txt")])
         frames = len(h5py.File(f"{out}/t-samples-{s}.h5")["frame_source"])
         t2.append([nv, frames, len(loads), gen / 60, float(model.attrs.get("training_seconds", float("nan"))),
