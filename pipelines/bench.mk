@@ -3,7 +3,8 @@
 # PNG plots. Medians over steps, one core. Run through the top-level Makefile
 # (`make bench`); sizes are variables, e.g.
 #   make bench T_SIZES="0.056" FULL_SIZES="0.056"      # a quick one
-# About 25 minutes at the defaults on this 2-core machine.
+#   make -f pipelines/bench.mk datafree DF_SIZE=0.1 DF_MINUTES=0.1 DF_STEPS=10 OUT=/tmp/df
+# About 33 minutes at the defaults on this 2-core machine (datafree: about 8).
 include $(dir $(lastword $(MAKEFILE_LIST)))common.mk
 .SECONDEXPANSION:
 
@@ -33,9 +34,33 @@ TRAIN_SIZE ?= 0.06
 TRAIN_MINUTES ?= 10
 TRAIN_SHAPES = 2 2.5 3.5 6 box
 
-.PHONY: all fullsim tables training plots
-all: fullsim tables training plots
-	@cat $(OUT)/fullsim.md $(OUT)/tables.md $(OUT)/training.md
+# --- data-free subspaces (issue 7): training time and per-step latent time of
+#     each objective on a clamped bar of about 5K vertices sagging under
+#     gravity, one core: linear modes (crom-modes, stepped through a cubature of
+#     every tet and an optimized one), the energy map (Sharp et al.) and neural
+#     modes on the same modes (Wang et al.), both stepped with --model; the
+#     material and loading of tests/prog/datafree.sh, r = DF_RANK for all
+DF_SIZE ?= 0.02
+DF_RANK ?= 10
+DF_MINUTES ?= 2.5
+DF_TRAIN_STEPS ?= 1000000
+DF_STEPS ?= 100
+DF_COUNT ?= $(T_COUNT)
+DF_SAMPLES ?= 256
+DF_YOUNGS ?= 1e6
+DF_MAT = --youngs $(DF_YOUNGS) --poisson 0.3 --density 1000
+DF_BC = --pin clamp --gravity 0,-9.81,0
+DF_SCENARIO = $(DF_MAT) $(DF_BC) --dt 0.01 --steps $(DF_STEPS)
+DF_TRAIN = --rank $(DF_RANK) --steps $(DF_TRAIN_STEPS) --minutes $(DF_MINUTES) --seed $(SEED) --threads 1
+# table rows: modes-all and modes-opt step the modes through a cubature
+# (df-cub-all.h5, df-cub-opt.h5), energy and neuralmodes their map (--model)
+DF_ROWS = modes-all modes-opt energy neuralmodes
+df_in = $(if $(filter modes-%,$(1)),$(OUT)/df-cub-$(patsubst modes-%,%,$(1)).h5,$(OUT)/df-$(1).h5)
+df_model = $(OUT)/df-$(if $(filter modes-%,$(1)),modes,$(1)).h5
+
+.PHONY: all fullsim tables training datafree plots
+all: fullsim tables training datafree plots
+	@cat $(OUT)/fullsim.md $(OUT)/tables.md $(OUT)/training.md $(OUT)/datafree.md
 	@echo "plots: $(OUT)/steps.png $(OUT)/training.png"
 
 # ---------------------------------------------------------------- fullsim
@@ -94,6 +119,49 @@ $(OUT)/tr-pointnet.h5 $(OUT)/tr-pointnet.log &: $(OUT)/tr-samples.h5
 	  -o $(OUT)/tr-pointnet.h5 < $< 2> $(OUT)/tr-pointnet.log
 $(OUT)/training.md: $(OUT)/tr-lsq.h5 $(OUT)/tr-pointnet.h5
 	/usr/bin/python3 $(TOP)/pipelines/benchtab.py training $(OUT) > $@.tmp && mv $@.tmp $@
+
+# --------------------------------------------------------------- datafree
+datafree: $(OUT)/datafree.md
+$(eval $(call stamp_rule,df-mesh,$(DF_SIZE)))
+$(eval $(call stamp_rule,df-scenario,$(DF_SCENARIO)))
+$(eval $(call stamp_rule,df-modes,$(DF_MAT) $(DF_RANK)))
+$(eval $(call stamp_rule,df-train,$(DF_MAT) $(DF_BC) $(DF_TRAIN)))
+$(eval $(call stamp_rule,df-cubature,$(DF_COUNT) $(DF_YOUNGS) $(SEED)))
+$(eval $(call stamp_rule,df-metrics,$(DF_SAMPLES) $(SEED)))
+$(OUT)/df-mesh.h5: $(call stamp,df-mesh)
+	@mkdir -p $(@D)
+	crom-mesh box --dims 1,0.2,0.2 --size $(DF_SIZE) --algorithm hxt --region clamp='x<-0.49' $(QUIET) -o $@
+# the reference, and the step cost the latent steps are measured against
+$(OUT)/df-full.h5 $(OUT)/df-full.csv &: $(OUT)/df-mesh.h5 $(call stamp,df-scenario)
+	crom-fullsim $(DF_SCENARIO) --threads 1 --stats $(OUT)/df-full.csv $(QUIET) -o $(OUT)/df-full.h5 $<
+# training: the modes (their timing is in the -v log), then both data-free
+# objectives for DF_MINUTES each (the clock stops them, not DF_TRAIN_STEPS)
+$(OUT)/df-modes.h5 $(OUT)/df-modes.log &: $(OUT)/df-mesh.h5 $(call stamp,df-modes)
+	crom-modes $(DF_MAT) --pin clamp --count $(DF_RANK) --threads 1 -v -o $(OUT)/df-modes.h5 $< 2> $(OUT)/df-modes.log
+$(OUT)/df-energy.h5: $(OUT)/df-mesh.h5 $(call stamp,df-train)
+	crom-fitfield --objective energy --mesh $< $(DF_MAT) $(DF_BC) $(DF_TRAIN) $(QUIET) -o $@
+$(OUT)/df-neuralmodes.h5: $(OUT)/df-mesh.h5 $(OUT)/df-modes.h5 $(call stamp,df-train)
+	crom-fitfield --objective neuralmodes --mesh $< --modes $(OUT)/df-modes.h5 $(DF_TRAIN) $(QUIET) -o $@
+# the modes' cubatures: every tet (what --model integrates too), and an
+# optimized one fitted to the poses of that run (no data beyond the modes)
+$(OUT)/df-cub-all.h5: $(OUT)/df-modes.h5 $(OUT)/df-mesh.h5
+	crom-cubature --model $< --scheme all --threads 1 $(QUIET) -o $@ $(OUT)/df-mesh.h5
+$(OUT)/df-cub-opt.h5: $(OUT)/df-modes.h5 $(OUT)/df-mesh.h5 $(OUT)/df-red-modes-all.h5 $(call stamp,df-cubature)
+	crom-cubature --model $< --scheme optimized --count $(DF_COUNT) --poses $(OUT)/df-red-modes-all.h5 \
+	  --youngs $(DF_YOUNGS) --poisson 0.3 --seed $(SEED) --threads 1 $(QUIET) -o $@ $(OUT)/df-mesh.h5
+# the latent runs (step costs in the --stats CSV) and their error against the full run
+$(OUT)/df-red-%.h5 $(OUT)/df-red-%.csv &: $$(call df_in,$$*) $(call stamp,df-scenario)
+	crom-reducedstep $(if $(filter modes-%,$*),--cubature,--model) $< $(DF_SCENARIO) --threads 1 \
+	  --stats $(OUT)/df-red-$*.csv $(QUIET) -o $(OUT)/df-red-$*.h5
+$(OUT)/df-diff-%.txt: $(OUT)/df-red-%.h5 $(OUT)/df-full.h5 $$(call df_model,$$*)
+	crom-diff $< $(OUT)/df-full.h5 --model $(call df_model,$*) --threads 1 > $@
+# energy at random latents, and collapsed dimensions (the maps against the modes)
+$(OUT)/df-metrics-%.txt: $(OUT)/df-%.h5 $(OUT)/df-modes.h5 $(call stamp,df-metrics)
+	crom-metrics $(if $(filter-out modes,$*),--compare $(OUT)/df-modes.h5) --samples $(DF_SAMPLES) --seed $(SEED) \
+	  --threads 1 $< > $@
+$(OUT)/datafree.md: $(OUT)/df-mesh.h5 $(OUT)/df-full.csv $(OUT)/df-modes.log $(foreach r,$(DF_ROWS),$(OUT)/df-red-$(r).csv $(OUT)/df-diff-$(r).txt) \
+                    $(foreach m,modes energy neuralmodes,$(OUT)/df-metrics-$(m).txt)
+	/usr/bin/python3 $(TOP)/pipelines/benchtab.py datafree $(OUT) "$(DF_ROWS)" > $@.tmp && mv $@.tmp $@
 
 # ------------------------------------------------------------------ plots
 plots: $(OUT)/steps.png $(OUT)/training.png

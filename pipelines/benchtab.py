@@ -5,6 +5,7 @@ and the attributes of models and cubatures. Markdown on stdout, CSV beside.
 
   benchtab.py tables DIR "SIZES" "LOADS"   LiCROM Tables 1 and 2 for crom
   benchtab.py training DIR                  training speed and time to accuracy
+  benchtab.py datafree DIR "ROWS"           data-free objectives vs linear modes
 """
 import csv, re, statistics, sys
 
@@ -105,10 +106,88 @@ def training(out):
           "mean |u|^2) of the samples; the final error is the model's reconstruction_error.\n")
 
 
+def metrics(path):
+    """mean elastic energy, RMS displacement, energy ratio to the modes and
+    collapsed dimensions from crom-metrics' output (nan where absent)"""
+    txt = open(path).read()
+
+    def num(pat):
+        m = re.search(pat, txt, re.M)
+        return float(m.group(1)) if m else float("nan")
+    return (num(r"^elastic_energy: mean ([0-9.eE+-]+) J"), num(r"^rms_displacement: mean ([0-9.eE+-]+) m"),
+            num(r"^compare: .* ratio ([0-9.eE+-]+)$"), num(r"^collapse: ([0-9]+) of"))
+
+
+def datafree(out, rows):
+    mesh = h5py.File(f"{out}/df-mesh.h5")
+    nv = len(mesh["vertices"])
+    nfree = 3 * (nv - len(mesh["regions/clamp"]))
+    full = col(f"{out}/df-full.csv", "seconds")
+    fm = statistics.median(full)
+    log = open(f"{out}/df-modes.log").read()
+    parts = re.search(r"assembly ([0-9.]+) s, analysis ([0-9.]+) s, factorization ([0-9.]+) s, Lanczos ([0-9.]+) s", log)
+    modes_s = sum(float(x) for x in parts.groups()) if parts else float("nan")
+    names = {"modes-all": "linear modes (crom-modes), cubature of every tet",
+             "energy": "energy (Sharp et al.), --model", "neuralmodes": "neuralmodes (Wang et al.), --model"}
+    t = []
+    for r in rows:
+        kind = "modes" if r.startswith("modes-") else r
+        model = h5py.File(f"{out}/df-{kind}.h5")
+        name = names.get(r, r)
+        if r.startswith("modes-") and r != "modes-all":
+            cub = h5py.File(f"{out}/df-cub-{r[6:]}.h5")
+            name = "linear modes, %s cubature (%d tets, %.3g s to select)" % (
+                r[6:].replace("opt", "optimized"), len(cub["elements"]), float(cub.attrs.get("selection_seconds", float("nan"))))
+        train_s = modes_s if kind == "modes" else float(model.attrs.get("training_seconds", float("nan")))
+        steps = int(model.attrs["training_steps"]) if "training_steps" in model.attrs else None
+        red = col(f"{out}/df-red-{r}.csv", "seconds")
+        it = col(f"{out}/df-red-{r}.csv", "iterations")
+        rm = statistics.median(red)
+        e, d, ratio, collapsed = metrics(f"{out}/df-metrics-{kind}.txt")
+        t.append([name, nv, int(model.attrs["rank"]), steps, train_s, 1e3 * rm, sum(it) / len(it), fm / rm,
+                  diff_error(f"{out}/df-diff-{r}.txt"), e, d, 1.0 if kind == "modes" else ratio,
+                  int(collapsed) if collapsed == collapsed else float("nan")])
+    nfull = col(f"{out}/df-full.csv", "newton")
+    print("### Data-free subspaces: training and latent step time (crom; one core, issue 7)\n")
+    print(f"A bar 1 x 0.2 x 0.2 m ({nv} vertices, {len(mesh['tets'])} tets) clamped at one end sags under "
+          f"gravity for {len(full)} steps of 0.01 s; the same latent dimension for every objective.\n")
+    print("| objective | vertices | latent dim | training steps | training (s) | median reduced step (ms) | "
+          "iterations/step | speedup | relative error | mean elastic energy (J) at RMS displacement (m) | "
+          "energy vs linear modes | collapsed dims |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for r in t:
+        print("| %s | %d | %d | %s | %.3g | %.3f | %.1f | %.3g× | %.4f | %.4g at %.3g | %.3g | %s of %d |" % (
+            r[0], r[1], r[2], "—" if r[3] is None else r[3], r[4], r[5], r[6], r[7], r[8], r[9], r[10], r[11],
+            "?" if r[12] != r[12] else "%d" % r[12], r[2]))
+    print("| full space (crom-fullsim), the reference | %d | %d | — | — | %.3f | %.1f | 1× | 0 | | | |" % (
+        nv, nfree, 1e3 * fm, sum(nfull) / len(nfull)))
+    print("\nStep costs are medians over the steps (iterations: mean Newton or Gauss-Newton iterations per "
+          "step); the speedup is against the full step. Training time: Lanczos with its assembly and "
+          "factorization for the modes (from crom-modes -v), the model's training_seconds for the data-free "
+          "objectives, whose training is stopped by the clock (--minutes); neuralmodes builds on the modes "
+          "of the first rows. The cubature runs integrate W^T H W over their tets, the --model runs "
+          "Gauss-Newton over every tet of the mesh through the map's Jacobian. Relative error: crom-diff "
+          "against crom-fullsim over the run (an energy map's origin z = 0 is not the rest shape, so its "
+          "run starts deformed). Energy: crom-metrics' mean elastic energy of random latents, each model at "
+          "its own sampling (modes: on the sphere |q| = 5% of the bounding-box diagonal; energy map: N(0, I); "
+          "neuralmodes: its training box), then the ratio to the modes at the same RMS displacements; "
+          "collapsed dims: normalized Gram eigenvalues below 0.01 (Neural Modes §4.4).\n")
+    with open(f"{out}/datafree.csv", "w") as f:
+        w = csv.writer(f)
+        w.writerow(["objective", "vertices", "latent_dim", "training_steps", "training_s", "reduced_step_ms",
+                    "iterations_per_step", "speedup", "relative_error", "mean_elastic_energy_J",
+                    "rms_displacement_m", "energy_vs_modes", "collapsed_dims"])
+        w.writerows([["" if v is None else v for v in r] for r in t])
+        w.writerow(["full space (crom-fullsim)", nv, nfree, "", "", 1e3 * fm, sum(nfull) / len(nfull), 1, 0,
+                    "", "", "", ""])
+
+
 if __name__ == "__main__":
     if sys.argv[1] == "tables":
         tables(sys.argv[2], sys.argv[3].split(), sys.argv[4].split())
     elif sys.argv[1] == "training":
         training(sys.argv[2])
+    elif sys.argv[1] == "datafree":
+        datafree(sys.argv[2], sys.argv[3].split())
     else:
-        sys.exit("usage: benchtab.py tables|training DIR ...")
+        sys.exit("usage: benchtab.py tables|training|datafree DIR ...")
