@@ -353,7 +353,7 @@ static int run_map(crom_cli *cli, args *a)
     }
     if (a->init && (rc = read_init(a, model.model_id, r, q0, qd0)))
         goto out;
-    if ((rc = crom_nlsim_init(&s, &map, &a->sc, a->kappa, q0, a->init ? qd0 : NULL, a->threads)))
+    if ((rc = crom_nlsim_init(&s, &map, &a->sc, a->kappa, a->init ? q0 : NULL, a->init ? qd0 : NULL, a->threads)))
         goto out;
     if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli, hist, a->kind)))
         goto out;
