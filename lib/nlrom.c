@@ -73,6 +73,19 @@ static void loads(const crom_nlsim *s, double t, double *f)
 }
 
 /* q̇ minimizing ‖J q̇ − v‖_M, v = v0 + ω × (X − c) */
+/* H = Jᵀ M J (upper triangle) of the Jacobian in s->J: the mass-weighted
+ * Gram matrix of the latent directions */
+static void mass_gram(crom_nlsim *s)
+{
+    int r = s->r, n = s->n;
+    for (int i = 0; i < n; i++) {
+        double sq = sqrt(s->fem.mass[i / 3]);
+        for (int k = 0; k < r; k++)
+            s->Jt[(size_t)i * r + k] = sq * s->J[(size_t)i * r + k];
+    }
+    cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, r, n, 1.0, s->Jt, r, 0.0, s->H, r);
+}
+
 static int initial_velocity(crom_nlsim *s)
 {
     const crom_scenario *sc = s->sc;
@@ -97,12 +110,7 @@ static int initial_velocity(crom_nlsim *s)
     int rc = crom_map_eval(s->map, s->q, NULL, s->J);
     if (rc)
         return rc;
-    for (int i = 0; i < n; i++) {
-        double sq = sqrt(s->fem.mass[i / 3]);
-        for (int k = 0; k < r; k++)
-            s->Jt[(size_t)i * r + k] = sq * s->J[(size_t)i * r + k];
-    }
-    cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, r, n, 1.0, s->Jt, r, 0.0, s->H, r);
+    mass_gram(s);
     cblas_dgemv(CblasRowMajor, CblasTrans, n, r, 1.0, s->J, r, s->gx, 1, 0.0, s->qd, 1);
     if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, s->H, r, s->qd, 1) != 0)
         return crom_err(CROM_EDATA, "the map's latent directions are degenerate at the initial state");
@@ -143,12 +151,7 @@ static int nearest_rest(crom_nlsim *s)
         int rc = rest_eval(s, s->q, &f, s->g);
         if (rc)
             return rc;
-        for (int i = 0; i < n; i++) {
-            double sq = sqrt(s->fem.mass[i / 3]);
-            for (int k = 0; k < r; k++)
-                s->Jt[(size_t)i * r + k] = sq * s->J[(size_t)i * r + k];
-        }
-        cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, r, n, 1.0, s->Jt, r, 0.0, s->H, r);
+        mass_gram(s);
         for (int k = 0; k < r; k++)
             s->d[k] = -s->g[k];
         if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, s->H, r, s->d, 1) != 0)
