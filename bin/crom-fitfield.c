@@ -20,6 +20,7 @@
 #include "mesh.h"
 #include "model.h"
 #include "modes.h"
+#include "result.h"
 #include "samples.h"
 #include "scenario.h"
 
@@ -143,21 +144,12 @@ typedef struct {
     char df_flag[48];
 } args;
 
-/* The scenario option of a key, or NULL. */
-static const char *scenario_name(int key)
-{
-    for (const crom_opt *o = crom_scenario_opts; o->name; o++)
-        if (o->key == key)
-            return o->name;
-    return NULL;
-}
-
 static int on_opt(void *ctx, int key, const char *v)
 {
     args *a = ctx;
     long n;
     double d;
-    const char *scn = scenario_name(key);
+    const char *scn = crom_scenario_opt_name(key);
     if (scn) {
         if (!strcmp(scn, "youngs") || !strcmp(scn, "poisson") || !strcmp(scn, "density"))
             a->material_given = 1;
@@ -394,30 +386,6 @@ static void on_df_progress(void *ctx, long step, double frac, double obj)
     crom_progress_update(ctx, (long)(frac * 1000), buf);
 }
 
-static int read_mesh(const char *path, crom_mesh *m, char **history)
-{
-    crom_in in;
-    int rc = crom_in_open(&in, path);
-    if (rc)
-        return rc;
-    if ((rc = crom_in_expect(&in, CROM_MESH_SCHEMA, CROM_MESH_VERSION))) {
-        crom_err_ctx("--mesh");
-        crom_in_close(&in);
-        return rc;
-    }
-    hid_t root = H5Gopen2(in.h5, "/", H5P_DEFAULT);
-    rc = crom_mesh_read(root, m);
-    H5Gclose(root);
-    if (rc)
-        crom_err_ctx("%s", in.name);
-    else {
-        *history = in.history;
-        in.history = NULL;
-    }
-    crom_in_close(&in);
-    return rc;
-}
-
 /* The pins recorded in a modes model's scenario text, appended to sc. */
 static int add_model_pins(crom_scenario *sc, const char *text)
 {
@@ -468,8 +436,8 @@ static int run_datafree(crom_cli *cli, args *a)
     crom_df_log log;
     memset(&log, 0, sizeof log);
     memset(&mesh, 0, sizeof mesh);
-    if ((rc = read_mesh(a->mesh, &mesh, &hist)))
-        return rc;
+    if ((rc = crom_mesh_load(a->mesh, 0, &mesh, &hist)))
+        return crom_err_ctx("--mesh");
     if (nm) {
         if ((rc = crom_model_load(a->modes, &modes))) {
             crom_err_ctx("--modes");

@@ -8,6 +8,7 @@
 #include "err.h"
 #include "io.h"
 #include "mesh.h"
+#include "result.h"
 #include "scenario.h"
 #include "sim.h"
 
@@ -77,29 +78,6 @@ static int on_opt(void *ctx, int key, const char *v)
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
 
-static int read_mesh(const char *path, crom_mesh *m, char **history)
-{
-    crom_in in;
-    int rc = crom_in_open(&in, path);
-    if (rc)
-        return rc;
-    if ((rc = crom_in_expect(&in, CROM_MESH_SCHEMA, CROM_MESH_VERSION))) {
-        crom_in_close(&in);
-        return rc;
-    }
-    hid_t root = H5Gopen2(in.h5, "/", H5P_DEFAULT);
-    rc = crom_mesh_read(root, m);
-    H5Gclose(root);
-    if (rc)
-        crom_err_ctx("%s", in.name);
-    else {
-        *history = in.history;
-        in.history = NULL;
-    }
-    crom_in_close(&in);
-    return rc;
-}
-
 static int put_frame(crom_out *o, crom_sim *s, const crom_step_stats *st, double *u)
 {
     double K, E, W;
@@ -117,7 +95,7 @@ static int run(crom_cli *cli, args *a)
 {
     crom_mesh m;
     char *hist = NULL;
-    int rc = read_mesh(a->input, &m, &hist);
+    int rc = crom_mesh_load(a->input, 0, &m, &hist);
     if (rc)
         return rc;
     crom_sim s;

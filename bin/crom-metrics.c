@@ -74,18 +74,10 @@ typedef struct {
     crom_scenario sc;
 } args;
 
-static const char *scenario_name(int key)
-{
-    for (const crom_opt *o = crom_scenario_opts; o->name; o++)
-        if (o->key == key)
-            return o->name;
-    return NULL;
-}
-
 static int on_opt(void *ctx, int key, const char *v)
 {
     args *a = ctx;
-    const char *scn = scenario_name(key);
+    const char *scn = crom_scenario_opt_name(key);
     if (scn) {
         if (!strcmp(scn, "youngs") || !strcmp(scn, "poisson") || !strcmp(scn, "density"))
             a->material_given = 1;
@@ -172,7 +164,7 @@ static int run(crom_cli *cli, args *a)
     int has_g = 0, rc;
     if ((rc = load_model(a->model, &model, &sigma, &box, g, &has_g)))
         goto out;
-    if (a->mesh && (rc = crom_mesh_load(a->mesh, &mesh)))
+    if (a->mesh && (rc = crom_mesh_load(a->mesh, 1, &mesh, NULL)))
         goto out;
     if ((rc = crom_map_init(&map, &model, a->mesh ? &mesh : NULL)))
         goto out;

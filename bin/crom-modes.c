@@ -13,6 +13,7 @@
 #include "mesh.h"
 #include "model.h"
 #include "modes.h"
+#include "result.h"
 #include "scenario.h"
 
 enum { O_COUNT = 300, O_KEEP, O_SHIFT, O_TOL, O_RIGID_TOL };
@@ -128,30 +129,6 @@ static int on_opt(void *ctx, int key, const char *v)
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
 
-static int read_mesh(const char *path, crom_mesh *m, char **history, char *name, size_t nn)
-{
-    crom_in in;
-    int rc = crom_in_open(&in, path);
-    if (rc)
-        return rc;
-    snprintf(name, nn, "%s", in.name);
-    if ((rc = crom_in_expect(&in, CROM_MESH_SCHEMA, CROM_MESH_VERSION))) {
-        crom_in_close(&in);
-        return rc;
-    }
-    hid_t root = H5Gopen2(in.h5, "/", H5P_DEFAULT);
-    rc = crom_mesh_read(root, m);
-    H5Gclose(root);
-    if (rc)
-        crom_err_ctx("%s", in.name);
-    else {
-        *history = in.history;
-        in.history = NULL;
-    }
-    crom_in_close(&in);
-    return rc;
-}
-
 /* The material and the pins as flags (they parse back with the scenario
  * parser). */
 static char *scenario_text(const crom_scenario *s)
@@ -265,8 +242,9 @@ static int run(crom_cli *cli, args *a)
     if ((rc = crom_material_init(&mat, a->sc.youngs, a->sc.poisson, a->sc.density)))
         return rc;
     crom_mesh m;
-    char *hist = NULL, name[512];
-    if ((rc = read_mesh(a->input, &m, &hist, name, sizeof name)))
+    char *hist = NULL;
+    const char *name = !a->input || !strcmp(a->input, "-") ? "stdin" : a->input; /* as crom_in names it */
+    if ((rc = crom_mesh_load(a->input, 0, &m, &hist)))
         return rc;
     unsigned char *fixed = NULL;
     int npinned = 0;

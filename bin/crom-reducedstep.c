@@ -340,7 +340,7 @@ static int run_map(crom_cli *cli, args *a)
         free(hist);
         return rc;
     }
-    if (a->mesh && (rc = crom_mesh_load(a->mesh, &mesh)))
+    if (a->mesh && (rc = crom_mesh_load(a->mesh, 1, &mesh, NULL)))
         goto out;
     if ((rc = crom_map_init(&map, &model, a->mesh ? &mesh : NULL)))
         goto out;

@@ -10,15 +10,15 @@
 #include "model.h"
 #include "result.h"
 
-int crom_mesh_load(const char *path, crom_mesh *m)
+int crom_mesh_load(const char *path, int carriers, crom_mesh *m, char **history)
 {
     crom_in in;
     int rc = crom_in_open(&in, path);
     if (rc)
         return rc;
-    const char *group = NULL;
-    if (!strcmp(in.schema, "crom/mesh"))
-        rc = crom_in_expect(&in, "crom/mesh", 1), group = "/";
+    const char *group = "/";
+    if (!carriers || !strcmp(in.schema, "crom/mesh"))
+        rc = crom_in_expect(&in, CROM_MESH_SCHEMA, CROM_MESH_VERSION);
     else if (!strcmp(in.schema, "crom/trajectory") || !strcmp(in.schema, "crom/cubature"))
         rc = crom_in_expect(&in, in.schema, 1), group = "mesh";
     else
@@ -31,6 +31,10 @@ int crom_mesh_load(const char *path, crom_mesh *m)
             H5Gclose(g);
         if (rc && g >= 0)
             crom_err_ctx("%s", in.name);
+    }
+    if (!rc && history) {
+        *history = in.history;
+        in.history = NULL;
     }
     crom_in_close(&in);
     return rc;
@@ -102,7 +106,7 @@ int crom_result_adopt(crom_result *res, crom_in *opened, const char *mesh_path, 
             if (!res->map)
                 rc = CROM_EINTERNAL;
             if (!rc && mesh_path)
-                rc = crom_mesh_load(mesh_path, &given);
+                rc = crom_mesh_load(mesh_path, 1, &given, NULL);
             if (!rc) {
                 rc = crom_map_init(res->map, &model, mesh_path ? &given : NULL);
                 if (rc && mesh_path)
@@ -124,7 +128,7 @@ int crom_result_adopt(crom_result *res, crom_in *opened, const char *mesh_path, 
             crom_model_free(&model);
             goto fail;
         }
-        if ((rc = crom_mesh_load(mesh_path, &res->mesh))) {
+        if ((rc = crom_mesh_load(mesh_path, 1, &res->mesh, NULL))) {
             crom_model_free(&model);
             goto fail;
         }
@@ -158,7 +162,7 @@ int crom_result_adopt(crom_result *res, crom_in *opened, const char *mesh_path, 
         goto fail;
     }
     if (mesh_path) {
-        if ((rc = crom_mesh_load(mesh_path, &res->mesh))) {
+        if ((rc = crom_mesh_load(mesh_path, 1, &res->mesh, NULL))) {
             crom_mesh_free(&own);
             goto fail;
         }

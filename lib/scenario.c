@@ -85,6 +85,14 @@ static int parse_bc(const char *flag, const char *v, crom_bc *b)
     return crom_parse_doubles(vec, flag, 3, b->v);
 }
 
+const char *crom_scenario_opt_name(int key)
+{
+    for (const crom_opt *o = crom_scenario_opts; o->name; o++)
+        if (o->key == key)
+            return o->name;
+    return NULL;
+}
+
 int crom_scenario_option(crom_scenario *s, int key, const char *v)
 {
     long n;

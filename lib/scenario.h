@@ -58,6 +58,10 @@ void crom_scenario_defaults(crom_scenario *s);
 /* The scenario options, for a program's crom_doc. */
 extern const crom_opt crom_scenario_opts[];
 
+/* The name of scenario option key ("youngs", "pin", ...), or NULL when key
+ * is not a scenario option. */
+const char *crom_scenario_opt_name(int key);
+
 /* Handle a scenario option: returns 0, CROM_EUSAGE with a message, or -1 if
  * key is not a scenario option (so a program handler can chain). */
 int crom_scenario_option(crom_scenario *s, int key, const char *value);
