@@ -172,20 +172,9 @@ static int run(crom_cli *cli, args *a)
     }
     crom_progress_end(&prog);
     free(u);
-    if (csv.f) {
-        if (rc)
-            crom_fileout_abort(&csv);
-        else if ((rc = crom_fileout_commit(&csv)))
-            crom_out_fail(&o);
-    }
-    if (rc) {
-        int kept = crom_out_fail(&o) == 0;
-        if (kept)
-            crom_err_ctx("%s keeps the %ld frames done, marked incomplete", o.name, o.nframes);
+    if ((rc = crom_out_finish_run(&o, &csv, rc)))
         goto out_sim;
-    }
-    rc = crom_out_commit(&o);
-    if (!rc && cli->verbose && a->sc.steps > 0) {
+    if (cli->verbose && a->sc.steps > 0) {
         int ns = a->sc.steps;
         crom_cli_info(cli, "%d vertices, %d tets: %d steps, %.3f s/step (assembly %.3f, factorization %.3f, "
                            "solves %.3f, line search %.3f), %.2f Newton and %.1f CG iterations and %.2f "

@@ -383,20 +383,10 @@ static int run_map(crom_cli *cli, args *a)
         crom_progress_update(&prog, k, NULL);
     }
     crom_progress_end(&prog);
-    if (csv.f) {
-        if (rc)
-            crom_fileout_abort(&csv);
-        else
-            rc = crom_fileout_commit(&csv);
-    }
-    if (rc) {
-        if (crom_out_fail(&o) == 0)
-            crom_err_ctx("%s keeps the %ld frames done, marked incomplete", o.name, o.nframes);
-        have_out = 0;
-        goto out;
-    }
-    rc = crom_out_commit(&o);
+    rc = crom_out_finish_run(&o, &csv, rc);
     have_out = 0;
+    if (rc)
+        goto out;
     if (!rc && cli->verbose && a->sc.steps > 0)
         crom_cli_info(cli, "%d steps, %s map of rank %d on %d vertices, %d tets: %.3f ms/step, %.2f Gauss-Newton "
                       "iterations/step", a->sc.steps, model.basis, r, map.nv, map.mesh.nt, 1e3 * tsum / a->sc.steps,
@@ -490,20 +480,10 @@ static int run(crom_cli *cli, args *a)
         crom_progress_update(&prog, k, NULL);
     }
     crom_progress_end(&prog);
-    if (csv.f) {
-        if (rc)
-            crom_fileout_abort(&csv);
-        else
-            rc = crom_fileout_commit(&csv);
-    }
-    if (rc) {
-        if (crom_out_fail(&o) == 0)
-            crom_err_ctx("%s keeps the %ld frames done, marked incomplete", o.name, o.nframes);
-        have_out = 0;
-        goto out;
-    }
-    rc = crom_out_commit(&o);
+    rc = crom_out_finish_run(&o, &csv, rc);
     have_out = 0;
+    if (rc)
+        goto out;
     if (!rc && cli->verbose && a->sc.steps > 0)
         crom_cli_info(cli, "%d steps, rank %d, %d cubature tets: %.3f ms/step", a->sc.steps, r, sch[cur].cub.k,
                       1e3 * tsum / a->sc.steps);

@@ -1398,3 +1398,18 @@ int crom_out_fail(crom_out *o)
     release(o);
     return kept ? 0 : 1;
 }
+
+int crom_out_finish_run(crom_out *o, crom_fileout *stats, int rc)
+{
+    if (stats && stats->f) {
+        if (rc)
+            crom_fileout_abort(stats);
+        else
+            rc = crom_fileout_commit(stats);
+    }
+    if (!rc)
+        return crom_out_commit(o);
+    if (crom_out_fail(o) == 0)
+        crom_err_ctx("%s keeps the %ld frames done, marked incomplete", o->name, o->nframes);
+    return rc;
+}

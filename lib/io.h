@@ -167,6 +167,14 @@ int crom_fileout_commit(crom_fileout *o);
 /* Close and remove the temporary file. */
 void crom_fileout_abort(crom_fileout *o);
 
+/* End a run that streamed frames to o, with an optional per-step table in
+ * stats (NULL or not open: none), given the run's code rc. rc == 0: commit
+ * the table, then o (a table that cannot be written fails the run).
+ * Otherwise, or if that fails: remove the table and finish o with
+ * crom_out_fail, adding "... keeps the N frames done, marked incomplete" to
+ * the message when frames were kept. Returns the run's final code. */
+int crom_out_finish_run(crom_out *o, crom_fileout *stats, int rc);
+
 /* ---------------------------------------------------------- HDF5 helpers
  * Each returns 0 or an error code with a message naming the object. Datasets
  * get `units` and `description` attributes when those are non-NULL. */
