@@ -8,16 +8,18 @@
 #include "cubature.h"
 #include "err.h"
 #include "io.h"
+#include "map.h"
+#include "metrics.h"
 #include "model.h"
 
 enum { O_MODEL = 300, O_SCHEME, O_COUNT, O_POSES, O_TOL, O_CAND, O_YOUNGS, O_POISSON, O_MAXPOSE, O_SHRINK };
 
 static const crom_opt cub_opts[] = {
-    {"model", O_MODEL, "MODEL", "The crom/model whose basis W is cached (required)."},
+    {"model", O_MODEL, "MODEL", "The crom/model whose basis W is cached (required). A nonlinear map (energy, neuralmodes) is cached through its features x = X + B a(q); the result serves crom-reducedstep --model MODEL --cubature, and the mesh operand may be left out (the map's own mesh)."},
     {"scheme", O_SCHEME, "NAME", "random (LiCROM §5: COUNT random vertices and their tets, equal weights), metis (COUNT parts, one tet each), optimized (NNLS fit of at most COUNT tets to the forces of --poses), all (every tet, weight 1). Default random."},
     {"count", O_COUNT, "K", "Vertices (random), parts (metis) or the tet budget (optimized). Default 400 (random), 300 (metis), 200 (optimized)."},
     {"poses", O_POSES, "LATENT", "crom/latent training poses for --scheme optimized (e.g. crom-encode of the training trajectories), and for the error report of any scheme. Repeatable: latent coordinates do not depend on the mesh, so the poses of every training run can serve any mesh."},
-    {"max-poses", O_MAXPOSE, "N", "Use at most N poses, evenly spaced (default 40)."},
+    {"max-poses", O_MAXPOSE, "N", "Use at most N poses, evenly spaced (default 40); for a map without --poses, draw N latent samples of its training distribution (default 100)."},
     {"tol", O_TOL, "T", "optimized: stop adding tets once the relative force error on the poses is below T (default 0.01)."},
     {"candidates", O_CAND, "N", "optimized: tets scored per greedy pick (default 256)."},
     {"youngs", O_YOUNGS, "E", "optimized: Young's modulus of the forces fitted (default 2.5e6)."},
@@ -42,18 +44,26 @@ static const crom_doc doc = {
     "The input may be a crom/mesh or a crom/trajectory (its mesh is used). With --poses the "
     "relative elastic-energy and reduced-force errors of the cubature against the exact integral "
     "over all tets are printed; --scheme optimized needs poses and fits non-negative weights to "
-    "them (An, Kim, James 2008).",
+    "them (An, Kim, James 2008).\n\n"
+    "For a nonlinear map model (crom-fitfield --objective energy or neuralmodes) the positions are "
+    "linear in the map's features, x(q) = X + B a(q) (the last hidden layer of its network, its "
+    "linear modes and a constant): the cubature caches B instead of W, and the optimized scheme fits "
+    "the latent forces T(q)^T B_e^T f_e(x(q)), T = da/dq, at latent samples of the model's training "
+    "distribution (N(0, I) for an energy map, its box for neural modes; or --poses), with the "
+    "material the model records. crom-reducedstep --model MODEL --cubature CUB then integrates the "
+    "elastic energy over these tets only.",
     groups,
     "crom-cubature --model model.h5 --scheme metis --count 200 -o cub.h5 box.h5\n"
     "crom-encode --model model.h5 < train.h5 > poses.h5\n"
-    "crom-cubature --model model.h5 --scheme optimized --poses poses.h5 -o cub.h5 box.h5",
+    "crom-cubature --model model.h5 --scheme optimized --poses poses.h5 -o cub.h5 box.h5\n"
+    "crom-cubature --model df.h5 --scheme optimized --count 200 -o df_cub.h5",
     "crom-reducedstep(1), crom-fitfield(1), crom-encode(1), crom-remesh(1)"};
 
 typedef struct {
     const char *model, *poses[64], *input, *out;
     int nposes;
     crom_cub_opts o;
-    int count_given, maxpose;
+    int count_given, maxpose, maxpose_given, material_given;
     double crack_offset;
 } args;
 
@@ -88,6 +98,7 @@ static int on_opt(void *ctx, int key, const char *v)
         if (crom_parse_int(v, "--max-poses", 1, 100000L, &n))
             return CROM_EUSAGE;
         a->maxpose = (int)n;
+        a->maxpose_given = 1;
         return 0;
     case O_TOL: return crom_parse_positive(v, "--tol", &a->o.tol);
     case O_CAND:
@@ -95,12 +106,12 @@ static int on_opt(void *ctx, int key, const char *v)
             return CROM_EUSAGE;
         a->o.candidates = (int)n;
         return 0;
-    case O_YOUNGS: return crom_parse_positive(v, "--youngs", &a->o.youngs);
+    case O_YOUNGS: a->material_given = 1; return crom_parse_positive(v, "--youngs", &a->o.youngs);
     case O_SHRINK:
         if (crom_parse_double(v, "--crack-offset", &a->crack_offset) || !(a->crack_offset >= 0 && a->crack_offset < 1))
             return crom_err(CROM_EUSAGE, "--crack-offset must be in [0, 1), got %s", v);
         return 0;
-    case O_POISSON: return crom_parse_double(v, "--poisson", &a->o.poisson);
+    case O_POISSON: a->material_given = 1; return crom_parse_double(v, "--poisson", &a->o.poisson);
     }
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
@@ -191,19 +202,75 @@ out:
     return rc;
 }
 
+/* A nonlinear map model (energy, neuralmodes) is integrated through its
+ * features: x = X + B a(q) (lib/map.h), so the cubature caches B as its
+ * basis and fits, at latent samples q_j of the model's training
+ * distribution (or --poses), the latent forces T(q_j)ᵀ B_eᵀ f_e of each tet.
+ * Sets *W (borrowed from map), poses/np to the feature poses and *proj to
+ * the T_j. */
+static int map_poses(crom_cli *cli, args *a, const crom_model *model, const crom_df_attrs *at, crom_map *map,
+                     double **poses, int *np, double **proj)
+{
+    int r = model->rank, p = map->p, rc = 0;
+    if (!*poses) { /* samples of the training distribution */
+        double lo[3], hi[3];
+        crom_mesh_bbox(&map->mesh, lo, hi);
+        double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                           (hi[2] - lo[2]) * (hi[2] - lo[2]));
+        crom_metrics_opts mo;
+        crom_metrics_defaults(&mo);
+        crom_metrics_training_dist(model, at, diag, &mo);
+        crom_rng rng;
+        crom_rng_seed(&rng, cli->seed ^ 0x5eed);
+        *np = a->maxpose_given ? a->maxpose : 100;
+        if (!(*poses = crom_malloc(sizeof(double) * (size_t)*np * r)))
+            return CROM_EINTERNAL;
+        for (int j = 0; j < *np; j++)
+            crom_metrics_sample(&rng, &mo, r, *poses + (size_t)j * r);
+        crom_cli_info(cli, "poses: %d latent samples of the model's training distribution", *np);
+    }
+    double *fp = crom_malloc(sizeof(double) * (size_t)*np * p), *T = crom_malloc(sizeof(double) * (size_t)*np * p * r);
+    if (!fp || !T) {
+        free(fp);
+        free(T);
+        return CROM_EINTERNAL;
+    }
+    for (int j = 0; j < *np && !rc; j++)
+        rc = crom_map_features(map, *poses + (size_t)j * r, fp + (size_t)j * p, T + (size_t)j * p * r);
+    free(*poses);
+    *poses = fp;
+    *proj = T;
+    if (rc)
+        crom_err_ctx("a latent pose");
+    return rc;
+}
+
 static int run(crom_cli *cli, args *a)
 {
     crom_mesh m;
     crom_model model;
+    crom_map map;
+    crom_df_attrs at;
     char *hist = NULL;
-    double *W = NULL, *poses = NULL;
+    double *W = NULL, *poses = NULL, *proj = NULL;
     int np = 0;
+    memset(&m, 0, sizeof m);
+    memset(&map, 0, sizeof map);
     crom_model_clear(&model);
-    int rc = read_mesh(a->input, &m, &hist);
+    int rc = crom_metrics_load_model(a->model, &model, &at);
     if (rc)
         return rc;
-    if ((rc = crom_model_load(a->model, &model)))
+    int is_map = model.field == CROM_FIELD_MAP;
+    if (a->input || !is_map)
+        rc = read_mesh(a->input, &m, &hist);
+    else
+        rc = crom_mesh_copy(&model.mesh, &m); /* a map's own mesh */
+    if (rc)
         goto out;
+    if (is_map && !a->material_given && isfinite(model.youngs) && isfinite(model.poisson)) {
+        a->o.youngs = model.youngs;
+        a->o.poisson = model.poisson;
+    }
     int r = model.rank;
     /* poses of every file, then at most --max-poses of them evenly spaced */
     for (int f = 0; f < a->nposes && !rc; f++) {
@@ -231,37 +298,49 @@ static int run(crom_cli *cli, args *a)
         }
         np = a->maxpose;
     }
-    if (a->o.scheme == CROM_CUB_OPTIMIZED && !poses) {
-        rc = crom_err(CROM_EUSAGE, "--scheme optimized needs --poses LATENT (training poses of the model)");
-        goto out;
+    double t0 = crom_now(), tW;
+    if (is_map) {
+        if ((rc = crom_map_init(&map, &model, &m)) ||
+            (rc = map_poses(cli, a, &model, &at, &map, &poses, &np, &proj)))
+            goto out;
+        tW = crom_now() - t0;
+    } else {
+        if (a->o.scheme == CROM_CUB_OPTIMIZED && !poses) {
+            rc = crom_err(CROM_EUSAGE, "--scheme optimized needs --poses LATENT (training poses of the model)");
+            goto out;
+        }
+        W = crom_malloc(sizeof(double) * 3 * (size_t)r * (size_t)m.nv);
+        size_t outside = 0;
+        int nshift = 0;
+        double *P = crom_mesh_field_points(&m, a->crack_offset, &nshift); /* see --crack-offset */
+        if (!W || !P) {
+            free(P);
+            rc = CROM_EINTERNAL;
+            goto out;
+        }
+        rc = crom_model_eval(&model, (size_t)m.nv, P, W, &outside);
+        free(P);
+        if (rc)
+            goto out;
+        if (nshift)
+            crom_cli_info(cli, "%d vertices along cracks sample W on their own side (--crack-offset %g)", nshift,
+                          a->crack_offset);
+        tW = crom_now() - t0;
+        if (outside)
+            crom_cli_warn(cli, "%zu of %d vertices lie outside the model's mesh: W is extended there", outside, m.nv);
     }
     a->o.poses = poses;
     a->o.npose = np;
-    double t0 = crom_now();
-    W = crom_malloc(sizeof(double) * 3 * (size_t)r * (size_t)m.nv);
-    size_t outside = 0;
-    int nshift = 0;
-    double *P = crom_mesh_field_points(&m, a->crack_offset, &nshift); /* see --crack-offset */
-    if (!W || !P) {
-        free(P);
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
-    rc = crom_model_eval(&model, (size_t)m.nv, P, W, &outside);
-    free(P);
-    if (rc)
-        goto out;
-    if (nshift)
-        crom_cli_info(cli, "%d vertices along cracks sample W on their own side (--crack-offset %g)", nshift, a->crack_offset);
-    double tW = crom_now() - t0;
-    if (outside)
-        crom_cli_warn(cli, "%zu of %d vertices lie outside the model's mesh: W is extended there", outside, m.nv);
+    a->o.proj = proj;
+    a->o.rout = r;
+    int rb = is_map ? map.p : r; /* the basis cached: W, or the map's feature basis */
     crom_rng rng;
     crom_rng_seed(&rng, cli->seed);
     crom_cub c;
     t0 = crom_now();
-    if ((rc = crom_cub_build(&c, &m, W, r, model.model_id, &a->o, &rng)))
+    if ((rc = crom_cub_build(&c, &m, is_map ? map.B : W, rb, model.model_id, &a->o, &rng)))
         goto out;
+    c.map_rank = is_map ? r : 0;
     double tsel = crom_now() - t0;
     crom_cli_info(cli, "%s: %d of %d tets (%.1f%%), W on %d vertices in %.1f ms, selection in %.1f ms",
                   c.scheme, c.k, m.nt, 100.0 * c.k / m.nt, m.nv, 1e3 * tW, 1e3 * tsel);
@@ -269,7 +348,7 @@ static int run(crom_cli *cli, args *a)
         crom_material mat;
         double eE, eF;
         if (!(rc = crom_material_init(&mat, a->o.youngs, a->o.poisson, 1000)) &&
-            !(rc = crom_cub_error(&c, &mat, poses, np, &eE, &eF)))
+            !(rc = crom_cub_error(&c, &mat, poses, np, proj, r, &eE, &eF)))
             crom_cli_info(cli, "relative error on %d poses: elastic energy %.4f, reduced force %.4f", np, eE, eF);
     }
     crom_out o;
@@ -289,6 +368,8 @@ static int run(crom_cli *cli, args *a)
 out:
     free(W);
     free(poses);
+    free(proj);
+    crom_map_free(&map);
     free(hist);
     crom_model_free(&model);
     crom_mesh_free(&m);

@@ -117,27 +117,6 @@ static int on_opt(void *ctx, int key, const char *v)
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
 
-/* Read a model and the data-free attributes beyond it. */
-static int load_model(const char *path, crom_model *m, double *sigma, double *box, double g[3], int *has_g)
-{
-    crom_in in;
-    int rc = crom_in_open(&in, path);
-    if (rc)
-        return rc;
-    rc = crom_model_read(&in, m);
-    if (!rc) {
-        if (crom_h5_has_attr(in.h5, ".", "sigma"))
-            crom_h5_get_f64(in.h5, ".", "sigma", sigma, 1);
-        if (crom_h5_has_attr(in.h5, ".", "latent_box"))
-            crom_h5_get_f64(in.h5, ".", "latent_box", box, 1);
-        if (g && crom_h5_has_attr(in.h5, ".", "gravity") && !crom_h5_get_f64(in.h5, ".", "gravity", g, 3))
-            *has_g = 1;
-        crom_err_clear();
-    }
-    crom_in_close(&in);
-    return rc;
-}
-
 static void print_eigs(const char *name, const double *e, int r)
 {
     printf("%s:", name);
@@ -160,17 +139,17 @@ static int run(crom_cli *cli, args *a)
     memset(&fem, 0, sizeof fem);
     crom_metrics res;
     memset(&res, 0, sizeof res);
-    double sigma = NAN, box = NAN, g[3] = {0, 0, 0};
-    int has_g = 0, rc;
-    if ((rc = load_model(a->model, &model, &sigma, &box, g, &has_g)))
+    crom_df_attrs at;
+    int rc;
+    if ((rc = crom_metrics_load_model(a->model, &model, &at)))
         goto out;
     if (a->mesh && (rc = crom_mesh_load(a->mesh, 1, &mesh, NULL)))
         goto out;
     if ((rc = crom_map_init(&map, &model, a->mesh ? &mesh : NULL)))
         goto out;
     if (a->compare) {
-        double s2, b2;
-        if ((rc = load_model(a->compare, &cmpm, &s2, &b2, NULL, NULL))) {
+        crom_df_attrs at2;
+        if ((rc = crom_metrics_load_model(a->compare, &cmpm, &at2))) {
             crom_err_ctx("--compare");
             goto out;
         }
@@ -200,7 +179,7 @@ static int run(crom_cli *cli, args *a)
         }
     }
     if (!a->gravity_given)
-        memcpy(a->sc.gravity, has_g ? g : rec.gravity, sizeof g);
+        memcpy(a->sc.gravity, at.has_gravity ? at.gravity : rec.gravity, sizeof at.gravity);
     crom_material mat;
     if ((rc = crom_scenario_check(&a->sc)) || (rc = crom_material_init(&mat, a->sc.youngs, a->sc.poisson, a->sc.density)))
         goto out;
@@ -211,21 +190,10 @@ static int run(crom_cli *cli, args *a)
     crom_mesh_bbox(&map.mesh, lo, hi);
     double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
                        (hi[2] - lo[2]) * (hi[2] - lo[2]));
-    int energy = !strcmp(model.basis, "energy"), nm = !strcmp(model.basis, "neuralmodes");
-    if (!a->dist_given) {
-        if (energy) {
-            a->mo.dist = CROM_METRICS_NORMAL;
-            a->mo.radius = 1;
-        } else if (nm && box > 0) {
-            a->mo.dist = CROM_METRICS_BOX;
-            a->mo.radius = box;
-        } else {
-            a->mo.dist = CROM_METRICS_SPHERE;
-            a->mo.radius = 0.05 * diag;
-        }
-    }
+    if (!a->dist_given)
+        crom_metrics_training_dist(&model, &at, diag, &a->mo);
     if (!a->sigma_given)
-        a->mo.sigma = energy && sigma > 0 ? sigma : 1;
+        a->mo.sigma = !strcmp(model.basis, "energy") && at.sigma > 0 ? at.sigma : 1;
     a->mo.seed = cli->seed;
     if ((rc = crom_metrics_compute(&map, &fem, a->sc.gravity, &a->mo, a->compare ? &cmap : NULL, &res)))
         goto out;

@@ -22,8 +22,8 @@ enum { O_CUB = 300, O_INIT, O_SCHED, O_SOLVER, O_KAPPA, O_STATS, O_STREAM, O_HDF
        O_MODEL, O_MESH };
 
 static const crom_opt red_opts[] = {
-    {"cubature", O_CUB, "CUB", "The crom/cubature to integrate over (this or --model is required): its mesh, regions and cached W."},
-    {"model", O_MODEL, "MODEL", "Simulate in the subspace of a model of ONE mesh instead of a cubature: a data-free map (energy, neuralmodes: the mesh is in the model) or a linear basis laid on its mesh (pod, modes; an mlp field needs --mesh). Implicit Euler over the latent with Gauss-Newton on the full-space incremental potential, the elastic energy summed over every tet of the mesh (no cubature: these are small meshes). q in the output is the map's latent z."},
+    {"cubature", O_CUB, "CUB", "The crom/cubature to integrate over (this or --model is required): its mesh, regions and cached W. With --model: a cubature crom-cubature made for that map, whose tets replace every tet in the elastic energy."},
+    {"model", O_MODEL, "MODEL", "Simulate in the subspace of a model of ONE mesh instead of a cubature: a data-free map (energy, neuralmodes: the mesh is in the model) or a linear basis laid on its mesh (pod, modes; an mlp field needs --mesh). Implicit Euler over the latent with Gauss-Newton on the full-space incremental potential, the elastic energy summed over every tet of the mesh, or over the tets of --cubature. q in the output is the map's latent z."},
     {"mesh", O_MESH, "MESH", "With --model: the mesh whose regions resolve --pin, --velocity and --force (it must have the model's vertices; default: the model's own mesh and regions), or the mesh to lay an mlp field on."},
     {"init", O_INIT, "LATENT", "Start from a frame of a crom/latent (crom-encode of a full state, or an earlier run): its q and qdot (default: rest)."},
     {"init-frame", O_INITFRAME, "K", "Which frame of --init (default -1, the last)."},
@@ -63,18 +63,22 @@ static const crom_doc doc = {
     "--model MODEL simulates in a subspace of one mesh given as a map x(z): the data-free maps of "
     "crom-fitfield --objective energy|neuralmodes (nonlinear), or a linear basis on its mesh. Each "
     "step minimizes the full-space incremental potential over z (Sharp et al. eq. 6): inertia "
-    "1/(2h^2)|x(z) - x_n - h v_n|_M^2 with the full-space velocity, the elastic energy of every tet, "
+    "1/(2h^2)|x(z) - x_n - h v_n|_M^2 with the full-space velocity, the elastic energy of every tet "
+    "(or of the tets of --cubature, made by crom-cubature --model for this map), "
     "gravity and forces, pinned and prescribed regions as a stiff mass-weighted penalty, and the "
     "collision planes at the boundary vertices. Gauss-Newton with the map's exact Jacobian J (the "
     "network is evaluated in double precision) and line search; converged when the correction's "
-    "RMS displacement is below --tol of the size. For a linear basis this is the same step as "
+    "RMS displacement is below --tol of the size. Positions are linear in the map's features "
+    "(x = X + B a(z)), so the quadratic terms cost p x p per iteration, independent of the mesh. "
+    "For a linear basis this is the same step as "
     "--cubature with --scheme all. The output's q is the latent z and kinetic_energy is that of the "
     "full-space velocity; crom-export and crom-diff decode it with --model (on the model's own mesh).",
     groups,
     "crom-reducedstep --cubature cub.h5 --velocity 'top=0,-2,0@0:0.1' --pin bottom --gravity 0,0,0 \\\n"
     "    --dt 0.01 --steps 40 -o latent.h5\n"
     "crom-reducedstep --cubature cut0.h5 --schedule cuts.txt @plate.flags -o tear.h5\n"
-    "crom-reducedstep --model df.h5 --pin clamp --youngs 1e6 --dt 0.01 --steps 100 -o df_run.h5",
+    "crom-reducedstep --model df.h5 --pin clamp --youngs 1e6 --dt 0.01 --steps 100 -o df_run.h5\n"
+    "crom-reducedstep --model df.h5 --cubature df_cub.h5 --pin clamp --youngs 1e6 --steps 100 -o df_run.h5",
     "crom-cubature(1), crom-encode(1), crom-fullsim(1), crom-fitfield(1), crom-diff(1), crom-export(1)"};
 
 typedef struct {
@@ -150,6 +154,9 @@ static int load_schedule(const args *a, sched_entry **out, int *n)
     if (!e)
         return CROM_EINTERNAL;
     int ne = 1, rc = load_cub(a->cub, &e[0].cub, &e[0].history);
+    if (!rc && e[0].cub.map_rank)
+        rc = crom_err(CROM_EDATA, "%s is a cubature of a nonlinear map (model %s): run it with --model MODEL "
+                      "--cubature %s", a->cub, e[0].cub.model_id, a->cub);
     e[0].path = crom_strdup(a->cub);
     if (!rc && a->sched) {
         FILE *f = fopen(a->sched, "r");
@@ -314,7 +321,8 @@ static int start_output(crom_out *o, const args *a, const char *model_id, int r,
 }
 
 /* A run in the subspace of a one-mesh model (--model): Gauss–Newton over
- * its latent on every tet of its mesh. */
+ * its latent on every tet of its mesh, or on the tets of --cubature (a
+ * cubature crom-cubature made for this model). */
 static int run_map(crom_cli *cli, args *a)
 {
     crom_in in;
@@ -355,10 +363,26 @@ static int run_map(crom_cli *cli, args *a)
         goto out;
     if ((rc = crom_nlsim_init(&s, &map, &a->sc, a->kappa, a->init ? q0 : NULL, a->init ? qd0 : NULL, a->threads)))
         goto out;
+    if (a->cub) {
+        crom_cub cub;
+        if ((rc = load_cub(a->cub, &cub, NULL)))
+            goto out;
+        if (strcmp(cub.model_id, model.model_id) || cub.map_rank != r || cub.r != map.p ||
+            crom_map_same_mesh(&cub.mesh, &map.mesh))
+            rc = crom_err(CROM_EDATA, "--cubature %s is not a cubature of this map (model %s, rank %d, %d vertices): "
+                          "make one with crom-cubature --model %s", a->cub, cub.model_id, cub.map_rank, cub.mesh.nv,
+                          a->model);
+        else
+            rc = crom_nlsim_use_cubature(&s, cub.k, cub.elem, cub.weight);
+        crom_cub_free(&cub);
+        if (rc)
+            goto out;
+    }
     if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli, hist, a->kind)))
         goto out;
     have_out = 1;
-    if ((rc = start_output(&o, a, model.model_id, r, "gauss-newton", "elastic energy of every tet of the model's mesh")))
+    if ((rc = start_output(&o, a, model.model_id, r, "gauss-newton",
+                          a->cub ? "elastic energy by cubature" : "elastic energy of every tet of the model's mesh")))
         goto out;
     crom_rstep_stats st = {0, 0, crom_nlsim_constraint_residual(&s), 0, 1};
     double K, E, W;
@@ -377,7 +401,7 @@ static int run_map(crom_cli *cli, args *a)
         iters += st.iterations;
         if (csv.f)
             fprintf(csv.f, "%d,%d,%.3e,%.3e,%.6e,%d\n", k, st.iterations, st.residual, st.constraint_residual,
-                    st.seconds, map.mesh.nt);
+                    st.seconds, s.ne);
         if (k % a->sc.every == 0 && !(rc = crom_nlsim_energies(&s, &K, &E, &W)))
             rc = put_values(&o, s.t, s.step, s.q, s.qd, K, E, W, &st, 0);
         crom_progress_update(&prog, k, NULL);
@@ -388,9 +412,9 @@ static int run_map(crom_cli *cli, args *a)
     if (rc)
         goto out;
     if (!rc && cli->verbose && a->sc.steps > 0)
-        crom_cli_info(cli, "%d steps, %s map of rank %d on %d vertices, %d tets: %.3f ms/step, %.2f Gauss-Newton "
-                      "iterations/step", a->sc.steps, model.basis, r, map.nv, map.mesh.nt, 1e3 * tsum / a->sc.steps,
-                      (double)iters / a->sc.steps);
+        crom_cli_info(cli, "%d steps, %s map of rank %d on %d vertices, %d of %d tets: %.3f ms/step, %.2f "
+                      "Gauss-Newton iterations/step", a->sc.steps, model.basis, r, map.nv, s.ne, map.mesh.nt,
+                      1e3 * tsum / a->sc.steps, (double)iters / a->sc.steps);
 out:
     if (have_out)
         crom_out_fail(&o);
@@ -509,7 +533,7 @@ int main(int argc, char **argv)
     crom_cli_parse(&cli, &doc, argc, argv, on_opt, &a);
     a.threads = cli.threads > 0 ? cli.threads : 1; /* resolved by crom_cli_parse */
     if (a.model) {
-        const char *bad = a.cub ? "--cubature" : a.sched ? "--schedule" : a.bcthr_given ? "--bc-threshold" : NULL;
+        const char *bad = a.sched ? "--schedule" : a.bcthr_given ? "--bc-threshold" : NULL;
         if (bad)
             return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--model runs on the model's mesh: %s does not apply", bad));
         if (a.solver == CROM_SOLVER_GD)

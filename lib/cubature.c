@@ -289,31 +289,35 @@ static int nnls_normal(int s, const double *G, const double *h, double *w, doubl
 }
 
 /* One column of the fitting matrix for tet t: per pose its reduced force
- * (r rows) and its energy (1 row), each scaled by the pose's row scale. */
-static int tet_column(const crom_cub *c, const crom_material *mat, int t, const double *poses,
-                      int npose, const double *fscale, const double *escale, double *col, double *work)
+ * (ro rows: r, or rout projected by the pose's T) and its energy (1 row),
+ * each scaled by the pose's row scale. */
+static int tet_column(const crom_cub *c, const crom_cub_opts *o, const crom_material *mat, int t,
+                      const double *fscale, const double *escale, double *col, double *work)
 {
-    int r = c->r;
-    double Xe[12], *W4 = work, *kw = work + 12 * (size_t)r, Dm[9], V;
+    int r = c->r, ro = o->proj ? o->rout : r;
+    double Xe[12], *W4 = work, *gf = work + 12 * (size_t)r, *kw = gf + r, Dm[9], V;
     gather(c, t, Xe, W4);
     if (crom_fem_tet_rest(Xe, Dm, &V))
         return CROM_EDATA;
-    for (int j = 0; j < npose; j++) {
-        double *g = col + (size_t)j * (r + 1);
-        memset(g, 0, sizeof(double) * (size_t)r);
-        double E = crom_cub_tet(mat, Xe, W4, r, Dm, V, 1.0, poses + (size_t)j * r, 0, g, NULL, kw);
+    for (int j = 0; j < o->npose; j++) {
+        double *g = col + (size_t)j * (ro + 1);
+        memset(gf, 0, sizeof(double) * (size_t)r);
+        double E = crom_cub_tet(mat, Xe, W4, r, Dm, V, 1.0, o->poses + (size_t)j * r, 0, gf, NULL, kw);
         if (!isfinite(E))
             return CROM_EDATA;
-        for (int i = 0; i < r; i++)
-            g[i] *= fscale[j];
-        g[r] = E * escale[j];
+        if (o->proj)
+            cblas_dgemv(CblasRowMajor, CblasTrans, r, ro, fscale[j], o->proj + (size_t)j * r * ro, ro, gf, 1, 0.0, g, 1);
+        else
+            for (int i = 0; i < r; i++)
+                g[i] = gf[i] * fscale[j];
+        g[ro] = E * escale[j];
     }
     return 0;
 }
 
 static int scheme_optimized(crom_cub *c, const crom_cub_opts *o, crom_rng *rng)
 {
-    int r = c->r, nt = c->mesh.nt, P = o->npose, m = P * (r + 1), K = o->count;
+    int r = c->r, nt = c->mesh.nt, P = o->npose, ro = o->proj ? o->rout : r, m = P * (ro + 1), K = o->count;
     crom_material mat;
     int rc = crom_material_init(&mat, o->youngs, o->poisson, 1000);
     if (rc)
@@ -324,7 +328,7 @@ static int scheme_optimized(crom_cub *c, const crom_cub_opts *o, crom_rng *rng)
         K = nt;
     double *b = crom_calloc((size_t)m, sizeof(double)), *col = crom_malloc(sizeof(double) * (size_t)m);
     double *fscale = crom_malloc(sizeof(double) * (size_t)P), *escale = crom_malloc(sizeof(double) * (size_t)P);
-    double *work = crom_malloc(sizeof(double) * (size_t)(12 * r + 168 + 12 * r));
+    double *work = crom_malloc(sizeof(double) * (size_t)(12 * r + r + 168 + 12 * r));
     double *A = crom_malloc(sizeof(double) * (size_t)m * (size_t)K); /* selected columns */
     double *G = crom_calloc((size_t)K * K, sizeof(double)), *hv = crom_calloc((size_t)K, sizeof(double));
     double *w = crom_calloc((size_t)K, sizeof(double)), *res = crom_malloc(sizeof(double) * (size_t)m);
@@ -342,7 +346,7 @@ static int scheme_optimized(crom_cub *c, const crom_cub_opts *o, crom_rng *rng)
     for (int j = 0; j < P; j++)
         fscale[j] = escale[j] = 1;
     for (int t = 0; t < nt && !rc; t++) {
-        rc = tet_column(c, &mat, t, o->poses, P, fscale, escale, col, work);
+        rc = tet_column(c, o, &mat, t, fscale, escale, col, work);
         for (int i = 0; !rc && i < m; i++)
             b[i] += col[i];
     }
@@ -351,14 +355,14 @@ static int scheme_optimized(crom_cub *c, const crom_cub_opts *o, crom_rng *rng)
         goto out;
     }
     for (int j = 0; j < P; j++) {
-        double *bj = b + (size_t)j * (r + 1), n2 = 0;
-        for (int i = 0; i < r; i++)
+        double *bj = b + (size_t)j * (ro + 1), n2 = 0;
+        for (int i = 0; i < ro; i++)
             n2 += bj[i] * bj[i];
         fscale[j] = n2 > 0 ? 1 / sqrt(n2) : 0;
-        escale[j] = fabs(bj[r]) > 0 ? 1 / fabs(bj[r]) : 0;
-        for (int i = 0; i < r; i++)
+        escale[j] = fabs(bj[ro]) > 0 ? 1 / fabs(bj[ro]) : 0;
+        for (int i = 0; i < ro; i++)
             bj[i] *= fscale[j];
-        bj[r] *= escale[j];
+        bj[ro] *= escale[j];
     }
     double bnorm = cblas_dnrm2(m, b, 1);
     if (!(bnorm > 0)) {
@@ -381,7 +385,7 @@ static int scheme_optimized(crom_cub *c, const crom_cub_opts *o, crom_rng *rng)
             if (taken[t])
                 continue;
             tried++;
-            if (tet_column(c, &mat, t, o->poses, P, fscale, escale, col, work))
+            if (tet_column(c, o, &mat, t, fscale, escale, col, work))
                 continue;
             double dot = cblas_ddot(m, col, 1, res, 1), nrm = cblas_dnrm2(m, col, 1);
             if (nrm > 0 && dot / nrm > bests) {
@@ -392,7 +396,7 @@ static int scheme_optimized(crom_cub *c, const crom_cub_opts *o, crom_rng *rng)
         if (bestt < 0)
             break; /* nothing correlates with what is left */
         taken[bestt] = 1;
-        tet_column(c, &mat, bestt, o->poses, P, fscale, escale, A + (size_t)s * m, work);
+        tet_column(c, o, &mat, bestt, fscale, escale, A + (size_t)s * m, work);
         sel[s] = bestt;
         /* grow G = AᵀA and h = Aᵀb (stored with leading dimension K) */
         double *Gs = nwork; /* repack to s+1 square for the solver */
@@ -575,20 +579,14 @@ fail:
 }
 
 int crom_cub_error(const crom_cub *c, const crom_material *mat, const double *poses, int npose,
-                   double *energy_err, double *force_err)
+                   const double *proj, int rout, double *energy_err, double *force_err)
 {
-    int r = c->r, nt = c->mesh.nt;
+    int r = c->r, nt = c->mesh.nt, ro = proj ? rout : r;
     double *fe = crom_calloc((size_t)r, sizeof(double)), *fc = crom_calloc((size_t)r, sizeof(double));
+    double *pe = crom_calloc((size_t)ro, sizeof(double)), *pc = crom_calloc((size_t)ro, sizeof(double));
     double *W4 = crom_malloc(sizeof(double) * 12 * (size_t)r), *work = crom_malloc(sizeof(double) * (168 + 12 * (size_t)r));
-    if (!fe || !fc || !W4 || !work) {
-        free(fe);
-        free(fc);
-        free(W4);
-        free(work);
-        return CROM_EINTERNAL;
-    }
+    int rc = fe && fc && pe && pc && W4 && work ? 0 : CROM_EINTERNAL;
     double dE = 0, sE = 0, df = 0, sf = 0;
-    int rc = 0;
     for (int j = 0; j < npose && !rc; j++) {
         const double *q = poses + (size_t)j * r;
         double Ee = 0, Ec = 0, Xe[12], Dm[9], V;
@@ -612,18 +610,29 @@ int crom_cub_error(const crom_cub *c, const crom_material *mat, const double *po
         }
         dE += fabs(Ee - Ec);
         sE += fabs(Ee);
-        for (int i = 0; i < r; i++) {
-            df += (fe[i] - fc[i]) * (fe[i] - fc[i]);
-            sf += fe[i] * fe[i];
+        if (proj) { /* the latent forces Tᵀ f */
+            cblas_dgemv(CblasRowMajor, CblasTrans, r, ro, 1.0, proj + (size_t)j * r * ro, ro, fe, 1, 0.0, pe, 1);
+            cblas_dgemv(CblasRowMajor, CblasTrans, r, ro, 1.0, proj + (size_t)j * r * ro, ro, fc, 1, 0.0, pc, 1);
+        } else {
+            memcpy(pe, fe, sizeof(double) * (size_t)r);
+            memcpy(pc, fc, sizeof(double) * (size_t)r);
+        }
+        for (int i = 0; i < ro; i++) {
+            df += (pe[i] - pc[i]) * (pe[i] - pc[i]);
+            sf += pe[i] * pe[i];
         }
     }
-    *energy_err = sE > 0 ? dE / sE : 0;
-    *force_err = sf > 0 ? sqrt(df / sf) : 0;
+    if (!rc) {
+        *energy_err = sE > 0 ? dE / sE : 0;
+        *force_err = sf > 0 ? sqrt(df / sf) : 0;
+    }
     free(fe);
     free(fc);
+    free(pe);
+    free(pc);
     free(W4);
     free(work);
-    return rc ? crom_err(CROM_EDATA, "a pose gives a non-finite elastic energy") : 0;
+    return rc == CROM_EDATA ? crom_err(CROM_EDATA, "a pose gives a non-finite elastic energy") : rc;
 }
 
 /* -------------------------------------------------------------- file I/O */
@@ -639,6 +648,8 @@ int crom_cub_write(hid_t loc, const crom_cub *c)
         rc = crom_h5_set_f64(loc, ".", "mesh_volume", &c->mesh_volume, 1);
     if (!rc)
         rc = crom_h5_set_i64(loc, ".", "count", c->k);
+    if (!rc && c->map_rank > 0)
+        rc = crom_h5_set_i64(loc, ".", "map_rank", c->map_rank);
     hid_t g = crom_h5_group(loc, "mesh");
     if (!rc)
         rc = g < 0 ? CROM_EINTERNAL : crom_mesh_write(g, &c->mesh);
@@ -693,6 +704,16 @@ int crom_cub_read(crom_in *in, crom_cub *c)
         goto fail;
     }
     c->r = (int)r;
+    if (crom_h5_has_attr(in->h5, ".", "map_rank")) {
+        long long mr = 0;
+        if ((rc = crom_h5_get_i64(in->h5, ".", "map_rank", &mr)))
+            goto fail;
+        if (mr < 1 || mr > r) {
+            rc = crom_err(CROM_EDATA, "map_rank %lld is out of range (1..%lld)", mr, r);
+            goto fail;
+        }
+        c->map_rank = (int)mr;
+    }
     g = H5Gopen2(in->h5, "mesh", H5P_DEFAULT);
     if (g < 0) {
         rc = crom_err(CROM_EDATA, "no /mesh group");

@@ -43,6 +43,9 @@ typedef struct {
     double *WtV;           /* [r][3] Σ_v V_v W_vᵀ; times ρ g = reduced gravity */
     int nsurf;
     int *surf;             /* [nsurf] boundary vertices (contact points) */
+    int map_rank;          /* > 0: W is the feature basis B of a nonlinear map
+                            * of this latent rank (crom-reducedstep --model
+                            * --cubature); 0: a linear basis */
 } crom_cub;
 
 enum { CROM_CUB_ALL, CROM_CUB_RANDOM, CROM_CUB_METIS, CROM_CUB_OPTIMIZED };
@@ -55,6 +58,12 @@ typedef struct {
     const double *poses;   /* optimized: [npose][r] latent training poses (m) */
     int npose;
     double youngs, poisson;/* optimized: material of the forces fitted */
+    /* optimized, for the feature basis of a nonlinear map (lib/map.h): per
+     * pose the Jacobian T = da/dq [r][rout] of its features, so the forces
+     * fitted are the map's latent forces Tᵀ f_a (rout per pose) rather
+     * than the r feature forces; NULL: fit the r forces */
+    const double *proj;
+    int rout;
 } crom_cub_opts;
 
 /* Scheme name to CROM_CUB_*, or -1. */
@@ -73,9 +82,10 @@ void crom_cub_gather(const crom_cub *c, int k, double Xe[12], double *W4, double
 
 /* Relative errors of the cubature against the exact integral over all tets
  * at poses [npose][r]: elastic energy (|Σ_pose ΔE| / Σ|E|) and reduced force
- * (‖Δf‖/‖f‖ over all poses stacked). */
+ * (‖Δf‖/‖f‖ over all poses stacked; with proj non-NULL the forces Tᵀ f of
+ * crom_cub_opts.proj, rout per pose). */
 int crom_cub_error(const crom_cub *c, const crom_material *mat, const double *poses,
-                   int npose, double *energy_err, double *force_err);
+                   int npose, const double *proj, int rout, double *energy_err, double *force_err);
 
 int crom_cub_write(hid_t loc, const crom_cub *c);
 /* Read and check (shapes, indices, finite values) a crom/cubature input. */

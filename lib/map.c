@@ -16,7 +16,9 @@ void crom_map_free(crom_map *map)
     if (!map)
         return;
     crom_mesh_free(&map->mesh);
-    free(map->W);
+    free(map->B);
+    free(map->fa);
+    free(map->fT);
     free(map->mem);
     free(map->a0);
     free(map->a1);
@@ -36,33 +38,49 @@ int crom_map_same_mesh(const crom_mesh *a, const crom_mesh *b)
     return memcmp(a->tets, b->tets, sizeof(int) * 4 * (size_t)a->nt) != 0;
 }
 
-/* Copy the network of a map model into double layers. */
-static int load_net(crom_map *map, const crom_nn_mlp *net)
+/* Copy the hidden layers of a map model's network into double, and lay
+ * its last layer and the linear part W (basis_v, [n][r] or NULL) out as
+ * the feature basis B = [W | W_L | b_L]. */
+static int load_net(crom_map *map, const crom_nn_mlp *net, const double *basis_v)
 {
     const crom_nn_spec *sp = &net->spec;
-    map->nlayers = sp->nlayers;
+    int L = sp->nlayers, r = map->r, n = map->n;
+    map->nlayers = L;
     map->act = sp->act;
     map->omega0 = sp->omega0;
     int maxw = 1; /* widest input of a layer: the latent and the hidden layers */
-    for (int l = 0; l <= sp->nlayers; l++) {
+    for (int l = 0; l <= L; l++) {
         map->width[l] = sp->width[l];
-        if (l < sp->nlayers && sp->width[l] > maxw)
+        if (l < L && sp->width[l] > maxw)
             maxw = sp->width[l];
     }
+    if (sp->width[L] != n)
+        return crom_err(CROM_EDATA, "the map's network has %d outputs for %d vertices", sp->width[L], map->nv);
+    int h = sp->width[L - 1];
+    map->rl = basis_v ? r : 0;
+    map->p = map->rl + h + 1;
     map->mem = crom_malloc(sizeof(double) * net->nparams);
-    size_t wr = (size_t)maxw * (size_t)(map->r + 1);
+    size_t wr = (size_t)maxw * (size_t)(r + 1);
     map->a0 = crom_malloc(sizeof(double) * (size_t)maxw);
     map->a1 = crom_malloc(sizeof(double) * (size_t)maxw);
     map->z1 = crom_malloc(sizeof(double) * (size_t)maxw);
     map->t0 = crom_malloc(sizeof(double) * wr);
     map->t1 = crom_malloc(sizeof(double) * wr);
-    if (!map->mem || !map->a0 || !map->a1 || !map->z1 || !map->t0 || !map->t1)
+    map->B = crom_malloc(sizeof(double) * (size_t)n * map->p);
+    if (!map->mem || !map->a0 || !map->a1 || !map->z1 || !map->t0 || !map->t1 || !map->B)
         return CROM_EINTERNAL;
     for (size_t i = 0; i < net->nparams; i++)
         map->mem[i] = net->params[i];
-    for (int l = 0; l < sp->nlayers; l++) {
+    for (int l = 0; l < L; l++) {
         map->w[l] = map->mem + net->layer[l].woff;
         map->b[l] = map->mem + net->layer[l].boff;
+    }
+    for (int i = 0; i < n; i++) {
+        double *Bi = map->B + (size_t)i * map->p;
+        if (basis_v)
+            memcpy(Bi, basis_v + (size_t)i * r, sizeof(double) * (size_t)r);
+        memcpy(Bi + map->rl, map->w[L - 1] + (size_t)i * h, sizeof(double) * (size_t)h);
+        Bi[map->p - 1] = map->b[L - 1][i];
     }
     map->nonlinear = 1;
     return 0;
@@ -97,20 +115,18 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
     }
     map->nv = map->mesh.nv;
     map->n = 3 * map->nv;
-    size_t nw = (size_t)map->n * r;
     if (model->field == CROM_FIELD_MAP) {
-        if (model->basis_v) {
-            map->W = crom_malloc(sizeof(double) * nw);
-            if (!map->W)
-                rc = CROM_EINTERNAL;
-            else
-                memcpy(map->W, model->basis_v, sizeof(double) * nw);
-        }
-        if (!rc)
-            rc = load_net(map, &model->mlp);
-    } else {
-        map->W = crom_malloc(sizeof(double) * nw);
-        rc = map->W ? crom_model_eval(model, (size_t)map->nv, map->mesh.X, map->W, NULL) : CROM_EINTERNAL;
+        rc = load_net(map, &model->mlp, model->basis_v);
+    } else { /* a linear basis: a = q, B = W(X_v) */
+        map->p = r;
+        map->B = crom_malloc(sizeof(double) * (size_t)map->n * r);
+        rc = map->B ? crom_model_eval(model, (size_t)map->nv, map->mesh.X, map->B, NULL) : CROM_EINTERNAL;
+    }
+    if (!rc) { /* crom_map_eval's features */
+        map->fa = crom_malloc(sizeof(double) * (size_t)map->p);
+        map->fT = crom_malloc(sizeof(double) * (size_t)map->p * r);
+        if (!map->fa || !map->fT)
+            rc = CROM_EINTERNAL;
     }
     if (rc)
         crom_map_free(map);
@@ -144,62 +160,104 @@ static inline double act_f(crom_nn_act a, double om, double v, double *d)
     }
 }
 
-int crom_map_eval(crom_map *map, const double *q, double *x, double *J)
+int crom_map_features(crom_map *map, const double *q, double *a, double *T)
 {
-    int r = map->r, n = map->n;
-    if (x) {
-        memcpy(x, map->mesh.X, sizeof(double) * (size_t)n);
-        if (map->W)
-            cblas_dgemv(CblasRowMajor, CblasNoTrans, n, r, 1.0, map->W, r, q, 1, 1.0, x, 1);
-    }
-    if (J) {
-        if (map->W)
-            memcpy(J, map->W, sizeof(double) * (size_t)n * r);
-        else
-            memset(J, 0, sizeof(double) * (size_t)n * r);
-    }
-    if (map->nonlinear && (x || J)) {
-        /* a: activations [w]; t: tangents [w][r] (d a / d q) */
-        double *a = map->a0, *an = map->a1, *z = map->z1, *t = map->t0, *tn = map->t1;
-        memcpy(a, q, sizeof(double) * (size_t)r);
-        if (J) {
-            memset(t, 0, sizeof(double) * (size_t)r * r);
+    int r = map->r, p = map->p;
+    if (!map->nonlinear) {
+        if (a)
+            memcpy(a, q, sizeof(double) * (size_t)r);
+        if (T) {
+            memset(T, 0, sizeof(double) * (size_t)r * r);
             for (int i = 0; i < r; i++)
-                t[i * r + i] = 1;
+                T[i * r + i] = 1;
         }
-        int L = map->nlayers;
-        for (int l = 0; l < L - 1; l++) {
-            int in = map->width[l], out = map->width[l + 1];
-            memcpy(z, map->b[l], sizeof(double) * (size_t)out);
-            cblas_dgemv(CblasRowMajor, CblasNoTrans, out, in, 1.0, map->w[l], in, a, 1, 1.0, z, 1);
+        return 0;
+    }
+    /* forward through the hidden layers: h activations [w], t tangents
+     * [w][r] (dh/dq) */
+    double *h = map->a0, *hn = map->a1, *z = map->z1, *t = map->t0, *tn = map->t1;
+    int J = T != NULL, L = map->nlayers;
+    memcpy(h, q, sizeof(double) * (size_t)r);
+    if (J) {
+        memset(t, 0, sizeof(double) * (size_t)r * r);
+        for (int i = 0; i < r; i++)
+            t[i * r + i] = 1;
+    }
+    for (int l = 0; l < L - 1; l++) {
+        int in = map->width[l], out = map->width[l + 1];
+        memcpy(z, map->b[l], sizeof(double) * (size_t)out);
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, out, in, 1.0, map->w[l], in, h, 1, 1.0, z, 1);
+        if (J)
+            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, out, r, in, 1.0, map->w[l], in, t, r, 0.0, tn, r);
+        for (int j = 0; j < out; j++) {
+            double dv;
+            hn[j] = act_f(map->act, map->omega0, z[j], &dv);
             if (J)
-                cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, out, r, in, 1.0, map->w[l], in, t, r, 0.0,
-                            tn, r);
-            for (int j = 0; j < out; j++) {
-                double dv;
-                an[j] = act_f(map->act, map->omega0, z[j], &dv);
-                if (J)
-                    for (int k = 0; k < r; k++)
-                        tn[j * r + k] *= dv;
-            }
-            double *s = a;
-            a = an;
-            an = s;
-            s = t;
-            t = tn;
-            tn = s;
+                for (int k = 0; k < r; k++)
+                    tn[j * r + k] *= dv;
         }
-        int in = map->width[L - 1];
-        if (x) { /* x += W_L a + b_L */
-            cblas_daxpy(n, 1.0, map->b[L - 1], 1, x, 1);
-            cblas_dgemv(CblasRowMajor, CblasNoTrans, n, in, 1.0, map->w[L - 1], in, a, 1, 1.0, x, 1);
+        double *s = h;
+        h = hn;
+        hn = s;
+        s = t;
+        t = tn;
+        tn = s;
+    }
+    int nh = map->width[L - 1], rl = map->rl;
+    if (a) {
+        memcpy(a, q, sizeof(double) * (size_t)rl);
+        memcpy(a + rl, h, sizeof(double) * (size_t)nh);
+        a[p - 1] = 1;
+        for (int i = 0; i < p; i++)
+            if (!isfinite(a[i]))
+                return crom_err(CROM_EDATA, "the map's network is not finite at this latent");
+    }
+    if (T) {
+        memset(T, 0, sizeof(double) * (size_t)rl * r);
+        for (int i = 0; i < rl; i++)
+            T[i * r + i] = 1;
+        memcpy(T + (size_t)rl * r, t, sizeof(double) * (size_t)nh * r);
+        memset(T + (size_t)(p - 1) * r, 0, sizeof(double) * (size_t)r);
+    }
+    return 0;
+}
+
+void crom_map_rows(const crom_map *map, const int *idx, int nidx, const double *a, const double *T, double *x,
+                   double *J)
+{
+    int p = map->p, r = map->r;
+    const double *X = map->mesh.X;
+    if (!idx) { /* every vertex: two BLAS calls */
+        int n = map->n;
+        if (x) {
+            memcpy(x, X, sizeof(double) * (size_t)n);
+            cblas_dgemv(CblasRowMajor, CblasNoTrans, n, p, 1.0, map->B, p, a, 1, 1.0, x, 1);
         }
         if (J)
-            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, n, r, in, 1.0, map->w[L - 1], in, t, r, 1.0, J,
-                        r);
+            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, n, r, p, 1.0, map->B, p, T, r, 0.0, J, r);
+        return;
     }
+    for (int k = 0; k < nidx; k++) {
+        const double *Bv = map->B + (size_t)idx[k] * 3 * p;
+        if (x)
+            for (int c = 0; c < 3; c++)
+                x[3 * k + c] = X[3 * (size_t)idx[k] + c] + cblas_ddot(p, Bv + (size_t)c * p, 1, a, 1);
+        if (J)
+            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, 3, r, p, 1.0, Bv, p, T, r, 0.0,
+                        J + (size_t)k * 3 * r, r);
+    }
+}
+
+int crom_map_eval(crom_map *map, const double *q, double *x, double *J)
+{
+    if (!x && !J)
+        return 0;
+    int rc = crom_map_features(map, q, map->fa, J ? map->fT : NULL);
+    if (rc)
+        return rc;
+    crom_map_rows(map, NULL, 0, map->fa, map->fT, x, J);
     if (x)
-        for (int i = 0; i < n; i++)
+        for (int i = 0; i < map->n; i++)
             if (!isfinite(x[i]))
                 return crom_err(CROM_EDATA, "the map gives a non-finite position");
     return 0;

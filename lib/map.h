@@ -29,8 +29,17 @@ typedef struct crom_map_s {
     int nv, n;           /* vertices and 3 nv */
     int nonlinear;       /* 1 if N is present */
     crom_mesh mesh;      /* the mesh (owned copy, with regions) */
-    double *W;           /* [n][r] linear part, or NULL (zero) */
-    /* N in double: layer l maps width[l] to width[l+1] */
+    /* The map as a linear basis over features a(q) in R^p:
+     *     x(q) = X + B a(q),   J(q) = B T(q),  T = da/dq [p][r],
+     * a = [q (if W) | the last hidden layer of N | 1 (if N)] and
+     * B = [W | W_L | b_L] ([n][p] row-major), so that everything a reduced
+     * simulation needs from a few vertices costs p flops per row and
+     * quadratic forms over all vertices are p x p (lib/nlrom.h). A linear
+     * basis has a = q, T = I, B = W. */
+    int p;
+    double *B;           /* [n][p] */
+    int rl;              /* leading features equal to q: r with a linear part, else 0 */
+    /* the hidden layers of N in double: layer l maps width[l] to width[l+1] */
     int nlayers, width[CROM_NN_MAX_LAYERS + 1];
     crom_nn_act act;     /* hidden activation; the output layer is linear */
     double omega0;
@@ -38,6 +47,7 @@ typedef struct crom_map_s {
     double *mem;
     /* scratch: activations and tangents of the widest hidden layer */
     double *a0, *a1, *z1, *t0, *t1;
+    double *fa, *fT;     /* crom_map_eval's features and their Jacobian */
 } crom_map;
 
 /* Build the map of a model. A map model (energy, neuralmodes) lives on its
@@ -53,6 +63,17 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
  * skip) at latent q [r]. Returns 0 or CROM_EDATA when the result is not
  * finite. */
 int crom_map_eval(crom_map *map, const double *q, double *x, double *J);
+
+/* Features a [p] (NULL to skip) and their Jacobian T [p][r] row-major
+ * (NULL to skip) at latent q [r] (see above). Returns 0 or CROM_EDATA when a
+ * feature is not finite. */
+int crom_map_features(crom_map *map, const double *q, double *a, double *T);
+
+/* Positions x [nidx][3] = X_v + B_v a of the vertices idx [nidx] (all
+ * vertices when idx is NULL, nidx then ignored) at features a [p], and
+ * (J non-NULL) their Jacobian rows J [3 nidx][r] = B_v T. */
+void crom_map_rows(const crom_map *map, const int *idx, int nidx, const double *a, const double *T, double *x,
+                   double *J);
 
 /* Release what init allocated (NULL-safe). */
 void crom_map_free(crom_map *map);

@@ -49,7 +49,7 @@ static double quantile(const double *sorted, long n, double p)
     return sorted[i] * (1 - f) + sorted[i + 1] * f;
 }
 
-static void sample(crom_rng *rng, const crom_metrics_opts *o, int r, double *q)
+void crom_metrics_sample(crom_rng *rng, const crom_metrics_opts *o, int r, double *q)
 {
     double s = 0;
     for (int k = 0; k < r; k++) {
@@ -93,7 +93,7 @@ int crom_metrics_compute(crom_map *map, const crom_fem *fem, const double g[3], 
     out->cmp_energy_mean = NAN;
     if (fem->nv != map->nv)
         return crom_err(CROM_EUSAGE, "the mesh operator has %d vertices, the map %d", fem->nv, map->nv);
-    if (compare && (compare->nonlinear || !compare->W || compare->nv != map->nv ||
+    if (compare && (compare->nonlinear || compare->nv != map->nv ||
                     crom_map_same_mesh(&compare->mesh, &map->mesh)))
         return crom_err(CROM_EUSAGE, "the comparison subspace must be a linear basis of the same mesh");
     int P = S < o->pairs_of ? S : o->pairs_of;
@@ -117,7 +117,7 @@ int crom_metrics_compute(crom_map *map, const crom_fem *fem, const double g[3], 
     crom_rng_seed(&crng, o->seed ^ 0xc0ffee);
     double se = 0, sp = 0, sr = 0, sc = 0, emin = INFINITY, emax = -INFINITY, rmax = 0;
     for (int s = 0; s < S; s++) {
-        sample(&rng, o, r, q);
+        crom_metrics_sample(&rng, o, r, q);
         if ((rc = crom_map_eval(map, q, x, NULL)))
             goto done;
         double Eel, Egr, rms;
@@ -138,7 +138,7 @@ int crom_metrics_compute(crom_map *map, const crom_fem *fem, const double g[3], 
             double u2 = 0;
             for (int k = 0; k < compare->r; k++)
                 c[k] = crom_rng_normal(&crng);
-            cblas_dgemv(CblasRowMajor, CblasNoTrans, n, compare->r, 1.0, compare->W, compare->r, c, 1, 0.0, uc, 1);
+            cblas_dgemv(CblasRowMajor, CblasNoTrans, n, compare->r, 1.0, compare->B, compare->r, c, 1, 0.0, uc, 1);
             for (int i = 0; i < n; i++)
                 u2 += fem->mass[i / 3] * uc[i] * uc[i];
             double t = u2 > 0 ? rms / sqrt(u2 / fem->total_mass) : 0, Ec, Eg2, r2;
@@ -225,4 +225,41 @@ done:
     if (rc)
         crom_metrics_free(out);
     return rc;
+}
+
+int crom_metrics_load_model(const char *path, crom_model *m, crom_df_attrs *at)
+{
+    crom_in in;
+    at->sigma = at->box = NAN;
+    at->gravity[0] = at->gravity[1] = at->gravity[2] = 0;
+    at->has_gravity = 0;
+    int rc = crom_in_open(&in, path);
+    if (rc)
+        return rc;
+    rc = crom_model_read(&in, m);
+    if (!rc) {
+        if (crom_h5_has_attr(in.h5, ".", "sigma"))
+            crom_h5_get_f64(in.h5, ".", "sigma", &at->sigma, 1);
+        if (crom_h5_has_attr(in.h5, ".", "latent_box"))
+            crom_h5_get_f64(in.h5, ".", "latent_box", &at->box, 1);
+        if (crom_h5_has_attr(in.h5, ".", "gravity") && !crom_h5_get_f64(in.h5, ".", "gravity", at->gravity, 3))
+            at->has_gravity = 1;
+        crom_err_clear();
+    }
+    crom_in_close(&in);
+    return rc;
+}
+
+void crom_metrics_training_dist(const crom_model *m, const crom_df_attrs *at, double diag, crom_metrics_opts *o)
+{
+    if (!strcmp(m->basis, "energy")) {
+        o->dist = CROM_METRICS_NORMAL;
+        o->radius = 1;
+    } else if (!strcmp(m->basis, "neuralmodes") && at->box > 0) {
+        o->dist = CROM_METRICS_BOX;
+        o->radius = at->box;
+    } else {
+        o->dist = CROM_METRICS_SPHERE;
+        o->radius = 0.05 * diag;
+    }
 }

@@ -28,6 +28,8 @@
 
 #include "fem.h"
 #include "map.h"
+#include "model.h"
+#include "rng.h"
 
 enum { CROM_METRICS_NORMAL = 0, CROM_METRICS_SPHERE = 1, CROM_METRICS_BOX = 2 };
 
@@ -53,6 +55,28 @@ typedef struct {
 } crom_metrics;
 
 void crom_metrics_defaults(crom_metrics_opts *o);
+
+/* What a data-free model records beyond its basis (lib/datafree.h);
+ * NAN / 0 when absent. */
+typedef struct {
+    double sigma;      /* energy: isometry scale (m per unit z) */
+    double box;        /* neuralmodes: half-width of the training box (m) */
+    double gravity[3]; /* the training gravity */
+    int has_gravity;
+} crom_df_attrs;
+
+/* Read a crom/model (path, "-" for stdin) and its data-free attributes.
+ * Returns as crom_model_load. */
+int crom_metrics_load_model(const char *path, crom_model *m, crom_df_attrs *at);
+
+/* The latent distribution a model was trained on, into o->dist and
+ * o->radius: N(0, I) for an energy map, the training box for neural modes,
+ * else the sphere of radius 0.05 diag (diag: the mesh's bounding-box
+ * diagonal). */
+void crom_metrics_training_dist(const crom_model *m, const crom_df_attrs *at, double diag, crom_metrics_opts *o);
+
+/* One latent sample q [r] of the distribution of o. */
+void crom_metrics_sample(crom_rng *rng, const crom_metrics_opts *o, int r, double *q);
 
 /* Measure map on the mesh operator fem (same mesh: its material gives the
  * energy, its lumped masses M) under gravity g [3]. compare (may be NULL)

@@ -32,12 +32,16 @@ void crom_nlsim_free(crom_nlsim *s)
     if (!s)
         return;
     crom_fem_free(&s->fem);
-    double **bufs[] = {&s->q, &s->qd, &s->x, &s->v, &s->qn, &s->xn, &s->xhat, &s->xt, &s->fext, &s->gx,
-                       &s->J, &s->Jt, &s->g, &s->H, &s->Hc, &s->d, &s->qt, &s->Gm, &s->lam, &s->zero,
-                       &s->tw, &s->tH, &s->tg, &s->tE, &s->wd};
+    double **bufs[] = {&s->q,  &s->qd, &s->va, &s->Bg, &s->qn, &s->fa, &s->gx, &s->J,  &s->Jt,
+                       &s->g,  &s->H,  &s->Hc, &s->d,  &s->qt, &s->Gm, &s->lam,  &s->zero, &s->tw, &s->tH,
+                       &s->tg, &s->tE, &s->a,  &s->T,  &s->an, &s->Tp, &s->ga,   &s->A0, &s->Aq, &s->bq,
+                       &s->AT, &s->xc, &s->Jc, &s->gc, &s->ew, &s->xt, &s->wd, &s->Bc, &s->Xc};
     for (size_t i = 0; i < sizeof bufs / sizeof *bufs; i++)
         free(*bufs[i]);
     free(s->surf);
+    free(s->eidx);
+    free(s->cv);
+    free(s->eloc);
     free_bcs(s->bc, s->nbc);
     free_bcs(s->force, s->nforce);
     memset(s, 0, sizeof *s);
@@ -54,8 +58,7 @@ static int region(crom_nlsim *s, const char *ref, const crom_bc *bc, crom_nlbc *
     return 0;
 }
 
-/* external load at time t: gravity plus region forces spread by mass */
-static void loads(const crom_nlsim *s, double t, double *f)
+void crom_nlsim_loads(const crom_nlsim *s, double t, double *f)
 {
     const double *g = s->sc->gravity;
     for (int i = 0; i < s->n; i++)
@@ -177,6 +180,130 @@ static int nearest_rest(crom_nlsim *s)
     return 0;
 }
 
+/* The tets of the elastic energy, their weights and the vertices they
+ * touch (cv: NULL when that is every vertex). */
+static int set_elastic(crom_nlsim *s, int k, const int *elem, const double *weight)
+{
+    int nv = s->map->nv, r = s->r;
+    const int *tets = s->map->mesh.tets;
+    int *eidx = crom_malloc(sizeof(int) * (size_t)(k ? k : 1)), *eloc = crom_malloc(sizeof(int) * 4 * (size_t)(k ? k : 1));
+    double *ew = crom_malloc(sizeof(double) * (size_t)(k ? k : 1));
+    int *loc = crom_malloc(sizeof(int) * (size_t)nv), *cv = crom_malloc(sizeof(int) * (size_t)nv), ncv = 0;
+    if (!eidx || !eloc || !ew || !loc || !cv) {
+        free(eidx), free(eloc), free(ew), free(loc), free(cv);
+        return CROM_EINTERNAL;
+    }
+    for (int v = 0; v < nv; v++)
+        loc[v] = -1;
+    for (int j = 0; j < k; j++) {
+        eidx[j] = elem ? elem[j] : j;
+        ew[j] = weight ? weight[j] : 1;
+        for (int c = 0; c < 4; c++) {
+            int v = tets[4 * (size_t)eidx[j] + c];
+            if (loc[v] < 0) {
+                loc[v] = ncv;
+                cv[ncv++] = v;
+            }
+        }
+    }
+    int every = ncv == nv;
+    for (int j = 0; j < k; j++)
+        for (int c = 0; c < 4; c++) {
+            int v = tets[4 * (size_t)eidx[j] + c];
+            eloc[4 * j + c] = every ? v : loc[v];
+        }
+    free(loc);
+    if (every) {
+        free(cv);
+        cv = NULL;
+    }
+    free(s->eidx), free(s->eloc), free(s->ew), free(s->cv), free(s->xc), free(s->Jc), free(s->gc), free(s->Bc),
+        free(s->Xc);
+    s->Bc = s->Xc = NULL;
+    s->eidx = eidx;
+    s->eloc = eloc;
+    s->ew = ew;
+    s->cv = cv;
+    s->ne = k;
+    s->ncv = ncv;
+    s->xc = crom_malloc(sizeof(double) * 3 * (size_t)(ncv ? ncv : 1));
+    s->gc = crom_malloc(sizeof(double) * 3 * (size_t)(ncv ? ncv : 1));
+    s->Jc = crom_malloc(sizeof(double) * 3 * (size_t)(ncv ? ncv : 1) * r);
+    if (!s->xc || !s->gc || !s->Jc)
+        return CROM_EINTERNAL;
+    if (cv) { /* the rows of B and X at the elastic vertices, contiguous: two BLAS calls per evaluation */
+        int p = s->p;
+        s->Bc = crom_malloc(sizeof(double) * 3 * (size_t)ncv * p);
+        s->Xc = crom_malloc(sizeof(double) * 3 * (size_t)ncv);
+        if (!s->Bc || !s->Xc)
+            return CROM_EINTERNAL;
+        for (int i = 0; i < ncv; i++) {
+            memcpy(s->Bc + (size_t)i * 3 * p, s->map->B + (size_t)cv[i] * 3 * p, sizeof(double) * 3 * (size_t)p);
+            memcpy(s->Xc + 3 * (size_t)i, s->map->mesh.X + 3 * (size_t)cv[i], sizeof(double) * 3);
+        }
+    }
+    return 0;
+}
+
+int crom_nlsim_use_cubature(crom_nlsim *s, int k, const int *elem, const double *weight)
+{
+    if (k < 1)
+        return crom_err(CROM_EDATA, "the cubature has no tets");
+    for (int j = 0; j < k; j++) {
+        if (elem[j] < 0 || elem[j] >= s->fem.nt)
+            return crom_err(CROM_EDATA, "cubature tet %d is not a tet of the map's mesh (%d tets)", elem[j], s->fem.nt);
+        if (!(isfinite(weight[j]) && weight[j] >= 0))
+            return crom_err(CROM_EDATA, "cubature weight %d is %g: weights must be finite and >= 0", j, weight[j]);
+    }
+    return set_elastic(s, k, elem, weight);
+}
+
+/* B_vᵀ y for the 3 rows of vertex v, accumulated into out [p] */
+static void rows_t(const crom_map *map, int v, double alpha, const double y[3], double *out)
+{
+    cblas_dgemv(CblasRowMajor, CblasTrans, 3, map->p, alpha, map->B + (size_t)v * 3 * map->p, map->p, y, 1, 1.0, out, 1);
+}
+
+/* The step-independent quadratic: A0 = BᵀMB and Aq = (1/h² + A/h) A0 +
+ * κ Σ_bc B_vᵀ m_v B_v (full, symmetric). */
+static int quadratic_setup(crom_nlsim *s)
+{
+    const crom_map *map = s->map;
+    int n = s->n, p = s->p;
+    double h = s->sc->dt, cq = 1 / (h * h) + s->sc->damping / h;
+    double *Bs = crom_malloc(sizeof(double) * (size_t)n * p);
+    if (!Bs)
+        return CROM_EINTERNAL;
+    for (int i = 0; i < n; i++) {
+        double sq = sqrt(s->fem.mass[i / 3]);
+        for (int k = 0; k < p; k++)
+            Bs[(size_t)i * p + k] = sq * map->B[(size_t)i * p + k];
+    }
+    cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, p, n, 1.0, Bs, p, 0.0, s->A0, p);
+    free(Bs);
+    /* Bg [c][p] = Bᵀ M 1_c: the features' share of a uniform acceleration */
+    memset(s->Bg, 0, sizeof(double) * 3 * (size_t)p);
+    for (int i = 0; i < n; i++)
+        cblas_daxpy(p, s->fem.mass[i / 3], map->B + (size_t)i * p, 1, s->Bg + (size_t)(i % 3) * p, 1);
+    for (int i = 0; i < p; i++)
+        for (int j = 0; j < i; j++)
+            s->A0[i * p + j] = s->A0[j * p + i];
+    for (size_t i = 0; i < (size_t)p * p; i++)
+        s->Aq[i] = cq * s->A0[i];
+    for (int k = 0; k < s->nbc; k++) {
+        const crom_nlbc *b = &s->bc[k];
+        for (int j = 0; j < b->n; j++) {
+            int v = b->idx[j];
+            cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, p, 3, s->kappa * s->fem.mass[v],
+                        map->B + (size_t)v * 3 * p, p, 1.0, s->Aq, p);
+        }
+    }
+    for (int i = 0; i < p; i++)
+        for (int j = 0; j < i; j++)
+            s->Aq[i * p + j] = s->Aq[j * p + i];
+    return 0;
+}
+
 int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, double kappa, const double *q0,
                     const double *qd0, int nthreads)
 {
@@ -191,15 +318,20 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
     s->map = map;
     s->r = map->r;
     s->n = map->n;
+    s->p = map->p;
     s->nthreads = nthreads < 1 ? 1 : nthreads > 256 ? 256 : nthreads;
     s->kappa = kappa > 0 ? kappa : 1e4 / (sc->dt * sc->dt);
     if ((rc = crom_fem_init(&s->fem, &map->mesh, &mat)))
         return rc;
-    int r = s->r, n = s->n, T = s->nthreads;
-    size_t rr = (size_t)r * r, nr = (size_t)n * r;
+    int r = s->r, n = s->n, p = s->p, T = s->nthreads;
+    size_t rr = (size_t)r * r, nr = (size_t)n * r, pp = (size_t)p * p, pr = (size_t)p * r;
     double **vr[] = {&s->q, &s->qd, &s->qn, &s->g, &s->d, &s->qt, &s->zero};
-    double **vn[] = {&s->x, &s->v, &s->xn, &s->xhat, &s->xt, &s->fext, &s->gx, &s->wd};
+    double **vn[] = {&s->xt, &s->wd, &s->gx};
     double **vrr[] = {&s->H, &s->Hc, &s->Gm};
+    double **vp[] = {&s->a, &s->an, &s->va, &s->fa, &s->ga, &s->bq, &s->Bg, &s->T, &s->Tp, &s->AT, &s->A0, &s->Aq};
+    size_t np[] = {p, p, p, p, p, p, 3 * (size_t)p, pr, pr, pr, pp, pp};
+    for (size_t i = 0; i < sizeof vp / sizeof *vp; i++)
+        *vp[i] = crom_calloc(np[i], sizeof(double));
     for (size_t i = 0; i < sizeof vr / sizeof *vr; i++)
         *vr[i] = crom_calloc((size_t)r, sizeof(double));
     for (size_t i = 0; i < sizeof vn / sizeof *vn; i++)
@@ -221,6 +353,8 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
         ok = ok && *vn[i];
     for (size_t i = 0; i < sizeof vrr / sizeof *vrr; i++)
         ok = ok && *vrr[i];
+    for (size_t i = 0; i < sizeof vp / sizeof *vp; i++)
+        ok = ok && *vp[i];
     if (!ok) {
         crom_nlsim_free(s);
         return CROM_EINTERNAL;
@@ -239,6 +373,10 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
         crom_err_ctx("scenario");
         crom_nlsim_free(s);
         return CROM_EUSAGE;
+    }
+    if ((rc = quadratic_setup(s)) || (rc = set_elastic(s, s->fem.nt, NULL, NULL))) {
+        crom_nlsim_free(s);
+        return rc;
     }
     if (sc->nplanes) { /* contact points: the boundary vertices */
         int ntri, *tris = NULL;
@@ -268,46 +406,96 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
         memcpy(s->q, q0, sizeof(double) * (size_t)r);
     else if ((rc = nearest_rest(s)))
         goto fail;
-    if ((rc = crom_map_eval(map, s->q, s->x, s->J)))
-        goto fail;
     if (qd0)
         memcpy(s->qd, qd0, sizeof(double) * (size_t)r);
     else if ((rc = initial_velocity(s)))
         goto fail;
-    if ((rc = crom_map_eval(map, s->q, NULL, s->J)))
+    /* the state's features and their velocity va = T q̇ (v = J q̇ = B va) */
+    if ((rc = crom_map_features(map, s->q, s->an, s->T)))
         goto fail;
-    cblas_dgemv(CblasRowMajor, CblasNoTrans, n, r, 1.0, s->J, r, s->qd, 1, 0.0, s->v, 1);
+    cblas_dgemv(CblasRowMajor, CblasNoTrans, p, r, 1.0, s->T, r, s->qd, 1, 0.0, s->va, 1);
     return 0;
 fail:
     crom_nlsim_free(s);
     return rc;
 }
 
+/* fa = Bᵀ f_ext(t): gravity through Bg, the region forces through their
+ * vertices' rows */
+static void feature_loads(crom_nlsim *s, double t, double *fa)
+{
+    int p = s->p;
+    const double *g = s->sc->gravity;
+    cblas_dgemv(CblasRowMajor, CblasTrans, 3, p, 1.0, s->Bg, p, g, 1, 0.0, fa, 1);
+    for (int b = 0; b < s->nforce; b++) {
+        const crom_nlbc *fb = &s->force[b];
+        double F[3];
+        crom_bc_force(fb->bc, t, F);
+        for (int k = 0; k < fb->n; k++) {
+            int v = fb->idx[k];
+            rows_t(s->map, v, s->fem.mass[v] / fb->mass, F, fa);
+        }
+    }
+}
+
 void crom_nlsim_begin_step(crom_nlsim *s)
 {
     const crom_scenario *sc = s->sc;
-    int n = s->n;
-    double h = sc->dt;
+    const crom_map *map = s->map;
+    int p = s->p;
+    double h = sc->dt, t1 = s->t + h;
+    const double *m = s->fem.mass;
     memcpy(s->qn, s->q, sizeof(double) * (size_t)s->r);
-    memcpy(s->xn, s->x, sizeof(double) * (size_t)n);
-    for (int i = 0; i < n; i++)
-        s->xhat[i] = s->x[i] + h * s->v[i];
-    loads(s, s->t + h, s->fext);
-    for (int p = 0; p < sc->nplanes; p++)
+    /* the linear term b and constant of the quadratic in δ = a − a_n:
+     * inertia ½/h² ‖Bδ − h B va‖²_M, external −f·Bδ, penalty
+     * ½κ Σ m_v ‖B_v δ + e_v‖², e_v = B_v a_n − ū_v(t+h) */
+    feature_loads(s, t1, s->bq);
+    cblas_dsymv(CblasRowMajor, CblasUpper, p, -1 / h, s->A0, p, s->va, 1, -1.0, s->bq, 1);
+    cblas_dsymv(CblasRowMajor, CblasUpper, p, 1.0, s->A0, p, s->va, 1, 0.0, s->fa, 1);
+    double c0 = 0.5 * cblas_ddot(p, s->va, 1, s->fa, 1);
+    for (int k = 0; k < s->nbc; k++) {
+        const crom_nlbc *b = &s->bc[k];
+        double u[3] = {0, 0, 0};
+        if (b->bc)
+            crom_bc_displacement(b->bc, t1, u);
+        for (int j = 0; j < b->n; j++) {
+            int v = b->idx[j];
+            double e[3];
+            crom_map_rows(map, &v, 1, s->an, NULL, e, NULL);
+            for (int c = 0; c < 3; c++)
+                e[c] -= map->mesh.X[3 * v + c] + u[c];
+            rows_t(map, v, s->kappa * m[v], e, s->bq);
+            c0 += 0.5 * s->kappa * m[v] * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+        }
+    }
+    s->c0 = c0;
+    for (int pl = 0; pl < sc->nplanes; pl++)
         for (int k = 0; k < s->nsurf; k++) {
             int v = s->surf[k];
-            s->lam[(size_t)p * s->nsurf + k] =
-                sc->contact_stiffness * s->fem.mass[v] * crom_contact_depth(&sc->plane[p], s->xn + 3 * (size_t)v);
+            double xv[3];
+            crom_map_rows(map, &v, 1, s->an, NULL, xv, NULL);
+            s->lam[(size_t)pl * s->nsurf + k] = sc->contact_stiffness * m[v] * crom_contact_depth(&sc->plane[pl], xv);
         }
 }
 
-/* Elastic energy, and (g, H non-NULL) its reduced gradient and Hessian
- * Σ_e J_eᵀ H_e J_e, over every tet, split over the threads. */
-static int elastic(crom_nlsim *s, const double *x, double *E, double *g, double *H, int project)
+/* Elastic energy at the features in s->a, and (g, H non-NULL) its reduced
+ * gradient and Hessian Σ_e w_e J_eᵀ H_e J_e, over the elastic tets, split
+ * over the threads. The positions (and with g or H the Jacobian rows) of
+ * their vertices are left in s->xc (s->Jc). */
+static int elastic(crom_nlsim *s, double *E, double *g, double *H, int project)
 {
-    int r = s->r, nt = s->fem.nt, T = s->nthreads, bad = 0;
+    int r = s->r, T = s->nthreads, bad = 0, ne = s->ne;
     size_t rr = (size_t)r * r;
     const crom_fem *f = &s->fem;
+    if (s->cv) { /* xc = Xc + Bc a, Jc = Bc T */
+        int m3 = 3 * s->ncv, p = s->p;
+        memcpy(s->xc, s->Xc, sizeof(double) * (size_t)m3);
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, m3, p, 1.0, s->Bc, p, s->a, 1, 1.0, s->xc, 1);
+        if (g || H)
+            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, m3, r, p, 1.0, s->Bc, p, s->T, r, 0.0, s->Jc, r);
+    } else {
+        crom_map_rows(s->map, NULL, 0, s->a, s->T, s->xc, g || H ? s->Jc : NULL);
+    }
 #pragma omp parallel num_threads(T) reduction(| : bad)
     {
         int tid = 0;
@@ -321,17 +509,20 @@ static int elastic(crom_nlsim *s, const double *x, double *E, double *g, double 
         if (tH)
             memset(tH, 0, sizeof(double) * rr);
 #pragma omp for schedule(static)
-        for (int t = 0; t < nt; t++) {
-            const int *e = f->tets + 4 * (size_t)t;
+        for (int j = 0; j < ne; j++) {
+            int t = s->eidx[j];
+            const int *e = s->eloc + 4 * (size_t)j;
             for (int a = 0; a < 4; a++) {
-                memcpy(xe + 3 * a, x + 3 * (size_t)e[a], 3 * sizeof(double));
-                memcpy(J4 + (size_t)a * 3 * r, s->J + (size_t)e[a] * 3 * r, 3 * (size_t)r * sizeof(double));
+                memcpy(xe + 3 * a, s->xc + 3 * (size_t)e[a], 3 * sizeof(double));
+                if (g || H)
+                    memcpy(J4 + (size_t)a * 3 * r, s->Jc + (size_t)e[a] * 3 * r, 3 * (size_t)r * sizeof(double));
             }
-            double Ee = crom_cub_tet(&f->mat, xe, J4, r, f->Dminv + 9 * (size_t)t, f->vol[t], 1.0, s->zero,
-                                     project, tg, tH, w);
+            double Ee = (g || H) ? crom_cub_tet(&f->mat, xe, J4, r, f->Dminv + 9 * (size_t)t, f->vol[t], s->ew[j],
+                                                s->zero, project, tg, tH, w)
+                                 : crom_fem_tet_energy(&f->mat, xe, f->Dminv + 9 * (size_t)t, f->vol[t]);
             if (!isfinite(Ee))
                 bad = 1;
-            Et += Ee;
+            Et += s->ew[j] * Ee;
         }
         s->tE[tid] = Et;
     }
@@ -351,146 +542,131 @@ static int elastic(crom_nlsim *s, const double *x, double *E, double *g, double 
     return 0;
 }
 
+/* out [r][r] (upper triangle and lower) = Tᵀ A T for symmetric A [p][p] */
+static void sandwich(crom_nlsim *s, const double *A, double *out, double alpha, double beta)
+{
+    int p = s->p, r = s->r;
+    cblas_dsymm(CblasRowMajor, CblasLeft, CblasUpper, p, r, 1.0, A, p, s->T, r, 0.0, s->AT, r);
+    cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, r, p, alpha, s->T, r, s->AT, r, beta, out, r);
+}
+
 int crom_nlsim_objective(crom_nlsim *s, const double *q, double *Eout, double *g, double *H, int project)
 {
     const crom_scenario *sc = s->sc;
-    int r = s->r, n = s->n, rc;
+    const crom_map *map = s->map;
+    int r = s->r, p = s->p, rc;
     size_t rr = (size_t)r * r;
-    double h = sc->dt, cin = 1 / (h * h), cd = sc->damping / h, t1 = s->t + h;
-    const double *X = s->map->mesh.X, *m = s->fem.mass;
-    double *x = s->xt, *gx = s->gx;
-    if ((rc = crom_map_eval(s->map, q, x, g || H ? s->J : NULL)))
+    double h = sc->dt;
+    const double *m = s->fem.mass;
+    if ((rc = crom_map_features(s->map, q, s->a, g || H ? s->T : NULL)))
         return rc;
-    double E = 0;
-    /* inertia, damping, external work; wd: the diagonal of the quadratic terms */
-    for (int i = 0; i < n; i++) {
-        double mi = m[i / 3], a = x[i] - s->xhat[i], b = x[i] - s->xn[i];
-        E += 0.5 * mi * (cin * a * a + cd * b * b) - s->fext[i] * b;
-        gx[i] = mi * (cin * a + cd * b) - s->fext[i];
-    }
-    double *wd = H ? s->wd : NULL;
-    if (wd)
-        for (int i = 0; i < n; i++)
-            wd[i] = m[i / 3] * (cin + cd);
-    /* boundary-condition penalty */
-    for (int k = 0; k < s->nbc; k++) {
-        const crom_nlbc *b = &s->bc[k];
-        double u[3] = {0, 0, 0};
-        if (b->bc)
-            crom_bc_displacement(b->bc, t1, u);
-        for (int j = 0; j < b->n; j++) {
-            int v = b->idx[j];
-            for (int c = 0; c < 3; c++) {
-                double dv = x[3 * v + c] - X[3 * v + c] - u[c];
-                E += 0.5 * s->kappa * m[v] * dv * dv;
-                gx[3 * v + c] += s->kappa * m[v] * dv;
-                if (wd)
-                    wd[3 * v + c] += s->kappa * m[v];
-            }
-        }
-    }
+    /* the quadratic: ½ δᵀAδ + bᵀδ + c; ga = Aδ + b, its gradient in a */
+    double *delta = s->AT; /* scratch, free until the sandwich below */
+    for (int i = 0; i < p; i++)
+        delta[i] = s->a[i] - s->an[i];
+    memcpy(s->ga, s->bq, sizeof(double) * (size_t)p);
+    cblas_dsymv(CblasRowMajor, CblasUpper, p, 1.0, s->Aq, p, delta, 1, 1.0, s->ga, 1);
+    double E = s->c0 + 0.5 * (cblas_ddot(p, delta, 1, s->ga, 1) + cblas_ddot(p, delta, 1, s->bq, 1));
     if (g)
         memset(g, 0, sizeof(double) * (size_t)r);
     if (H)
         memset(H, 0, sizeof(double) * rr);
-    /* contact at the surface vertices (gradient into gx, Hessian into H) */
-    for (int p = 0; p < sc->nplanes; p++)
+    /* contact at the surface vertices (gradient into ga, Hessian into H) */
+    for (int pl = 0; pl < sc->nplanes; pl++)
         for (int k = 0; k < s->nsurf; k++) {
             int v = s->surf[k];
-            double lam = s->lam[(size_t)p * s->nsurf + k];
-            if (crom_contact_depth(&sc->plane[p], x + 3 * (size_t)v) <= 0 && !(lam > 0 && sc->plane[p].mu > 0))
+            double lam = s->lam[(size_t)pl * s->nsurf + k], xv[3];
+            crom_map_rows(map, &v, 1, s->a, NULL, xv, NULL);
+            if (crom_contact_depth(&sc->plane[pl], xv) <= 0 && !(lam > 0 && sc->plane[pl].mu > 0))
                 continue;
-            double gc[3] = {0, 0, 0}, Hv[9] = {0};
-            E += crom_contact_eval(&sc->plane[p], sc->contact_stiffness, m[v], x + 3 * (size_t)v, s->xn + 3 * (size_t)v,
-                                   lam, sc->friction_eps * h, g ? gc : NULL, H ? Hv : NULL);
-            for (int c = 0; c < 3; c++)
-                gx[3 * v + c] += gc[c];
+            double gcv[3] = {0, 0, 0}, Hv[9] = {0};
+            double xnv[3];
+            crom_map_rows(map, &v, 1, s->an, NULL, xnv, NULL);
+            E += crom_contact_eval(&sc->plane[pl], sc->contact_stiffness, m[v], xv, xnv, lam,
+                                   sc->friction_eps * h, g ? gcv : NULL, H ? Hv : NULL);
+            rows_t(map, v, 1.0, gcv, s->ga);
             if (H) { /* H += J_vᵀ Hv J_v */
-                const double *Jv = s->J + (size_t)v * 3 * r;
-                for (int a = 0; a < r; a++)
-                    for (int c = 0; c < 3; c++) {
-                        double hj = 0;
-                        for (int e = 0; e < 3; e++)
-                            hj += Hv[3 * c + e] * Jv[e * r + a];
-                        if (hj != 0)
-                            for (int b2 = 0; b2 < r; b2++)
-                                H[b2 * r + a] += Jv[c * r + b2] * hj;
-                    }
+                double *Jv = s->Jt, *HJ = s->Jt + 3 * (size_t)r; /* scratch */
+                crom_map_rows(map, &v, 1, s->a, s->T, NULL, Jv);
+                cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, 3, r, 3, 1.0, Hv, 3, Jv, r, 0.0, HJ, r);
+                cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, r, 3, 1.0, Jv, r, HJ, r, 1.0, H, r);
             }
         }
-    /* elastic energy over every tet */
-    double Ee;
-    if (g || H) {
-        if ((rc = elastic(s, x, &Ee, g, H, project)))
-            return rc;
-    } else {
-        crom_fem_opts fo = {0, 0, NULL, s->nthreads};
-        if ((rc = crom_fem_assemble(&s->fem, x, &fo, &Ee, NULL, NULL)))
-            return rc;
-    }
+    /* elastic energy over the elastic tets */
+    double Ee = 0;
+    if ((rc = elastic(s, &Ee, g, H, project)))
+        return rc;
     E += Ee;
-    if (g) /* g += Jᵀ gx */
-        cblas_dgemv(CblasRowMajor, CblasTrans, n, r, 1.0, s->J, r, gx, 1, 1.0, g, 1);
-    if (H) { /* H += Jᵀ diag(wd) J; Gm = Jᵀ M J / m */
-        for (int i = 0; i < n; i++) {
-            double sq = sqrt(wd[i]);
-            for (int k = 0; k < r; k++)
-                s->Jt[(size_t)i * r + k] = sq * s->J[(size_t)i * r + k];
-        }
-        cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, r, n, 1.0, s->Jt, r, 0.0, s->Hc, r);
-        for (int a = 0; a < r; a++)
-            for (int b = a; b < r; b++) {
-                H[a * r + b] += s->Hc[a * r + b];
-                if (b != a)
-                    H[b * r + a] += s->Hc[a * r + b];
+    if (g) /* g += Tᵀ ga */
+        cblas_dgemv(CblasRowMajor, CblasTrans, p, r, 1.0, s->T, r, s->ga, 1, 1.0, g, 1);
+    if (H) { /* H += Tᵀ A T; Gm = Tᵀ A0 T / m */
+        sandwich(s, s->Aq, H, 1.0, 1.0);
+        sandwich(s, s->A0, s->Gm, 1 / s->fem.total_mass, 0.0);
+        for (int i = 0; i < r; i++) /* exactly symmetric */
+            for (int j = 0; j < i; j++) {
+                H[i * r + j] = H[j * r + i] = 0.5 * (H[i * r + j] + H[j * r + i]);
+                s->Gm[i * r + j] = s->Gm[j * r + i] = 0.5 * (s->Gm[i * r + j] + s->Gm[j * r + i]);
             }
-        for (int i = 0; i < n; i++) {
-            double sq = sqrt(m[i / 3] / s->fem.total_mass);
-            for (int k = 0; k < r; k++)
-                s->Jt[(size_t)i * r + k] = sq * s->J[(size_t)i * r + k];
-        }
-        cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, r, n, 1.0, s->Jt, r, 0.0, s->Gm, r);
-        for (int a = 0; a < r; a++)
-            for (int b = 0; b < a; b++)
-                s->Gm[a * r + b] = s->Gm[b * r + a];
     }
     *Eout = E;
     return isfinite(E) ? 0 : crom_err(CROM_EDATA, "the reduced energy is not finite");
 }
 
-/* The map's curvature term of the Hessian of Φ at q, C_ab = Σ_i (∇_xΦ)_i
- * ∂²x_i/∂q_a∂q_b, by central differences of J(q)ᵀ∇_xΦ with ∇_xΦ held fixed
- * (2r evaluations of the map's Jacobian; step 1e-5 (1 + |q|_∞), so C is
- * good to about 1e-10 relative). Must follow crom_nlsim_objective at the
- * same q (its positions and non-elastic gradient). */
+/* The map's curvature term of the Hessian of Φ at q, C_ab = Σ_k (∇_aΦ)_k
+ * ∂²a_k/∂q_a∂q_b (x is linear in the features a), by central differences
+ * of T(q)ᵀ∇_aΦ with ∇_aΦ held fixed (2r evaluations of the network's
+ * features; step 1e-5 (1 + |q|_∞), so C is good to about 1e-10 relative).
+ * Must follow crom_nlsim_objective at the same q with g or H requested
+ * (its ∇_aΦ of the non-elastic terms and the elastic vertices' positions). */
 int crom_nlsim_curvature(crom_nlsim *s, const double *q, double *C)
 {
-    int r = s->r, n = s->n, rc;
-    crom_fem_opts fo = {0, 0, NULL, s->nthreads};
-    double *ge = s->wd, *qp = s->qt; /* scratch: wd and qt are free here */
-    if ((rc = crom_fem_assemble(&s->fem, s->xt, &fo, NULL, ge, NULL)))
-        return rc;
-    for (int i = 0; i < n; i++)
-        ge[i] += s->gx[i];
+    int r = s->r, p = s->p, rc;
+    const crom_fem *f = &s->fem;
+    /* ∇_aΦ = ga + Σ_e w_e B_eᵀ ∇_x E_e (the elastic gradient scattered to
+     * the elastic vertices first) */
+    double *gt = crom_malloc(sizeof(double) * (size_t)p), *qp = s->qt;
+    if (!gt)
+        return CROM_EINTERNAL;
+    memset(s->gc, 0, sizeof(double) * 3 * (size_t)s->ncv);
+    for (int j = 0; j < s->ne; j++) {
+        int t = s->eidx[j];
+        const int *e = s->eloc + 4 * (size_t)j;
+        double xe[12], ge[12], Ee;
+        for (int a = 0; a < 4; a++)
+            memcpy(xe + 3 * a, s->xc + 3 * (size_t)e[a], 3 * sizeof(double));
+        if (crom_fem_tet_eval(&f->mat, xe, f->Dminv + 9 * (size_t)t, f->vol[t], 0, &Ee, ge, NULL)) {
+            free(gt);
+            return crom_err(CROM_EDATA, "non-finite elastic energy");
+        }
+        for (int a = 0; a < 4; a++)
+            for (int c = 0; c < 3; c++)
+                s->gc[3 * (size_t)e[a] + c] += s->ew[j] * ge[3 * a + c];
+    }
+    memcpy(gt, s->ga, sizeof(double) * (size_t)p);
+    cblas_dgemv(CblasRowMajor, CblasTrans, 3 * s->ncv, p, 1.0, s->cv ? s->Bc : s->map->B, p, s->gc, 1, 1.0, gt, 1);
     double qmax = 0;
     for (int a = 0; a < r; a++)
         qmax = fmax(qmax, fabs(q[a]));
     double eps = 1e-5 * (1 + qmax);
-    for (int b = 0; b < r; b++) {
+    rc = 0;
+    for (int b = 0; b < r && !rc; b++) {
         memcpy(qp, q, sizeof(double) * (size_t)r);
         qp[b] = q[b] + eps;
-        if ((rc = crom_map_eval(s->map, qp, NULL, s->J)))
-            return rc;
-        cblas_dgemv(CblasRowMajor, CblasTrans, n, r, 1.0 / (2 * eps), s->J, r, ge, 1, 0.0, C + (size_t)b * r, 1);
+        if ((rc = crom_map_features(s->map, qp, NULL, s->Tp)))
+            break;
+        cblas_dgemv(CblasRowMajor, CblasTrans, p, r, 1.0 / (2 * eps), s->Tp, r, gt, 1, 0.0, C + (size_t)b * r, 1);
         qp[b] = q[b] - eps;
-        if ((rc = crom_map_eval(s->map, qp, NULL, s->J)))
-            return rc;
-        cblas_dgemv(CblasRowMajor, CblasTrans, n, r, -1.0 / (2 * eps), s->J, r, ge, 1, 1.0, C + (size_t)b * r, 1);
+        if ((rc = crom_map_features(s->map, qp, NULL, s->Tp)))
+            break;
+        cblas_dgemv(CblasRowMajor, CblasTrans, p, r, -1.0 / (2 * eps), s->Tp, r, gt, 1, 1.0, C + (size_t)b * r, 1);
     }
+    free(gt);
+    if (rc)
+        return rc;
     for (int a = 0; a < r; a++) /* symmetric (second derivatives) */
         for (int b = 0; b < a; b++)
             C[a * r + b] = C[b * r + a] = 0.5 * (C[a * r + b] + C[b * r + a]);
-    return crom_map_eval(s->map, q, NULL, s->J); /* J at q again */
+    return 0;
 }
 
 /* RMS displacement ‖J d‖_M / sqrt(m) relative to the size (Gm of the last
@@ -621,11 +797,13 @@ int crom_nlsim_step(crom_nlsim *s, crom_rstep_stats *st)
                       "(try a smaller --dt or a larger --max-iter)",
                       s->step + 1, st->residual, sc->tol, sc->max_iter);
     if (!rc)
-        rc = crom_map_eval(s->map, s->q, s->x, NULL);
+        rc = crom_map_features(s->map, s->q, s->a, NULL);
     if (rc)
         return rc;
-    for (int i = 0; i < s->n; i++)
-        s->v[i] = (s->x[i] - s->xn[i]) / h;
+    for (int i = 0; i < s->p; i++) {
+        s->va[i] = (s->a[i] - s->an[i]) / h;
+        s->an[i] = s->a[i];
+    }
     for (int i = 0; i < r; i++)
         s->qd[i] = (s->q[i] - s->qn[i]) / h;
     s->t += h;
@@ -645,9 +823,10 @@ double crom_nlsim_constraint_residual(const crom_nlsim *s)
             crom_bc_displacement(s->bc[k].bc, s->t, u);
         for (int j = 0; j < s->bc[k].n; j++) {
             int v = s->bc[k].idx[j];
-            double e2 = 0;
+            double e2 = 0, xv[3];
+            crom_map_rows(s->map, &v, 1, s->an, NULL, xv, NULL);
             for (int c = 0; c < 3; c++) {
-                double e = s->x[3 * v + c] - X[3 * v + c] - u[c];
+                double e = xv[c] - X[3 * v + c] - u[c];
                 e2 += e * e;
             }
             worst = fmax(worst, sqrt(e2));
@@ -656,19 +835,32 @@ double crom_nlsim_constraint_residual(const crom_nlsim *s)
     return worst;
 }
 
+void crom_nlsim_positions(const crom_nlsim *s, double *x, double *v)
+{
+    const crom_map *map = s->map;
+    if (x) {
+        memcpy(x, map->mesh.X, sizeof(double) * (size_t)s->n);
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, s->n, s->p, 1.0, map->B, s->p, s->an, 1, 1.0, x, 1);
+    }
+    if (v)
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, s->n, s->p, 1.0, map->B, s->p, s->va, 1, 0.0, v, 1);
+}
+
 int crom_nlsim_energies(crom_nlsim *s, double *kinetic, double *elastic_e, double *external)
 {
-    const double *X = s->map->mesh.X;
-    double K = 0, W = 0, *f = s->gx; /* scratch: fext belongs to the step */
-    loads(s, s->t, f);
-    for (int i = 0; i < s->n; i++) {
-        K += 0.5 * s->fem.mass[i / 3] * s->v[i] * s->v[i];
-        W -= f[i] * (s->x[i] - X[i]);
-    }
-    crom_fem_opts fo = {0, 0, NULL, s->nthreads};
-    int rc = crom_fem_assemble(&s->fem, s->x, &fo, elastic_e, NULL, NULL);
+    int p = s->p;
+    /* K = ½ vaᵀ BᵀMB va; W = −f·(x − X) = −(Bᵀf)·a */
+    cblas_dsymv(CblasRowMajor, CblasUpper, p, 1.0, s->A0, p, s->va, 1, 0.0, s->fa, 1);
+    double K = 0.5 * cblas_ddot(p, s->va, 1, s->fa, 1);
+    feature_loads(s, s->t, s->fa);
+    double W = -cblas_ddot(p, s->fa, 1, s->an, 1);
+    /* the elastic energy as the steps see it: over the elastic tets */
+    memcpy(s->a, s->an, sizeof(double) * (size_t)p);
+    double Ee = 0;
+    int rc = elastic(s, &Ee, NULL, NULL, 0);
     if (rc)
         return rc;
+    *elastic_e = Ee;
     *kinetic = K;
     *external = W;
     return 0;

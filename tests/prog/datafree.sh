@@ -3,7 +3,8 @@
 # (valid models that record what they were trained on, pins built in,
 # reproducible bytes whatever --threads), crom-metrics (energy below the
 # linear modes at the same displacements, no collapsed dimension),
-# crom-reducedstep --model (valid latent runs that dissipate energy; a linear
+# crom-reducedstep --model (valid latent runs that dissipate energy; over a
+# cubature of the map's features it follows the run over every tet; a linear
 # basis through --model is the cubature run), decoding with crom-export and
 # crom-diff on the model's own mesh only, and bad input.
 . "$CROM_TOP/tests/prog/common.bash"
@@ -128,6 +129,28 @@ done
 crom-reducedstep --model df.h5 "${MAT[@]}" "${SC[@]}" | crom-diff - run_df.h5 --model df.h5 -q \
   | grep -q "relative displacement error 0 over 31 frames" || fail "streamed run differs"; ok
 
+# a cubature of the energy map (its features), no data: latent samples of
+# its training distribution; the run over its tets follows the run over
+# every tet
+crom-cubature --model df.h5 --scheme optimized --count 60 --tol 0.002 -v -o dfcub.h5 2>dfcub.log
+cat dfcub.log
+crom-info --check dfcub.h5 >/dev/null || fail "map cubature invalid"; ok
+grep -q "poses: 100 latent samples of the model's training distribution" dfcub.log || fail "map cubature poses"; ok
+$PY - dfcub.h5 df.h5 <<'PYEOF' || fail "map cubature contents"
+import sys, h5py
+c, f = h5py.File(sys.argv[1]), h5py.File(sys.argv[2])
+assert c.attrs["model_id"] == f.attrs["model_id"] and c.attrs["map_rank"] == 2
+assert c.attrs["rank"] == 32 + 1 and c["W"].shape == (110, 3, 33)       # features: last hidden layer + 1
+assert 0 < c.attrs["count"] < 254
+PYEOF
+ok
+crom-reducedstep --model df.h5 --cubature dfcub.h5 "${MAT[@]}" "${SC[@]}" --stats run_dfc.csv -q -o run_dfc.h5
+e=$(crom-diff run_dfc.h5 run_df.h5 --model df.h5 -q | sed -n 's/relative displacement error \([0-9.e+-]*\) over.*/\1/p')
+echo "energy map: cubature run vs every tet: relative displacement error $e"
+close "$e" 0 0.05 "map cubature run vs every tet"
+k=$(sed -n 2p run_dfc.csv | cut -d, -f6)
+[ "$k" -lt 254 ] || fail "the cubature run integrated $k tets"; ok
+
 # a linear basis through --model is the cubature run (same Newton steps)
 crom-cubature --model modes.h5 --scheme all -q -o cub.h5 bar.h5
 crom-reducedstep --cubature cub.h5 "${MAT[@]}" "${SC[@]}" --tol 1e-10 -q -o lin_cub.h5
@@ -178,13 +201,14 @@ expect_error 64 "--mesh applies to a data-free subspace" $O/m.h5 -- crom-fitfiel
 expect_error 64 "--pin applies to a data-free subspace" $O/m.h5 -- crom-fitfield --pin clamp -o $O/m.h5
 expect_error 64 "unknown region 'lid'" $O/m.h5 -- crom-fitfield "${DF[@]}" --mesh bar.h5 --pin lid -o $O/m.h5
 expect_error 65 "is crom/model v1, expected crom/mesh" $O/m.h5 -- crom-fitfield "${DF[@]}" --mesh df.h5 -o $O/m.h5
-expect_error 64 "--model runs on the model's mesh: --cubature does not apply" $O/x.h5 -- crom-reducedstep --model df.h5 --cubature cub.h5 -o $O/x.h5
+expect_error 65 "--cubature cub.h5 is not a cubature of this map" $O/x.h5 -- crom-reducedstep --model df.h5 --cubature cub.h5 -o $O/x.h5
+expect_error 65 "dfcub.h5 is a cubature of a nonlinear map .*: run it with --model MODEL --cubature dfcub.h5" $O/x.h5 -- crom-reducedstep --cubature dfcub.h5 -o $O/x.h5
 expect_error 64 "--solver gd needs a cubature" $O/x.h5 -- crom-reducedstep --model df.h5 --solver gd -o $O/x.h5
 expect_error 65 "decodes only onto its own mesh \(110 vertices, 254 tets\); the given mesh has" $O/x.h5 -- crom-reducedstep --model df.h5 --mesh other.h5 -o $O/x.h5
 expect_error 64 "unknown region 'lid'" $O/x.h5 -- crom-reducedstep --model df.h5 --pin lid -o $O/x.h5
 expect_error 65 "--init .* is a state of model" $O/x.h5 -- crom-reducedstep --model df.h5 --init run_nm.h5 "${MAT[@]}" -o $O/x.h5
 expect_error 65 "decodes only onto its own mesh" $O/x.vtu -- crom-export --format vtu --model df.h5 --mesh other.h5 -o $O/x.vtu run_df.h5
-expect_error 65 "is a nonlinear map of one mesh \(basis 'energy'\), not a basis field" $O/c.h5 -- crom-cubature --model df.h5 -o $O/c.h5 bar.h5
+expect_error 65 "decodes only onto its own mesh" $O/c.h5 -- crom-cubature --model df.h5 -o $O/c.h5 other.h5
 expect_error 64 "--compare df.h5 is a nonlinear map \('energy'\); the comparison needs a linear basis" - -- crom-metrics --compare df.h5 nm.h5
 expect_error 65 "decodes only onto its own mesh" - -- crom-metrics --mesh other.h5 df.h5
 done_checks

@@ -35,6 +35,7 @@
 #include "modes.h"
 #include "nlrom.h"
 #include "nn.h"
+#include "rng.h"
 #include "rom.h"
 
 #define FD_H 1e-3
@@ -561,6 +562,75 @@ static void test_dynamics(bar_case *b)
             CHECK_LT(eh, 1e-5);
         }
     }
+    /* the objective in feature space (a quadratic in the features plus the
+     * elastic tets) against the incremental potential summed over every
+     * vertex and tet directly, at a point away from the predictor */
+    {
+        int n = map.n;
+        double q[2] = {0.3, -0.45}, E, h = sc.dt, cin = 1 / (h * h), cd = sc.damping / h;
+        double *x = malloc(sizeof(double) * (size_t)n), *xn = malloc(sizeof(double) * (size_t)n);
+        double *vn = malloc(sizeof(double) * (size_t)n), *fext = malloc(sizeof(double) * (size_t)n);
+        CHECK(x && crom_map_eval(&map, q, x, NULL) == 0);
+        crom_nlsim_positions(&s, xn, vn);
+        crom_nlsim_loads(&s, s.t + h, fext);
+        sc.nplanes = 0; /* contact is checked by differences above */
+        CHECK(crom_nlsim_objective(&s, q, &E, NULL, NULL, 0) == 0);
+        double Eref = 0, Eel;
+        crom_fem_opts fo = {0, 0, NULL, 1};
+        CHECK(crom_fem_assemble(&s.fem, x, &fo, &Eel, NULL, NULL) == 0);
+        Eref += Eel;
+        for (int i = 0; i < n; i++) {
+            double mi = s.fem.mass[i / 3], a = x[i] - xn[i] - h * vn[i], bb = x[i] - xn[i];
+            Eref += 0.5 * mi * (cin * a * a + cd * bb * bb) - fext[i] * bb;
+        }
+        for (int j = 0; j < s.bc[0].n; j++) { /* the pin */
+            int v = s.bc[0].idx[j];
+            for (int c = 0; c < 3; c++) {
+                double e = x[3 * v + c] - map.mesh.X[3 * v + c];
+                Eref += 0.5 * s.kappa * s.fem.mass[v] * e * e;
+            }
+        }
+        fprintf(stderr, "energy map: objective in feature space %.12g J, summed over vertices and tets %.12g J\n", E,
+                Eref);
+        CHECK_LT(fabs(E - Eref), 1e-10 * (fabs(Eref) + 1));
+        sc.nplanes = 1;
+        free(x);
+        free(xn);
+        free(vn);
+        free(fext);
+    }
+    /* the same objective over a cubature (every other tet, weight 2):
+     * gradient and Newton matrix against differences again, and the
+     * elastic energy is that weighted sum */
+    {
+        int k = (s.fem.nt + 1) / 2;
+        int *elem = malloc(sizeof(int) * (size_t)k);
+        double *w = malloc(sizeof(double) * (size_t)k);
+        for (int j = 0; j < k; j++) {
+            elem[j] = 2 * j;
+            w[j] = 2;
+        }
+        CHECK(crom_nlsim_use_cubature(&s, k, elem, w) == 0);
+        int bad[1] = {s.fem.nt};
+        double wbad[1] = {-1};
+        CHECK(crom_nlsim_use_cubature(&s, 1, bad, w) == CROM_EDATA);
+        CHECK(crom_nlsim_use_cubature(&s, 1, elem, wbad) == CROM_EDATA);
+        double q[2] = {0.45, -0.2}, g[2], H[4], C[4], Hn[4], gfd[2], Hfd[4], E;
+        g_nlproject = 0;
+        CHECK(crom_nlsim_objective(&s, q, &E, g, H, 0) == 0);
+        CHECK(crom_nlsim_curvature(&s, q, C) == 0);
+        for (int i = 0; i < 4; i++)
+            Hn[i] = H[i] + C[i];
+        check_fd_gradient(nl_obj, NULL, q, r, 1e-6, gfd);
+        check_fd_jacobian(nl_grad, NULL, q, r, r, 1e-6, Hfd);
+        double eg = check_relerr(g, gfd, r, 1e-9), eh = check_relerr(Hn, Hfd, 4, 1e-9);
+        fprintf(stderr, "energy map over a cubature of %d of %d tets: gradient vs FD %.2e, Newton matrix vs FD %.2e\n",
+                k, s.fem.nt, eg, eh);
+        CHECK_LT(eg, 1e-6);
+        CHECK_LT(eh, 1e-5);
+        free(elem);
+        free(w);
+    }
     crom_nlsim_free(&s);
     /* a free run under gravity from f(0): finite, total energy non-increasing */
     crom_scenario fr;
@@ -624,6 +694,73 @@ static void test_dynamics(bar_case *b)
     crom_map_free(&map);
 }
 
+/* A cubature of the energy map through its features (crom-cubature
+ * --model on a map): optimized NNLS weights fitted to the latent forces
+ * T(q)ᵀ B_eᵀ f_e at samples of the training distribution reproduce the
+ * exact latent forces at OTHER samples, and a run over the cubature's tets
+ * follows the run over every tet. */
+static void test_map_cubature(bar_case *b)
+{
+    if (!g_energy_model.rank)
+        return;
+    crom_map map;
+    CHECK(crom_map_init(&map, &g_energy_model, &b->mesh) == 0);
+    int r = map.r, p = map.p, P = 100;
+    double *poses = malloc(sizeof(double) * 2 * P * p), *T = malloc(sizeof(double) * 2 * P * p * r);
+    crom_rng rng;
+    crom_rng_seed(&rng, 7);
+    for (int j = 0; j < 2 * P; j++) {
+        double q[2] = {crom_rng_normal(&rng), crom_rng_normal(&rng)};
+        CHECK(crom_map_features(&map, q, poses + (size_t)j * p, T + (size_t)j * p * r) == 0);
+    }
+    crom_cub_opts co = {CROM_CUB_OPTIMIZED, 120, 0.002, 0, poses, P, 1e6, 0.3, T, r};
+    crom_cub cub;
+    CHECK(crom_cub_build(&cub, &map.mesh, map.B, p, "map", &co, &rng) == 0);
+    double eE[2], eF[2];
+    CHECK(crom_cub_error(&cub, &b->mat, poses, P, T, r, &eE[0], &eF[0]) == 0);
+    CHECK(crom_cub_error(&cub, &b->mat, poses + (size_t)P * p, P, T + (size_t)P * p * r, r, &eE[1], &eF[1]) == 0);
+    fprintf(stderr, "energy map cubature: %d of %d tets; latent force error %.4f on the fitted samples, %.4f on "
+                    "others (energy %.4f, %.4f)\n", cub.k, map.mesh.nt, eF[0], eF[1], eE[0], eE[1]);
+    CHECK(cub.k < map.mesh.nt / 2);
+    CHECK_LT(eF[0], 0.01);
+    CHECK_LT(eF[1], 0.03);
+    /* runs under gravity, every tet against the cubature */
+    crom_scenario sc;
+    scenario_bar(&sc);
+    sc.tol = 1e-8;
+    crom_nlsim all, cs;
+    CHECK(crom_nlsim_init(&all, &map, &sc, 0, NULL, NULL, 1) == 0);
+    CHECK(crom_nlsim_init(&cs, &map, &sc, 0, NULL, NULL, 1) == 0);
+    CHECK(crom_nlsim_use_cubature(&cs, cub.k, cub.elem, cub.weight) == 0);
+    double num = 0, den = 0, *xa = malloc(sizeof(double) * (size_t)map.n), *xc = malloc(sizeof(double) * (size_t)map.n);
+    for (int k = 0; k < 40; k++) {
+        crom_rstep_stats s1, s2;
+        int rc1 = crom_nlsim_step(&all, &s1), rc2 = crom_nlsim_step(&cs, &s2);
+        CHECK_MSG(rc1 == 0 && rc2 == 0, "step %d: %s", k, crom_errmsg());
+        if (rc1 || rc2)
+            break;
+        crom_nlsim_positions(&all, xa, NULL);
+        crom_nlsim_positions(&cs, xc, NULL);
+        for (int i = 0; i < map.n; i++) {
+            double u = xa[i] - map.mesh.X[i];
+            num += (xc[i] - xa[i]) * (xc[i] - xa[i]);
+            den += u * u;
+        }
+    }
+    double rel = sqrt(num / den);
+    fprintf(stderr, "energy map, 40 steps under gravity: cubature run vs every tet, relative displacement error "
+                    "%.4f\n", rel);
+    CHECK_LT(rel, 0.02);
+    free(xa);
+    free(xc);
+    crom_nlsim_free(&all);
+    crom_nlsim_free(&cs);
+    crom_cub_free(&cub);
+    free(poses);
+    free(T);
+    crom_map_free(&map);
+}
+
 /* With its network zero, a Neural-Modes map is the linear modal basis:
  * Gauss–Newton is Newton and the run matches lib/rom's linear modal ROM
  * on a cubature of every tet, step by step; the Gauss-Newton matrix is then
@@ -652,7 +789,7 @@ static void test_linear_equivalence(bar_case *b)
     double eh = check_relerr(H, Hfd, r * r, 1e-9);
     CHECK_LT(eh, 1e-5);
     crom_cub cub;
-    crom_cub_opts co = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, sc.youngs, sc.poisson};
+    crom_cub_opts co = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, sc.youngs, sc.poisson, NULL, 0};
     crom_rng rng;
     crom_rng_seed(&rng, 1);
     CHECK(crom_cub_build(&cub, &b->mesh, b->modes, r, "lin", &co, &rng) == 0);
@@ -692,6 +829,7 @@ int main(void)
     test_energy_subspace(&b);
     test_neuralmodes_subspace(&b);
     test_dynamics(&b);
+    test_map_cubature(&b);
     test_linear_equivalence(&b);
     crom_model_free(&g_energy_model);
     bar_free(&b);

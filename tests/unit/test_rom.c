@@ -77,7 +77,7 @@ static void test_derivatives(void)
     double *W = malloc(sizeof(double) * 3 * R * m.nv);
     analytic_basis(&m, W);
     crom_cub c;
-    crom_cub_opts o = {CROM_CUB_RANDOM, 20, 0, 0, NULL, 0, 2.5e6, 0.25};
+    crom_cub_opts o = {CROM_CUB_RANDOM, 20, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
     crom_rng rng;
     crom_rng_seed(&rng, 3);
     CHECK(crom_cub_build(&c, &m, W, R, "test", &o, &rng) == 0);
@@ -206,7 +206,7 @@ static void test_galerkin(void)
     double *W = malloc(sizeof(double) * 3 * R * m.nv);
     analytic_basis(&m, W);
     crom_cub c;
-    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25};
+    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
     crom_rng rng;
     crom_rng_seed(&rng, 1);
     CHECK(crom_cub_build(&c, &m, W, R, "test", &o, &rng) == 0);
@@ -274,7 +274,7 @@ static void test_schemes_and_switch(void)
     for (int i = 0; i < 8 * R; i++)
         poses[i] = (i % R < 3 ? 0 : 0.02) * crom_rng_normal(&rng);
     crom_cub all, rnd, met, opt;
-    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25};
+    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
     CHECK(crom_cub_build(&all, &m, W, R, "id", &o, &rng) == 0);
     o.scheme = CROM_CUB_RANDOM;
     o.count = 60;
@@ -300,7 +300,7 @@ static void test_schemes_and_switch(void)
     double eE[4], eF[4];
     const crom_cub *cs[4] = {&all, &rnd, &met, &opt};
     for (int i = 0; i < 4; i++)
-        CHECK(crom_cub_error(cs[i], &mat, poses, 8, &eE[i], &eF[i]) == 0);
+        CHECK(crom_cub_error(cs[i], &mat, poses, 8, NULL, 0, &eE[i], &eF[i]) == 0);
     fprintf(stderr, "cubature errors (energy, force): all %.1e %.1e, random(%d tets) %.3f %.3f, metis(%d) %.3f %.3f, optimized(%d) %.4f %.4f\n",
             eE[0], eF[0], rnd.k, eE[1], eF[1], met.k, eE[2], eF[2], opt.k, eE[3], eF[3]);
     CHECK_LT(eE[0], 1e-12);
@@ -377,7 +377,7 @@ static double jump_energy(const crom_mesh *m, double offset, double q)
         W[3 * v + 1] = 0.5 * (1 + tanh((P[3 * v] - 0.5) / 1e-4));
     }
     crom_cub c;
-    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 1e5, 0.25};
+    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 1e5, 0.25, NULL, 0};
     crom_rng rng;
     crom_rng_seed(&rng, 1);
     CHECK(crom_cub_build(&c, m, W, 1, "jump", &o, &rng) == 0);
@@ -460,7 +460,7 @@ static void test_initial_velocity(void)
     double *W = malloc(sizeof(double) * 3 * R * m.nv);
     analytic_basis(&m, W);
     crom_cub c;
-    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25};
+    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
     CHECK(crom_cub_build(&c, &m, W, R, "test", &o, NULL) == 0);
     crom_scenario sc;
     crom_scenario_defaults(&sc);
