@@ -260,8 +260,8 @@ static int run(crom_cli *cli, args *a)
     int rc = crom_metrics_load_model(a->model, &model, &at);
     if (rc)
         return rc;
-    int is_map = model.field == CROM_FIELD_MAP;
-    if (a->input || !is_map)
+    int is_map = crom_model_is_nonlinear(&model), own_mesh = model.field == CROM_FIELD_MAP;
+    if (a->input || !own_mesh)
         rc = read_mesh(a->input, &m, &hist);
     else
         rc = crom_mesh_copy(&model.mesh, &m); /* a map's own mesh */

@@ -26,11 +26,11 @@
 
 enum { O_RANK = 300, O_ENCODER, O_BASIS, O_EPOCHS, O_MINUTES, O_LR, O_BATCH, O_PPS, O_ENCPTS,
        O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX,
-       O_ORTHO, O_ORIGIN, O_STEPS };
+       O_ORTHO, O_ORIGIN, O_STEPS, O_FEATURES, O_TETS, O_PINW };
 
 static const crom_opt fit_opts[] = {
     {"output", 'o', "OUT", "Write the model to OUT (default: stdout, which must not be a terminal)."},
-    {"objective", O_OBJECTIVE, "KIND", "samples (default): fit a basis to the samples read from SAMPLES. energy: learn a nonlinear subspace of the mesh given with --mesh from its energy alone, no data (Sharp et al. 2023). neuralmodes: nonlinear modes x(z) = X + Phi z + y(z) on the linear modes of --modes (Wang et al. 2024)."},
+    {"objective", O_OBJECTIVE, "KIND", "samples (default): fit a basis to the samples read from SAMPLES. energy: learn a nonlinear subspace of the mesh given with --mesh from its energy alone, no data (Sharp et al. 2023). neuralmodes: nonlinear modes x(z) = X + Phi z + y(z) on the linear modes of --modes (Wang et al. 2024). field: a continuous nonlinear subspace x(X, z) = X + W(X) phi(z), trained like energy from the energy integrated by a random cubature of --mesh, that lays on any mesh of the body (beyond both papers)."},
     {"rank", O_RANK, "R", "Number of basis fields r, the latent dimension (default 20; energy: 8; neuralmodes: every mode of --modes). At most the number of frames with a non-zero displacement (for pod: the numerical rank of the snapshots; data-free: the free degrees of freedom; neuralmodes: the modes in --modes)."},
     {"basis", O_BASIS, "KIND", "mlp (default): a neural field W(X), usable on any mesh. pod: classic POD of samples of ONE mesh taken with crom-sample --points all, stored as a piecewise-linear field on that mesh."},
     {"encoder", O_ENCODER, "KIND", "How q is found for a frame during and after training (mlp only). lsq (default): the least-squares fit of W to the frame's samples, re-solved at every step (variable projection; fast). pointnet: the paper's PointNet encoder, trained jointly with W (LiCROM eq. 4) and stored in the model."},
@@ -44,6 +44,9 @@ static const crom_opt df_opts[] = {
     {"lambda", O_LAMBDA, "L", "energy: weight of the isometry term, the squared log-ratio of mass-norm distances to S |z - z'| over all pairs of a batch, against the energy in units of E V (Young's modulus times volume) (default 1)."},
     {"ramp", O_RAMP, "F", "energy: the seed-state blend rho grows linearly from 0 to 1 over the first fraction F of the steps, then stays 1 (default 0.5; Sharp et al. §4.1). The seed state is the rest shape."},
     {"box", O_BOX, "A", "neuralmodes: the modal coordinates z are drawn uniformly from [-A, A]^r, in metres of RMS displacement (default 0.1 times the bounding-box diagonal)."},
+    {"features", O_FEATURES, "P", "field: the feature fields of W(X), the output width of phi (default 16)."},
+    {"tets", O_TETS, "K", "field: tets of the random cubature drawn afresh at every step, each standing for nt/K of them (default 512, at most every tet)."},
+    {"pin-length", O_PINW, "L", "field: the field is masked by smoothstep(d / L), d the distance to the nearest pinned vertex of --mesh, so it vanishes there on any mesh (default: twice the mean edge length)."},
     {"ortho-weight", O_ORTHO, "W", "neuralmodes: weight of the penalty |Phi^T M y(z)|^2 keeping the correction M-orthogonal to the linear modes, relative to the linear energy of the highest mode at the box size (default 1e4)."},
     {"origin-weight", O_ORIGIN, "W", "neuralmodes: weight of the penalty |y(0)|_M^2 (default 1e4)."},
     {NULL, 0, NULL, NULL}};
@@ -176,6 +179,9 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_BOX: a->df_only = "--box"; break;
     case O_ORTHO: a->df_only = "--ortho-weight"; break;
     case O_ORIGIN: a->df_only = "--origin-weight"; break;
+    case O_FEATURES: a->df_only = "--features"; break;
+    case O_TETS: a->df_only = "--tets"; break;
+    case O_PINW: a->df_only = "--pin-length"; break;
     }
     switch (key) {
     case O_OBJECTIVE:
@@ -185,8 +191,10 @@ static int on_opt(void *ctx, int key, const char *v)
             a->objective = CROM_DF_ENERGY;
         else if (!strcmp(v, "neuralmodes"))
             a->objective = CROM_DF_NEURALMODES;
+        else if (!strcmp(v, "field"))
+            a->objective = CROM_DF_FIELD;
         else
-            return crom_err(CROM_EUSAGE, "--objective: '%s' is not samples, energy or neuralmodes", v);
+            return crom_err(CROM_EUSAGE, "--objective: '%s' is not samples, energy, neuralmodes or field", v);
         return 0;
     case O_MESH: a->mesh = v; return 0;
     case O_MODES: a->modes = v; return 0;
@@ -205,6 +213,18 @@ static int on_opt(void *ctx, int key, const char *v)
             return CROM_EUSAGE;
         return a->df.ramp >= 0 && a->df.ramp <= 1 ? 0 : crom_err(CROM_EUSAGE, "--ramp must be in [0, 1], got %s", v);
     case O_BOX: return crom_parse_positive(v, "--box", &a->df.box);
+    case O_FEATURES:
+        if (crom_parse_int(v, "--features", 1, 4096, &n))
+            return CROM_EUSAGE;
+        a->df.features = (int)n;
+        return 0;
+    case O_TETS:
+        if (crom_parse_int(v, "--tets", 1, 100000000L, &n))
+            return CROM_EUSAGE;
+        a->df.tets = (int)n;
+        return 0;
+    case O_PINW:
+        return crom_parse_positive(v, "--pin-length", &a->df.pin_length);
     case O_ORTHO:
         if (crom_parse_double(v, "--ortho-weight", &a->df.ortho_weight))
             return CROM_EUSAGE;
@@ -313,11 +333,11 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
         exit(crom_cli_exit(cli, CROM_EUSAGE));
     }
     if (!a->objective && a->df_only) {
-        crom_err(CROM_EUSAGE, "%s applies to a data-free subspace (--objective energy|neuralmodes)", a->df_only);
+        crom_err(CROM_EUSAGE, "%s applies to a data-free subspace (--objective energy|neuralmodes|field)", a->df_only);
         usage_exit(cli);
     }
     if (a->objective) {
-        const char *name = a->objective == CROM_DF_ENERGY ? "energy" : "neuralmodes";
+        const char *name = a->objective == CROM_DF_ENERGY ? "energy" : a->objective == CROM_DF_FIELD ? "field" : "neuralmodes";
         if (a->samples_only) {
             crom_err(CROM_EUSAGE, "%s applies to --objective samples, not %s%s", a->samples_only, name,
                      !strcmp(a->samples_only, "--epochs") ? " (use --steps)" : "");
@@ -337,7 +357,7 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
                                   "(from crom-modes on the same mesh)");
             usage_exit(cli);
         }
-        if (a->objective == CROM_DF_ENERGY && a->modes) {
+        if (a->objective != CROM_DF_NEURALMODES && a->modes) {
             crom_err(CROM_EUSAGE, "--modes applies to --objective neuralmodes");
             usage_exit(cli);
         }
@@ -357,6 +377,9 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
         d.box = a->df.box;
         d.ortho_weight = a->df.ortho_weight;
         d.origin_weight = a->df.origin_weight;
+        d.features = a->df.features; /* the same defaults for every objective */
+        d.tets = a->df.tets;
+        d.pin_length = a->df.pin_length;
         d.seed = cli->seed;
         a->df = d;
     } else if (a->fit.act == CROM_NN_GELU) {
@@ -424,8 +447,8 @@ static char *df_scenario_text(const crom_scenario *s, int energy)
 
 static int run_datafree(crom_cli *cli, args *a)
 {
-    int nm = a->objective == CROM_DF_NEURALMODES, rc;
-    const char *name = nm ? "neuralmodes" : "energy";
+    int nm = a->objective == CROM_DF_NEURALMODES, field = a->objective == CROM_DF_FIELD, rc;
+    const char *name = nm ? "neuralmodes" : field ? "field" : "energy";
     crom_mesh mesh;
     char *hist = NULL, *text = NULL;
     unsigned char *fixed = NULL;
@@ -540,7 +563,12 @@ static int run_datafree(crom_cli *cli, args *a)
     if (rc)
         goto out;
     int j = log.nblocks - 1;
-    if (nm)
+    if (field)
+        crom_cli_info(cli, "continuous field, rank %d with %d features, trained on %d vertices (%d pinned): %ld steps "
+                      "in %.1f s; last objective %.4g, mean potential energy %.4g J, mean squared log isometry ratio "
+                      "%.3g (sigma %.4g m)", r, a->df.features, mesh.nv, npinned, log.steps, crom_now() - t0,
+                      log.objective[j], log.energy[j], log.penalty[j], log.sigma);
+    else if (nm)
         crom_cli_info(cli, "neuralmodes map, rank %d on %d vertices (%d pinned): %ld steps in %.1f s; last objective "
                       "%.4g, mean elastic energy %.4g J, orthogonality penalty %.3g (box %.4g m)",
                       r, mesh.nv, npinned, log.steps, crom_now() - t0, log.objective[j], log.energy[j],

@@ -153,7 +153,7 @@ static int run(crom_cli *cli, args *a)
             crom_err_ctx("--compare");
             goto out;
         }
-        if (cmpm.field == CROM_FIELD_MAP) {
+        if (crom_model_is_nonlinear(&cmpm)) {
             rc = crom_err(CROM_EUSAGE, "--compare %s is a nonlinear map ('%s'); the comparison needs a linear basis "
                           "(modes, pod, mlp)", a->compare, cmpm.basis);
             goto out;
@@ -193,7 +193,9 @@ static int run(crom_cli *cli, args *a)
     if (!a->dist_given)
         crom_metrics_training_dist(&model, &at, diag, &a->mo);
     if (!a->sigma_given)
-        a->mo.sigma = !strcmp(model.basis, "energy") && at.sigma > 0 ? at.sigma : 1;
+        a->mo.sigma = (!strcmp(model.basis, "energy") || !strcmp(model.basis, "energy-field")) && at.sigma > 0
+                          ? at.sigma
+                          : 1;
     a->mo.seed = cli->seed;
     if ((rc = crom_metrics_compute(&map, &fem, a->sc.gravity, &a->mo, a->compare ? &cmap : NULL, &res)))
         goto out;

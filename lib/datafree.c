@@ -30,6 +30,16 @@ void crom_df_defaults(crom_df_opts *o, int objective)
     o->ramp = 0.5;
     o->ortho_weight = 1e4;
     o->origin_weight = 1e4;
+    o->features = 16;
+    o->field_depth = 4;
+    o->field_width = 64;
+    o->tets = 512;
+    o->pin_length = 0;
+    if (objective == CROM_DF_FIELD) {
+        o->rank = 8;
+        o->depth = 4;
+        o->act = CROM_NN_ELU;
+    }
     o->threads = 1;
     o->seed = 1;
 }
@@ -278,8 +288,7 @@ void crom_df_log_free(crom_df_log *l)
     memset(l, 0, sizeof *l);
 }
 
-/* learning rate: the paper halves it after each quarter of the run */
-static double df_lr(double base, double frac)
+double crom_df_lr(double base, double frac)
 {
     int q = (int)floor(4 * frac);
     if (q > 3)
@@ -297,6 +306,8 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
     const crom_mesh *mesh = p->mesh;
     int nv = mesh->nv, n = 3 * nv, nm = o.objective == CROM_DF_NEURALMODES, r = o.rank, rc = 0;
     double t0 = crom_now();
+    if (o.objective == CROM_DF_FIELD)
+        return crom_df_train_field(p, o_in, out, log);
     if (o.objective != CROM_DF_ENERGY && !nm)
         return crom_err(CROM_EUSAGE, "unknown data-free objective %d", o.objective);
     int nfree = 0;
@@ -400,7 +411,7 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
                 crom_err_ctx("training diverged at step %ld (try a smaller --lr)", k + 1);
             goto done;
         }
-        crom_nn_adam_step(&adam, params, grad, df_lr(o.lr, frac));
+        crom_nn_adam_step(&adam, params, grad, crom_df_lr(o.lr, frac));
         sobj += tm.objective;
         sen += tm.energy;
         spen += tm.penalty;
@@ -467,13 +478,18 @@ int crom_df_write_record(hid_t loc, const crom_df_opts *o, const crom_df_problem
     long long steps = log->steps;
     if (!rc)
         rc = crom_h5_set_i64(loc, ".", "training_steps", steps);
-    if (o->objective == CROM_DF_ENERGY) {
+    if (o->objective == CROM_DF_ENERGY || o->objective == CROM_DF_FIELD) {
         if (!rc)
             rc = crom_h5_set_f64(loc, ".", "sigma", &log->sigma, 1);
         if (!rc)
             rc = crom_h5_set_f64(loc, ".", "isometry_weight", &o->lambda, 1);
         if (!rc)
             rc = crom_h5_set_f64(loc, ".", "gravity", p->gravity, 3);
+        if (!rc && o->objective == CROM_DF_FIELD) {
+            long long k = o->tets;
+            rc = crom_h5_set_i64(loc, ".", "cubature_tets", k);
+
+        }
     } else {
         if (!rc)
             rc = crom_h5_set_f64(loc, ".", "latent_box", &log->box, 1);

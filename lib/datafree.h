@@ -42,6 +42,30 @@
  * projection of y onto the modes and y(0) to about 1 % of the box. The last layer starts at zero: training
  * starts from the linear modes.
  *
+ * field (beyond both papers: a CONTINUOUS data-free subspace, crom/model
+ * basis "energy-field"): x(X, z) = X + W(X) φ(z) with W a neural field
+ * 3 -> 3p over the body (LiCROM's representation, laid on any mesh) and φ
+ * an ELU MLP r -> p, trained on Sharp et al.'s loss with the integrals
+ * over the body replaced by a random cubature drawn afresh each step: K
+ * tets, each standing for nt/K of them (an unbiased estimate of E and of
+ * the gravity potential, lumped masses of the drawn tets for M), so W is
+ * evaluated only at their vertices:
+ *
+ *   L = 1/B Σ_b Ê_pot(X + ρ W φ(z_b)) / (E V)
+ *     + λ · mean over pairs ( log( D̂_bc / (σ ‖z_b − z_c‖) ) )²,
+ *
+ *   D̂²_bc = Δφᵀ Ĝ Δφ / m̂,  Ĝ = Σ_v m̂_v W(X_v)ᵀ W(X_v),  Δφ = φ(z_b) − φ(z_c),
+ *
+ * with z ~ N(0, I) and ρ ramped as above. Pins are built in as a mask
+ * over space: W(X) = s(d(X)/ℓ) W̃(X), s the smoothstep 3t² − 2t³ (1 for t
+ * >= 1) and d the distance to the pinned part of the training mesh: its
+ * boundary triangles with three pinned vertices, and its pinned vertices
+ * (for pins off the boundary), stored in the model with ℓ; so the field is
+ * exactly zero on a pinned face of the body on ANY mesh of it, and the
+ * reduced simulation's own penalty holds whatever else a region pins. (A
+ * penalty on the pins instead competes with the energy, which is weak in
+ * units of E V, and the trained map then barely moves under gravity.)
+ *
  * Training: Adam, learning rate halved after each quarter of the steps (the
  * paper's schedule, on a shorter run), batch B. The energies of the B
  * samples are computed in parallel over `threads` threads, each sample
@@ -61,7 +85,7 @@
 #include "nn.h"
 #include "scenario.h"
 
-enum { CROM_DF_ENERGY = 1, CROM_DF_NEURALMODES = 2 };
+enum { CROM_DF_ENERGY = 1, CROM_DF_NEURALMODES = 2, CROM_DF_FIELD = 3 };
 
 /* The physical problem (all borrowed). */
 typedef struct {
@@ -88,6 +112,10 @@ typedef struct {
     double box;             /* neuralmodes: half-width a of the z box (m) */
     double ortho_weight;    /* neuralmodes: w_o (1e4) */
     double origin_weight;   /* neuralmodes: w_0 (1e4) */
+    int features;           /* field: p, the feature fields of W (16) */
+    int field_depth, field_width; /* field: dense layers (4) and hidden width (64) of W */
+    int tets;               /* field: tets of the random cubature per step (512) */
+    double pin_length;      /* field: width of the mask at the pins (m; 0: twice the mean edge) */
     int threads;            /* energy evaluations in parallel (1) */
     uint64_t seed;
     void (*progress)(void *ctx, long step, double frac, double objective);
@@ -139,6 +167,48 @@ void crom_df_ctx_free(crom_df_ctx *c);
 int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_terms *t,
                  float *grad);
 
+/* ------------------------------------------- the continuous field's loss */
+
+typedef struct {
+    crom_df_problem P;
+    crom_df_opts o;
+    const crom_nn_mlp *W, *phi; /* 3 -> 3p and r -> p */
+    crom_fem fem;
+    crom_nn_ws wsW, wsP;
+    int r, p, maxbatch, maxtets, maxrows, nthreads, ns, npins;
+    double mass, Eref, pin_length;
+    int *loc, *vs, *bad;
+    float *xf, *zf, *dFf, *dPf;
+    double *pinX;            /* [npins][3] pinned vertices' positions */
+    int ntri;                /* pinned boundary triangles */
+    double *triX;            /* [ntri][3][3] their corners */
+    double *mask;            /* [nv] s(d(X_v)/ℓ) */
+    double *F, *Phi, *gu, *dF, *dPhi, *mloc, *E, *G, *S, *tmp, *xb;
+} crom_dff_ctx;
+
+/* Set up the loss of the continuous field (objective field: o->sigma,
+ * lambda, pin_length, threads) for networks W (3 -> 3p, unmasked) and phi
+ * (r -> p), batches of up to maxbatch samples over up to maxtets tets. */
+int crom_dff_ctx_init(crom_dff_ctx *c, const crom_df_problem *p, const crom_df_opts *o, const crom_nn_mlp *W,
+                      const crom_nn_mlp *phi, int maxbatch, int maxtets);
+void crom_dff_ctx_free(crom_dff_ctx *c);
+
+/* The loss L of B samples z [B][r] at blend rho over the K tets tets [K]
+ * (repeats allowed), and if gW, gP != NULL its gradients with respect to
+ * the parameters of W and phi (overwritten). t->penalty is the isometry
+ * term. Returns 0, CROM_EUSAGE (sizes), CROM_EDATA (a non-finite energy). */
+int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_df_terms *t,
+                  float *gW, float *gP);
+
+/* The pin mask s(d(X)/ℓ) at X, d the distance to the nearest of npin
+ * points pinX [npin][3] and ntri triangles triX [ntri][3][3] (1 if there
+ * are none). */
+double crom_dff_mask(const double X[3], int npin, const double *pinX, int ntri, const double *triX, double len);
+
+/* The learning rate at fraction frac of the run: base, halved after each
+ * quarter (Sharp et al.'s schedule on a shorter run). */
+double crom_df_lr(double base, double frac);
+
 /* ------------------------------------------------------------- training */
 
 /* The record of a run: per block of steps (about 100 blocks), the mean
@@ -152,6 +222,9 @@ typedef struct {
 } crom_df_log;
 
 void crom_df_log_free(crom_df_log *l);
+
+/* Train the continuous field (crom_df_train calls it for CROM_DF_FIELD). */
+int crom_df_train_field(const crom_df_problem *p, const crom_df_opts *o, crom_model *out, crom_df_log *log);
 
 /* Train a map on problem p with options o; out gets a model of kind
  * "energy" or "neuralmodes" (mesh copied with its regions; neuralmodes also

@@ -206,6 +206,17 @@ static void closest_on_triangle(const double *a, const double *b, const double *
     w[0] = 1 - w[1] - w[2];
 }
 
+double crom_locate_tri_dist2(const double a[3], const double b[3], const double c[3], const double p[3])
+{
+    double w[3], d2 = 0;
+    closest_on_triangle(a, b, c, p, w);
+    for (int i = 0; i < 3; i++) {
+        double d = w[0] * a[i] + w[1] * b[i] + w[2] * c[i] - p[i];
+        d2 += d * d;
+    }
+    return d2;
+}
+
 /* Squared distance from p to tet t, with the barycentric weights of the
  * closest point in bary[4]. */
 static double tet_distance2(const crom_locator *L, int t, const double *p, double bary[4])

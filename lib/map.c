@@ -86,6 +86,57 @@ static int load_net(crom_map *map, const crom_nn_mlp *net, const double *basis_v
     return 0;
 }
 
+/* A continuous map x = X + W(X) φ(q): φ's layers in double (its last one
+ * gives the features), B = W at the vertices (the field in float, as for
+ * an mlp basis). */
+static int load_field_map(crom_map *map, const crom_model *model)
+{
+    crom_nn_mlp *phi = (crom_nn_mlp *)&model->latent;
+    const crom_nn_spec *sp = &phi->spec;
+    int L = sp->nlayers, r = map->r, p = sp->width[L];
+    map->nlayers = L;
+    map->act = sp->act;
+    map->omega0 = sp->omega0;
+    int maxw = p;
+    for (int l = 0; l <= L; l++) {
+        map->width[l] = sp->width[l];
+        if (sp->width[l] > maxw)
+            maxw = sp->width[l];
+    }
+    map->phi = 1;
+    map->p = p;
+    map->mem = crom_malloc(sizeof(double) * phi->nparams);
+    size_t wr = (size_t)maxw * (size_t)(r + 1);
+    map->a0 = crom_malloc(sizeof(double) * (size_t)maxw);
+    map->a1 = crom_malloc(sizeof(double) * (size_t)maxw);
+    map->z1 = crom_malloc(sizeof(double) * (size_t)maxw);
+    map->t0 = crom_malloc(sizeof(double) * wr);
+    map->t1 = crom_malloc(sizeof(double) * wr);
+    map->B = crom_malloc(sizeof(double) * (size_t)map->n * p);
+    if (!map->mem || !map->a0 || !map->a1 || !map->z1 || !map->t0 || !map->t1 || !map->B)
+        return CROM_EINTERNAL;
+    for (size_t i = 0; i < phi->nparams; i++)
+        map->mem[i] = phi->params[i];
+    for (int l = 0; l < L; l++) {
+        map->w[l] = map->mem + phi->layer[l].woff;
+        map->b[l] = map->mem + phi->layer[l].boff;
+    }
+    map->nonlinear = 1;
+    crom_nn_ws ws;
+    int rc = crom_nn_ws_init(&ws, &model->mlp, map->nv < 4096 ? map->nv : 4096, 1);
+    if (rc)
+        return rc;
+    rc = crom_nn_mlp_eval(&model->mlp, &ws, (size_t)map->nv, map->mesh.X, map->B, NULL);
+    crom_nn_ws_free(&ws);
+    for (int v = 0; !rc && v < map->nv; v++) { /* the pin mask */
+        double s = crom_model_mask(model, map->mesh.X + 3 * (size_t)v);
+        if (s != 1)
+            for (int k = 0; k < 3 * p; k++)
+                map->B[(size_t)v * 3 * p + k] *= s;
+    }
+    return rc;
+}
+
 int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
 {
     memset(map, 0, sizeof *map);
@@ -101,10 +152,10 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
         rc = crom_mesh_copy(mesh && mesh->nregions ? mesh : &model->mesh, &map->mesh);
     } else if (model->field == CROM_FIELD_MESH) {
         rc = crom_mesh_copy(mesh ? mesh : &model->mesh, &map->mesh);
-    } else if (model->field == CROM_FIELD_MLP) {
+    } else if (model->field == CROM_FIELD_MLP || model->field == CROM_FIELD_CMAP) {
         if (!mesh)
-            return crom_err(CROM_EUSAGE, "model %s is a neural field W(X): give the mesh to lay it on",
-                            model->model_id);
+            return crom_err(CROM_EUSAGE, "model %s is a neural field %s: give the mesh to lay it on",
+                            model->model_id, model->field == CROM_FIELD_MLP ? "W(X)" : "x(X, q)");
         rc = crom_mesh_copy(mesh, &map->mesh);
     } else {
         return crom_err(CROM_EINTERNAL, "model has no basis");
@@ -117,6 +168,8 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
     map->n = 3 * map->nv;
     if (model->field == CROM_FIELD_MAP) {
         rc = load_net(map, &model->mlp, model->basis_v);
+    } else if (model->field == CROM_FIELD_CMAP) {
+        rc = load_field_map(map, model);
     } else { /* a linear basis: a = q, B = W(X_v) */
         map->p = r;
         map->B = crom_malloc(sizeof(double) * (size_t)map->n * r);
@@ -204,6 +257,19 @@ int crom_map_features(crom_map *map, const double *q, double *a, double *T)
         tn = s;
     }
     int nh = map->width[L - 1], rl = map->rl;
+    if (map->phi) { /* a = W_L h + b_L, T = W_L t */
+        if (a) {
+            memcpy(a, map->b[L - 1], sizeof(double) * (size_t)p);
+            cblas_dgemv(CblasRowMajor, CblasNoTrans, p, nh, 1.0, map->w[L - 1], nh, h, 1, 1.0, a, 1);
+            for (int i = 0; i < p; i++)
+                if (!isfinite(a[i]))
+                    return crom_err(CROM_EDATA, "the map's network is not finite at this latent");
+        }
+        if (T)
+            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, p, r, nh, 1.0, map->w[L - 1], nh, t, r, 0.0, T,
+                        r);
+        return 0;
+    }
     if (a) {
         memcpy(a, q, sizeof(double) * (size_t)rl);
         memcpy(a + rl, h, sizeof(double) * (size_t)nh);

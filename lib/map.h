@@ -4,6 +4,8 @@
  *     x(q) = X + W q + N(q),        J(q) = dx/dq = W + dN/dq,
  *
  * the common form of every model that can be laid on a mesh:
+ *   - a continuous data-free map (crom/model basis "energy-field"),
+ *     x = X + W(X) φ(q), on any mesh: B = W(X_v) and a = φ(q);
  *   - a data-free map (crom/model basis "energy": W = 0; "neuralmodes": W the
  *     linear modes, N the learned correction y(q)) on its own mesh;
  *   - a linear basis (pod, modes, or an mlp neural field) sampled at the
@@ -39,6 +41,8 @@ typedef struct crom_map_s {
     int p;
     double *B;           /* [n][p] */
     int rl;              /* leading features equal to q: r with a linear part, else 0 */
+    int phi;             /* 1: the features are the network's output, a = φ(q)
+                          * (a continuous map, x = X + W(X) φ(q): B = W(X_v)) */
     /* the hidden layers of N in double: layer l maps width[l] to width[l+1] */
     int nlayers, width[CROM_NN_MAX_LAYERS + 1];
     crom_nn_act act;     /* hidden activation; the output layer is linear */

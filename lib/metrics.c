@@ -252,7 +252,7 @@ int crom_metrics_load_model(const char *path, crom_model *m, crom_df_attrs *at)
 
 void crom_metrics_training_dist(const crom_model *m, const crom_df_attrs *at, double diag, crom_metrics_opts *o)
 {
-    if (!strcmp(m->basis, "energy")) {
+    if (!strcmp(m->basis, "energy") || !strcmp(m->basis, "energy-field")) {
         o->dist = CROM_METRICS_NORMAL;
         o->radius = 1;
     } else if (!strcmp(m->basis, "neuralmodes") && at->box > 0) {

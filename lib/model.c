@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "err.h"
+#include "datafree.h"
 #include "model.h"
 
 void crom_model_clear(crom_model *m)
@@ -21,6 +22,9 @@ void crom_model_free(crom_model *m)
     if (!m)
         return;
     crom_nn_mlp_free(&m->mlp);
+    crom_nn_mlp_free(&m->latent);
+    free(m->pin_points);
+    free(m->pin_triangles);
     crom_locate_free(&m->loc);
     crom_mesh_free(&m->mesh);
     free(m->basis_v);
@@ -65,7 +69,7 @@ const char *crom_model_id(const crom_model *m, char id[17])
     fnv s = {0xcbf29ce484222325ULL};
     fnv_bytes(&s, m->basis, strlen(m->basis) + 1);
     fnv_i64(&s, m->rank);
-    if (m->field == CROM_FIELD_MLP) {
+    if (m->field == CROM_FIELD_MLP || m->field == CROM_FIELD_CMAP) {
         const crom_nn_spec *sp = &m->mlp.spec;
         for (int l = 0; l <= sp->nlayers; l++) {
             int32_t w = sp->width[l];
@@ -82,6 +86,21 @@ const char *crom_model_id(const crom_model *m, char id[17])
             fnv_bytes(&s, &v, 8);
         }
         fnv_bytes(&s, m->mlp.params, sizeof(float) * m->mlp.nparams);
+        if (m->field == CROM_FIELD_CMAP) {
+            const crom_nn_spec *lp = &m->latent.spec;
+            for (int l = 0; l <= lp->nlayers; l++) {
+                int32_t w = lp->width[l];
+                fnv_bytes(&s, &w, 4);
+            }
+            fnv_bytes(&s, m->latent.params, sizeof(float) * m->latent.nparams);
+            fnv_i64(&s, m->npin_points);
+            if (m->npin_points)
+                fnv_bytes(&s, m->pin_points, sizeof(double) * 3 * (size_t)m->npin_points);
+            fnv_i64(&s, m->npin_triangles);
+            if (m->npin_triangles)
+                fnv_bytes(&s, m->pin_triangles, sizeof(double) * 9 * (size_t)m->npin_triangles);
+            fnv_bytes(&s, &m->pin_length, 8);
+        }
     } else if (m->field == CROM_FIELD_MAP) {
         const crom_nn_spec *sp = &m->mlp.spec;
         for (int l = 0; l <= sp->nlayers; l++) {
@@ -211,6 +230,61 @@ int crom_model_from_map(crom_model *m, const char *basis, const crom_nn_mlp *net
 
 /* ----------------------------------------------------------------- write */
 
+int crom_model_is_nonlinear(const crom_model *m)
+{
+    return m->field == CROM_FIELD_MAP || m->field == CROM_FIELD_CMAP;
+}
+
+double crom_model_mask(const crom_model *m, const double X[3])
+{
+    if (m->field != CROM_FIELD_CMAP)
+        return 1;
+    return crom_dff_mask(X, m->npin_points, m->pin_points, m->npin_triangles, m->pin_triangles, m->pin_length);
+}
+
+int crom_model_from_field_map(crom_model *m, const crom_nn_mlp *W, const crom_nn_mlp *phi, int npin,
+                              const double *pinX, int ntri, const double *triX, double len)
+{
+    crom_model_clear(m);
+    const crom_nn_spec *ws = &W->spec, *ps = &phi->spec;
+    int p = ps->width[ps->nlayers];
+    if (ws->width[0] != 3 || ws->width[ws->nlayers] != 3 * p)
+        return crom_err(CROM_EUSAGE, "the feature field goes %d -> %d, expected 3 -> 3p = %d", ws->width[0],
+                        ws->width[ws->nlayers], 3 * p);
+    snprintf(m->basis, sizeof m->basis, "energy-field");
+    m->field = CROM_FIELD_CMAP;
+    m->rank = ps->width[0];
+    m->encoder = CROM_ENC_NONE;
+    int rc = crom_nn_mlp_from_params(&m->mlp, ws, W->params, W->nparams, W->shift, W->scale);
+    if (!rc)
+        rc = crom_nn_mlp_from_params(&m->latent, ps, phi->params, phi->nparams, NULL, NULL);
+    m->pin_length = len;
+    if (!rc && npin > 0) {
+        m->pin_points = crom_malloc(sizeof(double) * 3 * (size_t)npin);
+        if (!m->pin_points)
+            rc = CROM_EINTERNAL;
+        else {
+            memcpy(m->pin_points, pinX, sizeof(double) * 3 * (size_t)npin);
+            m->npin_points = npin;
+        }
+    }
+    if (!rc && ntri > 0) {
+        m->pin_triangles = crom_malloc(sizeof(double) * 9 * (size_t)ntri);
+        if (!m->pin_triangles)
+            rc = CROM_EINTERNAL;
+        else {
+            memcpy(m->pin_triangles, triX, sizeof(double) * 9 * (size_t)ntri);
+            m->npin_triangles = ntri;
+        }
+    }
+    if (rc) {
+        crom_model_free(m);
+        return rc;
+    }
+    crom_model_id(m, m->model_id);
+    return 0;
+}
+
 static int write_widths(hid_t loc, const char *name, const crom_nn_spec *s, const char *desc)
 {
     int w[CROM_NN_MAX_LAYERS + 1];
@@ -267,7 +341,7 @@ int crom_model_write(hid_t loc, crom_model *m)
         if (!rc && m->frequencies)
             rc = crom_h5_write_f64(loc, "frequencies", 1, &dr, m->frequencies, "Hz",
                                    "natural frequencies of the linear modes");
-    } else if (m->field == CROM_FIELD_MLP) {
+    } else if (m->field == CROM_FIELD_MLP || m->field == CROM_FIELD_CMAP) {
         const crom_nn_mlp *W = &m->mlp;
         double sh[3], sc[3];
         for (int i = 0; i < 3; i++) {
@@ -288,6 +362,26 @@ int crom_model_write(hid_t loc, crom_model *m)
         if (!rc)
             rc = crom_h5_write_f64(loc, "field/input_scale", 1, &d3, sc, "m",
                                    "input normalization scale");
+        if (!rc && m->field == CROM_FIELD_CMAP) {
+            hsize_t nl = m->latent.nparams;
+            rc = write_widths(loc, "latent/widths", &m->latent.spec,
+                              "layer widths of the latent network phi: R^r -> R^p, input first");
+            if (!rc)
+                rc = crom_h5_write_f32(loc, "latent/params", 1, &nl, m->latent.params, "1",
+                                       "all weights and biases of phi, layer by layer (W row-major [out][in], then b)");
+            hsize_t dp[2] = {(hsize_t)m->npin_points, 3}, d1 = 1;
+            if (!rc && m->npin_points)
+                rc = crom_h5_write_f64(loc, "latent/pin_points", 2, dp, m->pin_points, "m",
+                                       "pinned training vertices: the field is masked by smoothstep(d / pin_length), "
+                                       "d the distance to the nearest");
+            hsize_t dt[3] = {(hsize_t)m->npin_triangles, 3, 3};
+            if (!rc && m->npin_triangles)
+                rc = crom_h5_write_f64(loc, "latent/pin_triangles", 3, dt, m->pin_triangles, "m",
+                                       "pinned boundary triangles of the training mesh (corners), part of the mask");
+            if (!rc)
+                rc = crom_h5_write_f64(loc, "latent/pin_length", 1, &d1, &m->pin_length, "m",
+                                       "width of the pin mask");
+        }
     } else {
         hsize_t dv[2] = {(hsize_t)m->mesh.nv, 3}, dt[2] = {(hsize_t)m->mesh.nt, 4};
         hsize_t db[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)m->rank}, dr = (hsize_t)m->rank;
@@ -403,9 +497,55 @@ static int read_mlp(hid_t h, crom_model *m, char *act)
     crom_nn_spec spec;
     if (crom_nn_spec_set(&spec, nw, w, a))
         return crom_err(CROM_EDATA, "field/widths: %s", crom_errmsg());
-    if (w[0] != 3 || w[nw - 1] != 3 * m->rank)
-        return crom_err(CROM_EDATA, "field/widths go %d -> %d, expected 3 -> 3r = %d", w[0],
-                        w[nw - 1], 3 * m->rank);
+    int p = m->rank;
+    if (m->field == CROM_FIELD_CMAP) { /* the latent network φ: r -> p first */
+        int lw[CROM_NN_MAX_LAYERS + 1], nl;
+        crom_nn_spec ls;
+        hsize_t nlp;
+        float *lpar = NULL;
+        if ((rc = read_widths(h, "latent/widths", lw, &nl)))
+            return rc;
+        if (crom_nn_spec_set(&ls, nl, lw, a))
+            return crom_err(CROM_EDATA, "latent/widths: %s", crom_errmsg());
+        if (lw[0] != m->rank)
+            return crom_err(CROM_EDATA, "latent/widths start at %d, the rank is %d", lw[0], m->rank);
+        if ((rc = crom_h5_read_f32(h, "latent/params", 1, &nlp, &lpar)))
+            return rc;
+        if (!all_finite_f(lpar, nlp)) {
+            free(lpar);
+            return crom_err(CROM_EDATA, "the latent network has non-finite parameters");
+        }
+        rc = crom_nn_mlp_from_params(&m->latent, &ls, lpar, nlp, NULL, NULL);
+        free(lpar);
+        if (rc)
+            return crom_err_ctx("latent");
+        hsize_t d[2];
+        double *len = NULL;
+        if ((rc = crom_h5_read_f64(h, "latent/pin_length", 1, d, &len)))
+            return rc;
+        m->pin_length = d[0] == 1 ? len[0] : NAN;
+        free(len);
+        if (!(m->pin_length > 0) || !isfinite(m->pin_length))
+            return crom_err(CROM_EDATA, "latent/pin_length must be one positive length");
+        if (crom_h5_has(h, "latent/pin_points")) {
+            if ((rc = crom_h5_read_f64(h, "latent/pin_points", 2, d, &m->pin_points)))
+                return rc;
+            if (d[1] != 3 || !all_finite_d(m->pin_points, 3 * (size_t)d[0]))
+                return crom_err(CROM_EDATA, "latent/pin_points must be finite [n][3]");
+            m->npin_points = (int)d[0];
+        }
+        if (crom_h5_has(h, "latent/pin_triangles")) {
+            hsize_t d3[3];
+            if ((rc = crom_h5_read_f64(h, "latent/pin_triangles", 3, d3, &m->pin_triangles)))
+                return rc;
+            if (d3[1] != 3 || d3[2] != 3 || !all_finite_d(m->pin_triangles, 9 * (size_t)d3[0]))
+                return crom_err(CROM_EDATA, "latent/pin_triangles must be finite [n][3][3]");
+            m->npin_triangles = (int)d3[0];
+        }
+        p = lw[nl - 1];
+    }
+    if (w[0] != 3 || w[nw - 1] != 3 * p)
+        return crom_err(CROM_EDATA, "field/widths go %d -> %d, expected 3 -> %d", w[0], w[nw - 1], 3 * p);
     hsize_t np;
     float *params = NULL;
     double sh[3], sc[3];
@@ -589,6 +729,8 @@ int crom_model_read(crom_in *in, crom_model *m)
     /* representation: by kind, or by the datasets present for later kinds */
     if (crom_model_is_map_kind(basis))
         m->field = CROM_FIELD_MAP;
+    else if (!strcmp(basis, "energy-field"))
+        m->field = CROM_FIELD_CMAP;
     else if (!strcmp(basis, "mlp") || (strcmp(basis, "pod") && strcmp(basis, "modes") &&
                                        crom_h5_has(h, "field/params")))
         m->field = CROM_FIELD_MLP;
@@ -603,7 +745,7 @@ int crom_model_read(crom_in *in, crom_model *m)
         if (crom_h5_has_attr(h, ".", "activation"))
             crom_h5_get_str(h, ".", "activation", &act);
         rc = read_map(h, m, act ? act : "elu");
-    } else if (m->field == CROM_FIELD_MLP) {
+    } else if (m->field == CROM_FIELD_MLP || m->field == CROM_FIELD_CMAP) {
         if (crom_h5_has_attr(h, ".", "activation"))
             crom_h5_get_str(h, ".", "activation", &act);
         rc = read_mlp(h, m, act ? act : "elu");
@@ -672,7 +814,11 @@ int crom_model_eval(const crom_model *m, size_t n, const double *X, double *W,
     }
     if (m->field == CROM_FIELD_MAP)
         return crom_err(CROM_EDATA, "model %s is a nonlinear map of one mesh (basis '%s'), not a basis field "
-                        "W(X): it has no cubature or encoding; simulate it with crom-reducedstep --model",
+                        "W(X): it has no encoding; simulate it with crom-reducedstep --model",
+                        m->model_id, m->basis);
+    if (m->field == CROM_FIELD_CMAP)
+        return crom_err(CROM_EDATA, "model %s is a continuous nonlinear map x(X, q) (basis '%s'), not a basis "
+                        "field W(X): it has no encoding; simulate it with crom-reducedstep --model --mesh",
                         m->model_id, m->basis);
     if (m->field != CROM_FIELD_MLP)
         return crom_err(CROM_EINTERNAL, "model has no basis");

@@ -26,6 +26,14 @@
  *                   for "neuralmodes" (absent, i.e. 0, for "energy"). It is
  *                   no basis field W(X): crom_model_eval refuses it; lib/map.h
  *                   evaluates it (and its Jacobian) on its own mesh.
+ *   CROM_FIELD_CMAP (basis "energy-field"): a CONTINUOUS nonlinear subspace,
+ *                   x(X, q) = X + W(X) φ(q), trained from the energy alone
+ *                   (lib/datafree.h): W a neural field 3 -> 3p as for "mlp"
+ *                   (output c*p + j is component c of feature field j,
+ *                   with its input normalization) and φ an MLP r -> p (the
+ *                   `latent` network, linear output, same activation). It
+ *                   lays on any mesh like a LiCROM field (lib/map.h) but is
+ *                   no linear basis: crom_model_eval refuses it too.
  *
  * model_id: 16 lowercase hex digits, the 64-bit FNV-1a digest of the basis:
  * the `basis` string (with its NUL), the rank (int64), then for an MLP the
@@ -33,7 +41,11 @@
  * (float64) and the parameters (float32); for a mesh field nv and nt (int64),
  * the vertices (float64), the tets (int32) and the basis (float64); for a map
  * the widths, the activation name, the parameters, then nv and nt, the
- * vertices, the tets and (neuralmodes) the linear basis; all little-endian,
+ * vertices, the tets and (neuralmodes) the linear basis; for a continuous
+ * map the field as for an MLP, then the latent network's widths (int32)
+ * and parameters (float32), the pin point count (int64) and points, the
+ * pin triangle count (int64) and corners, and the length (float64); all
+ * little-endian,
  * exactly as stored. The encoder and the training record are
  * not part of it: latent coordinates and cached W depend on W alone.
  */
@@ -52,7 +64,7 @@
 #define CROM_MODEL_SCHEMA "crom/model"
 #define CROM_MODEL_VERSION 1
 
-enum { CROM_FIELD_MLP = 1, CROM_FIELD_MESH = 2, CROM_FIELD_MAP = 3 };
+enum { CROM_FIELD_MLP = 1, CROM_FIELD_MESH = 2, CROM_FIELD_MAP = 3, CROM_FIELD_CMAP = 4 };
 enum { CROM_ENC_NONE = 0, CROM_ENC_LSQ = 1, CROM_ENC_POINTNET = 2 };
 
 typedef struct {
@@ -61,8 +73,15 @@ typedef struct {
     int rank;            /* r */
     int encoder;         /* CROM_ENC_* */
     char model_id[17];   /* filled by read, write and crom_model_id */
-    /* CROM_FIELD_MLP (and CROM_FIELD_MAP: the map's network r -> 3nv) */
+    /* CROM_FIELD_MLP (CROM_FIELD_MAP: the map's network r -> 3nv;
+     * CROM_FIELD_CMAP: the feature field 3 -> 3p) */
     crom_nn_mlp mlp;     /* 3 -> ... -> 3r, owns its parameters */
+    crom_nn_mlp latent;  /* CROM_FIELD_CMAP: φ, r -> ... -> p */
+    int npin_points;     /* CROM_FIELD_CMAP: the pin mask (lib/datafree.h): */
+    double *pin_points;  /* [npin_points][3] pinned training vertices (m) */
+    int npin_triangles;
+    double *pin_triangles; /* [npin_triangles][3][3] pinned boundary triangles (m) */
+    double pin_length;   /* its width ℓ (m) */
     /* CROM_FIELD_MESH (and CROM_FIELD_MAP: its mesh, with regions) */
     crom_mesh mesh;      /* vertices and tets */
     double *basis_v;     /* [nv][3][r] W at the vertices (MAP: linear part or NULL) */
@@ -107,6 +126,22 @@ int crom_model_from_map(crom_model *m, const char *basis, const crom_nn_mlp *net
 
 /* 1 if `basis` names a map kind (energy, neuralmodes). */
 int crom_model_is_map_kind(const char *basis);
+
+/* Make a continuous map model ("energy-field") from its feature field W
+ * (3 -> 3p, with its input normalization), latent network phi (r -> p) and
+ * pin mask (npin points pinX [npin][3], ntri triangles triX [ntri][3][3],
+ * width len), all copied. The field
+ * stored is W unmasked; crom_model_mask gives the mask. CROM_EUSAGE on
+ * mismatched widths. */
+int crom_model_from_field_map(crom_model *m, const crom_nn_mlp *W, const crom_nn_mlp *phi, int npin,
+                              const double *pinX, int ntri, const double *triX, double len);
+
+/* The pin mask of a continuous map at X (1 for other models). */
+double crom_model_mask(const crom_model *m, const double X[3]);
+
+/* 1 for a model nonlinear in q (CROM_FIELD_MAP, CROM_FIELD_CMAP): decoded
+ * and simulated through lib/map.h, with no basis W(X). */
+int crom_model_is_nonlinear(const crom_model *m);
 
 /* Read a crom/model input (schema and version are checked here) and validate
  * it: shapes, finite parameters, a model_id that matches the parameters.

@@ -98,8 +98,8 @@ int crom_result_adopt(crom_result *res, crom_in *opened, const char *mesh_path, 
             crom_model_free(&model);
             goto fail;
         }
-        if (model.field == CROM_FIELD_MAP) {
-            /* a nonlinear map of one mesh: x(q) on that mesh only */
+        if (crom_model_is_nonlinear(&model)) {
+            /* a nonlinear map: x(q) on its own mesh only, or (continuous) on the given one */
             crom_mesh given;
             memset(&given, 0, sizeof given);
             res->map = crom_calloc(1, sizeof *res->map);

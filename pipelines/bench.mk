@@ -53,10 +53,15 @@ DF_BC = --pin clamp --gravity 0,-9.81,0
 DF_SCENARIO = $(DF_MAT) $(DF_BC) --dt 0.01 --steps $(DF_STEPS)
 DF_TRAIN = --rank $(DF_RANK) --steps $(DF_TRAIN_STEPS) --minutes $(DF_MINUTES) --seed $(SEED) --threads 1
 # table rows: modes-all and modes-opt step the modes through a cubature
-# (df-cub-all.h5, df-cub-opt.h5), energy and neuralmodes their map (--model)
-DF_ROWS = modes-all modes-opt energy neuralmodes
-df_in = $(if $(filter modes-%,$(1)),$(OUT)/df-cub-$(patsubst modes-%,%,$(1)).h5,$(OUT)/df-$(1).h5)
-df_model = $(OUT)/df-$(if $(filter modes-%,$(1)),modes,$(1)).h5
+# (df-cub-all.h5, df-cub-opt.h5); energy and neuralmodes their map (--model)
+# over every tet, energy-opt and neuralmodes-opt over an optimized cubature
+# of the map's features (df-cubm-KIND.h5, fitted at latent samples: no data)
+DF_ROWS = modes-all modes-opt energy energy-opt neuralmodes neuralmodes-opt
+df_kind = $(firstword $(subst -, ,$(1)))
+df_model = $(OUT)/df-$(call df_kind,$(1)).h5
+df_cub = $(if $(filter modes-%,$(1)),$(OUT)/df-cub-$(patsubst modes-%,%,$(1)).h5,$(if $(filter %-opt,$(1)),$(OUT)/df-cubm-$(call df_kind,$(1)).h5))
+df_in = $(if $(filter modes-%,$(1)),,$(call df_model,$(1))) $(call df_cub,$(1))
+df_args = $(if $(filter modes-%,$(1)),,--model $(call df_model,$(1))) $(if $(call df_cub,$(1)),--cubature $(call df_cub,$(1)))
 
 .PHONY: all fullsim tables training datafree plots
 all: fullsim tables training datafree plots
@@ -149,9 +154,13 @@ $(OUT)/df-cub-all.h5: $(OUT)/df-modes.h5 $(OUT)/df-mesh.h5
 $(OUT)/df-cub-opt.h5: $(OUT)/df-modes.h5 $(OUT)/df-mesh.h5 $(OUT)/df-red-modes-all.h5 $(call stamp,df-cubature)
 	crom-cubature --model $< --scheme optimized --count $(DF_COUNT) --poses $(OUT)/df-red-modes-all.h5 \
 	  --youngs $(DF_YOUNGS) --poisson 0.3 --seed $(SEED) --threads 1 $(QUIET) -o $@ $(OUT)/df-mesh.h5
+# the maps' cubatures: their features, fitted at latent samples of the
+# training distribution
+$(OUT)/df-cubm-%.h5: $(OUT)/df-%.h5 $(call stamp,df-cubature)
+	crom-cubature --model $< --scheme optimized --count $(DF_COUNT) --seed $(SEED) --threads 1 $(QUIET) -o $@
 # the latent runs (step costs in the --stats CSV) and their error against the full run
 $(OUT)/df-red-%.h5 $(OUT)/df-red-%.csv &: $$(call df_in,$$*) $(call stamp,df-scenario)
-	crom-reducedstep $(if $(filter modes-%,$*),--cubature,--model) $< $(DF_SCENARIO) --threads 1 \
+	crom-reducedstep $(call df_args,$*) $(DF_SCENARIO) --threads 1 \
 	  --stats $(OUT)/df-red-$*.csv $(QUIET) -o $(OUT)/df-red-$*.h5
 $(OUT)/df-diff-%.txt: $(OUT)/df-red-%.h5 $(OUT)/df-full.h5 $$(call df_model,$$*)
 	crom-diff $< $(OUT)/df-full.h5 --model $(call df_model,$*) --threads 1 > $@

@@ -128,16 +128,19 @@ def datafree(out, rows):
     parts = re.search(r"assembly ([0-9.]+) s, analysis ([0-9.]+) s, factorization ([0-9.]+) s, Lanczos ([0-9.]+) s", log)
     modes_s = sum(float(x) for x in parts.groups()) if parts else float("nan")
     names = {"modes-all": "linear modes (crom-modes), cubature of every tet",
-             "energy": "energy (Sharp et al.), --model", "neuralmodes": "neuralmodes (Wang et al.), --model"}
+             "energy": "energy (Sharp et al.), --model, every tet",
+             "neuralmodes": "neuralmodes (Wang et al.), --model, every tet"}
+    label = {"modes": "linear modes", "energy": "energy", "neuralmodes": "neuralmodes"}
     t = []
     for r in rows:
-        kind = "modes" if r.startswith("modes-") else r
+        kind = r.split("-")[0]
         model = h5py.File(f"{out}/df-{kind}.h5")
         name = names.get(r, r)
-        if r.startswith("modes-") and r != "modes-all":
-            cub = h5py.File(f"{out}/df-cub-{r[6:]}.h5")
-            name = "linear modes, %s cubature (%d tets, %.3g s to select)" % (
-                r[6:].replace("opt", "optimized"), len(cub["elements"]), float(cub.attrs.get("selection_seconds", float("nan"))))
+        if r.endswith("-opt"):
+            cub = h5py.File(f"{out}/df-cub-opt.h5" if kind == "modes" else f"{out}/df-cubm-{kind}.h5")
+            name = "%s, %soptimized cubature (%d tets, %.3g s to select)" % (
+                label[kind], "--model over an " if kind != "modes" else "", len(cub["elements"]),
+                float(cub.attrs.get("selection_seconds", float("nan"))))
         train_s = modes_s if kind == "modes" else float(model.attrs.get("training_seconds", float("nan")))
         steps = int(model.attrs["training_steps"]) if "training_steps" in model.attrs else None
         red = col(f"{out}/df-red-{r}.csv", "seconds")
@@ -165,10 +168,11 @@ def datafree(out, rows):
           "step); the speedup is against the full step. Training time: Lanczos with its assembly and "
           "factorization for the modes (from crom-modes -v), the model's training_seconds for the data-free "
           "objectives, whose training is stopped by the clock (--minutes); neuralmodes builds on the modes "
-          "of the first rows. The cubature runs integrate W^T H W over their tets, the --model runs "
-          "Gauss-Newton over every tet of the mesh through the map's Jacobian. Relative error: crom-diff "
-          "against crom-fullsim over the run (an energy map's origin z = 0 is not the rest shape, so its "
-          "run starts deformed). Energy: crom-metrics' mean elastic energy of random latents, each model at "
+          "of the first rows. The modes' cubature runs integrate W^T H W over their tets; the --model runs "
+          "do Gauss-Newton through the map's Jacobian over every tet, or over an optimized cubature of the "
+          "map's features (crom-cubature --model on the map: NNLS on the latent forces at 100 latent samples "
+          "of the training distribution, no simulation data). Relative error: crom-diff "
+          "against crom-fullsim over the run. Energy: crom-metrics' mean elastic energy of random latents, each model at "
           "its own sampling (modes: on the sphere |q| = 5% of the bounding-box diagonal; energy map: N(0, I); "
           "neuralmodes: its training box), then the ratio to the modes at the same RMS displacements; "
           "collapsed dims: normalized Gram eigenvalues below 0.01 (Neural Modes §4.4).\n")

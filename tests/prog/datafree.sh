@@ -6,7 +6,8 @@
 # crom-reducedstep --model (valid latent runs that dissipate energy; over a
 # cubature of the map's features it follows the run over every tet; a linear
 # basis through --model is the cubature run), decoding with crom-export and
-# crom-diff on the model's own mesh only, and bad input.
+# crom-diff on the model's own mesh only; the continuous field
+# (--objective field) on another mesh; and bad input.
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 crom-mesh box --dims 1,0.2,0.2 --size 0.1 --region clamp='x<-0.49' --region tip='x>0.49' -o bar.h5
@@ -175,7 +176,61 @@ ok
 crom-fullsim "${MAT[@]}" "${SC[@]}" -q -o full.h5 bar.h5
 crom-diff run_nm.h5 full.h5 --model nm.h5 -q | grep -q "over 31 frames" || fail "diff against a full run"; ok
 
-# 5. bad input: one line, the right status, no output left
+# 5. a continuous data-free field (--objective field): trained on bar.h5,
+#    laid on a finer mesh of the same bar, cubature and latent run there,
+#    exported and compared with a full run on that mesh
+crom-mesh box --dims 1,0.2,0.2 --size 0.07 --region clamp='x<-0.49' -o fine.h5
+crom-fitfield --objective field --mesh bar.h5 "${MAT[@]}" --pin clamp --rank 2 --steps 400 --batch 16 --width 32 \
+  --features 8 --tets 127 -o fld.h5 2>fld.log
+cat fld.log
+crom-info --check fld.h5 >/dev/null || fail "crom-info --check fld.h5"; ok
+$PY - fld.h5 <<'PYEOF' || fail "field model"
+import sys, h5py, numpy as np
+f = h5py.File(sys.argv[1])
+s = lambda v: v.decode() if isinstance(v, bytes) else v
+assert s(f.attrs["basis"]) == "energy-field" and f.attrs["rank"] == 2 and f.attrs["cubature_tets"] == 127
+assert list(f["field/widths"][()]) == [3, 64, 64, 64, 24] and list(f["latent/widths"][()]) == [2, 32, 32, 32, 8]
+t = f["latent/pin_triangles"][()]
+assert t.shape[1:] == (3, 3) and len(t) > 0 and np.all(t[:, :, 0] < -0.49)   # the clamped face
+assert f["latent/pin_length"][0] > 0 and "field/mesh" not in f
+PYEOF
+ok
+crom-metrics --mesh bar.h5 fld.h5 >met_fld.txt
+crom-metrics --mesh fine.h5 fld.h5 >met_fld_fine.txt
+cat met_fld.txt met_fld_fine.txt
+e1=$(sed -n 's/^elastic_energy: mean \([0-9.e+-]*\) J.*/\1/p' met_fld.txt)
+e2=$(sed -n 's/^elastic_energy: mean \([0-9.e+-]*\) J.*/\1/p' met_fld_fine.txt)
+echo "continuous field: mean elastic energy of the same latent samples $e1 J (training mesh), $e2 J (finer mesh)"
+close "$e2" "$e1" "$($PY -c "print(0.15 * $e1)")" "the field's energy on another mesh (15%)"
+grep -q "^collapse: 0 of 2 dimensions" met_fld.txt || fail "field collapsed"; ok
+crom-cubature --model fld.h5 --scheme optimized --count 80 -q -o fldcub.h5 fine.h5
+crom-reducedstep --model fld.h5 --mesh fine.h5 --cubature fldcub.h5 "${MAT[@]}" "${SC[@]}" -v -o run_fld.h5 2>run_fld.log
+cat run_fld.log
+$PY - run_fld.h5 <<'PYEOF' || fail "field run"
+import sys, h5py, numpy as np
+r = h5py.File(sys.argv[1])
+T = r["frames/total_energy"][()]; K = r["frames/kinetic_energy"][()]
+scale = np.abs(r["frames/elastic_energy"][()]).max() + np.abs(r["frames/external_energy"][()]).max()
+print("field on fine.h5: largest rise of the total energy %.3g J (scale %.4g J), largest kinetic energy %.4g J"
+      % (np.diff(T).max(), scale, K.max()))
+assert K.max() > 1e-3 * scale and np.diff(T).max() <= 1e-6 * scale
+assert r["frames/constraint_residual"][()].max() == 0       # the mask holds the clamped face on this mesh too
+PYEOF
+ok
+crom-export --format vtu --model fld.h5 --mesh fine.h5 -o fld_last.vtu run_fld.h5
+$PY - fld_last.vtu <<'PYEOF' || fail "field export"
+import sys, meshio, numpy as np
+v = meshio.read(sys.argv[1]); u = v.point_data["displacement"]
+clamp = v.points[:, 0] < -0.49
+assert np.abs(u[clamp]).max() == 0 and u[:, 1].min() < -0.005 and len(v.points) > 300
+PYEOF
+ok
+crom-fullsim "${MAT[@]}" "${SC[@]}" -q -o full_fine.h5 fine.h5
+crom-diff run_fld.h5 full_fine.h5 --model fld.h5 --mesh fine.h5 -q | tee diff_fld.txt | grep -q "over 31 frames" \
+  || fail "diff of the field run"; ok
+cat diff_fld.txt
+
+# 6. bad input: one line, the right status, no output left
 O=out; mkdir -p $O
 crom-mesh box --dims 1,0.2,0.2 --size 0.15 --region clamp='x<-0.49' -o other.h5
 crom-mesh box --size 0.6 -o tiny.h5
@@ -211,4 +266,10 @@ expect_error 65 "decodes only onto its own mesh" $O/x.vtu -- crom-export --forma
 expect_error 65 "decodes only onto its own mesh" $O/c.h5 -- crom-cubature --model df.h5 -o $O/c.h5 other.h5
 expect_error 64 "--compare df.h5 is a nonlinear map \('energy'\); the comparison needs a linear basis" - -- crom-metrics --compare df.h5 nm.h5
 expect_error 65 "decodes only onto its own mesh" - -- crom-metrics --mesh other.h5 df.h5
+expect_error 64 "is a neural field x\(X, q\): give the mesh to lay it on" $O/x.h5 -- crom-reducedstep --model fld.h5 -o $O/x.h5
+expect_error 64 "--pin-length.*(positive|> 0)" $O/m.h5 -- crom-fitfield --objective field --mesh bar.h5 --pin clamp --pin-length 0 -o $O/m.h5
+expect_error 64 "--features" $O/m.h5 -- crom-fitfield --objective field --mesh bar.h5 --pin clamp --features 0 -o $O/m.h5
+expect_error 64 "--pin-length applies to a data-free subspace" $O/m.h5 -- crom-fitfield --pin-length 1 -o $O/m.h5
+expect_error 65 "--cubature fldcub.h5 is not a cubature of this map" $O/x.h5 -- crom-reducedstep --model fld.h5 --mesh bar.h5 --cubature fldcub.h5 -o $O/x.h5
+expect_error 65 "continuous nonlinear map .* not a basis field" - -- crom-encode --model fld.h5 full_fine.h5
 done_checks

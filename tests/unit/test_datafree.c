@@ -186,6 +186,117 @@ static void gradient_check(int objective)
     crom_mesh_free(&m);
 }
 
+/* The continuous field's loss (energy by a random cubature, isometry over
+ * the sampled Gram matrix, through the pin mask) against central
+ * differences over the parameters of both networks, on a tet list with
+ * repeats; the mask is zero at the pins and 1 far from them. */
+typedef struct {
+    crom_dff_ctx *c;
+    float *pw, *pp;
+    int nw, np, B, K;
+    const double *z;
+    const int *tets;
+} fdf_case;
+
+static double field_loss_at(const double *x, void *v)
+{
+    fdf_case *t = v;
+    for (int i = 0; i < t->nw; i++)
+        t->pw[i] = (float)x[i];
+    for (int i = 0; i < t->np; i++)
+        t->pp[i] = (float)x[t->nw + i];
+    crom_df_terms tm;
+    if (crom_dff_loss(t->c, t->B, t->z, 0.7, t->K, t->tets, &tm, NULL, NULL))
+        return NAN;
+    return tm.objective;
+}
+
+static void gradient_check_field(void)
+{
+    crom_mesh m;
+    make_bar(&m, 0.2);
+    crom_material mat;
+    crom_material_init(&mat, 1e6, 0.3, 1000);
+    unsigned char *fixed = clamp_mask(&m);
+    crom_df_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL};
+    crom_df_opts o;
+    crom_df_defaults(&o, CROM_DF_FIELD);
+    o.sigma = 0.04;
+    o.lambda = 0.7;
+    o.pin_length = 0.3; /* a wide mask: many vertices inside it */
+    int r = 2, pf = 4, B = 4;
+    int ww[] = {3, 10, 10, 3 * pf}, pw[] = {r, 10, pf};
+    crom_nn_spec ws, ps;
+    CHECK(crom_nn_spec_set(&ws, 4, ww, CROM_NN_ELU) == 0);
+    CHECK(crom_nn_spec_set(&ps, 3, pw, CROM_NN_ELU) == 0);
+    crom_nn_mlp W, phi;
+    crom_rng rng;
+    crom_rng_seed(&rng, 9);
+    CHECK(crom_nn_mlp_init(&W, &ws, NULL, &rng) == 0);
+    CHECK(crom_nn_mlp_init(&phi, &ps, NULL, &rng) == 0);
+    crom_nn_layer *ly = &W.layer[2]; /* displacements of a few cm */
+    for (int i = 0; i < ly->out * ly->in; i++)
+        ly->W[i] *= 0.05f;
+    int K = m.nt / 2 + 3, *tets = malloc(sizeof(int) * (size_t)K);
+    for (int k = 0; k < K; k++)
+        tets[k] = (int)crom_rng_below(&rng, (uint64_t)m.nt);
+    tets[K - 1] = tets[0]; /* a repeat */
+    crom_dff_ctx c;
+    CHECK(crom_dff_ctx_init(&c, &P, &o, &W, &phi, B, K) == 0);
+    int inside = 0, onpin = 1, far = 1;
+    for (int v = 0; v < m.nv; v++) {
+        double x = m.X[3 * v];
+        inside += c.mask[v] > 0 && c.mask[v] < 1;
+        if (fixed[3 * v])
+            onpin &= c.mask[v] == 0;
+        if (x > 0)
+            far &= c.mask[v] == 1;
+    }
+    CHECK(c.npins > 0 && onpin && far && inside > 0);
+    double z[8];
+    for (int i = 0; i < B * r; i++)
+        z[i] = crom_rng_normal(&rng);
+    int nw = (int)W.nparams, np = (int)phi.nparams, n = nw + np;
+    float *gw = malloc(sizeof(float) * nw), *gp = malloc(sizeof(float) * np);
+    double *ga = malloc(sizeof(double) * n), *gf = malloc(sizeof(double) * n), *x = malloc(sizeof(double) * n);
+    crom_df_terms tm;
+    int rc = crom_dff_loss(&c, B, z, 0.7, K, tets, &tm, gw, gp);
+    CHECK_MSG(rc == 0, "field loss: %s", crom_errmsg());
+    for (int i = 0; i < nw; i++) {
+        ga[i] = gw[i];
+        x[i] = W.params[i];
+    }
+    for (int i = 0; i < np; i++) {
+        ga[nw + i] = gp[i];
+        x[nw + i] = phi.params[i];
+    }
+    fdf_case fc = {&c, W.params, phi.params, nw, np, B, K, z, tets};
+    /* the field's last layer is small (x 0.05): a step of 2e-4, not FD_H,
+     * keeps the differences in their linear range (truncation error falls
+     * as h², 7e-3 at h = 1e-3) */
+    check_fd_gradient(field_loss_at, &fc, x, n, 2e-4, gf);
+    double e = check_relerr(ga, gf, n, 1e-12), ew = check_relerr(ga, gf, nw, 1e-12),
+           ep = check_relerr(ga + nw, gf + nw, np, 1e-12);
+    fprintf(stderr, "continuous field loss: objective %.4g (energy %.4g J, isometry %.4g) over %d tets, %d vertices "
+                    "inside the pin mask; gradient vs FD %.2e over %d parameters (field %.2e, latent network %.2e)\n",
+            tm.objective, tm.energy, tm.penalty, K, inside, e, n, ew, ep);
+    CHECK_LT(e, FD_TOL);
+    CHECK_LT(ep, FD_TOL);
+    CHECK(tm.penalty > 0 && tm.energy != 0);
+    CHECK(crom_dff_loss(&c, B, z, 0.7, K + 1, tets, &tm, NULL, NULL) == CROM_EUSAGE);
+    crom_dff_ctx_free(&c);
+    crom_nn_mlp_free(&W);
+    crom_nn_mlp_free(&phi);
+    free(tets);
+    free(gw);
+    free(gp);
+    free(ga);
+    free(gf);
+    free(x);
+    free(fixed);
+    crom_mesh_free(&m);
+}
+
 /* ------------------------------------------------- the map in double */
 
 typedef struct {
@@ -482,7 +593,130 @@ static void test_neuralmodes_subspace(bar_case *b)
     crom_df_log_free(&log);
 }
 
+static void scenario_bar(crom_scenario *sc);
+
+/* The continuous field (--objective field): trained on the coarse bar by a
+ * random cubature of half its tets per step, it is a subspace of lower
+ * energy than the linear modes, with no collapsed dimension; laid on a
+ * FINER mesh of the same bar, the same latent samples have nearly the same
+ * energy (the field is continuous), the pins stay exactly at rest on the
+ * training mesh, and latent dynamics on the finer mesh run, dissipate and
+ * hold the clamp. */
+static void test_field_subspace(bar_case *b)
+{
+    crom_df_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL};
+    crom_df_opts o;
+    crom_df_defaults(&o, CROM_DF_FIELD);
+    o.rank = 2;
+    o.steps = 600;
+    o.batch = 16;
+    o.width = 32;
+    o.field_width = 32;
+    o.features = 8;
+    o.tets = b->mesh.nt / 2;
+    o.seed = 3;
+    crom_model fm;
+    crom_df_log log;
+    int rc = crom_df_train(&P, &o, &fm, &log);
+    CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
+    if (rc)
+        return;
+    CHECK(!strcmp(fm.basis, "energy-field") && fm.field == CROM_FIELD_CMAP && fm.rank == 2 && log.steps == 600);
+    CHECK(log.objective[log.nblocks - 1] < log.objective[0]);
+    crom_mesh fine;
+    make_bar(&fine, 0.07);
+    crom_fem ffem;
+    CHECK(crom_fem_init(&ffem, &fine, &b->mat) == 0);
+    crom_map map, lin, fmap;
+    crom_model lm;
+    modes_model(b, &lm);
+    CHECK(crom_map_init(&map, &fm, NULL) == CROM_EUSAGE); /* a continuous field needs a mesh */
+    CHECK(crom_map_init(&map, &fm, &b->mesh) == 0);
+    CHECK(crom_map_init(&fmap, &fm, &fine) == 0);
+    CHECK(crom_map_init(&lin, &lm, NULL) == 0);
+    crom_metrics_opts mo;
+    crom_metrics_defaults(&mo);
+    mo.samples = 64;
+    mo.sigma = log.sigma;
+    crom_metrics res, fres;
+    double g[3] = {0, -9.81, 0};
+    CHECK(crom_metrics_compute(&map, &b->fem, g, &mo, &lin, &res) == 0);
+    CHECK(crom_metrics_compute(&fmap, &ffem, g, &mo, NULL, &fres) == 0);
+    double rel = fabs(fres.energy_mean - res.energy_mean) / res.energy_mean;
+    fprintf(stderr, "continuous field (rank 2, 8 features, 600 steps on %d of %d tets per step): mean elastic energy "
+                    "%.4g J at RMS %.4g m on the training mesh (%d vertices), linear modes %.4g J (ratio %.3g); on "
+                    "a finer mesh (%d vertices) %.4g J at RMS %.4g m (%.2f%% apart); isometry median %.3f; Gram "
+                    "eigenvalues %.3f %.3f\n",
+            o.tets, b->mesh.nt, res.energy_mean, res.rms_mean, b->mesh.nv, res.cmp_energy_mean,
+            res.energy_mean / res.cmp_energy_mean, fine.nv, fres.energy_mean, fres.rms_mean, 100 * rel,
+            res.iso_median, res.gram_eig[0], res.gram_eig[1]);
+    CHECK_LT(res.energy_mean, 0.5 * res.cmp_energy_mean);
+    CHECK_LT(rel, 0.1);
+    CHECK(res.gram_eig[0] > 0.01 * res.gram_eig[1]);
+    CHECK(res.iso_median > 0.7 && res.iso_median < 1.3);
+    /* pinned vertices of the training mesh exactly at rest for any z */
+    double q[2] = {1.7, -2.3}, *x = malloc(sizeof(double) * map.n), dmax = 0;
+    CHECK(crom_map_eval(&map, q, x, NULL) == 0);
+    for (int i = 0; i < map.n; i++)
+        if (b->fixed[i])
+            dmax = fmax(dmax, fabs(x[i] - b->mesh.X[i]));
+    CHECK(dmax == 0);
+    free(x);
+    /* latent dynamics on the finer mesh, clamped (its own clamp region) */
+    crom_scenario sc;
+    scenario_bar(&sc);
+    strcpy(sc.pins[sc.npins++], "x<-0.49");
+    crom_nlsim s;
+    CHECK(crom_nlsim_init(&s, &fmap, &sc, 0, NULL, NULL, 1) == 0);
+    double Eprev = NAN, worst = -INFINITY, scale = 0, tmax = 0, cres = 0;
+    int fin = 1;
+    for (int k = 0; k <= 40; k++) {
+        crom_rstep_stats st;
+        if (k > 0 && crom_nlsim_step(&s, &st)) {
+            CHECK_MSG(0, "step %d: %s", k, crom_errmsg());
+            break;
+        }
+        double K, Ee, W;
+        CHECK(crom_nlsim_energies(&s, &K, &Ee, &W) == 0);
+        double T = K + Ee + W;
+        fin &= isfinite(T);
+        scale = fmax(scale, fabs(Ee) + fabs(W) + K);
+        tmax = fmax(tmax, K);
+        if (k > 0)
+            worst = fmax(worst, T - Eprev);
+        Eprev = T;
+        cres = fmax(cres, crom_nlsim_constraint_residual(&s));
+    }
+    fprintf(stderr, "continuous field on the finer mesh, 40 steps under gravity: largest rise of the total energy %.3g "
+                    "J (scale %.4g J), largest kinetic energy %.4g J, largest clamp displacement %.3g m\n",
+            worst, scale, tmax, cres);
+    CHECK(fin);
+    CHECK(tmax > 1e-3 * scale);
+    CHECK_LT(worst, 1e-6 * scale);
+    CHECK_LT(cres, 0.01 * fres.rms_mean);
+    crom_nlsim_free(&s);
+    crom_metrics_free(&res);
+    crom_metrics_free(&fres);
+    crom_map_free(&map);
+    crom_map_free(&fmap);
+    crom_map_free(&lin);
+    crom_model_free(&lm);
+    crom_model_free(&fm);
+    crom_fem_free(&ffem);
+    crom_mesh_free(&fine);
+    crom_df_log_free(&log);
+}
+
 /* ------------------------------------------------------ latent dynamics */
+
+static void scenario_bar(crom_scenario *sc)
+{
+    crom_scenario_defaults(sc);
+    sc->youngs = 1e6;
+    sc->poisson = 0.3;
+    sc->dt = 0.01;
+    sc->tol = 1e-9;
+}
 
 static crom_nlsim *g_nl;
 static int g_nlproject;
@@ -500,14 +734,6 @@ static void nl_grad(const double *q, void *ctx, double *g)
     crom_nlsim_objective(g_nl, q, &E, g, NULL, g_nlproject);
 }
 
-static void scenario_bar(crom_scenario *sc)
-{
-    crom_scenario_defaults(sc);
-    sc->youngs = 1e6;
-    sc->poisson = 0.3;
-    sc->dt = 0.01;
-    sc->tol = 1e-9;
-}
 
 /* The reduced objective of the energy map: gradient against differences,
  * with every term (inertia, damping, gravity, a force, a pin penalty on a
@@ -823,11 +1049,13 @@ int main(void)
     check_begin("test_datafree");
     gradient_check(CROM_DF_ENERGY);
     gradient_check(CROM_DF_NEURALMODES);
+    gradient_check_field();
     test_map();
     bar_case b;
     bar_setup(&b, 3);
     test_energy_subspace(&b);
     test_neuralmodes_subspace(&b);
+    test_field_subspace(&b);
     test_dynamics(&b);
     test_map_cubature(&b);
     test_linear_equivalence(&b);
