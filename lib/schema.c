@@ -70,7 +70,7 @@ static const crom_schema_dset samples_dsets[] = {
     {NULL, NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_attr model_attrs[] = {
-    {"basis", "str", 1, "mlp (neural field), pod or modes (piecewise-linear field on a mesh), energy or neuralmodes (data-free)"},
+    {"basis", "str", 1, "mlp (neural field), pod or modes (piecewise-linear field on a mesh), energy or neuralmodes (data-free maps of one mesh), energy-field (continuous data-free map)"},
     {"rank", "i64", 1, "r, the number of basis fields (latent dimension)"},
     {"encoder", "str", 1, "pointnet, lsq or none: how full states are turned into q"},
     {"model_id", "str", 1, "hex digest of the basis parameters; cubature and latent files name it"},
@@ -92,6 +92,7 @@ static const crom_schema_attr model_attrs[] = {
     {"ortho_weight", "f64", 0, "weight of the M-orthogonality penalty (neuralmodes)"},
     {"origin_weight", "f64", 0, "weight of the penalty on y(0) (neuralmodes)"},
     {"modes_id", "str", 0, "model_id of the crom-modes model whose modes are the linear part (neuralmodes)"},
+    {"cubature_tets", "i64", 0, "tets of the random cubature drawn at every training step (energy-field)"},
     {NULL, NULL, 0, NULL}};
 
 static const crom_schema_dset model_dsets[] = {
@@ -114,6 +115,11 @@ static const crom_schema_dset model_dsets[] = {
     {"training/objective", "f64", "E", 0, "1", "data-free objective per block of steps (energy, neuralmodes)"},
     {"training/energy", "f64", "E", 0, "J", "mean energy of the training samples per block of steps (energy, neuralmodes)"},
     {"training/penalty", "f64", "E", 0, "1", "mean unweighted penalty per block of steps: isometry (energy) or orthogonality (neuralmodes)"},
+    {"latent/widths", "i32", "?", 0, "1", "layer widths of the latent network phi: R^r -> R^p, input first (energy-field)"},
+    {"latent/params", "f32", "?", 0, "1", "all weights and biases of phi, laid out as field/params (energy-field)"},
+    {"latent/pin_points", "f64", "?,3", 0, "m", "pinned vertices of the training mesh: part of the pin mask (energy-field)"},
+    {"latent/pin_triangles", "f64", "?,3,3", 0, "m", "pinned boundary triangles of the training mesh, corners: part of the pin mask (energy-field)"},
+    {"latent/pin_length", "f64", "1", 0, "m", "width l of the pin mask smoothstep(d / l) (energy-field)"},
     {NULL, NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_attr latent_attrs[] = {
@@ -149,6 +155,7 @@ static const crom_schema_attr cub_attrs[] = {
     {"mesh_volume", "f64", 1, "volume of the mesh the cubature integrates (m^3)"},
     {"w_seconds", "f64", 0, "wall time of evaluating W at the mesh vertices (s)"},
     {"selection_seconds", "f64", 0, "wall time of selecting and weighting the tets (s)"},
+    {"map_rank", "i64", 0, "latent rank of the nonlinear map whose feature basis B is cached as W (crom-reducedstep --model --cubature)"},
     {NULL, NULL, 0, NULL}};
 
 static const crom_schema_dset cub_dsets[] = {
