@@ -55,13 +55,16 @@ DF_TRAIN = --rank $(DF_RANK) --steps $(DF_TRAIN_STEPS) --minutes $(DF_MINUTES) -
 # table rows: modes-all and modes-opt step the modes through a cubature
 # (df-cub-all.h5, df-cub-opt.h5); energy and neuralmodes their map (--model)
 # over every tet, energy-opt and neuralmodes-opt over an optimized cubature
-# of the map's features (df-cubm-KIND.h5, fitted at latent samples: no data)
-DF_ROWS = modes-all modes-opt energy energy-opt neuralmodes neuralmodes-opt
+# of the map's features (df-cubm-KIND.h5, fitted at latent samples: no data);
+# field is the continuous map (crom-fitfield --objective field), laid on the
+# mesh with --mesh like a LiCROM field
+DF_ROWS = modes-all modes-opt energy energy-opt neuralmodes neuralmodes-opt field field-opt
 df_kind = $(firstword $(subst -, ,$(1)))
 df_model = $(OUT)/df-$(call df_kind,$(1)).h5
 df_cub = $(if $(filter modes-%,$(1)),$(OUT)/df-cub-$(patsubst modes-%,%,$(1)).h5,$(if $(filter %-opt,$(1)),$(OUT)/df-cubm-$(call df_kind,$(1)).h5))
 df_in = $(if $(filter modes-%,$(1)),,$(call df_model,$(1))) $(call df_cub,$(1))
-df_args = $(if $(filter modes-%,$(1)),,--model $(call df_model,$(1))) $(if $(call df_cub,$(1)),--cubature $(call df_cub,$(1)))
+df_mesh = $(if $(filter field%,$(1)),--mesh $(OUT)/df-mesh.h5)
+df_args = $(if $(filter modes-%,$(1)),,--model $(call df_model,$(1)) $(call df_mesh,$(1))) $(if $(call df_cub,$(1)),--cubature $(call df_cub,$(1)))
 
 .PHONY: all fullsim tables training datafree plots
 all: fullsim tables training datafree plots
@@ -147,6 +150,8 @@ $(OUT)/df-energy.h5: $(OUT)/df-mesh.h5 $(call stamp,df-train)
 	crom-fitfield --objective energy --mesh $< $(DF_MAT) $(DF_BC) $(DF_TRAIN) $(QUIET) -o $@
 $(OUT)/df-neuralmodes.h5: $(OUT)/df-mesh.h5 $(OUT)/df-modes.h5 $(call stamp,df-train)
 	crom-fitfield --objective neuralmodes --mesh $< --modes $(OUT)/df-modes.h5 $(DF_TRAIN) $(QUIET) -o $@
+$(OUT)/df-field.h5: $(OUT)/df-mesh.h5 $(call stamp,df-train)
+	crom-fitfield --objective field --mesh $< $(DF_MAT) $(DF_BC) $(DF_TRAIN) $(QUIET) -o $@
 # the modes' cubatures: every tet (what --model integrates too), and an
 # optimized one fitted to the poses of that run (no data beyond the modes)
 $(OUT)/df-cub-all.h5: $(OUT)/df-modes.h5 $(OUT)/df-mesh.h5
@@ -156,20 +161,21 @@ $(OUT)/df-cub-opt.h5: $(OUT)/df-modes.h5 $(OUT)/df-mesh.h5 $(OUT)/df-red-modes-a
 	  --youngs $(DF_YOUNGS) --poisson 0.3 --seed $(SEED) --threads 1 $(QUIET) -o $@ $(OUT)/df-mesh.h5
 # the maps' cubatures: their features, fitted at latent samples of the
 # training distribution
-$(OUT)/df-cubm-%.h5: $(OUT)/df-%.h5 $(call stamp,df-cubature)
-	crom-cubature --model $< --scheme optimized --count $(DF_COUNT) --seed $(SEED) --threads 1 $(QUIET) -o $@
+$(OUT)/df-cubm-%.h5: $(OUT)/df-%.h5 $(OUT)/df-mesh.h5 $(call stamp,df-cubature)
+	crom-cubature --model $< --scheme optimized --count $(DF_COUNT) --seed $(SEED) --threads 1 $(QUIET) -o $@ \
+	  $(if $(filter field,$*),$(OUT)/df-mesh.h5)
 # the latent runs (step costs in the --stats CSV) and their error against the full run
 $(OUT)/df-red-%.h5 $(OUT)/df-red-%.csv &: $$(call df_in,$$*) $(call stamp,df-scenario)
 	crom-reducedstep $(call df_args,$*) $(DF_SCENARIO) --threads 1 \
 	  --stats $(OUT)/df-red-$*.csv $(QUIET) -o $(OUT)/df-red-$*.h5
 $(OUT)/df-diff-%.txt: $(OUT)/df-red-%.h5 $(OUT)/df-full.h5 $$(call df_model,$$*)
-	crom-diff $< $(OUT)/df-full.h5 --model $(call df_model,$*) --threads 1 > $@
+	crom-diff $< $(OUT)/df-full.h5 --model $(call df_model,$*) $(call df_mesh,$*) --threads 1 > $@
 # energy at random latents, and collapsed dimensions (the maps against the modes)
 $(OUT)/df-metrics-%.txt: $(OUT)/df-%.h5 $(OUT)/df-modes.h5 $(call stamp,df-metrics)
-	crom-metrics $(if $(filter-out modes,$*),--compare $(OUT)/df-modes.h5) --samples $(DF_SAMPLES) --seed $(SEED) \
+	crom-metrics $(if $(filter-out modes,$*),--compare $(OUT)/df-modes.h5) $(call df_mesh,$*) --samples $(DF_SAMPLES) --seed $(SEED) \
 	  --threads 1 $< > $@
 $(OUT)/datafree.md: $(OUT)/df-mesh.h5 $(OUT)/df-full.csv $(OUT)/df-modes.log $(foreach r,$(DF_ROWS),$(OUT)/df-red-$(r).csv $(OUT)/df-diff-$(r).txt) \
-                    $(foreach m,modes energy neuralmodes,$(OUT)/df-metrics-$(m).txt)
+                    $(foreach m,modes energy neuralmodes field,$(OUT)/df-metrics-$(m).txt)
 	/usr/bin/python3 $(TOP)/pipelines/benchtab.py datafree $(OUT) "$(DF_ROWS)" > $@.tmp && mv $@.tmp $@
 
 # ------------------------------------------------------------------ plots

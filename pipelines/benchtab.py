@@ -129,8 +129,9 @@ def datafree(out, rows):
     modes_s = sum(float(x) for x in parts.groups()) if parts else float("nan")
     names = {"modes-all": "linear modes (crom-modes), cubature of every tet",
              "energy": "energy (Sharp et al.), --model, every tet",
-             "neuralmodes": "neuralmodes (Wang et al.), --model, every tet"}
-    label = {"modes": "linear modes", "energy": "energy", "neuralmodes": "neuralmodes"}
+             "neuralmodes": "neuralmodes (Wang et al.), --model, every tet",
+             "field": "continuous field x(X, z) (beyond both papers), --model --mesh, every tet"}
+    label = {"modes": "linear modes", "energy": "energy", "neuralmodes": "neuralmodes", "field": "continuous field"}
     t = []
     for r in rows:
         kind = r.split("-")[0]
@@ -168,7 +169,9 @@ def datafree(out, rows):
           "step); the speedup is against the full step. Training time: Lanczos with its assembly and "
           "factorization for the modes (from crom-modes -v), the model's training_seconds for the data-free "
           "objectives, whose training is stopped by the clock (--minutes); neuralmodes builds on the modes "
-          "of the first rows. The modes' cubature runs integrate W^T H W over their tets; the --model runs "
+          "of the first rows; the continuous field (crom-fitfield --objective field) integrates its energy by a "
+          "random cubature of 512 tets per training step and is laid on the mesh like a LiCROM field. The "
+          "modes' cubature runs integrate W^T H W over their tets; the --model runs "
           "do Gauss-Newton through the map's Jacobian over every tet, or over an optimized cubature of the "
           "map's features (crom-cubature --model on the map: NNLS on the latent forces at 100 latent samples "
           "of the training distribution, no simulation data). Relative error: crom-diff "
