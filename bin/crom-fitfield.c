@@ -37,7 +37,7 @@ static const crom_opt fit_opts[] = {
     {NULL, 0, NULL, NULL}};
 
 static const crom_opt df_opts[] = {
-    {"mesh", O_MESH, "MESH", "The crom/mesh the data-free subspace maps (required with --objective energy|neuralmodes; '-' for stdin). Its regions resolve --pin. The model stores it: the subspace lives on this mesh."},
+    {"mesh", O_MESH, "MESH", "The crom/mesh the data-free subspace maps (required with --objective energy|neuralmodes|field; '-' for stdin). Its regions resolve --pin. energy and neuralmodes store it: the subspace lives on this mesh; field is trained on it and lays on any mesh."},
     {"modes", O_MODES, "MODEL", "neuralmodes (required): a crom/model of linear modes of the same mesh, from crom-modes. Its lowest --rank modes are the linear part Phi; its pins are kept, its material is the default."},
     {"steps", O_STEPS, "N", "Training steps of a data-free objective (default 2000), each on --batch samples (default 32). The learning rate is --lr (default 1e-3), halved after each quarter of the steps."},
     {"sigma", O_SIGMA, "S", "energy: isometry scale in metres: the subspace should move the body by S (RMS displacement) per unit of latent distance, |f(z) - f(z')|_M / sqrt(m) ~ S |z - z'|, z ~ N(0, I) (default 0.05 times the bounding-box diagonal). Sharp et al.'s sigma divided by sqrt(body mass)."},
@@ -66,7 +66,7 @@ static const crom_opt train_opts[] = {
 
 static const crom_optgroup groups[] = {{"Options", fit_opts},
                                        {"Training", train_opts},
-                                       {"Data-free subspaces (--objective energy|neuralmodes)", df_opts},
+                                       {"Data-free subspaces (--objective energy|neuralmodes|field)", df_opts},
                                        {"Scenario options of data-free training (the flags of crom-fullsim: material, gravity and "
                                         "--pin are used, the others accepted and ignored)", crom_scenario_opts},
                                        {NULL, NULL}};
@@ -76,7 +76,8 @@ static const crom_doc doc = {
     "learn a displacement basis W(X) from point samples",
     "crom-fitfield [--rank R] [--encoder lsq|pointnet] [--basis mlp|pod] [--epochs N] [--minutes M] [--seed S] [-o OUT] [SAMPLES]\n"
     "crom-fitfield --objective energy --mesh MESH [--rank R] [--sigma S] [--lambda L] [--steps N] [scenario] [-o OUT]\n"
-    "crom-fitfield --objective neuralmodes --mesh MESH --modes MODEL [--rank R] [--box A] [--steps N] [-o OUT]",
+    "crom-fitfield --objective neuralmodes --mesh MESH --modes MODEL [--rank R] [--box A] [--steps N] [-o OUT]\n"
+    "crom-fitfield --objective field --mesh MESH [--rank R] [--features P] [--tets K] [--steps N] [scenario] [-o OUT]",
     "Reads a crom/samples file (a path, or stdin) and writes a crom/model: a basis W(X) of r "
     "displacement fields, so that u(X) = W(X) q for a latent q in metres (LiCROM §3).\n\n"
     "--basis mlp trains a neural field: an MLP with ELU activations (5 layers of width 60 by "
@@ -119,15 +120,21 @@ static const crom_doc doc = {
     "is in metres), with a GELU MLP correction y trained from zero on z uniform in [-A, A]^r to "
     "minimize the elastic energy plus penalties on the projection W^T M y(z) and on y(0). The "
     "training log (objective, mean energy, penalty per block of steps) is stored in the model.\n\n"
-    "Training a data-free map costs --batch energy evaluations of the whole mesh per step; "
-    "--threads evaluates them in parallel (the result does not depend on the thread count).",
+    "--objective field (beyond both papers): a continuous subspace x(X, z) = X + W(X) phi(z), "
+    "W a neural field 3 -> 3p (--features p), phi an MLP r -> p, trained like energy with the "
+    "integrals over the body taken by a random cubature of --tets tets per step; pins are a mask "
+    "vanishing on the pinned faces. The model ('energy-field') stores no mesh and lays on "
+    "any mesh of the body (with --mesh).\n\n"
+    "A data-free step costs --batch energy evaluations (of the whole mesh, or of --tets tets); "
+    "--threads runs them in parallel (the result does not depend on the thread count).",
     groups,
     "crom-sample run*.h5 | crom-fitfield --rank 20 -o model.h5\n"
     "crom-fitfield --encoder pointnet --epochs 3750 -o model.h5 samples.h5\n"
     "crom-sample --points all run.h5 | crom-fitfield --basis pod --rank 10 -o pod.h5\n"
     "crom-fitfield --objective energy --mesh bar.h5 --pin clamp --youngs 1e6 --rank 3 -o df.h5\n"
     "crom-modes --pin clamp --youngs 1e6 --count 6 -o modes.h5 bar.h5\n"
-    "crom-fitfield --objective neuralmodes --mesh bar.h5 --modes modes.h5 -o nm.h5",
+    "crom-fitfield --objective neuralmodes --mesh bar.h5 --modes modes.h5 -o nm.h5\n"
+    "crom-fitfield --objective field --mesh bar.h5 --pin clamp --youngs 1e6 -o fld.h5",
     "crom-sample(1), crom-encode(1), crom-cubature(1), crom-modes(1), crom-reducedstep(1), crom-metrics(1), crom-info(1)"};
 
 typedef struct {
