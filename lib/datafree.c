@@ -288,6 +288,73 @@ void crom_df_log_free(crom_df_log *l)
     memset(l, 0, sizeof *l);
 }
 
+int crom_df_run_begin(crom_df_run *R, crom_df_log *log, const crom_df_opts *o)
+{
+    memset(R, 0, sizeof *R);
+    R->log = log;
+    R->o = o;
+    R->block = o->steps >= 100 ? (o->steps + 99) / 100 : 1;
+    int maxblocks = o->steps / R->block + 2;
+    log->objective = crom_malloc(sizeof(double) * (size_t)maxblocks);
+    log->energy = crom_malloc(sizeof(double) * (size_t)maxblocks);
+    log->penalty = crom_malloc(sizeof(double) * (size_t)maxblocks);
+    log->seconds = crom_malloc(sizeof(double) * (size_t)maxblocks);
+    if (!log->objective || !log->energy || !log->penalty || !log->seconds)
+        return CROM_EINTERNAL;
+    R->budget = o->minutes > 0 ? 60 * o->minutes : 0;
+    R->tstart = crom_now();
+    return 0;
+}
+
+int crom_df_run_next(crom_df_run *R, long k, double *frac)
+{
+    double f = (double)k / R->o->steps, el = crom_now() - R->tstart;
+    if (R->budget > 0) {
+        if (el >= R->budget)
+            return 0;
+        f = fmax(f, el / R->budget);
+    }
+    *frac = f;
+    return 1;
+}
+
+static void close_block(crom_df_run *R)
+{
+    crom_df_log *log = R->log;
+    int j = log->nblocks++;
+    log->objective[j] = R->sobj / R->inblock;
+    log->energy[j] = R->sen / R->inblock;
+    log->penalty[j] = R->spen / R->inblock;
+    log->seconds[j] = crom_wall(crom_now() - R->tstart);
+    R->sobj = R->sen = R->spen = 0;
+    R->inblock = 0;
+}
+
+void crom_df_run_record(crom_df_run *R, long k, const crom_df_terms *t)
+{
+    const crom_df_opts *o = R->o;
+    R->sobj += t->objective;
+    R->sen += t->energy;
+    R->spen += t->penalty;
+    if (++R->inblock == R->block || k + 1 == o->steps) {
+        close_block(R);
+        if (o->progress) {
+            double f = (double)(k + 1) / o->steps;
+            if (R->budget > 0)
+                f = fmax(f, (crom_now() - R->tstart) / R->budget);
+            o->progress(o->progress_ctx, k + 1, fmin(f, 1.0), R->log->objective[R->log->nblocks - 1]);
+        }
+    }
+}
+
+void crom_df_run_end(crom_df_run *R, long k)
+{
+    if (R->inblock > 0) /* stopped by the clock inside a block */
+        close_block(R);
+    R->log->steps = k;
+    R->log->seconds_total = crom_now() - R->tstart;
+}
+
 double crom_df_lr(double base, double frac)
 {
     int q = (int)floor(4 * frac);
@@ -360,12 +427,9 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
     memset(&ctx, 0, sizeof ctx);
     crom_nn_adam adam;
     memset(&adam, 0, sizeof adam);
-    int block = o.steps >= 100 ? (o.steps + 99) / 100 : 1, maxblocks = o.steps / block + 2;
-    log->objective = crom_malloc(sizeof(double) * (size_t)maxblocks);
-    log->energy = crom_malloc(sizeof(double) * (size_t)maxblocks);
-    log->penalty = crom_malloc(sizeof(double) * (size_t)maxblocks);
-    log->seconds = crom_malloc(sizeof(double) * (size_t)maxblocks);
-    if (!params || !grad || !z || !log->objective || !log->energy || !log->penalty || !log->seconds) {
+    crom_df_run R;
+    int rcr = crom_df_run_begin(&R, log, &o);
+    if (!params || !grad || !z || rcr) {
         rc = CROM_EINTERNAL;
         goto done;
     }
@@ -391,17 +455,12 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
     log->sigma = o.sigma;
     log->box = o.box;
     log->Eref = ctx.Eref;
-    double budget = o.minutes > 0 ? 60 * o.minutes : 0, tstart = crom_now();
-    double sobj = 0, sen = 0, spen = 0;
-    int inblock = 0;
     long k;
+    R.tstart = crom_now();
     for (k = 0; k < o.steps; k++) {
-        double frac = (double)k / o.steps, el = crom_now() - tstart;
-        if (budget > 0) {
-            if (el >= budget)
-                break;
-            frac = fmax(frac, el / budget);
-        }
+        double frac;
+        if (!crom_df_run_next(&R, k, &frac))
+            break;
         double rho = nm ? 1 : o.ramp > 0 ? fmin(1.0, frac / o.ramp) : 1;
         for (int i = 0; i < o.batch * r; i++)
             z[i] = nm ? o.box * (2 * crom_rng_uniform(&srng) - 1) : crom_rng_normal(&srng);
@@ -412,34 +471,9 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
             goto done;
         }
         crom_nn_adam_step(&adam, params, grad, crom_df_lr(o.lr, frac));
-        sobj += tm.objective;
-        sen += tm.energy;
-        spen += tm.penalty;
-        if (++inblock == block || k + 1 == o.steps) {
-            int j = log->nblocks++;
-            log->objective[j] = sobj / inblock;
-            log->energy[j] = sen / inblock;
-            log->penalty[j] = spen / inblock;
-            log->seconds[j] = crom_wall(crom_now() - tstart);
-            sobj = sen = spen = 0;
-            inblock = 0;
-            if (o.progress) {
-                double f = (double)(k + 1) / o.steps;
-                if (budget > 0)
-                    f = fmax(f, (crom_now() - tstart) / budget);
-                o.progress(o.progress_ctx, k + 1, fmin(f, 1.0), log->objective[j]);
-            }
-        }
+        crom_df_run_record(&R, k, &tm);
     }
-    if (inblock > 0) { /* stopped by the clock inside a block */
-        int j = log->nblocks++;
-        log->objective[j] = sobj / inblock;
-        log->energy[j] = sen / inblock;
-        log->penalty[j] = spen / inblock;
-        log->seconds[j] = crom_wall(crom_now() - tstart);
-    }
-    log->steps = k;
-    log->seconds_total = crom_now() - tstart;
+    crom_df_run_end(&R, k);
     if (k == 0) {
         rc = crom_err(CROM_EUSAGE, "no training step fitted in the time budget");
         goto done;

@@ -223,6 +223,26 @@ typedef struct {
 
 void crom_df_log_free(crom_df_log *l);
 
+/* The clock and record of a training run, shared by the objectives: the
+ * schedule's fraction done (steps or --minutes, whichever is further) and
+ * the per-block means of the terms, with progress reports. */
+typedef struct {
+    crom_df_log *log;
+    const crom_df_opts *o;
+    int block, inblock;
+    double budget, tstart, sobj, sen, spen;
+} crom_df_run;
+
+/* Start: allocate the record for o->steps steps. CROM_EINTERNAL. */
+int crom_df_run_begin(crom_df_run *R, crom_df_log *log, const crom_df_opts *o);
+/* Before step k: 0 when the time budget is spent, else 1 with the
+ * fraction of the schedule done in *frac. */
+int crom_df_run_next(crom_df_run *R, long k, double *frac);
+/* After step k: record its terms. */
+void crom_df_run_record(crom_df_run *R, long k, const crom_df_terms *t);
+/* After the last step (k steps taken): close the record. */
+void crom_df_run_end(crom_df_run *R, long k);
+
 /* Train the continuous field (crom_df_train calls it for CROM_DF_FIELD). */
 int crom_df_train_field(const crom_df_problem *p, const crom_df_opts *o, crom_model *out, crom_df_log *log);
 

@@ -440,12 +440,9 @@ int crom_df_train_field(const crom_df_problem *p, const crom_df_opts *o_in, crom
     float *gW = NULL, *gP = NULL;
     double *z = crom_malloc(sizeof(double) * (size_t)o.batch * r);
     int *tets = crom_malloc(sizeof(int) * (size_t)K);
-    int block = o.steps >= 100 ? (o.steps + 99) / 100 : 1, maxblocks = o.steps / block + 2;
-    log->objective = crom_malloc(sizeof(double) * (size_t)maxblocks);
-    log->energy = crom_malloc(sizeof(double) * (size_t)maxblocks);
-    log->penalty = crom_malloc(sizeof(double) * (size_t)maxblocks);
-    log->seconds = crom_malloc(sizeof(double) * (size_t)maxblocks);
-    if (!z || !tets || !log->objective || !log->energy || !log->penalty || !log->seconds) {
+    crom_df_run R;
+    int rcr = crom_df_run_begin(&R, log, &o);
+    if (!z || !tets || rcr) {
         rc = CROM_EINTERNAL;
         goto done;
     }
@@ -474,17 +471,12 @@ int crom_df_train_field(const crom_df_problem *p, const crom_df_opts *o_in, crom
         goto done;
     log->sigma = o.sigma;
     log->Eref = ctx.Eref;
-    double budget = o.minutes > 0 ? 60 * o.minutes : 0, tstart = crom_now();
-    double sobj = 0, sen = 0, spen = 0;
-    int inblock = 0;
     long k;
+    R.tstart = crom_now();
     for (k = 0; k < o.steps; k++) {
-        double frac = (double)k / o.steps, el = crom_now() - tstart;
-        if (budget > 0) {
-            if (el >= budget)
-                break;
-            frac = fmax(frac, el / budget);
-        }
+        double frac;
+        if (!crom_df_run_next(&R, k, &frac))
+            break;
         double rho = o.ramp > 0 ? fmin(1.0, frac / o.ramp) : 1;
         for (int i = 0; i < o.batch * r; i++)
             z[i] = crom_rng_normal(&srng);
@@ -499,34 +491,9 @@ int crom_df_train_field(const crom_df_problem *p, const crom_df_opts *o_in, crom
         double lr = crom_df_lr(o.lr, frac);
         crom_nn_adam_step(&aw, W.params, gW, lr);
         crom_nn_adam_step(&ap, phi.params, gP, lr);
-        sobj += tm.objective;
-        sen += tm.energy;
-        spen += tm.penalty;
-        if (++inblock == block || k + 1 == o.steps) {
-            int j = log->nblocks++;
-            log->objective[j] = sobj / inblock;
-            log->energy[j] = sen / inblock;
-            log->penalty[j] = spen / inblock;
-            log->seconds[j] = crom_wall(crom_now() - tstart);
-            sobj = sen = spen = 0;
-            inblock = 0;
-            if (o.progress) {
-                double f = (double)(k + 1) / o.steps;
-                if (budget > 0)
-                    f = fmax(f, (crom_now() - tstart) / budget);
-                o.progress(o.progress_ctx, k + 1, fmin(f, 1.0), log->objective[j]);
-            }
-        }
+        crom_df_run_record(&R, k, &tm);
     }
-    if (inblock > 0) {
-        int j = log->nblocks++;
-        log->objective[j] = sobj / inblock;
-        log->energy[j] = sen / inblock;
-        log->penalty[j] = spen / inblock;
-        log->seconds[j] = crom_wall(crom_now() - tstart);
-    }
-    log->steps = k;
-    log->seconds_total = crom_now() - tstart;
+    crom_df_run_end(&R, k);
     if (k == 0) {
         rc = crom_err(CROM_EUSAGE, "no training step fitted in the time budget");
         goto done;

@@ -38,75 +38,23 @@ int crom_map_same_mesh(const crom_mesh *a, const crom_mesh *b)
     return memcmp(a->tets, b->tets, sizeof(int) * 4 * (size_t)a->nt) != 0;
 }
 
-/* Copy the hidden layers of a map model's network into double, and lay
- * its last layer and the linear part W (basis_v, [n][r] or NULL) out as
- * the feature basis B = [W | W_L | b_L]. */
-static int load_net(crom_map *map, const crom_nn_mlp *net, const double *basis_v)
+/* The layers of a network in double (map->mem, w, b), the scratch of a
+ * forward pass with tangents, and the feature basis B [n][p] (unfilled). */
+static int copy_layers(crom_map *map, const crom_nn_mlp *net, int p)
 {
     const crom_nn_spec *sp = &net->spec;
-    int L = sp->nlayers, r = map->r, n = map->n;
+    int L = sp->nlayers, maxw = 1; /* widest input of a layer: the latent and the hidden layers */
     map->nlayers = L;
     map->act = sp->act;
     map->omega0 = sp->omega0;
-    int maxw = 1; /* widest input of a layer: the latent and the hidden layers */
     for (int l = 0; l <= L; l++) {
         map->width[l] = sp->width[l];
         if (l < L && sp->width[l] > maxw)
             maxw = sp->width[l];
     }
-    if (sp->width[L] != n)
-        return crom_err(CROM_EDATA, "the map's network has %d outputs for %d vertices", sp->width[L], map->nv);
-    int h = sp->width[L - 1];
-    map->rl = basis_v ? r : 0;
-    map->p = map->rl + h + 1;
-    map->mem = crom_malloc(sizeof(double) * net->nparams);
-    size_t wr = (size_t)maxw * (size_t)(r + 1);
-    map->a0 = crom_malloc(sizeof(double) * (size_t)maxw);
-    map->a1 = crom_malloc(sizeof(double) * (size_t)maxw);
-    map->z1 = crom_malloc(sizeof(double) * (size_t)maxw);
-    map->t0 = crom_malloc(sizeof(double) * wr);
-    map->t1 = crom_malloc(sizeof(double) * wr);
-    map->B = crom_malloc(sizeof(double) * (size_t)n * map->p);
-    if (!map->mem || !map->a0 || !map->a1 || !map->z1 || !map->t0 || !map->t1 || !map->B)
-        return CROM_EINTERNAL;
-    for (size_t i = 0; i < net->nparams; i++)
-        map->mem[i] = net->params[i];
-    for (int l = 0; l < L; l++) {
-        map->w[l] = map->mem + net->layer[l].woff;
-        map->b[l] = map->mem + net->layer[l].boff;
-    }
-    for (int i = 0; i < n; i++) {
-        double *Bi = map->B + (size_t)i * map->p;
-        if (basis_v)
-            memcpy(Bi, basis_v + (size_t)i * r, sizeof(double) * (size_t)r);
-        memcpy(Bi + map->rl, map->w[L - 1] + (size_t)i * h, sizeof(double) * (size_t)h);
-        Bi[map->p - 1] = map->b[L - 1][i];
-    }
-    map->nonlinear = 1;
-    return 0;
-}
-
-/* A continuous map x = X + W(X) φ(q): φ's layers in double (its last one
- * gives the features), B = W at the vertices (the field in float, as for
- * an mlp basis). */
-static int load_field_map(crom_map *map, const crom_model *model)
-{
-    crom_nn_mlp *phi = (crom_nn_mlp *)&model->latent;
-    const crom_nn_spec *sp = &phi->spec;
-    int L = sp->nlayers, r = map->r, p = sp->width[L];
-    map->nlayers = L;
-    map->act = sp->act;
-    map->omega0 = sp->omega0;
-    int maxw = p;
-    for (int l = 0; l <= L; l++) {
-        map->width[l] = sp->width[l];
-        if (sp->width[l] > maxw)
-            maxw = sp->width[l];
-    }
-    map->phi = 1;
     map->p = p;
-    map->mem = crom_malloc(sizeof(double) * phi->nparams);
-    size_t wr = (size_t)maxw * (size_t)(r + 1);
+    size_t wr = (size_t)maxw * (size_t)(map->r + 1);
+    map->mem = crom_malloc(sizeof(double) * net->nparams);
     map->a0 = crom_malloc(sizeof(double) * (size_t)maxw);
     map->a1 = crom_malloc(sizeof(double) * (size_t)maxw);
     map->z1 = crom_malloc(sizeof(double) * (size_t)maxw);
@@ -115,16 +63,52 @@ static int load_field_map(crom_map *map, const crom_model *model)
     map->B = crom_malloc(sizeof(double) * (size_t)map->n * p);
     if (!map->mem || !map->a0 || !map->a1 || !map->z1 || !map->t0 || !map->t1 || !map->B)
         return CROM_EINTERNAL;
-    for (size_t i = 0; i < phi->nparams; i++)
-        map->mem[i] = phi->params[i];
+    for (size_t i = 0; i < net->nparams; i++)
+        map->mem[i] = net->params[i];
     for (int l = 0; l < L; l++) {
-        map->w[l] = map->mem + phi->layer[l].woff;
-        map->b[l] = map->mem + phi->layer[l].boff;
+        map->w[l] = map->mem + net->layer[l].woff;
+        map->b[l] = map->mem + net->layer[l].boff;
     }
     map->nonlinear = 1;
-    crom_nn_ws ws;
-    int rc = crom_nn_ws_init(&ws, &model->mlp, map->nv < 4096 ? map->nv : 4096, 1);
+    return 0;
+}
+
+/* A map of one mesh: the hidden layers of its network, and its last layer
+ * and linear part W (basis_v, [n][r] or NULL) laid out as the feature
+ * basis B = [W | W_L | b_L]. */
+static int load_net(crom_map *map, const crom_nn_mlp *net, const double *basis_v)
+{
+    const crom_nn_spec *sp = &net->spec;
+    int L = sp->nlayers, r = map->r, n = map->n, h = sp->width[L - 1];
+    if (sp->width[L] != n)
+        return crom_err(CROM_EDATA, "the map's network has %d outputs for %d vertices", sp->width[L], map->nv);
+    map->rl = basis_v ? r : 0;
+    int rc = copy_layers(map, net, map->rl + h + 1);
     if (rc)
+        return rc;
+    for (int i = 0; i < n; i++) {
+        double *Bi = map->B + (size_t)i * map->p;
+        if (basis_v)
+            memcpy(Bi, basis_v + (size_t)i * r, sizeof(double) * (size_t)r);
+        memcpy(Bi + map->rl, map->w[L - 1] + (size_t)i * h, sizeof(double) * (size_t)h);
+        Bi[map->p - 1] = map->b[L - 1][i];
+    }
+    return 0;
+}
+
+/* A continuous map x = X + W(X) φ(q): φ's layers in double (its last one
+ * gives the features), B = the pin mask times W at the vertices (the field
+ * in float, as for an mlp basis). */
+static int load_field_map(crom_map *map, const crom_model *model)
+{
+    const crom_nn_mlp *phi = &model->latent;
+    int p = phi->spec.width[phi->spec.nlayers];
+    int rc = copy_layers(map, phi, p);
+    if (rc)
+        return rc;
+    map->phi = 1;
+    crom_nn_ws ws;
+    if ((rc = crom_nn_ws_init(&ws, &model->mlp, map->nv < 4096 ? map->nv : 4096, 1)))
         return rc;
     rc = crom_nn_mlp_eval(&model->mlp, &ws, (size_t)map->nv, map->mesh.X, map->B, NULL);
     crom_nn_ws_free(&ws);

@@ -4,7 +4,7 @@
 # (`make bench`); sizes are variables, e.g.
 #   make bench T_SIZES="0.056" FULL_SIZES="0.056"      # a quick one
 #   make -f pipelines/bench.mk datafree DF_SIZE=0.1 DF_MINUTES=0.1 DF_STEPS=10 OUT=/tmp/df
-# About 33 minutes at the defaults on this 2-core machine (datafree: about 8).
+# About 45 minutes at the defaults on this 2-core machine (datafree: about 15).
 include $(dir $(lastword $(MAKEFILE_LIST)))common.mk
 .SECONDEXPANSION:
 

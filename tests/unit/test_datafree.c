@@ -593,6 +593,40 @@ static void test_neuralmodes_subspace(bar_case *b)
     crom_df_log_free(&log);
 }
 
+/* Run steps latent steps and measure the energy budget: the largest rise
+ * of the total (kinetic + elastic + external) energy between steps, its
+ * scale, the largest kinetic energy and constraint residual. Checks that
+ * every step succeeds and the totals are finite. */
+typedef struct {
+    double worst, scale, tmax, cres;
+} run_budget;
+
+static run_budget run_steps(crom_nlsim *s, int steps)
+{
+    run_budget b = {-INFINITY, 0, 0, 0};
+    double Eprev = NAN;
+    int fin = 1;
+    for (int k = 0; k <= steps; k++) {
+        crom_rstep_stats st;
+        if (k > 0 && crom_nlsim_step(s, &st)) {
+            CHECK_MSG(0, "step %d: %s", k, crom_errmsg());
+            break;
+        }
+        double K, Ee, W;
+        CHECK(crom_nlsim_energies(s, &K, &Ee, &W) == 0);
+        double T = K + Ee + W;
+        fin &= isfinite(T);
+        b.scale = fmax(b.scale, fabs(Ee) + fabs(W) + K);
+        b.tmax = fmax(b.tmax, K);
+        if (k > 0)
+            b.worst = fmax(b.worst, T - Eprev);
+        Eprev = T;
+        b.cres = fmax(b.cres, crom_nlsim_constraint_residual(s));
+    }
+    CHECK(fin);
+    return b;
+}
+
 static void scenario_bar(crom_scenario *sc);
 
 /* The continuous field (--objective field): trained on the coarse bar by a
@@ -668,32 +702,13 @@ static void test_field_subspace(bar_case *b)
     strcpy(sc.pins[sc.npins++], "x<-0.49");
     crom_nlsim s;
     CHECK(crom_nlsim_init(&s, &fmap, &sc, 0, NULL, NULL, 1) == 0);
-    double Eprev = NAN, worst = -INFINITY, scale = 0, tmax = 0, cres = 0;
-    int fin = 1;
-    for (int k = 0; k <= 40; k++) {
-        crom_rstep_stats st;
-        if (k > 0 && crom_nlsim_step(&s, &st)) {
-            CHECK_MSG(0, "step %d: %s", k, crom_errmsg());
-            break;
-        }
-        double K, Ee, W;
-        CHECK(crom_nlsim_energies(&s, &K, &Ee, &W) == 0);
-        double T = K + Ee + W;
-        fin &= isfinite(T);
-        scale = fmax(scale, fabs(Ee) + fabs(W) + K);
-        tmax = fmax(tmax, K);
-        if (k > 0)
-            worst = fmax(worst, T - Eprev);
-        Eprev = T;
-        cres = fmax(cres, crom_nlsim_constraint_residual(&s));
-    }
+    run_budget rb = run_steps(&s, 40);
     fprintf(stderr, "continuous field on the finer mesh, 40 steps under gravity: largest rise of the total energy %.3g "
                     "J (scale %.4g J), largest kinetic energy %.4g J, largest clamp displacement %.3g m\n",
-            worst, scale, tmax, cres);
-    CHECK(fin);
-    CHECK(tmax > 1e-3 * scale);
-    CHECK_LT(worst, 1e-6 * scale);
-    CHECK_LT(cres, 0.01 * fres.rms_mean);
+            rb.worst, rb.scale, rb.tmax, rb.cres);
+    CHECK(rb.tmax > 1e-3 * rb.scale);
+    CHECK_LT(rb.worst, 1e-6 * rb.scale);
+    CHECK_LT(rb.cres, 0.01 * fres.rms_mean);
     crom_nlsim_free(&s);
     crom_metrics_free(&res);
     crom_metrics_free(&fres);
@@ -891,31 +906,12 @@ static void test_dynamics(bar_case *b)
         free(x);
         free(J);
     }
-    double Eprev = NAN, worst = -INFINITY, scale = 0, tmax = 0;
-    int steps = 60, fin = 1;
-    for (int k = 0; k <= steps; k++) {
-        crom_rstep_stats st;
-        if (k > 0) {
-            rc = crom_nlsim_step(&s, &st);
-            CHECK_MSG(rc == 0, "step %d: %s", k, crom_errmsg());
-            if (rc)
-                break;
-        }
-        double K, Ee, W;
-        CHECK(crom_nlsim_energies(&s, &K, &Ee, &W) == 0);
-        double T = K + Ee + W;
-        fin &= isfinite(T);
-        scale = fmax(scale, fabs(Ee) + fabs(W) + K);
-        tmax = fmax(tmax, K);
-        if (k > 0)
-            worst = fmax(worst, T - Eprev);
-        Eprev = T;
-    }
+    int steps = 60;
+    run_budget rb = run_steps(&s, steps);
     fprintf(stderr, "energy map, free run of %d steps under gravity: largest rise of the total energy %.3g J (energy "
-                    "scale %.4g J, largest kinetic energy %.4g J)\n", steps, worst, scale, tmax);
-    CHECK(fin);
-    CHECK(tmax > 1e-3 * scale); /* it moved */
-    CHECK_LT(worst, 1e-6 * scale);
+                    "scale %.4g J, largest kinetic energy %.4g J)\n", steps, rb.worst, rb.scale, rb.tmax);
+    CHECK(rb.tmax > 1e-3 * rb.scale); /* it moved */
+    CHECK_LT(rb.worst, 1e-6 * rb.scale);
     crom_nlsim_free(&s);
     crom_map_free(&map);
 }
