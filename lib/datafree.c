@@ -347,12 +347,13 @@ void crom_df_run_record(crom_df_run *R, long k, const crom_df_terms *t)
     }
 }
 
-void crom_df_run_end(crom_df_run *R, long k)
+int crom_df_run_end(crom_df_run *R, long k)
 {
     if (R->inblock > 0) /* stopped by the clock inside a block */
         close_block(R);
     R->log->steps = k;
     R->log->seconds_total = crom_now() - R->tstart;
+    return k > 0 ? 0 : crom_err(CROM_EUSAGE, "no training step fitted in the time budget");
 }
 
 double crom_df_lr(double base, double frac)
@@ -456,7 +457,7 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
     log->box = o.box;
     log->Eref = ctx.Eref;
     long k;
-    R.tstart = crom_now();
+    R.tstart = crom_now(); /* the clock starts after the set-up */
     for (k = 0; k < o.steps; k++) {
         double frac;
         if (!crom_df_run_next(&R, k, &frac))
@@ -473,11 +474,8 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
         crom_nn_adam_step(&adam, params, grad, crom_df_lr(o.lr, frac));
         crom_df_run_record(&R, k, &tm);
     }
-    crom_df_run_end(&R, k);
-    if (k == 0) {
-        rc = crom_err(CROM_EUSAGE, "no training step fitted in the time budget");
+    if ((rc = crom_df_run_end(&R, k)))
         goto done;
-    }
     if ((rc = crom_model_from_map(out, nm ? "neuralmodes" : "energy", &net, mesh, nm ? p->modes : NULL)))
         goto done;
     if (nm && p->freq) {

@@ -240,8 +240,9 @@ int crom_df_run_begin(crom_df_run *R, crom_df_log *log, const crom_df_opts *o);
 int crom_df_run_next(crom_df_run *R, long k, double *frac);
 /* After step k: record its terms. */
 void crom_df_run_record(crom_df_run *R, long k, const crom_df_terms *t);
-/* After the last step (k steps taken): close the record. */
-void crom_df_run_end(crom_df_run *R, long k);
+/* After the last step (k steps taken): close the record. CROM_EUSAGE if
+ * no step was taken (the time budget ran out first). */
+int crom_df_run_end(crom_df_run *R, long k);
 
 /* Train the continuous field (crom_df_train calls it for CROM_DF_FIELD). */
 int crom_df_train_field(const crom_df_problem *p, const crom_df_opts *o, crom_model *out, crom_df_log *log);

@@ -472,7 +472,7 @@ int crom_df_train_field(const crom_df_problem *p, const crom_df_opts *o_in, crom
     log->sigma = o.sigma;
     log->Eref = ctx.Eref;
     long k;
-    R.tstart = crom_now();
+    R.tstart = crom_now(); /* the clock starts after the set-up */
     for (k = 0; k < o.steps; k++) {
         double frac;
         if (!crom_df_run_next(&R, k, &frac))
@@ -493,11 +493,8 @@ int crom_df_train_field(const crom_df_problem *p, const crom_df_opts *o_in, crom
         crom_nn_adam_step(&ap, phi.params, gP, lr);
         crom_df_run_record(&R, k, &tm);
     }
-    crom_df_run_end(&R, k);
-    if (k == 0) {
-        rc = crom_err(CROM_EUSAGE, "no training step fitted in the time budget");
+    if ((rc = crom_df_run_end(&R, k)))
         goto done;
-    }
     if ((rc = crom_model_from_field_map(out, &W, &phi, ctx.npins, ctx.pinX, ctx.ntri, ctx.triX, ctx.pin_length)))
         goto done;
     out->training_seconds = crom_wall(crom_now() - t0);
