@@ -51,6 +51,9 @@ DF_YOUNGS ?= 1e6
 DF_MAT = --youngs $(DF_YOUNGS) --poisson 0.3 --density 1000
 DF_BC = --pin clamp --gravity 0,-9.81,0
 DF_SCENARIO = $(DF_MAT) $(DF_BC) --dt 0.01 --steps $(DF_STEPS)
+# the static sag: the same load, heavily damped until it rests (the last
+# frame of each run against the last frame of the damped full run)
+DF_STATIC = $(DF_MAT) $(DF_BC) --dt 0.02 --steps 100 --damping 30
 DF_TRAIN = --rank $(DF_RANK) --steps $(DF_TRAIN_STEPS) --minutes $(DF_MINUTES) --seed $(SEED) --threads 1
 # table rows: modes-all and modes-opt step the modes through a cubature
 # (df-cub-all.h5, df-cub-opt.h5); energy and neuralmodes their map (--model)
@@ -132,6 +135,7 @@ $(OUT)/training.md: $(OUT)/tr-lsq.h5 $(OUT)/tr-pointnet.h5
 datafree: $(OUT)/datafree.md
 $(eval $(call stamp_rule,df-mesh,$(DF_SIZE)))
 $(eval $(call stamp_rule,df-scenario,$(DF_SCENARIO)))
+$(eval $(call stamp_rule,df-static,$(DF_STATIC)))
 $(eval $(call stamp_rule,df-modes,$(DF_MAT) $(DF_RANK)))
 $(eval $(call stamp_rule,df-train,$(DF_MAT) $(DF_BC) $(DF_TRAIN)))
 $(eval $(call stamp_rule,df-cubature,$(DF_COUNT) $(DF_YOUNGS) $(SEED)))
@@ -168,13 +172,21 @@ $(OUT)/df-cubm-%.h5: $(OUT)/df-%.h5 $(OUT)/df-mesh.h5 $(call stamp,df-cubature)
 $(OUT)/df-red-%.h5 $(OUT)/df-red-%.csv &: $$(call df_in,$$*) $(call stamp,df-scenario)
 	crom-reducedstep $(call df_args,$*) $(DF_SCENARIO) --threads 1 \
 	  --stats $(OUT)/df-red-$*.csv $(QUIET) -o $(OUT)/df-red-$*.h5
+# the static sag, full and in each subspace
+$(OUT)/df-sfull.h5: $(OUT)/df-mesh.h5 $(call stamp,df-static)
+	crom-fullsim $(DF_STATIC) --threads 1 $(QUIET) -o $@ $<
+$(OUT)/df-sred-%.h5: $$(call df_in,$$*) $(call stamp,df-static)
+	crom-reducedstep $(call df_args,$*) $(DF_STATIC) --threads 1 $(QUIET) -o $@
+$(OUT)/df-sdiff-%.txt: $(OUT)/df-sred-%.h5 $(OUT)/df-sfull.h5 $$(call df_model,$$*)
+	crom-diff $< $(OUT)/df-sfull.h5 --model $(call df_model,$*) $(call df_mesh,$*) --threads 1 > $@
 $(OUT)/df-diff-%.txt: $(OUT)/df-red-%.h5 $(OUT)/df-full.h5 $$(call df_model,$$*)
 	crom-diff $< $(OUT)/df-full.h5 --model $(call df_model,$*) $(call df_mesh,$*) --threads 1 > $@
 # energy at random latents, and collapsed dimensions (the maps against the modes)
 $(OUT)/df-metrics-%.txt: $(OUT)/df-%.h5 $(OUT)/df-modes.h5 $(call stamp,df-metrics)
 	crom-metrics $(if $(filter-out modes,$*),--compare $(OUT)/df-modes.h5) $(call df_mesh,$*) --samples $(DF_SAMPLES) --seed $(SEED) \
 	  --threads 1 $< > $@
-$(OUT)/datafree.md: $(OUT)/df-mesh.h5 $(OUT)/df-full.csv $(OUT)/df-modes.log $(foreach r,$(DF_ROWS),$(OUT)/df-red-$(r).csv $(OUT)/df-diff-$(r).txt) \
+$(OUT)/datafree.md: $(OUT)/df-mesh.h5 $(OUT)/df-full.csv $(OUT)/df-modes.log \
+                    $(foreach r,$(DF_ROWS),$(OUT)/df-red-$(r).csv $(OUT)/df-diff-$(r).txt $(OUT)/df-sdiff-$(r).txt) \
                     $(foreach m,modes energy neuralmodes field,$(OUT)/df-metrics-$(m).txt)
 	/usr/bin/python3 $(TOP)/pipelines/benchtab.py datafree $(OUT) "$(DF_ROWS)" > $@.tmp && mv $@.tmp $@
 
