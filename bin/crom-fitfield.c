@@ -44,7 +44,7 @@ static const crom_opt df_opts[] = {
     {"lambda", O_LAMBDA, "L", "energy: weight of the isometry term, the squared log-ratio of mass-norm distances to S |z - z'| over all pairs of a batch, against the energy in units of E V (Young's modulus times volume) (default 1)."},
     {"ramp", O_RAMP, "F", "energy: the seed-state blend rho grows linearly from 0 to 1 over the first fraction F of the steps, then stays 1 (default 0.5; Sharp et al. §4.1). The seed state is the rest shape."},
     {"box", O_BOX, "A", "neuralmodes: the modal coordinates z are drawn uniformly from [-A, A]^r, in metres of RMS displacement (default 0.1 times the bounding-box diagonal)."},
-    {"features", O_FEATURES, "P", "field: the feature fields of W(X), the output width of phi (default 16)."},
+    {"features", O_FEATURES, "P", "field: the feature fields of W(X), the output width of phi (default 32)."},
     {"tets", O_TETS, "K", "field: tets of the random cubature drawn afresh at every step, each standing for nt/K of them (default 512, at most every tet)."},
     {"pin-length", O_PINW, "L", "field: the field is masked by smoothstep(d / L), d the distance to the nearest pinned vertex of --mesh, so it vanishes there on any mesh (default: twice the mean edge length)."},
     {"ortho-weight", O_ORTHO, "W", "neuralmodes: weight of the penalty |Phi^T M y(z)|^2 keeping the correction M-orthogonal to the linear modes, relative to the linear energy of the highest mode at the box size (default 1e4)."},

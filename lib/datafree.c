@@ -30,7 +30,7 @@ void crom_df_defaults(crom_df_opts *o, int objective)
     o->ramp = 0.5;
     o->ortho_weight = 1e4;
     o->origin_weight = 1e4;
-    o->features = 16;
+    o->features = 32;
     o->field_depth = 4;
     o->field_width = 64;
     o->tets = 512;

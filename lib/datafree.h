@@ -112,7 +112,7 @@ typedef struct {
     double box;             /* neuralmodes: half-width a of the z box (m) */
     double ortho_weight;    /* neuralmodes: w_o (1e4) */
     double origin_weight;   /* neuralmodes: w_0 (1e4) */
-    int features;           /* field: p, the feature fields of W (16) */
+    int features;           /* field: p, the feature fields of W (32) */
     int field_depth, field_width; /* field: dense layers (4) and hidden width (64) of W */
     int tets;               /* field: tets of the random cubature per step (512) */
     double pin_length;      /* field: width of the mask at the pins (m; 0: twice the mean edge) */
