@@ -202,12 +202,12 @@ out:
     return rc;
 }
 
-/* A nonlinear map model (energy, neuralmodes) is integrated through its
- * features: x = X + B a(q) (lib/map.h), so the cubature caches B as its
- * basis and fits, at latent samples q_j of the model's training
- * distribution (or --poses), the latent forces T(q_j)ᵀ B_eᵀ f_e of each tet.
- * Sets *W (borrowed from map), poses/np to the feature poses and *proj to
- * the T_j. */
+/* A nonlinear map model (energy, neuralmodes, energy-field) is integrated
+ * through its features: x = X + B a(q) (lib/map.h), so the cubature caches
+ * B as its basis and fits, at latent samples q_j of the model's training
+ * distribution (or the --poses given in *poses), the latent forces
+ * T(q_j)ᵀ B_eᵀ f_e of each tet. Replaces the poses and their count with
+ * the feature poses a(q_j) and sets *proj to the T(q_j). */
 static int map_poses(crom_cli *cli, args *a, const crom_model *model, const crom_df_attrs *at, crom_map *map,
                      double **poses, int *np, double **proj)
 {
