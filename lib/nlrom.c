@@ -33,7 +33,7 @@ void crom_nlsim_free(crom_nlsim *s)
         return;
     crom_fem_free(&s->fem);
     double **bufs[] = {&s->q,  &s->qd, &s->va, &s->Bg, &s->qn, &s->fa, &s->gx, &s->J,  &s->Jt,
-                       &s->g,  &s->H,  &s->Hc, &s->d,  &s->qt, &s->Gm, &s->lam,  &s->zero, &s->tw, &s->tH,
+                       &s->g,  &s->H,  &s->d,  &s->qt, &s->Gm, &s->lam,  &s->zero, &s->tw, &s->tH,
                        &s->tg, &s->tE, &s->a,  &s->T,  &s->an, &s->Tp, &s->ga,   &s->A0, &s->Aq, &s->bq,
                        &s->AT, &s->xc, &s->Jc, &s->gc, &s->ew, &s->xt, &s->wd, &s->Bc, &s->Xc};
     for (size_t i = 0; i < sizeof bufs / sizeof *bufs; i++)
@@ -58,24 +58,6 @@ static int region(crom_nlsim *s, const char *ref, const crom_bc *bc, crom_nlbc *
     return 0;
 }
 
-void crom_nlsim_loads(const crom_nlsim *s, double t, double *f)
-{
-    const double *g = s->sc->gravity;
-    for (int i = 0; i < s->n; i++)
-        f[i] = s->fem.mass[i / 3] * g[i % 3];
-    for (int b = 0; b < s->nforce; b++) {
-        const crom_nlbc *fb = &s->force[b];
-        double F[3];
-        crom_bc_force(fb->bc, t, F);
-        for (int k = 0; k < fb->n; k++) {
-            int v = fb->idx[k];
-            for (int c = 0; c < 3; c++)
-                f[3 * v + c] += F[c] * s->fem.mass[v] / fb->mass;
-        }
-    }
-}
-
-/* q̇ minimizing ‖J q̇ − v‖_M, v = v0 + ω × (X − c) */
 /* H = Jᵀ M J (upper triangle) of the Jacobian in s->J: the mass-weighted
  * Gram matrix of the latent directions */
 static void mass_gram(crom_nlsim *s)
@@ -89,6 +71,7 @@ static void mass_gram(crom_nlsim *s)
     cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, r, n, 1.0, s->Jt, r, 0.0, s->H, r);
 }
 
+/* q̇ minimizing ‖J q̇ − v‖_M, v = v0 + ω × (X − c) */
 static int initial_velocity(crom_nlsim *s)
 {
     const crom_scenario *sc = s->sc;
@@ -327,7 +310,7 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
     size_t rr = (size_t)r * r, nr = (size_t)n * r, pp = (size_t)p * p, pr = (size_t)p * r;
     double **vr[] = {&s->q, &s->qd, &s->qn, &s->g, &s->d, &s->qt, &s->zero};
     double **vn[] = {&s->xt, &s->wd, &s->gx};
-    double **vrr[] = {&s->H, &s->Hc, &s->Gm};
+    double **vrr[] = {&s->H, &s->Gm};
     double **vp[] = {&s->a, &s->an, &s->va, &s->fa, &s->ga, &s->bq, &s->Bg, &s->T, &s->Tp, &s->AT, &s->A0, &s->Aq};
     size_t np[] = {p, p, p, p, p, p, 3 * (size_t)p, pr, pr, pr, pp, pp};
     for (size_t i = 0; i < sizeof vp / sizeof *vp; i++)

@@ -83,7 +83,7 @@ typedef struct {
     int ne, ncv, *eidx, *cv, *eloc;
     double *ew;
     /* private */
-    double *qn, *xt, *wd, *gx, *J, *Jt, *g, *H, *Hc, *d, *qt, *Gm, *lam, *zero, *tw, *tH, *tg, *tE;
+    double *qn, *xt, *wd, *gx, *J, *Jt, *g, *H, *d, *qt, *Gm, *lam, *zero, *tw, *tH, *tg, *tE;
     double *a, *T, *Tp, *ga, *A0, *Aq, *bq, *AT, *xc, *Jc, *gc, *Bc, *Xc, *Bg, *fa, c0;
     int nbc, nforce, nsurf, *surf;
     crom_nlbc *bc, *force;
@@ -125,10 +125,6 @@ int crom_nlsim_curvature(crom_nlsim *s, const double *q, double *C);
 /* Full-space positions x [n] = X + B a and velocities v [n] = B va of the
  * current state (either may be NULL): O(n p), which a step never pays. */
 void crom_nlsim_positions(const crom_nlsim *s, double *x, double *v);
-
-/* The external load f [n] at time t: gravity plus the region forces
- * spread by mass. */
-void crom_nlsim_loads(const crom_nlsim *s, double t, double *f);
 
 /* Kinetic ½vᵀMv, elastic E(x) and external −f_ext(t)·(x − X) energies of
  * the current state. */
