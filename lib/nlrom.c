@@ -39,6 +39,7 @@ void crom_nlsim_free(crom_nlsim *s)
     for (size_t i = 0; i < sizeof bufs / sizeof *bufs; i++)
         free(*bufs[i]);
     free(s->surf);
+    free(s->xs);
     free(s->eidx);
     free(s->cv);
     free(s->eloc);
@@ -373,8 +374,9 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
             on[tris[i]] = 1;
         free(tris);
         s->surf = crom_malloc(sizeof(int) * (size_t)map->nv);
+        s->xs = crom_malloc(sizeof(double) * 3 * (size_t)map->nv);
         s->lam = crom_calloc((size_t)sc->nplanes * map->nv, sizeof(double));
-        if (!s->surf || !s->lam) {
+        if (!s->surf || !s->xs || !s->lam) {
             free(on);
             crom_nlsim_free(s);
             return CROM_EINTERNAL;
@@ -452,13 +454,14 @@ void crom_nlsim_begin_step(crom_nlsim *s)
         }
     }
     s->c0 = c0;
+    /* the surface vertices at the step's start (contact's x_n) and the
+     * lagged normal forces of friction */
+    if (sc->nplanes)
+        crom_map_rows(map, s->surf, s->nsurf, s->an, NULL, s->xs, NULL);
     for (int pl = 0; pl < sc->nplanes; pl++)
-        for (int k = 0; k < s->nsurf; k++) {
-            int v = s->surf[k];
-            double xv[3];
-            crom_map_rows(map, &v, 1, s->an, NULL, xv, NULL);
-            s->lam[(size_t)pl * s->nsurf + k] = sc->contact_stiffness * m[v] * crom_contact_depth(&sc->plane[pl], xv);
-        }
+        for (int k = 0; k < s->nsurf; k++)
+            s->lam[(size_t)pl * s->nsurf + k] =
+                sc->contact_stiffness * m[s->surf[k]] * crom_contact_depth(&sc->plane[pl], s->xs + 3 * (size_t)k);
 }
 
 /* Elastic energy at the features in s->a, and (g, H non-NULL) its reduced
@@ -555,26 +558,26 @@ int crom_nlsim_objective(crom_nlsim *s, const double *q, double *Eout, double *g
     if (H)
         memset(H, 0, sizeof(double) * rr);
     /* contact at the surface vertices (gradient into ga, Hessian into H) */
-    for (int pl = 0; pl < sc->nplanes; pl++)
-        for (int k = 0; k < s->nsurf; k++) {
-            int v = s->surf[k];
-            double lam = s->lam[(size_t)pl * s->nsurf + k], xv[3];
-            crom_map_rows(map, &v, 1, s->a, NULL, xv, NULL);
+    for (int k = 0; sc->nplanes && k < s->nsurf; k++) {
+        int v = s->surf[k], jv = 0;
+        double xv[3], *Jv = s->Jt, *HJ = s->Jt + 3 * (size_t)r; /* scratch */
+        crom_map_rows(map, &v, 1, s->a, NULL, xv, NULL);
+        for (int pl = 0; pl < sc->nplanes; pl++) {
+            double lam = s->lam[(size_t)pl * s->nsurf + k];
             if (crom_contact_depth(&sc->plane[pl], xv) <= 0 && !(lam > 0 && sc->plane[pl].mu > 0))
                 continue;
             double gcv[3] = {0, 0, 0}, Hv[9] = {0};
-            double xnv[3];
-            crom_map_rows(map, &v, 1, s->an, NULL, xnv, NULL);
-            E += crom_contact_eval(&sc->plane[pl], sc->contact_stiffness, m[v], xv, xnv, lam,
+            E += crom_contact_eval(&sc->plane[pl], sc->contact_stiffness, m[v], xv, s->xs + 3 * (size_t)k, lam,
                                    sc->friction_eps * h, g ? gcv : NULL, H ? Hv : NULL);
             rows_t(map, v, 1.0, gcv, s->ga);
             if (H) { /* H += J_vᵀ Hv J_v */
-                double *Jv = s->Jt, *HJ = s->Jt + 3 * (size_t)r; /* scratch */
-                crom_map_rows(map, &v, 1, s->a, s->T, NULL, Jv);
+                if (!jv++)
+                    crom_map_rows(map, &v, 1, s->a, s->T, NULL, Jv);
                 cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, 3, r, 3, 1.0, Hv, 3, Jv, r, 0.0, HJ, r);
                 cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, r, 3, 1.0, Jv, r, HJ, r, 1.0, H, r);
             }
         }
+    }
     /* elastic energy over the elastic tets */
     double Ee = 0;
     if ((rc = elastic(s, &Ee, g, H, project)))
