@@ -11,10 +11,15 @@ static _Thread_local int err_code;
 
 int crom_err(int code, const char *fmt, ...)
 {
+    /* formatted aside first: callers may pass crom_errmsg() as an argument
+     * ("%s: %s", name, crom_errmsg()), which vsnprintf must not overwrite
+     * while it reads it */
+    char msg[sizeof err_msg];
     va_list ap;
     va_start(ap, fmt);
-    vsnprintf(err_msg, sizeof err_msg, fmt, ap);
+    vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
+    memcpy(err_msg, msg, sizeof msg);
     err_code = code;
     return code;
 }
