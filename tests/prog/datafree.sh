@@ -272,4 +272,18 @@ expect_error 64 "--features" $O/m.h5 -- crom-fitfield --objective field --mesh b
 expect_error 64 "--pin-length applies to a data-free subspace" $O/m.h5 -- crom-fitfield --pin-length 1 -o $O/m.h5
 expect_error 65 "--cubature fldcub.h5 is not a cubature of this map" $O/x.h5 -- crom-reducedstep --model fld.h5 --mesh bar.h5 --cubature fldcub.h5 -o $O/x.h5
 expect_error 65 "continuous nonlinear map .* not a basis field" - -- crom-encode --model fld.h5 full_fine.h5
+# damaged files: the field's pin mask and latent network, a map cubature's rank
+cp fld.h5 fld_len.h5; cp fld.h5 fld_lat.h5; cp dfcub.h5 dfcub_bad.h5
+$PY - <<'PYEOF'
+import h5py
+with h5py.File("fld_len.h5", "r+") as f:
+    f["latent/pin_length"][0] = -1.0
+with h5py.File("fld_lat.h5", "r+") as f:
+    del f["latent/params"]
+with h5py.File("dfcub_bad.h5", "r+") as f:
+    f.attrs["map_rank"] = 0
+PYEOF
+expect_error 65 "fld_len.h5: latent/pin_length must be one positive length" $O/x.h5 -- crom-reducedstep --model fld_len.h5 --mesh fine.h5 -o $O/x.h5
+expect_error 65 "fld_lat.h5: .*latent/params" $O/x.h5 -- crom-reducedstep --model fld_lat.h5 --mesh fine.h5 -o $O/x.h5
+expect_error 65 "map_rank 0 is out of range" $O/x.h5 -- crom-reducedstep --model df.h5 --cubature dfcub_bad.h5 -o $O/x.h5
 done_checks
