@@ -37,56 +37,69 @@ BUILD   := build
 BINDIR  := bin
 endif
 
-LIB_SRC  := $(wildcard lib/*.c)
+LIB_SRC  := $(wildcard lib/*.c lib/*/*.c)
 LIB_OBJ  := $(patsubst lib/%.c,$(BUILD)/lib/%.o,$(LIB_SRC))
 LIBA     := $(BUILD)/libcrom.a
 PROG_SRC := $(wildcard bin/crom-*.c)
 PROGS    := $(patsubst bin/%.c,$(BINDIR)/%,$(PROG_SRC))
 TEST_SRC := $(wildcard tests/unit/test_*.c)
 TESTS    := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(TEST_SRC))
+BENCHES  := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(wildcard tests/unit/bench_*.c))
 MANPAGES := $(patsubst bin/%.c,man/%.1,$(PROG_SRC))
 
-.PHONY: all test check demo bench deps install clean distclean man
+.PHONY: all test check demo bench deps install uninstall clean distclean man
 .DELETE_ON_ERROR:
 .SECONDARY:
 
 all: $(PROGS) $(MANPAGES)
 
-# Missing Debian packages are installed before the first compile (tests/deps.sh
-# is idempotent and quick when everything is present).
+# A fresh machine has no compiler and no libraries: missing Debian packages
+# are installed before anything is compiled. Every rule that compiles or
+# links waits for $(DEPSTAMP) (order-only), and nothing else comes first, so
+# the package check is the first command of every target that builds
+# (tests/prog/makefile.sh checks this with make -n in a clean clone).
+# tests/deps.sh is idempotent and quick when everything is present.
 DEPSTAMP := $(BUILD)/.deps-ok
 $(DEPSTAMP): tests/deps.sh
-	@mkdir -p $(BUILD) && tests/deps.sh && touch $@
-$(LIB_OBJ) $(PROGS) $(TESTS): | $(DEPSTAMP)
+	@mkdir -p $(@D) && tests/deps.sh && touch $@
 
-$(BUILD)/lib/%.o: lib/%.c | $(BUILD)/lib
+# The compile and link flags in force: $(FLAGSTAMP) is rewritten (when make
+# reads this file) only when they differ from the last build's, and every
+# object depends on it, so changing CFLAGS, OPT, WERROR, CC ... rebuilds what
+# they affect. SANITIZE=1 builds into its own tree.
+FLAGSTAMP := $(BUILD)/.flags
+FLAGS_NOW := $(CC) $(CPPFLAGS) $(CFLAGS) | $(LDFLAGS) $(LDLIBS)
+ifneq ($(filter-out clean distclean deps uninstall,$(or $(MAKECMDGOALS),all)),)
+$(shell mkdir -p $(BUILD) && { printf '%s\n' '$(subst ','\'',$(FLAGS_NOW))' | cmp -s - $(FLAGSTAMP) || printf '%s\n' '$(subst ','\'',$(FLAGS_NOW))' > $(FLAGSTAMP); })
+endif
+
+$(FLAGSTAMP): ;
+
+$(BUILD)/lib/%.o: lib/%.c $(FLAGSTAMP) | $(DEPSTAMP)
+	@mkdir -p $(@D)
 	$(CC) $(CPPFLAGS) $(CFLAGS) -MMD -MP -c $< -o $@
 
-$(BUILD)/bin/%.o: bin/%.c | $(BUILD)/bin
+$(BUILD)/bin/%.o: bin/%.c $(FLAGSTAMP) | $(DEPSTAMP)
+	@mkdir -p $(@D)
 	$(CC) $(CPPFLAGS) $(CFLAGS) -MMD -MP -c $< -o $@
 
-$(BUILD)/tests/%.o: tests/unit/%.c | $(BUILD)/tests
+$(BUILD)/tests/%.o: tests/unit/%.c $(FLAGSTAMP) | $(DEPSTAMP)
+	@mkdir -p $(@D)
 	$(CC) $(CPPFLAGS) -Itests/unit $(CFLAGS) -MMD -MP -c $< -o $@
 
 $(LIBA): $(LIB_OBJ)
 	rm -f $@ && ar rcs $@ $^
 
-$(BINDIR)/crom-%: $(BUILD)/bin/crom-%.o $(LIBA) | $(BINDIR)
+$(BINDIR)/crom-%: $(BUILD)/bin/crom-%.o $(LIBA) | $(DEPSTAMP)
+	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(LDFLAGS) $< $(LIBA) $(LDLIBS) -o $@
 
-$(BUILD)/tests/test_%: $(BUILD)/tests/test_%.o $(LIBA)
+$(BUILD)/tests/test_%: $(BUILD)/tests/test_%.o $(LIBA) | $(DEPSTAMP)
 	$(CC) $(CFLAGS) $(LDFLAGS) $< $(LIBA) $(LDLIBS) -o $@
 
-# micro-benchmarks of lib/ (not part of the suite; make bench runs them)
-$(BUILD)/tests/bench_%: $(BUILD)/tests/bench_%.o $(LIBA)
+# micro-benchmarks of lib/ (not part of the suite; make bench builds and runs them)
+$(BUILD)/tests/bench_%: $(BUILD)/tests/bench_%.o $(LIBA) | $(DEPSTAMP)
 	$(CC) $(CFLAGS) $(LDFLAGS) $< $(LIBA) $(LDLIBS) -o $@
-
-$(BUILD)/lib $(BUILD)/bin $(BUILD)/tests:
-	mkdir -p $@
-ifneq ($(BINDIR),$(BUILD)/bin)
-$(BINDIR):
-	mkdir -p $@
-endif
 
 # The whole suite: unit tests of lib/, then program and pipeline tests.
 test: $(PROGS) $(TESTS) | $(DEPSTAMP)
@@ -94,26 +107,46 @@ test: $(PROGS) $(TESTS) | $(DEPSTAMP)
 check: test
 
 man: $(MANPAGES)
-man/%.1: $(BINDIR)/%
+man/%.1: $(BINDIR)/% tests/mkman.sh
 	@mkdir -p man && tests/mkman.sh $< > $@
 
 demo: $(PROGS) | $(DEPSTAMP)
 	@$(MAKE) --no-print-directory -f pipelines/demo.mk BINDIR=$(abspath $(BINDIR))
 
-bench: $(PROGS)
-	@$(MAKE) --no-print-directory -f pipelines/bench.mk BINDIR=$(abspath $(BINDIR))
+bench: $(PROGS) $(BENCHES) | $(DEPSTAMP)
+	@$(MAKE) --no-print-directory -f pipelines/bench.mk BINDIR=$(abspath $(BINDIR)) \
+	  BENCHES="$(abspath $(BENCHES))"
 
 # Install the Debian packages the build and the tests need (idempotent,
 # non-interactive, sudo only when not root).
 deps:
 	@tests/deps.sh
 
-install: $(PROGS)
-	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/share/man/man1
+# The programs and their manual pages, the plot and table scripts the README
+# mentions (as crom-plot and crom-table), the experiment Makefiles and the
+# file format specs.
+SHARE := $(DESTDIR)$(PREFIX)/share/crom
+install: $(PROGS) $(MANPAGES) | $(DEPSTAMP)
+	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/share/man/man1 $(SHARE)/pipelines $(SHARE)/schemas
 	install -m 755 $(PROGS) $(DESTDIR)$(PREFIX)/bin
-	install -m 644 man/*.1 $(DESTDIR)$(PREFIX)/share/man/man1
+	install -m 755 pipelines/plot.sh $(DESTDIR)$(PREFIX)/bin/crom-plot
+	install -m 755 pipelines/table.sh $(DESTDIR)$(PREFIX)/bin/crom-table
+	install -m 644 $(MANPAGES) $(DESTDIR)$(PREFIX)/share/man/man1
+	install -m 644 pipelines/*.mk pipelines/*.py $(SHARE)/pipelines
+	install -m 755 pipelines/*.sh $(SHARE)/pipelines
+	install -m 644 schemas/*.md $(SHARE)/schemas
+
+uninstall:
+	rm -f $(patsubst bin/%.c,$(DESTDIR)$(PREFIX)/bin/%,$(PROG_SRC)) \
+	  $(DESTDIR)$(PREFIX)/bin/crom-plot $(DESTDIR)$(PREFIX)/bin/crom-table \
+	  $(patsubst man/%,$(DESTDIR)$(PREFIX)/share/man/man1/%,$(MANPAGES))
+	rm -rf $(SHARE)
 
 clean:
 	rm -rf build build-san man/*.1 $(patsubst bin/%.c,bin/%,$(PROG_SRC))
 
--include $(wildcard $(BUILD)/*/*.d)
+# clean, plus everything the experiments, the demo and the benchmarks wrote
+distclean: clean
+	rm -rf runs out bench/results
+
+-include $(wildcard $(BUILD)/*/*.d $(BUILD)/*/*/*.d)

@@ -6,6 +6,7 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <time.h>
 #include <unistd.h>
 #ifdef _OPENMP
@@ -180,43 +181,41 @@ static void print_man(const crom_doc *d, FILE *f)
     fputs("\n.fi\n.SH DESCRIPTION\n", f);
     print_paragraphs_man(f, d->description);
     fputs(".SH OPTIONS\n", f);
-    const crom_optgroup *g;
-    for (int pass = 0; pass < 2; pass++) {
-        for (g = d->groups; g && (pass == 0 ? g->opts : NULL); g++) {
+    /* one Options heading: a group headed "Options" sits directly under
+     * .SH OPTIONS, every other group gets its own .SS */
+    for (const crom_optgroup *g = d->groups; g && g->opts; g++) {
+        if (strcasecmp(g->heading, "Options") != 0) {
             fputs(".SS ", f);
             troff(f, g->heading);
             fputc('\n', f);
-            for (const crom_opt *o = g->opts; o->name; o++) {
-                fputs(".TP\n", f);
-                if (o->key > 32 && o->key < 127)
-                    fprintf(f, "\\fB\\-%c\\fR, ", o->key);
-                fputs("\\fB\\-\\-", f);
-                troff(f, o->name);
-                fputs("\\fR", f);
-                if (o->arg) {
-                    fputs(" \\fI", f);
-                    troff(f, o->arg);
-                    fputs("\\fR", f);
-                }
-                fputc('\n', f);
-                troff(f, o->help);
-                fputc('\n', f);
-            }
         }
-        if (pass == 0) {
-            fputs(".SS Common options\n", f);
-            for (const crom_opt *o = common_opts; o->name; o++) {
-                fputs(".TP\n\\fB\\-\\-", f);
-                troff(f, o->name);
+        for (const crom_opt *o = g->opts; o->name; o++) {
+            fputs(".TP\n", f);
+            if (o->key > 32 && o->key < 127)
+                fprintf(f, "\\fB\\-%c\\fR, ", o->key);
+            fputs("\\fB\\-\\-", f);
+            troff(f, o->name);
+            fputs("\\fR", f);
+            if (o->arg) {
+                fputs(" \\fI", f);
+                troff(f, o->arg);
                 fputs("\\fR", f);
-                if (o->arg)
-                    fprintf(f, " \\fI%s\\fR", o->arg);
-                fputc('\n', f);
-                troff(f, o->help);
-                fputc('\n', f);
             }
-            break;
+            fputc('\n', f);
+            troff(f, o->help);
+            fputc('\n', f);
         }
+    }
+    fputs(".SS Common options\n", f);
+    for (const crom_opt *o = common_opts; o->name; o++) {
+        fputs(".TP\n\\fB\\-\\-", f);
+        troff(f, o->name);
+        fputs("\\fR", f);
+        if (o->arg)
+            fprintf(f, " \\fI%s\\fR", o->arg);
+        fputc('\n', f);
+        troff(f, o->help);
+        fputc('\n', f);
     }
     fputs(".SH EXIT STATUS\n", f);
     fputs("0 success; 64 bad command line; 65 bad input data; 66 input missing "
