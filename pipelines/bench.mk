@@ -69,9 +69,9 @@ df_in = $(if $(filter modes-%,$(1)),,$(call df_model,$(1))) $(call df_cub,$(1))
 df_mesh = $(if $(filter field%,$(1)),--mesh $(OUT)/df-mesh.h5)
 df_args = $(if $(filter modes-%,$(1)),,--model $(call df_model,$(1)) $(call df_mesh,$(1))) $(if $(call df_cub,$(1)),--cubature $(call df_cub,$(1)))
 
-.PHONY: all fullsim tables training datafree plots
-all: fullsim tables training datafree plots
-	@cat $(OUT)/fullsim.md $(OUT)/tables.md $(OUT)/training.md $(OUT)/datafree.md
+.PHONY: all fullsim tables training datafree plots micro
+all: fullsim tables training datafree plots micro
+	@cat $(OUT)/fullsim.md $(OUT)/tables.md $(OUT)/training.md $(OUT)/datafree.md $(OUT)/micro.md
 	@echo "plots: $(OUT)/steps.png $(OUT)/training.png"
 
 # ---------------------------------------------------------------- fullsim
@@ -189,6 +189,17 @@ $(OUT)/datafree.md: $(OUT)/df-mesh.h5 $(OUT)/df-full.csv $(OUT)/df-modes.log \
                     $(foreach r,$(DF_ROWS),$(OUT)/df-red-$(r).csv $(OUT)/df-diff-$(r).txt $(OUT)/df-sdiff-$(r).txt) \
                     $(foreach m,modes energy neuralmodes field,$(OUT)/df-metrics-$(m).txt)
 	/usr/bin/python3 $(TOP)/pipelines/benchtab.py datafree $(OUT) "$(DF_ROWS)" > $@.tmp && mv $@.tmp $@
+
+# ------------------------------------------------------------------ micro
+# the micro-benchmarks of lib/ (tests/unit/bench_*.c, built by `make bench`,
+# which passes their paths in BENCHES): element assembly and the MLP field
+BENCHES ?= $(wildcard $(TOP)/build/tests/bench_*)
+micro: $(OUT)/micro.md
+$(OUT)/micro.md: $(wildcard $(BENCHES))
+	@mkdir -p $(@D)
+	( echo "### micro-benchmarks of lib/ (one core)"; echo; echo '```'; \
+	  for b in $(BENCHES); do echo "\$$ $$(basename $$b)"; OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $$b; done; \
+	  echo '```' ) > $@.tmp && mv $@.tmp $@
 
 # ------------------------------------------------------------------ plots
 plots: $(OUT)/steps.png $(OUT)/training.png

@@ -27,13 +27,15 @@ FIT_FLAGS = --basis $(BASIS) --rank $(RANK) --seed $(SEED) $(if $(filter mlp,$(B
 # Stage flag stamps: $(OUT)/flags/NAME holds the flags of a stage and is
 # rewritten only when they change, so a target that depends on it is rebuilt
 # exactly when its stage's variables change (make -j then reruns that stage and
-# what follows, and reuses the rest). Use: $(call stamp,NAME,FLAGS) as a
-# prerequisite. Single quotes are dropped from the stamped text (they only
-# matter to the shell, and inside printf's quoted argument they would end it).
-.PHONY: FORCE
-FORCE:
+# what follows, and reuses the rest). Use: $(eval $(call stamp_rule,NAME,FLAGS))
+# once, then $(call stamp,NAME) as a prerequisite. The stamp is brought up to
+# date while make reads the Makefile, not by a recipe, so `make -n` after a
+# finished run lists nothing and after a variable change lists just the
+# stages it affects. Single quotes are dropped from the stamped text (they
+# only matter to the shell, and inside printf's quoted argument they would
+# end it).
 stamp = $(OUT)/flags/$(1)
 define stamp_rule
-$(OUT)/flags/$(1): FORCE
-	@mkdir -p $$(@D); printf '%s\n' '$(subst ',,$(2))' | cmp -s - $$@ || printf '%s\n' '$(subst ',,$(2))' > $$@
+$(shell mkdir -p $(OUT)/flags && { printf '%s\n' '$(subst ',,$(2))' | cmp -s - $(OUT)/flags/$(1) || printf '%s\n' '$(subst ',,$(2))' > $(OUT)/flags/$(1); })
+$(OUT)/flags/$(1): ;
 endef

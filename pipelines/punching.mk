@@ -44,12 +44,16 @@ $(eval $(call stamp_rule,fit,$(FIT_FLAGS)))
 $(eval $(call stamp_rule,cubature,$(CUB_FLAGS)))
 $(eval $(call stamp_rule,reduced,$(RED_FLAGS) $(FIRST) $(GAP)))
 
+PLOTS = $(OUT)/loss.plot.png $(OUT)/error.plot.png $(OUT)/cost.plot.png
 .PHONY: all plots
-all: $(OUT)/table.md $(OUT)/strip.png $(OUT)/pvd/frame.pvd $(OUT)/punch.xdmf plots
-	@cat $(OUT)/table.md; echo; \
-	 echo "pictures: $(OUT)/strip.png (reduced punching run over the intact and the $(NHOLES)-hole full runs); plots: $(OUT)/*.plot.png"; \
-	 echo "ParaView: $(OUT)/pvd/frame.pvd or $(OUT)/punch.xdmf (the punching run, each frame on the mesh it had)"
-plots: $(OUT)/loss.plot.png $(OUT)/error.plot.png $(OUT)/cost.plot.png
+all: $(OUT)/summary.txt
+# the closing report, remade (and shown) only when what it reports changes,
+# so a finished run has nothing left to do, not even under make -n
+$(OUT)/summary.txt: $(OUT)/table.md $(OUT)/strip.png $(OUT)/pvd/frame.pvd $(OUT)/punch.xdmf $(PLOTS)
+	@( cat $(OUT)/table.md; echo; \
+	   echo "pictures: $(OUT)/strip.png (reduced punching run over the intact and the $(NHOLES)-hole full runs); plots: $(OUT)/*.plot.png"; \
+	   echo "ParaView: $(OUT)/pvd/frame.pvd or $(OUT)/punch.xdmf (the punching run, each frame on the mesh it had)" ) > $@.tmp && mv $@.tmp $@ && cat $@
+plots: $(PLOTS)
 
 # the block in the bounding cube [-0.5, 0.5]^3; top and bottom layers are regions
 $(OUT)/mesh-0.h5: $(call stamp,mesh)

@@ -53,13 +53,18 @@ $(eval $(call stamp_rule,cubature,$(CUB_FLAGS)))
 $(eval $(call stamp_rule,reduced,$(RED_FLAGS)))
 $(eval $(call stamp_rule,probe,$(SPIN) $(DT) $(STEPS) $(YOUNGS)))
 
+PICTURES = $(foreach s,$(ALL),$(OUT)/strip-$(s).png $(OUT)/pvd-$(s)/frame.pvd $(OUT)/red-$(s).xdmf)
+PLOTS = $(OUT)/loss.plot.png $(OUT)/error.plot.png $(OUT)/cost.plot.png
 .PHONY: all pictures plots
-all: $(OUT)/table.md $(OUT)/recon.md pictures plots
-	@cat $(OUT)/table.md; echo; cat $(OUT)/recon.md; echo; \
-	 echo "pictures: $(OUT)/strip-*.png (reduced over full, each shape); plots: $(OUT)/*.plot.png"; \
-	 echo "ParaView: $(OUT)/pvd-*/frame.pvd, $(OUT)/red-*.xdmf (reduced runs)"
-pictures: $(foreach s,$(ALL),$(OUT)/strip-$(s).png $(OUT)/pvd-$(s)/frame.pvd $(OUT)/red-$(s).xdmf)
-plots: $(OUT)/loss.plot.png $(OUT)/error.plot.png $(OUT)/cost.plot.png
+all: $(OUT)/summary.txt
+# the closing report, remade (and shown) only when what it reports changes,
+# so a finished run has nothing left to do, not even under make -n
+$(OUT)/summary.txt: $(OUT)/table.md $(OUT)/recon.md $(PICTURES) $(PLOTS)
+	@( cat $(OUT)/table.md; echo; cat $(OUT)/recon.md; echo; \
+	   echo "pictures: $(OUT)/strip-*.png (reduced over full, each shape); plots: $(OUT)/*.plot.png"; \
+	   echo "ParaView: $(OUT)/pvd-*/frame.pvd, $(OUT)/red-*.xdmf (reduced runs)" ) > $@.tmp && mv $@.tmp $@ && cat $@
+pictures: $(PICTURES)
+plots: $(PLOTS)
 
 $(OUT)/mesh-%.h5: $(call stamp,mesh)
 	@mkdir -p $(@D)

@@ -28,12 +28,16 @@ $(eval $(call stamp_rule,fit,$(FIT_FLAGS)))
 $(eval $(call stamp_rule,cubature,$(CUB_FLAGS)))
 $(eval $(call stamp_rule,reduced,$(RED_FLAGS)))
 
+PICTURES = $(foreach s,$(ALL),$(OUT)/strip-$(s).png $(OUT)/pvd-$(s)/frame.pvd)
 .PHONY: all pictures
-all: $(OUT)/table.md pictures
-	@cat $<
-	@echo "pictures: $(OUT)/strip-*.png (reduced above full); ParaView: $(OUT)/pvd-*/frame.pvd"
+all: $(OUT)/summary.txt
+# the closing report, remade (and shown) only when what it reports changes,
+# so a finished run has nothing left to do, not even under make -n
+$(OUT)/summary.txt: $(OUT)/table.md $(PICTURES)
+	@( cat $(OUT)/table.md; \
+	  echo "pictures: $(OUT)/strip-*.png (reduced above full); ParaView: $(OUT)/pvd-*/frame.pvd" ) > $@.tmp && mv $@.tmp $@ && cat $@
 
-pictures: $(foreach s,$(ALL),$(OUT)/strip-$(s).png $(OUT)/pvd-$(s)/frame.pvd)
+pictures: $(PICTURES)
 $(OUT)/strip-%.png: $(OUT)/red-%.h5 $(OUT)/full-%.h5 $(OUT)/model.h5
 	crom-export --format strip --model $(OUT)/model.h5 --mesh $(OUT)/mesh-$*.h5 --compare $(OUT)/full-$*.h5 \
 	  --columns 5 $(QUIET) -o $@ $<

@@ -47,12 +47,16 @@ $(eval $(call stamp_rule,fit,$(FIT_FLAGS)))
 $(eval $(call stamp_rule,cubature,$(CUB_FLAGS)))
 $(eval $(call stamp_rule,reduced,$(SOLVER) $(SWAP)))
 
+PLOTS = $(OUT)/loss.plot.png $(OUT)/error.plot.png $(OUT)/cost.plot.png
 .PHONY: all plots
-all: $(OUT)/table.md $(OUT)/strip.png $(OUT)/pvd/frame.pvd $(OUT)/swap.xdmf plots
-	@cat $(OUT)/table.md; echo; \
-	 echo "pictures: $(OUT)/strip.png (the swapping reduced run over the full runs of the body and of the other shape); plots: $(OUT)/*.plot.png"; \
-	 echo "ParaView: $(OUT)/pvd/frame.pvd or $(OUT)/swap.xdmf (the swapping run, each frame on the mesh it had)"
-plots: $(OUT)/loss.plot.png $(OUT)/error.plot.png $(OUT)/cost.plot.png
+all: $(OUT)/summary.txt
+# the closing report, remade (and shown) only when what it reports changes,
+# so a finished run has nothing left to do, not even under make -n
+$(OUT)/summary.txt: $(OUT)/table.md $(OUT)/strip.png $(OUT)/pvd/frame.pvd $(OUT)/swap.xdmf $(PLOTS)
+	@( cat $(OUT)/table.md; echo; \
+	   echo "pictures: $(OUT)/strip.png (the swapping reduced run over the full runs of the body and of the other shape); plots: $(OUT)/*.plot.png"; \
+	   echo "ParaView: $(OUT)/pvd/frame.pvd or $(OUT)/swap.xdmf (the swapping run, each frame on the mesh it had)" ) > $@.tmp && mv $@.tmp $@ && cat $@
+plots: $(PLOTS)
 
 $(OUT)/body.h5: $(call stamp,mesh)
 	@mkdir -p $(@D)
