@@ -428,7 +428,7 @@ void crom_nlsim_begin_step(crom_nlsim *s)
     const crom_scenario *sc = s->sc;
     const crom_map *map = s->map;
     int p = s->p;
-    double h = sc->dt, t1 = s->t + h;
+    double h = sc->dt, t1 = (double)(s->step + 1) * h; /* step * dt, not a running sum */
     const double *m = s->fem.mass;
     memcpy(s->qn, s->q, sizeof(double) * (size_t)s->r);
     /* the linear term b and constant of the quadratic in δ = a − a_n:
@@ -792,8 +792,8 @@ int crom_nlsim_step(crom_nlsim *s, crom_rstep_stats *st)
     }
     for (int i = 0; i < r; i++)
         s->qd[i] = (s->q[i] - s->qn[i]) / h;
-    s->t += h;
     s->step++;
+    s->t = (double)s->step * h; /* exact multiples of dt (issue 12) */
     st->constraint_residual = crom_nlsim_constraint_residual(s);
     st->seconds = crom_now() - t0;
     return 0;

@@ -341,7 +341,7 @@ void crom_rsim_begin_step(crom_rsim *s)
     memcpy(s->qn, s->q, sizeof(double) * (size_t)r);
     for (int i = 0; i < r; i++)
         s->qhat[i] = s->q[i] + h * s->qd[i];
-    loads(s, s->t + h, FEXT(s));
+    loads(s, (double)(s->step + 1) * h, FEXT(s));
     /* lagged normal forces of the contact points, from the start of the step */
     for (int p = 0; p < sc->nplanes; p++)
         for (int k = 0; k < c->nsurf; k++) {
@@ -394,7 +394,7 @@ int crom_rsim_objective(crom_rsim *s, const double *q, double *Eout, double *g, 
         for (size_t i = 0; i < rr; i++)
             H[i] += (cin + cd) * s->Mr[i];
     /* boundary-condition penalty κ/2 Σ m ‖W q − ū‖² = κ/2 (qᵀPq − 2qᵀSū + Σm|ū|²) */
-    double t1 = s->t + h;
+    double t1 = (double)(s->step + 1) * h; /* step * dt, not a running sum */
     for (int k = 0; k < s->nbc; k++) {
         const crom_rbc *bc = &s->bc[k];
         double u[3] = {0, 0, 0};
@@ -564,8 +564,8 @@ int crom_rsim_step(crom_rsim *s, crom_rstep_stats *st)
         return rc;
     for (int i = 0; i < r; i++)
         s->qd[i] = (s->q[i] - s->qn[i]) / h;
-    s->t += h;
     s->step++;
+    s->t = (double)s->step * h; /* exact multiples of dt (issue 12) */
     st->constraint_residual = crom_rsim_constraint_residual(s);
     st->seconds = crom_now() - t0;
     return 0;

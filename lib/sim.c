@@ -288,7 +288,8 @@ static int ip_eval(void *ctx, const double *x, double *f, double *g)
 int crom_sim_step(crom_sim *s, crom_step_stats *st)
 {
     const crom_scenario *sc = s->sc;
-    double h = sc->dt, t1 = s->t + h, tstart = crom_now();
+    /* the time at the end of the step is step * dt, not a running sum of dt */
+    double h = sc->dt, t1 = (double)(s->step + 1) * h, tstart = crom_now();
     size_t n = (size_t)s->n;
     memset(st, 0, sizeof *st);
     memcpy(s->xn, s->x, sizeof(double) * n);
