@@ -11,7 +11,7 @@
 #include "meshgen.h"
 
 enum { O_SIZE = 'S' + 256, O_DIMS, O_RADIUS, O_HEIGHT, O_EXP, O_REGION, O_ALGO, O_NOOPT,
-       O_KEEP, O_TIMEOUT };
+       O_REMESH, O_KEEP, O_TIMEOUT };
 
 static const crom_opt mesh_opts[] = {
     {"output", 'o', "OUT", "Write the mesh to OUT (default: stdout, which must not be a terminal)."},
@@ -23,7 +23,8 @@ static const crom_opt mesh_opts[] = {
     {"region", O_REGION, "NAME=PRED", "Store the vertices selected by PRED as region NAME (repeatable). PRED: x<V, y>=V, box:X0,Y0,Z0,X1,Y1,Z1, sphere:CX,CY,CZ,R, plane:NX,NY,NZ,D, all, joined by '&'. Imported gmsh physical groups become regions of their own name."},
     {"algorithm", O_ALGO, "NAME", "gmsh 3D algorithm: delaunay (default; repeatable output) or hxt (faster on big meshes, output varies slightly between runs)."},
     {"no-optimize", O_NOOPT, NULL, "Skip gmsh's tetrahedron optimization."},
-    {"remesh", O_KEEP, NULL, "import of .stl/.obj: let gmsh reparametrize and remesh the surface at --size (better elements; can be slow on bad surfaces). Default: keep the file's triangles, split until no edge exceeds --size."},
+    {"remesh", O_REMESH, NULL, "import of .stl/.obj: let gmsh reparametrize and remesh the surface at --size (better elements; can be slow on bad surfaces). This is the default when the surface is much finer than --size (median edge below half of it), and crom-mesh says so in one line."},
+    {"keep-surface", O_KEEP, NULL, "import of .stl/.obj: keep the file's triangles, split until no edge exceeds --size. This is the default when the surface is not much finer than --size; on a much finer one it gives far more vertices than --size suggests (crom-mesh says how many triangles it keeps)."},
     {"timeout", O_TIMEOUT, "S", "Give up meshing after S seconds (default 600): bad surfaces can make gmsh spin."},
     {NULL, 0, NULL, NULL}};
 
@@ -96,7 +97,8 @@ static int on_opt(void *ctx, int key, const char *v)
             return crom_err(CROM_EUSAGE, "--algorithm: '%s' is not delaunay or hxt", v);
         return 0;
     case O_NOOPT: a->no_optimize = 1; return 0;
-    case O_KEEP: a->remesh = 1; return 0;
+    case O_REMESH: a->remesh = 1; return 0;
+    case O_KEEP: a->remesh = 0; return 0;
     case O_TIMEOUT: return crom_parse_positive(v, "--timeout", &a->timeout);
     }
     return crom_err(CROM_EINTERNAL, "unhandled option");
@@ -106,6 +108,7 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
 {
     memset(a, 0, sizeof *a);
     a->timeout = 600;
+    a->remesh = CROM_REMESH_AUTO;
     crom_cli_parse(cli, &doc, argc, argv, on_opt, a);
     int shape = a->shape ? crom_meshgen_shape(a->shape) : -1;
     if (!a->shape)
@@ -154,7 +157,19 @@ static int run(crom_cli *cli, args *a)
     signal(SIGALRM, on_alarm);
     alarm((unsigned)(a->timeout + 0.999));
     double t0 = crom_now();
-    int rc = crom_meshgen(&a->gen, &m);
+    crom_meshgen_plan_info plan;
+    int rc = crom_meshgen_plan(&a->gen, &plan);
+    if (rc)
+        return rc;
+    if (plan.finer && plan.automatic)
+        crom_cli_info(cli, "%s: %d triangles with median edge %.3g m, much finer than --size %g: remeshing the "
+                           "surface at --size (--keep-surface keeps its triangles)",
+                      a->file, plan.triangles, plan.median_edge, a->gen.size);
+    else if (plan.finer && !a->gen.remesh)
+        crom_cli_info(cli, "%s: keeping its %d triangles (median edge %.3g m, much finer than --size %g): the "
+                           "mesh will be far finer than --size (--remesh remeshes the surface)",
+                      a->file, plan.triangles, plan.median_edge, a->gen.size);
+    rc = crom_meshgen(&a->gen, &m);
     alarm(0);
     if (rc)
         return rc;

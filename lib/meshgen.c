@@ -30,7 +30,7 @@ void crom_meshgen_defaults(crom_meshgen_opts *o, int shape)
     o->size = 0.1;
     o->algorithm = 1;
     o->optimize = 1;
-    o->remesh = 0;
+    o->remesh = CROM_REMESH_AUTO;
 }
 
 int crom_meshgen_shape(const char *s)
@@ -733,6 +733,66 @@ static int check_opts(const crom_meshgen_opts *o)
     return 0;
 }
 
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Median edge length of a surface (m): over its 3 nt half-edges, which is
+ * the median over edges of a closed surface (each edge counted twice).
+ * Returns 0 on an empty surface, -1 when out of memory. */
+static double median_edge(const surf *s)
+{
+    if (s->nt <= 0)
+        return 0;
+    double *len = malloc(sizeof(double) * 3 * (size_t)s->nt);
+    if (!len)
+        return -1;
+    for (int t = 0; t < s->nt; t++)
+        for (int e = 0; e < 3; e++) {
+            const double *a = s->V + 3 * (size_t)s->T[3 * t + e], *b = s->V + 3 * (size_t)s->T[3 * t + (e + 1) % 3];
+            len[3 * t + e] = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                                  (a[2] - b[2]) * (a[2] - b[2]));
+        }
+    qsort(len, 3 * (size_t)s->nt, sizeof *len, cmp_double);
+    double med = len[3 * (size_t)s->nt / 2];
+    free(len);
+    return med;
+}
+
+/* The rule of CROM_REMESH_AUTO: remesh a surface much finer than size. */
+static int much_finer(double med, double size) { return med < size / CROM_REMESH_FINER; }
+
+int crom_meshgen_plan(crom_meshgen_opts *o, crom_meshgen_plan_info *info)
+{
+    memset(info, 0, sizeof *info);
+    int surface = o->shape == CROM_SHAPE_IMPORT && o->file &&
+                  (ends_with(o->file, ".stl") || ends_with(o->file, ".obj"));
+    if (!surface) {
+        if (o->remesh == CROM_REMESH_AUTO)
+            o->remesh = 0;
+        return 0;
+    }
+    surf s = {0};
+    int rc = crom_surface_read(o->file, &s.nv, &s.V, &s.nt, &s.T);
+    if (rc)
+        return rc;
+    double med = median_edge(&s);
+    free(s.V);
+    free(s.T);
+    if (med < 0)
+        return crom_err(CROM_EINTERNAL, "out of memory");
+    info->triangles = s.nt;
+    info->median_edge = med;
+    info->finer = much_finer(med, o->size);
+    if (o->remesh == CROM_REMESH_AUTO) {
+        info->automatic = 1;
+        o->remesh = info->finer;
+    }
+    return 0;
+}
+
 int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m)
 {
     memset(m, 0, sizeof *m);
@@ -806,13 +866,23 @@ int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m)
         if (import_groups) {
             G(gmshOpen(o->file, &ierr), "read the file");
         } else {
-            /* default: keep the file's triangles, subdivided down to the
-             * target size; --remesh lets gmsh reparametrize and remesh them
-             * (better elements, but it can spin on bad input: bounded by
-             * crom-mesh --timeout) */
-            if (!o->remesh && (rc = refine_to(&s, o->size)))
+            /* keep the file's triangles, subdivided down to the target
+             * size, or let gmsh reparametrize and remesh them (better
+             * elements, but it can spin on bad input: bounded by crom-mesh
+             * --timeout); automatically: remesh a surface much finer than
+             * the target, whose kept triangles would make a far finer mesh */
+            int remesh = o->remesh;
+            if (remesh == CROM_REMESH_AUTO) {
+                double med = median_edge(&s);
+                if (med < 0) {
+                    rc = crom_err(CROM_EINTERNAL, "out of memory");
+                    goto out;
+                }
+                remesh = much_finer(med, o->size);
+            }
+            if (!remesh && (rc = refine_to(&s, o->size)))
                 goto out;
-            if ((rc = gmsh_volume_from_surface(&s, o->remesh)))
+            if ((rc = gmsh_volume_from_surface(&s, remesh)))
                 goto out;
         }
         break;
