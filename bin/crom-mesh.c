@@ -139,7 +139,8 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     a->gen.optimize = !a->no_optimize;
     a->gen.remesh = a->remesh;
     a->gen.file = a->file;
-    a->gen.verbose = cli->verbose > 1;
+    a->gen.log = cli->verbose > 1 ? crom_cli_log_line : NULL; /* gmsh's messages with -vv */
+    a->gen.log_ctx = cli;
 }
 
 static void on_alarm(int sig)

@@ -411,7 +411,7 @@ static int run(crom_cli *cli, args *a)
         size = NAN; /* OTHER's own size, scaled: not known */
         break;
     case SUB_REFINE:
-        if ((rc = crom_remesh_refine(&m, (int)a->times, &out, cli->verbose > 1)))
+        if ((rc = crom_remesh_refine(&m, (int)a->times, &out, cli->verbose > 1 ? crom_cli_log_line : NULL, cli)))
             break;
         snprintf(gen, sizeof gen, "remesh refine x%d", (int)a->times);
         if (isfinite(size))

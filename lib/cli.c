@@ -59,6 +59,11 @@ void crom_cli_warn(const crom_cli *cli, const char *fmt, ...)
     va_end(ap);
 }
 
+void crom_cli_log_line(void *cli, const char *line)
+{
+    fprintf(stderr, "%s: %s\n", ((const crom_cli *)cli)->prog, line);
+}
+
 /* ------------------------------------------------------------- manual text */
 
 /* Print s wrapped at width w with an indent. */

@@ -78,6 +78,10 @@ void crom_cli_info(const crom_cli *cli, const char *fmt, ...)
 void crom_cli_warn(const crom_cli *cli, const char *fmt, ...)
     __attribute__((format(printf, 2, 3)));
 
+/* "PROG: line" on stderr, for a library's log callback (ctx is the
+ * crom_cli *): e.g. gmsh's messages with -vv. */
+void crom_cli_log_line(void *cli, const char *line);
+
 /* Print the manual (man = 0: --help text; man = 1: troff). */
 void crom_cli_print_doc(const crom_doc *doc, FILE *f, int man);
 

@@ -1,8 +1,6 @@
 /* meshgen.c — tetrahedral meshing through the gmsh C API (see meshgen.h).
  *
- * gmsh prints its messages to stdout, which would corrupt a crom stream:
- * General.Terminal is switched off and messages go through gmsh's logger,
- * which is copied to stderr only with --verbose (TOOLCHAIN.md). */
+ * gmsh's session, logger and checked calls are lib/gmsh.h's. */
 #include <ctype.h>
 #include <errno.h>
 #include <math.h>
@@ -10,9 +8,8 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include <gmshc.h>
-
 #include "err.h"
+#include "gmsh.h"
 #include "meshgen.h"
 
 void crom_meshgen_defaults(crom_meshgen_opts *o, int shape)
@@ -496,41 +493,7 @@ static int superquadric_skin(const double half[3], double p, double h, surf *s)
 
 /* ------------------------------------------------------------------ gmsh */
 
-static int gmsh_fail(int ierr, const char *what)
-{
-    char *msg = NULL;
-    int e2;
-    gmshLoggerGetLastError(&msg, &e2);
-    int rc = crom_err(CROM_EDATA, "gmsh could not %s%s%s (error %d)", what, msg && *msg ? ": " : "",
-                      msg ? msg : "", ierr);
-    if (msg)
-        gmshFree(msg);
-    return rc;
-}
-
-static void gmsh_dump_log(void)
-{
-    char **log = NULL;
-    size_t n = 0;
-    int ierr;
-    gmshLoggerGet(&log, &n, &ierr);
-    for (size_t i = 0; i < n; i++) {
-        fprintf(stderr, "gmsh: %s\n", log[i]);
-        gmshFree(log[i]);
-    }
-    if (log)
-        gmshFree(log);
-}
-
-#define G(call, what)                                                                              \
-    do {                                                                                           \
-        ierr = 0;                                                                                  \
-        call;                                                                                      \
-        if (ierr) {                                                                                \
-            rc = gmsh_fail(ierr, what);                                                            \
-            goto out;                                                                              \
-        }                                                                                          \
-    } while (0)
+#define G(call, what) CROM_GMSH(call, what)
 
 /* Put a closed triangle surface into gmsh as a discrete surface, make it a
  * geometry gmsh can remesh, and bound a volume by it. */
@@ -826,11 +789,11 @@ int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m)
             return rc;
     }
 
-    gmshInitialize(0, NULL, 0, &ierr);
-    gmshOptionSetNumber("General.Terminal", 0, &ierr);
-    gmshOptionSetNumber("General.Verbosity", o->verbose ? 4 : 2, &ierr);
-    gmshOptionSetNumber("General.AbortOnError", 0, &ierr);
-    gmshLoggerStart(&ierr);
+    if ((rc = crom_gmsh_begin(o->log))) {
+        free(s.V);
+        free(s.T);
+        return rc;
+    }
     gmshModelAdd("crom", &ierr);
     gmshOptionSetNumber("Mesh.MeshSizeMax", o->size, &ierr);
     gmshOptionSetNumber("Mesh.MeshSizeMin", o->size * 0.25, &ierr);
@@ -914,10 +877,7 @@ int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m)
     if ((rc = crom_mesh_compact(m)) || (rc = crom_mesh_orient(m, NULL)))
         goto out;
 out:
-    if (o->verbose)
-        gmsh_dump_log();
-    gmshLoggerStop(&ierr);
-    gmshFinalize(&ierr);
+    crom_gmsh_end(o->log, o->log_ctx);
     free(s.V);
     free(s.T);
     if (rc)

@@ -5,11 +5,12 @@
  * |x/a|^p + |y/b|^p + |z/c|^p <= 1 with (2a, 2b, 2c) = dims (p = 2: ellipsoid,
  * large p: box with rounded edges). Imports: a closed .stl/.obj surface
  * (meshed inside), or a .msh/.geo volume (gmsh physical groups become named
- * regions). Nothing is printed to stdout.
+ * regions). Nothing is printed: gmsh's messages go to opts.log.
  */
 #ifndef CROM_MESHGEN_H
 #define CROM_MESHGEN_H
 
+#include "gmsh.h"
 #include "mesh.h"
 
 enum { CROM_SHAPE_BOX, CROM_SHAPE_PLATE, CROM_SHAPE_SPHERE, CROM_SHAPE_CYLINDER,
@@ -28,7 +29,8 @@ typedef struct {
     int remesh;          /* .stl/.obj: let gmsh remesh the surface at size (1), or keep its
                             triangles, subdivided to at most size (0); CROM_REMESH_AUTO
                             (the default): crom_meshgen_plan decides */
-    int verbose;         /* gmsh messages on stderr */
+    crom_gmsh_log_fn log; /* receives gmsh's messages (NULL: dropped) */
+    void *log_ctx;
 } crom_meshgen_opts;
 
 /* opts.remesh: decide from the surface (crom_meshgen_plan) */

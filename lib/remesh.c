@@ -6,7 +6,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include <gmshc.h>
 
 #include "err.h"
 #include "remesh.h"
@@ -701,27 +700,7 @@ int crom_remesh_swap(const crom_mesh *in, const crom_mesh *other, const crom_xfo
 
 /* ---------------------------------------------------------------- refine */
 
-static int gmsh_error(int ierr, const char *what)
-{
-    char *msg = NULL;
-    int e2 = 0;
-    gmshLoggerGetLastError(&msg, &e2);
-    int rc = crom_err(CROM_EINTERNAL, "gmsh could not %s%s%s (error %d)", what, msg && *msg ? ": " : "",
-                      msg ? msg : "", ierr);
-    if (msg)
-        gmshFree(msg);
-    return rc;
-}
-
-#define GMSH(call, what)                                                                           \
-    do {                                                                                           \
-        ierr = 0;                                                                                  \
-        call;                                                                                      \
-        if (ierr) {                                                                                \
-            rc = gmsh_error(ierr, what);                                                           \
-            goto out;                                                                              \
-        }                                                                                          \
-    } while (0)
+#define GMSH(call, what) CROM_GMSH(call, what)
 
 /* One 1:8 refinement of m by gmsh into out (regions not yet set): the
  * original vertices keep their indices 0..nv-1, midpoints follow. */
@@ -907,7 +886,7 @@ static int refine_regions(const crom_mesh *m, crom_mesh *r)
     return rc;
 }
 
-int crom_remesh_refine(const crom_mesh *m, int times, crom_mesh *out, int verbose)
+int crom_remesh_refine(const crom_mesh *m, int times, crom_mesh *out, crom_gmsh_log_fn log, void *log_ctx)
 {
     if (times < 1 || times > 6)
         return crom_err(CROM_EUSAGE, "--times must be in 1..6, got %d", times);
@@ -917,11 +896,10 @@ int crom_remesh_refine(const crom_mesh *m, int times, crom_mesh *out, int verbos
     crom_mesh cur;
     if ((rc = crom_mesh_copy(m, &cur)))
         return rc;
-    gmshInitialize(0, NULL, 0, &ierr);
-    gmshOptionSetNumber("General.Terminal", 0, &ierr);
-    gmshOptionSetNumber("General.Verbosity", verbose ? 4 : 2, &ierr);
-    gmshOptionSetNumber("General.AbortOnError", 0, &ierr);
-    gmshLoggerStart(&ierr);
+    if ((rc = crom_gmsh_begin(log))) {
+        crom_mesh_free(&cur);
+        return rc;
+    }
     /* straight edges: midpoints exactly halfway (no geometry to snap to) */
     gmshOptionSetNumber("Mesh.SecondOrderLinear", 1, &ierr);
     gmshOptionSetNumber("Mesh.AlgoSubdivide", 0, &ierr);
@@ -935,19 +913,7 @@ int crom_remesh_refine(const crom_mesh *m, int times, crom_mesh *out, int verbos
             cur = next;
         }
     }
-    if (verbose) {
-        char **log = NULL;
-        size_t n = 0;
-        gmshLoggerGet(&log, &n, &ierr);
-        for (size_t i = 0; i < n; i++) {
-            fprintf(stderr, "gmsh: %s\n", log[i]);
-            gmshFree(log[i]);
-        }
-        if (log)
-            gmshFree(log);
-    }
-    gmshLoggerStop(&ierr);
-    gmshFinalize(&ierr);
+    crom_gmsh_end(log, log_ctx);
     if (!rc)
         rc = finish(&cur);
     if (rc) {

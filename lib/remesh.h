@@ -13,6 +13,7 @@
 #ifndef CROM_REMESH_H
 #define CROM_REMESH_H
 
+#include "gmsh.h"
 #include "mesh.h"
 
 /* Receives one warning sentence (no program prefix, no newline). */
@@ -115,8 +116,8 @@ int crom_remesh_swap(const crom_mesh *in, const crom_mesh *other, const crom_xfo
  * on every edge, each tet into 4 corner tets and 4 of the inner octahedron).
  * Volume is preserved to round-off (straight-sided tets), every vertex is
  * kept with its index, and a midpoint belongs to a region when both ends
- * of its edge do. verbose copies gmsh's log to stderr. */
-int crom_remesh_refine(const crom_mesh *m, int times, crom_mesh *out, int verbose);
+ * of its edge do. gmsh's messages go to log (NULL: dropped) with log_ctx. */
+int crom_remesh_refine(const crom_mesh *m, int times, crom_mesh *out, crom_gmsh_log_fn log, void *log_ctx);
 
 /* ---------------------------------------------------------------- helpers */
 

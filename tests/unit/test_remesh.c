@@ -487,7 +487,7 @@ static void test_refine(void)
     double V = crom_mesh_volume(&m), w0, w1, mean;
     int wt;
     crom_mesh_quality(&m, &w0, &mean, &wt);
-    int rc = crom_remesh_refine(&m, 1, &r, 0);
+    int rc = crom_remesh_refine(&m, 1, &r, NULL, NULL);
     CHECK_MSG(rc == 0, "refine: %s", crom_errmsg());
     if (rc)
         exit(1);
@@ -551,20 +551,20 @@ static void test_refine(void)
     crom_mesh_free(&r);
 
     /* twice: x 64 */
-    CHECK(crom_remesh_refine(&m, 2, &r, 0) == 0);
+    CHECK(crom_remesh_refine(&m, 2, &r, NULL, NULL) == 0);
     CHECK(r.nt == 64 * m.nt);
     CHECK_REL(crom_mesh_volume(&r), V, 1e-13);
     crom_mesh_quality(&r, &w1, &mean, &wt);
     fprintf(stderr, "refine x2: %d tets, worst quality %.3f\n", r.nt, w1);
     all_positive(&r, "refined twice");
     crom_mesh_free(&r);
-    CHECK(crom_remesh_refine(&m, 0, &r, 0) == CROM_EUSAGE);
+    CHECK(crom_remesh_refine(&m, 0, &r, NULL, NULL) == CROM_EUSAGE);
     crom_mesh_free(&m);
 
     /* a structured grid: exact volume, quality bound */
     grid_mesh(&m, 3);
     crom_mesh_quality(&m, &w0, &mean, &wt);
-    CHECK(crom_remesh_refine(&m, 1, &r, 0) == 0);
+    CHECK(crom_remesh_refine(&m, 1, &r, NULL, NULL) == 0);
     crom_mesh_quality(&r, &w1, &mean, &wt);
     fprintf(stderr, "refine grid: worst quality %.3f -> %.3f\n", w0, w1);
     CHECK_NEAR(crom_mesh_volume(&r), 1, 1e-13);
