@@ -16,6 +16,7 @@
 #include "cubature.h"
 #include "err.h"
 #include "linesearch.h"
+#include "newton.h"
 #include "nlrom.h"
 
 #define TW(r) (168 + 24 * (size_t)(r) + 12) /* per-thread tet scratch: crom_cub_tet's, J4, xe */
@@ -667,121 +668,84 @@ static double rms_disp(const crom_nlsim *s, const double *d)
     return sqrt(fmax(v, 0)) / s->L;
 }
 
-/* the step's objective and its gradient for the line search */
+/* The step's problem for the latent minimizer (lib/newton.h): the
+ * objective, the Gauss–Newton direction with the map's curvature term once
+ * Gauss–Newton has had `newton_after` iterations, the size of a correction
+ * as an RMS displacement relative to the body. ctx is a step_ctx: the
+ * stepper and r x r scratch for the curvature C and the factorization. */
 typedef struct {
     crom_nlsim *s;
-    int project;
-} obj_ctx;
-static int obj_eval(void *ctx, const double *q, double *f, double *g)
+    double *C, *Hs;
+} step_ctx;
+
+static int step_objective(void *ctx, const double *q, double *E, double *g, double *H, int project)
 {
-    obj_ctx *c = ctx;
-    return crom_nlsim_objective(c->s, q, f, g, NULL, c->project);
+    return crom_nlsim_objective(((step_ctx *)ctx)->s, q, E, g, H, project);
 }
+
+/* Gauss–Newton; when it stalls (the map's curvature matters: large forces
+ * along strongly curved or nearly degenerate latent directions), Newton
+ * with the curvature term, whenever that matrix is positive definite and
+ * gives descent. */
+static int step_direction(void *ctx, int it, int project, const double *q, const double *g, const double *H,
+                          double *d)
+{
+    step_ctx *c = ctx;
+    crom_nlsim *s = c->s;
+    int r = s->r, newton_after = 2, rc;
+    size_t rr = (size_t)r * r;
+    int curv = it >= newton_after && s->map->nonlinear;
+    if (curv && (rc = crom_nlsim_curvature(s, q, c->C)))
+        return rc;
+    for (int pass = curv ? 0 : 1; pass < 2; pass++) {
+        for (int i = 0; i < r; i++)
+            d[i] = -g[i];
+        memcpy(c->Hs, H, sizeof(double) * rr);
+        if (pass == 0)
+            for (size_t i = 0; i < rr; i++)
+                c->Hs[i] += c->C[i];
+        double dmax = 0; /* a nearly collapsed latent direction moves nothing: keep H invertible */
+        for (int i = 0; i < r; i++)
+            dmax = fmax(dmax, fabs(H[i * r + i]));
+        for (int i = 0; i < r; i++)
+            c->Hs[i * r + i] += 1e-12 * dmax;
+        if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, c->Hs, r, d, 1) != 0)
+            continue;
+        double sl = 0;
+        for (int i = 0; i < r; i++)
+            sl += g[i] * d[i];
+        if (pass == 1 || sl < 0)
+            return 0;
+    }
+    return 1;
+}
+
+static double step_size(void *ctx, const double *d) { return rms_disp(((step_ctx *)ctx)->s, d); }
 
 int crom_nlsim_step(crom_nlsim *s, crom_rstep_stats *st)
 {
     const crom_scenario *sc = s->sc;
-    int r = s->r, rc = 0, project = 0;
+    int r = s->r;
     size_t rr = (size_t)r * r;
     double h = sc->dt, t0 = crom_now();
     memset(st, 0, sizeof *st);
-    st->residual = INFINITY;
     crom_nlsim_begin_step(s);
     for (int i = 0; i < r; i++)
         s->q[i] = s->qn[i] + h * s->qd[i];
-    double *Hs = crom_malloc(sizeof(double) * rr), *gt = crom_malloc(sizeof(double) * (size_t)r);
-    double *C = crom_malloc(sizeof(double) * rr);
-    if (!Hs || !gt || !C) {
-        free(Hs);
-        free(gt);
-        free(C);
+    step_ctx c = {s, crom_malloc(sizeof(double) * rr), crom_malloc(sizeof(double) * rr)};
+    if (!c.C || !c.Hs) {
+        free(c.C);
+        free(c.Hs);
         return CROM_EINTERNAL;
     }
-    /* Gauss–Newton; when it stalls (the map's curvature matters: large
-     * forces along strongly curved or nearly degenerate latent directions),
-     * Newton with the curvature term, whenever that matrix is positive
-     * definite and gives descent */
-    int newton_after = 2;
-    for (int it = 0; it < sc->max_iter && !rc;) {
-        double E;
-        if ((rc = crom_nlsim_objective(s, s->q, &E, s->g, s->H, project)))
-            break;
-        int curv = it >= newton_after && s->map->nonlinear, solved = 0;
-        if (curv && (rc = crom_nlsim_curvature(s, s->q, C)))
-            break;
-        for (int pass = curv ? 0 : 1; pass < 2 && !solved; pass++) {
-            for (int i = 0; i < r; i++)
-                s->d[i] = -s->g[i];
-            memcpy(Hs, s->H, sizeof(double) * rr);
-            if (pass == 0)
-                for (size_t i = 0; i < rr; i++)
-                    Hs[i] += C[i];
-            double dmax = 0; /* a nearly collapsed latent direction moves nothing: keep H invertible */
-            for (int i = 0; i < r; i++)
-                dmax = fmax(dmax, fabs(s->H[i * r + i]));
-            for (int i = 0; i < r; i++)
-                Hs[i * r + i] += 1e-12 * dmax;
-            if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, Hs, r, s->d, 1) != 0)
-                continue;
-            double sl = 0;
-            for (int i = 0; i < r; i++)
-                sl += s->g[i] * s->d[i];
-            solved = pass == 1 || sl < 0;
-        }
-        if (!solved) {
-            if (!project) {
-                project = 1; /* indefinite: project element Hessians from now on */
-                continue;
-            }
-            rc = crom_err(CROM_EDATA, "step %ld: the Gauss-Newton matrix is singular (the map's latent "
-                          "directions are degenerate here)", s->step + 1);
-            break;
-        }
-        double slope = 0;
-        for (int i = 0; i < r; i++)
-            slope += s->g[i] * s->d[i];
-        if (!(slope < 0)) {
-            if (!project) {
-                project = 1;
-                continue;
-            }
-            st->residual = rms_disp(s, s->d);
-            st->converged = 1;
-            break;
-        }
-        it++;
-        st->iterations = it;
-        st->residual = rms_disp(s, s->d);
-        if (st->residual <= sc->tol) {
-            for (int i = 0; i < r; i++)
-                s->q[i] += s->d[i];
-            st->converged = 1;
-            break;
-        }
-        /* Armijo line search; below the energy's resolution the directional
-         * derivative decides */
-        double scale = fabs(E) + 1e-300;
-        obj_ctx lc = {s, project};
-        double alpha = crom_linesearch(obj_eval, &lc, (size_t)r, s->q, s->d, E, slope, 64 * DBL_EPSILON * scale,
-                                       -slope < 1e-10 * scale, s->qt, gt, NULL);
-        if (alpha == 0) {
-            if (!project) {
-                project = 1;
-                continue;
-            }
-            st->converged = 1; /* no decrease possible: as converged as it gets */
-            break;
-        }
-        memcpy(s->q, s->qt, sizeof(double) * (size_t)r);
-    }
-    free(Hs);
-    free(gt);
-    free(C);
-    if (!rc && !st->converged)
-        rc = crom_err(CROM_EDATA,
-                      "step %ld did not converge: correction %.3g > --tol %.3g after %d Gauss-Newton iterations "
-                      "(try a smaller --dt or a larger --max-iter)",
-                      s->step + 1, st->residual, sc->tol, sc->max_iter);
+    const crom_newton_problem prob = {r, step_objective, step_direction, step_size, 0, "Gauss-Newton",
+                                      "the Gauss-Newton matrix is singular (the map's latent directions are "
+                                      "degenerate here)"};
+    const crom_newton_work w = {s->g, s->H, s->d, s->qt};
+    int rc = crom_newton_solve(&prob, &c, &w, s->q, sc->tol, sc->max_iter, s->step, &st->iterations,
+                               &st->residual, &st->converged);
+    free(c.C);
+    free(c.Hs);
     if (!rc)
         rc = crom_map_features(s->map, s->q, s->a, NULL);
     if (rc)

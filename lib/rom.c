@@ -10,7 +10,7 @@
 #include "cli.h"
 #include "contact.h"
 #include "err.h"
-#include "linesearch.h"
+#include "newton.h"
 #include "rom.h"
 
 static void free_bcs(crom_rbc *b, int n)
@@ -467,99 +467,54 @@ static double rms_disp(const crom_rsim *s, const double *d)
     return sqrt(fmax(v, 0) / s->cub->mesh_volume) / s->L;
 }
 
-/* the step's objective and its gradient for the line search */
+/* The step's problem for the latent minimizer (lib/newton.h): the
+ * objective, the Newton (or the paper's descent) direction, the size of a
+ * correction as an RMS displacement relative to the body. ctx is a
+ * step_ctx: the stepper and an r x r scratch for the factorization. */
 typedef struct {
     crom_rsim *s;
-    int project;
-} obj_ctx;
-static int obj_eval(void *ctx, const double *q, double *f, double *g)
+    double *Hc;
+} step_ctx;
+
+static int step_objective(void *ctx, const double *q, double *E, double *g, double *H, int project)
 {
-    obj_ctx *c = ctx;
-    return crom_rsim_objective(c->s, q, f, g, NULL, c->project);
+    return crom_rsim_objective(((step_ctx *)ctx)->s, q, E, g, H, project);
 }
+
+static int step_direction(void *ctx, int it, int project, const double *q, const double *g, const double *H,
+                          double *d)
+{
+    step_ctx *c = ctx;
+    int r = c->s->r;
+    for (int i = 0; i < r; i++)
+        d[i] = -g[i];
+    if (!H) { /* descent: the gradient in the metric of the reduced mass */
+        LAPACKE_dpotrs(LAPACK_ROW_MAJOR, 'U', r, 1, c->s->Gfac, r, d, 1);
+        return 0;
+    }
+    memcpy(c->Hc, H, sizeof(double) * (size_t)r * r);
+    return LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, c->Hc, r, d, 1) != 0;
+}
+
+static double step_size(void *ctx, const double *d) { return rms_disp(((step_ctx *)ctx)->s, d); }
 
 int crom_rsim_step(crom_rsim *s, crom_rstep_stats *st)
 {
     const crom_scenario *sc = s->sc;
-    int r = s->r, rc = 0, project = 0;
-    size_t rr = (size_t)r * r;
+    int r = s->r;
     double h = sc->dt, t0 = crom_now();
     memset(st, 0, sizeof *st);
-    st->residual = INFINITY;
     crom_rsim_begin_step(s);
     memcpy(s->q, s->qhat, sizeof(double) * (size_t)r);
-    double *Hc = crom_malloc(sizeof(double) * rr);
-    if (!Hc)
+    step_ctx c = {s, crom_malloc(sizeof(double) * (size_t)r * r)};
+    if (!c.Hc)
         return CROM_EINTERNAL;
-    int gd = s->solver == CROM_SOLVER_GD;
-    for (int it = 0; it < sc->max_iter && !rc;) {
-        double E;
-        if ((rc = crom_rsim_objective(s, s->q, &E, s->g, gd ? NULL : s->H, project)))
-            break;
-        /* direction */
-        for (int i = 0; i < r; i++)
-            s->d[i] = -s->g[i];
-        if (gd) {
-            LAPACKE_dpotrs(LAPACK_ROW_MAJOR, 'U', r, 1, s->Gfac, r, s->d, 1);
-        } else {
-            memcpy(Hc, s->H, sizeof(double) * rr);
-            if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, Hc, r, s->d, 1) != 0) {
-                if (!project) {
-                    project = 1; /* indefinite: project element Hessians from now on */
-                    continue;
-                }
-                rc = crom_err(CROM_EDATA, "step %ld: the reduced Hessian is singular", s->step + 1);
-                break;
-            }
-        }
-        double slope = 0;
-        for (int i = 0; i < r; i++)
-            slope += s->g[i] * s->d[i];
-        if (!(slope < 0)) {
-            if (!gd && !project) {
-                project = 1;
-                continue;
-            }
-            st->residual = rms_disp(s, s->d);
-            st->converged = 1; /* no descent left: a stationary point */
-            break;
-        }
-        it++;
-        st->iterations = it;
-        st->residual = rms_disp(s, s->d);
-        if (st->residual <= sc->tol && !gd) {
-            for (int i = 0; i < r; i++)
-                s->q[i] += s->d[i];
-            st->converged = 1;
-            break;
-        }
-        /* Armijo line search; below the energy's resolution the directional
-         * derivative decides */
-        double scale = fabs(E) + 1e-300;
-        obj_ctx lc = {s, project};
-        double alpha = crom_linesearch(obj_eval, &lc, (size_t)r, s->q, s->d, E, slope, 64 * DBL_EPSILON * scale,
-                                       -slope < 1e-10 * scale, s->qt, Hc /* free here */, NULL);
-        if (alpha == 0) {
-            if (!gd && !project) {
-                project = 1;
-                continue;
-            }
-            st->converged = 1; /* no decrease possible: as converged as it gets */
-            break;
-        }
-        for (int i = 0; i < r; i++)
-            s->q[i] = s->qt[i];
-        if (gd && alpha * st->residual <= sc->tol) {
-            st->converged = 1;
-            break;
-        }
-    }
-    free(Hc);
-    if (!rc && !st->converged && !gd)
-        rc = crom_err(CROM_EDATA,
-                      "step %ld did not converge: correction %.3g > --tol %.3g after %d Newton iterations "
-                      "(try a smaller --dt or a larger --max-iter)",
-                      s->step + 1, st->residual, sc->tol, sc->max_iter);
+    const crom_newton_problem prob = {r, step_objective, step_direction, step_size,
+                                      s->solver == CROM_SOLVER_GD, "Newton", "the reduced Hessian is singular"};
+    const crom_newton_work w = {s->g, s->H, s->d, s->qt};
+    int rc = crom_newton_solve(&prob, &c, &w, s->q, sc->tol, sc->max_iter, s->step, &st->iterations,
+                               &st->residual, &st->converged);
+    free(c.Hc);
     if (rc)
         return rc;
     for (int i = 0; i < r; i++)
