@@ -208,7 +208,7 @@ out:
  * distribution (or the --poses given in *poses), the latent forces
  * T(q_j)ᵀ B_eᵀ f_e of each tet. Replaces the poses and their count with
  * the feature poses a(q_j) and sets *proj to the T(q_j). */
-static int map_poses(crom_cli *cli, args *a, const crom_model *model, const crom_df_attrs *at, crom_map *map,
+static int map_poses(crom_cli *cli, args *a, const crom_model *model, crom_map *map,
                      double **poses, int *np, double **proj)
 {
     int r = model->rank, p = map->p, rc = 0;
@@ -219,7 +219,7 @@ static int map_poses(crom_cli *cli, args *a, const crom_model *model, const crom
                            (hi[2] - lo[2]) * (hi[2] - lo[2]));
         crom_metrics_opts mo;
         crom_metrics_defaults(&mo);
-        crom_metrics_training_dist(model, at, diag, &mo);
+        crom_metrics_training_dist(model, diag, &mo);
         crom_rng rng;
         crom_rng_seed(&rng, cli->seed ^ 0x5eed);
         *np = a->maxpose_given ? a->maxpose : 100;
@@ -250,14 +250,13 @@ static int run(crom_cli *cli, args *a)
     crom_mesh m;
     crom_model model;
     crom_map map;
-    crom_df_attrs at;
     char *hist = NULL;
     double *W = NULL, *poses = NULL, *proj = NULL;
     int np = 0;
     memset(&m, 0, sizeof m);
     memset(&map, 0, sizeof map);
     crom_model_clear(&model);
-    int rc = crom_metrics_load_model(a->model, &model, &at);
+    int rc = crom_model_load(a->model, &model);
     if (rc)
         return rc;
     int is_map = crom_model_is_nonlinear(&model), own_mesh = model.field == CROM_FIELD_MAP;
@@ -301,7 +300,7 @@ static int run(crom_cli *cli, args *a)
     double t0 = crom_now(), tW;
     if (is_map) {
         if ((rc = crom_map_init(&map, &model, &m)) ||
-            (rc = map_poses(cli, a, &model, &at, &map, &poses, &np, &proj)))
+            (rc = map_poses(cli, a, &model, &map, &poses, &np, &proj)))
             goto out;
         tW = crom_now() - t0;
     } else {

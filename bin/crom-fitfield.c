@@ -421,7 +421,7 @@ static int add_model_pins(crom_scenario *sc, const char *text)
 {
     crom_scenario tmp;
     crom_scenario_defaults(&tmp);
-    int rc = crom_df_scenario_parse(text, &tmp);
+    int rc = crom_scenario_parse_text(text, &tmp);
     for (int i = 0; !rc && i < tmp.npins; i++) {
         int dup = 0;
         for (int j = 0; j < sc->npins; j++)

@@ -139,17 +139,15 @@ static int run(crom_cli *cli, args *a)
     memset(&fem, 0, sizeof fem);
     crom_metrics res;
     memset(&res, 0, sizeof res);
-    crom_df_attrs at;
     int rc;
-    if ((rc = crom_metrics_load_model(a->model, &model, &at)))
+    if ((rc = crom_model_load(a->model, &model)))
         goto out;
     if (a->mesh && (rc = crom_mesh_load(a->mesh, 1, &mesh, NULL)))
         goto out;
     if ((rc = crom_map_init(&map, &model, a->mesh ? &mesh : NULL)))
         goto out;
     if (a->compare) {
-        crom_df_attrs at2;
-        if ((rc = crom_metrics_load_model(a->compare, &cmpm, &at2))) {
+        if ((rc = crom_model_load(a->compare, &cmpm))) {
             crom_err_ctx("--compare");
             goto out;
         }
@@ -165,7 +163,7 @@ static int run(crom_cli *cli, args *a)
     crom_scenario rec;
     crom_scenario_defaults(&rec);
     rec.gravity[0] = rec.gravity[1] = rec.gravity[2] = 0;
-    if (model.scenario && (rc = crom_df_scenario_parse(model.scenario, &rec)))
+    if (model.scenario && (rc = crom_scenario_parse_text(model.scenario, &rec)))
         goto out;
     const char *matsrc = "given";
     if (!a->material_given) {
@@ -179,7 +177,7 @@ static int run(crom_cli *cli, args *a)
         }
     }
     if (!a->gravity_given)
-        memcpy(a->sc.gravity, at.has_gravity ? at.gravity : rec.gravity, sizeof at.gravity);
+        memcpy(a->sc.gravity, model.has_gravity ? model.gravity : rec.gravity, sizeof model.gravity);
     crom_material mat;
     if ((rc = crom_scenario_check(&a->sc)) || (rc = crom_material_init(&mat, a->sc.youngs, a->sc.poisson, a->sc.density)))
         goto out;
@@ -191,10 +189,10 @@ static int run(crom_cli *cli, args *a)
     double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
                        (hi[2] - lo[2]) * (hi[2] - lo[2]));
     if (!a->dist_given)
-        crom_metrics_training_dist(&model, &at, diag, &a->mo);
+        crom_metrics_training_dist(&model, diag, &a->mo);
     if (!a->sigma_given)
-        a->mo.sigma = (!strcmp(model.basis, "energy") || !strcmp(model.basis, "energy-field")) && at.sigma > 0
-                          ? at.sigma
+        a->mo.sigma = (!strcmp(model.basis, "energy") || !strcmp(model.basis, "energy-field")) && model.sigma > 0
+                          ? model.sigma
                           : 1;
     a->mo.seed = cli->seed;
     if ((rc = crom_metrics_compute(&map, &fem, a->sc.gravity, &a->mo, a->compare ? &cmap : NULL, &res)))

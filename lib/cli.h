@@ -12,14 +12,9 @@
 #include <stdint.h>
 #include <stdio.h>
 
-/* One option. `key` is what the handler receives (a short letter such as 'o'
- * also makes "-o" work). `arg` is the metavariable, NULL for a flag. */
-typedef struct {
-    const char *name; /* long name without "--" */
-    int key;          /* handler key; printable ASCII keys also act as -k */
-    const char *arg;  /* metavariable ("FILE"), NULL if the option takes none */
-    const char *help; /* one or more sentences */
-} crom_opt;
+#include "clock.h"
+#include "opt.h"
+#include "parse.h"
 
 /* A group of options under a heading; a table ends with {0}. */
 typedef struct {
@@ -85,20 +80,7 @@ void crom_cli_log_line(void *cli, const char *line);
 /* Print the manual (man = 0: --help text; man = 1: troff). */
 void crom_cli_print_doc(const crom_doc *doc, FILE *f, int man);
 
-/* --- value parsing: each rejects garbage, NaN and infinities with a message
- * naming the option, returning CROM_EUSAGE. --- */
-int crom_parse_double(const char *s, const char *what, double *out);
-int crom_parse_int(const char *s, const char *what, long lo, long hi, long *out);
-/* Exactly n comma-separated numbers. */
-int crom_parse_doubles(const char *s, const char *what, int n, double *out);
-/* Between nmin and nmax comma-separated numbers; returns count in *n. */
-int crom_parse_doubles_var(const char *s, const char *what, int nmin, int nmax,
-                           double *out, int *n);
-/* A positive, finite number. */
-int crom_parse_positive(const char *s, const char *what, double *out);
-
-/* --- time and progress --- */
-double crom_now(void); /* monotonic seconds */
+/* --- progress --- */
 
 typedef struct {
     int active;        /* only when stderr is a terminal and not --quiet */

@@ -15,7 +15,10 @@
 #ifndef CROM_CONTACT_H
 #define CROM_CONTACT_H
 
-#include "scenario.h"
+/* A collision half-space n·x >= d (n unit), friction coefficient mu. */
+typedef struct {
+    double n[3], d, mu;
+} crom_plane;
 
 /* Penetration depth φ = max(0, d − n·x) of point x. */
 double crom_contact_depth(const crom_plane *p, const double x[3]);

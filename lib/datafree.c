@@ -9,7 +9,7 @@
 
 #include <cblas.h>
 
-#include "cli.h"
+#include "clock.h"
 #include "datafree.h"
 #include "err.h"
 #include "io.h"
@@ -549,42 +549,4 @@ int crom_df_write_record(hid_t loc, const crom_df_opts *o, const crom_df_problem
                                    "wall time at the end of each block of steps");
     }
     return rc;
-}
-
-/* ============================================================ scenario text */
-
-int crom_df_scenario_parse(const char *text, crom_scenario *s)
-{
-    if (!text)
-        return 0;
-    const char *p = text;
-    while (*p) {
-        const char *e = strchr(p, '\n');
-        size_t len = e ? (size_t)(e - p) : strlen(p);
-        char line[512];
-        if (len >= sizeof line)
-            return crom_err(CROM_EDATA, "scenario line too long");
-        memcpy(line, p, len);
-        line[len] = 0;
-        p += len + (e != NULL);
-        char *c = line;
-        while (*c == ' ' || *c == '\t')
-            c++;
-        if (strncmp(c, "--", 2))
-            continue;
-        c += 2;
-        char *v = c + strcspn(c, " \t=");
-        if (*v)
-            *v++ = 0;
-        while (*v == ' ' || *v == '\t')
-            v++;
-        for (const crom_opt *op = crom_scenario_opts; op->name; op++)
-            if (!strcmp(op->name, c)) {
-                int rc = crom_scenario_option(s, op->key, v);
-                if (rc > 0)
-                    return crom_err(CROM_EDATA, "scenario flag --%s %s: %s", c, v, crom_errmsg());
-                break;
-            }
-    }
-    return 0;
 }

@@ -200,11 +200,6 @@ void crom_dff_ctx_free(crom_dff_ctx *c);
 int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_df_terms *t,
                   float *gW, float *gP);
 
-/* The pin mask s(d(X)/ℓ) at X, d the distance to the nearest of npin
- * points pinX [npin][3] and ntri triangles triX [ntri][3][3] (1 if there
- * are none). */
-double crom_dff_mask(const double X[3], int npin, const double *pinX, int ntri, const double *triX, double len);
-
 /* The learning rate at fraction frac of the run: base, halved after each
  * quarter (Sharp et al.'s schedule on a shorter run). */
 double crom_df_lr(double base, double frac);
@@ -262,9 +257,5 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o, crom_model *o
 int crom_df_write_record(hid_t loc, const crom_df_opts *o, const crom_df_problem *p,
                          const crom_df_log *log, double mass, const char *modes_id);
 
-/* Parse flag text ("--youngs 1e6\n--pin clamp\n", as stored in `scenario`
- * attributes) into s with the scenario parser. Unknown flags are skipped.
- * Returns 0 or CROM_EDATA naming the bad flag. */
-int crom_df_scenario_parse(const char *text, crom_scenario *s);
 
 #endif

@@ -10,7 +10,7 @@
 
 #include <cblas.h>
 
-#include "cli.h"
+#include "clock.h"
 #include "datafree.h"
 #include "err.h"
 #include "locate.h"
@@ -108,7 +108,7 @@ int crom_dff_ctx_init(crom_dff_ctx *c, const crom_df_problem *p, const crom_df_o
         free(tri);
     }
     for (int v = 0; v < nv; v++)
-        c->mask[v] = crom_dff_mask(p->mesh->X + 3 * (size_t)v, c->npins, c->pinX, c->ntri, c->triX, c->pin_length);
+        c->mask[v] = crom_model_pin_mask(p->mesh->X + 3 * (size_t)v, c->npins, c->pinX, c->ntri, c->triX, c->pin_length);
     c->maxrows = 4 * maxtets;
     size_t R = (size_t)c->maxrows, B = (size_t)maxbatch, P = (size_t)pf;
     if ((rc = crom_nn_ws_init(&c->wsW, W, c->maxrows, 1)) || (rc = crom_nn_ws_init(&c->wsP, phi, maxbatch, 1))) {
@@ -143,25 +143,6 @@ int crom_dff_ctx_init(crom_dff_ctx *c, const crom_df_problem *p, const crom_df_o
     c->mass = c->fem.total_mass;
     c->Eref = p->mat.E * c->fem.volume;
     return 0;
-}
-
-double crom_dff_mask(const double X[3], int npin, const double *pinX, int ntri, const double *triX, double len)
-{
-    if (npin < 1 && ntri < 1)
-        return 1;
-    double d2 = INFINITY;
-    for (int k = 0; k < npin; k++) {
-        const double *P = pinX + 3 * (size_t)k;
-        double d = (X[0] - P[0]) * (X[0] - P[0]) + (X[1] - P[1]) * (X[1] - P[1]) + (X[2] - P[2]) * (X[2] - P[2]);
-        d2 = d < d2 ? d : d2;
-    }
-    for (int k = 0; k < ntri && d2 > 0; k++) {
-        const double *T = triX + 9 * (size_t)k;
-        double d = crom_locate_tri_dist2(T, T + 3, T + 6, X);
-        d2 = d < d2 ? d : d2;
-    }
-    double t = sqrt(d2) / len;
-    return t >= 1 ? 1 : t * t * (3 - 2 * t);
 }
 
 /* local index of vertex v, adding it to the list */

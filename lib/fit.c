@@ -6,7 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
+#include "clock.h"
 #include "err.h"
 #include "fit.h"
 #include "io.h"

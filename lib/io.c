@@ -11,6 +11,7 @@
 
 #include <hdf5_hl.h>
 
+#include "clock.h"
 #include "err.h"
 #include "io.h"
 
@@ -66,25 +67,6 @@ static void tmp_unregister(const char *path)
 /* ------------------------------------------------------------ small things */
 
 void crom_h5_quiet(void) { H5Eset_auto2(H5E_DEFAULT, NULL, NULL); }
-
-int crom_reproducible(void)
-{
-    const char *sde = getenv("SOURCE_DATE_EPOCH");
-    return sde && *sde;
-}
-
-double crom_wall(double seconds) { return crom_reproducible() ? 0.0 : seconds; }
-
-void crom_utc_now(char *buf, size_t n)
-{
-    time_t t = time(NULL);
-    const char *sde = getenv("SOURCE_DATE_EPOCH");
-    if (sde && *sde)
-        t = (time_t)strtoll(sde, NULL, 10);
-    struct tm tm;
-    gmtime_r(&t, &tm);
-    strftime(buf, n, "%Y-%m-%dT%H:%M:%SZ", &tm);
-}
 
 static int write_all(FILE *f, const void *p, size_t n, const char *name)
 {

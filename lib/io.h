@@ -23,6 +23,7 @@
 #include <hdf5.h>
 
 #include "cli.h"
+#include "clock.h"
 
 #define CROM_MAX_FIELDS 24
 #define CROM_MAX_RANK 4
@@ -227,16 +228,5 @@ int crom_h5_has_attr(hid_t loc, const char *obj, const char *name);
 
 /* Silence HDF5's own error printing (idempotent). */
 void crom_h5_quiet(void);
-
-/* 1 when SOURCE_DATE_EPOCH is set: outputs must then be byte-reproducible,
- * so history uses that time and recorded wall-clock durations are 0. */
-int crom_reproducible(void);
-
-/* A wall-clock duration to store in a file: `seconds`, or 0 when
- * reproducible output is asked for. */
-double crom_wall(double seconds);
-
-/* "2026-11-22T03:00:00Z" for now, or for SOURCE_DATE_EPOCH when set. */
-void crom_utc_now(char *buf, size_t n);
 
 #endif

@@ -9,6 +9,7 @@
 
 #include "err.h"
 #include "io.h"
+#include "parse.h"
 #include "mesh.h"
 
 /* ---------------------------------------------------------------- geometry */

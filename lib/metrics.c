@@ -227,37 +227,14 @@ done:
     return rc;
 }
 
-int crom_metrics_load_model(const char *path, crom_model *m, crom_df_attrs *at)
-{
-    crom_in in;
-    at->sigma = at->box = NAN;
-    at->gravity[0] = at->gravity[1] = at->gravity[2] = 0;
-    at->has_gravity = 0;
-    int rc = crom_in_open(&in, path);
-    if (rc)
-        return rc;
-    rc = crom_model_read(&in, m);
-    if (!rc) {
-        if (crom_h5_has_attr(in.h5, ".", "sigma"))
-            crom_h5_get_f64(in.h5, ".", "sigma", &at->sigma, 1);
-        if (crom_h5_has_attr(in.h5, ".", "latent_box"))
-            crom_h5_get_f64(in.h5, ".", "latent_box", &at->box, 1);
-        if (crom_h5_has_attr(in.h5, ".", "gravity") && !crom_h5_get_f64(in.h5, ".", "gravity", at->gravity, 3))
-            at->has_gravity = 1;
-        crom_err_clear();
-    }
-    crom_in_close(&in);
-    return rc;
-}
-
-void crom_metrics_training_dist(const crom_model *m, const crom_df_attrs *at, double diag, crom_metrics_opts *o)
+void crom_metrics_training_dist(const crom_model *m, double diag, crom_metrics_opts *o)
 {
     if (!strcmp(m->basis, "energy") || !strcmp(m->basis, "energy-field")) {
         o->dist = CROM_METRICS_NORMAL;
         o->radius = 1;
-    } else if (!strcmp(m->basis, "neuralmodes") && at->box > 0) {
+    } else if (!strcmp(m->basis, "neuralmodes") && m->latent_box > 0) {
         o->dist = CROM_METRICS_BOX;
-        o->radius = at->box;
+        o->radius = m->latent_box;
     } else {
         o->dist = CROM_METRICS_SPHERE;
         o->radius = 0.05 * diag;

@@ -56,24 +56,11 @@ typedef struct {
 
 void crom_metrics_defaults(crom_metrics_opts *o);
 
-/* What a data-free model records beyond its basis (lib/datafree.h);
- * NAN / 0 when absent. */
-typedef struct {
-    double sigma;      /* energy: isometry scale (m per unit z) */
-    double box;        /* neuralmodes: half-width of the training box (m) */
-    double gravity[3]; /* the training gravity */
-    int has_gravity;
-} crom_df_attrs;
-
-/* Read a crom/model (path, "-" for stdin) and its data-free attributes.
- * Returns as crom_model_load. */
-int crom_metrics_load_model(const char *path, crom_model *m, crom_df_attrs *at);
-
 /* The latent distribution a model was trained on, into o->dist and
  * o->radius: N(0, I) for an energy map, the training box for neural modes,
  * else the sphere of radius 0.05 diag (diag: the mesh's bounding-box
  * diagonal). */
-void crom_metrics_training_dist(const crom_model *m, const crom_df_attrs *at, double diag, crom_metrics_opts *o);
+void crom_metrics_training_dist(const crom_model *m, double diag, crom_metrics_opts *o);
 
 /* One latent sample q [r] of the distribution of o. */
 void crom_metrics_sample(crom_rng *rng, const crom_metrics_opts *o, int r, double *q);

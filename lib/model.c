@@ -6,7 +6,6 @@
 #include <string.h>
 
 #include "err.h"
-#include "datafree.h"
 #include "model.h"
 
 void crom_model_clear(crom_model *m)
@@ -15,6 +14,7 @@ void crom_model_clear(crom_model *m)
     m->reconstruction_error = NAN;
     m->training_seconds = NAN;
     m->youngs = m->poisson = m->density = NAN;
+    m->sigma = m->latent_box = NAN;
 }
 
 void crom_model_free(crom_model *m)
@@ -235,11 +235,31 @@ int crom_model_is_nonlinear(const crom_model *m)
     return m->field == CROM_FIELD_MAP || m->field == CROM_FIELD_CMAP;
 }
 
+double crom_model_pin_mask(const double X[3], int npin, const double *pinX, int ntri, const double *triX, double len)
+{
+    if (npin < 1 && ntri < 1)
+        return 1;
+    double d2 = INFINITY;
+    for (int k = 0; k < npin; k++) {
+        const double *P = pinX + 3 * (size_t)k;
+        double d = (X[0] - P[0]) * (X[0] - P[0]) + (X[1] - P[1]) * (X[1] - P[1]) + (X[2] - P[2]) * (X[2] - P[2]);
+        d2 = d < d2 ? d : d2;
+    }
+    for (int k = 0; k < ntri && d2 > 0; k++) {
+        const double *T = triX + 9 * (size_t)k;
+        double d = crom_locate_tri_dist2(T, T + 3, T + 6, X);
+        d2 = d < d2 ? d : d2;
+    }
+    double t = sqrt(d2) / len;
+    return t >= 1 ? 1 : t * t * (3 - 2 * t);
+}
+
 double crom_model_mask(const crom_model *m, const double X[3])
 {
     if (m->field != CROM_FIELD_CMAP)
         return 1;
-    return crom_dff_mask(X, m->npin_points, m->pin_points, m->npin_triangles, m->pin_triangles, m->pin_length);
+    return crom_model_pin_mask(X, m->npin_points, m->pin_points, m->npin_triangles, m->pin_triangles,
+                               m->pin_length);
 }
 
 int crom_model_from_field_map(crom_model *m, const crom_nn_mlp *W, const crom_nn_mlp *phi, int npin,
@@ -770,6 +790,12 @@ int crom_model_read(crom_in *in, crom_model *m)
         crom_h5_get_f64(h, ".", "poisson", &m->poisson, 1);
     if (crom_h5_has_attr(h, ".", "density"))
         crom_h5_get_f64(h, ".", "density", &m->density, 1);
+    if (crom_h5_has_attr(h, ".", "sigma"))
+        crom_h5_get_f64(h, ".", "sigma", &m->sigma, 1);
+    if (crom_h5_has_attr(h, ".", "latent_box"))
+        crom_h5_get_f64(h, ".", "latent_box", &m->latent_box, 1);
+    if (crom_h5_has_attr(h, ".", "gravity") && !crom_h5_get_f64(h, ".", "gravity", m->gravity, 3))
+        m->has_gravity = 1;
     crom_err_clear();
     crom_model_id(m, m->model_id);
     if (strcmp(id, m->model_id)) {

@@ -99,6 +99,12 @@ typedef struct {
      * by crom_model_write when set, read back by crom_model_read */
     char *scenario;      /* material, gravity and pins as flags, one per line */
     double youngs, poisson, density;
+    /* data-free training record (lib/datafree.h; NAN / has_gravity 0 when
+     * absent): read by crom_model_read, written by the trainers */
+    double sigma;        /* energy maps: isometry scale (m per unit z) */
+    double latent_box;   /* neuralmodes: half-width of the training box (m) */
+    double gravity[3];   /* the training gravity (m/s²) */
+    int has_gravity;
 } crom_model;
 
 /* An empty model (safe to free), with NAN training figures. */
@@ -135,6 +141,14 @@ int crom_model_is_map_kind(const char *basis);
  * mismatched widths. */
 int crom_model_from_field_map(crom_model *m, const crom_nn_mlp *W, const crom_nn_mlp *phi, int npin,
                               const double *pinX, int ntri, const double *triX, double len);
+
+/* The pin mask s(d(X)/ℓ) at X, s the smoothstep 3t² − 2t³ (1 for t >= 1)
+ * and d the distance to the nearest of npin points pinX [npin][3] and ntri
+ * triangles triX [ntri][3][3] (1 if there are none): what a continuous
+ * data-free map multiplies its field by so that pinned vertices stay at
+ * rest (lib/datafree.h). */
+double crom_model_pin_mask(const double X[3], int npin, const double *pinX, int ntri, const double *triX,
+                           double len);
 
 /* The pin mask of a continuous map at X (1 for other models). */
 double crom_model_mask(const crom_model *m, const double X[3]);

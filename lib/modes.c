@@ -12,7 +12,7 @@
 #include <cblas.h>
 #include <lapacke.h>
 
-#include "cli.h"
+#include "clock.h"
 #include "err.h"
 #include "modes.h"
 #include "rng.h"

@@ -11,7 +11,7 @@
 #include <cblas.h>
 #include <lapacke.h>
 
-#include "cli.h"
+#include "clock.h"
 #include "contact.h"
 #include "cubature.h"
 #include "err.h"

@@ -7,7 +7,7 @@
 #include <cblas.h>
 #include <lapacke.h>
 
-#include "cli.h"
+#include "clock.h"
 #include "contact.h"
 #include "err.h"
 #include "newton.h"

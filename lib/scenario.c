@@ -8,6 +8,7 @@
 
 #include "err.h"
 #include "io.h"
+#include "parse.h"
 #include "scenario.h"
 
 enum {
@@ -282,6 +283,42 @@ void crom_bc_displacement(const crom_bc *b, double t, double u[3])
 void crom_bc_force(const crom_bc *b, double t, double f[3])
 {
     crom_bc_velocity(b, t, f);
+}
+
+int crom_scenario_parse_text(const char *text, crom_scenario *s)
+{
+    if (!text)
+        return 0;
+    const char *p = text;
+    while (*p) {
+        const char *e = strchr(p, '\n');
+        size_t len = e ? (size_t)(e - p) : strlen(p);
+        char line[512];
+        if (len >= sizeof line)
+            return crom_err(CROM_EDATA, "scenario line too long");
+        memcpy(line, p, len);
+        line[len] = 0;
+        p += len + (e != NULL);
+        char *c = line;
+        while (*c == ' ' || *c == '\t')
+            c++;
+        if (strncmp(c, "--", 2))
+            continue;
+        c += 2;
+        char *v = c + strcspn(c, " \t=");
+        if (*v)
+            *v++ = 0;
+        while (*v == ' ' || *v == '\t')
+            v++;
+        for (const crom_opt *op = crom_scenario_opts; op->name; op++)
+            if (!strcmp(op->name, c)) {
+                int rc = crom_scenario_option(s, op->key, v);
+                if (rc > 0)
+                    return crom_err(CROM_EDATA, "scenario flag --%s %s: %s", c, v, crom_errmsg());
+                break;
+            }
+    }
+    return 0;
 }
 
 int crom_scenario_write_attrs(hid_t h, const crom_scenario *s)

@@ -10,7 +10,8 @@
 #ifndef CROM_SCENARIO_H
 #define CROM_SCENARIO_H
 
-#include "cli.h"
+#include "contact.h"
+#include "opt.h"
 #include "mesh.h"
 
 #define CROM_SC_MAX 32
@@ -22,11 +23,6 @@ typedef struct {
     double v[3];     /* velocity (m/s) or force (N) */
     double t0, t1;
 } crom_bc;
-
-/* A collision half-space n·x >= d (n unit), friction coefficient mu. */
-typedef struct {
-    double n[3], d, mu;
-} crom_plane;
 
 typedef struct {
     double youngs, poisson, density; /* Pa, 1, kg/m³ */
@@ -72,6 +68,12 @@ int crom_scenario_check(const crom_scenario *s);
 
 /* Canonical flag text, one flag per line (malloc'ed). */
 char *crom_scenario_text(const crom_scenario *s);
+
+/* Parse flag text ("--youngs 1e6\n--pin clamp\n", as crom_scenario_text
+ * writes it and `scenario` attributes store it) into s. Flags that are not
+ * scenario options are skipped; NULL text is no flags. Returns 0 or
+ * CROM_EDATA naming the bad flag. */
+int crom_scenario_parse_text(const char *text, crom_scenario *s);
 
 /* Initial velocity of the material point at X: the uniform velocity plus
  * the spin about the centroid c, v = v0 + ω × (X − c). */

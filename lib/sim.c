@@ -4,7 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
+#include "clock.h"
 #include "contact.h"
 #include "err.h"
 #include "linesearch.h"

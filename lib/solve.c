@@ -7,7 +7,7 @@
 #include <cholmod.h>
 #include <metis.h>
 
-#include "cli.h"
+#include "clock.h"
 #include "err.h"
 #include "solve.h"
 
