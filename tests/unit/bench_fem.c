@@ -10,7 +10,9 @@
 #include <string.h>
 #include <time.h>
 
+#include "check.h"
 #include "err.h"
+#include "fixtures.h"
 #include "fem.h"
 #include "rng.h"
 
@@ -19,48 +21,6 @@ static double now(void)
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-
-/* nx×ny×nz unit boxes of size h, 6 Kuhn tets each, positively oriented. */
-static void grid_mesh(int nx, int ny, int nz, double h, crom_mesh *mesh)
-{
-    int nv = (nx + 1) * (ny + 1) * (nz + 1), nt = 6 * nx * ny * nz;
-    mesh->nv = nv;
-    mesh->nt = nt;
-    mesh->X = malloc(sizeof(double) * 3 * nv);
-    mesh->tets = malloc(sizeof(int) * 4 * nt);
-    mesh->nregions = 0;
-    mesh->regions = NULL;
-#define VID(i, j, k) (((k) * (ny + 1) + (j)) * (nx + 1) + (i))
-    for (int k = 0; k <= nz; k++)
-        for (int j = 0; j <= ny; j++)
-            for (int i = 0; i <= nx; i++) {
-                double *X = mesh->X + 3 * VID(i, j, k);
-                X[0] = i * h;
-                X[1] = j * h;
-                X[2] = k * h;
-            }
-    static const int perm[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2},
-                                   {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-    static const int odd[6] = {0, 1, 1, 0, 0, 1}; /* permutation parity */
-    int t = 0;
-    for (int k = 0; k < nz; k++)
-        for (int j = 0; j < ny; j++)
-            for (int i = 0; i < nx; i++)
-                for (int p = 0; p < 6; p++) {
-                    int c[3] = {i, j, k}, *tv = mesh->tets + 4 * t++;
-                    tv[0] = VID(c[0], c[1], c[2]);
-                    for (int s = 0; s < 3; s++) {
-                        c[perm[p][s]]++;
-                        tv[s + 1] = VID(c[0], c[1], c[2]);
-                    }
-                    if (odd[p]) {
-                        int tmp = tv[1];
-                        tv[1] = tv[2];
-                        tv[2] = tmp;
-                    }
-                }
-#undef VID
 }
 
 static int cmp(const void *a, const void *b)
@@ -99,7 +59,8 @@ int main(int argc, char **argv)
         nz = atoi(argv[3]);
     }
     crom_mesh mesh;
-    grid_mesh(nx, ny, nz, 0.01, &mesh);
+    const double h[3] = {0.01, 0.01, 0.01};
+    fx_grid(&mesh, nx, ny, nz, NULL, h, 0, NULL, NULL, 1);
     crom_material mat;
     crom_material_init(&mat, 2.5e6, 0.25, 1000);
     crom_fem fem;

@@ -24,6 +24,7 @@
 #include <lapacke.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "cubature.h"
 #include "datafree.h"
 #include "err.h"
@@ -43,14 +44,8 @@
 
 static void make_bar(crom_mesh *m, double size)
 {
-    crom_meshgen_opts o;
-    crom_meshgen_defaults(&o, CROM_SHAPE_BOX);
-    o.size = size;
-    o.dims[0] = 1;
-    o.dims[1] = 0.2;
-    o.dims[2] = 0.2;
-    int rc = crom_meshgen(&o, m);
-    CHECK_MSG(rc == 0, "meshgen: %s", crom_errmsg());
+    const double dims[3] = {1, 0.2, 0.2};
+    fx_gen(CROM_SHAPE_BOX, dims, size, m);
     CHECK(crom_mesh_region_spec(m, "clamp=x<-0.49") == 0);
 }
 

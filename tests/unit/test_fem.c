@@ -4,6 +4,7 @@
 #include <stdint.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "err.h"
 #include "fem.h"
 #include "rng.h"
@@ -628,52 +629,6 @@ static void test_linear_limit(void)
 
 /* ---- meshes ----------------------------------------------------------------- */
 
-/* nx×ny×nz boxes of size h, each split into 6 tets (Kuhn subdivision along
- * the main diagonal), oriented positively. */
-static void grid_mesh(int nx, int ny, int nz, const double h[3], crom_mesh *mesh)
-{
-    int nv = (nx + 1) * (ny + 1) * (nz + 1), nt = 6 * nx * ny * nz;
-    mesh->nv = nv;
-    mesh->nt = nt;
-    mesh->X = malloc(sizeof(double) * 3 * nv);
-    mesh->tets = malloc(sizeof(int) * 4 * nt);
-    mesh->nregions = 0;
-    mesh->regions = NULL;
-#define VID(i, j, k) (((k) * (ny + 1) + (j)) * (nx + 1) + (i))
-    for (int k = 0; k <= nz; k++)
-        for (int j = 0; j <= ny; j++)
-            for (int i = 0; i <= nx; i++) {
-                double *X = mesh->X + 3 * VID(i, j, k);
-                X[0] = i * h[0];
-                X[1] = j * h[1];
-                X[2] = k * h[2];
-            }
-    static const int perm[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2},
-                                   {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-    int t = 0;
-    for (int k = 0; k < nz; k++)
-        for (int j = 0; j < ny; j++)
-            for (int i = 0; i < nx; i++)
-                for (int p = 0; p < 6; p++) {
-                    int c[3] = {i, j, k}, *tv = mesh->tets + 4 * t++;
-                    tv[0] = VID(c[0], c[1], c[2]);
-                    for (int s = 0; s < 3; s++) {
-                        c[perm[p][s]]++;
-                        tv[s + 1] = VID(c[0], c[1], c[2]);
-                    }
-                    double Dm[9];
-                    for (int a = 0; a < 3; a++)
-                        for (int s = 0; s < 3; s++)
-                            Dm[3 * a + s] = mesh->X[3 * tv[s + 1] + a] - mesh->X[3 * tv[0] + a];
-                    if (det3(Dm) < 0) {
-                        int tmp = tv[1];
-                        tv[1] = tv[2];
-                        tv[2] = tmp;
-                    }
-                }
-#undef VID
-}
-
 static void free_mesh(crom_mesh *m)
 {
     free(m->X);
@@ -716,7 +671,7 @@ static void test_mesh(void)
     crom_material_init(&m, 1e6, 0.4, 1200);
     const double h[3] = {0.1, 0.12, 0.09};
     crom_mesh mesh;
-    grid_mesh(3, 3, 3, h, &mesh);
+    fx_grid(&mesh, 3, 3, 3, NULL, h, 0, NULL, NULL, 1);
     crom_fem fem;
     CHECK(crom_fem_init(&fem, &mesh, &m) == CROM_OK);
     int n = fem.n, nnz = fem.nnz, nv = fem.nv;
@@ -921,7 +876,7 @@ static void test_mesh(void)
 
     /* bad rest meshes */
     crom_mesh bad;
-    grid_mesh(1, 1, 1, h, &bad);
+    fx_grid(&bad, 1, 1, 1, NULL, h, 0, NULL, NULL, 1);
     int t = 1, tmp = bad.tets[4 * t + 1];
     bad.tets[4 * t + 1] = bad.tets[4 * t + 2];
     bad.tets[4 * t + 2] = tmp;
@@ -937,7 +892,7 @@ static void test_mesh(void)
     CHECK(crom_fem_init(&fem, &bad, &m) == CROM_EDATA);
     CHECK(strstr(crom_errmsg(), "degenerate") != NULL);
     free_mesh(&bad);
-    grid_mesh(1, 1, 1, h, &bad);
+    fx_grid(&bad, 1, 1, 1, NULL, h, 0, NULL, NULL, 1);
     bad.tets[7] = 99;
     CHECK(crom_fem_init(&fem, &bad, &m) == CROM_EDATA);
     bad.tets[7] = bad.tets[6];

@@ -16,7 +16,7 @@
 #include "check.h"
 #include "err.h"
 #include "fit.h"
-#include "learn_fixtures.h"
+#include "fixtures.h"
 #include "model.h"
 #include "nn.h"
 

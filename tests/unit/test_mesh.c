@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "err.h"
 #include "mesh.h"
 #include "meshgen.h"
@@ -127,45 +128,10 @@ static void test_superquadric(void)
     }
 }
 
-/* A structured 5x5x5-vertex grid of tets on [0,1]^3 whose vertex positions
- * are known exactly. */
-static void grid_mesh(crom_mesh *m, int n)
-{
-    memset(m, 0, sizeof *m);
-    int nv = (n + 1) * (n + 1) * (n + 1);
-    m->nv = nv;
-    m->X = malloc(sizeof(double) * 3 * nv);
-    for (int k = 0; k <= n; k++)
-        for (int j = 0; j <= n; j++)
-            for (int i = 0; i <= n; i++) {
-                double *x = m->X + 3 * (i + (n + 1) * (j + (n + 1) * k));
-                x[0] = (double)i / n;
-                x[1] = (double)j / n;
-                x[2] = (double)k / n;
-            }
-    m->nt = 6 * n * n * n;
-    m->tets = malloc(sizeof(int) * 4 * m->nt);
-    /* Kuhn subdivision of each cube into 6 tets along the main diagonal */
-    static const int perm[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-    int t = 0;
-    for (int k = 0; k < n; k++)
-        for (int j = 0; j < n; j++)
-            for (int i = 0; i < n; i++)
-                for (int p = 0; p < 6; p++) {
-                    int c[3] = {i, j, k};
-                    int *e = m->tets + 4 * t++;
-                    e[0] = c[0] + (n + 1) * (c[1] + (n + 1) * c[2]);
-                    for (int s = 0; s < 3; s++) {
-                        c[perm[p][s]]++;
-                        e[s + 1] = c[0] + (n + 1) * (c[1] + (n + 1) * c[2]);
-                    }
-                }
-}
-
 static void test_orient_and_regions(void)
 {
     crom_mesh m;
-    grid_mesh(&m, 4);
+    fx_unit_grid(&m, 4, 0); /* unoriented: half the tets negative */
     int nf = 0;
     CHECK(crom_mesh_orient(&m, &nf) == 0);
     CHECK(nf > 0); /* half the Kuhn tets come out negative */

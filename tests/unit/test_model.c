@@ -10,7 +10,7 @@
 #include "check.h"
 #include "err.h"
 #include "io.h"
-#include "learn_fixtures.h"
+#include "fixtures.h"
 #include "locate.h"
 #include "model.h"
 #include "nn.h"

@@ -12,6 +12,7 @@
 #include <lapacke.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "err.h"
 #include "fem.h"
 #include "mesh.h"
@@ -20,15 +21,8 @@
 
 static int make_box(double size, double dx, double dy, double dz, crom_mesh *m)
 {
-    crom_meshgen_opts o;
-    crom_meshgen_defaults(&o, CROM_SHAPE_BOX);
-    o.size = size;
-    o.dims[0] = dx;
-    o.dims[1] = dy;
-    o.dims[2] = dz;
-    int rc = crom_meshgen(&o, m);
-    CHECK_MSG(rc == 0, "meshgen: %s", crom_errmsg());
-    return rc;
+    const double dims[3] = {dx, dy, dz};
+    return fx_gen(CROM_SHAPE_BOX, dims, size, m);
 }
 
 /* DOF mask of the vertices with x <= xmax */

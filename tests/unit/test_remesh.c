@@ -7,57 +7,13 @@
 #include <string.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "err.h"
 #include "mesh.h"
 #include "meshgen.h"
 #include "remesh.h"
 
 /* ------------------------------------------------------------ helpers */
-
-/* n x n x n cubes on [0,1]^3, 6 Kuhn tets each, positively oriented. */
-static void grid_mesh(crom_mesh *m, int n)
-{
-    memset(m, 0, sizeof *m);
-    m->nv = (n + 1) * (n + 1) * (n + 1);
-    m->X = malloc(sizeof(double) * 3 * m->nv);
-    for (int k = 0; k <= n; k++)
-        for (int j = 0; j <= n; j++)
-            for (int i = 0; i <= n; i++) {
-                double *x = m->X + 3 * (i + (n + 1) * (j + (n + 1) * k));
-                x[0] = (double)i / n;
-                x[1] = (double)j / n;
-                x[2] = (double)k / n;
-            }
-    m->nt = 6 * n * n * n;
-    m->tets = malloc(sizeof(int) * 4 * m->nt);
-    static const int perm[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
-    int t = 0;
-    for (int k = 0; k < n; k++)
-        for (int j = 0; j < n; j++)
-            for (int i = 0; i < n; i++)
-                for (int p = 0; p < 6; p++) {
-                    int c[3] = {i, j, k}, *e = m->tets + 4 * t++;
-                    e[0] = c[0] + (n + 1) * (c[1] + (n + 1) * c[2]);
-                    for (int s = 0; s < 3; s++) {
-                        c[perm[p][s]]++;
-                        e[s + 1] = c[0] + (n + 1) * (c[1] + (n + 1) * c[2]);
-                    }
-                }
-    CHECK(crom_mesh_orient(m, NULL) == 0);
-}
-
-static void gen(int shape, const double dims[3], double size, crom_mesh *m)
-{
-    crom_meshgen_opts o;
-    crom_meshgen_defaults(&o, shape);
-    if (dims)
-        memcpy(o.dims, dims, sizeof o.dims);
-    o.size = size;
-    int rc = crom_meshgen(&o, m);
-    CHECK_MSG(rc == 0, "meshgen: %s", crom_errmsg());
-    if (rc)
-        exit(1);
-}
 
 static void centroid(const crom_mesh *m, int t, double c[3])
 {
@@ -135,7 +91,7 @@ static void count_warn(void *ctx, const char *msg)
 static void test_cut_grid(void)
 {
     crom_mesh m, c;
-    grid_mesh(&m, 4);
+    fx_unit_grid(&m, 4, 1);
     double A0 = boundary_area(&m), V0 = crom_mesh_volume(&m);
     CHECK_NEAR(A0, 6, 1e-12);
     /* a wall on the grid plane x = 0.5 through the whole cube */
@@ -235,7 +191,7 @@ static void test_cut_plate(void)
     const double xc = 0.0123, L = 1.0, thick = 0.05;
     crom_mesh m, c;
     double dims[3] = {1, thick, 1};
-    gen(CROM_SHAPE_PLATE, dims, 0.05, &m);
+    fx_gen(CROM_SHAPE_PLATE, dims, 0.05, &m);
     double A0 = boundary_area(&m), V0 = crom_mesh_volume(&m);
 
     /* a straight through-cut */
@@ -331,7 +287,7 @@ static void test_punch(void)
     crom_punch_shape ball = {CROM_PUNCH_SPHERE, {0.013, -0.021, 0.017, R}};
     for (int i = 0; i < 3; i++) {
         crom_mesh m, p;
-        gen(CROM_SHAPE_BOX, NULL, h[i], &m);
+        fx_gen(CROM_SHAPE_BOX, NULL, h[i], &m);
         CHECK(crom_mesh_region_spec(&m, "top=y>0.45") == 0);
         CHECK(crom_mesh_region_spec(&m, "core=sphere:0,0,0,0.1") == 0);
         int nrem = 0;
@@ -361,7 +317,7 @@ static void test_punch(void)
 
     /* a slab through the middle leaves two pieces; punching all is refused */
     crom_mesh m, p;
-    grid_mesh(&m, 4);
+    fx_unit_grid(&m, 4, 1);
     crom_punch_shape slab = {CROM_PUNCH_BOX, {0.3, -1, -1, 0.7, 2, 2}};
     CHECK(crom_remesh_punch(&m, &slab, 1, &p, NULL, NULL, NULL) == 0);
     CHECK(crom_remesh_components(&p, NULL) == 2);
@@ -382,14 +338,14 @@ static void test_punch(void)
 static void test_swap(void)
 {
     crom_mesh in, other, out;
-    gen(CROM_SHAPE_BOX, NULL, 0.25, &in);
+    fx_gen(CROM_SHAPE_BOX, NULL, 0.25, &in);
     CHECK(crom_mesh_region_spec(&in, "bottom=y<-0.45") == 0);
     CHECK(crom_mesh_region_spec(&in, "base=bottom") == 0);       /* a name: followed */
     CHECK(crom_mesh_region_spec(&in, "side=x>0.45") == 0);       /* empty on OTHER */
     int one = 0;
     CHECK(crom_mesh_add_region(&in, "grp", "gmsh:grp", &one, 1) == 0); /* not transferable */
     double dims[3] = {2, 0.5, 0.25};
-    gen(CROM_SHAPE_BOX, dims, 0.1, &other);
+    fx_gen(CROM_SHAPE_BOX, dims, 0.1, &other);
     CHECK(crom_mesh_region_spec(&other, "own=x>0.9") == 0);
     double V = crom_mesh_volume(&other);
 
@@ -481,7 +437,7 @@ static int mid_cmp(const void *x, const void *y)
 static void test_refine(void)
 {
     crom_mesh m, r;
-    gen(CROM_SHAPE_SPHERE, NULL, 0.2, &m);
+    fx_gen(CROM_SHAPE_SPHERE, NULL, 0.2, &m);
     CHECK(crom_mesh_region_spec(&m, "cap=y>0.2") == 0);
     CHECK(crom_mesh_region_spec(&m, "slab=box:-1,-0.1,-1,1,0.1,1") == 0);
     double V = crom_mesh_volume(&m), w0, w1, mean;
@@ -562,7 +518,7 @@ static void test_refine(void)
     crom_mesh_free(&m);
 
     /* a structured grid: exact volume, quality bound */
-    grid_mesh(&m, 3);
+    fx_unit_grid(&m, 3, 1);
     crom_mesh_quality(&m, &w0, &mean, &wt);
     CHECK(crom_remesh_refine(&m, 1, &r, NULL, NULL) == 0);
     crom_mesh_quality(&r, &w1, &mean, &wt);
@@ -576,7 +532,7 @@ static void test_refine(void)
 static void test_helpers(void)
 {
     crom_mesh m;
-    grid_mesh(&m, 2);
+    fx_unit_grid(&m, 2, 1);
     CHECK(crom_remesh_components(&m, NULL) == 1);
     CHECK(crom_mesh_region_spec(&m, "a=x<0.1") == 0 && crom_mesh_region_spec(&m, "b=x>0.9") == 0);
     CHECK(crom_remesh_remove_region(&m, "a") == 1 && crom_remesh_remove_region(&m, "a") == 0);

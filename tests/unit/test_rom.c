@@ -11,6 +11,7 @@
 #include <lapacke.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "cubature.h"
 #include "err.h"
 #include "fem.h"
@@ -44,11 +45,7 @@ static void analytic_basis(const crom_mesh *m, double *W)
 
 static void make(crom_mesh *m, double size, const double dims[3])
 {
-    crom_meshgen_opts o;
-    crom_meshgen_defaults(&o, CROM_SHAPE_BOX);
-    o.size = size;
-    memcpy(o.dims, dims, sizeof o.dims);
-    CHECK(crom_meshgen(&o, m) == 0);
+    fx_gen(CROM_SHAPE_BOX, dims, size, m);
     CHECK(crom_mesh_region_spec(m, "left=x<-0.49") == 0);
     CHECK(crom_mesh_region_spec(m, "right=x>0.49") == 0);
 }

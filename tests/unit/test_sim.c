@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "contact.h"
 #include "err.h"
 #include "fem.h"
@@ -73,17 +74,6 @@ static void test_contact_derivatives(void)
 
 /* ---------------------------------------------------------- helpers */
 
-static void make_mesh(int shape, double size, const double *dims, crom_mesh *m)
-{
-    crom_meshgen_opts o;
-    crom_meshgen_defaults(&o, shape);
-    o.size = size;
-    if (dims)
-        memcpy(o.dims, dims, sizeof o.dims);
-    int rc = crom_meshgen(&o, m);
-    CHECK_MSG(rc == 0, "meshgen: %s", crom_errmsg());
-}
-
 static void momentum(const crom_sim *s, double P[3])
 {
     P[0] = P[1] = P[2] = 0;
@@ -98,7 +88,7 @@ static void test_momentum_and_energy(void)
 {
     crom_mesh m;
     double dims[3] = {1, 0.3, 0.2};
-    make_mesh(CROM_SHAPE_BOX, 0.1, dims, &m);
+    fx_gen(CROM_SHAPE_BOX, dims, 0.1, &m);
     crom_scenario sc;
     crom_scenario_defaults(&sc);
     sc.gravity[1] = 0;
@@ -145,7 +135,7 @@ static void test_momentum_and_energy(void)
 static void test_free_fall(void)
 {
     crom_mesh m;
-    make_mesh(CROM_SHAPE_SPHERE, 0.2, NULL, &m);
+    fx_gen(CROM_SHAPE_SPHERE, NULL, 0.2, &m);
     crom_scenario sc;
     crom_scenario_defaults(&sc);
     sc.dt = 0.02;
@@ -178,7 +168,7 @@ static double cantilever_error(double size)
 {
     double L = 1, b = 0.1, dims[3] = {L, b, b};
     crom_mesh m;
-    make_mesh(CROM_SHAPE_BOX, size, dims, &m);
+    fx_gen(CROM_SHAPE_BOX, dims, size, &m);
     for (int i = 0; i < m.nv; i++)
         m.X[3 * i] += L / 2; /* x in [0, L] */
     CHECK(crom_mesh_region_spec(&m, "clamp=x<1e-9") == 0);
@@ -225,7 +215,7 @@ static void test_cantilever(void)
 static void test_prescribed_and_contact(void)
 {
     crom_mesh m;
-    make_mesh(CROM_SHAPE_BOX, 0.15, NULL, &m);
+    fx_gen(CROM_SHAPE_BOX, NULL, 0.15, &m);
     CHECK(crom_mesh_region_spec(&m, "top=y>0.45") == 0);
     CHECK(crom_mesh_region_spec(&m, "bottom=y<-0.45") == 0);
     crom_scenario sc;
@@ -290,7 +280,7 @@ static void test_prescribed_and_contact(void)
 static void test_tolerance(void)
 {
     crom_mesh m;
-    make_mesh(CROM_SHAPE_BOX, 0.08, NULL, &m);
+    fx_gen(CROM_SHAPE_BOX, NULL, 0.08, &m);
     CHECK(crom_mesh_region_spec(&m, "top=y>0.45") == 0);
     CHECK(crom_mesh_region_spec(&m, "bottom=y<-0.45") == 0);
     crom_scenario loose, tight;
@@ -330,7 +320,7 @@ static void test_tolerance(void)
 static void test_bad_scenarios(void)
 {
     crom_mesh m;
-    make_mesh(CROM_SHAPE_BOX, 0.3, NULL, &m);
+    fx_gen(CROM_SHAPE_BOX, NULL, 0.3, &m);
     crom_scenario sc;
     crom_sim s;
     struct {

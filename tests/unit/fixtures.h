@@ -1,23 +1,34 @@
-/* learn_fixtures.h — meshes and analytic displacement fields for the unit
- * tests of lib/locate, lib/model and lib/fit (no gmsh needed). */
-#ifndef CROM_LEARN_FIXTURES_H
-#define CROM_LEARN_FIXTURES_H
+/* fixtures.h — the meshes and fields crom's unit tests share: structured
+ * Kuhn grids (no gmsh needed), gmsh shapes, and analytic displacement
+ * fields for the tests of lib/locate, lib/model and lib/fit. Include after
+ * check.h. */
+#ifndef CROM_FIXTURES_H
+#define CROM_FIXTURES_H
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "err.h"
 #include "mesh.h"
+#include "meshgen.h"
 #include "rng.h"
 #include "samples.h"
 
-/* A box [lo, lo + n h]^3 of n^3 cubes, each split into 6 tets along its
- * main diagonal (Kuhn), interior vertices moved by up to jitter * h at
- * random; tets positively oriented. keep(i, j, k) (may be NULL) says which
- * cubes to keep, for non-convex shapes; unused vertices are dropped. */
-static inline void fx_box_mesh(crom_mesh *m, int nx, int ny, int nz, const double lo[3], double h,
-                        double jitter, crom_rng *rng, int (*keep)(int, int, int))
+/* nx x ny x nz boxes of sides h [3] from lo [3] (lo NULL: the origin),
+ * each split into 6 tets along its main diagonal (Kuhn subdivision), vertex
+ * (i, j, k) at index (k (ny+1) + j)(nx+1) + i. Interior vertices are moved
+ * by up to jitter * h at random (rng; jitter 0: rng may be NULL). keep(i,
+ * j, k) (may be NULL) says which boxes to keep, for non-convex shapes;
+ * unused vertices are then dropped. orient: make every tet positively
+ * oriented (0 leaves half of the Kuhn tets negative, for tests of
+ * crom_mesh_orient). */
+static inline void fx_grid(crom_mesh *m, int nx, int ny, int nz, const double lo[3], const double h[3],
+                           double jitter, crom_rng *rng, int (*keep)(int, int, int), int orient)
 {
+    static const double zero[3] = {0, 0, 0};
+    if (!lo)
+        lo = zero;
     memset(m, 0, sizeof *m);
     int vx = nx + 1, vy = ny + 1, vz = nz + 1;
     m->nv = vx * vy * vz;
@@ -26,10 +37,10 @@ static inline void fx_box_mesh(crom_mesh *m, int nx, int ny, int nz, const doubl
         for (int j = 0; j < vy; j++)
             for (int i = 0; i < vx; i++) {
                 double *x = m->X + 3 * (size_t)((k * vy + j) * vx + i);
-                int in = i > 0 && i < nx && j > 0 && j < ny && k > 0 && k < nz;
-                x[0] = lo[0] + i * h + (in ? jitter * h * (2 * crom_rng_uniform(rng) - 1) : 0);
-                x[1] = lo[1] + j * h + (in ? jitter * h * (2 * crom_rng_uniform(rng) - 1) : 0);
-                x[2] = lo[2] + k * h + (in ? jitter * h * (2 * crom_rng_uniform(rng) - 1) : 0);
+                int in = jitter != 0 && i > 0 && i < nx && j > 0 && j < ny && k > 0 && k < nz;
+                int c[3] = {i, j, k};
+                for (int a = 0; a < 3; a++)
+                    x[a] = lo[a] + c[a] * h[a] + (in ? jitter * h[a] * (2 * crom_rng_uniform(rng) - 1) : 0);
             }
     m->tets = malloc(sizeof(int) * 4 * 6 * (size_t)nx * ny * nz);
     static const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
@@ -45,8 +56,8 @@ static inline void fx_box_mesh(crom_mesh *m, int nx, int ny, int nz, const doubl
                             c[perms[p][s - 1]]++;
                         t[s] = (c[2] * vy + c[1]) * vx + c[0];
                     }
-                    if (crom_tet_volume(m->X + 3 * t[0], m->X + 3 * t[1], m->X + 3 * t[2],
-                                        m->X + 3 * t[3]) < 0) {
+                    if (orient && crom_tet_volume(m->X + 3 * t[0], m->X + 3 * t[1], m->X + 3 * t[2],
+                                                  m->X + 3 * t[3]) < 0) {
                         int tmp = t[2];
                         t[2] = t[3];
                         t[3] = tmp;
@@ -54,7 +65,39 @@ static inline void fx_box_mesh(crom_mesh *m, int nx, int ny, int nz, const doubl
                     m->nt++;
                 }
             }
-    crom_mesh_compact(m);
+    if (keep)
+        crom_mesh_compact(m);
+}
+
+/* A box [lo, lo + n h] of cubes of side h, jittered and kept as fx_grid,
+ * positively oriented. */
+static inline void fx_box_mesh(crom_mesh *m, int nx, int ny, int nz, const double lo[3], double h,
+                               double jitter, crom_rng *rng, int (*keep)(int, int, int))
+{
+    const double hh[3] = {h, h, h};
+    fx_grid(m, nx, ny, nz, lo, hh, jitter, rng, keep, 1);
+}
+
+/* The unit cube [0,1]^3 as n^3 Kuhn-split cubes, oriented or not. */
+static inline void fx_unit_grid(crom_mesh *m, int n, int orient)
+{
+    const double h[3] = {1.0 / n, 1.0 / n, 1.0 / n};
+    fx_grid(m, n, n, n, NULL, h, 0, NULL, NULL, orient);
+}
+
+/* A gmsh mesh of shape (CROM_SHAPE_*) with extents dims (NULL: the
+ * shape's default) at edge length size. Returns crom_meshgen's code, after
+ * a CHECK that it is 0. */
+static inline int fx_gen(int shape, const double dims[3], double size, crom_mesh *m)
+{
+    crom_meshgen_opts o;
+    crom_meshgen_defaults(&o, shape);
+    if (dims)
+        memcpy(o.dims, dims, sizeof o.dims);
+    o.size = size;
+    int rc = crom_meshgen(&o, m);
+    CHECK_MSG(rc == 0, "meshgen shape %d size %g: %s", shape, size, crom_errmsg());
+    return rc;
 }
 
 /* Smooth analytic displacement modes on xi = X / L (component c of mode k). */
