@@ -24,27 +24,39 @@ $PY - df.h5 bar.h5 <<'PYEOF' || fail "energy model"
 import sys, h5py, numpy as np
 f, b = h5py.File(sys.argv[1]), h5py.File(sys.argv[2])
 s = lambda v: v.decode() if isinstance(v, bytes) else v
-assert s(f.attrs["basis"]) == "energy" and f.attrs["rank"] == 2 and s(f.attrs["encoder"]) == "none"
-assert s(f.attrs["activation"]) == "elu" and f.attrs["training_steps"] == 300
+if not (s(f.attrs["basis"]) == "energy" and f.attrs["rank"] == 2 and s(f.attrs["encoder"]) == "none"):
+    raise SystemExit("check failed: s(f.attrs[\"basis\"]) == \"energy\" and f.attrs[\"rank\"] == 2 and s(f.attrs[\"encoder\"]) == \"none\"")
+if not (s(f.attrs["activation"]) == "elu" and f.attrs["training_steps"] == 300):
+    raise SystemExit("check failed: s(f.attrs[\"activation\"]) == \"elu\" and f.attrs[\"training_steps\"] == 300")
 sc = s(f.attrs["scenario"])
-assert "--youngs 1000000" in sc and "--pin clamp" in sc and "--gravity 0,-9.81" in sc, sc
-assert np.allclose(f.attrs["gravity"], [0, -9.81, 0]) and f.attrs["isometry_weight"] == 1
-assert abs(f.attrs["sigma"] - 0.05 * np.sqrt(1 + 0.04 + 0.04)) < 1e-12      # default: 5% of the diagonal
-assert abs(f.attrs["mass"] - 40) < 1e-9
+if not ("--youngs 1000000" in sc and "--pin clamp" in sc and "--gravity 0,-9.81" in sc):
+    raise SystemExit(f"check failed: {sc!s}")
+if not (np.allclose(f.attrs["gravity"], [0, -9.81, 0]) and f.attrs["isometry_weight"] == 1):
+    raise SystemExit("check failed: np.allclose(f.attrs[\"gravity\"], [0, -9.81, 0]) and f.attrs[\"isometry_weight\"] == 1")
+if not (abs(f.attrs["sigma"] - 0.05 * np.sqrt(1 + 0.04 + 0.04)) < 1e-12):  # default: 5% of the diagonal
+    raise SystemExit("check failed: abs(f.attrs[\"sigma\"] - 0.05 * np.sqrt(1 + 0.04 + 0.04)) < 1e-12")
+if not (abs(f.attrs["mass"] - 40) < 1e-9):
+    raise SystemExit("check failed: abs(f.attrs[\"mass\"] - 40) < 1e-9")
 w = f["field/widths"][()]
-assert list(w) == [2, 32, 32, 32, 32, 32, 330], w
-assert np.array_equal(f["field/mesh/vertices"][()], b["vertices"][()])
-assert np.array_equal(f["field/mesh/regions/clamp"][()], b["regions/clamp"][()])
-assert len(f["training/objective"]) == 100 and "field/basis" not in f
+if not (list(w) == [2, 32, 32, 32, 32, 32, 330]):
+    raise SystemExit(f"check failed: {w!s}")
+if not (np.array_equal(f["field/mesh/vertices"][()], b["vertices"][()])):
+    raise SystemExit("check failed: np.array_equal(f[\"field/mesh/vertices\"][()], b[\"vertices\"][()])")
+if not (np.array_equal(f["field/mesh/regions/clamp"][()], b["regions/clamp"][()])):
+    raise SystemExit("check failed: np.array_equal(f[\"field/mesh/regions/clamp\"][()], b[\"regions/clamp\"][()])")
+if not (len(f["training/objective"]) == 100 and "field/basis" not in f):
+    raise SystemExit("check failed: len(f[\"training/objective\"]) == 100 and \"field/basis\" not in f")
 # the last layer: pinned vertices' rows are exactly zero
 p = f["field/params"][()]; n = 330; h = 32
 Wl = p[-(n * h + n):-n].reshape(n, h); bl = p[-n:]
 pin = b["regions/clamp"][()]
 dofs = np.concatenate([3 * pin + c for c in range(3)])
-assert np.all(Wl[dofs] == 0) and np.all(bl[dofs] == 0)
+if not (np.all(Wl[dofs] == 0) and np.all(bl[dofs] == 0)):
+    raise SystemExit("check failed: np.all(Wl[dofs] == 0) and np.all(bl[dofs] == 0)")
 obj = f["training/objective"][()]
 print("energy map: objective %.4g -> %.4g over the run" % (obj[0], obj[-1]))
-assert obj[-1] < obj[0]
+if not (obj[-1] < obj[0]):
+    raise SystemExit("check failed: obj[-1] < obj[0]")
 PYEOF
 ok
 # the same bytes again (the same command line: it is in the history), the
@@ -57,7 +69,7 @@ cmp -s df1.h5 df2.h5 || fail "same inputs and seed, different bytes"; ok
 $PY -c "
 import h5py, numpy as np
 a, b = h5py.File('df1.h5'), h5py.File('df3.h5')
-assert a.attrs['model_id'] == b.attrs['model_id'] and np.array_equal(a['field/params'][()], b['field/params'][()])" \
+if not (a.attrs['model_id'] == b.attrs['model_id'] and np.array_equal(a['field/params'][()], b['field/params'][()])): raise SystemExit('check failed: model differs')" \
   || fail "--threads 2 or a piped mesh changed the model"; ok
 crom-fitfield "${QUICK[@]}" --mesh bar.h5 --seed 2 -q >df4.h5
 ! cmp -s df1.h5 df4.h5 || fail "--seed has no effect"; ok
@@ -83,13 +95,20 @@ $PY - nm.h5 modes.h5 <<'PYEOF' || fail "neuralmodes model"
 import sys, h5py, numpy as np
 f, m = h5py.File(sys.argv[1]), h5py.File(sys.argv[2])
 s = lambda v: v.decode() if isinstance(v, bytes) else v
-assert s(f.attrs["basis"]) == "neuralmodes" and f.attrs["rank"] == 3 and s(f.attrs["activation"]) == "gelu"
-assert s(f.attrs["modes_id"]) == s(m.attrs["model_id"])
-assert np.array_equal(f["field/basis"][()], m["field/basis"][()])
-assert np.array_equal(f["frequencies"][()], m["frequencies"][()])
-assert f.attrs["youngs"] == 1e6 and f.attrs["poisson"] == 0.3   # the material of the modes
-assert "--pin clamp" in s(f.attrs["scenario"]) and "gravity" not in s(f.attrs["scenario"])
-assert abs(f.attrs["latent_box"] - 0.1 * np.sqrt(1.08)) < 1e-12
+if not (s(f.attrs["basis"]) == "neuralmodes" and f.attrs["rank"] == 3 and s(f.attrs["activation"]) == "gelu"):
+    raise SystemExit("check failed: s(f.attrs[\"basis\"]) == \"neuralmodes\" and f.attrs[\"rank\"] == 3 and s(f.attrs[\"activation\"]) == \"gelu\"")
+if not (s(f.attrs["modes_id"]) == s(m.attrs["model_id"])):
+    raise SystemExit("check failed: s(f.attrs[\"modes_id\"]) == s(m.attrs[\"model_id\"])")
+if not (np.array_equal(f["field/basis"][()], m["field/basis"][()])):
+    raise SystemExit("check failed: np.array_equal(f[\"field/basis\"][()], m[\"field/basis\"][()])")
+if not (np.array_equal(f["frequencies"][()], m["frequencies"][()])):
+    raise SystemExit("check failed: np.array_equal(f[\"frequencies\"][()], m[\"frequencies\"][()])")
+if not (f.attrs["youngs"] == 1e6 and f.attrs["poisson"] == 0.3):  # the material of the modes
+    raise SystemExit("check failed: f.attrs[\"youngs\"] == 1e6 and f.attrs[\"poisson\"] == 0.3")
+if not ("--pin clamp" in s(f.attrs["scenario"]) and "gravity" not in s(f.attrs["scenario"])):
+    raise SystemExit("check failed: \"--pin clamp\" in s(f.attrs[\"scenario\"]) and \"gravity\" not in s(f.attrs[\"scenario\"])")
+if not (abs(f.attrs["latent_box"] - 0.1 * np.sqrt(1.08)) < 1e-12):
+    raise SystemExit("check failed: abs(f.attrs[\"latent_box\"] - 0.1 * np.sqrt(1.08)) < 1e-12")
 PYEOF
 ok
 # no collapsed dimension (Wang et al. §4.4): J = W + dy/dz at 0 with y
@@ -113,16 +132,21 @@ for m in df nm; do
 import sys, h5py, numpy as np
 r, f = h5py.File(sys.argv[1]), h5py.File(sys.argv[2])
 s = lambda v: v.decode() if isinstance(v, bytes) else v
-assert s(r.attrs["model_id"]) == s(f.attrs["model_id"]) and r.attrs["rank"] == f.attrs["rank"]
-assert s(r.attrs["solver"]) == "gauss-newton"
+if not (s(r.attrs["model_id"]) == s(f.attrs["model_id"]) and r.attrs["rank"] == f.attrs["rank"]):
+    raise SystemExit("check failed: s(r.attrs[\"model_id\"]) == s(f.attrs[\"model_id\"]) and r.attrs[\"rank\"] == f.attrs[\"rank\"]")
+if not (s(r.attrs["solver"]) == "gauss-newton"):
+    raise SystemExit("check failed: s(r.attrs[\"solver\"]) == \"gauss-newton\"")
 T = r["frames/total_energy"][()]; K = r["frames/kinetic_energy"][()]
 scale = np.abs(r["frames/elastic_energy"][()]).max() + np.abs(r["frames/external_energy"][()]).max()
 rise = np.diff(T).max()
 print("%s: total energy %.4g -> %.4g J, largest rise %.3g J (scale %.4g J), largest kinetic energy %.4g J, %.2f iterations/step"
       % (sys.argv[1], T[0], T[-1], rise, scale, K.max(), r["frames/iterations"][1:].mean()))
-assert np.all(np.isfinite(r["frames/q"][()])) and K.max() > 1e-3 * scale
-assert rise <= 1e-6 * scale
-assert r["frames/constraint_residual"][()].max() == 0        # the pins are built into the map
+if not (np.all(np.isfinite(r["frames/q"][()])) and K.max() > 1e-3 * scale):
+    raise SystemExit("check failed: np.all(np.isfinite(r[\"frames/q\"][()])) and K.max() > 1e-3 * scale")
+if not (rise <= 1e-6 * scale):
+    raise SystemExit("check failed: rise <= 1e-6 * scale")
+if not (r["frames/constraint_residual"][()].max() == 0):  # the pins are built into the map
+    raise SystemExit("check failed: r[\"frames/constraint_residual\"][()].max() == 0")
 PYEOF
   ok
 done
@@ -140,9 +164,12 @@ grep -q "poses: 100 latent samples of the model's training distribution" dfcub.l
 $PY - dfcub.h5 df.h5 <<'PYEOF' || fail "map cubature contents"
 import sys, h5py
 c, f = h5py.File(sys.argv[1]), h5py.File(sys.argv[2])
-assert c.attrs["model_id"] == f.attrs["model_id"] and c.attrs["map_rank"] == 2
-assert c.attrs["rank"] == 32 + 1 and c["W"].shape == (110, 3, 33)       # features: last hidden layer + 1
-assert 0 < c.attrs["count"] < 254
+if not (c.attrs["model_id"] == f.attrs["model_id"] and c.attrs["map_rank"] == 2):
+    raise SystemExit("check failed: c.attrs[\"model_id\"] == f.attrs[\"model_id\"] and c.attrs[\"map_rank\"] == 2")
+if not (c.attrs["rank"] == 32 + 1 and c["W"].shape == (110, 3, 33)):  # features: last hidden layer + 1
+    raise SystemExit("check failed: c.attrs[\"rank\"] == 32 + 1 and c[\"W\"].shape == (110, 3, 33)")
+if not (0 < c.attrs["count"] < 254):
+    raise SystemExit("check failed: 0 < c.attrs[\"count\"] < 254")
 PYEOF
 ok
 crom-reducedstep --model df.h5 --cubature dfcub.h5 "${MAT[@]}" "${SC[@]}" --stats run_dfc.csv -q -o run_dfc.h5
@@ -169,7 +196,8 @@ $PY - df_last.vtu run_df.h5 df.h5 <<'PYEOF' || fail "decoded displacement"
 import sys, meshio, h5py, numpy as np
 v = meshio.read(sys.argv[1]); r = h5py.File(sys.argv[2]); f = h5py.File(sys.argv[3])
 u = v.point_data["displacement"]; pin = f["field/mesh/regions/clamp"][()]
-assert np.abs(u[pin]).max() == 0 and np.abs(u).max() > 0.01
+if not (np.abs(u[pin]).max() == 0 and np.abs(u).max() > 0.01):
+    raise SystemExit("check failed: np.abs(u[pin]).max() == 0 and np.abs(u).max() > 0.01")
 print("decoded last frame: tip displacement", u[np.argmax(v.points[:, 0])])
 PYEOF
 ok
@@ -188,11 +216,15 @@ $PY - fld.h5 <<'PYEOF' || fail "field model"
 import sys, h5py, numpy as np
 f = h5py.File(sys.argv[1])
 s = lambda v: v.decode() if isinstance(v, bytes) else v
-assert s(f.attrs["basis"]) == "energy-field" and f.attrs["rank"] == 2 and f.attrs["cubature_tets"] == 127
-assert list(f["field/widths"][()]) == [3, 64, 64, 64, 24] and list(f["latent/widths"][()]) == [2, 32, 32, 32, 8]
+if not (s(f.attrs["basis"]) == "energy-field" and f.attrs["rank"] == 2 and f.attrs["cubature_tets"] == 127):
+    raise SystemExit("check failed: s(f.attrs[\"basis\"]) == \"energy-field\" and f.attrs[\"rank\"] == 2 and f.attrs[\"cubature_tets\"] == 127")
+if not (list(f["field/widths"][()]) == [3, 64, 64, 64, 24] and list(f["latent/widths"][()]) == [2, 32, 32, 32, 8]):
+    raise SystemExit("check failed: list(f[\"field/widths\"][()]) == [3, 64, 64, 64, 24] and list(f[\"latent/widths\"][()]) == [2, 32, 32, 32, 8]")
 t = f["latent/pin_triangles"][()]
-assert t.shape[1:] == (3, 3) and len(t) > 0 and np.all(t[:, :, 0] < -0.49)   # the clamped face
-assert f["latent/pin_length"][0] > 0 and "field/mesh" not in f
+if not (t.shape[1:] == (3, 3) and len(t) > 0 and np.all(t[:, :, 0] < -0.49)):  # the clamped face
+    raise SystemExit("check failed: t.shape[1:] == (3, 3) and len(t) > 0 and np.all(t[:, :, 0] < -0.49)")
+if not (f["latent/pin_length"][0] > 0 and "field/mesh" not in f):
+    raise SystemExit("check failed: f[\"latent/pin_length\"][0] > 0 and \"field/mesh\" not in f")
 PYEOF
 ok
 crom-metrics --mesh bar.h5 fld.h5 >met_fld.txt
@@ -213,8 +245,10 @@ T = r["frames/total_energy"][()]; K = r["frames/kinetic_energy"][()]
 scale = np.abs(r["frames/elastic_energy"][()]).max() + np.abs(r["frames/external_energy"][()]).max()
 print("field on fine.h5: largest rise of the total energy %.3g J (scale %.4g J), largest kinetic energy %.4g J"
       % (np.diff(T).max(), scale, K.max()))
-assert K.max() > 1e-3 * scale and np.diff(T).max() <= 1e-6 * scale
-assert r["frames/constraint_residual"][()].max() == 0       # the mask holds the clamped face on this mesh too
+if not (K.max() > 1e-3 * scale and np.diff(T).max() <= 1e-6 * scale):
+    raise SystemExit("check failed: K.max() > 1e-3 * scale and np.diff(T).max() <= 1e-6 * scale")
+if not (r["frames/constraint_residual"][()].max() == 0):  # the mask holds the clamped face on this mesh too
+    raise SystemExit("check failed: r[\"frames/constraint_residual\"][()].max() == 0")
 PYEOF
 ok
 crom-export --format vtu --model fld.h5 --mesh fine.h5 -o fld_last.vtu run_fld.h5
@@ -222,7 +256,8 @@ $PY - fld_last.vtu <<'PYEOF' || fail "field export"
 import sys, meshio, numpy as np
 v = meshio.read(sys.argv[1]); u = v.point_data["displacement"]
 clamp = v.points[:, 0] < -0.49
-assert np.abs(u[clamp]).max() == 0 and u[:, 1].min() < -0.005 and len(v.points) > 300
+if not (np.abs(u[clamp]).max() == 0 and u[:, 1].min() < -0.005 and len(v.points) > 300):
+    raise SystemExit("check failed: np.abs(u[clamp]).max() == 0 and u[:, 1].min() < -0.005 and len(v.points) > 300")
 PYEOF
 ok
 crom-fullsim "${MAT[@]}" "${SC[@]}" -q -o full_fine.h5 fine.h5

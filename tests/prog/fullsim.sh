@@ -13,16 +13,21 @@ $PY - "$TMP/pvd" <<'PYEOF' || fail "pvd series"
 import sys, glob, meshio, numpy as np, xml.etree.ElementTree as ET
 d = sys.argv[1]
 ds = ET.parse(d + "/frame.pvd").getroot().findall(".//DataSet")
-assert len(ds) == 9, len(ds)                          # frame 0 + 8 steps
+if not (len(ds) == 9):  # frame 0 + 8 steps
+    raise SystemExit(f"check failed: {len(ds)!s}")
 times = [float(x.get("timestep")) for x in ds]
-assert np.allclose(times, np.arange(9) * 0.01), times
+if not (np.allclose(times, np.arange(9) * 0.01)):
+    raise SystemExit(f"check failed: {times!s}")
 m = meshio.read(d + "/" + ds[-1].get("file"))
 u = m.point_data["displacement"]; top = m.point_data["region_top"].astype(bool)
 bot = m.point_data["region_bottom"].astype(bool)
-assert np.allclose(u[top, 1], -0.1, atol=1e-13), u[top, 1]   # 2 m/s for 0.05 s, then held
-assert np.all(u[bot] == 0)
+if not (np.allclose(u[top, 1], -0.1, atol=1e-13)):  # 2 m/s for 0.05 s, then held
+    raise SystemExit(f"check failed: {u[top, 1]!s}")
+if not (np.all(u[bot] == 0)):
+    raise SystemExit("check failed: np.all(u[bot] == 0)")
 free = ~(top | bot)
-assert np.all(u[free, 1] < 0.0) or True
+if not (np.all(u[free, 1] < 0.0) or True):
+    raise SystemExit("check failed: np.all(u[free, 1] < 0.0) or True")
 print("max |u| of free vertices", np.abs(u[free]).max())
 PYEOF
 ok
@@ -36,10 +41,13 @@ crom-info --check "$TMP/a.h5" "$TMP/b.crs" "$TMP/c.h5" >/dev/null || fail "--che
 $PY - "$TMP/a.h5" "$TMP/c.h5" <<'PYEOF' || fail "file vs redirect"
 import sys, h5py, numpy as np
 a, c = (h5py.File(p) for p in sys.argv[1:])
-assert a.attrs["complete"] == 1 and c.attrs["complete"] == 1
+if not (a.attrs["complete"] == 1 and c.attrs["complete"] == 1):
+    raise SystemExit("check failed: a.attrs[\"complete\"] == 1 and c.attrs[\"complete\"] == 1")
 for k in ("displacement", "velocity", "total_energy", "time"):
-    assert np.array_equal(a["frames/" + k][()], c["frames/" + k][()]), k
-assert a["frames/displacement"].shape[0] == 9
+    if not (np.array_equal(a["frames/" + k][()], c["frames/" + k][()])):
+        raise SystemExit(f"check failed: {k!s}")
+if not (a["frames/displacement"].shape[0] == 9):
+    raise SystemExit("check failed: a[\"frames/displacement\"].shape[0] == 9")
 PYEOF
 ok
 crom-info "$TMP/b.crs" | grep -q "frames                 9" || fail "stream frame count"; ok
@@ -50,8 +58,10 @@ crom-fullsim @"$TMP/sc.flags" -o "$TMP/d.h5" "$TMP/box.h5"
 $PY - "$TMP/a.h5" "$TMP/d.h5" <<'PYEOF' || fail "scenario round trip"
 import sys, h5py, numpy as np
 a, d = (h5py.File(p) for p in sys.argv[1:])
-assert a.attrs["scenario"] == d.attrs["scenario"]
-assert np.array_equal(a["frames/displacement"][()], d["frames/displacement"][()])
+if not (a.attrs["scenario"] == d.attrs["scenario"]):
+    raise SystemExit("check failed: a.attrs[\"scenario\"] == d.attrs[\"scenario\"]")
+if not (np.array_equal(a["frames/displacement"][()], d["frames/displacement"][()])):
+    raise SystemExit("check failed: np.array_equal(a[\"frames/displacement\"][()], d[\"frames/displacement\"][()])")
 PYEOF
 ok
 
@@ -61,8 +71,10 @@ $PY - "$TMP/fall.h5" <<'PYEOF' || fail "free fall"
 import sys, h5py, numpy as np
 f = h5py.File(sys.argv[1]); u = f["frames/displacement"][()]; t = f["frames/time"][()]
 uy = 0.5 * -9.81 * t * (t + 0.05)
-assert np.allclose(u[:, :, 1], uy[:, None], rtol=1e-12, atol=1e-15)
-assert np.all(f["frames/newton_iterations"][1:] >= 1)
+if not (np.allclose(u[:, :, 1], uy[:, None], rtol=1e-12, atol=1e-15)):
+    raise SystemExit("check failed: np.allclose(u[:, :, 1], uy[:, None], rtol=1e-12, atol=1e-15)")
+if not (np.all(f["frames/newton_iterations"][1:] >= 1)):
+    raise SystemExit("check failed: np.all(f[\"frames/newton_iterations\"][1:] >= 1)")
 E = f["frames/total_energy"][()]
 PYEOF
 ok
@@ -93,7 +105,7 @@ rc=0; crom-fullsim "${SC[@]}" --steps 5 --max-iter 1 --tol 1e-14 -o "$O/inc.h5" 
 [ "$rc" -eq 65 ] || fail "non-converging run exited $rc"
 [ "$(wc -l <"$TMP/err")" -eq 1 ] || fail "non-converging run: $(cat "$TMP/err")"
 grep -q "keeps the 1 frames done, marked incomplete: step 1 did not converge" "$TMP/err" || fail "message: $(cat "$TMP/err")"
-$PY -c "import h5py,sys; f=h5py.File(sys.argv[1]); assert f.attrs['complete']==0 and f['frames/time'].shape==(1,)" "$O/inc.h5" || fail "incomplete file"
+$PY -c "import h5py,sys; f=h5py.File(sys.argv[1]); sys.exit(0 if f.attrs['complete']==0 and f['frames/time'].shape==(1,) else 1)" "$O/inc.h5" || fail "incomplete file"
 ! crom-info --check "$O/inc.h5" >"$TMP/chk" 2>&1 || fail "--check accepted an incomplete run"
 grep -q "incomplete" "$TMP/chk" || fail "--check does not say incomplete"; ok
 # through a pipe the stream ends with an incomplete marker

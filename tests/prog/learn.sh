@@ -39,21 +39,33 @@ $PY - <<'PYEOF' || fail "samples layout"
 import h5py, numpy as np
 t = h5py.File("tb.h5", "r"); X = t["mesh/vertices"][()]; U = t["frames/displacement"][()]
 a = h5py.File("sall.h5", "r")
-assert a["points"].shape == (30, 236, 3) and a.attrs["mode"] == "vertices"
-assert (a["vertex"][()] == np.arange(236)).all()
-assert np.allclose(a["displacements"][()], U, atol=1e-7 * abs(U).max())   # float32 of the frames
-assert abs(a["displacements"][0]).max() == 0                                # frame 0 at rest is kept
+if not (a["points"].shape == (30, 236, 3) and a.attrs["mode"] == "vertices"):
+    raise SystemExit("check failed: a[\"points\"].shape == (30, 236, 3) and a.attrs[\"mode\"] == \"vertices\"")
+if not ((a["vertex"][()] == np.arange(236)).all()):
+    raise SystemExit("check failed: (a[\"vertex\"][()] == np.arange(236)).all()")
+if not (np.allclose(a["displacements"][()], U, atol=1e-7 * abs(U).max())):  # float32 of the frames
+    raise SystemExit("check failed: np.allclose(a[\"displacements\"][()], U, atol=1e-7 * abs(U).max())")
+if not (abs(a["displacements"][0]).max() == 0):  # frame 0 at rest is kept
+    raise SystemExit("check failed: abs(a[\"displacements\"][0]).max() == 0")
 b = h5py.File("s200.h5", "r"); v = b["vertex"][()]
-assert v.shape == (30, 200) and all(len(set(r)) == 200 for r in v)        # distinct vertices
-assert np.allclose(b["points"][()], X[v].astype(np.float32))
-assert np.allclose(b["displacements"][()], U[np.arange(30)[:, None], v], atol=1e-7 * abs(U).max())
+if not (v.shape == (30, 200) and all(len(set(r)) == 200 for r in v)):  # distinct vertices
+    raise SystemExit("check failed: v.shape == (30, 200) and all(len(set(r)) == 200 for r in v)")
+if not (np.allclose(b["points"][()], X[v].astype(np.float32))):
+    raise SystemExit("check failed: np.allclose(b[\"points\"][()], X[v].astype(np.float32))")
+if not (np.allclose(b["displacements"][()], U[np.arange(30)[:, None], v], atol=1e-7 * abs(U).max())):
+    raise SystemExit("check failed: np.allclose(b[\"displacements\"][()], U[np.arange(30)[:, None], v], atol=1e-7 * abs(U).max())")
 i = h5py.File("sint.h5", "r"); s = i["frame_source"][()]
-assert list(i["sources"]) == ["000", "001"] and i["sources/001"].attrs["file"] == "ts.h5"
-assert (s[:30] == 0).all() and (s[30:] == 1).all() and (i["vertex"][()] == -1).all()
+if not (list(i["sources"]) == ["000", "001"] and i["sources/001"].attrs["file"] == "ts.h5"):
+    raise SystemExit("check failed: list(i[\"sources\"]) == [\"000\", \"001\"] and i[\"sources/001\"].attrs[\"file\"] == \"ts.h5\"")
+if not ((s[:30] == 0).all() and (s[30:] == 1).all() and (i["vertex"][()] == -1).all()):
+    raise SystemExit("check failed: (s[:30] == 0).all() and (s[30:] == 1).all() and (i[\"vertex\"][()] == -1).all()")
 # interior points of the box lie in the box; u is the linear interpolation of
 # a smooth field, so it stays within the vertex values' range
-P = i["points"][:30]; assert (abs(P) <= 0.5 + 1e-6).all()
-assert abs(i["displacements"][:30]).max() <= abs(U).max() * 1.0001
+P = i["points"][:30]
+if not ((abs(P) <= 0.5 + 1e-6).all()):
+    raise SystemExit("check failed: interior points outside the box")
+if not (abs(i["displacements"][:30]).max() <= abs(U).max() * 1.0001):
+    raise SystemExit("check failed: abs(i[\"displacements\"][:30]).max() <= abs(U).max() * 1.0001")
 PYEOF
 ok
 mkdir -p again && cp tb.h5 again/
@@ -62,8 +74,8 @@ cmp -s s200.h5 again/s200.h5 || fail "crom-sample: the same command and seed gav
 $PY -c "
 import h5py, numpy as np
 a, b = h5py.File('s200.h5', 'r'), h5py.File('s200b.h5', 'r')
-assert all(np.array_equal(a[k][()], b[k][()]) for k in ('points', 'displacements', 'vertex'))
-assert b['sources/000'].attrs['file'] == 'stdin'" || fail "crom-sample from stdin differs"; ok
+if not (all(np.array_equal(a[k][()], b[k][()]) for k in ('points', 'displacements', 'vertex'))): raise SystemExit('check failed: samples differ')
+if not (b['sources/000'].attrs['file'] == 'stdin'): raise SystemExit('check failed: source file')" || fail "crom-sample from stdin differs"; ok
 crom-sample --points 200 --seed 6 tb.h5 -o s200c.h5
 ! cmp -s s200.h5 s200c.h5 || fail "crom-sample: another seed gave the same samples"; ok
 crom-sample --skip-rest --every 2 --points 50 tb.h5 -o skip.h5
@@ -94,15 +106,20 @@ crom-fitfield --rank 4 --epochs 50 --seed 9 -o r9.h5 s200.h5 2>/dev/null
 $PY - <<'PYEOF' || fail "latent layout"
 import h5py, numpy as np
 m = h5py.File("m.h5", "r"); l = h5py.File("lm.h5", "r")
-assert l.attrs["schema"] == "crom/latent" and l.attrs["model_id"] == m.attrs["model_id"]
-assert l.attrs["rank"] == 4 and l["frames"].attrs["fields"] == "time,step,q,qdot,reconstruction_error"
+if not (l.attrs["schema"] == "crom/latent" and l.attrs["model_id"] == m.attrs["model_id"]):
+    raise SystemExit("check failed: l.attrs[\"schema\"] == \"crom/latent\" and l.attrs[\"model_id\"] == m.attrs[\"model_id\"]")
+if not (l.attrs["rank"] == 4 and l["frames"].attrs["fields"] == "time,step,q,qdot,reconstruction_error"):
+    raise SystemExit("check failed: l.attrs[\"rank\"] == 4 and l[\"frames\"].attrs[\"fields\"] == \"time,step,q,qdot,reconstruction_error\"")
 q = l["frames/q"][()]; e = l["frames/reconstruction_error"][()]
-assert q.shape == (30, 4) and abs(q[0]).max() == 0 and e[0] == 0        # rest frame: q = 0, error 0
-assert (e[1:] > 0).all() and (e[1:] < 0.1).all()
+if not (q.shape == (30, 4) and abs(q[0]).max() == 0 and e[0] == 0):  # rest frame: q = 0, error 0
+    raise SystemExit("check failed: q.shape == (30, 4) and abs(q[0]).max() == 0 and e[0] == 0")
+if not ((e[1:] > 0).all() and (e[1:] < 0.1).all()):
+    raise SystemExit("check failed: (e[1:] > 0).all() and (e[1:] < 0.1).all()")
 # q is in metres: |q| ~ RMS displacement (the fields have RMS magnitude 1)
 t = h5py.File("tb.h5", "r"); U = t["frames/displacement"][1:]
 rms = np.sqrt((U ** 2).sum(-1).mean(-1)); qn = np.linalg.norm(q[1:], axis=1)
-assert np.allclose(qn, rms, rtol=0.1), (qn[:4], rms[:4])
+if not (np.allclose(qn, rms, rtol=0.1)):
+    raise SystemExit(f"check failed: {(qn[:4], rms[:4])!s}")
 PYEOF
 ok
 crom-info --check lm.h5 >/dev/null && crom-info --check m.h5 >/dev/null && crom-info --check pod.h5 >/dev/null || fail "outputs invalid"; ok
@@ -151,11 +168,15 @@ lt "$(err_of e.err)" 0.01 "POD rank 4 of a 12-step bending run"
 $PY - <<'PYEOF' || fail "stream and file inputs differ"
 import h5py, numpy as np
 a, b = h5py.File("sim_pipe.h5", "r"), h5py.File("sim_file.h5", "r")
-assert all(np.array_equal(a[k][()], b[k][()]) for k in ("points", "displacements", "vertex", "frame_time"))
-assert a["points"].shape[0] == 13
+if not (all(np.array_equal(a[k][()], b[k][()]) for k in ("points", "displacements", "vertex", "frame_time"))):
+    raise SystemExit("check failed: all(np.array_equal(a[k][()], b[k][()]) for k in (\"points\", \"displacements\", \"vertex\", \"frame_time\"))")
+if not (a["points"].shape[0] == 13):
+    raise SystemExit("check failed: a[\"points\"].shape[0] == 13")
 c, d = h5py.File("lat_pipe.h5", "r"), h5py.File("lat_file.h5", "r")
-assert np.array_equal(c["frames/q"][()], d["frames/q"][()]) and c["frames/q"].shape == (13, 4)
-assert np.array_equal(c["frames/qdot"][()], d["frames/qdot"][()])
+if not (np.array_equal(c["frames/q"][()], d["frames/q"][()]) and c["frames/q"].shape == (13, 4)):
+    raise SystemExit("check failed: np.array_equal(c[\"frames/q\"][()], d[\"frames/q\"][()]) and c[\"frames/q\"].shape == (13, 4)")
+if not (np.array_equal(c["frames/qdot"][()], d["frames/qdot"][()])):
+    raise SystemExit("check failed: np.array_equal(c[\"frames/qdot\"][()], d[\"frames/qdot\"][()])")
 PYEOF
 ok
 

@@ -22,20 +22,24 @@ def items(f):
     f.visititems(lambda n, o: out.__setitem__(n, o[()]) if isinstance(o, h5py.Dataset) else None)
     return out
 ref = items(files[0])
-assert set(ref) == {"vertices", "tets", "regions/cap"}, sorted(ref)
+if not (set(ref) == {"vertices", "tets", "regions/cap"}):
+    raise SystemExit(f"check failed: {sorted(ref)!s}")
 for f in files[1:]:
     other = items(f)
-    assert set(other) == set(ref)
+    if not (set(other) == set(ref)):
+        raise SystemExit("check failed: set(other) == set(ref)")
     for k in ref:
-        assert np.array_equal(ref[k], other[k]), k
+        if not (np.array_equal(ref[k], other[k])):
+            raise SystemExit(f"check failed: {k!s}")
     for a in ("schema", "schema_version", "generator", "target_size"):
-        assert f.attrs[a] == files[0].attrs[a], a
+        if not (f.attrs[a] == files[0].attrs[a]):
+            raise SystemExit(f"check failed: {a!s}")
 print("same data in", len(files), "files")
 PYEOF
 ok
 
 # 3. history names the command; SOURCE_DATE_EPOCH makes it reproducible
-$PY -c "import h5py,sys; h=h5py.File(sys.argv[1]).attrs['history']; assert 'crom-mesh sphere --size 0.15' in h and h.startswith('2023-11-14T22:13:20Z'), h" "$TMP/a.h5" \
+$PY -c "import h5py,sys; h=h5py.File(sys.argv[1]).attrs['history']; sys.exit(0 if 'crom-mesh sphere --size 0.15' in h and h.startswith('2023-11-14T22:13:20Z') else 'check failed: ' + str(h))" "$TMP/a.h5" \
   || fail "history attribute"; ok
 
 # 4. --check accepts what crom-mesh writes; every tet positive (re-checked in Python)
@@ -44,9 +48,11 @@ $PY - "$TMP/a.h5" <<'PYEOF' || fail "orientation"
 import sys, h5py, numpy as np
 f = h5py.File(sys.argv[1]); X = f["vertices"][()]; T = f["tets"][()]
 V = np.einsum("ij,ij->i", np.cross(X[T[:,1]]-X[T[:,0]], X[T[:,2]]-X[T[:,0]]), X[T[:,3]]-X[T[:,0]]) / 6
-assert V.min() > 0, V.min()
+if not (V.min() > 0):
+    raise SystemExit(f"check failed: {V.min()!s}")
 cap = f["regions/cap"][()]
-assert np.all(X[cap, 1] > 0.3) and np.sum(X[:, 1] > 0.3) == len(cap)
+if not (np.all(X[cap, 1] > 0.3) and np.sum(X[:, 1] > 0.3) == len(cap)):
+    raise SystemExit("check failed: np.all(X[cap, 1] > 0.3) and np.sum(X[:, 1] > 0.3) == len(cap)")
 PYEOF
 ok
 
@@ -77,9 +83,12 @@ $PY - "$TMP/block.h5" <<'PYEOF' || fail "gmsh group region"
 import sys, h5py, numpy as np
 f = h5py.File(sys.argv[1]); X = f["vertices"][()]
 left = f["regions/left"][()]; clamp = f["regions/clamp"][()]
-assert np.array_equal(left, clamp)
-assert np.allclose(X[left, 0], 0) and np.sum(np.isclose(X[:, 0], 0)) == len(left)
-assert len(f["regions/solid"][()]) == len(X)
+if not (np.array_equal(left, clamp)):
+    raise SystemExit("check failed: np.array_equal(left, clamp)")
+if not (np.allclose(X[left, 0], 0) and np.sum(np.isclose(X[:, 0], 0)) == len(left)):
+    raise SystemExit("check failed: np.allclose(X[left, 0], 0) and np.sum(np.isclose(X[:, 0], 0)) == len(left)")
+if not (len(f["regions/solid"][()]) == len(X)):
+    raise SystemExit("check failed: len(f[\"regions/solid\"][()]) == len(X)")
 PYEOF
 ok
 v=$(crom-info "$TMP/block.h5" | sed -n 's/.*tets, volume \([0-9.e+-]*\) m^3/\1/p'); close "$v" 0.25 1e-9 "imported block volume"

@@ -36,22 +36,29 @@ import csv, math, re, sys
 args = sys.argv[1:]; cut = args.index("--")
 path, flags, bounds = args[0], dict(a.split("=") for a in args[1:cut]), args[cut + 1:]
 rows = list(csv.DictReader(open(path)))
-assert rows, "no rows"
+if not (rows):
+    raise SystemExit("check failed: " + str("no rows"))
 seen = set()
 for r in rows:
     err, sp = float(r["relative_error"]), float(r["speedup"])
     print("%-40s error %.4f  speedup %.0fx  cubature %s  rank %s" % (r["run"], err, sp, r["cubature_tets"], r["rank"]))
-    assert math.isfinite(err), r["run"] + ": error not finite"
-    assert sp > 2, r["run"] + ": reduced step not faster than the full one"
-    assert int(r["rank"]) == int(flags["RANK"]), r["run"] + ": rank"
-    assert 0 < int(r["cubature_tets"]) <= 4 * int(flags["COUNT"]), r["run"] + ": cubature count"
+    if not (math.isfinite(err)):
+        raise SystemExit("check failed: " + str(r["run"] + ": error not finite"))
+    if not (sp > 2):
+        raise SystemExit("check failed: " + str(r["run"] + ": reduced step not faster than the full one"))
+    if not (int(r["rank"]) == int(flags["RANK"])):
+        raise SystemExit("check failed: " + str(r["run"] + ": rank"))
+    if not (0 < int(r["cubature_tets"]) <= 4 * int(flags["COUNT"])):
+        raise SystemExit("check failed: " + str(r["run"] + ": cubature count"))
     for b in bounds:
         pat, mx = b.rsplit(" ", 1)
         if re.fullmatch(pat, r["run"]):
             seen.add(pat)
-            assert err < float(mx), "%s: relative error %.4f above the bound %s" % (r["run"], err, mx)
+            if not (err < float(mx)):
+                raise SystemExit("check failed: " + str("%s: relative error %.4f above the bound %s" % (r["run"], err, mx)))
 missing = [b for b in bounds if b.rsplit(" ", 1)[0] not in seen]
-assert not missing, "no row for %s" % missing
+if not (not missing):
+    raise SystemExit("check failed: " + str("no row for %s" % missing))
 PYEOF
   ok
 }
@@ -77,8 +84,10 @@ $PY - <<'PYEOF' || fail "punching schedule"
 import h5py, numpy as np
 c = h5py.File("pun/punch.h5")["frames/cubature"][()]
 sched = [int(l.split()[0]) for l in open("pun/schedule.txt")]
-assert c[0] == 0 and c[-1] == 2 and np.all(np.diff(c) >= 0), c
-assert [int(np.argmax(c >= k)) for k in (1, 2)] == sched, (c, sched)
+if not (c[0] == 0 and c[-1] == 2 and np.all(np.diff(c) >= 0)):
+    raise SystemExit(f"check failed: {c!s}")
+if not ([int(np.argmax(c >= k)) for k in (1, 2)] == sched):
+    raise SystemExit(f"check failed: {(c, sched)!s}")
 PYEOF
 ok
 check_rerun "${P[@]}"
@@ -94,15 +103,18 @@ check_table tug/rows.txt.csv 'trained-tug-[12] 0.2' 'new-tug 0.4' 'unseen-shape\
 $PY - $((TSTEPS / 2)) <<'PYEOF' || fail "tug swap"
 import sys, h5py, numpy as np
 s = int(sys.argv[1]); f = h5py.File("tug/swap.h5"); c = f["frames/cubature"][()]; q = f["frames/q"][()]
-assert np.all(c[:s] == 0) and np.all(c[s:] == 1), c
+if not (np.all(c[:s] == 0) and np.all(c[s:] == 1)):
+    raise SystemExit(f"check failed: {c!s}")
 # the state carries over: q keeps moving smoothly through the swap
 dq = np.linalg.norm(np.diff(q, axis=0), axis=1)
-assert dq[s - 1] < 3 * max(dq[s - 2], dq[s]) + 1e-12, dq
+if not (dq[s - 1] < 3 * max(dq[s - 2], dq[s]) + 1e-12):
+    raise SystemExit(f"check failed: {dq!s}")
 # the swapped run's pvd holds the box after the swap
 import meshio
 a = meshio.read("tug/pvd/frame_%05d.vtu" % (s - 1)); b = meshio.read("tug/pvd/frame_%05d.vtu" % s)
 o = h5py.File("tug/other.h5")["vertices"][()]; body = h5py.File("tug/body.h5")["vertices"][()]
-assert np.array_equal(a.points, body) and np.array_equal(b.points, o), "pvd frames on the wrong meshes"
+if not (np.array_equal(a.points, body) and np.array_equal(b.points, o)):
+    raise SystemExit("check failed: " + str("pvd frames on the wrong meshes"))
 
 PYEOF
 ok
@@ -122,7 +134,8 @@ import h5py, numpy as np
 f = h5py.File("rol/full-3.h5"); u = f["frames/displacement"][()]
 d = u[-1].mean(0)
 print("p3 centroid moved by", np.round(d, 3))
-assert d[1] < -0.05 and d[2] > 0.05, d
+if not (d[1] < -0.05 and d[2] > 0.05):
+    raise SystemExit(f"check failed: {d!s}")
 PYEOF
 ok
 # the basis holds the training runs' motion, rigid rolling included
