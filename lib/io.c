@@ -26,8 +26,9 @@ static const unsigned char hdf5_sig[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a,
  * Named outputs live under a temporary name until commit. If the program is
  * interrupted (SIGINT/SIGTERM/SIGHUP) the temporary files are removed so a
  * half-written file never stays behind. This small registry is the only
- * process-wide mutable state in the library; it exists for the signal
- * handler. */
+ * process-wide mutable state in io.c, and a global it must be: a signal
+ * handler is called with nothing but the signal number, so the names it
+ * removes can only be found in a global. */
 #define MAX_TMP 16
 static char *volatile tmp_registry[MAX_TMP];
 
@@ -42,13 +43,10 @@ static void cleanup_signal(int sig)
 
 static void tmp_register(char *path)
 {
-    static int installed;
-    if (!installed) {
-        signal(SIGINT, cleanup_signal);
-        signal(SIGTERM, cleanup_signal);
-        signal(SIGHUP, cleanup_signal);
-        installed = 1;
-    }
+    /* (again at every registration: installing the same handler twice is harmless) */
+    signal(SIGINT, cleanup_signal);
+    signal(SIGTERM, cleanup_signal);
+    signal(SIGHUP, cleanup_signal);
     for (int i = 0; i < MAX_TMP; i++)
         if (!tmp_registry[i]) {
             tmp_registry[i] = path;
@@ -862,14 +860,15 @@ void crom_in_close(crom_in *in)
 
 /* ================================================================= outputs */
 
-static int core_counter;
-
-static hid_t create_core(void)
+/* An HDF5 file in memory for output o. HDF5 refuses to create a file under
+ * the name of one it has open, even in memory, so the name is made unique
+ * from o's address (no two live outputs share it); it is stored nowhere. */
+static hid_t create_core(const crom_out *o)
 {
     hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
     H5Pset_fapl_core(fapl, 1 << 20, 0);
     char name[64];
-    snprintf(name, sizeof name, "crom-image-%d-%d", (int)getpid(), ++core_counter);
+    snprintf(name, sizeof name, "crom-image-%d-%p", (int)getpid(), (const void *)o);
     hid_t f = H5Fcreate(name, H5F_ACC_TRUNC, H5P_DEFAULT, fapl);
     H5Pclose(fapl);
     return f;
@@ -1067,7 +1066,7 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
     if (o->form == CROM_FORM_H5 && !o->to_stdout)
         o->h5 = H5Fcreate(o->tmp, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     else
-        o->h5 = create_core();
+        o->h5 = create_core(o);
     if (o->h5 < 0) {
         rc = crom_err(CROM_ECANTCREAT, "cannot create %s", o->name);
         drop_tmp(o);

@@ -190,13 +190,7 @@ const crom_schema *crom_schema_find(const char *name)
     return NULL;
 }
 
-const crom_schema *const *crom_schema_all(void)
-{
-    static const crom_schema *list[sizeof specs / sizeof *specs];
-    for (size_t i = 0; i < sizeof specs / sizeof *specs; i++)
-        list[i] = specs[i].schema ? &specs[i] : NULL;
-    return list;
-}
+const crom_schema *crom_schema_all(void) { return specs; }
 
 /* ---------------------------------------------------------------- checker */
 

@@ -42,8 +42,8 @@ typedef struct {
 /* The spec of a schema name, or NULL. */
 const crom_schema *crom_schema_find(const char *name);
 
-/* All specs, NULL-terminated. */
-const crom_schema *const *crom_schema_all(void);
+/* All specs: an array ending with an entry whose `schema` is NULL. */
+const crom_schema *crom_schema_all(void);
 
 /* Check an open input against its schema: datasets, dtypes, shapes, required
  * attributes, then the schema's own semantic checks (e.g. a mesh's tets are
