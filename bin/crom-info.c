@@ -95,7 +95,13 @@ static void print_attr_line(hid_t h, const char *name, const char *label)
     double v[3];
     long long i;
     if (!crom_h5_get_str(h, ".", name, &s)) {
-        printf("  %-22s %s\n", label, s);
+        printf("  %-22s ", label);
+        for (const char *c = s; *c; c++)
+            if (*c == '\n')
+                printf("\n%25s", ""); /* continuation lines under the first */
+            else
+                putchar(*c);
+        putchar('\n');
         free(s);
     } else if (!crom_h5_get_i64(h, ".", name, &i) && !crom_h5_get_f64(h, ".", name, v, 1) &&
                v[0] == (double)i) {
