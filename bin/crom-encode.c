@@ -246,13 +246,11 @@ static int run(crom_cli *cli, args *a)
     hsize_t dr = (hsize_t)r;
     if ((rc = crom_h5_set_str(o.h5, ".", "model_id", M.model_id)) ||
         (rc = crom_h5_set_i64(o.h5, ".", "rank", r)) ||
-        (rc = crom_out_field(&o, "time", 0, NULL, "s", "simulated time of each frame")) ||
-        (fs >= 0 && (rc = crom_out_field(&o, "step", 0, NULL, "1", "time-step index"))) ||
-        (rc = crom_out_field(&o, "q", 1, &dr, "m", "latent coordinates: u(X) = W(X) q")) ||
-        (fv >= 0 && (rc = crom_out_field(&o, "qdot", 1, &dr, "m/s",
-                                         "latent velocity: projection of the velocity field"))) ||
-        (rc = crom_out_field(&o, "reconstruction_error", 0, NULL, "1",
-                             "|Wq - u| / |u| of the encoded frame (mass-weighted)")) ||
+        (rc = crom_out_field(&o, "time", 0, NULL, M.basis)) ||
+        (fs >= 0 && (rc = crom_out_field(&o, "step", 0, NULL, M.basis))) ||
+        (rc = crom_out_field(&o, "q", 1, &dr, M.basis)) ||
+        (fv >= 0 && (rc = crom_out_field(&o, "qdot", 1, &dr, M.basis))) ||
+        (rc = crom_out_field(&o, "reconstruction_error", 0, NULL, M.basis)) ||
         (rc = crom_out_begin(&o)))
         goto out;
     crom_progress prog;

@@ -116,21 +116,12 @@ static int run(crom_cli *cli, args *a)
     if (!rc)
         rc = crom_scenario_write_attrs(o.h5, &a->sc);
     hsize_t dims[2] = {(hsize_t)m.nv, 3};
-    static const struct {
-        const char *name, *units, *desc;
-    } f[] = {{"time", "s", "simulated time of each frame"},
-             {"step", "1", "time-step index of each frame (0 = initial state)"},
-             {"displacement", "m", "displacement u = x - X of every vertex"},
-             {"velocity", "m/s", "velocity of every vertex"},
-             {"kinetic_energy", "J", "1/2 v^T M v"},
-             {"elastic_energy", "J", "stable neo-Hookean strain energy"},
-             {"external_energy", "J", "potential of gravity and applied forces, -f_ext . u"},
-             {"total_energy", "J", "kinetic + elastic + external"},
-             {"newton_iterations", "1", "Newton iterations of the step that produced the frame (0 for frame 0)"},
-             {"residual", "1", "final displacement error of that step relative to the bounding-box diagonal"},
-             {"step_seconds", "s", "wall time of that step (0 when SOURCE_DATE_EPOCH is set)"}};
+    /* the frame fields, in order; their units and descriptions are lib/schema.c's */
+    static const char *const f[] = {"time", "step", "displacement", "velocity", "kinetic_energy", "elastic_energy",
+                                    "external_energy", "total_energy", "newton_iterations", "residual",
+                                    "step_seconds"};
     for (int i = 0; i < 11 && !rc; i++)
-        rc = crom_out_field(&o, f[i].name, (i == 2 || i == 3) ? 2 : 0, dims, f[i].units, f[i].desc);
+        rc = crom_out_field(&o, f[i], (i == 2 || i == 3) ? 2 : 0, dims, NULL);
     if (!rc)
         rc = crom_out_begin(&o);
     double *u = crom_malloc(sizeof(double) * 3 * (size_t)m.nv);

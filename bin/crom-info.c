@@ -9,11 +9,12 @@
 #include "io.h"
 #include "mesh.h"
 #include "schema.h"
+#include "validate.h"
 
 enum { O_CHECK = 300, O_FRAMES, O_HISTORY };
 
 static const crom_opt info_opts[] = {
-    {"check", O_CHECK, NULL, "Validate each file against its schema (datasets, types, shapes, attributes, finite values, mesh orientation, completeness); print one line per violation and exit 65 if there is any."},
+    {"check", O_CHECK, NULL, "Validate each file against its schema (datasets, types, shapes, attributes, units, nothing undocumented, finite values, mesh orientation, completeness); print one line per violation and exit 65 if there is any."},
     {"frames", O_FRAMES, NULL, "For a time series, also print a table of its scalar per-frame fields."},
     {"history", O_HISTORY, NULL, "Print the whole history (default: the last 3 lines)."},
     {NULL, 0, NULL, NULL}};
@@ -29,8 +30,9 @@ static const crom_doc doc = {
     "span and energies of a trajectory; rank and training of a model; ...) and every dataset "
     "with its type, shape and units. Reads HDF5 files and crom frame streams, from a path or "
     "from stdin ('-').\n\n"
-    "With --check it validates each file against the spec of its schema (schemas/*.md) and "
-    "exits non-zero when anything is wrong.",
+    "With --check it validates each file against the table of its schema (lib/schema.c, the "
+    "same as schemas/*.md): every dataset and attribute must be in it, with its type, shape "
+    "and units; it exits non-zero when anything is wrong.",
     groups,
     "crom-mesh box | crom-info -\n"
     "crom-info --check traj.h5 model.h5\n"
@@ -93,7 +95,13 @@ static void print_attr_line(hid_t h, const char *name, const char *label)
     double v[3];
     long long i;
     if (!crom_h5_get_str(h, ".", name, &s)) {
-        printf("  %-22s %s\n", label, s);
+        printf("  %-22s ", label);
+        for (const char *c = s; *c; c++)
+            if (*c == '\n')
+                printf("\n%25s", ""); /* continuation lines under the first */
+            else
+                putchar(*c);
+        putchar('\n');
         free(s);
     } else if (!crom_h5_get_i64(h, ".", name, &i) && !crom_h5_get_f64(h, ".", name, v, 1) &&
                v[0] == (double)i) {
@@ -264,7 +272,7 @@ static int check(const char *path)
     int rc = crom_in_open(&in, path);
     if (rc)
         return rc;
-    int v = crom_schema_check(&in, stdout);
+    int v = crom_validate_file(&in, stdout);
     if (v == 0)
         printf("%s: valid %s v%d\n", in.name, in.schema, in.version);
     else

@@ -284,10 +284,10 @@ static int put_frame(crom_out *o, crom_rsim *s, const crom_rstep_stats *st, int 
     return put_values(o, s->t, s->step, s->q, s->qd, K, E, W, st, entry);
 }
 
-/* The latent output's attributes and frame fields (elastic: what the
- * elastic energy sums over). */
+/* The latent output's attributes and frame fields (kind: the model's basis,
+ * NULL for a run over cubatures; units and descriptions are lib/schema.c's). */
 static int start_output(crom_out *o, const args *a, const char *model_id, int r, const char *solver,
-                        const char *elastic)
+                        const char *kind)
 {
     int rc = crom_h5_set_str(o->h5, ".", "model_id", model_id);
     if (!rc)
@@ -297,24 +297,14 @@ static int start_output(crom_out *o, const args *a, const char *model_id, int r,
     if (!rc)
         rc = crom_h5_set_str(o->h5, ".", "solver", solver);
     hsize_t dr = (hsize_t)r;
-    const struct {
-        const char *name, *units, *desc;
+    static const struct {
+        const char *name;
         int vec;
-    } f[] = {{"time", "s", "simulated time of each frame", 0},
-             {"step", "1", "time-step index (0 = initial state)", 0},
-             {"q", "m", "latent coordinates: u(X) = W(X) q", 1},
-             {"qdot", "m/s", "latent velocity (q_n - q_{n-1}) / h", 1},
-             {"kinetic_energy", "J", "1/2 qdot^T M_r qdot", 0},
-             {"elastic_energy", "J", elastic, 0},
-             {"external_energy", "J", "potential of gravity and applied forces, -f_r . q", 0},
-             {"total_energy", "J", "kinetic + elastic + external", 0},
-             {"iterations", "1", "solver iterations of the step", 0},
-             {"residual", "1", "last correction of the step: RMS displacement relative to the bounding-box diagonal", 0},
-             {"constraint_residual", "m", "largest distance of a pinned/prescribed vertex from its target", 0},
-             {"cubature", "1", "index of the schedule entry (cubature) in use", 0},
-             {"step_seconds", "s", "wall time of the step (0 when SOURCE_DATE_EPOCH is set)", 0}};
+    } f[] = {{"time", 0}, {"step", 0}, {"q", 1}, {"qdot", 1}, {"kinetic_energy", 0}, {"elastic_energy", 0},
+             {"external_energy", 0}, {"total_energy", 0}, {"iterations", 0}, {"residual", 0},
+             {"constraint_residual", 0}, {"cubature", 0}, {"step_seconds", 0}};
     for (size_t i = 0; i < sizeof f / sizeof *f && !rc; i++)
-        rc = crom_out_field(o, f[i].name, f[i].vec, &dr, f[i].units, f[i].desc);
+        rc = crom_out_field(o, f[i].name, f[i].vec, &dr, kind);
     if (!rc)
         rc = crom_out_begin(o);
     return rc;
@@ -381,8 +371,7 @@ static int run_map(crom_cli *cli, args *a)
     if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli, hist, a->kind)))
         goto out;
     have_out = 1;
-    if ((rc = start_output(&o, a, model.model_id, r, "gauss-newton",
-                          a->cub ? "elastic energy by cubature" : "elastic energy of every tet of the model's mesh")))
+    if ((rc = start_output(&o, a, model.model_id, r, "gauss-newton", model.basis)))
         goto out;
     crom_rstep_stats st = {0, 0, crom_nlsim_constraint_residual(&s), 0, 1};
     double K, E, W;
@@ -474,8 +463,7 @@ static int run(crom_cli *cli, args *a)
         free(list);
     }
     if (!rc)
-        rc = start_output(&o, a, sch[0].cub.model_id, r, a->solver == CROM_SOLVER_GD ? "gd" : "newton",
-                          "elastic energy by cubature");
+        rc = start_output(&o, a, sch[0].cub.model_id, r, a->solver == CROM_SOLVER_GD ? "gd" : "newton", NULL);
     crom_rstep_stats st = {0, 0, crom_rsim_constraint_residual(&s), 0, 1};
     if (!rc)
         rc = put_frame(&o, &s, &st, 0);

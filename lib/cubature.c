@@ -658,23 +658,23 @@ int crom_cub_write(hid_t loc, const crom_cub *c)
     hsize_t nv = (hsize_t)c->mesh.nv, k = (hsize_t)c->k, r = (hsize_t)c->r;
     hsize_t dW[3] = {nv, 3, r}, d9[3] = {k, 3, 3}, drr[2] = {r, r}, dr3[2] = {r, 3}, ds = (hsize_t)c->nsurf;
     if (!rc)
-        rc = crom_h5_write_f64(loc, "W", 3, dW, c->W, "1", "basis W(X) at every mesh vertex, [vertex][component][field]");
+        rc = crom_h5_put_f64(loc, "W", 3, dW, c->W);
     if (!rc)
-        rc = crom_h5_write_f64(loc, "lumped_volume", 1, &nv, c->vvol, "m^3", "sum of V_t/4 over the tets of each vertex (mass / density)");
+        rc = crom_h5_put_f64(loc, "lumped_volume", 1, &nv, c->vvol);
     if (!rc)
-        rc = crom_h5_write_i32(loc, "elements", 1, &k, c->elem, "1", "cubature tets: indices into mesh/tets");
+        rc = crom_h5_put_i32(loc, "elements", 1, &k, c->elem);
     if (!rc)
-        rc = crom_h5_write_f64(loc, "weights", 1, &k, c->weight, "1", "non-negative cubature weight of each tet");
+        rc = crom_h5_put_f64(loc, "weights", 1, &k, c->weight);
     if (!rc)
-        rc = crom_h5_write_f64(loc, "Dminv", 3, d9, c->Dminv, "1/m", "inverse rest edge matrix [X1-X0, X2-X0, X3-X0]^-1 of each cubature tet, row-major");
+        rc = crom_h5_put_f64(loc, "Dminv", 3, d9, c->Dminv);
     if (!rc)
-        rc = crom_h5_write_f64(loc, "volume", 1, &k, c->vol, "m^3", "rest volume of each cubature tet");
+        rc = crom_h5_put_f64(loc, "volume", 1, &k, c->vol);
     if (!rc)
-        rc = crom_h5_write_f64(loc, "WtVW", 2, drr, c->WtVW, "m^3", "sum over vertices of V_v W_v^T W_v: times density, the reduced mass matrix");
+        rc = crom_h5_put_f64(loc, "WtVW", 2, drr, c->WtVW);
     if (!rc)
-        rc = crom_h5_write_f64(loc, "WtV", 2, dr3, c->WtV, "m^3", "sum over vertices of V_v W_v^T: times density and gravity, the reduced gravity force");
+        rc = crom_h5_put_f64(loc, "WtV", 2, dr3, c->WtV);
     if (!rc)
-        rc = crom_h5_write_i32(loc, "surface", 1, &ds, c->surf, "1", "boundary vertices: the contact points checked against collision planes");
+        rc = crom_h5_put_i32(loc, "surface", 1, &ds, c->surf);
     return rc;
 }
 

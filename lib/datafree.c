@@ -534,19 +534,13 @@ int crom_df_write_record(hid_t loc, const crom_df_opts *o, const crom_df_problem
     }
     hsize_t d = (hsize_t)log->nblocks;
     if (!rc && d > 0) {
-        rc = crom_h5_write_f64(loc, "training/objective", 1, &d, log->objective, "1",
-                               "data-free objective (energy / reference energy + weighted penalties), "
-                               "mean over each block of steps");
+        rc = crom_h5_put_f64(loc, "training/objective", 1, &d, log->objective);
         if (!rc)
-            rc = crom_h5_write_f64(loc, "training/energy", 1, &d, log->energy, "J",
-                                   "mean energy of the batch samples over each block of steps");
+            rc = crom_h5_put_f64(loc, "training/energy", 1, &d, log->energy);
         if (!rc)
-            rc = crom_h5_write_f64(loc, "training/penalty", 1, &d, log->penalty, "1",
-                                   "mean unweighted penalty: squared log isometry ratio (energy) or "
-                                   "squared relative projection on the modes (neuralmodes)");
+            rc = crom_h5_put_f64(loc, "training/penalty", 1, &d, log->penalty);
         if (!rc)
-            rc = crom_h5_write_f64(loc, "training/seconds", 1, &d, log->seconds, "s",
-                                   "wall time at the end of each block of steps");
+            rc = crom_h5_put_f64(loc, "training/seconds", 1, &d, log->seconds);
     }
     return rc;
 }

@@ -14,6 +14,7 @@
 #include "clock.h"
 #include "err.h"
 #include "io.h"
+#include "schema.h"
 
 #define STREAM_MAGIC "CROMSTRM"
 #define STREAM_VERSION 1u
@@ -27,8 +28,9 @@ static const unsigned char hdf5_sig[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a,
  * Named outputs live under a temporary name until commit. If the program is
  * interrupted (SIGINT/SIGTERM/SIGHUP) the temporary files are removed so a
  * half-written file never stays behind. This small registry is the only
- * process-wide mutable state in the library; it exists for the signal
- * handler. */
+ * process-wide mutable state in io.c, and a global it must be: a signal
+ * handler is called with nothing but the signal number, so the names it
+ * removes can only be found in a global. */
 #define MAX_TMP 16
 static char *volatile tmp_registry[MAX_TMP];
 
@@ -43,13 +45,10 @@ static void cleanup_signal(int sig)
 
 static void tmp_register(char *path)
 {
-    static int installed;
-    if (!installed) {
-        signal(SIGINT, cleanup_signal);
-        signal(SIGTERM, cleanup_signal);
-        signal(SIGHUP, cleanup_signal);
-        installed = 1;
-    }
+    /* (again at every registration: installing the same handler twice is harmless) */
+    signal(SIGINT, cleanup_signal);
+    signal(SIGTERM, cleanup_signal);
+    signal(SIGHUP, cleanup_signal);
     for (int i = 0; i < MAX_TMP; i++)
         if (!tmp_registry[i]) {
             tmp_registry[i] = path;
@@ -107,13 +106,90 @@ int crom_h5_has_attr(hid_t loc, const char *obj, const char *name)
     return r;
 }
 
-static int set_attr(hid_t loc, const char *obj, const char *name, hid_t type,
+/* ------------------------------------------ the table of the file's type */
+
+/* The table of the crom file that holds loc: its root attribute `schema`
+ * looked up in schema.h. NULL for another HDF5 file (XDMF heavy data), or
+ * before `schema` is written. Quiet: records no error, so it may run while
+ * a failure is being reported. */
+static const crom_schema *file_schema(hid_t loc)
+{
+    const crom_schema *s = NULL;
+    hid_t root = H5Oopen(loc, "/", H5P_DEFAULT);
+    hid_t a = root >= 0 && H5Aexists(root, "schema") > 0 ? H5Aopen(root, "schema", H5P_DEFAULT) : -1;
+    hid_t ft = a >= 0 ? H5Aget_type(a) : -1;
+    if (ft >= 0 && H5Tget_class(ft) == H5T_STRING && H5Tis_variable_str(ft) > 0) {
+        hid_t mt = H5Tcopy(H5T_C_S1);
+        H5Tset_size(mt, H5T_VARIABLE);
+        H5Tset_cset(mt, H5Tget_cset(ft));
+        char *name = NULL;
+        if (H5Aread(a, mt, &name) >= 0 && name) {
+            s = crom_schema_find(name);
+            H5free_memory(name);
+        }
+        H5Tclose(mt);
+    }
+    if (ft >= 0)
+        H5Tclose(ft);
+    if (a >= 0)
+        H5Aclose(a);
+    if (root >= 0)
+        H5Oclose(root);
+    return s;
+}
+
+/* The path of name under loc relative to the root, without a leading '/'
+ * ("" for the root itself). */
+static int object_path(hid_t loc, const char *name, char *path, size_t n)
+{
+    char base[512];
+    hid_t o = H5Oopen(loc, ".", H5P_DEFAULT); /* a file id names its root group */
+    ssize_t len = o < 0 ? -1 : H5Iget_name(o, base, sizeof base);
+    if (o >= 0)
+        H5Oclose(o);
+    if (len < 1 || (size_t)len >= sizeof base)
+        return crom_err(CROM_EINTERNAL, "cannot name the HDF5 object holding '%s'", name);
+    const char *b = base + (base[0] == '/');
+    int k = snprintf(path, n, "%s%s%s", b, *b && *name ? "/" : "", name);
+    return k < 0 || (size_t)k >= n ? crom_err(CROM_EINTERNAL, "path of '%s' too long", name) : 0;
+}
+
+/* Attribute `name` of type `type` ("str", "i64", "f64", "f64[3]") on object o
+ * of a crom file must be in its table: a root attribute, an attribute of
+ * that object, or the units and description of a dataset. */
+static int check_attr_documented(hid_t o, const char *name, const char *type)
+{
+    const crom_schema *s = file_schema(o);
+    if (!s)
+        return 0;
+    char path[512];
+    int rc = object_path(o, "", path, sizeof path);
+    if (rc)
+        return rc;
+    if (*path && H5Iget_type(o) == H5I_DATASET && (!strcmp(name, "units") || !strcmp(name, "description")))
+        return 0;
+    const crom_schema_attr *a = crom_schema_attr_find(s, *path ? path : NULL, name);
+    if (!a)
+        return crom_err(CROM_EINTERNAL, "cannot write attribute '%s' of /%s: %s does not list it (lib/schema.c)",
+                        name, path, s->schema);
+    if (strcmp(a->type, type))
+        return crom_err(CROM_EINTERNAL, "cannot write attribute '%s' of /%s as %s: %s lists it as %s", name, path,
+                        type, s->schema, a->type);
+    return 0;
+}
+
+static int set_attr(hid_t loc, const char *obj, const char *name, const char *schema_type, hid_t type,
                     hid_t space, const void *buf)
 {
     hid_t o = open_obj(loc, obj);
     if (o < 0)
         return crom_err(CROM_EINTERNAL, "cannot open object '%s' for attribute '%s'",
                         obj ? obj : ".", name);
+    int checked = check_attr_documented(o, name, schema_type);
+    if (checked) {
+        H5Oclose(o);
+        return checked;
+    }
     if (H5Aexists(o, name) > 0)
         H5Adelete(o, name);
     hid_t a = H5Acreate2(o, name, type, space, H5P_DEFAULT, H5P_DEFAULT);
@@ -132,7 +208,7 @@ int crom_h5_set_str(hid_t loc, const char *obj, const char *name, const char *va
     H5Tset_size(t, H5T_VARIABLE);
     H5Tset_cset(t, H5T_CSET_UTF8);
     hid_t s = H5Screate(H5S_SCALAR);
-    int rc = set_attr(loc, obj, name, t, s, &value);
+    int rc = set_attr(loc, obj, name, "str", t, s, &value);
     H5Sclose(s);
     H5Tclose(t);
     return rc;
@@ -201,7 +277,10 @@ int crom_h5_set_f64(hid_t loc, const char *obj, const char *name, const double *
 {
     hsize_t d = (hsize_t)n;
     hid_t s = n == 1 ? H5Screate(H5S_SCALAR) : H5Screate_simple(1, &d, NULL);
-    int rc = set_attr(loc, obj, name, H5T_NATIVE_DOUBLE, s, v);
+    char type[16] = "f64";
+    if (n != 1)
+        snprintf(type, sizeof type, "f64[%d]", n);
+    int rc = set_attr(loc, obj, name, type, H5T_NATIVE_DOUBLE, s, v);
     H5Sclose(s);
     return rc;
 }
@@ -209,7 +288,7 @@ int crom_h5_set_f64(hid_t loc, const char *obj, const char *name, const double *
 int crom_h5_set_i64(hid_t loc, const char *obj, const char *name, long long v)
 {
     hid_t s = H5Screate(H5S_SCALAR);
-    int rc = set_attr(loc, obj, name, H5T_NATIVE_LLONG, s, &v);
+    int rc = set_attr(loc, obj, name, "i64", H5T_NATIVE_LLONG, s, &v);
     H5Sclose(s);
     return rc;
 }
@@ -323,9 +402,8 @@ hid_t crom_h5_group(hid_t loc, const char *name)
     return g;
 }
 
-int crom_h5_write(hid_t loc, const char *name, hid_t memtype, int rank,
-                  const hsize_t *dims, const void *data, const char *units,
-                  const char *description)
+static int write_dset(hid_t loc, const char *name, hid_t memtype, int rank, const hsize_t *dims,
+                      const void *data, const char *units, const char *description)
 {
     hid_t s = rank == 0 ? H5Screate(H5S_SCALAR) : H5Screate_simple(rank, dims, NULL);
     hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
@@ -355,6 +433,72 @@ int crom_h5_write(hid_t loc, const char *name, hid_t memtype, int rank,
         H5Dclose(d);
     }
     return rc;
+}
+
+int crom_h5_write(hid_t loc, const char *name, hid_t memtype, int rank,
+                  const hsize_t *dims, const void *data, const char *units,
+                  const char *description)
+{
+    const crom_schema *s = file_schema(loc);
+    if (s)
+        return crom_err(CROM_EINTERNAL, "dataset '%s' of a %s file: write it with crom_h5_put_*, "
+                        "which take its units and description from lib/schema.c", name, s->schema);
+    return write_dset(loc, name, memtype, rank, dims, data, units, description);
+}
+
+/* The number of dimensions of a table shape ("nv,3" has 2). */
+static int shape_rank(const char *shape)
+{
+    int n = 1;
+    for (const char *c = shape; *c; c++)
+        n += *c == ',';
+    return n;
+}
+
+/* The row of the table of loc's file for dataset `name` under loc, of
+ * dtype `type` and `rank` dimensions; its full path goes to path. */
+static int table_row(hid_t loc, const char *name, const char *type, int rank, const char *kind,
+                     const crom_schema_dset **row, char *path, size_t n)
+{
+    const crom_schema *s = file_schema(loc);
+    if (!s)
+        return crom_err(CROM_EINTERNAL, "cannot write dataset '%s': not in a crom file", name);
+    int rc = object_path(loc, name, path, n);
+    if (rc)
+        return rc;
+    const crom_schema_dset *d = crom_schema_dset_find(s, path, kind);
+    if (!d)
+        return crom_err(CROM_EINTERNAL, "cannot write dataset /%s: %s does not list it (lib/schema.c)", path,
+                        s->schema);
+    if (strcmp(d->type, type) || shape_rank(d->shape) != rank)
+        return crom_err(CROM_EINTERNAL, "cannot write dataset /%s as %s of rank %d: %s lists it as %s [%s]",
+                        path, type, rank, s->schema, d->type, d->shape);
+    *row = d;
+    return 0;
+}
+
+static int put(hid_t loc, const char *name, hid_t memtype, const char *type, int rank,
+               const hsize_t *dims, const void *data)
+{
+    const crom_schema_dset *d;
+    char path[512];
+    int rc = table_row(loc, name, type, rank, NULL, &d, path, sizeof path);
+    return rc ? rc : write_dset(loc, name, memtype, rank, dims, data, d->units, d->meaning);
+}
+
+int crom_h5_put_f64(hid_t loc, const char *name, int rank, const hsize_t *dims, const double *data)
+{
+    return put(loc, name, H5T_NATIVE_DOUBLE, "f64", rank, dims, data);
+}
+
+int crom_h5_put_f32(hid_t loc, const char *name, int rank, const hsize_t *dims, const float *data)
+{
+    return put(loc, name, H5T_NATIVE_FLOAT, "f32", rank, dims, data);
+}
+
+int crom_h5_put_i32(hid_t loc, const char *name, int rank, const hsize_t *dims, const int *data)
+{
+    return put(loc, name, H5T_NATIVE_INT, "i32", rank, dims, data);
 }
 
 int crom_h5_write_f64(hid_t loc, const char *name, int rank, const hsize_t *dims,
@@ -844,14 +988,15 @@ void crom_in_close(crom_in *in)
 
 /* ================================================================= outputs */
 
-static int core_counter;
-
-static hid_t create_core(void)
+/* An HDF5 file in memory for output o. HDF5 refuses to create a file under
+ * the name of one it has open, even in memory, so the name is made unique
+ * from o's address (no two live outputs share it); it is stored nowhere. */
+static hid_t create_core(const crom_out *o)
 {
     hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
     H5Pset_fapl_core(fapl, 1 << 20, 0);
     char name[64];
-    snprintf(name, sizeof name, "crom-image-%d-%d", (int)getpid(), ++core_counter);
+    snprintf(name, sizeof name, "crom-image-%d-%p", (int)getpid(), (const void *)o);
     hid_t f = H5Fcreate(name, H5F_ACC_TRUNC, H5P_DEFAULT, fapl);
     H5Pclose(fapl);
     return f;
@@ -1049,7 +1194,7 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
     if (o->form == CROM_FORM_H5 && !o->to_stdout)
         o->h5 = H5Fcreate(o->tmp, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     else
-        o->h5 = create_core();
+        o->h5 = create_core(o);
     if (o->h5 < 0) {
         rc = crom_err(CROM_ECANTCREAT, "cannot create %s", o->name);
         drop_tmp(o);
@@ -1073,13 +1218,19 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
 }
 
 int crom_out_field(crom_out *o, const char *name, int rank, const hsize_t *dims,
-                   const char *units, const char *description)
+                   const char *kind)
 {
     if (!o->series || o->begun)
         return crom_err(CROM_EINTERNAL, "crom_out_field('%s') on a non-series or begun output", name);
     if (o->nfields == CROM_MAX_FIELDS || rank > CROM_MAX_RANK - 1 ||
         strlen(name) >= sizeof o->fields[0].name)
         return crom_err(CROM_EINTERNAL, "too many or too large frame fields");
+    const crom_schema_dset *row;
+    char rel[sizeof o->fields[0].name + 8], path[sizeof rel];
+    snprintf(rel, sizeof rel, "frames/%s", name);
+    int rc = table_row(o->h5, rel, "f64", rank + 1, kind, &row, path, sizeof path);
+    if (rc)
+        return rc;
     crom_field *f = &o->fields[o->nfields];
     snprintf(f->name, sizeof f->name, "%s", name);
     f->rank = rank;
@@ -1111,11 +1262,9 @@ int crom_out_field(crom_out *o, const char *name, int rank, const hsize_t *dims,
     H5Gclose(g);
     if (f->dset < 0)
         return crom_err(CROM_EINTERNAL, "cannot create frame field '%s'", name);
-    int rc = 0;
-    if (units)
-        rc = crom_h5_set_str(f->dset, ".", "units", units);
-    if (!rc && description)
-        rc = crom_h5_set_str(f->dset, ".", "description", description);
+    rc = crom_h5_set_str(f->dset, ".", "units", row->units);
+    if (!rc)
+        rc = crom_h5_set_str(f->dset, ".", "description", row->meaning);
     o->frame_len += f->count;
     o->nfields++;
     return rc;

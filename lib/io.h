@@ -132,10 +132,13 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
                     int version, const crom_cli *cli,
                     const char *parent_history, int kind);
 
-/* Declare a per-frame field (series only, before crom_out_begin). dims may be
- * NULL for rank 0. units/description are stored as dataset attributes. */
+/* Declare a per-frame field /frames/<name> (series only, before
+ * crom_out_begin). dims may be NULL for rank 0. Its `units` and `description`
+ * attributes are those of the row of the output's schema table (schema.h) for
+ * model kind `kind` (a `basis` name, or NULL); a field the table does not
+ * list, or lists with another rank, is CROM_EINTERNAL. */
 int crom_out_field(crom_out *o, const char *name, int rank, const hsize_t *dims,
-                   const char *units, const char *description);
+                   const char *kind);
 
 /* End of static content: for a stream this writes the header. */
 int crom_out_begin(crom_out *o);
@@ -177,9 +180,26 @@ void crom_fileout_abort(crom_fileout *o);
 int crom_out_finish_run(crom_out *o, crom_fileout *stats, int rc);
 
 /* ---------------------------------------------------------- HDF5 helpers
- * Each returns 0 or an error code with a message naming the object. Datasets
- * get `units` and `description` attributes when those are non-NULL. */
+ * Each returns 0 or an error code with a message naming the object.
+ *
+ * Datasets of a crom file (loc is its root or a group in it, and its root
+ * attribute `schema` names a type of schema.h): crom_h5_put_* write dataset
+ * `name` (a path relative to loc) with the dtype and rank the table gives
+ * for it, and its `units` and `description` attributes from the table; a
+ * dataset the table does not list, or lists with another dtype or rank, is
+ * CROM_EINTERNAL. Attributes set with crom_h5_set_* on a crom file must be
+ * in its table too (with that type), besides the units and description of
+ * a dataset. */
+int crom_h5_put_f64(hid_t loc, const char *name, int rank, const hsize_t *dims,
+                    const double *data);
+int crom_h5_put_f32(hid_t loc, const char *name, int rank, const hsize_t *dims,
+                    const float *data);
+int crom_h5_put_i32(hid_t loc, const char *name, int rank, const hsize_t *dims,
+                    const int *data);
 
+/* Datasets of any other HDF5 file (XDMF heavy data): `units` and
+ * `description` attributes when those are non-NULL. Refuses a crom file
+ * (CROM_EINTERNAL: its datasets are written with crom_h5_put_*). */
 int crom_h5_write(hid_t loc, const char *name, hid_t memtype, int rank,
                   const hsize_t *dims, const void *data, const char *units,
                   const char *description);

@@ -614,11 +614,9 @@ int crom_mesh_select(const crom_mesh *m, const char *ref, int **idx, int *n)
 int crom_mesh_write(hid_t loc, const crom_mesh *m)
 {
     hsize_t dv[2] = {(hsize_t)m->nv, 3}, dt[2] = {(hsize_t)m->nt, 4};
-    int rc = crom_h5_write_f64(loc, "vertices", 2, dv, m->X, "m",
-                               "rest positions X of the vertices");
+    int rc = crom_h5_put_f64(loc, "vertices", 2, dv, m->X);
     if (!rc)
-        rc = crom_h5_write_i32(loc, "tets", 2, dt, m->tets, "1",
-                               "0-based vertex indices of each tetrahedron, positively oriented");
+        rc = crom_h5_put_i32(loc, "tets", 2, dt, m->tets);
     if (rc)
         return rc;
     hid_t g = crom_h5_group(loc, "regions");
@@ -626,8 +624,7 @@ int crom_mesh_write(hid_t loc, const crom_mesh *m)
         return CROM_EINTERNAL;
     for (int r = 0; r < m->nregions && !rc; r++) {
         hsize_t d = (hsize_t)m->regions[r].n;
-        rc = crom_h5_write_i32(g, m->regions[r].name, 1, &d, m->regions[r].idx, "1",
-                               "sorted 0-based vertex indices of this named region");
+        rc = crom_h5_put_i32(g, m->regions[r].name, 1, &d, m->regions[r].idx);
         if (!rc)
             rc = crom_h5_set_str(g, m->regions[r].name, "source", m->regions[r].source);
     }

@@ -305,13 +305,13 @@ int crom_model_from_field_map(crom_model *m, const crom_nn_mlp *W, const crom_nn
     return 0;
 }
 
-static int write_widths(hid_t loc, const char *name, const crom_nn_spec *s, const char *desc)
+static int write_widths(hid_t loc, const char *name, const crom_nn_spec *s)
 {
     int w[CROM_NN_MAX_LAYERS + 1];
     for (int l = 0; l <= s->nlayers; l++)
         w[l] = s->width[l];
     hsize_t d = (hsize_t)s->nlayers + 1;
-    return crom_h5_write_i32(loc, name, 1, &d, w, "1", desc);
+    return crom_h5_put_i32(loc, name, 1, &d, w);
 }
 
 int crom_model_write(hid_t loc, crom_model *m)
@@ -342,11 +342,9 @@ int crom_model_write(hid_t loc, crom_model *m)
         hsize_t np = m->mlp.nparams, dr = (hsize_t)m->rank;
         rc = crom_h5_set_str(loc, ".", "activation", crom_nn_act_name(m->mlp.spec.act));
         if (!rc)
-            rc = write_widths(loc, "field/widths", &m->mlp.spec,
-                              "layer widths of the map's MLP: R^r -> R^(3nv), input first");
+            rc = write_widths(loc, "field/widths", &m->mlp.spec);
         if (!rc)
-            rc = crom_h5_write_f32(loc, "field/params", 1, &np, m->mlp.params, "1",
-                                   "all MLP weights and biases, layer by layer (W row-major [out][in], then b)");
+            rc = crom_h5_put_f32(loc, "field/params", 1, &np, m->mlp.params);
         if (!rc) {
             hid_t g = crom_h5_group(loc, "field/mesh");
             rc = g < 0 ? CROM_EINTERNAL : crom_mesh_write(g, &m->mesh);
@@ -355,12 +353,10 @@ int crom_model_write(hid_t loc, crom_model *m)
         }
         if (!rc && m->basis_v) {
             hsize_t db[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)m->rank};
-            rc = crom_h5_write_f64(loc, "field/basis", 3, db, m->basis_v, "1",
-                                   "linear part W of the map at the mesh vertices, [nv][3][r]");
+            rc = crom_h5_put_f64(loc, "field/basis", 3, db, m->basis_v);
         }
         if (!rc && m->frequencies)
-            rc = crom_h5_write_f64(loc, "frequencies", 1, &dr, m->frequencies, "Hz",
-                                   "natural frequencies of the linear modes");
+            rc = crom_h5_put_f64(loc, "frequencies", 1, &dr, m->frequencies);
     } else if (m->field == CROM_FIELD_MLP || m->field == CROM_FIELD_CMAP) {
         const crom_nn_mlp *W = &m->mlp;
         double sh[3], sc[3];
@@ -371,51 +367,37 @@ int crom_model_write(hid_t loc, crom_model *m)
         hsize_t np = W->nparams, d3 = 3;
         rc = crom_h5_set_str(loc, ".", "activation", crom_nn_act_name(W->spec.act));
         if (!rc)
-            rc = write_widths(loc, "field/widths", &W->spec,
-                              "layer widths of the MLP W: R^3 -> R^(3r), input first");
+            rc = write_widths(loc, "field/widths", &W->spec);
         if (!rc)
-            rc = crom_h5_write_f32(loc, "field/params", 1, &np, W->params, "1",
-                                   "all MLP weights and biases, layer by layer (W row-major [out][in], then b)");
+            rc = crom_h5_put_f32(loc, "field/params", 1, &np, W->params);
         if (!rc)
-            rc = crom_h5_write_f64(loc, "field/input_shift", 1, &d3, sh, "m",
-                                   "input normalization: X_hat = (X - shift) / scale");
+            rc = crom_h5_put_f64(loc, "field/input_shift", 1, &d3, sh);
         if (!rc)
-            rc = crom_h5_write_f64(loc, "field/input_scale", 1, &d3, sc, "m",
-                                   "input normalization scale");
+            rc = crom_h5_put_f64(loc, "field/input_scale", 1, &d3, sc);
         if (!rc && m->field == CROM_FIELD_CMAP) {
             hsize_t nl = m->latent.nparams;
-            rc = write_widths(loc, "latent/widths", &m->latent.spec,
-                              "layer widths of the latent network phi: R^r -> R^p, input first");
+            rc = write_widths(loc, "latent/widths", &m->latent.spec);
             if (!rc)
-                rc = crom_h5_write_f32(loc, "latent/params", 1, &nl, m->latent.params, "1",
-                                       "all weights and biases of phi, layer by layer (W row-major [out][in], then b)");
+                rc = crom_h5_put_f32(loc, "latent/params", 1, &nl, m->latent.params);
             hsize_t dp[2] = {(hsize_t)m->npin_points, 3}, d1 = 1;
             if (!rc && m->npin_points)
-                rc = crom_h5_write_f64(loc, "latent/pin_points", 2, dp, m->pin_points, "m",
-                                       "pinned training vertices: the field is masked by smoothstep(d / pin_length), "
-                                       "d the distance to the nearest");
+                rc = crom_h5_put_f64(loc, "latent/pin_points", 2, dp, m->pin_points);
             hsize_t dt[3] = {(hsize_t)m->npin_triangles, 3, 3};
             if (!rc && m->npin_triangles)
-                rc = crom_h5_write_f64(loc, "latent/pin_triangles", 3, dt, m->pin_triangles, "m",
-                                       "pinned boundary triangles of the training mesh (corners), part of the mask");
+                rc = crom_h5_put_f64(loc, "latent/pin_triangles", 3, dt, m->pin_triangles);
             if (!rc)
-                rc = crom_h5_write_f64(loc, "latent/pin_length", 1, &d1, &m->pin_length, "m",
-                                       "width of the pin mask");
+                rc = crom_h5_put_f64(loc, "latent/pin_length", 1, &d1, &m->pin_length);
         }
     } else {
         hsize_t dv[2] = {(hsize_t)m->mesh.nv, 3}, dt[2] = {(hsize_t)m->mesh.nt, 4};
         hsize_t db[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)m->rank}, dr = (hsize_t)m->rank;
-        rc = crom_h5_write_f64(loc, "field/mesh/vertices", 2, dv, m->mesh.X, "m",
-                               "mesh of a piecewise-linear basis");
+        rc = crom_h5_put_f64(loc, "field/mesh/vertices", 2, dv, m->mesh.X);
         if (!rc)
-            rc = crom_h5_write_i32(loc, "field/mesh/tets", 2, dt, m->mesh.tets, "1",
-                                   "tetrahedra of that mesh");
+            rc = crom_h5_put_i32(loc, "field/mesh/tets", 2, dt, m->mesh.tets);
         if (!rc)
-            rc = crom_h5_write_f64(loc, "field/basis", 3, db, m->basis_v, "1",
-                                   "basis vectors at the mesh vertices, [nv][3][r]");
+            rc = crom_h5_put_f64(loc, "field/basis", 3, db, m->basis_v);
         if (!rc && m->frequencies)
-            rc = crom_h5_write_f64(loc, "frequencies", 1, &dr, m->frequencies, "Hz",
-                                   "natural frequencies of linear modes");
+            rc = crom_h5_put_f64(loc, "frequencies", 1, &dr, m->frequencies);
     }
     if (!rc && m->encoder == CROM_ENC_POINTNET) {
         const crom_nn_pointnet *P = &m->enc;
@@ -425,28 +407,21 @@ int crom_model_write(hid_t loc, crom_model *m)
             sc[i] = P->point.scale[i];
         }
         hsize_t np = P->nparams, d6 = 6;
-        rc = write_widths(loc, "encoder/point_widths", &P->point.spec,
-                          "PointNet per-point MLP widths (6 -> ...)");
+        rc = write_widths(loc, "encoder/point_widths", &P->point.spec);
         if (!rc)
-            rc = write_widths(loc, "encoder/head_widths", &P->head.spec,
-                              "PointNet head MLP widths (... -> r)");
+            rc = write_widths(loc, "encoder/head_widths", &P->head.spec);
         if (!rc)
-            rc = crom_h5_write_f32(loc, "encoder/params", 1, &np, P->params, "1",
-                                   "all PointNet parameters: per-point MLP, then head");
+            rc = crom_h5_put_f32(loc, "encoder/params", 1, &np, P->params);
         if (!rc)
-            rc = crom_h5_write_f64(loc, "encoder/input_shift", 1, &d6, sh, "m",
-                                   "PointNet input normalization of (X, u): (p - shift) / scale");
+            rc = crom_h5_put_f64(loc, "encoder/input_shift", 1, &d6, sh);
         if (!rc)
-            rc = crom_h5_write_f64(loc, "encoder/input_scale", 1, &d6, sc, "m",
-                                   "PointNet input normalization scale");
+            rc = crom_h5_put_f64(loc, "encoder/input_scale", 1, &d6, sc);
     }
     if (!rc && m->nepochs > 0) {
         hsize_t de = (hsize_t)m->nepochs;
-        rc = crom_h5_write_f64(loc, "training/loss", 1, &de, m->loss, "m^2",
-                               "training loss per epoch (mean squared displacement error)");
+        rc = crom_h5_put_f64(loc, "training/loss", 1, &de, m->loss);
         if (!rc)
-            rc = crom_h5_write_f64(loc, "training/seconds", 1, &de, m->seconds, "s",
-                                   "wall time at the end of each epoch");
+            rc = crom_h5_put_f64(loc, "training/seconds", 1, &de, m->seconds);
     }
     return rc;
 }

@@ -65,19 +65,15 @@ int crom_samples_write(hid_t loc, const crom_samples *s)
         rc = crom_h5_set_i64(loc, ".", "seed", s->seed);
     hsize_t d3[3] = {(hsize_t)s->F, (hsize_t)s->N, 3}, d1 = (hsize_t)s->F;
     if (!rc)
-        rc = crom_h5_write_f32(loc, "points", 3, d3, s->X, "m", "rest positions X of the samples");
+        rc = crom_h5_put_f32(loc, "points", 3, d3, s->X);
     if (!rc)
-        rc = crom_h5_write_f32(loc, "displacements", 3, d3, s->U, "m",
-                               "displacement u(X) at the samples");
+        rc = crom_h5_put_f32(loc, "displacements", 3, d3, s->U);
     if (!rc)
-        rc = crom_h5_write_i32(loc, "vertex", 2, d3, s->vertex, "1",
-                               "vertex index of each sample in its source mesh, -1 for interior points");
+        rc = crom_h5_put_i32(loc, "vertex", 2, d3, s->vertex);
     if (!rc)
-        rc = crom_h5_write_i32(loc, "frame_source", 1, &d1, s->source, "1",
-                               "which source (index into /sources) each frame comes from");
+        rc = crom_h5_put_i32(loc, "frame_source", 1, &d1, s->source);
     if (!rc)
-        rc = crom_h5_write_f64(loc, "frame_time", 1, &d1, s->time, "s",
-                               "simulated time of each frame");
+        rc = crom_h5_put_f64(loc, "frame_time", 1, &d1, s->time);
     hid_t g = rc ? -1 : crom_h5_group(loc, "sources");
     if (!rc && g < 0)
         rc = CROM_EINTERNAL;
@@ -91,10 +87,9 @@ int crom_samples_write(hid_t loc, const crom_samples *s)
         }
         const crom_mesh *m = &s->src[k];
         hsize_t dv[2] = {(hsize_t)m->nv, 3}, dt[2] = {(hsize_t)m->nt, 4};
-        rc = crom_h5_write_f64(sg, "vertices", 2, dv, m->X, "m",
-                               "rest positions of the source trajectory's mesh");
+        rc = crom_h5_put_f64(sg, "vertices", 2, dv, m->X);
         if (!rc)
-            rc = crom_h5_write_i32(sg, "tets", 2, dt, m->tets, "1", "tetrahedra of that mesh");
+            rc = crom_h5_put_i32(sg, "tets", 2, dt, m->tets);
         if (!rc)
             rc = crom_h5_set_str(sg, ".", "file", s->src_file && s->src_file[k] ? s->src_file[k] : "");
         H5Gclose(sg);

@@ -57,7 +57,7 @@ def main():
     with h5py.File(a.mesh, "r") as m:
         X = m["vertices"][()]
         T = m["tets"][()]
-        regions = {k: m["regions"][k][()] for k in m.get("regions", {})}
+        regions = {k: (m["regions"][k][()], m["regions"][k].attrs["source"]) for k in m.get("regions", {})}
     phi, L = basis(X)
     K = a.modes
     rng = np.random.default_rng(a.seed)
@@ -87,10 +87,16 @@ def main():
         f.attrs["poisson"] = 0.3
         f.attrs["density"] = 1000.0
         f.attrs["gravity"] = np.zeros(3)
+        # units and descriptions as lib/schema.c has them (crom-info --check)
         f["mesh/vertices"] = X
+        f["mesh/vertices"].attrs.update(units="m", description="rest positions X of the vertices")
         f["mesh/tets"] = T
-        for k, v in regions.items():
+        f["mesh/tets"].attrs.update(units="1", description="0-based vertex indices of each tetrahedron, "
+                                    "positively oriented")
+        for k, (v, source) in regions.items():
             f["mesh/regions/" + k] = v
+            f["mesh/regions/" + k].attrs.update(units="1", source=source,
+                                                description="sorted 0-based vertex indices of this named region")
         g = f.create_group("frames")
         g.attrs["fields"] = ",".join(FIELDS)
         data = {"time": np.arange(F) * dt, "step": np.arange(F, dtype=float),

@@ -1,98 +1,89 @@
 #!/usr/bin/env bash
-# schemas.sh — keep schemas/*.md in step with the tables in lib/schema.c.
+# schemas.sh — schemas/*.md, the table in lib/schema.c and the files the
+# programs write say the same thing.
 #
-# For every schema in `specs[]` of lib/schema.c, schemas/<type>.md (crom/mesh ->
-# mesh.md) must say `schema` = `crom/<type>`, `schema_version` = N with the
-# table's version, and its tables must hold exactly the table's rows:
-#   | path | dtype | shape | units | required | meaning |   same path, dtype, shape, units, required
-#   | name | type | required | meaning |                     same name, type, required
-# Doc paths start with '/' and write a group member as <name> where the C table
-# writes '*'; shapes are written [nv, 3] for "nv,3". schemas/README.md must list
-# every schema and its document, and schemas/stream.md must carry io.c's
-# STREAM_VERSION. Any mismatch is named, and the test fails.
-set -euo pipefail
-cd "${CROM_TOP:-$(dirname "$0")/../..}"
+# 1. Documents against the table (`test_schema --dump` prints it). For every
+#    schema, schemas/<type>.md (crom/mesh -> mesh.md) must say `schema` =
+#    `crom/<type>`, `schema_version` = N with the table's version, and its
+#    tables must hold exactly the table's rows, with the same words:
+#      | path | dtype | shape | units | required | meaning |       by path and units
+#      | name | type | required | meaning |                       root attributes, by name
+#      | object | name | type | required | meaning |              other attributes
+#    The meaning cell, without its backticks, is the table's meaning (which
+#    every file carries as the dataset's `description`). Doc paths start with
+#    '/' and write a group member as <name> where the table writes '*';
+#    shapes are written [nv, 3] for "nv,3". schemas/README.md must list every
+#    schema and hold the attributes of every file; schemas/stream.md must
+#    carry io.c's STREAM_VERSION.
+# 2. Files the programs write: every writer, every model kind, both series
+#    forms. Each passes crom-info --check (which reports any dataset or
+#    attribute the table lacks, and units other than the table's), and each
+#    dataset's units and description are its row's, word for word — for q of
+#    a data-free latent, the dimensionless row.
+# 3. crom-info --check fails on an undocumented dataset, root attribute or
+#    attribute of an object, on wrong units, a missing description and a
+#    missing required attribute of an object.
+. "$CROM_TOP/tests/prog/common.bash"
+TOP=$CROM_TOP
+DUMPER="${CROM_BUILD:-$TOP/build}/tests/test_schema"
+[ -x "$DUMPER" ] || fail "$DUMPER is not built (make $DUMPER)"
+"$DUMPER" --dump >"$TMP/table.tsv" || fail "test_schema --dump"
 
-/usr/bin/python3 - lib/schema.c lib/io.c schemas <<'EOF'
+# ------------------------------------------------- 1. documents and the table
+$PY - "$TMP/table.tsv" "$TOP/lib/io.c" "$TOP/schemas" <<'EOF' || fail "schemas/ and lib/schema.c disagree"
 import os, re, sys
 
-csrc, iosrc, docdir = sys.argv[1:4]
+table, iosrc, docdir = sys.argv[1:4]
 errors = []
+err = errors.append
 
-def err(msg):
-    errors.append(msg)
+specs, dsets, attrs = [], {}, {}
+for line in open(table):
+    f = line.rstrip('\n').split('\t')
+    if f[0] == 'schema':
+        specs.append((f[1], int(f[2])))
+    elif f[0] == 'dset':
+        _, s, path, dtype, shape, req, units, kinds, meaning = f
+        dsets.setdefault(s, []).append(dict(path=path, dtype=dtype, shape=shape, req=int(req), units=units,
+                                            kinds=kinds, meaning=meaning))
+    elif f[0] == 'attr':
+        _, s, obj, name, typ, req, meaning = f
+        attrs.setdefault(s, []).append(dict(obj=None if obj == '-' else obj, name=name, type=typ, req=int(req),
+                                            meaning=meaning))
+if len(specs) < 6 or '*' not in attrs:
+    sys.exit(f"schemas.sh: the table dump holds {len(specs)} schemas; expected 6 and the common attributes")
 
-# ------------------------------------------------------------- the C tables
-TOKEN = re.compile(r'"((?:[^"\\]|\\.)*)"|(-?\d+)|(NULL)|([A-Za-z_]\w*)|(\{)|(\})|(,)|/\*.*?\*/|//[^\n]*',
-                   re.S)  # comments match as nothing, after strings (so "a/*b" stays a string)
-
-def c_rows(body):
-    """Split the body of an array initializer into rows (lists of values);
-    adjacent string literals are joined, as the C compiler does."""
-    rows, row, depth, last_str = [], None, 0, False
-    for m in TOKEN.finditer(body):
-        s, num, null, ident, lb, rb, comma = m.groups()
-        if not any(g is not None for g in m.groups()):
-            continue  # a comment
-        if lb:
-            depth += 1
-            if depth == 1:
-                row = []
-        elif rb:
-            depth -= 1
-            if depth == 0:
-                rows.append(row)
-        elif depth == 1:
-            if s is not None:
-                if last_str:
-                    row[-1] += s
-                else:
-                    row.append(s)
-            elif num is not None:
-                row.append(int(num))
-            elif null:
-                row.append(None)
-            elif ident:
-                row.append(ident)
-        last_str = s is not None
-    return [r for r in rows if r and r[0] is not None]   # drop the sentinel
-
-src = open(csrc).read()
-arrays = {}
-for m in re.finditer(r'static\s+const\s+crom_schema(?:_(attr|dset))?\s+(\w+)\s*\[\s*\]\s*=\s*\{(.*?)\};',
-                     src, re.S):
-    arrays[m.group(2)] = (m.group(1) or 'spec', c_rows(m.group(3)))
-specs = arrays.get('specs', (None, []))[1]
-if len(specs) < 6:
-    sys.exit(f"schemas.sh: parsed {len(specs)} schemas from {csrc}; the parser no longer "
-             "understands its tables (expected specs[] rows like "
-             '{"crom/mesh", 1, "summary", mesh_attrs, mesh_dsets, 0})')
-
-# ------------------------------------------------------------ the documents
 def cells(line):
     parts = re.split(r'(?<!\\)\|', line.strip())
     return [c.strip() for c in parts[1:-1]]
 
 def plain(c):
-    return c.replace('`', '').strip()
+    return c.replace('`', '').replace('\\|', '|').strip()
+
+HEADS = {('path', 'dtype', 'shape', 'units', 'required', 'meaning'): 'dset',
+         ('name', 'type', 'required', 'meaning'): 'attr',
+         ('object', 'name', 'type', 'required', 'meaning'): 'objattr'}
 
 def doc_tables(text):
-    """Rows of the dataset tables and of the attribute tables of a document."""
-    dsets, attrs = [], []
+    """Rows of the dataset, attribute and other-attribute tables of a document."""
+    out = {'dset': [], 'attr': [], 'objattr': []}
     lines = text.split('\n')
     i = 0
     while i < len(lines):
-        head = [plain(c).lower() for c in cells(lines[i])] if lines[i].startswith('|') else []
-        kind = ('dset' if head[:5] == ['path', 'dtype', 'shape', 'units', 'required'] else
-                'attr' if head[:3] == ['name', 'type', 'required'] else None)
+        head = tuple(plain(c).lower() for c in cells(lines[i])) if lines[i].startswith('|') else ()
+        kind = HEADS.get(head)
         if not kind:
             i += 1
             continue
         i += 2  # header and |---| rule
         while i < len(lines) and lines[i].startswith('|'):
-            (dsets if kind == 'dset' else attrs).append((i + 1, cells(lines[i])))
+            c = cells(lines[i])
+            if len(c) != len(head):
+                err(f"line {i + 1}: {len(c)} cells, expected {len(head)}")
+            else:
+                out[kind].append((i + 1, c))
             i += 1
-    return dsets, attrs
+    return out
 
 def norm_path(p):
     return re.sub(r'<[^>]*>', '*', plain(p)).lstrip('/')
@@ -106,14 +97,43 @@ def norm_req(r, where):
         err(f"{where}: required is '{r}', expected yes or no")
     return 1 if r == 'yes' else 0
 
-def show_shape(s):
-    return '[' + s.replace(',', ', ') + ']'
+def yn(r):
+    return 'yes' if r else 'no'
 
-for row in specs:
-    if len(row) != 6:
-        err(f"{csrc}: cannot read specs row {row}")
-        continue
-    schema, version, _summary, attrs_name, dsets_name, _series = row
+def same_meaning(where, what, doc, tab):
+    if plain(doc) != tab.replace('`', ''):
+        err(f"{where}: {what}: the meaning is\n    '{plain(doc)}' in the doc,\n    '{tab}' in lib/schema.c")
+
+def check_attrs(where_doc, rows, want, objects):
+    """rows: (line, cells) of a doc table; want: table rows; objects: other-attribute table."""
+    seen = set()
+    for ln, c in rows:
+        where = f"{where_doc}:{ln}"
+        if objects:
+            key = (norm_path(c[0]), plain(c[1]))
+            typ, req, meaning = c[2], c[3], c[4]
+        else:
+            key = (None, plain(c[0]))
+            typ, req, meaning = c[1], c[2], c[3]
+        label = f"attribute '{key[1]}'" + (f" of /{key[0]}" if key[0] else "")
+        if key in seen:
+            err(f"{where}: {label} is listed twice")
+        seen.add(key)
+        row = want.get(key)
+        if not row:
+            err(f"{where}: {label} is documented but not in lib/schema.c")
+            continue
+        if plain(typ) != row['type']:
+            err(f"{where}: {label}: type '{plain(typ)}' in the doc, '{row['type']}' in lib/schema.c")
+        if norm_req(req, where) != row['req']:
+            err(f"{where}: {label}: required '{plain(req)}' in the doc, {yn(row['req'])} in lib/schema.c")
+        same_meaning(where, label, meaning, row['meaning'])
+    for key, row in want.items():
+        if key not in seen:
+            err(f"{where_doc}: {'attribute' if not key[0] else 'attribute of /' + key[0]} '{key[1]}' "
+                f"({row['type']}) from lib/schema.c is not documented")
+
+for schema, version in specs:
     short = schema.split('/', 1)[1]
     doc = os.path.join(docdir, short + '.md')
     if not os.path.exists(doc):
@@ -123,104 +143,171 @@ for row in specs:
     m = re.search(r'^`schema` = `([^`]*)`, `schema_version` = (\d+)', text, re.M)
     if not m:
         err(f"{doc}: no line '`schema` = `{schema}`, `schema_version` = {version}'")
-    else:
-        if m.group(1) != schema:
-            err(f"{doc}: says schema {m.group(1)}, lib/schema.c has {schema}")
-        if int(m.group(2)) != version:
-            err(f"{doc}: says schema_version {m.group(2)}, lib/schema.c has {schema} v{version}")
+    elif m.group(1) != schema or int(m.group(2)) != version:
+        err(f"{doc}: says {m.group(1)} v{m.group(2)}, lib/schema.c has {schema} v{version}")
     t = re.search(r'^# (\S+) v(\d+)\s*$', text, re.M)
     if not t or t.group(1) != schema or int(t.group(2)) != version:
         err(f"{doc}: title should be '# {schema} v{version}'")
-
-    ddoc, adoc = doc_tables(text)
-    # datasets
-    want = {}
-    for d in arrays.get(dsets_name, (None, []))[1]:
-        if len(d) != 6:
-            err(f"{csrc}: {dsets_name}: cannot read row {d}")
-            continue
-        want[d[0]] = d
-    if not want:
-        err(f"{csrc}: no rows parsed for {dsets_name} ({schema})")
+    tabs = doc_tables(text)
+    # datasets, by path and units (a path has a second row for other model kinds)
+    want = {(d['path'], d['units']): d for d in dsets.get(schema, [])}
     seen = set()
-    for ln, c in ddoc:
+    for ln, c in tabs['dset']:
         where = f"{doc}:{ln}"
-        if len(c) < 5:
-            err(f"{where}: dataset row has {len(c)} columns, expected 6")
+        key = (norm_path(c[0]), plain(c[3]))
+        if key in seen:
+            err(f"{where}: /{key[0]} in {key[1]} is listed twice")
+        seen.add(key)
+        d = want.get(key)
+        if not d:
+            units = [u for p, u in want if p == key[0]]
+            err(f"{where}: /{key[0]} in units '{key[1]}' is documented but not in lib/schema.c"
+                + (f" (which has it in {', '.join(units)})" if units else ""))
             continue
-        path = norm_path(c[0])
-        if path in seen:
-            err(f"{where}: /{path} is listed twice")
-        seen.add(path)
-        if path not in want:
-            err(f"{where}: /{path} is documented but not in {dsets_name} in lib/schema.c")
-            continue
-        _, dtype, shape, req, units, _ = want[path]
-        if plain(c[1]) != dtype:
-            err(f"{where}: /{path} dtype is '{plain(c[1])}' in the doc, '{dtype}' in lib/schema.c")
-        if norm_shape(c[2]) != shape:
-            err(f"{where}: /{path} shape is {c[2]} in the doc, {show_shape(shape)} in lib/schema.c")
-        if plain(c[3]) != units:
-            err(f"{where}: /{path} units are '{plain(c[3])}' in the doc, '{units}' in lib/schema.c")
-        if norm_req(c[4], where) != req:
-            err(f"{where}: /{path} required is '{plain(c[4])}' in the doc, "
-                f"{'yes' if req else 'no'} in lib/schema.c")
-    for path in want:
-        if path not in seen:
-            d = want[path]
-            err(f"{doc}: dataset /{path} ({d[1]} {show_shape(d[2])} {d[4]}) from {dsets_name} "
-                "in lib/schema.c is not documented")
-    # root attributes
-    want = {}
-    for a in arrays.get(attrs_name, (None, []))[1]:
-        if len(a) != 4:
-            err(f"{csrc}: {attrs_name}: cannot read row {a}")
-            continue
-        want[a[0]] = a
-    seen = set()
-    for ln, c in adoc:
-        where = f"{doc}:{ln}"
-        if len(c) < 3:
-            err(f"{where}: attribute row has {len(c)} columns, expected 4")
-            continue
-        name = plain(c[0])
-        if name in seen:
-            err(f"{where}: attribute '{name}' is listed twice")
-        seen.add(name)
-        if name not in want:
-            err(f"{where}: root attribute '{name}' is documented but not in {attrs_name} in lib/schema.c")
-            continue
-        _, typ, req, _ = want[name]
-        if plain(c[1]) != typ:
-            err(f"{where}: attribute '{name}' type is '{plain(c[1])}' in the doc, '{typ}' in lib/schema.c")
-        if norm_req(c[2], where) != req:
-            err(f"{where}: attribute '{name}' required is '{plain(c[2])}' in the doc, "
-                f"{'yes' if req else 'no'} in lib/schema.c")
-    for name in want:
-        if name not in seen:
-            err(f"{doc}: root attribute '{name}' ({want[name][1]}) from {attrs_name} "
-                "in lib/schema.c is not documented")
+        if plain(c[1]) != d['dtype']:
+            err(f"{where}: /{key[0]}: dtype '{plain(c[1])}' in the doc, '{d['dtype']}' in lib/schema.c")
+        if norm_shape(c[2]) != d['shape']:
+            err(f"{where}: /{key[0]}: shape {c[2]} in the doc, [{d['shape']}] in lib/schema.c")
+        if norm_req(c[4], where) != d['req']:
+            err(f"{where}: /{key[0]}: required '{plain(c[4])}' in the doc, {yn(d['req'])} in lib/schema.c")
+        same_meaning(where, f"/{key[0]}", c[5], d['meaning'])
+    for key, d in want.items():
+        if key not in seen:
+            err(f"{doc}: dataset /{key[0]} ({d['dtype']} [{d['shape']}] {d['units']}) from lib/schema.c "
+                "is not documented")
+    a = attrs.get(schema, [])
+    check_attrs(doc, tabs['attr'], {(None, r['name']): r for r in a if r['obj'] is None}, False)
+    check_attrs(doc, tabs['objattr'], {(r['obj'], r['name']): r for r in a if r['obj']}, True)
 
-# ------------------------------------------------------ README and stream.md
 readme = open(os.path.join(docdir, 'README.md')).read()
-for row in specs:
-    schema, version = row[0], row[1]
+for schema, version in specs:
     short = schema.split('/', 1)[1]
-    if not re.search(rf'^\| `{re.escape(schema)}` \| {version} \| \[{short}\.md\]\({short}\.md\)',
-                     readme, re.M):
-        err(f"{docdir}/README.md: the schema table lacks the row "
-            f"'| `{schema}` | {version} | [{short}.md]({short}.md) | …'")
+    if not re.search(rf'^\| `{re.escape(schema)}` \| {version} \| \[{short}\.md\]\({short}\.md\)', readme, re.M):
+        err(f"{docdir}/README.md: the schema table lacks the row '| `{schema}` | {version} | "
+            f"[{short}.md]({short}.md) | …'")
+if re.search(r'planned', readme + ''.join(open(os.path.join(docdir, s.split('/')[1] + '.md')).read()
+                                          for s, _ in specs), re.I):
+    err(f"{docdir}: a document still marks something 'planned'")
+check_attrs(f"{docdir}/README.md", doc_tables(readme)['attr'], {(None, r['name']): r for r in attrs['*']}, False)
 m = re.search(r'#define\s+STREAM_VERSION\s+(\d+)', open(iosrc).read())
 s = re.search(r'^- stream version: (\d+)\s*$', open(os.path.join(docdir, 'stream.md')).read(), re.M)
 if not m:
     err(f"{iosrc}: no STREAM_VERSION")
 elif not s or s.group(1) != m.group(1):
-    err(f"{docdir}/stream.md: needs the line '- stream version: {m.group(1)}' "
-        f"(STREAM_VERSION in {iosrc})")
+    err(f"{docdir}/stream.md: needs the line '- stream version: {m.group(1)}' (STREAM_VERSION in {iosrc})")
 
 for e in errors:
     print("schemas.sh:", e, file=sys.stderr)
 if errors:
     sys.exit(f"schemas.sh: {len(errors)} mismatch(es) between schemas/ and lib/schema.c")
-print(f"schemas.sh: {len(specs)} schemas in step with lib/schema.c")
+n = sum(len(v) for v in dsets.values()), sum(len(v) for v in attrs.values())
+print(f"schemas.sh: {len(specs)} schemas, {n[0]} dataset rows and {n[1]} attribute rows in step with lib/schema.c")
 EOF
+ok
+
+# ------------------------------------------- 2. what the programs write
+cd "$TMP"
+MAT=(--youngs 1e6 --poisson 0.3 --density 1000)
+crom-mesh box --dims 1,0.2,0.2 --size 0.1 --region clamp='x<-0.49' --region tip='x>0.49' -o bar.h5
+crom-mesh box --dims 1,0.2,0.2 --size 0.08 --region clamp='x<-0.49' -o bar2.h5
+crom-remesh punch --sphere 0,0,0,0.05 -q -o punched.h5 bar.h5
+SC=(--velocity 'tip=0,-2,0@0:0.04' --pin clamp --gravity 0,0,0 --dt 0.01 --steps 4)
+crom-fullsim "${MAT[@]}" "${SC[@]}" -q -o full.h5 bar.h5
+crom-fullsim "${MAT[@]}" "${SC[@]}" -q bar.h5 | cat >full.crs
+crom-sample --points 60 full.h5 -o samp.h5
+crom-sample --points all full.h5 -o samp_all.h5
+crom-fitfield --rank 3 --epochs 10 -q -o mlp.h5 samp.h5
+crom-fitfield --rank 3 --epochs 3 --encoder pointnet -q -o pn.h5 samp.h5
+crom-fitfield --rank 3 --basis pod -q -o pod.h5 samp_all.h5
+crom-modes "${MAT[@]}" --pin clamp --count 3 -q -o modes.h5 bar.h5
+DF=(--steps 20 --batch 8 --width 16 -q)
+crom-fitfield --objective energy --mesh bar.h5 "${MAT[@]}" --pin clamp --rank 2 "${DF[@]}" -o df.h5
+crom-fitfield --objective neuralmodes --mesh bar.h5 --modes modes.h5 "${DF[@]}" -o nm.h5
+crom-fitfield --objective field --mesh bar.h5 "${MAT[@]}" --pin clamp --rank 2 "${DF[@]}" -o fld.h5
+crom-encode --model mlp.h5 -q -o enc.h5 <full.h5
+crom-cubature --model mlp.h5 --scheme metis --count 20 -q -o cub.h5 bar.h5
+crom-cubature --model mlp.h5 --scheme all -q -o cub_p.h5 punched.h5
+crom-cubature --model fld.h5 --scheme metis --count 30 -q -o fldcub.h5 bar2.h5
+RS=(--pin clamp --dt 0.01 --steps 4 --gravity 0,-9.81,0)
+printf '2 cub_p.h5\n' >sched.txt
+crom-reducedstep --cubature cub.h5 --schedule sched.txt "${MAT[@]}" "${RS[@]}" -q -o red.h5
+crom-reducedstep --cubature cub.h5 "${MAT[@]}" "${RS[@]}" -q | cat >red.crs
+crom-reducedstep --model df.h5 "${MAT[@]}" "${RS[@]}" -q -o red_df.h5
+crom-reducedstep --model nm.h5 "${MAT[@]}" "${RS[@]}" -q -o red_nm.h5
+crom-reducedstep --model fld.h5 --mesh bar2.h5 --cubature fldcub.h5 "${MAT[@]}" "${RS[@]}" -q -o red_fld.h5
+crom-reducedstep --model modes.h5 --mesh bar.h5 "${MAT[@]}" "${RS[@]}" -q -o red_modes.h5
+FILES=(bar.h5 punched.h5 full.h5 full.crs samp.h5 mlp.h5 pn.h5 pod.h5 modes.h5 df.h5 nm.h5 fld.h5 enc.h5
+       cub.h5 fldcub.h5 red.h5 red.crs red_df.h5 red_nm.h5 red_fld.h5 red_modes.h5)
+for f in "${FILES[@]}"; do
+  crom-info --check "$f" >"$TMP/check.txt" || fail "crom-info --check $f: $(cat "$TMP/check.txt")"
+done; ok
+# the latents' q: metres for linear bases and neural modes, dimensionless for data-free maps
+$PY - "$TMP/table.tsv" "${FILES[@]}" <<'EOF' || fail "files and lib/schema.c disagree"
+import io, struct, sys, h5py
+table, files = sys.argv[1], sys.argv[2:]
+rows = {}
+for line in open(table):
+    f = line.rstrip('\n').split('\t')
+    if f[0] == 'dset':
+        rows.setdefault((f[1], f[2]), []).append((f[6], f[8]))
+def match(pattern, path):
+    p, q = pattern.split('/'), path.split('/')
+    return len(p) == len(q) and all(a == '*' or a == b for a, b in zip(p, q))
+def s(v):
+    return v.decode() if isinstance(v, bytes) else v
+def open_any(name):
+    b = open(name, 'rb').read()
+    if b[:8] == b'CROMSTRM':  # a frame stream: its header is an HDF5 image
+        n = struct.unpack('<Q', b[16:24])[0]
+        return h5py.File(io.BytesIO(b[24:24 + n]), 'r')
+    return h5py.File(name, 'r')
+bad, ndsets = [], 0
+units_q = {}
+for name in files:
+    f = open_any(name)
+    schema = s(f.attrs['schema'])
+    def visit(path, obj):
+        global ndsets
+        if not isinstance(obj, h5py.Dataset):
+            return
+        ndsets += 1
+        cand = [r for (sc, pat), rs in rows.items() if sc == schema and match(pat, path) for r in rs]
+        got = (s(obj.attrs.get('units')), s(obj.attrs.get('description')))
+        if got not in cand:
+            bad.append(f"{name}: /{path} has units {got[0]!r}, description {got[1]!r}; lib/schema.c: {cand}")
+        if path == 'frames/q':
+            units_q[name] = got[0]
+    f.visititems(visit)
+want_q = {'enc.h5': 'm', 'red.h5': 'm', 'red.crs': 'm', 'red_nm.h5': 'm', 'red_modes.h5': 'm',
+          'red_df.h5': '1', 'red_fld.h5': '1'}
+for k, v in want_q.items():
+    if units_q.get(k) != v:
+        bad.append(f"{k}: q in {units_q.get(k)!r}, expected {v!r}")
+for b in bad:
+    print(b, file=sys.stderr)
+if bad or ndsets < 150:
+    sys.exit(f"{len(bad)} datasets differ from lib/schema.c ({ndsets} checked)")
+print(f"{ndsets} datasets in {len(files)} files carry the units and descriptions of lib/schema.c")
+EOF
+ok
+
+# ------------------------------------------- 3. --check reports what is not in the table
+breaks=(
+  "f.attrs['colour'] = 'red'|root attribute 'colour' is not in the crom/mesh table"
+  "f['normals'] = f['vertices'][()]|dataset /normals is not in the crom/mesh table"
+  "f['vertices'].attrs['units'] = 'mm'|/vertices has units 'mm', expected 'm'"
+  "del f['tets'].attrs['description']|/tets has no description"
+  "f['regions/clamp'].attrs['colour'] = 'red'|attribute 'colour' of /regions/clamp is not in the crom/mesh table"
+  "del f['regions/clamp'].attrs['source']|/regions/clamp has no attribute 'source'"
+  "f['vertices'].attrs['pretty'] = 1|attribute 'pretty' of /vertices is not in the crom/mesh table"
+)
+for b in "${breaks[@]}"; do
+  cp bar.h5 broken.h5
+  $PY -c "import h5py; f = h5py.File('broken.h5', 'r+'); ${b%%|*}" || fail "cannot break: ${b%%|*}"
+  rc=0; crom-info --check broken.h5 >"$TMP/check.txt" 2>/dev/null || rc=$?
+  [ $rc -eq 65 ] || fail "crom-info --check after '${b%%|*}' exited $rc, expected 65"
+  grep -qF "${b#*|}" "$TMP/check.txt" || fail "crom-info --check after '${b%%|*}': $(cat "$TMP/check.txt")"
+  [ "$(grep -c . "$TMP/check.txt")" -eq 1 ] || fail "one violation expected: $(cat "$TMP/check.txt")"
+  ok
+done
+done_checks

@@ -13,6 +13,7 @@
 #include "io.h"
 #include "mesh.h"
 #include "schema.h"
+#include "validate.h"
 
 static char dir[] = "/tmp/crom-io-XXXXXX";
 
@@ -46,8 +47,8 @@ static int write_series(const char *path, int kind, int nframes, int fail_after)
     crom_h5_set_str(o.h5, ".", "model_id", "abc");
     crom_h5_set_i64(o.h5, ".", "rank", 3);
     hsize_t r = 3;
-    CHECK(crom_out_field(&o, "time", 0, NULL, "s", "time") == 0);
-    CHECK(crom_out_field(&o, "q", 1, &r, "m", "latent") == 0);
+    CHECK(crom_out_field(&o, "time", 0, NULL, NULL) == 0);
+    CHECK(crom_out_field(&o, "q", 1, &r, NULL) == 0);
     CHECK(crom_out_begin(&o) == 0);
     for (int f = 0; f < nframes; f++) {
         if (f == fail_after) {
@@ -100,7 +101,7 @@ static void test_series(void)
     CHECK(crom_in_open(&in, p) == 0);
     CHECK(crom_in_seek(&in, 3) == 0 && crom_in_get(&in, 1)[1] == 6.0);
     CHECK(crom_in_seek(&in, 9) != 0);
-    CHECK(crom_schema_check(&in, stderr) == 0);
+    CHECK(crom_validate_file(&in, stderr) == 0);
     crom_in_close(&in);
     /* stream form, to a named file */
     snprintf(p, sizeof p, "%s/a.crs", dir);
@@ -108,7 +109,7 @@ static void test_series(void)
     read_series(p, 7, 1);
     CHECK(crom_in_open(&in, p) == 0);
     CHECK(in.form == CROM_FORM_STREAM);
-    CHECK(crom_schema_check(&in, stderr) == 0);
+    CHECK(crom_validate_file(&in, stderr) == 0);
     crom_in_close(&in);
     /* a stream cut short (the writer died): frames so far, not complete */
     struct stat st;
@@ -116,7 +117,7 @@ static void test_series(void)
     CHECK(truncate(p, st.st_size - 16 - 10) == 0); /* end record and part of the last frame */
     read_series(p, 6, 0);
     CHECK(crom_in_open(&in, p) == 0);
-    CHECK(crom_schema_check(&in, NULL) > 0); /* --check flags it */
+    CHECK(crom_validate_file(&in, NULL) > 0); /* --check flags it */
     crom_in_close(&in);
     /* a run that fails after 3 frames keeps them, marked incomplete */
     snprintf(p, sizeof p, "%s/fail.h5", dir);
@@ -175,7 +176,7 @@ static void test_plain(void)
     CHECK(memcmp(r.X, X, sizeof X) == 0 && memcmp(r.tets, T, sizeof T) == 0);
     crom_mesh_free(&r);
     H5Gclose(root);
-    CHECK(crom_schema_check(&in, NULL) == 0);
+    CHECK(crom_validate_file(&in, NULL) == 0);
     crom_in_close(&in);
     free(mm.regions[0].name);
     free(mm.regions[0].source);
