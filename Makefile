@@ -43,13 +43,12 @@ LIBA     := $(BUILD)/libcrom.a
 PROG_SRC := $(wildcard bin/crom-*.c)
 PROGS    := $(patsubst bin/%.c,$(BINDIR)/%,$(PROG_SRC))
 TEST_SRC := $(wildcard tests/unit/test_*.c)
-TESTS    := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(TEST_SRC))
+UNIT_TESTS := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 BENCHES  := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(wildcard tests/unit/bench_*.c))
 MANPAGES := $(patsubst bin/%.c,man/%.1,$(PROG_SRC))
 
 .PHONY: all test check demo bench deps install uninstall clean distclean man
 .DELETE_ON_ERROR:
-.SECONDARY:
 
 all: $(PROGS) $(MANPAGES)
 
@@ -102,7 +101,7 @@ $(BUILD)/tests/bench_%: $(BUILD)/tests/bench_%.o $(LIBA) | $(DEPSTAMP)
 	$(CC) $(CFLAGS) $(LDFLAGS) $< $(LIBA) $(LDLIBS) -o $@
 
 # The whole suite: unit tests of lib/, then program and pipeline tests.
-test: $(PROGS) $(TESTS) | $(DEPSTAMP)
+test: $(PROGS) $(UNIT_TESTS) | $(DEPSTAMP)
 	@tests/run.sh $(BUILD) $(BINDIR)
 check: test
 
