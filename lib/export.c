@@ -1,8 +1,11 @@
 /* export.c — VTU, PVD, XDMF, OBJ and PLY writers (see export.h). */
+#include <errno.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "err.h"
 #include "export.h"
@@ -322,4 +325,276 @@ int crom_export_xdmf(FILE *f, const char *h5name, const crom_mesh *const *meshes
     }
     fputs("  </Domain>\n</Xdmf>\n", f);
     return ferror(f) ? crom_err(CROM_EIO, "write failed") : 0;
+}
+
+/* -------------------------------------------------------- whole files */
+
+int crom_export_mkdir(const char *path)
+{
+    char buf[1024];
+    if (snprintf(buf, sizeof buf, "%s", path) >= (int)sizeof buf)
+        return crom_err(CROM_ECANTCREAT, "%s: path too long", path);
+    for (char *p = buf + 1;; p++) {
+        if (*p == '/' || !*p) {
+            char c = *p;
+            *p = 0;
+            if (mkdir(buf, 0777) != 0 && errno != EEXIST)
+                return crom_err(CROM_ECANTCREAT, "cannot create directory %s: %s", buf, strerror(errno));
+            if (!c)
+                break;
+            *p = c;
+        }
+    }
+    struct stat st;
+    if (stat(path, &st) != 0 || !S_ISDIR(st.st_mode))
+        return crom_err(CROM_ECANTCREAT, "%s exists and is not a directory", path);
+    return 0;
+}
+
+int crom_export_write(const char *path, const char *format, const crom_export_frame *fr)
+{
+    crom_fileout fo;
+    int rc = crom_fileout_open(&fo, path, !strcmp(format, "ply"));
+    if (rc)
+        return rc;
+    if (!strcmp(format, "vtu") || !strcmp(format, "pvd")) {
+        crom_pointfield pf[2] = {{"displacement", 3, fr->u}, {"velocity", 3, fr->v}};
+        rc = crom_export_vtu(fo.f, fr->mesh, pf, fr->u ? (fr->v ? 2 : 1) : 0);
+    } else if (!strcmp(format, "obj")) {
+        rc = crom_export_obj(fo.f, fr->mesh, fr->u);
+    } else if (!strcmp(format, "ply")) {
+        rc = crom_export_ply(fo.f, fr->mesh, fr->u);
+    } else {
+        rc = crom_err(CROM_EUSAGE, "no writer for format '%s'", format);
+    }
+    if (rc) {
+        crom_fileout_abort(&fo);
+        return crom_err_ctx("%s", path);
+    }
+    return crom_fileout_commit(&fo);
+}
+
+int crom_export_series_open(crom_export_series *s, const char *out, const char *name, const char *ext, int pvd)
+{
+    memset(s, 0, sizeof *s);
+    if (snprintf(s->dir, sizeof s->dir, "%s", out) >= (int)sizeof s->dir ||
+        snprintf(s->stem, sizeof s->stem, "%s", name) >= (int)sizeof s->stem ||
+        snprintf(s->ext, sizeof s->ext, "%s", ext) >= (int)sizeof s->ext)
+        return crom_err(CROM_EUSAGE, "%s: output name too long", out);
+    if (pvd)
+        snprintf(s->pvd, sizeof s->pvd, "%s/%s.pvd", s->dir, s->stem);
+    return crom_export_mkdir(s->dir);
+}
+
+const char *crom_export_series_path(crom_export_series *s)
+{
+    snprintf(s->path, sizeof s->path, "%s/%s_%05d.%s", s->dir, s->stem, s->n, s->ext);
+    return s->path;
+}
+
+int crom_export_series_add(crom_export_series *s, double t)
+{
+    double *nt = crom_realloc(s->time, sizeof(double) * (size_t)(s->n + 1));
+    if (!nt)
+        return CROM_EINTERNAL;
+    s->time = nt;
+    char **nf = crom_realloc(s->file, sizeof(char *) * (size_t)(s->n + 1));
+    if (!nf)
+        return CROM_EINTERNAL;
+    s->file = nf;
+    char rel[300];
+    snprintf(rel, sizeof rel, "%s_%05d.%s", s->stem, s->n, s->ext);
+    if (!(s->file[s->n] = crom_strdup(rel)))
+        return CROM_EINTERNAL;
+    s->time[s->n++] = t;
+    return 0;
+}
+
+int crom_export_series_write(crom_export_series *s, const char *format, double t, const crom_export_frame *fr)
+{
+    int rc = crom_export_write(crom_export_series_path(s), format, fr);
+    return rc ? rc : crom_export_series_add(s, t);
+}
+
+int crom_export_series_finish(crom_export_series *s)
+{
+    if (!s->pvd[0])
+        return 0;
+    crom_fileout fo;
+    int rc = crom_fileout_open(&fo, s->pvd, 0);
+    if (rc)
+        return rc;
+    if ((rc = crom_export_pvd(fo.f, s->time, (const char *const *)s->file, s->n))) {
+        crom_fileout_abort(&fo);
+        return crom_err_ctx("%s", s->pvd);
+    }
+    return crom_fileout_commit(&fo);
+}
+
+void crom_export_series_free(crom_export_series *s)
+{
+    for (int i = 0; i < s->n; i++)
+        free(s->file[i]);
+    free(s->file);
+    free(s->time);
+    s->file = NULL;
+    s->time = NULL;
+    s->n = 0;
+}
+
+/* ------------------------------------------------------- XDMF series */
+
+static int ends_with(const char *s, const char *suf)
+{
+    size_t n = strlen(s), m = strlen(suf);
+    return n >= m && !strcmp(s + n - m, suf);
+}
+
+static const char *base_name(const char *p)
+{
+    const char *s = strrchr(p, '/');
+    return s ? s + 1 : p;
+}
+
+static int same_file(const char *p, const char *q)
+{
+    struct stat a, b;
+    return p && q && strcmp(p, "-") && stat(p, &a) == 0 && stat(q, &b) == 0 && a.st_dev == b.st_dev &&
+           a.st_ino == b.st_ino;
+}
+
+/* The heavy data are OUT.xdmf.h5 (a name no crom file has, so they never
+ * replace an input). */
+static int xdmf_paths(crom_xdmf_series *x, const char *out, const char *name, const char *const *inputs, int n)
+{
+    if (ends_with(out, ".xdmf")) {
+        snprintf(x->xml, sizeof x->xml, "%s", out);
+    } else {
+        int rc = crom_export_mkdir(out);
+        if (rc)
+            return rc;
+        snprintf(x->xml, sizeof x->xml, "%s/%s.xdmf", out, name);
+    }
+    snprintf(x->h5, sizeof x->h5, "%s.h5", x->xml);
+    x->h5name = base_name(x->h5);
+    if (strchr(x->h5name, ':'))
+        return crom_err(CROM_EUSAGE, "-o %s: XDMF cannot refer to a file name with ':' in it", out);
+    for (int i = 0; i < n; i++)
+        if (same_file(inputs[i], x->h5) || same_file(inputs[i], x->xml))
+            return crom_err(CROM_EUSAGE, "-o %s would overwrite the input %s", out, inputs[i]);
+    return 0;
+}
+
+static void xdmf_free(crom_xdmf_series *x)
+{
+    for (int i = 0; x->groups && i < x->nmesh; i++)
+        free(x->groups[i]);
+    free(x->groups);
+    free(x->meshes);
+    free(x->time);
+    free(x->mesh_of);
+    x->groups = NULL;
+    x->meshes = NULL;
+    x->time = NULL;
+    x->mesh_of = NULL;
+}
+
+int crom_xdmf_series_open(crom_xdmf_series *x, const char *out, const char *name, const char *const *inputs,
+                          int ninputs, int nmesh, const crom_cli *cli, const char *history)
+{
+    memset(x, 0, sizeof *x);
+    int rc = xdmf_paths(x, out, name, inputs, ninputs);
+    if (rc)
+        return rc;
+    x->nmesh = nmesh;
+    x->meshes = crom_calloc((size_t)nmesh, sizeof(crom_mesh *));
+    x->groups = crom_calloc((size_t)nmesh, sizeof(char *));
+    if (!x->meshes || !x->groups) {
+        xdmf_free(x);
+        return CROM_EINTERNAL;
+    }
+    if ((rc = crom_out_create(&x->o, x->h5, "xdmf/heavy-data", 1, cli, history, CROM_OUT_PLAIN)))
+        xdmf_free(x);
+    return rc;
+}
+
+int crom_xdmf_series_mesh(crom_xdmf_series *x, int mi, const crom_mesh *m)
+{
+    if (x->meshes[mi])
+        return 0;
+    char g[32];
+    if (mi == 0)
+        snprintf(g, sizeof g, "mesh");
+    else
+        snprintf(g, sizeof g, "mesh_%d", mi);
+    int rc;
+    if (!(x->groups[mi] = crom_strdup(g)))
+        return CROM_EINTERNAL;
+    if ((rc = crom_xdmf_write_mesh(x->o.h5, g, m)))
+        return rc;
+    x->meshes[mi] = m;
+    return 0;
+}
+
+int crom_xdmf_series_frame(crom_xdmf_series *x, int mi, double t, const crom_export_frame *fr)
+{
+    const crom_mesh *m = fr->mesh;
+    int rc;
+    if ((rc = crom_xdmf_series_mesh(x, mi, m)) ||
+        (rc = crom_xdmf_write_frame(x->o.h5, "displacement", x->n, m->nv, fr->u)) ||
+        (rc = crom_xdmf_write_frame(x->o.h5, "velocity", x->n, m->nv, fr->v)))
+        return rc;
+    if (x->n == x->cap) {
+        int cap = x->cap ? 2 * x->cap : 64;
+        double *nt = crom_realloc(x->time, sizeof(double) * (size_t)cap);
+        if (!nt)
+            return CROM_EINTERNAL;
+        x->time = nt;
+        int *nm = crom_realloc(x->mesh_of, sizeof(int) * (size_t)cap);
+        if (!nm)
+            return CROM_EINTERNAL;
+        x->mesh_of = nm;
+        x->cap = cap;
+    }
+    x->time[x->n] = t;
+    x->mesh_of[x->n++] = mi;
+    return 0;
+}
+
+void crom_xdmf_series_abort(crom_xdmf_series *x)
+{
+    crom_out_fail(&x->o);
+    xdmf_free(x);
+}
+
+int crom_xdmf_series_finish(crom_xdmf_series *x)
+{
+    static const char *const fields[] = {"displacement", "velocity"};
+    int rc = 0;
+    if (x->n > 0) {
+        hsize_t d = (hsize_t)x->n;
+        rc = crom_h5_write_f64(x->o.h5, "time", 1, &d, x->time, "s", "time of each frame");
+    }
+    if (rc) {
+        crom_xdmf_series_abort(x);
+        return crom_err_ctx("%s", x->h5);
+    }
+    if ((rc = crom_out_commit(&x->o))) {
+        xdmf_free(x);
+        return rc;
+    }
+    crom_fileout fo;
+    if (!(rc = crom_fileout_open(&fo, x->xml, 0))) {
+        if ((rc = crom_export_xdmf(fo.f, x->h5name, x->meshes, (const char *const *)x->groups, x->time, x->mesh_of,
+                                   x->n, fields, x->n ? 2 : 0))) {
+            crom_fileout_abort(&fo);
+            crom_err_ctx("%s", x->xml);
+        } else {
+            rc = crom_fileout_commit(&fo);
+        }
+    }
+    if (rc)
+        unlink(x->h5);
+    xdmf_free(x);
+    return rc;
 }

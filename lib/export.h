@@ -9,6 +9,7 @@
 
 #include <hdf5.h>
 
+#include "io.h"
 #include "mesh.h"
 
 /* Per-vertex data attached to an export. */
@@ -57,5 +58,101 @@ int crom_xdmf_write_frame(hid_t loc, const char *name, int k, int nv, const doub
 int crom_export_xdmf(FILE *f, const char *h5name, const crom_mesh *const *meshes,
                      const char *const *groups, const double *time, const int *mesh_of, int nframes,
                      const char *const *fields, int nfields);
+
+/* -------------------------------------------------------- whole files
+ * What crom-export writes, each file atomic (a temporary file renamed on
+ * success, nothing left on failure). */
+
+/* One state of a body: the mesh on its rest positions, displaced by u with
+ * velocity v ([nv][3] each; u == NULL: the bare mesh, v may be NULL). */
+typedef struct {
+    const crom_mesh *mesh;
+    const double *u, *v;
+} crom_export_frame;
+
+/* Create directory path and its parents (mkdir -p). Returns 0, or
+ * CROM_ECANTCREAT naming the part that cannot be made or is not a
+ * directory. */
+int crom_export_mkdir(const char *path);
+
+/* Write fr to path ("-": stdout) in format "vtu" (also "pvd": one VTU),
+ * "obj" or "ply" (binary: refused on a terminal). Returns 0 or an error
+ * naming path. */
+int crom_export_write(const char *path, const char *format, const crom_export_frame *fr);
+
+/* A numbered series of files, one per frame (PREFIX_00000.EXT, ...), with a
+ * ParaView collection (.pvd) of them when asked. */
+typedef struct {
+    char dir[1024];   /* directory of the frame files */
+    char pvd[1300];   /* the collection, "" for none */
+    char stem[256];   /* file name stem of the frames */
+    char ext[8];      /* their extension */
+    char path[1400];  /* path of the next frame: crom_export_series_path */
+    double *time;     /* [n] times of the frames written */
+    char **file;      /* [n] their names relative to the collection */
+    int n;
+} crom_export_series;
+
+/* Start a series in directory out (created if needed): frames NAME_%05d.EXT
+ * and, when pvd != 0, the collection NAME.pvd. Returns 0, CROM_EUSAGE (a
+ * name too long) or CROM_ECANTCREAT. */
+int crom_export_series_open(crom_export_series *s, const char *out, const char *name, const char *ext, int pvd);
+
+/* The path the next frame's file goes to (valid until the next call). */
+const char *crom_export_series_path(crom_export_series *s);
+
+/* Record that the next frame (at time t) was written to its path. Returns 0
+ * or CROM_EINTERNAL. */
+int crom_export_series_add(crom_export_series *s, double t);
+
+/* crom_export_write of fr to the next frame's path in format, then
+ * crom_export_series_add. */
+int crom_export_series_write(crom_export_series *s, const char *format, double t, const crom_export_frame *fr);
+
+/* Write the collection (if any) of the frames recorded. Returns 0 or an
+ * error naming it. */
+int crom_export_series_finish(crom_export_series *s);
+
+void crom_export_series_free(crom_export_series *s);
+
+/* An XDMF series being written: the heavy data in an HDF5 crom_out, the
+ * XML written last (by crom_xdmf_series_finish). */
+typedef struct {
+    crom_out o;
+    char xml[1200], h5[1204];
+    const char *h5name;        /* the heavy-data file's name relative to the XML */
+    int nmesh;
+    const crom_mesh **meshes;  /* [nmesh]: written so far (else NULL) */
+    char **groups;             /* [nmesh] their groups ("mesh", "mesh_1", ...) */
+    double *time;              /* [n] */
+    int *mesh_of;              /* [n] */
+    int n, cap;
+} crom_xdmf_series;
+
+/* Start an XDMF export to out: OUT.xdmf (heavy data in OUT.xdmf.h5 beside
+ * it) when out ends in ".xdmf", else the directory out (created) holding
+ * NAME.xdmf and NAME.xdmf.h5; nmesh meshes may appear. inputs[0..ninputs)
+ * (NULL entries skipped) are files it must not overwrite; cli and history
+ * go to the heavy-data file's provenance. Returns 0, CROM_EUSAGE (a name
+ * XDMF cannot refer to, or an input would be overwritten), CROM_ECANTCREAT
+ * or CROM_EINTERNAL. */
+int crom_xdmf_series_open(crom_xdmf_series *x, const char *out, const char *name, const char *const *inputs,
+                          int ninputs, int nmesh, const crom_cli *cli, const char *history);
+
+/* Write mesh number mi (once; later calls do nothing). Returns 0 or an
+ * error (HDF5, out of memory). */
+int crom_xdmf_series_mesh(crom_xdmf_series *x, int mi, const crom_mesh *m);
+
+/* Append a frame at time t on mesh number mi (fr->mesh, written if new):
+ * its displacement and velocity. Returns 0 or an error. */
+int crom_xdmf_series_frame(crom_xdmf_series *x, int mi, double t, const crom_export_frame *fr);
+
+/* Finish: the frame times, the heavy-data file, then the XML (a bare mesh
+ * when no frame was added). On failure nothing is left of either file.
+ * Frees x either way. Returns 0 or an error naming the file. */
+int crom_xdmf_series_finish(crom_xdmf_series *x);
+
+/* Give up: remove the heavy data (nothing is left) and free x. */
+void crom_xdmf_series_abort(crom_xdmf_series *x);
 
 #endif
