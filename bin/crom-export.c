@@ -16,10 +16,10 @@ enum { O_FORMAT = 300, O_FRAME, O_EVERY, O_NAME, O_MESH, O_MODEL, O_COMPARE, O_C
 
 static const crom_opt export_opts[] = {
     {"format", O_FORMAT, "FMT", "vtu, pvd, xdmf, obj, ply, png (a picture per frame), or strip (one PNG: the input and each --compare side by side, rows, at --columns times). Default: from the extension of OUT; pvd when OUT ends in '/'."},
-    {"output", 'o', "OUT", "Output file; for pvd, and for obj/ply/png with --frame all, a directory (created if needed); for xdmf OUT.xdmf (heavy data in OUT.xdmf.h5 beside it) or a directory (NAME.xdmf and NAME.xdmf.h5 in it)."},
+    {"output", 'o', "OUT", "Output file. pvd: OUT.pvd with its frames in OUT/ beside it (OUT/OUT_00000.vtu, ...), or, for any other name or one ending in '/', a directory holding NAME.pvd and NAME_00000.vtu, ...; xdmf: OUT.xdmf with its heavy data OUT.xdmf.h5 beside it, or a directory (NAME.xdmf and NAME.xdmf.h5 in it); obj/ply/png with --frame all: a directory (created if needed)."},
     {"frame", O_FRAME, "K", "Which frame of a series to write for vtu/obj/ply/png: an index (negative counts from the end; default -1, the last) or 'all' for one file per frame."},
     {"every", O_EVERY, "K", "With pvd, xdmf, strip or --frame all: keep every K-th frame (default 1)."},
-    {"name", O_NAME, "BASE", "File name stem inside the output directory (default 'frame': frame.pvd, frame_00000.vtu, ...)."},
+    {"name", O_NAME, "BASE", "File name stem inside an output directory (default 'frame': frame.pvd, frame_00000.vtu, ...); -o OUT.pvd and -o OUT.xdmf name their files themselves."},
     {"mesh", O_MESH, "MESH", "For a crom/latent: the mesh to decode onto (any mesh: the training mesh, a finer one for display, another shape; a trajectory or cubature carrying a mesh will do). For a trajectory: a mesh with the same vertices, e.g. to add regions."},
     {"model", O_MODEL, "MODEL", "The crom/model that decodes a crom/latent: u(X) = W(X) q."},
     {"follow-schedule", O_FOLLOW, NULL, "For a crom/latent run with a --schedule (cuts, punches, swaps): decode each frame on the mesh of the cubature in use at that frame, read from the latent's 'cubatures' record (the files must still be there); --mesh, if given, stands in for the first. The latent must be a file (it is read once per mesh). Applies to --compare latents too."},
@@ -42,8 +42,9 @@ static const crom_doc doc = {
     "vtu: the tetrahedral mesh on its rest positions; for a trajectory frame the point data "
     "'displacement' and 'velocity' (use ParaView's Warp By Vector on 'displacement'). Every "
     "named region becomes a 0/1 point field 'region_NAME'.\n\n"
-    "pvd: a directory holding one VTU per frame and a .pvd collection with the frame times, "
-    "written frame by frame as a stream arrives.\n\n"
+    "pvd: a .pvd collection with the frame times and one VTU per frame (-o run.pvd: run.pvd and "
+    "run/run_00000.vtu, ...; -o DIR/: DIR/frame.pvd and DIR/frame_00000.vtu, ...), written frame by "
+    "frame as a stream arrives.\n\n"
     "xdmf: an XDMF 3 temporal collection (XML) and one HDF5 file beside it (OUT.xdmf.h5) holding the mesh "
     "(/mesh/vertices, /mesh/tets, /mesh/region_NAME), the frame times (/time) and one dataset "
     "per frame (/displacement/00000, /velocity/00000, ...); each frame is a Tetrahedron grid "
@@ -58,11 +59,11 @@ static const crom_doc doc = {
     "Every output appears only when complete (written to a temporary file and renamed).",
     groups,
     "crom-mesh box | crom-export --format vtu -o box.vtu\n"
-    "crom-fullsim @compress.flags < box.h5 | crom-export --format pvd -o out/\n"
+    "crom-fullsim @compress.flags < box.h5 | crom-export -o out/run.pvd   # run.pvd + run/run_*.vtu\n"
     "crom-export --format xdmf -o run.xdmf traj.h5          # run.xdmf + run.xdmf.h5\n"
     "crom-export --format obj --frame all -o surf/ traj.h5\n"
     "crom-export --format strip --model m.h5 --mesh box.h5 --compare full.h5 -o strip.png reduced.h5\n"
-    "crom-export --format pvd --model m.h5 --follow-schedule -o punch/ punched_run.h5",
+    "crom-export --format pvd --model m.h5 --follow-schedule -o punch.pvd punched_run.h5",
     "crom-mesh(1), crom-fullsim(1), crom-reducedstep(1), crom-info(1)"};
 
 typedef struct {
@@ -72,6 +73,7 @@ typedef struct {
     double range;
     long frame;
     int all, every, follow;
+    int dir, named; /* -o ended in '/'; --name given */
 } args;
 
 static int on_opt(void *ctx, int key, const char *v)
@@ -109,6 +111,7 @@ static int on_opt(void *ctx, int key, const char *v)
         if (!*v || strchr(v, '/') || strchr(v, ':'))
             return crom_err(CROM_EUSAGE, "--name: '%s' must be a plain file name stem", v);
         a->name = v;
+        a->named = 1;
         return 0;
     case O_MESH: a->mesh = v; return 0;
     case O_MODEL: a->model = v; return 0;
@@ -155,9 +158,9 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
         size_t l = strlen(outbuf);
         while (l > 1 && outbuf[l - 1] == '/')
             outbuf[--l] = 0;
-        int was_dir = strcmp(outbuf, a->out) != 0;
+        a->dir = strcmp(outbuf, a->out) != 0;
         a->out = outbuf;
-        if (was_dir && !a->format)
+        if (a->dir && !a->format)
             a->format = "pvd";
     }
     if (!a->format && a->out) {
@@ -175,6 +178,8 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
         err = "pvd, xdmf and --frame all write several files: give -o";
     else if (a->ncompare && strcmp(a->format, "strip"))
         err = "--compare is for --format strip";
+    else if (a->named && !a->dir && !strcmp(a->format, "pvd") && ends_with(a->out, ".pvd"))
+        err = "--name names the files in an output directory; -o OUT.pvd names them itself (OUT/OUT_00000.vtu)";
     if (err)
         exit(crom_cli_exit(cli, crom_err(CROM_EUSAGE, "%s (see crom-export --help)", err)));
 }
@@ -183,6 +188,15 @@ static const char *base_name(const char *p)
 {
     const char *s = strrchr(p, '/');
     return s ? s + 1 : p;
+}
+
+/* pvd: OUT.pvd with its frames beside it, or a directory (-o DIR/, or a
+ * name without .pvd) */
+static int series_kind(const args *a)
+{
+    if (strcmp(a->format, "pvd"))
+        return CROM_SERIES_FILES;
+    return !a->dir && ends_with(a->out, ".pvd") ? CROM_SERIES_PVD_FILE : CROM_SERIES_PVD_DIR;
 }
 
 static void warn_incomplete(const crom_cli *cli, const crom_follow *s, int n)
@@ -211,7 +225,7 @@ static int export_mesh(crom_cli *cli, args *a, crom_in *probe)
     if (!strcmp(a->format, "xdmf")) {
         crom_xdmf_series x;
         const char *inputs[1] = {a->input};
-        if (!(rc = crom_xdmf_series_open(&x, a->out, a->name, inputs, 1, 1, cli, history))) {
+        if (!(rc = crom_xdmf_series_open(&x, a->out, a->name, a->dir, inputs, 1, 1, cli, history))) {
             if ((rc = crom_xdmf_series_mesh(&x, 0, &m))) {
                 crom_xdmf_series_abort(&x);
                 crom_err_ctx("%s", x.h5);
@@ -219,6 +233,12 @@ static int export_mesh(crom_cli *cli, args *a, crom_in *probe)
                 rc = crom_xdmf_series_finish(&x);
             }
         }
+    } else if (series_kind(a) == CROM_SERIES_PVD_FILE) { /* a collection of one frame at t = 0 */
+        crom_export_series s;
+        if (!(rc = crom_export_series_open(&s, a->out, a->name, "vtu", CROM_SERIES_PVD_FILE)) &&
+            !(rc = crom_export_series_write(&s, "vtu", 0, &fr)))
+            rc = crom_export_series_finish(&s);
+        crom_export_series_free(&s);
     } else {
         char path[1400];
         snprintf(path, sizeof path, "%s", a->out ? a->out : "-");
@@ -258,9 +278,9 @@ static int export_one_frame(args *a, crom_follow *s)
 /* pvd, or obj/ply/vtu with --frame all: one file per frame, as frames arrive */
 static int export_series(crom_cli *cli, args *a, crom_follow *s)
 {
-    int pvd = !strcmp(a->format, "pvd");
     crom_export_series fs;
-    int rc = crom_export_series_open(&fs, a->out, a->name, pvd ? "vtu" : a->format, pvd);
+    int kind = series_kind(a);
+    int rc = crom_export_series_open(&fs, a->out, a->name, kind != CROM_SERIES_FILES ? "vtu" : a->format, kind);
     crom_progress prog;
     crom_progress_start(&prog, cli, "export", s->res[0].in.form == CROM_FORM_H5 ? s->res[0].in.nframes : 0);
     long k = 0;
@@ -276,7 +296,9 @@ static int export_series(crom_cli *cli, args *a, crom_follow *s)
     crom_progress_end(&prog);
     if (!rc)
         warn_incomplete(cli, s, fs.n);
-    if (!rc && !(rc = crom_export_series_finish(&fs)))
+    if (!rc && !(rc = crom_export_series_finish(&fs)) && kind == CROM_SERIES_PVD_FILE)
+        crom_cli_info(cli, "wrote %d frames to %s (frames in %s/)", fs.n, fs.pvd, fs.dir);
+    else if (!rc)
         crom_cli_info(cli, "wrote %d frames to %s/", fs.n, a->out);
     crom_export_series_free(&fs);
     return rc;
@@ -289,7 +311,8 @@ static int export_xdmf(crom_cli *cli, args *a, crom_follow *s)
     const char *inputs[11] = {a->input, a->mesh, a->model};
     for (int i = 0; i < a->ncompare; i++)
         inputs[3 + i] = a->compare[i];
-    int rc = crom_xdmf_series_open(&x, a->out, a->name, inputs, 3 + a->ncompare, s->n, cli, s->res[0].in.history);
+    int rc = crom_xdmf_series_open(&x, a->out, a->name, a->dir, inputs, 3 + a->ncompare, s->n, cli,
+                                   s->res[0].in.history);
     if (rc)
         return rc;
     crom_progress prog;

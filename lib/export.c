@@ -329,6 +329,13 @@ int crom_export_xdmf(FILE *f, const char *h5name, const crom_mesh *const *meshes
 
 /* -------------------------------------------------------- whole files */
 
+static int ends_with(const char *s, const char *suf)
+{
+    size_t n = strlen(s), m = strlen(suf);
+    return n >= m && !strcmp(s + n - m, suf);
+}
+
+
 int crom_export_mkdir(const char *path)
 {
     char buf[1024];
@@ -374,15 +381,33 @@ int crom_export_write(const char *path, const char *format, const crom_export_fr
     return crom_fileout_commit(&fo);
 }
 
-int crom_export_series_open(crom_export_series *s, const char *out, const char *name, const char *ext, int pvd)
+int crom_export_series_open(crom_export_series *s, const char *out, const char *name, const char *ext, int kind)
 {
     memset(s, 0, sizeof *s);
-    if (snprintf(s->dir, sizeof s->dir, "%s", out) >= (int)sizeof s->dir ||
-        snprintf(s->stem, sizeof s->stem, "%s", name) >= (int)sizeof s->stem ||
-        snprintf(s->ext, sizeof s->ext, "%s", ext) >= (int)sizeof s->ext)
+    if (strlen(out) >= sizeof s->dir || strlen(name) >= sizeof s->stem || strlen(ext) >= sizeof s->ext)
         return crom_err(CROM_EUSAGE, "%s: output name too long", out);
-    if (pvd)
-        snprintf(s->pvd, sizeof s->pvd, "%s/%s.pvd", s->dir, s->stem);
+    snprintf(s->ext, sizeof s->ext, "%s", ext);
+    if (kind != CROM_SERIES_PVD_FILE) {
+        snprintf(s->dir, sizeof s->dir, "%s", out);
+        snprintf(s->stem, sizeof s->stem, "%s", name);
+        if (kind == CROM_SERIES_PVD_DIR)
+            snprintf(s->pvd, sizeof s->pvd, "%s/%s.pvd", s->dir, s->stem);
+        return crom_export_mkdir(s->dir);
+    }
+    /* DIR/STEM.pvd: frames in DIR/STEM/ */
+    const char *base = strrchr(out, '/');
+    base = base ? base + 1 : out;
+    if (!ends_with(base, ".pvd") || strlen(base) == 4)
+        return crom_err(CROM_EUSAGE, "-o %s: a collection needs a name before .pvd", out);
+    size_t lstem = strlen(base) - 4, ldir = (size_t)(base - out);
+    snprintf(s->pvd, sizeof s->pvd, "%s", out);
+    snprintf(s->stem, sizeof s->stem, "%.*s", (int)lstem, base);
+    snprintf(s->rel, sizeof s->rel, "%s/", s->stem);
+    snprintf(s->dir, sizeof s->dir, "%.*s%s", (int)ldir, out, s->stem);
+    struct stat st;
+    if (stat(out, &st) == 0 && S_ISDIR(st.st_mode))
+        return crom_err(CROM_ECANTCREAT, "-o %s is a directory (an older export?): remove it, or write into it with -o %s/",
+                        out, out);
     return crom_export_mkdir(s->dir);
 }
 
@@ -402,8 +427,8 @@ int crom_export_series_add(crom_export_series *s, double t)
     if (!nf)
         return CROM_EINTERNAL;
     s->file = nf;
-    char rel[300];
-    snprintf(rel, sizeof rel, "%s_%05d.%s", s->stem, s->n, s->ext);
+    char rel[600];
+    snprintf(rel, sizeof rel, "%s%s_%05d.%s", s->rel, s->stem, s->n, s->ext);
     if (!(s->file[s->n] = crom_strdup(rel)))
         return CROM_EINTERNAL;
     s->time[s->n++] = t;
@@ -444,12 +469,6 @@ void crom_export_series_free(crom_export_series *s)
 
 /* ------------------------------------------------------- XDMF series */
 
-static int ends_with(const char *s, const char *suf)
-{
-    size_t n = strlen(s), m = strlen(suf);
-    return n >= m && !strcmp(s + n - m, suf);
-}
-
 static const char *base_name(const char *p)
 {
     const char *s = strrchr(p, '/');
@@ -465,10 +484,19 @@ static int same_file(const char *p, const char *q)
 
 /* The heavy data are OUT.xdmf.h5 (a name no crom file has, so they never
  * replace an input). */
-static int xdmf_paths(crom_xdmf_series *x, const char *out, const char *name, const char *const *inputs, int n)
+static int xdmf_paths(crom_xdmf_series *x, const char *out, const char *name, int dir, const char *const *inputs,
+                      int n)
 {
-    if (ends_with(out, ".xdmf")) {
+    if (!dir && ends_with(out, ".xdmf")) {
         snprintf(x->xml, sizeof x->xml, "%s", out);
+        const char *slash = strrchr(out, '/');
+        if (slash && slash > out) { /* its directory, as for a pvd's frames */
+            char parent[1024];
+            snprintf(parent, sizeof parent, "%.*s", (int)(slash - out), out);
+            int rc = crom_export_mkdir(parent);
+            if (rc)
+                return rc;
+        }
     } else {
         int rc = crom_export_mkdir(out);
         if (rc)
@@ -499,11 +527,12 @@ static void xdmf_free(crom_xdmf_series *x)
     x->mesh_of = NULL;
 }
 
-int crom_xdmf_series_open(crom_xdmf_series *x, const char *out, const char *name, const char *const *inputs,
-                          int ninputs, int nmesh, const crom_cli *cli, const char *history)
+int crom_xdmf_series_open(crom_xdmf_series *x, const char *out, const char *name, int dir,
+                          const char *const *inputs, int ninputs, int nmesh, const crom_cli *cli,
+                          const char *history)
 {
     memset(x, 0, sizeof *x);
-    int rc = xdmf_paths(x, out, name, inputs, ninputs);
+    int rc = xdmf_paths(x, out, name, dir, inputs, ninputs);
     if (rc)
         return rc;
     x->nmesh = nmesh;

@@ -80,11 +80,12 @@ int crom_export_mkdir(const char *path);
  * naming path. */
 int crom_export_write(const char *path, const char *format, const crom_export_frame *fr);
 
-/* A numbered series of files, one per frame (PREFIX_00000.EXT, ...), with a
+/* A numbered series of files, one per frame (STEM_00000.EXT, ...), with a
  * ParaView collection (.pvd) of them when asked. */
 typedef struct {
     char dir[1024];   /* directory of the frame files */
     char pvd[1300];   /* the collection, "" for none */
+    char rel[260];    /* the frames' directory relative to the collection's: "" or "STEM/" */
     char stem[256];   /* file name stem of the frames */
     char ext[8];      /* their extension */
     char path[1400];  /* path of the next frame: crom_export_series_path */
@@ -93,10 +94,18 @@ typedef struct {
     int n;
 } crom_export_series;
 
-/* Start a series in directory out (created if needed): frames NAME_%05d.EXT
- * and, when pvd != 0, the collection NAME.pvd. Returns 0, CROM_EUSAGE (a
- * name too long) or CROM_ECANTCREAT. */
-int crom_export_series_open(crom_export_series *s, const char *out, const char *name, const char *ext, int pvd);
+enum {
+    CROM_SERIES_FILES,    /* out is a directory of NAME_%05d.EXT */
+    CROM_SERIES_PVD_DIR,  /* the same and the collection out/NAME.pvd */
+    CROM_SERIES_PVD_FILE  /* the collection at out = DIR/STEM.pvd, frames
+                             DIR/STEM/STEM_%05d.EXT beside it (name unused) */
+};
+
+/* Start a series of the given kind (directories created as needed).
+ * Returns 0, CROM_EUSAGE (a name too long, or a collection name that is
+ * only ".pvd") or CROM_ECANTCREAT (a directory cannot be made, or the
+ * collection's path is a directory). */
+int crom_export_series_open(crom_export_series *s, const char *out, const char *name, const char *ext, int kind);
 
 /* The path the next frame's file goes to (valid until the next call). */
 const char *crom_export_series_path(crom_export_series *s);
@@ -130,14 +139,16 @@ typedef struct {
 } crom_xdmf_series;
 
 /* Start an XDMF export to out: OUT.xdmf (heavy data in OUT.xdmf.h5 beside
- * it) when out ends in ".xdmf", else the directory out (created) holding
- * NAME.xdmf and NAME.xdmf.h5; nmesh meshes may appear. inputs[0..ninputs)
+ * it, directories created as needed) when out ends in ".xdmf" and dir is 0,
+ * else the directory out (created) holding NAME.xdmf and NAME.xdmf.h5; nmesh
+ * meshes may appear. inputs[0..ninputs)
  * (NULL entries skipped) are files it must not overwrite; cli and history
  * go to the heavy-data file's provenance. Returns 0, CROM_EUSAGE (a name
  * XDMF cannot refer to, or an input would be overwritten), CROM_ECANTCREAT
  * or CROM_EINTERNAL. */
-int crom_xdmf_series_open(crom_xdmf_series *x, const char *out, const char *name, const char *const *inputs,
-                          int ninputs, int nmesh, const crom_cli *cli, const char *history);
+int crom_xdmf_series_open(crom_xdmf_series *x, const char *out, const char *name, int dir,
+                          const char *const *inputs, int ninputs, int nmesh, const crom_cli *cli,
+                          const char *history);
 
 /* Write mesh number mi (once; later calls do nothing). Returns 0 or an
  * error (HDF5, out of memory). */

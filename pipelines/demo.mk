@@ -17,4 +17,4 @@ all:
 	@echo
 	@echo "demo: the strips show each reduced run (top row) over the full simulation (bottom row):"
 	@ls $(OUT)/strip-*.png | sed 's/^/  /'
-	@echo "demo: open $(OUT)/pvd-3/frame.pvd in ParaView (Warp By Vector on 'displacement') for the unseen shape"
+	@echo "demo: open $(OUT)/red-3.pvd in ParaView (Warp By Vector on 'displacement') for the unseen shape"

@@ -6,7 +6,7 @@
 # to the mesh with one more hole, the state carries over in q (the rest of the
 # block stays where it was; only the punched part is gone).
 #
-#   make -f pipelines/punching.mk -j2         # runs/punching/table.md, strip.png, pvd/, punch.xdmf, *.plot.png
+#   make -f pipelines/punching.mk -j2         # runs/punching/table.md, strip.png, punch.pvd, punch.xdmf, *.plot.png
 #   make -f pipelines/punching.mk -j2 SIZE=0.036   # the paper's size: ~20K vertices (18.6K at 0.037)
 #   make -f pipelines/punching.mk CUBATURE=metis ENCODER=pointnet RANK=12  # swap a stage
 #
@@ -45,10 +45,10 @@ $(eval $(call stamp_rule,cubature,$(CUB_FLAGS)))
 $(eval $(call stamp_rule,reduced,$(RED_FLAGS) $(FIRST) $(GAP)))
 
 .PHONY: all plots
-all: $(OUT)/table.md $(OUT)/strip.png $(OUT)/pvd/frame.pvd $(OUT)/punch.xdmf plots
+all: $(OUT)/table.md $(OUT)/strip.png $(OUT)/punch.pvd $(OUT)/punch.xdmf plots
 	@cat $(OUT)/table.md; echo; \
 	 echo "pictures: $(OUT)/strip.png (reduced punching run over the intact and the $(NHOLES)-hole full runs); plots: $(OUT)/*.plot.png"; \
-	 echo "ParaView: $(OUT)/pvd/frame.pvd or $(OUT)/punch.xdmf (the punching run, each frame on the mesh it had)"
+	 echo "ParaView: $(OUT)/punch.pvd or $(OUT)/punch.xdmf (the punching run, each frame on the mesh it had)"
 plots: $(OUT)/loss.plot.png $(OUT)/error.plot.png $(OUT)/cost.plot.png
 
 # the block in the bounding cube [-0.5, 0.5]^3; top and bottom layers are regions
@@ -110,8 +110,8 @@ $(OUT)/table.md: $(OUT)/rows.txt
 $(OUT)/strip.png: $(OUT)/punch.h5 $(OUT)/full-0.h5 $(OUT)/full-$(NHOLES).h5
 	crom-export --format strip --follow-schedule --model $(OUT)/model.h5 --compare $(OUT)/full-0.h5 \
 	  --compare $(OUT)/full-$(NHOLES).h5 --columns 6 $(QUIET) -o $@ $<
-$(OUT)/pvd/frame.pvd: $(OUT)/punch.h5
-	crom-export --format pvd --follow-schedule --model $(OUT)/model.h5 $(QUIET) -o $(OUT)/pvd $<
+$(OUT)/punch.pvd: $(OUT)/punch.h5
+	crom-export --format pvd --follow-schedule --model $(OUT)/model.h5 $(QUIET) -o $@ $<
 $(OUT)/punch.xdmf: $(OUT)/punch.h5
 	crom-export --format xdmf --follow-schedule --model $(OUT)/model.h5 $(QUIET) -o $@ $<
 

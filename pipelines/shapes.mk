@@ -31,14 +31,14 @@ $(eval $(call stamp_rule,reduced,$(RED_FLAGS)))
 .PHONY: all pictures
 all: $(OUT)/table.md pictures
 	@cat $<
-	@echo "pictures: $(OUT)/strip-*.png (reduced above full); ParaView: $(OUT)/pvd-*/frame.pvd"
+	@echo "pictures: $(OUT)/strip-*.png (reduced above full); ParaView: $(OUT)/red-*.pvd"
 
-pictures: $(foreach s,$(ALL),$(OUT)/strip-$(s).png $(OUT)/pvd-$(s)/frame.pvd)
+pictures: $(foreach s,$(ALL),$(OUT)/strip-$(s).png $(OUT)/red-$(s).pvd)
 $(OUT)/strip-%.png: $(OUT)/red-%.h5 $(OUT)/full-%.h5 $(OUT)/model.h5
 	crom-export --format strip --model $(OUT)/model.h5 --mesh $(OUT)/mesh-$*.h5 --compare $(OUT)/full-$*.h5 \
 	  --columns 5 $(QUIET) -o $@ $<
-$(OUT)/pvd-%/frame.pvd: $(OUT)/red-%.h5 $(OUT)/model.h5
-	crom-export --format pvd --model $(OUT)/model.h5 --mesh $(OUT)/mesh-$*.h5 $(QUIET) -o $(OUT)/pvd-$* $<
+$(OUT)/red-%.pvd: $(OUT)/red-%.h5 $(OUT)/model.h5
+	crom-export --format pvd --model $(OUT)/model.h5 --mesh $(OUT)/mesh-$*.h5 $(QUIET) -o $@ $<
 
 # meshes in the bounding cube [-0.5, 0.5]^3; top and bottom layers are regions
 $(OUT)/mesh-box.h5: $(call stamp,mesh)
