@@ -1,6 +1,7 @@
 /* crom-export — write meshes and trajectories as files other tools open:
  * VTU (+ PVD for a series) and XDMF+HDF5 for ParaView and meshio, surface OBJ
  * and PLY, PNG pictures and strips. */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -12,7 +13,8 @@
 #include "mesh.h"
 #include "picture.h"
 
-enum { O_FORMAT = 300, O_FRAME, O_EVERY, O_NAME, O_MESH, O_MODEL, O_COMPARE, O_COLUMNS, O_PANEL, O_RANGE, O_FOLLOW };
+enum { O_FORMAT = 300, O_FRAME, O_EVERY, O_NAME, O_MESH, O_MODEL, O_COMPARE, O_COLUMNS, O_PANEL, O_RANGE, O_FOLLOW,
+       O_YOUNGS, O_POISSON };
 
 static const crom_opt export_opts[] = {
     {"format", O_FORMAT, "FMT", "vtu, pvd, xdmf, obj, ply, png (a picture per frame), or strip (one PNG: the input and each --compare side by side, rows, at --columns times). Default: from the extension of OUT; pvd when OUT ends in '/'."},
@@ -27,6 +29,8 @@ static const crom_opt export_opts[] = {
     {"columns", O_COLUMNS, "K", "strip: frames shown per row, evenly spaced in time (default 6)."},
     {"panel", O_PANEL, "WxH", "png, strip: pixels of one picture (default 360x300)."},
     {"range", O_RANGE, "UMAX", "png, strip: colour |u| over [0, UMAX] m (default: the largest |u| of all frames shown)."},
+    {"youngs", O_YOUNGS, "E", "vtu, pvd, xdmf: Young's modulus (Pa) of the cell data 'energy_density' and 'von_mises_stress' (default: the input's 'youngs' attribute, which trajectories and reduced runs carry)."},
+    {"poisson", O_POISSON, "NU", "vtu, pvd, xdmf: Poisson ratio of the same (default: the input's 'poisson' attribute). When the input records no material and none is given, those two fields are left out (with a note)."},
     {NULL, 0, NULL, NULL}};
 
 static const crom_optgroup groups[] = {{"Options", export_opts}, {NULL, NULL}};
@@ -40,15 +44,23 @@ static const crom_doc doc = {
     "mesh (HDF5 file or frame stream, from a path or stdin) and writes files ParaView, meshio "
     "and mesh viewers open.\n\n"
     "vtu: the tetrahedral mesh on its rest positions; for a trajectory frame the point data "
-    "'displacement' and 'velocity' (use ParaView's Warp By Vector on 'displacement'). Every "
-    "named region becomes a 0/1 point field 'region_NAME'.\n\n"
+    "'displacement' (m) and 'velocity' (m/s) (use ParaView's Warp By Vector on 'displacement'), the "
+    "frame's time as field data 'TimeValue' (s), and cell data per tet: 'volume' (rest volume, m^3), "
+    "'J' (det F), 'energy_density' (stable neo-Hookean strain energy per rest volume, J/m^3) and "
+    "'von_mises_stress' (von Mises equivalent of the Cauchy stress, Pa; NaN where J <= 0), from the "
+    "element kernel crom-fullsim uses and the material of --youngs/--poisson. A latent run gets the "
+    "same fields from its decoded displacement. Every named region becomes a 0/1 point field "
+    "'region_NAME'. A bare mesh has 'volume' only. Times are written with the fewest digits that "
+    "read back as the same double.\n\n"
     "pvd: a .pvd collection with the frame times and one VTU per frame (-o run.pvd: run.pvd and "
     "run/run_00000.vtu, ...; -o DIR/: DIR/frame.pvd and DIR/frame_00000.vtu, ...), written frame by "
     "frame as a stream arrives.\n\n"
     "xdmf: an XDMF 3 temporal collection (XML) and one HDF5 file beside it (OUT.xdmf.h5) holding the mesh "
     "(/mesh/vertices, /mesh/tets, /mesh/region_NAME), the frame times (/time) and one dataset "
-    "per frame (/displacement/00000, /velocity/00000, ...); each frame is a Tetrahedron grid "
-    "with 'displacement', 'velocity' and the region masks as node attributes. ParaView (Xdmf3 "
+    "per frame (/displacement/00000, /velocity/00000, /J/00000, ...; each with a 'units' "
+    "attribute); each frame is a Tetrahedron grid with 'displacement', 'velocity' and the region "
+    "masks as node attributes and the cell data of vtu as cell attributes ('volume' from "
+    "/mesh/volume). ParaView (Xdmf3 "
     "reader) and meshio (meshio.xdmf.TimeSeriesReader) read it. A bare mesh becomes one "
     "grid. With --follow-schedule a frame refers to the mesh in use then (/mesh_1, ...).\n\n"
     "obj, ply: the boundary surface in its deformed position (binary PLY adds |u| per vertex); "
@@ -70,7 +82,7 @@ typedef struct {
     const char *input, *out, *format, *name, *mesh, *model;
     const char *compare[8];
     int ncompare, columns, pw, ph;
-    double range;
+    double range, youngs, poisson;
     long frame;
     int all, every, follow;
     int dir, named; /* -o ended in '/'; --name given */
@@ -131,6 +143,8 @@ static int on_opt(void *ctx, int key, const char *v)
             return crom_err(CROM_EUSAGE, "--panel: '%s' is not WxH with 32..4096 pixels", v);
         return 0;
     case O_RANGE: return crom_parse_positive(v, "--range", &a->range);
+    case O_YOUNGS: return crom_parse_positive(v, "--youngs", &a->youngs);
+    case O_POISSON: return crom_parse_double(v, "--poisson", &a->poisson);
     }
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
@@ -150,6 +164,7 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     a->columns = 6;
     a->pw = 360;
     a->ph = 300;
+    a->youngs = a->poisson = NAN;
     crom_cli_parse(cli, &doc, argc, argv, on_opt, a);
     /* trailing slashes of a directory are noise in the file names we print */
     if (a->out) {
@@ -205,6 +220,15 @@ static void warn_incomplete(const crom_cli *cli, const crom_follow *s, int n)
         crom_cli_warn(cli, "%s is incomplete (the run stopped early): exported its %d frames", s->res[0].in.name, n);
 }
 
+/* The frame on mesh mi with displacement u, velocity v at time t, and its
+ * cell fields when cells is not NULL. */
+static int frame_at(crom_follow *s, int mi, const double *u, const double *v, double t, crom_export_cells *cells,
+                    crom_export_frame *fr)
+{
+    *fr = (crom_export_frame){&s->res[mi].mesh, u, v, t, cells};
+    return cells ? crom_export_cells_eval(cells, fr->mesh, u) : 0;
+}
+
 /* A bare mesh: one file (or one picture) */
 static int export_mesh(crom_cli *cli, args *a, crom_in *probe)
 {
@@ -221,8 +245,11 @@ static int export_mesh(crom_cli *cli, args *a, crom_in *probe)
         free(history);
         return rc;
     }
-    crom_export_frame fr = {&m, NULL, NULL};
-    if (!strcmp(a->format, "xdmf")) {
+    crom_export_cells cells = {0};
+    int kind = series_kind(a);
+    crom_export_frame fr = {&m, NULL, NULL, kind == CROM_SERIES_PVD_FILE ? 0 : NAN, &cells};
+    if ((rc = crom_export_cells_eval(&cells, &m, NULL))) {
+    } else if (!strcmp(a->format, "xdmf")) {
         crom_xdmf_series x;
         const char *inputs[1] = {a->input};
         if (!(rc = crom_xdmf_series_open(&x, a->out, a->name, a->dir, inputs, 1, 1, cli, history))) {
@@ -233,18 +260,18 @@ static int export_mesh(crom_cli *cli, args *a, crom_in *probe)
                 rc = crom_xdmf_series_finish(&x);
             }
         }
-    } else if (series_kind(a) == CROM_SERIES_PVD_FILE) { /* a collection of one frame at t = 0 */
+    } else if (kind == CROM_SERIES_PVD_FILE) { /* a collection of one frame at t = 0 */
         crom_export_series s;
-        if (!(rc = crom_export_series_open(&s, a->out, a->name, "vtu", CROM_SERIES_PVD_FILE)) &&
-            !(rc = crom_export_series_write(&s, "vtu", 0, &fr)))
+        if (!(rc = crom_export_series_open(&s, a->out, a->name, "vtu", kind)) &&
+            !(rc = crom_export_series_write(&s, "vtu", &fr)))
             rc = crom_export_series_finish(&s);
         crom_export_series_free(&s);
     } else {
         char path[1400];
         snprintf(path, sizeof path, "%s", a->out ? a->out : "-");
-        if (a->all || !strcmp(a->format, "pvd")) { /* a directory holding NAME.EXT */
+        if (a->all || kind == CROM_SERIES_PVD_DIR) { /* a directory holding NAME.EXT */
             if (!(rc = crom_export_mkdir(a->out)))
-                snprintf(path, sizeof path, "%s/%s.%s", a->out, a->name, !strcmp(a->format, "pvd") ? "vtu" : a->format);
+                snprintf(path, sizeof path, "%s/%s.%s", a->out, a->name, kind ? "vtu" : a->format);
         }
         if (!rc && !strcmp(a->format, "png")) {
             crom_image im;
@@ -255,89 +282,77 @@ static int export_mesh(crom_cli *cli, args *a, crom_in *probe)
             rc = crom_export_write(path, a->format, &fr);
         }
     }
+    crom_export_cells_free(&cells);
     free(history);
     crom_mesh_free(&m);
     return rc;
 }
 
 /* vtu/obj/ply of one frame: the --frame-th (negative: from the end) */
-static int export_one_frame(args *a, crom_follow *s)
+static int export_one_frame(args *a, crom_follow *s, crom_export_cells *cells)
 {
     size_t n3 = 3 * (size_t)(s->maxnv ? s->maxnv : 1);
     double *u = crom_malloc(sizeof(double) * 2 * n3), t;
     long nframes;
     int mi, rc = u ? crom_follow_pick(s, a->frame, &mi, &t, u, u + n3, &nframes) : CROM_EINTERNAL;
-    if (!rc) {
-        crom_export_frame fr = {&s->res[mi].mesh, u, u + n3};
+    crom_export_frame fr;
+    if (!rc && !(rc = frame_at(s, mi, u, u + n3, t, cells, &fr)))
         rc = crom_export_write(a->out ? a->out : "-", a->format, &fr);
-    }
     free(u);
     return rc;
 }
 
-/* pvd, or obj/ply/vtu with --frame all: one file per frame, as frames arrive */
-static int export_series(crom_cli *cli, args *a, crom_follow *s)
+/* pvd, or obj/ply/vtu with --frame all: one file per frame, as frames
+ * arrive; xdmf: one heavy-data file and its XML */
+static int export_series(crom_cli *cli, args *a, crom_follow *s, crom_export_cells *cells)
 {
-    crom_export_series fs;
-    int kind = series_kind(a);
-    int rc = crom_export_series_open(&fs, a->out, a->name, kind != CROM_SERIES_FILES ? "vtu" : a->format, kind);
-    crom_progress prog;
-    crom_progress_start(&prog, cli, "export", s->res[0].in.form == CROM_FORM_H5 ? s->res[0].in.nframes : 0);
-    long k = 0;
-    double t;
-    while (!rc && (rc = crom_follow_next(s, &t)) == 1) {
-        rc = 0;
-        if (k++ % a->every)
-            continue;
-        crom_export_frame fr = {&s->res[s->cur].mesh, s->u[s->cur], s->v[s->cur]};
-        rc = crom_export_series_write(&fs, a->format, t, &fr);
-        crom_progress_update(&prog, k, NULL);
-    }
-    crom_progress_end(&prog);
-    if (!rc)
-        warn_incomplete(cli, s, fs.n);
-    if (!rc && !(rc = crom_export_series_finish(&fs)) && kind == CROM_SERIES_PVD_FILE)
-        crom_cli_info(cli, "wrote %d frames to %s (frames in %s/)", fs.n, fs.pvd, fs.dir);
-    else if (!rc)
-        crom_cli_info(cli, "wrote %d frames to %s/", fs.n, a->out);
-    crom_export_series_free(&fs);
-    return rc;
-}
-
-/* xdmf: one heavy-data file and its XML, frames as they arrive */
-static int export_xdmf(crom_cli *cli, args *a, crom_follow *s)
-{
+    int xdmf = !strcmp(a->format, "xdmf"), kind = series_kind(a), rc;
+    crom_export_series fs = {0};
     crom_xdmf_series x;
     const char *inputs[11] = {a->input, a->mesh, a->model};
     for (int i = 0; i < a->ncompare; i++)
         inputs[3 + i] = a->compare[i];
-    int rc = crom_xdmf_series_open(&x, a->out, a->name, a->dir, inputs, 3 + a->ncompare, s->n, cli,
+    if (xdmf)
+        rc = crom_xdmf_series_open(&x, a->out, a->name, a->dir, inputs, 3 + a->ncompare, s->n, cli,
                                    s->res[0].in.history);
+    else
+        rc = crom_export_series_open(&fs, a->out, a->name, kind ? "vtu" : a->format, kind);
     if (rc)
         return rc;
     crom_progress prog;
     crom_progress_start(&prog, cli, "export", s->res[0].in.form == CROM_FORM_H5 ? s->res[0].in.nframes : 0);
     long k = 0;
     double t;
+    crom_export_frame fr;
     while ((rc = crom_follow_next(s, &t)) == 1) {
         if (k++ % a->every)
             continue;
-        crom_export_frame fr = {&s->res[s->cur].mesh, s->u[s->cur], s->v[s->cur]};
-        if ((rc = crom_xdmf_series_frame(&x, s->cur, t, &fr)))
+        if ((rc = frame_at(s, s->cur, s->u[s->cur], s->v[s->cur], t, cells, &fr)) ||
+            (rc = xdmf ? crom_xdmf_series_frame(&x, s->cur, &fr) : crom_export_series_write(&fs, a->format, &fr)))
             break;
         crom_progress_update(&prog, k, NULL);
     }
     crom_progress_end(&prog);
-    if (!rc && x.n == 0)
+    int n = xdmf ? x.n : fs.n;
+    if (!rc && xdmf && n == 0)
         rc = crom_err(CROM_EDATA, "%s has no frames", s->res[0].in.name);
-    if (rc) {
+    if (!rc)
+        warn_incomplete(cli, s, n);
+    if (cells && cells->degenerate)
+        crom_cli_warn(cli, "%ld degenerate tets (over all frames): NaN in their J, energy density and stress",
+                      cells->degenerate);
+    if (xdmf && rc) {
         crom_xdmf_series_abort(&x);
         return crom_err_ctx("%s", x.h5);
-    }
-    warn_incomplete(cli, s, x.n);
-    int n = x.n;
-    if (!(rc = crom_xdmf_series_finish(&x)))
+    } else if (xdmf && !(rc = crom_xdmf_series_finish(&x))) {
         crom_cli_info(cli, "wrote %d frames to %s (heavy data %s)", n, x.xml, x.h5);
+    } else if (!xdmf && !rc && !(rc = crom_export_series_finish(&fs))) {
+        if (kind == CROM_SERIES_PVD_FILE)
+            crom_cli_info(cli, "wrote %d frames to %s (frames in %s/)", n, fs.pvd, fs.dir);
+        else
+            crom_cli_info(cli, "wrote %d frames to %s/", n, a->out);
+    }
+    crom_export_series_free(&fs);
     return rc;
 }
 
@@ -419,12 +434,23 @@ static int run(crom_cli *cli, args *a)
         if (crom_follow_outside(&s, i))
             crom_cli_warn(cli, "%zu vertices of the mesh lie outside the model's mesh: W is extended there",
                           crom_follow_outside(&s, i));
-    if (!strcmp(a->format, "xdmf"))
-        rc = export_xdmf(cli, a, &s);
-    else if (!strcmp(a->format, "pvd") || a->all)
-        rc = export_series(cli, a, &s);
-    else
-        rc = export_one_frame(a, &s);
+    /* cell data (vtu, pvd, xdmf) with the run's material, if known */
+    crom_material mat;
+    crom_export_cells cells = {0}, *cp = NULL;
+    int known = 0;
+    if (!strcmp(a->format, "vtu") || !strcmp(a->format, "pvd") || !strcmp(a->format, "xdmf")) {
+        cp = &cells;
+        if (!(rc = crom_export_material(&mat, &known, &s.res[0].in, a->youngs, a->poisson)) && known)
+            cells.mat = &mat;
+        else if (!rc)
+            crom_cli_info(cli, "%s records no material: cell data without energy_density and von_mises_stress "
+                          "(give --youngs and --poisson)", s.res[0].in.name);
+    }
+    if (!rc && (!strcmp(a->format, "pvd") || !strcmp(a->format, "xdmf") || a->all))
+        rc = export_series(cli, a, &s, cp);
+    else if (!rc)
+        rc = export_one_frame(a, &s, cp);
+    crom_export_cells_free(&cells);
     crom_follow_close(&s);
     return rc;
 }

@@ -11,6 +11,8 @@
 #include "export.h"
 #include "io.h"
 
+static void xml_text(FILE *f, const char *s);
+
 /* ------------------------------------------------------------- base64 */
 
 static const char b64[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -63,8 +65,19 @@ static void data_array(FILE *f, const char *type, const char *name, int ncomp,
     fprintf(f, "\n        </DataArray>\n");
 }
 
-int crom_export_vtu(FILE *f, const crom_mesh *m, const crom_pointfield *fields, int nfields)
+void crom_export_number(char *buf, size_t n, double x)
 {
+    for (int p = 15; p <= 17; p++) {
+        snprintf(buf, n, "%.*g", p, x);
+        if (strtod(buf, NULL) == x)
+            return;
+    }
+}
+
+int crom_export_vtu(FILE *f, const crom_export_frame *fr)
+{
+    const crom_mesh *m = fr->mesh;
+    const crom_export_cells *c = fr->cells;
     size_t nt = (size_t)m->nt, nv = (size_t)m->nv;
     if (4 * nt * sizeof(int32_t) > UINT32_MAX || 3 * nv * sizeof(double) > UINT32_MAX)
         return crom_err(CROM_EDATA, "mesh too large for a VTU with 32-bit headers");
@@ -83,9 +96,15 @@ int crom_export_vtu(FILE *f, const crom_mesh *m, const crom_pointfield *fields, 
     }
     fprintf(f, "<?xml version=\"1.0\"?>\n"
                "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt32\">\n"
-               "  <UnstructuredGrid>\n"
-               "    <Piece NumberOfPoints=\"%zu\" NumberOfCells=\"%zu\">\n",
-            nv, nt);
+               "  <UnstructuredGrid>\n");
+    if (!isnan(fr->time)) { /* the time ParaView and meshio read from a single file */
+        char t[32];
+        crom_export_number(t, sizeof t, fr->time);
+        fprintf(f, "    <FieldData>\n"
+                   "      <DataArray type=\"Float64\" Name=\"TimeValue\" NumberOfTuples=\"1\" format=\"ascii\">%s</DataArray>\n"
+                   "    </FieldData>\n", t);
+    }
+    fprintf(f, "    <Piece NumberOfPoints=\"%zu\" NumberOfCells=\"%zu\">\n", nv, nt);
     fprintf(f, "      <Points>\n");
     data_array(f, "Float64", "Points", 3, m->X, 3 * nv * sizeof(double));
     fprintf(f, "      </Points>\n      <Cells>\n");
@@ -93,9 +112,10 @@ int crom_export_vtu(FILE *f, const crom_mesh *m, const crom_pointfield *fields, 
     data_array(f, "Int32", "offsets", 1, off, nt * sizeof(int32_t));
     data_array(f, "UInt8", "types", 1, types, nt);
     fprintf(f, "      </Cells>\n      <PointData>\n");
-    for (int i = 0; i < nfields; i++)
-        data_array(f, "Float64", fields[i].name, fields[i].ncomp, fields[i].data,
-                   nv * (size_t)fields[i].ncomp * sizeof(double));
+    if (fr->u)
+        data_array(f, "Float64", "displacement", 3, fr->u, 3 * nv * sizeof(double));
+    if (fr->u && fr->v)
+        data_array(f, "Float64", "velocity", 3, fr->v, 3 * nv * sizeof(double));
     for (int r = 0; r < m->nregions; r++) {
         memset(mask, 0, nv);
         for (int j = 0; j < m->regions[r].n; j++)
@@ -104,7 +124,20 @@ int crom_export_vtu(FILE *f, const crom_mesh *m, const crom_pointfield *fields, 
         snprintf(name, sizeof name, "region_%s", m->regions[r].name);
         data_array(f, "UInt8", name, 1, mask, nv);
     }
-    fprintf(f, "      </PointData>\n    </Piece>\n  </UnstructuredGrid>\n</VTKFile>\n");
+    fprintf(f, "      </PointData>\n");
+    if (c) {
+        fprintf(f, "      <CellData>\n");
+        data_array(f, "Float64", "volume", 1, c->volume, nt * sizeof(double));
+        if (fr->u) {
+            data_array(f, "Float64", "J", 1, c->J, nt * sizeof(double));
+            if (c->mat) {
+                data_array(f, "Float64", "energy_density", 1, c->psi, nt * sizeof(double));
+                data_array(f, "Float64", "von_mises_stress", 1, c->mises, nt * sizeof(double));
+            }
+        }
+        fprintf(f, "      </CellData>\n");
+    }
+    fprintf(f, "    </Piece>\n  </UnstructuredGrid>\n</VTKFile>\n");
     free(off);
     free(types);
     free(mask);
@@ -116,9 +149,13 @@ int crom_export_pvd(FILE *f, const double *time, const char *const *file, int n)
     fprintf(f, "<?xml version=\"1.0\"?>\n"
                "<VTKFile type=\"Collection\" version=\"1.0\" byte_order=\"LittleEndian\">\n"
                "  <Collection>\n");
-    for (int i = 0; i < n; i++)
-        fprintf(f, "    <DataSet timestep=\"%.17g\" group=\"\" part=\"0\" file=\"%s\"/>\n", time[i],
-                file[i]);
+    for (int i = 0; i < n; i++) {
+        char t[32];
+        crom_export_number(t, sizeof t, time[i]);
+        fprintf(f, "    <DataSet timestep=\"%s\" group=\"\" part=\"0\" file=\"", t);
+        xml_text(f, file[i]);
+        fputs("\"/>\n", f);
+    }
     fprintf(f, "  </Collection>\n</VTKFile>\n");
     return ferror(f) ? crom_err(CROM_EIO, "write failed") : 0;
 }
@@ -216,6 +253,16 @@ int crom_xdmf_write_mesh(hid_t loc, const char *group, const crom_mesh *m)
     snprintf(name, sizeof name, "%s/tets", group);
     if (!rc)
         rc = crom_h5_write_i32(loc, name, 2, d, m->tets, NULL, "vertex indices of the tetrahedra (0-based)");
+    double *vol = rc ? NULL : crom_malloc(sizeof(double) * (size_t)(m->nt ? m->nt : 1));
+    if (!rc && !vol)
+        rc = CROM_EINTERNAL;
+    if (!rc) {
+        crom_fem_tet_measures(m, NULL, NULL, vol, NULL, NULL, NULL);
+        d[0] = (hsize_t)m->nt;
+        snprintf(name, sizeof name, "%s/volume", group);
+        rc = crom_h5_write_f64(loc, name, 1, d, vol, "m^3", "rest volume of each tetrahedron");
+    }
+    free(vol);
     if (rc || m->nregions == 0)
         return rc;
     int *mask = crom_malloc(sizeof(int) * (size_t)(m->nv ? m->nv : 1));
@@ -233,12 +280,13 @@ int crom_xdmf_write_mesh(hid_t loc, const char *group, const crom_mesh *m)
     return rc;
 }
 
-int crom_xdmf_write_frame(hid_t loc, const char *name, int k, int nv, const double *data)
+int crom_xdmf_write_frame(hid_t loc, const char *name, int k, int n, int ncomp, const double *data,
+                          const char *units)
 {
     char path[96];
     snprintf(path, sizeof path, "%s/%05d", name, k);
-    hsize_t d[2] = {(hsize_t)nv, 3};
-    return crom_h5_write_f64(loc, path, 2, d, data, "m", NULL);
+    hsize_t d[2] = {(hsize_t)n, (hsize_t)ncomp};
+    return crom_h5_write_f64(loc, path, ncomp > 1 ? 2 : 1, d, data, units, NULL);
 }
 
 /* text with the five XML specials escaped */
@@ -273,54 +321,66 @@ static void xdmf_item(FILE *f, const char *indent, const char *type, int prec, l
     fputs("</DataItem>\n", f);
 }
 
+/* one Attribute of Center "Node" (n = nv) or "Cell" (n = nt) */
+static void xdmf_attribute(FILE *f, const char *in, const char *name, int vector, int cell, const char *type,
+                           int prec, long n, const char *h5name, const char *group, const char *dset)
+{
+    char sub[64];
+    snprintf(sub, sizeof sub, "%s  ", in);
+    fprintf(f, "%s<Attribute Name=\"", in);
+    xml_text(f, name);
+    fprintf(f, "\" AttributeType=\"%s\" Center=\"%s\">\n", vector ? "Vector" : "Scalar", cell ? "Cell" : "Node");
+    xdmf_item(f, sub, type, prec, n, vector ? 3 : 0, h5name, group, dset);
+    fprintf(f, "%s</Attribute>\n", in);
+}
+
 /* one Uniform grid; k < 0: a bare mesh (no time, no fields) */
 static void xdmf_grid(FILE *f, const char *in, const char *h5name, const crom_mesh *m, const char *group,
-                      int k, double t, const char *const *fields, int nfields)
+                      int k, double t, const char *const *fields, int nfields, const char *const *cfields,
+                      int ncfields)
 {
     char sub[64], sub2[64], name[64];
     snprintf(sub, sizeof sub, "%s  ", in);
     snprintf(sub2, sizeof sub2, "%s    ", in);
-    if (k < 0)
+    if (k < 0) {
         fprintf(f, "%s<Grid Name=\"mesh\" GridType=\"Uniform\">\n", in);
-    else
-        fprintf(f, "%s<Grid Name=\"frame_%05d\" GridType=\"Uniform\">\n%s<Time Value=\"%.17g\"/>\n", in, k,
-                sub, t);
+    } else {
+        char tv[32];
+        crom_export_number(tv, sizeof tv, t);
+        fprintf(f, "%s<Grid Name=\"frame_%05d\" GridType=\"Uniform\">\n%s<Time Value=\"%s\"/>\n", in, k, sub, tv);
+    }
     fprintf(f, "%s<Topology TopologyType=\"Tetrahedron\" NumberOfElements=\"%d\" NodesPerElement=\"4\">\n", sub,
             m->nt);
     xdmf_item(f, sub2, "Int", 4, m->nt, 4, h5name, group, "tets");
     fprintf(f, "%s</Topology>\n%s<Geometry GeometryType=\"XYZ\">\n", sub, sub);
     xdmf_item(f, sub2, "Float", 8, m->nv, 3, h5name, group, "vertices");
     fprintf(f, "%s</Geometry>\n", sub);
-    for (int i = 0; i < nfields && k >= 0; i++) {
-        fprintf(f, "%s<Attribute Name=\"", sub);
-        xml_text(f, fields[i]);
-        fputs("\" AttributeType=\"Vector\" Center=\"Node\">\n", f);
-        snprintf(name, sizeof name, "%05d", k);
-        xdmf_item(f, sub2, "Float", 8, m->nv, 3, h5name, fields[i], name);
-        fprintf(f, "%s</Attribute>\n", sub);
-    }
+    snprintf(name, sizeof name, "%05d", k);
+    for (int i = 0; i < nfields && k >= 0; i++)
+        xdmf_attribute(f, sub, fields[i], 1, 0, "Float", 8, m->nv, h5name, fields[i], name);
     for (int r = 0; r < m->nregions; r++) {
-        snprintf(name, sizeof name, "region_%s", m->regions[r].name);
-        fprintf(f, "%s<Attribute Name=\"", sub);
-        xml_text(f, name);
-        fputs("\" AttributeType=\"Scalar\" Center=\"Node\">\n", f);
-        xdmf_item(f, sub2, "Int", 4, m->nv, 0, h5name, group, name);
-        fprintf(f, "%s</Attribute>\n", sub);
+        char rname[96];
+        snprintf(rname, sizeof rname, "region_%s", m->regions[r].name);
+        xdmf_attribute(f, sub, rname, 0, 0, "Int", 4, m->nv, h5name, group, rname);
     }
+    xdmf_attribute(f, sub, "volume", 0, 1, "Float", 8, m->nt, h5name, group, "volume");
+    for (int i = 0; i < ncfields && k >= 0; i++)
+        xdmf_attribute(f, sub, cfields[i], 0, 1, "Float", 8, m->nt, h5name, cfields[i], name);
     fprintf(f, "%s</Grid>\n", in);
 }
 
 int crom_export_xdmf(FILE *f, const char *h5name, const crom_mesh *const *meshes,
                      const char *const *groups, const double *time, const int *mesh_of, int nframes,
-                     const char *const *fields, int nfields)
+                     const char *const *fields, int nfields, const char *const *cfields, int ncfields)
 {
     fputs("<?xml version=\"1.0\"?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n", f);
     if (nframes == 0) {
-        xdmf_grid(f, "    ", h5name, meshes[0], groups[0], -1, 0, NULL, 0);
+        xdmf_grid(f, "    ", h5name, meshes[0], groups[0], -1, 0, NULL, 0, NULL, 0);
     } else {
         fputs("    <Grid Name=\"frames\" GridType=\"Collection\" CollectionType=\"Temporal\">\n", f);
         for (int k = 0; k < nframes; k++)
-            xdmf_grid(f, "      ", h5name, meshes[mesh_of[k]], groups[mesh_of[k]], k, time[k], fields, nfields);
+            xdmf_grid(f, "      ", h5name, meshes[mesh_of[k]], groups[mesh_of[k]], k, time[k], fields, nfields,
+                      cfields, ncfields);
         fputs("    </Grid>\n", f);
     }
     fputs("  </Domain>\n</Xdmf>\n", f);
@@ -365,8 +425,7 @@ int crom_export_write(const char *path, const char *format, const crom_export_fr
     if (rc)
         return rc;
     if (!strcmp(format, "vtu") || !strcmp(format, "pvd")) {
-        crom_pointfield pf[2] = {{"displacement", 3, fr->u}, {"velocity", 3, fr->v}};
-        rc = crom_export_vtu(fo.f, fr->mesh, pf, fr->u ? (fr->v ? 2 : 1) : 0);
+        rc = crom_export_vtu(fo.f, fr);
     } else if (!strcmp(format, "obj")) {
         rc = crom_export_obj(fo.f, fr->mesh, fr->u);
     } else if (!strcmp(format, "ply")) {
@@ -435,10 +494,10 @@ int crom_export_series_add(crom_export_series *s, double t)
     return 0;
 }
 
-int crom_export_series_write(crom_export_series *s, const char *format, double t, const crom_export_frame *fr)
+int crom_export_series_write(crom_export_series *s, const char *format, const crom_export_frame *fr)
 {
     int rc = crom_export_write(crom_export_series_path(s), format, fr);
-    return rc ? rc : crom_export_series_add(s, t);
+    return rc ? rc : crom_export_series_add(s, fr->time);
 }
 
 int crom_export_series_finish(crom_export_series *s)
@@ -565,13 +624,20 @@ int crom_xdmf_series_mesh(crom_xdmf_series *x, int mi, const crom_mesh *m)
     return 0;
 }
 
-int crom_xdmf_series_frame(crom_xdmf_series *x, int mi, double t, const crom_export_frame *fr)
+int crom_xdmf_series_frame(crom_xdmf_series *x, int mi, const crom_export_frame *fr)
 {
     const crom_mesh *m = fr->mesh;
+    const crom_export_cells *c = fr->cells;
     int rc;
     if ((rc = crom_xdmf_series_mesh(x, mi, m)) ||
-        (rc = crom_xdmf_write_frame(x->o.h5, "displacement", x->n, m->nv, fr->u)) ||
-        (rc = crom_xdmf_write_frame(x->o.h5, "velocity", x->n, m->nv, fr->v)))
+        (rc = crom_xdmf_write_frame(x->o.h5, "displacement", x->n, m->nv, 3, fr->u, "m")) ||
+        (rc = crom_xdmf_write_frame(x->o.h5, "velocity", x->n, m->nv, 3, fr->v, "m/s")))
+        return rc;
+    x->ncells = c ? (c->mat ? 3 : 1) : 0;
+    if (c && (rc = crom_xdmf_write_frame(x->o.h5, "J", x->n, m->nt, 1, c->J, "1")))
+        return rc;
+    if (c && c->mat && ((rc = crom_xdmf_write_frame(x->o.h5, "energy_density", x->n, m->nt, 1, c->psi, "J/m^3")) ||
+                        (rc = crom_xdmf_write_frame(x->o.h5, "von_mises_stress", x->n, m->nt, 1, c->mises, "Pa"))))
         return rc;
     if (x->n == x->cap) {
         int cap = x->cap ? 2 * x->cap : 64;
@@ -585,7 +651,7 @@ int crom_xdmf_series_frame(crom_xdmf_series *x, int mi, double t, const crom_exp
         x->mesh_of = nm;
         x->cap = cap;
     }
-    x->time[x->n] = t;
+    x->time[x->n] = fr->time;
     x->mesh_of[x->n++] = mi;
     return 0;
 }
@@ -599,6 +665,7 @@ void crom_xdmf_series_abort(crom_xdmf_series *x)
 int crom_xdmf_series_finish(crom_xdmf_series *x)
 {
     static const char *const fields[] = {"displacement", "velocity"};
+    static const char *const cfields[] = {"J", "energy_density", "von_mises_stress"};
     int rc = 0;
     if (x->n > 0) {
         hsize_t d = (hsize_t)x->n;
@@ -615,7 +682,7 @@ int crom_xdmf_series_finish(crom_xdmf_series *x)
     crom_fileout fo;
     if (!(rc = crom_fileout_open(&fo, x->xml, 0))) {
         if ((rc = crom_export_xdmf(fo.f, x->h5name, x->meshes, (const char *const *)x->groups, x->time, x->mesh_of,
-                                   x->n, fields, x->n ? 2 : 0))) {
+                                   x->n, fields, x->n ? 2 : 0, cfields, x->ncells))) {
             crom_fileout_abort(&fo);
             crom_err_ctx("%s", x->xml);
         } else {
@@ -625,5 +692,57 @@ int crom_xdmf_series_finish(crom_xdmf_series *x)
     if (rc)
         unlink(x->h5);
     xdmf_free(x);
+    return rc;
+}
+
+/* ------------------------------------------------------- cell fields */
+
+int crom_export_cells_eval(crom_export_cells *c, const crom_mesh *m, const double *u)
+{
+    if (m->nt > c->cap) {
+        int cap = m->nt;
+        double *b[4] = {crom_realloc(c->volume, sizeof(double) * (size_t)cap), NULL, NULL, NULL};
+        if (b[0])
+            c->volume = b[0];
+        if (b[0] && (b[1] = crom_realloc(c->J, sizeof(double) * (size_t)cap)))
+            c->J = b[1];
+        if (b[1] && (b[2] = crom_realloc(c->psi, sizeof(double) * (size_t)cap)))
+            c->psi = b[2];
+        if (b[2] && (b[3] = crom_realloc(c->mises, sizeof(double) * (size_t)cap)))
+            c->mises = b[3];
+        if (!b[3])
+            return CROM_EINTERNAL;
+        c->cap = cap;
+    }
+    c->degenerate += crom_fem_tet_measures(m, u, c->mat, c->volume, c->J, c->psi, c->mises);
+    return 0;
+}
+
+void crom_export_cells_free(crom_export_cells *c)
+{
+    free(c->volume);
+    free(c->J);
+    free(c->psi);
+    free(c->mises);
+    memset(c, 0, sizeof *c);
+}
+
+int crom_export_material(crom_material *m, int *known, const crom_in *in, double E, double nu)
+{
+    double v[2] = {E, nu};
+    static const char *const attr[2] = {"youngs", "poisson"};
+    *known = 0;
+    for (int i = 0; i < 2; i++)
+        if (isnan(v[i]) && in->h5 >= 0 && crom_h5_has_attr(in->h5, ".", attr[i]) &&
+            crom_h5_get_f64(in->h5, ".", attr[i], &v[i], 1))
+            return crom_err_ctx("%s", in->name);
+    if (isnan(v[0]) && isnan(v[1]))
+        return 0;
+    if (isnan(v[0]) || isnan(v[1]))
+        return crom_err(CROM_EUSAGE, "%s records no %s: give --youngs and --poisson together", in->name,
+                        isnan(v[0]) ? "Young's modulus" : "Poisson ratio");
+    int rc = crom_material_init(m, v[0], v[1], 1000); /* the density plays no part */
+    if (!rc)
+        *known = 1;
     return rc;
 }

@@ -9,20 +9,57 @@
 
 #include <hdf5.h>
 
+#include "fem.h"
 #include "io.h"
 #include "mesh.h"
 
-/* Per-vertex data attached to an export. */
+/* Per-tet fields of a frame (cell data), recomputed for each frame by
+ * crom_export_cells_eval from its mesh and displacement with the element
+ * kernel of fem.h: rest volume (m³), J = det F, strain-energy density Ψ(F)
+ * (J/m³) and von Mises Cauchy stress (Pa); the last two only with a
+ * material. */
 typedef struct {
-    const char *name;   /* "displacement" */
-    int ncomp;          /* 1 or 3 */
-    const double *data; /* [nv][ncomp] */
-} crom_pointfield;
+    double *volume, *J, *psi, *mises; /* [cap] */
+    int cap;
+    const crom_material *mat;         /* NULL: no psi, no mises */
+    long degenerate;                  /* degenerate rest tets met (NaN fields) */
+} crom_export_cells;
 
-/* A VTU of the mesh on its rest positions, with the given point fields
- * (binary, base64-encoded inline) and one UInt8 mask per named region
- * ("region_NAME"). Returns 0 or CROM_EIO. */
-int crom_export_vtu(FILE *f, const crom_mesh *m, const crom_pointfield *fields, int nfields);
+/* Evaluate the cell fields of mesh m displaced by u (NULL: at rest) into c
+ * (buffers grown as needed). Returns 0 or CROM_EINTERNAL. */
+int crom_export_cells_eval(crom_export_cells *c, const crom_mesh *m, const double *u);
+void crom_export_cells_free(crom_export_cells *c);
+
+/* One state of a body: the mesh on its rest positions, displaced by u with
+ * velocity v ([nv][3] each; u == NULL: the bare mesh, v may be NULL), at
+ * time `time` (NAN: none), with cell fields (NULL: none; for a bare mesh
+ * only the volume is written). */
+typedef struct {
+    const crom_mesh *mesh;
+    const double *u, *v;
+    double time;
+    const crom_export_cells *cells;
+} crom_export_frame;
+
+/* The material the cell fields use: E and nu when given (not NaN), else the
+ * input's root attributes `youngs` and `poisson` (trajectories and reduced
+ * runs carry them). *known = 0 when neither names both (a usage error when
+ * only one of E, nu was given and the input lacks the other). Returns 0,
+ * CROM_EUSAGE (values out of range) or that error. */
+int crom_export_material(crom_material *m, int *known, const crom_in *in, double E, double nu);
+
+/* The shortest decimal text of x that reads back (strtod) as x: "%.15g",
+ * "%.16g" or "%.17g", the first that does. */
+void crom_export_number(char *buf, size_t n, double x);
+
+/* A VTU of fr: the mesh on its rest positions; point data 'displacement'
+ * and 'velocity' (when given) and one UInt8 mask per named region
+ * ("region_NAME"); cell data 'volume', and with a displacement 'J',
+ * 'energy_density', 'von_mises_stress' (those of fr->cells that exist); the
+ * frame's time as field data 'TimeValue' (when not NaN). Arrays binary,
+ * base64-encoded inline. Returns 0, CROM_EDATA (too large for 32-bit
+ * headers) or CROM_EIO. */
+int crom_export_vtu(FILE *f, const crom_export_frame *fr);
 
 /* A ParaView collection: file[i] at time[i]. */
 int crom_export_pvd(FILE *f, const double *time, const char *const *file, int n);
@@ -44,31 +81,29 @@ int crom_export_ply(FILE *f, const crom_mesh *m, const double *disp);
  *   Xdmf3 reader, meshio's TimeSeriesReader) can reference it whole. */
 
 /* Write mesh m as the group `group` ("mesh", "mesh_1") of the heavy-data
- * file: vertices, tets and one 0/1 int32 mask per region. */
+ * file: vertices, tets, rest volumes of the tets and one 0/1 int32 mask per
+ * region. */
 int crom_xdmf_write_mesh(hid_t loc, const char *group, const crom_mesh *m);
 
-/* Write frame k's point field `name` ([nv][3]) as /NAME/%05d. */
-int crom_xdmf_write_frame(hid_t loc, const char *name, int k, int nv, const double *data);
+/* Write frame k's field `name` ([n][ncomp], per vertex or per tet) as
+ * /NAME/%05d with its units. */
+int crom_xdmf_write_frame(hid_t loc, const char *name, int k, int n, int ncomp, const double *data,
+                          const char *units);
 
 /* The XML: with nframes = 0 one Uniform grid of meshes[0] (a bare mesh);
  * otherwise a Temporal collection of nframes Uniform grids, frame k at
  * time[k] on meshes[mesh_of[k]] (group groups[mesh_of[k]]), with Node
- * attributes fields[0..nfields) (3-vectors, datasets /NAME/%05d) and the
- * region masks. h5name is the heavy-data file name relative to the XML. */
+ * attributes fields[0..nfields) (3-vectors, datasets /NAME/%05d), Cell
+ * attributes cfields[0..ncfields) (scalars per tet, /NAME/%05d), and in
+ * every grid the region masks and the Cell attribute 'volume' of its mesh
+ * group. h5name is the heavy-data file name relative to the XML. */
 int crom_export_xdmf(FILE *f, const char *h5name, const crom_mesh *const *meshes,
                      const char *const *groups, const double *time, const int *mesh_of, int nframes,
-                     const char *const *fields, int nfields);
+                     const char *const *fields, int nfields, const char *const *cfields, int ncfields);
 
 /* -------------------------------------------------------- whole files
  * What crom-export writes, each file atomic (a temporary file renamed on
  * success, nothing left on failure). */
-
-/* One state of a body: the mesh on its rest positions, displaced by u with
- * velocity v ([nv][3] each; u == NULL: the bare mesh, v may be NULL). */
-typedef struct {
-    const crom_mesh *mesh;
-    const double *u, *v;
-} crom_export_frame;
 
 /* Create directory path and its parents (mkdir -p). Returns 0, or
  * CROM_ECANTCREAT naming the part that cannot be made or is not a
@@ -115,8 +150,8 @@ const char *crom_export_series_path(crom_export_series *s);
 int crom_export_series_add(crom_export_series *s, double t);
 
 /* crom_export_write of fr to the next frame's path in format, then
- * crom_export_series_add. */
-int crom_export_series_write(crom_export_series *s, const char *format, double t, const crom_export_frame *fr);
+ * crom_export_series_add of its time. */
+int crom_export_series_write(crom_export_series *s, const char *format, const crom_export_frame *fr);
 
 /* Write the collection (if any) of the frames recorded. Returns 0 or an
  * error naming it. */
@@ -136,6 +171,7 @@ typedef struct {
     double *time;              /* [n] */
     int *mesh_of;              /* [n] */
     int n, cap;
+    int ncells;                /* per-frame cell fields written: 0, 1 (J) or 3 */
 } crom_xdmf_series;
 
 /* Start an XDMF export to out: OUT.xdmf (heavy data in OUT.xdmf.h5 beside
@@ -154,9 +190,11 @@ int crom_xdmf_series_open(crom_xdmf_series *x, const char *out, const char *name
  * error (HDF5, out of memory). */
 int crom_xdmf_series_mesh(crom_xdmf_series *x, int mi, const crom_mesh *m);
 
-/* Append a frame at time t on mesh number mi (fr->mesh, written if new):
- * its displacement and velocity. Returns 0 or an error. */
-int crom_xdmf_series_frame(crom_xdmf_series *x, int mi, double t, const crom_export_frame *fr);
+/* Append frame fr on mesh number mi (fr->mesh, written if new): its time,
+ * displacement and velocity, and its cell fields J, energy density and
+ * stress (those fr->cells has; the same for every frame of a series).
+ * Returns 0 or an error. */
+int crom_xdmf_series_frame(crom_xdmf_series *x, int mi, const crom_export_frame *fr);
 
 /* Finish: the frame times, the heavy-data file, then the XML (a bare mesh
  * when no frame was added). On failure nothing is left of either file.
