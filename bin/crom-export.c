@@ -1,6 +1,6 @@
 /* crom-export — write meshes and trajectories as files other tools open:
- * VTU (+ PVD for a series) and XDMF+HDF5 for ParaView and meshio, surface OBJ
- * and PLY, PNG pictures and strips. */
+ * VTU (+ PVD for a series) and XDMF+HDF5 for ParaView and meshio, MSH for
+ * gmsh, surface OBJ, PLY and STL, PNG pictures and strips. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -17,10 +17,10 @@ enum { O_FORMAT = 300, O_FRAME, O_EVERY, O_NAME, O_MESH, O_MODEL, O_COMPARE, O_C
        O_YOUNGS, O_POISSON };
 
 static const crom_opt export_opts[] = {
-    {"format", O_FORMAT, "FMT", "vtu, pvd, xdmf, obj, ply, png (a picture per frame), or strip (one PNG: the input and each --compare side by side, rows, at --columns times). Default: from the extension of OUT; pvd when OUT ends in '/'."},
-    {"output", 'o', "OUT", "Output file. pvd: OUT.pvd with its frames in OUT/ beside it (OUT/OUT_00000.vtu, ...), or, for any other name or one ending in '/', a directory holding NAME.pvd and NAME_00000.vtu, ...; xdmf: OUT.xdmf with its heavy data OUT.xdmf.h5 beside it, or a directory (NAME.xdmf and NAME.xdmf.h5 in it); obj/ply/png with --frame all: a directory (created if needed)."},
-    {"frame", O_FRAME, "K", "Which frame of a series to write for vtu/obj/ply/png: an index (negative counts from the end; default -1, the last) or 'all' for one file per frame."},
-    {"every", O_EVERY, "K", "With pvd, xdmf, strip or --frame all: keep every K-th frame (default 1)."},
+    {"format", O_FORMAT, "FMT", "vtu, pvd, xdmf, msh, obj, ply, stl, png (a picture per frame), or strip (one PNG: the input and each --compare side by side, rows, at --columns times). Default: from the extension of OUT; pvd when OUT ends in '/'."},
+    {"output", 'o', "OUT", "Output file. pvd: OUT.pvd with its frames in OUT/ beside it (OUT/OUT_00000.vtu, ...), or, for any other name or one ending in '/', a directory holding NAME.pvd and NAME_00000.vtu, ...; xdmf: OUT.xdmf with its heavy data OUT.xdmf.h5 beside it, or a directory (NAME.xdmf and NAME.xdmf.h5 in it); vtu/obj/ply/stl/png with --frame all: a directory (created if needed)."},
+    {"frame", O_FRAME, "K", "Which frame of a series to write for vtu/obj/ply/stl/png: an index (negative counts from the end; default -1, the last) or 'all' for one file per frame."},
+    {"every", O_EVERY, "K", "With pvd, xdmf, msh, strip or --frame all: keep every K-th frame (default 1)."},
     {"name", O_NAME, "BASE", "File name stem inside an output directory (default 'frame': frame.pvd, frame_00000.vtu, ...); -o OUT.pvd and -o OUT.xdmf name their files themselves."},
     {"mesh", O_MESH, "MESH", "For a crom/latent: the mesh to decode onto (any mesh: the training mesh, a finer one for display, another shape; a trajectory or cubature carrying a mesh will do). For a trajectory: a mesh with the same vertices, e.g. to add regions."},
     {"model", O_MODEL, "MODEL", "The crom/model that decodes a crom/latent: u(X) = W(X) q."},
@@ -37,9 +37,9 @@ static const crom_optgroup groups[] = {{"Options", export_opts}, {NULL, NULL}};
 
 static const crom_doc doc = {
     "crom-export",
-    "write crom meshes, trajectories and decoded latent runs as VTU/PVD, XDMF, OBJ, PLY or PNG",
-    "crom-export --format vtu|pvd|xdmf|obj|ply|png|strip [options] -o OUT [MESH|TRAJ|-]\n"
-    "crom-export --format vtu|pvd|xdmf|obj|ply|png|strip --model MODEL --mesh MESH -o OUT [LATENT|-]",
+    "write crom meshes, trajectories and decoded latent runs as VTU/PVD, XDMF, MSH, OBJ, PLY, STL or PNG",
+    "crom-export --format vtu|pvd|xdmf|msh|obj|ply|stl|png|strip [options] -o OUT [MESH|TRAJ|-]\n"
+    "crom-export --format vtu|pvd|xdmf|msh|obj|ply|stl|png|strip --model MODEL --mesh MESH -o OUT [LATENT|-]",
     "Reads a crom/mesh, a crom/trajectory, or a crom/latent decoded through a model onto any "
     "mesh (HDF5 file or frame stream, from a path or stdin) and writes files ParaView, meshio "
     "and mesh viewers open.\n\n"
@@ -63,8 +63,13 @@ static const crom_doc doc = {
     "/mesh/volume). ParaView (Xdmf3 "
     "reader) and meshio (meshio.xdmf.TimeSeriesReader) read it. A bare mesh becomes one "
     "grid. With --follow-schedule a frame refers to the mesh in use then (/mesh_1, ...).\n\n"
-    "obj, ply: the boundary surface in its deformed position (binary PLY adds |u| per vertex); "
-    "--frame all writes a numbered sequence into a directory.\n\n"
+    "msh: a gmsh MSH 4.1 file written by gmsh (one discrete volume of linear tets) with, for a "
+    "series, the views 'displacement' (m) and 'velocity' (m/s) as NodeData, one step per "
+    "(--every-th) frame at its time (gmsh prints 16 digits). It holds one mesh: a run that "
+    "switches meshes needs pvd or xdmf.\n\n"
+    "obj, ply, stl: the boundary surface in its deformed position, outward oriented (binary PLY "
+    "adds |u| per vertex as 'displacement_magnitude'; STL is ASCII, written by gmsh); --frame all "
+    "writes a numbered sequence into a directory.\n\n"
     "png, strip: pictures rendered without a display: the deformed boundary surface, shaded and "
     "coloured by |u| on one colour scale, from a fixed camera. strip puts several results side by "
     "side (rows) at the same times (columns) for a quick look without ParaView.\n\n"
@@ -74,6 +79,7 @@ static const crom_doc doc = {
     "crom-fullsim @compress.flags < box.h5 | crom-export -o out/run.pvd   # run.pvd + run/run_*.vtu\n"
     "crom-export --format xdmf -o run.xdmf traj.h5          # run.xdmf + run.xdmf.h5\n"
     "crom-export --format obj --frame all -o surf/ traj.h5\n"
+    "crom-export -o run.msh traj.h5 && gmsh run.msh        # views 'displacement', 'velocity'\n"
     "crom-export --format strip --model m.h5 --mesh box.h5 --compare full.h5 -o strip.png reduced.h5\n"
     "crom-export --format pvd --model m.h5 --follow-schedule -o punch.pvd punched_run.h5",
     "crom-mesh(1), crom-fullsim(1), crom-reducedstep(1), crom-info(1)"};
@@ -88,6 +94,9 @@ typedef struct {
     int dir, named; /* -o ended in '/'; --name given */
 } args;
 
+/* the formats; all but the last follow from -o's extension too */
+static const char *const formats[] = {"vtu", "pvd", "xdmf", "msh", "obj", "ply", "stl", "png", "strip", NULL};
+
 static int on_opt(void *ctx, int key, const char *v)
 {
     args *a = ctx;
@@ -100,11 +109,11 @@ static int on_opt(void *ctx, int key, const char *v)
         return 0;
     case 'o': a->out = v; return 0;
     case O_FORMAT:
-        if (strcmp(v, "vtu") && strcmp(v, "pvd") && strcmp(v, "xdmf") && strcmp(v, "obj") && strcmp(v, "ply") &&
-            strcmp(v, "png") && strcmp(v, "strip"))
-            return crom_err(CROM_EUSAGE, "--format: '%s' is not vtu, pvd, xdmf, obj, ply, png or strip", v);
-        a->format = v;
-        return 0;
+        a->format = NULL;
+        for (int i = 0; formats[i]; i++)
+            if (!strcmp(v, formats[i]))
+                a->format = formats[i];
+        return a->format ? 0 : crom_err(CROM_EUSAGE, "--format: '%s' is not vtu, pvd, xdmf, msh, obj, ply, stl, png or strip", v);
     case O_FRAME:
         if (!strcmp(v, "all")) {
             a->all = 1;
@@ -179,10 +188,12 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
             a->format = "pvd";
     }
     if (!a->format && a->out) {
-        static const char *ext[] = {".vtu", ".pvd", ".xdmf", ".obj", ".ply", ".png"};
-        for (int i = 0; i < 6; i++)
-            if (ends_with(a->out, ext[i]))
-                a->format = ext[i] + 1;
+        for (int i = 0; formats[i + 1]; i++) {
+            char ext[8];
+            snprintf(ext, sizeof ext, ".%s", formats[i]);
+            if (ends_with(a->out, ext))
+                a->format = formats[i];
+        }
         if (!a->format && ends_with(a->out, "/"))
             a->format = "pvd";
     }
@@ -302,57 +313,53 @@ static int export_one_frame(args *a, crom_follow *s, crom_export_cells *cells)
     return rc;
 }
 
-/* pvd, or obj/ply/vtu with --frame all: one file per frame, as frames
- * arrive; xdmf: one heavy-data file and its XML */
+/* pvd, or vtu/obj/ply/stl with --frame all: one file per frame, as frames
+ * arrive; xdmf: one heavy-data file and its XML; msh: one file */
 static int export_series(crom_cli *cli, args *a, crom_follow *s, crom_export_cells *cells)
 {
-    int xdmf = !strcmp(a->format, "xdmf"), kind = series_kind(a), rc;
-    crom_export_series fs = {0};
-    crom_xdmf_series x;
     const char *inputs[11] = {a->input, a->mesh, a->model};
     for (int i = 0; i < a->ncompare; i++)
         inputs[3 + i] = a->compare[i];
-    if (xdmf)
-        rc = crom_xdmf_series_open(&x, a->out, a->name, a->dir, inputs, 3 + a->ncompare, s->n, cli,
+    int kind = !strcmp(a->format, "xdmf") ? CROM_SERIES_XDMF : !strcmp(a->format, "msh") ? CROM_SERIES_MSH : series_kind(a);
+    crom_export_sink k;
+    int rc = crom_export_sink_open(&k, kind, a->format, a->out, a->name, a->dir, inputs, 3 + a->ncompare, s->n, cli,
                                    s->res[0].in.history);
-    else
-        rc = crom_export_series_open(&fs, a->out, a->name, kind ? "vtu" : a->format, kind);
     if (rc)
         return rc;
     crom_progress prog;
     crom_progress_start(&prog, cli, "export", s->res[0].in.form == CROM_FORM_H5 ? s->res[0].in.nframes : 0);
-    long k = 0;
+    long i = 0;
     double t;
     crom_export_frame fr;
     while ((rc = crom_follow_next(s, &t)) == 1) {
-        if (k++ % a->every)
+        if (i++ % a->every)
             continue;
         if ((rc = frame_at(s, s->cur, s->u[s->cur], s->v[s->cur], t, cells, &fr)) ||
-            (rc = xdmf ? crom_xdmf_series_frame(&x, s->cur, &fr) : crom_export_series_write(&fs, a->format, &fr)))
+            (rc = crom_export_sink_frame(&k, s->cur, &fr)))
             break;
-        crom_progress_update(&prog, k, NULL);
+        crom_progress_update(&prog, i, NULL);
     }
     crom_progress_end(&prog);
-    int n = xdmf ? x.n : fs.n;
-    if (!rc && xdmf && n == 0)
+    if (!rc && k.n == 0 && kind >= CROM_SERIES_XDMF)
         rc = crom_err(CROM_EDATA, "%s has no frames", s->res[0].in.name);
-    if (!rc)
-        warn_incomplete(cli, s, n);
+    if (rc) {
+        crom_export_sink_abort(&k);
+        return rc;
+    }
+    warn_incomplete(cli, s, k.n);
     if (cells && cells->degenerate)
         crom_cli_warn(cli, "%ld degenerate tets (over all frames): NaN in their J, energy density and stress",
                       cells->degenerate);
-    if (xdmf && rc) {
-        crom_xdmf_series_abort(&x);
-        return crom_err_ctx("%s", x.h5);
-    } else if (xdmf && !(rc = crom_xdmf_series_finish(&x))) {
-        crom_cli_info(cli, "wrote %d frames to %s (heavy data %s)", n, x.xml, x.h5);
-    } else if (!xdmf && !rc && !(rc = crom_export_series_finish(&fs))) {
-        if (kind == CROM_SERIES_PVD_FILE)
-            crom_cli_info(cli, "wrote %d frames to %s (frames in %s/)", n, fs.pvd, fs.dir);
-        else
-            crom_cli_info(cli, "wrote %d frames to %s/", n, a->out);
-    }
-    crom_export_series_free(&fs);
+    int n = k.n;
+    char where[2600];
+    if (kind == CROM_SERIES_XDMF)
+        snprintf(where, sizeof where, "%s (heavy data %s)", k.xdmf.xml, k.xdmf.h5);
+    else if (kind == CROM_SERIES_PVD_FILE)
+        snprintf(where, sizeof where, "%s (frames in %s/)", k.files.pvd, k.files.dir);
+    else
+        snprintf(where, sizeof where, kind == CROM_SERIES_MSH ? "%s" : "%s/", a->out ? a->out : "stdout");
+    if (!(rc = crom_export_sink_finish(&k)))
+        crom_cli_info(cli, "wrote %d frames to %s", n, where);
     return rc;
 }
 
@@ -446,7 +453,7 @@ static int run(crom_cli *cli, args *a)
             crom_cli_info(cli, "%s records no material: cell data without energy_density and von_mises_stress "
                           "(give --youngs and --poisson)", s.res[0].in.name);
     }
-    if (!rc && (!strcmp(a->format, "pvd") || !strcmp(a->format, "xdmf") || a->all))
+    if (!rc && (!strcmp(a->format, "pvd") || !strcmp(a->format, "xdmf") || !strcmp(a->format, "msh") || a->all))
         rc = export_series(cli, a, &s, cp);
     else if (!rc)
         rc = export_one_frame(a, &s, cp);

@@ -7,6 +7,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <gmshc.h>
+
 #include "err.h"
 #include "export.h"
 #include "io.h"
@@ -217,7 +219,7 @@ int crom_export_ply(FILE *f, const crom_mesh *m, const double *disp)
         return rc;
     fprintf(f, "ply\nformat binary_little_endian 1.0\ncomment crom surface\n"
                "element vertex %d\nproperty float x\nproperty float y\nproperty float z\n"
-               "property float u\nelement face %d\nproperty list uchar int vertex_indices\n"
+               "property float displacement_magnitude\nelement face %d\nproperty list uchar int vertex_indices\n"
                "end_header\n",
             nsv, nt);
     for (int i = 0; i < nsv; i++) {
@@ -421,7 +423,18 @@ int crom_export_mkdir(const char *path)
 int crom_export_write(const char *path, const char *format, const crom_export_frame *fr)
 {
     crom_fileout fo;
-    int rc = crom_fileout_open(&fo, path, !strcmp(format, "ply"));
+    int rc;
+    if (!strcmp(format, "msh")) { /* crom_export_msh_finish writes the file */
+        crom_export_msh w;
+        if ((rc = crom_export_msh_open(&w, fr->mesh)))
+            return crom_err_ctx("%s", path);
+        if (fr->u && (rc = crom_export_msh_frame(&w, isnan(fr->time) ? 0 : fr->time, fr->u, fr->v))) {
+            crom_export_msh_abort(&w);
+            return crom_err_ctx("%s", path);
+        }
+        return crom_export_msh_finish(&w, path);
+    }
+    rc = crom_fileout_open(&fo, path, !strcmp(format, "ply"));
     if (rc)
         return rc;
     if (!strcmp(format, "vtu") || !strcmp(format, "pvd")) {
@@ -430,6 +443,8 @@ int crom_export_write(const char *path, const char *format, const crom_export_fr
         rc = crom_export_obj(fo.f, fr->mesh, fr->u);
     } else if (!strcmp(format, "ply")) {
         rc = crom_export_ply(fo.f, fr->mesh, fr->u);
+    } else if (!strcmp(format, "stl")) {
+        rc = crom_export_stl(fo.f, fr->mesh, fr->u);
     } else {
         rc = crom_err(CROM_EUSAGE, "no writer for format '%s'", format);
     }
@@ -744,5 +759,278 @@ int crom_export_material(crom_material *m, int *known, const crom_in *in, double
     int rc = crom_material_init(m, v[0], v[1], 1000); /* the density plays no part */
     if (!rc)
         *known = 1;
+    return rc;
+}
+
+/* ---------------------------------------------------------------- gmsh
+ * gmsh writes MSH and STL to a named file: it writes a temporary file
+ * (named with the extension that selects the format) whose bytes are then
+ * copied into the output, so outputs stay atomic and may go to stdout. gmsh
+ * keeps one global session (its state is global by design). */
+
+static int gmsh_fail(int ierr, const char *what)
+{
+    char *msg = NULL;
+    int e2;
+    gmshLoggerGetLastError(&msg, &e2);
+    int rc = crom_err(CROM_EDATA, "gmsh could not %s%s%s (error %d)", what, msg && *msg ? ": " : "",
+                      msg ? msg : "", ierr);
+    if (msg)
+        gmshFree(msg);
+    return rc;
+}
+
+#define G(call, what)                                                                              \
+    do {                                                                                           \
+        ierr = 0;                                                                                  \
+        call;                                                                                      \
+        if (ierr)                                                                                  \
+            return gmsh_fail(ierr, what);                                                          \
+    } while (0)
+
+/* a session with one empty model, messages kept from the terminal (gmsh
+ * prints to stdout, which may carry our output) */
+static void gmsh_start(void)
+{
+    int ierr;
+    gmshInitialize(0, NULL, 0, &ierr);
+    gmshOptionSetNumber("General.Terminal", 0, &ierr);
+    gmshOptionSetNumber("General.Verbosity", 2, &ierr);
+    gmshOptionSetNumber("General.AbortOnError", 0, &ierr);
+    gmshLoggerStart(&ierr);
+    gmshModelAdd("crom", &ierr);
+    gmshOptionSetNumber("Mesh.Binary", 0, &ierr);
+    gmshOptionSetNumber("Mesh.MshFileVersion", 4.1, &ierr);
+    gmshOptionSetNumber("PostProcessing.SaveMesh", 0, &ierr); /* the mesh once, by gmshWrite */
+}
+
+static void gmsh_stop(void)
+{
+    int ierr;
+    gmshLoggerStop(&ierr);
+    gmshFinalize(&ierr);
+}
+
+/* gmsh writes the model (and the views[0..nviews), appended) to a
+ * temporary file with extension ext, whose bytes go to f */
+static int gmsh_write_into(FILE *f, const char *ext, const int *views, int nviews)
+{
+    const char *dir = getenv("TMPDIR");
+    char tmp[1100];
+    snprintf(tmp, sizeof tmp, "%s/crom-export-XXXXXX.%s", dir && *dir ? dir : "/tmp", ext);
+    int fd = mkstemps(tmp, (int)strlen(ext) + 1), ierr = 0, rc = 0;
+    if (fd < 0)
+        return crom_err(CROM_ECANTCREAT, "cannot create a temporary file %s: %s", tmp, strerror(errno));
+    close(fd);
+    gmshWrite(tmp, &ierr);
+    for (int i = 0; i < nviews && !ierr; i++)
+        gmshViewWrite(views[i], tmp, 1, &ierr);
+    if (ierr)
+        rc = gmsh_fail(ierr, "write the file");
+    FILE *in = rc ? NULL : fopen(tmp, "rb");
+    if (!rc && !in)
+        rc = crom_err(CROM_EIO, "cannot read back %s: %s", tmp, strerror(errno));
+    char buf[65536];
+    size_t n;
+    while (in && (n = fread(buf, 1, sizeof buf, in)) > 0)
+        if (fwrite(buf, 1, n, f) != n)
+            break;
+    if (in && (ferror(in) || ferror(f)))
+        rc = crom_err(CROM_EIO, "write failed");
+    if (in)
+        fclose(in);
+    unlink(tmp);
+    return rc;
+}
+
+static int stl_model(const crom_mesh *m, const double *disp)
+{
+    int nt, *T, nsv, *sv, *map, ierr;
+    int rc = surface(m, &nt, &T, &nsv, &sv, &map);
+    if (rc)
+        return rc;
+    size_t *ntag = crom_malloc(sizeof(size_t) * (size_t)(nsv ? nsv : 1));
+    size_t *etag = crom_malloc(sizeof(size_t) * (size_t)(nt ? nt : 1));
+    size_t *enode = crom_malloc(sizeof(size_t) * 3 * (size_t)(nt ? nt : 1));
+    double *x = crom_malloc(sizeof(double) * 3 * (size_t)(nsv ? nsv : 1));
+    if (!ntag || !etag || !enode || !x) {
+        rc = CROM_EINTERNAL;
+    } else {
+        for (int i = 0; i < nsv; i++) {
+            ntag[i] = (size_t)i + 1;
+            for (int c = 0; c < 3; c++)
+                x[3 * i + c] = m->X[3 * (size_t)sv[i] + c] + (disp ? disp[3 * (size_t)sv[i] + c] : 0);
+        }
+        for (int t = 0; t < nt; t++) {
+            etag[t] = (size_t)t + 1;
+            for (int k = 0; k < 3; k++)
+                enode[3 * t + k] = (size_t)map[T[3 * t + k]] + 1;
+        }
+        ierr = 0;
+        gmshModelAddDiscreteEntity(2, 1, NULL, 0, &ierr);
+        if (!ierr)
+            gmshModelMeshAddNodes(2, 1, ntag, (size_t)nsv, x, 3 * (size_t)nsv, NULL, 0, &ierr);
+        if (!ierr)
+            gmshModelMeshAddElementsByType(1, 2, etag, (size_t)nt, enode, 3 * (size_t)nt, &ierr);
+        if (ierr)
+            rc = gmsh_fail(ierr, "take the surface");
+    }
+    free(ntag);
+    free(etag);
+    free(enode);
+    free(x);
+    free(T);
+    free(sv);
+    free(map);
+    return rc;
+}
+
+int crom_export_stl(FILE *f, const crom_mesh *m, const double *disp)
+{
+    gmsh_start();
+    int rc = stl_model(m, disp);
+    if (!rc)
+        rc = gmsh_write_into(f, "stl", NULL, 0);
+    gmsh_stop();
+    return rc;
+}
+
+static int msh_model(crom_export_msh *w, const crom_mesh *m)
+{
+    size_t nt = (size_t)m->nt, nv = (size_t)m->nv;
+    size_t *etag = crom_malloc(sizeof(size_t) * (nt ? nt : 1));
+    size_t *enode = crom_malloc(sizeof(size_t) * 4 * (nt ? nt : 1));
+    int rc = 0, ierr = 0;
+    if (!w->tags || !etag || !enode) {
+        rc = CROM_EINTERNAL;
+    } else {
+        for (size_t i = 0; i < nv; i++)
+            w->tags[i] = i + 1;
+        for (size_t t = 0; t < nt; t++) {
+            etag[t] = t + 1;
+            for (int k = 0; k < 4; k++)
+                enode[4 * t + k] = (size_t)m->tets[4 * t + k] + 1;
+        }
+        gmshModelAddDiscreteEntity(3, 1, NULL, 0, &ierr);
+        if (!ierr)
+            gmshModelMeshAddNodes(3, 1, w->tags, nv, m->X, 3 * nv, NULL, 0, &ierr);
+        if (!ierr) /* element type 4: the 4-node tetrahedron, our vertex order */
+            gmshModelMeshAddElementsByType(1, 4, etag, nt, enode, 4 * nt, &ierr);
+        if (ierr)
+            rc = gmsh_fail(ierr, "take the mesh");
+    }
+    free(etag);
+    free(enode);
+    return rc;
+}
+
+int crom_export_msh_open(crom_export_msh *w, const crom_mesh *m)
+{
+    memset(w, 0, sizeof *w);
+    w->nv = m->nv;
+    w->tags = crom_malloc(sizeof(size_t) * (size_t)(m->nv ? m->nv : 1));
+    gmsh_start();
+    int rc = msh_model(w, m);
+    if (rc)
+        crom_export_msh_abort(w);
+    return rc;
+}
+
+int crom_export_msh_frame(crom_export_msh *w, double t, const double *u, const double *v)
+{
+    static const char *const name[2] = {"displacement", "velocity"};
+    const double *data[2] = {u, v};
+    int ierr;
+    for (int i = 0; i < 2; i++) {
+        if (w->n == 0) /* view tags start at 0 */
+            G(w->view[i] = gmshViewAdd(name[i], -1, &ierr), "add a view");
+        G(gmshViewAddHomogeneousModelData(w->view[i], w->n, "crom", "NodeData", w->tags, (size_t)w->nv,
+                                          (double *)data[i], 3 * (size_t)w->nv, t, 3, 0, &ierr),
+          "add a frame to a view");
+    }
+    w->n++;
+    return 0;
+}
+
+void crom_export_msh_abort(crom_export_msh *w)
+{
+    free(w->tags);
+    w->tags = NULL;
+    gmsh_stop();
+}
+
+int crom_export_msh_finish(crom_export_msh *w, const char *path)
+{
+    crom_fileout fo;
+    int rc = crom_fileout_open(&fo, path, 0);
+    if (!rc && (rc = gmsh_write_into(fo.f, "msh", w->view, w->n ? 2 : 0))) {
+        crom_fileout_abort(&fo);
+        crom_err_ctx("%s", path);
+    } else if (!rc) {
+        rc = crom_fileout_commit(&fo);
+    }
+    crom_export_msh_abort(w);
+    return rc;
+}
+
+/* ---------------------------------------------------------------- sinks */
+
+int crom_export_sink_open(crom_export_sink *k, int kind, const char *format, const char *out, const char *name,
+                          int dir, const char *const *inputs, int ninputs, int nmesh, const crom_cli *cli,
+                          const char *history)
+{
+    memset(k, 0, sizeof *k);
+    k->kind = kind;
+    k->format = format;
+    k->out = out ? out : "-";
+    if (kind == CROM_SERIES_XDMF)
+        return crom_xdmf_series_open(&k->xdmf, out, name, dir, inputs, ninputs, nmesh, cli, history);
+    if (kind == CROM_SERIES_MSH)
+        return 0;
+    return crom_export_series_open(&k->files, out, name, kind == CROM_SERIES_FILES ? format : "vtu", kind);
+}
+
+int crom_export_sink_frame(crom_export_sink *k, int mi, const crom_export_frame *fr)
+{
+    int rc;
+    if (k->kind == CROM_SERIES_XDMF) {
+        rc = crom_xdmf_series_frame(&k->xdmf, mi, fr);
+    } else if (k->kind == CROM_SERIES_MSH) {
+        if (mi != 0)
+            return crom_err(CROM_EUSAGE, "%s: an MSH file holds one mesh, and this run switches meshes "
+                            "(export it as pvd or xdmf)", k->out);
+        if (k->n == 0 && (rc = crom_export_msh_open(&k->msh, fr->mesh)))
+            return rc;
+        rc = crom_export_msh_frame(&k->msh, fr->time, fr->u, fr->v);
+    } else {
+        rc = crom_export_series_write(&k->files, k->kind == CROM_SERIES_FILES ? k->format : "vtu", fr);
+    }
+    k->n += !rc;
+    return rc;
+}
+
+void crom_export_sink_abort(crom_export_sink *k)
+{
+    if (k->kind == CROM_SERIES_XDMF)
+        crom_xdmf_series_abort(&k->xdmf);
+    else if (k->kind == CROM_SERIES_MSH && k->n > 0)
+        crom_export_msh_abort(&k->msh);
+    crom_export_series_free(&k->files);
+}
+
+int crom_export_sink_finish(crom_export_sink *k)
+{
+    int rc = 0;
+    if (k->n == 0 && (k->kind == CROM_SERIES_XDMF || k->kind == CROM_SERIES_MSH)) {
+        crom_export_sink_abort(k);
+        return crom_err(CROM_EDATA, "no frames to write");
+    }
+    if (k->kind == CROM_SERIES_XDMF)
+        rc = crom_xdmf_series_finish(&k->xdmf);
+    else if (k->kind == CROM_SERIES_MSH)
+        rc = crom_export_msh_finish(&k->msh, k->out);
+    else
+        rc = crom_export_series_finish(&k->files);
+    crom_export_series_free(&k->files);
     return rc;
 }

@@ -67,9 +67,42 @@ int crom_export_pvd(FILE *f, const double *time, const char *const *file, int n)
 /* Boundary surface, deformed by disp ([nv][3] or NULL), as Wavefront OBJ. */
 int crom_export_obj(FILE *f, const crom_mesh *m, const double *disp);
 
-/* The same as binary little-endian PLY, with per-vertex float property
- * `u` = |displacement| for colouring. */
+/* The same as binary little-endian PLY, with the per-vertex float property
+ * `displacement_magnitude` = |u| for colouring (not `u`, which readers take
+ * for a texture coordinate). */
 int crom_export_ply(FILE *f, const crom_mesh *m, const double *disp);
+
+/* The same as an STL (ASCII, written by gmsh), outward oriented. Returns 0,
+ * CROM_EDATA (gmsh failed, its message kept), CROM_ECANTCREAT (no temporary
+ * file) or CROM_EIO. Uses gmsh's one global session: not reentrant. */
+int crom_export_stl(FILE *f, const crom_mesh *m, const double *disp);
+
+/* ----------------------------------------------------------------- MSH
+ * A gmsh MSH 4.1 file (ASCII, written by gmsh through its API): the mesh as
+ * one discrete volume of linear tetrahedra (node tags 1..nv, element tags
+ * 1..nt) and, for a series, the views "displacement" (m) and "velocity"
+ * (m/s) as NodeData, one step per frame with its time. gmsh has one global
+ * session, so one crom_export_msh at a time. */
+typedef struct {
+    int view[2];   /* displacement, velocity (made by the first frame) */
+    int n, nv;     /* frames added, vertices */
+    size_t *tags;  /* [nv] node tags 1..nv */
+} crom_export_msh;
+
+/* Start gmsh (no terminal output) and put mesh m into it. Returns 0,
+ * CROM_EDATA (gmsh failed) or CROM_EINTERNAL; on failure gmsh is stopped. */
+int crom_export_msh_open(crom_export_msh *w, const crom_mesh *m);
+
+/* Add one frame (time t, displacement u and velocity v, [nv][3]) as the
+ * next step of the two views. Returns 0 or CROM_EDATA. */
+int crom_export_msh_frame(crom_export_msh *w, double t, const double *u, const double *v);
+
+/* Write the file to path ("-": stdout) atomically and stop gmsh. Returns 0
+ * or an error naming path; gmsh is stopped either way. */
+int crom_export_msh_finish(crom_export_msh *w, const char *path);
+
+/* Stop gmsh without writing. */
+void crom_export_msh_abort(crom_export_msh *w);
 
 /* ------------------------------------------------------------------ XDMF
  * An XDMF 3 file is light XML describing grids whose arrays (heavy data) live
@@ -111,8 +144,9 @@ int crom_export_xdmf(FILE *f, const char *h5name, const crom_mesh *const *meshes
 int crom_export_mkdir(const char *path);
 
 /* Write fr to path ("-": stdout) in format "vtu" (also "pvd": one VTU),
- * "obj" or "ply" (binary: refused on a terminal). Returns 0 or an error
- * naming path. */
+ * "obj", "ply" (binary: refused on a terminal), "stl" or "msh" (its mesh
+ * and, with a displacement, the one frame as a series of one). Returns 0 or
+ * an error naming path. */
 int crom_export_write(const char *path, const char *format, const crom_export_frame *fr);
 
 /* A numbered series of files, one per frame (STEM_00000.EXT, ...), with a
@@ -203,5 +237,42 @@ int crom_xdmf_series_finish(crom_xdmf_series *x);
 
 /* Give up: remove the heavy data (nothing is left) and free x. */
 void crom_xdmf_series_abort(crom_xdmf_series *x);
+
+/* ---------------------------------------------------------------- sinks
+ * Where the frames of a series go, one interface for every series format:
+ * numbered files (with or without a .pvd collection), an XDMF pair, or one
+ * MSH file. */
+enum { CROM_SERIES_XDMF = 3, CROM_SERIES_MSH = 4 }; /* after the kinds of crom_export_series */
+
+typedef struct {
+    int kind;            /* CROM_SERIES_* */
+    const char *format;  /* of numbered files: vtu, obj, ply, stl */
+    const char *out;     /* MSH: the file ("-": stdout) */
+    crom_export_series files;
+    crom_xdmf_series xdmf;
+    crom_export_msh msh;
+    int n;               /* frames written */
+} crom_export_sink;
+
+/* Start a series of the given kind at out: numbered files of `format`
+ * (directory out, stem name; a .pvd as kind says), an XDMF pair
+ * (crom_xdmf_series_open with name, dir, inputs, nmesh, cli, history), or
+ * an MSH file (written when finished; gmsh starts with the first frame).
+ * Returns 0 or the error of the opening. */
+int crom_export_sink_open(crom_export_sink *k, int kind, const char *format, const char *out, const char *name,
+                          int dir, const char *const *inputs, int ninputs, int nmesh, const crom_cli *cli,
+                          const char *history);
+
+/* Add frame fr, on mesh number mi of the run. Returns 0, CROM_EUSAGE (an
+ * MSH holds one mesh: a frame on another), or a writer's error. */
+int crom_export_sink_frame(crom_export_sink *k, int mi, const crom_export_frame *fr);
+
+/* Finish the series: the collection, the XML, or the MSH file. Returns 0,
+ * CROM_EDATA for an XDMF or MSH without frames, or a writer's error; on
+ * failure nothing is left of an XDMF or MSH output. Frees k either way. */
+int crom_export_sink_finish(crom_export_sink *k);
+
+/* Give up: remove what an XDMF or MSH output wrote so far, free k. */
+void crom_export_sink_abort(crom_export_sink *k);
 
 #endif
