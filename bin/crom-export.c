@@ -216,19 +216,15 @@ static const char *base_name(const char *p)
     return s ? s + 1 : p;
 }
 
-/* pvd: OUT.pvd with its frames beside it, or a directory (-o DIR/, or a
- * name without .pvd) */
+/* How a series is laid out: pvd is OUT.pvd with its frames beside it, or
+ * a directory (-o DIR/, or a name without .pvd) */
 static int series_kind(const args *a)
 {
+    if (!strcmp(a->format, "xdmf") || !strcmp(a->format, "msh"))
+        return a->format[0] == 'x' ? CROM_SERIES_XDMF : CROM_SERIES_MSH;
     if (strcmp(a->format, "pvd"))
         return CROM_SERIES_FILES;
     return !a->dir && ends_with(a->out, ".pvd") ? CROM_SERIES_PVD_FILE : CROM_SERIES_PVD_DIR;
-}
-
-static void warn_incomplete(const crom_cli *cli, const crom_follow *s, int n)
-{
-    if (s->res[0].in.complete != 1)
-        crom_cli_warn(cli, "%s is incomplete (the run stopped early): exported its %d frames", s->res[0].in.name, n);
 }
 
 /* The frame on mesh mi with displacement u, velocity v at time t, and its
@@ -256,44 +252,19 @@ static int export_mesh(crom_cli *cli, args *a, crom_in *probe)
         free(history);
         return rc;
     }
-    crom_export_cells cells = {0};
-    int kind = series_kind(a);
-    crom_export_frame fr = {&m, NULL, NULL, kind == CROM_SERIES_PVD_FILE ? 0 : NAN, &cells};
-    if ((rc = crom_export_cells_eval(&cells, &m, NULL))) {
-    } else if (!strcmp(a->format, "xdmf")) {
-        crom_xdmf_series x;
-        const char *inputs[1] = {a->input};
-        if (!(rc = crom_xdmf_series_open(&x, a->out, a->name, a->dir, inputs, 1, 1, cli, history))) {
-            if ((rc = crom_xdmf_series_mesh(&x, 0, &m))) {
-                crom_xdmf_series_abort(&x);
-                crom_err_ctx("%s", x.h5);
-            } else {
-                rc = crom_xdmf_series_finish(&x);
-            }
-        }
-    } else if (kind == CROM_SERIES_PVD_FILE) { /* a collection of one frame at t = 0 */
-        crom_export_series s;
-        if (!(rc = crom_export_series_open(&s, a->out, a->name, "vtu", kind)) &&
-            !(rc = crom_export_series_write(&s, "vtu", &fr)))
-            rc = crom_export_series_finish(&s);
-        crom_export_series_free(&s);
-    } else {
+    const char *inputs[1] = {a->input};
+    if (!strcmp(a->format, "png")) {
+        crom_image im;
         char path[1400];
         snprintf(path, sizeof path, "%s", a->out ? a->out : "-");
-        if (a->all || kind == CROM_SERIES_PVD_DIR) { /* a directory holding NAME.EXT */
-            if (!(rc = crom_export_mkdir(a->out)))
-                snprintf(path, sizeof path, "%s/%s.%s", a->out, a->name, kind ? "vtu" : a->format);
-        }
-        if (!rc && !strcmp(a->format, "png")) {
-            crom_image im;
-            if (!(rc = crom_picture_mesh(&im, &m, a->pw, a->ph)))
-                rc = crom_image_save(&im, path);
-            crom_image_free(&im);
-        } else if (!rc) {
-            rc = crom_export_write(path, a->format, &fr);
-        }
+        if (a->all && !(rc = crom_export_mkdir(a->out)))
+            snprintf(path, sizeof path, "%s/%s.png", a->out, a->name);
+        if (!rc && !(rc = crom_picture_mesh(&im, &m, a->pw, a->ph)))
+            rc = crom_image_save(&im, path);
+        crom_image_free(&im);
+    } else {
+        rc = crom_export_mesh(&m, series_kind(a), a->format, a->out, a->name, a->dir, a->all, inputs, 1, cli, history);
     }
-    crom_export_cells_free(&cells);
     free(history);
     crom_mesh_free(&m);
     return rc;
@@ -320,7 +291,7 @@ static int export_series(crom_cli *cli, args *a, crom_follow *s, crom_export_cel
     const char *inputs[11] = {a->input, a->mesh, a->model};
     for (int i = 0; i < a->ncompare; i++)
         inputs[3 + i] = a->compare[i];
-    int kind = !strcmp(a->format, "xdmf") ? CROM_SERIES_XDMF : !strcmp(a->format, "msh") ? CROM_SERIES_MSH : series_kind(a);
+    int kind = series_kind(a);
     crom_export_sink k;
     int rc = crom_export_sink_open(&k, kind, a->format, a->out, a->name, a->dir, inputs, 3 + a->ncompare, s->n, cli,
                                    s->res[0].in.history);
@@ -346,7 +317,8 @@ static int export_series(crom_cli *cli, args *a, crom_follow *s, crom_export_cel
         crom_export_sink_abort(&k);
         return rc;
     }
-    warn_incomplete(cli, s, k.n);
+    if (s->res[0].in.complete != 1)
+        crom_cli_warn(cli, "%s is incomplete (the run stopped early): exported its %d frames", s->res[0].in.name, k.n);
     if (cells && cells->degenerate)
         crom_cli_warn(cli, "%ld degenerate tets (over all frames): NaN in their J, energy density and stress",
                       cells->degenerate);
@@ -367,58 +339,30 @@ static int export_series(crom_cli *cli, args *a, crom_follow *s, crom_export_cel
  * of results (the input and each --compare), columns of times */
 static int export_pictures(crom_cli *cli, args *a, crom_follow *src)
 {
-    int strip = !strcmp(a->format, "strip"), nrows = strip ? 1 + a->ncompare : 1, rc = 0;
-    crom_follow_frames *rows = crom_calloc((size_t)nrows, sizeof *rows);
+    int nrows = !strcmp(a->format, "strip") ? 1 + a->ncompare : 1, rc = 0;
+    crom_follow_frames rows[9];
     const char *labels[9] = {a->input ? base_name(a->input) : "stdin"};
-    if (!rows) {
-        crom_follow_close(src);
-        return CROM_EINTERNAL;
-    }
+    memset(rows, 0, sizeof rows);
     rc = crom_follow_load(&rows[0], src, a->every);
-    for (int i = 0; i < a->ncompare && strip && !rc; i++) {
-        /* --mesh decodes latents; a compared trajectory keeps its own mesh */
-        crom_in in;
-        crom_follow s;
-        labels[i + 1] = base_name(a->compare[i]);
-        if (!(rc = crom_in_open(&in, a->compare[i])) &&
-            !(rc = crom_follow_adopt(&s, &in, a->compare[i], strcmp(in.schema, "crom/latent") ? NULL : a->mesh,
-                                     a->model, a->follow)))
-            rc = crom_follow_load(&rows[i + 1], &s, a->every);
+    for (int i = 1; i < nrows && !rc; i++) { /* --compare: further rows */
+        labels[i] = base_name(a->compare[i - 1]);
+        rc = crom_follow_load_path(&rows[i], a->compare[i - 1], a->mesh, a->model, a->follow, a->every);
     }
     crom_image im = {0};
-    if (!rc && strip) {
-        int K;
+    int K;
+    long n;
+    if (!rc && !strcmp(a->format, "strip")) {
         if (!(rc = crom_picture_strip(&im, rows, labels, nrows, a->columns, a->pw, a->ph, a->range, &K)) &&
             !(rc = crom_image_save(&im, a->out ? a->out : "-")))
             crom_cli_info(cli, "wrote a %d x %d strip (%d rows, %d columns) to %s", im.w, im.h, nrows, K,
                           a->out ? a->out : "stdout");
-    } else if (!rc) {
-        crom_camera cam;
-        double umax;
-        crom_picture_view(rows, 1, a->pw, a->ph, a->range, &cam, &umax);
-        long first = 0, last = rows[0].nf - 1, k = a->frame < 0 ? rows[0].nf + a->frame : a->frame;
-        crom_export_series s = {0};
-        if (!a->all && (k < 0 || k >= rows[0].nf))
-            rc = crom_err(CROM_EUSAGE, "--frame %ld: %s has %d frames", a->frame, labels[0], rows[0].nf);
-        else if (!a->all)
-            first = last = k;
-        else
-            rc = crom_export_series_open(&s, a->out, a->name, "png", 0);
-        for (long f = first; f <= last && !rc; f++) {
-            crom_image_free(&im);
-            if (!(rc = crom_picture_frame(&im, &cam, &rows[0], (int)f, a->pw, a->ph, umax)))
-                rc = crom_image_save(&im, a->all ? crom_export_series_path(&s) : (a->out ? a->out : "-"));
-            if (!rc && a->all)
-                rc = crom_export_series_add(&s, rows[0].t[f]);
-        }
-        if (!rc && a->all)
-            crom_cli_info(cli, "wrote %ld pictures to %s/", last - first + 1, a->out);
-        crom_export_series_free(&s);
+    } else if (!rc && !(rc = crom_picture_write(&rows[0], a->all, a->frame, a->out, a->name, a->pw, a->ph, a->range,
+                                                &n)) && a->all) {
+        crom_cli_info(cli, "wrote %ld pictures to %s/", n, a->out);
     }
     crom_image_free(&im);
     for (int i = 0; i < nrows; i++)
         crom_follow_frames_free(&rows[i]);
-    free(rows);
     return rc;
 }
 
@@ -453,7 +397,7 @@ static int run(crom_cli *cli, args *a)
             crom_cli_info(cli, "%s records no material: cell data without energy_density and von_mises_stress "
                           "(give --youngs and --poisson)", s.res[0].in.name);
     }
-    if (!rc && (!strcmp(a->format, "pvd") || !strcmp(a->format, "xdmf") || !strcmp(a->format, "msh") || a->all))
+    if (!rc && (series_kind(a) != CROM_SERIES_FILES || a->all))
         rc = export_series(cli, a, &s, cp);
     else if (!rc)
         rc = export_one_frame(a, &s, cp);

@@ -1034,3 +1034,37 @@ int crom_export_sink_finish(crom_export_sink *k)
     crom_export_series_free(&k->files);
     return rc;
 }
+
+int crom_export_mesh(const crom_mesh *m, int kind, const char *format, const char *out, const char *name, int dir,
+                     int in_dir, const char *const *inputs, int ninputs, const crom_cli *cli, const char *history)
+{
+    crom_export_cells cells = {0};
+    crom_export_frame fr = {m, NULL, NULL, kind == CROM_SERIES_PVD_FILE ? 0 : NAN, &cells};
+    int rc = crom_export_cells_eval(&cells, m, NULL);
+    if (rc) {
+    } else if (kind == CROM_SERIES_XDMF) {
+        crom_xdmf_series x;
+        if (!(rc = crom_xdmf_series_open(&x, out, name, dir, inputs, ninputs, 1, cli, history))) {
+            if ((rc = crom_xdmf_series_mesh(&x, 0, m))) {
+                crom_xdmf_series_abort(&x);
+                crom_err_ctx("%s", x.h5);
+            } else {
+                rc = crom_xdmf_series_finish(&x);
+            }
+        }
+    } else if (kind == CROM_SERIES_PVD_FILE) {
+        crom_export_series s;
+        if (!(rc = crom_export_series_open(&s, out, name, "vtu", kind)) && !(rc = crom_export_series_write(&s, "vtu", &fr)))
+            rc = crom_export_series_finish(&s);
+        crom_export_series_free(&s);
+    } else {
+        char path[1400];
+        snprintf(path, sizeof path, "%s", out ? out : "-");
+        if ((in_dir || kind == CROM_SERIES_PVD_DIR) && !(rc = crom_export_mkdir(out)))
+            snprintf(path, sizeof path, "%s/%s.%s", out, name, kind == CROM_SERIES_PVD_DIR ? "vtu" : format);
+        if (!rc)
+            rc = crom_export_write(path, format, &fr);
+    }
+    crom_export_cells_free(&cells);
+    return rc;
+}

@@ -238,6 +238,15 @@ int crom_xdmf_series_finish(crom_xdmf_series *x);
 /* Give up: remove the heavy data (nothing is left) and free x. */
 void crom_xdmf_series_abort(crom_xdmf_series *x);
 
+/* Write a bare mesh m (cell data: the rest volumes) in format to out, laid
+ * out as kind says: CROM_SERIES_XDMF an XDMF grid (crom_xdmf_series_open
+ * with name, dir, inputs, cli, history); CROM_SERIES_PVD_FILE a collection
+ * of one dataset at t = 0; CROM_SERIES_PVD_DIR, or in_dir != 0, the file
+ * NAME.EXT (vtu for pvd) in the directory out; else the file out ("-":
+ * stdout). Returns 0 or the writer's error. */
+int crom_export_mesh(const crom_mesh *m, int kind, const char *format, const char *out, const char *name, int dir,
+                     int in_dir, const char *const *inputs, int ninputs, const crom_cli *cli, const char *history);
+
 /* ---------------------------------------------------------------- sinks
  * Where the frames of a series go, one interface for every series format:
  * numbered files (with or without a .pvd collection), an XDMF pair, or one

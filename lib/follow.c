@@ -319,3 +319,16 @@ void crom_follow_bounds(const crom_follow_frames *rows, int nrows, double lo[3],
     }
     *umax = m;
 }
+
+int crom_follow_load_path(crom_follow_frames *r, const char *path, const char *mesh, const char *model, int follow,
+                          int every)
+{
+    crom_in in;
+    crom_follow s;
+    int rc;
+    memset(r, 0, sizeof *r);
+    if ((rc = crom_in_open(&in, path)) ||
+        (rc = crom_follow_adopt(&s, &in, path, strcmp(in.schema, "crom/latent") ? NULL : mesh, model, follow)))
+        return rc;
+    return crom_follow_load(r, &s, every);
+}

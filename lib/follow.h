@@ -63,6 +63,13 @@ typedef struct {
  * error; r is to be freed with crom_follow_frames_free either way. */
 int crom_follow_load(crom_follow_frames *r, crom_follow *src, int every);
 
+/* Open the result at path (NULL or "-": stdin) and crom_follow_load it:
+ * mesh decodes a latent (a trajectory keeps its own mesh), model and follow
+ * as for crom_follow_adopt. Returns 0 or the error of either step; r is to
+ * be freed with crom_follow_frames_free either way. */
+int crom_follow_load_path(crom_follow_frames *r, const char *path, const char *mesh, const char *model, int follow,
+                          int every);
+
 void crom_follow_frames_free(crom_follow_frames *r);
 
 /* The mesh of frame f. */

@@ -4,6 +4,7 @@
 #include <stdlib.h>
 
 #include "err.h"
+#include "export.h"
 #include "picture.h"
 
 enum { HEAD = 34 }; /* pixels under the panels for the colour bar */
@@ -102,4 +103,34 @@ int crom_picture_mesh(crom_image *im, const crom_mesh *m, int pw, int ph)
     free(work);
     free(tris);
     return 0;
+}
+
+int crom_picture_write(const crom_follow_frames *r, int all, long frame, const char *out, const char *name, int pw,
+                       int ph, double range, long *count)
+{
+    crom_camera cam;
+    double umax;
+    crom_picture_view(r, 1, pw, ph, range, &cam, &umax);
+    long first = 0, last = r->nf - 1, k = frame < 0 ? r->nf + frame : frame;
+    crom_export_series s = {0};
+    crom_image im = {0};
+    int rc = 0;
+    *count = 0;
+    if (!all && (k < 0 || k >= r->nf))
+        rc = crom_err(CROM_EUSAGE, "--frame %ld: %s has %d frames", frame, r->src.res[0].in.name, r->nf);
+    else if (!all)
+        first = last = k;
+    else
+        rc = crom_export_series_open(&s, out, name, "png", CROM_SERIES_FILES);
+    for (long f = first; f <= last && !rc; f++) {
+        crom_image_free(&im);
+        if (!(rc = crom_picture_frame(&im, &cam, r, (int)f, pw, ph, umax)))
+            rc = crom_image_save(&im, all ? crom_export_series_path(&s) : (out ? out : "-"));
+        if (!rc && all)
+            rc = crom_export_series_add(&s, r->t[f]);
+        *count += !rc;
+    }
+    crom_image_free(&im);
+    crom_export_series_free(&s);
+    return rc;
 }

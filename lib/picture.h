@@ -20,6 +20,14 @@ void crom_picture_view(const crom_follow_frames *rows, int nrows, int pw, int ph
 int crom_picture_frame(crom_image *im, const crom_camera *cam, const crom_follow_frames *r, int f, int pw, int ph,
                        double umax);
 
+/* The pictures of r's frames (crom_picture_frame, on r's own view): with
+ * all != 0 one per frame, out/NAME_00000.png, ... (the directory created),
+ * else only frame `frame` (negative: from the end) to the file out ("-":
+ * stdout). *count says how many were written. Returns 0, CROM_EUSAGE (no
+ * such frame) or a write error. */
+int crom_picture_write(const crom_follow_frames *r, int all, long frame, const char *out, const char *name, int pw,
+                       int ph, double range, long *count);
+
 /* A strip: one row per result rows[i] (its first panel labelled labels[i]),
  * `columns` columns at times evenly spaced over rows[0]'s frames (each row
  * shows its frame nearest in time), a colour bar under them, on the view of
