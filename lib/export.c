@@ -1,4 +1,4 @@
-/* export.c — VTU, PVD, XDMF, OBJ and PLY writers (see export.h). */
+/* export.c — VTU, PVD, XDMF, MSH, OBJ, PLY and STL writers (see export.h). */
 #include <errno.h>
 #include <math.h>
 #include <stdint.h>

@@ -1,7 +1,10 @@
 /* export.h — writers of files other tools open: VTK XML unstructured grids
  * (.vtu) and collections (.pvd) for ParaView and meshio, XDMF 3 (XML + HDF5)
- * series, surface meshes as OBJ and PLY. All text/binary writers write to an
- * open FILE; the caller makes it atomic (crom_fileout, crom_out). */
+ * series, gmsh MSH files, surface meshes as OBJ, PLY and STL, with per-tet
+ * cell data (volume, J, energy density, stress). The writers of one format
+ * write to an open FILE (the caller makes it atomic: crom_fileout, crom_out);
+ * the whole-file functions below them (crom_export_write, series, sinks)
+ * are atomic themselves. Nothing here prints. */
 #ifndef CROM_EXPORT_H
 #define CROM_EXPORT_H
 
@@ -28,6 +31,7 @@ typedef struct {
 /* Evaluate the cell fields of mesh m displaced by u (NULL: at rest) into c
  * (buffers grown as needed). Returns 0 or CROM_EINTERNAL. */
 int crom_export_cells_eval(crom_export_cells *c, const crom_mesh *m, const double *u);
+/* Free the buffers (c can be evaluated again). */
 void crom_export_cells_free(crom_export_cells *c);
 
 /* One state of a body: the mesh on its rest positions, displaced by u with
@@ -61,15 +65,17 @@ void crom_export_number(char *buf, size_t n, double x);
  * headers) or CROM_EIO. */
 int crom_export_vtu(FILE *f, const crom_export_frame *fr);
 
-/* A ParaView collection: file[i] at time[i]. */
+/* A ParaView collection: file[i] (relative to the collection) at time[i].
+ * Returns 0 or CROM_EIO. */
 int crom_export_pvd(FILE *f, const double *time, const char *const *file, int n);
 
-/* Boundary surface, deformed by disp ([nv][3] or NULL), as Wavefront OBJ. */
+/* Boundary surface, deformed by disp ([nv][3] or NULL), as Wavefront OBJ.
+ * Returns 0, CROM_EINTERNAL or CROM_EIO. */
 int crom_export_obj(FILE *f, const crom_mesh *m, const double *disp);
 
 /* The same as binary little-endian PLY, with the per-vertex float property
  * `displacement_magnitude` = |u| for colouring (not `u`, which readers take
- * for a texture coordinate). */
+ * for a texture coordinate). Returns as crom_export_obj. */
 int crom_export_ply(FILE *f, const crom_mesh *m, const double *disp);
 
 /* The same as an STL (ASCII, written by gmsh), outward oriented. Returns 0,
@@ -115,11 +121,11 @@ void crom_export_msh_abort(crom_export_msh *w);
 
 /* Write mesh m as the group `group` ("mesh", "mesh_1") of the heavy-data
  * file: vertices, tets, rest volumes of the tets and one 0/1 int32 mask per
- * region. */
+ * region. Returns 0 or an HDF5 error naming the dataset. */
 int crom_xdmf_write_mesh(hid_t loc, const char *group, const crom_mesh *m);
 
 /* Write frame k's field `name` ([n][ncomp], per vertex or per tet) as
- * /NAME/%05d with its units. */
+ * /NAME/%05d with its units. Returns 0 or an HDF5 error. */
 int crom_xdmf_write_frame(hid_t loc, const char *name, int k, int n, int ncomp, const double *data,
                           const char *units);
 
@@ -129,7 +135,8 @@ int crom_xdmf_write_frame(hid_t loc, const char *name, int k, int n, int ncomp, 
  * attributes fields[0..nfields) (3-vectors, datasets /NAME/%05d), Cell
  * attributes cfields[0..ncfields) (scalars per tet, /NAME/%05d), and in
  * every grid the region masks and the Cell attribute 'volume' of its mesh
- * group. h5name is the heavy-data file name relative to the XML. */
+ * group. h5name is the heavy-data file name relative to the XML. Returns
+ * 0 or CROM_EIO. */
 int crom_export_xdmf(FILE *f, const char *h5name, const crom_mesh *const *meshes,
                      const char *const *groups, const double *time, const int *mesh_of, int nframes,
                      const char *const *fields, int nfields, const char *const *cfields, int ncfields);
@@ -191,6 +198,7 @@ int crom_export_series_write(crom_export_series *s, const char *format, const cr
  * error naming it. */
 int crom_export_series_finish(crom_export_series *s);
 
+/* Free the records (the files stay). */
 void crom_export_series_free(crom_export_series *s);
 
 /* An XDMF series being written: the heavy data in an HDF5 crom_out, the

@@ -70,6 +70,8 @@ int crom_follow_load(crom_follow_frames *r, crom_follow *src, int every);
 int crom_follow_load_path(crom_follow_frames *r, const char *path, const char *mesh, const char *model, int follow,
                           int every);
 
+/* Free what crom_follow_load read and close its source (safe on a zeroed
+ * struct). */
 void crom_follow_frames_free(crom_follow_frames *r);
 
 /* The mesh of frame f. */
