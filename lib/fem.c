@@ -699,6 +699,58 @@ double crom_fem_tet_energy(const crom_material *m, const double x[12],
     return V * crom_fem_psi(m, F);
 }
 
+int crom_fem_tet_measures(const crom_mesh *mesh, const double *u, const crom_material *m,
+                          double *vol, double *J, double *psi, double *mises)
+{
+    int bad = 0;
+    for (int t = 0; t < mesh->nt; t++) {
+        double X[12], x[12], Dminv[9], V, F[9], C[9], P[9];
+        for (int k = 0; k < 4; k++)
+            for (int c = 0; c < 3; c++) {
+                size_t i = 3 * (size_t)mesh->tets[4 * (size_t)t + k] + c;
+                X[3 * k + c] = mesh->X[i];
+                x[3 * k + c] = mesh->X[i] + (u ? u[i] : 0);
+            }
+        int ok = crom_fem_tet_rest(X, Dminv, &V) == CROM_OK;
+        bad += !ok;
+        if (vol)
+            vol[t] = V;
+        double Jt = NAN, psit = NAN, mt = NAN;
+        if (ok) {
+            deformation_gradient(x, Dminv, F);
+            cofactor3(F, C);
+            Jt = F[0] * C[0] + F[1] * C[1] + F[2] * C[2];
+        }
+        if (ok && m) {
+            psit = crom_fem_psi(m, F);
+            crom_fem_pk1(m, F, P);
+        }
+        if (ok && m && Jt > 0) {
+            /* σ = P Fᵀ / J (symmetric for a hyperelastic law; symmetrized
+             * against round-off), von Mises = sqrt(3/2 s:s), s = σ − tr σ/3 I */
+            double sg[9];
+            for (int i = 0; i < 3; i++)
+                for (int j = 0; j < 3; j++)
+                    sg[3 * i + j] = (P[3 * i] * F[3 * j] + P[3 * i + 1] * F[3 * j + 1] +
+                                     P[3 * i + 2] * F[3 * j + 2]) / Jt;
+            double p = (sg[0] + sg[4] + sg[8]) / 3, ss = 0;
+            for (int i = 0; i < 3; i++)
+                for (int j = 0; j < 3; j++) {
+                    double sij = 0.5 * (sg[3 * i + j] + sg[3 * j + i]) - (i == j ? p : 0);
+                    ss += sij * sij;
+                }
+            mt = sqrt(1.5 * ss);
+        }
+        if (J)
+            J[t] = Jt;
+        if (psi)
+            psi[t] = psit;
+        if (mises)
+            mises[t] = mt;
+    }
+    return bad;
+}
+
 /* The element kernel: E = VΨ(F), g = V ∂Ψ/∂x (g_kc = V Σ_b P_cb G_kb), and the
  * upper triangle (row-major packed, i <= j) of H = V Bᵀ A B with
  * B_(cb),(kc') = δ_cc' G_kb, i.e. H_(kc),(ld) = V Σ_be G_kb A_(cb),(de) G_le.

@@ -97,6 +97,18 @@ int crom_fem_tet_eval(const crom_material *m, const double x[12],
                       const double Dminv[9], double V, int project, double *E,
                       double g[12], double H[144]);
 
+/* Per-tet measures of the mesh displaced by u ([nv][3]; NULL: at rest), for
+ * output (cell data): the signed rest volume vol[t] = det(Dm)/6 (m³) and
+ * J[t] = det F; with a material m (may be NULL) also the strain-energy
+ * density psi[t] = Ψ(F) (J/m³, the same Ψ as the element kernel) and the von
+ * Mises equivalent of the Cauchy stress σ = P Fᵀ / J (Pa) in mises[t]:
+ * sqrt(3/2 s:s) with s the deviator of σ. A degenerate or inverted rest tet
+ * gets NaN for J, psi and mises, and mises is NaN where J <= 0 (σ is not
+ * defined for an inverted tet). Any output may be NULL. Returns the number
+ * of degenerate or inverted rest tets (never fails). */
+int crom_fem_tet_measures(const crom_mesh *mesh, const double *u, const crom_material *m,
+                          double *vol, double *J, double *psi, double *mises);
+
 /* ---- Mesh-level operator --------------------------------------------- */
 
 /* Per-mesh data, read-only after crom_fem_init (so one crom_fem can be used

@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "err.h"
+#include "io.h"
 #include "render.h"
 
 int crom_image_init(crom_image *im, int w, int h)
@@ -269,4 +270,17 @@ int crom_image_write_png(const crom_image *im, FILE *f)
     png_write_end(png, NULL);
     png_destroy_write_struct(&png, &info);
     return ferror(f) ? crom_err(CROM_EIO, "PNG write failed") : 0;
+}
+
+int crom_image_save(const crom_image *im, const char *path)
+{
+    crom_fileout fo;
+    int rc = crom_fileout_open(&fo, path, 1);
+    if (rc)
+        return rc;
+    if ((rc = crom_image_write_png(im, fo.f))) {
+        crom_fileout_abort(&fo);
+        return rc;
+    }
+    return crom_fileout_commit(&fo);
 }

@@ -57,4 +57,8 @@ void crom_render_panel(crom_image *im, const crom_camera *cam, int x0, int y0, i
 /* Write the image as an 8-bit RGB PNG. Returns 0 or CROM_EIO. */
 int crom_image_write_png(const crom_image *im, FILE *f);
 
+/* Write the image as PNG to path ("-": stdout, refused when a terminal),
+ * atomically (crom_fileout). Returns 0, CROM_ECANTCREAT or CROM_EIO. */
+int crom_image_save(const crom_image *im, const char *path);
+
 #endif

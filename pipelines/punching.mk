@@ -6,7 +6,7 @@
 # to the mesh with one more hole, the state carries over in q (the rest of the
 # block stays where it was; only the punched part is gone).
 #
-#   make -f pipelines/punching.mk -j2         # runs/punching/table.md, strip.png, pvd/, punch.xdmf, *.plot.png
+#   make -f pipelines/punching.mk -j2         # runs/punching/table.md, strip.png, punch.pvd, punch.xdmf, *.plot.png
 #   make -f pipelines/punching.mk -j2 SIZE=0.036   # the paper's size: ~20K vertices (18.6K at 0.037)
 #   make -f pipelines/punching.mk CUBATURE=metis ENCODER=pointnet RANK=12  # swap a stage
 #
@@ -49,10 +49,10 @@ PLOTS = $(OUT)/loss.plot.png $(OUT)/error.plot.png $(OUT)/cost.plot.png
 all: $(OUT)/summary.txt
 # the closing report, remade (and shown) only when what it reports changes,
 # so a finished run has nothing left to do, not even under make -n
-$(OUT)/summary.txt: $(OUT)/table.md $(OUT)/strip.png $(OUT)/pvd/frame.pvd $(OUT)/punch.xdmf $(PLOTS)
+$(OUT)/summary.txt: $(OUT)/table.md $(OUT)/strip.png $(OUT)/punch.pvd $(OUT)/punch.xdmf $(PLOTS)
 	@( cat $(OUT)/table.md; echo; \
 	   echo "pictures: $(OUT)/strip.png (reduced punching run over the intact and the $(NHOLES)-hole full runs); plots: $(OUT)/*.plot.png"; \
-	   echo "ParaView: $(OUT)/pvd/frame.pvd or $(OUT)/punch.xdmf (the punching run, each frame on the mesh it had)" ) > $@.tmp && mv $@.tmp $@ && cat $@
+	   echo "ParaView: $(OUT)/punch.pvd or $(OUT)/punch.xdmf (the punching run, each frame on the mesh it had)" ) > $@.tmp && mv $@.tmp $@ && cat $@
 plots: $(PLOTS)
 
 # the block in the bounding cube [-0.5, 0.5]^3; top and bottom layers are regions
@@ -114,8 +114,8 @@ $(OUT)/table.md: $(OUT)/rows.txt
 $(OUT)/strip.png: $(OUT)/punch.h5 $(OUT)/full-0.h5 $(OUT)/full-$(NHOLES).h5
 	crom-export --format strip --follow-schedule --model $(OUT)/model.h5 --compare $(OUT)/full-0.h5 \
 	  --compare $(OUT)/full-$(NHOLES).h5 --columns 6 $(QUIET) -o $@ $<
-$(OUT)/pvd/frame.pvd: $(OUT)/punch.h5
-	crom-export --format pvd --follow-schedule --model $(OUT)/model.h5 $(QUIET) -o $(OUT)/pvd $<
+$(OUT)/punch.pvd: $(OUT)/punch.h5
+	crom-export --format pvd --follow-schedule --model $(OUT)/model.h5 $(QUIET) -o $@ $<
 $(OUT)/punch.xdmf: $(OUT)/punch.h5
 	crom-export --format xdmf --follow-schedule --model $(OUT)/model.h5 $(QUIET) -o $@ $<
 

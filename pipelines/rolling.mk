@@ -11,7 +11,7 @@
 # full run and of pure rigid spins (a free body spinning about the rolling
 # axis x, and about y, which rolling never shows) projected on the basis.
 #
-#   make -f pipelines/rolling.mk -j2        # runs/rolling/table.md, recon.md, strip-*.png, pvd-*/, red-*.xdmf, *.plot.png
+#   make -f pipelines/rolling.mk -j2        # runs/rolling/table.md, recon.md, strip-*.png, red-*.pvd, red-*.xdmf, *.plot.png
 #   make -f pipelines/rolling.mk -j2 SIZE=0.028   # the paper's size: ~20K vertices (a sphere has 17.3K at 0.03)
 #   make -f pipelines/rolling.mk TRAIN='2 3 6' TEST='2.5 4' MU=0.8 PLANE=0,1,0.5,-0.8
 #
@@ -53,7 +53,7 @@ $(eval $(call stamp_rule,cubature,$(CUB_FLAGS)))
 $(eval $(call stamp_rule,reduced,$(RED_FLAGS)))
 $(eval $(call stamp_rule,probe,$(SPIN) $(DT) $(STEPS) $(YOUNGS)))
 
-PICTURES = $(foreach s,$(ALL),$(OUT)/strip-$(s).png $(OUT)/pvd-$(s)/frame.pvd $(OUT)/red-$(s).xdmf)
+PICTURES = $(foreach s,$(ALL),$(OUT)/strip-$(s).png $(OUT)/red-$(s).pvd $(OUT)/red-$(s).xdmf)
 PLOTS = $(OUT)/loss.plot.png $(OUT)/error.plot.png $(OUT)/cost.plot.png
 .PHONY: all pictures plots
 all: $(OUT)/summary.txt
@@ -62,7 +62,7 @@ all: $(OUT)/summary.txt
 $(OUT)/summary.txt: $(OUT)/table.md $(OUT)/recon.md $(PICTURES) $(PLOTS)
 	@( cat $(OUT)/table.md; echo; cat $(OUT)/recon.md; echo; \
 	   echo "pictures: $(OUT)/strip-*.png (reduced over full, each shape); plots: $(OUT)/*.plot.png"; \
-	   echo "ParaView: $(OUT)/pvd-*/frame.pvd, $(OUT)/red-*.xdmf (reduced runs)" ) > $@.tmp && mv $@.tmp $@ && cat $@
+	   echo "ParaView: $(OUT)/red-*.pvd, $(OUT)/red-*.xdmf (reduced runs)" ) > $@.tmp && mv $@.tmp $@ && cat $@
 pictures: $(PICTURES)
 plots: $(PLOTS)
 
@@ -125,8 +125,8 @@ $(OUT)/recon.md: $(foreach s,$(ALL),$(OUT)/recon-$(s).txt) $(foreach p,$(PROBES)
 $(OUT)/strip-%.png: $(OUT)/red-%.h5 $(OUT)/full-%.h5 $(OUT)/model.h5
 	crom-export --format strip --model $(OUT)/model.h5 --mesh $(OUT)/mesh-$*.h5 --compare $(OUT)/full-$*.h5 \
 	  --columns 6 $(QUIET) -o $@ $<
-$(OUT)/pvd-%/frame.pvd: $(OUT)/red-%.h5 $(OUT)/model.h5
-	crom-export --format pvd --model $(OUT)/model.h5 --mesh $(OUT)/mesh-$*.h5 $(QUIET) -o $(OUT)/pvd-$* $<
+$(OUT)/red-%.pvd: $(OUT)/red-%.h5 $(OUT)/model.h5
+	crom-export --format pvd --model $(OUT)/model.h5 --mesh $(OUT)/mesh-$*.h5 $(QUIET) -o $@ $<
 $(OUT)/red-%.xdmf: $(OUT)/red-%.h5 $(OUT)/model.h5
 	crom-export --format xdmf --model $(OUT)/model.h5 --mesh $(OUT)/mesh-$*.h5 $(QUIET) -o $@ $<
 

@@ -28,21 +28,21 @@ $(eval $(call stamp_rule,fit,$(FIT_FLAGS)))
 $(eval $(call stamp_rule,cubature,$(CUB_FLAGS)))
 $(eval $(call stamp_rule,reduced,$(RED_FLAGS)))
 
-PICTURES = $(foreach s,$(ALL),$(OUT)/strip-$(s).png $(OUT)/pvd-$(s)/frame.pvd)
+PICTURES = $(foreach s,$(ALL),$(OUT)/strip-$(s).png $(OUT)/red-$(s).pvd)
 .PHONY: all pictures
 all: $(OUT)/summary.txt
 # the closing report, remade (and shown) only when what it reports changes,
 # so a finished run has nothing left to do, not even under make -n
 $(OUT)/summary.txt: $(OUT)/table.md $(PICTURES)
 	@( cat $(OUT)/table.md; \
-	  echo "pictures: $(OUT)/strip-*.png (reduced above full); ParaView: $(OUT)/pvd-*/frame.pvd" ) > $@.tmp && mv $@.tmp $@ && cat $@
+	  echo "pictures: $(OUT)/strip-*.png (reduced above full); ParaView: $(OUT)/red-*.pvd" ) > $@.tmp && mv $@.tmp $@ && cat $@
 
 pictures: $(PICTURES)
 $(OUT)/strip-%.png: $(OUT)/red-%.h5 $(OUT)/full-%.h5 $(OUT)/model.h5
 	crom-export --format strip --model $(OUT)/model.h5 --mesh $(OUT)/mesh-$*.h5 --compare $(OUT)/full-$*.h5 \
 	  --columns 5 $(QUIET) -o $@ $<
-$(OUT)/pvd-%/frame.pvd: $(OUT)/red-%.h5 $(OUT)/model.h5
-	crom-export --format pvd --model $(OUT)/model.h5 --mesh $(OUT)/mesh-$*.h5 $(QUIET) -o $(OUT)/pvd-$* $<
+$(OUT)/red-%.pvd: $(OUT)/red-%.h5 $(OUT)/model.h5
+	crom-export --format pvd --model $(OUT)/model.h5 --mesh $(OUT)/mesh-$*.h5 $(QUIET) -o $@ $<
 
 # meshes in the bounding cube [-0.5, 0.5]^3; top and bottom layers are regions
 $(OUT)/mesh-box.h5: $(call stamp,mesh)

@@ -3,7 +3,7 @@
 # full Y-shaped cut; the reduced run then grows the cut progressively by
 # switching cubature meshes mid-run (the state stays in q).
 #
-#   make -f pipelines/tearing.mk              # runs/tearing/table.md, strip.png, pvd/
+#   make -f pipelines/tearing.mk              # runs/tearing/table.md, strip.png, tear.pvd
 #   make -f pipelines/tearing.mk SIZE=0.02 STAGES=8   # finer plate
 include $(dir $(lastword $(MAKEFILE_LIST)))common.mk
 
@@ -25,8 +25,8 @@ Y = --segment 0,-0.35,0,0 --segment 0,0,-0.25,0.3 --segment 0,0,0.25,0.3
 all: $(OUT)/summary.txt
 # the closing report, remade (and shown) only when what it reports changes,
 # so a finished run has nothing left to do, not even under make -n
-$(OUT)/summary.txt: $(OUT)/table.md $(OUT)/strip.png $(OUT)/pvd/frame.pvd
-	@( cat $(OUT)/table.md; echo "pictures: $(OUT)/strip.png; ParaView: $(OUT)/pvd/frame.pvd" ) > $@.tmp && mv $@.tmp $@ && cat $@
+$(OUT)/summary.txt: $(OUT)/table.md $(OUT)/strip.png $(OUT)/tear.pvd
+	@( cat $(OUT)/table.md; echo "pictures: $(OUT)/strip.png; ParaView: $(OUT)/tear.pvd" ) > $@.tmp && mv $@.tmp $@ && cat $@
 
 $(OUT)/intact.h5:
 	@mkdir -p $(@D)
@@ -86,5 +86,5 @@ $(OUT)/table.md: $(OUT)/rows.txt
 $(OUT)/strip.png: $(OUT)/tear.h5 $(OUT)/full-cut.h5 $(OUT)/full-intact.h5
 	crom-export --format strip --model $(OUT)/model.h5 --follow-schedule --compare $(OUT)/full-cut.h5 \
 	  --compare $(OUT)/full-intact.h5 --columns 5 $(QUIET) -o $@ $<
-$(OUT)/pvd/frame.pvd: $(OUT)/tear.h5
-	crom-export --format pvd --model $(OUT)/model.h5 --follow-schedule $(QUIET) -o $(OUT)/pvd $<
+$(OUT)/tear.pvd: $(OUT)/tear.h5
+	crom-export --format pvd --model $(OUT)/model.h5 --follow-schedule $(QUIET) -o $@ $<

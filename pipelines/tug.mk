@@ -7,7 +7,7 @@
 # state carries over in q: after the swap the new body continues the motion,
 # with the physical response of its own geometry.
 #
-#   make -f pipelines/tug.mk -j2            # runs/tug/table.md, strip.png, pvd/, swap.xdmf, *.plot.png
+#   make -f pipelines/tug.mk -j2            # runs/tug/table.md, strip.png, swap.pvd, swap.xdmf, *.plot.png
 #   make -f pipelines/tug.mk -j2 SIZE=0.013   # about the paper's interactive size (~100K vertices, estimated)
 #   make -f pipelines/tug.mk OTHER='superquadric --exponent 8 --dims 0.6,1,0.6' SWAP=30
 #
@@ -52,10 +52,10 @@ PLOTS = $(OUT)/loss.plot.png $(OUT)/error.plot.png $(OUT)/cost.plot.png
 all: $(OUT)/summary.txt
 # the closing report, remade (and shown) only when what it reports changes,
 # so a finished run has nothing left to do, not even under make -n
-$(OUT)/summary.txt: $(OUT)/table.md $(OUT)/strip.png $(OUT)/pvd/frame.pvd $(OUT)/swap.xdmf $(PLOTS)
+$(OUT)/summary.txt: $(OUT)/table.md $(OUT)/strip.png $(OUT)/swap.pvd $(OUT)/swap.xdmf $(PLOTS)
 	@( cat $(OUT)/table.md; echo; \
 	   echo "pictures: $(OUT)/strip.png (the swapping reduced run over the full runs of the body and of the other shape); plots: $(OUT)/*.plot.png"; \
-	   echo "ParaView: $(OUT)/pvd/frame.pvd or $(OUT)/swap.xdmf (the swapping run, each frame on the mesh it had)" ) > $@.tmp && mv $@.tmp $@ && cat $@
+	   echo "ParaView: $(OUT)/swap.pvd or $(OUT)/swap.xdmf (the swapping run, each frame on the mesh it had)" ) > $@.tmp && mv $@.tmp $@ && cat $@
 plots: $(PLOTS)
 
 $(OUT)/body.h5: $(call stamp,mesh)
@@ -131,8 +131,8 @@ $(OUT)/table.md: $(OUT)/rows.txt
 $(OUT)/strip.png: $(OUT)/swap.h5 $(OUT)/full-tug-body.h5 $(OUT)/full-tug-other.h5 $(OUT)/model.h5
 	crom-export --format strip --follow-schedule --model $(OUT)/model.h5 --compare $(OUT)/full-tug-body.h5 \
 	  --compare $(OUT)/full-tug-other.h5 --columns 6 $(QUIET) -o $@ $<
-$(OUT)/pvd/frame.pvd: $(OUT)/swap.h5 $(OUT)/model.h5
-	crom-export --format pvd --follow-schedule --model $(OUT)/model.h5 $(QUIET) -o $(OUT)/pvd $<
+$(OUT)/swap.pvd: $(OUT)/swap.h5 $(OUT)/model.h5
+	crom-export --format pvd --follow-schedule --model $(OUT)/model.h5 $(QUIET) -o $@ $<
 $(OUT)/swap.xdmf: $(OUT)/swap.h5 $(OUT)/model.h5
 	crom-export --format xdmf --follow-schedule --model $(OUT)/model.h5 $(QUIET) -o $@ $<
 

@@ -39,6 +39,35 @@ m = meshio.read(sys.argv[1]); X = m.points; T = m.cells_dict['tetra']
 V = np.sum(np.einsum('ij,ij->i', np.cross(X[T[:,1]]-X[T[:,0]], X[T[:,2]]-X[T[:,0]]), X[T[:,3]]-X[T[:,0]])) / 6
 sys.exit(0 if abs(V - float(sys.argv[2])) < 1e-5 * V else 1)" "$TMP/c.vtu" "$v" || fail "crom-info volume vs meshio"
 ok
-# VTU to a terminal is text, but PLY to a terminal is refused: try with a pty-less check
+# VTU to a terminal is text, but PLY to a terminal is refused: stdout on a
+# pseudo-terminal
+$PY - "$TMP/c.h5" <<'PYEOF' || fail "terminal output"
+import os, pty, subprocess, sys
+def on_tty(fmt):
+    master, slave = pty.openpty()
+    p = subprocess.Popen(["crom-export", "--format", fmt, sys.argv[1]], stdin=subprocess.DEVNULL, stdout=slave,
+                         stderr=subprocess.PIPE)
+    os.close(slave)
+    out = b""
+    try:                     # read while it writes (a terminal holds little)
+        while True:
+            chunk = os.read(master, 65536)
+            if not chunk:
+                break
+            out += chunk
+    except OSError:          # EIO once the terminal's writer has gone
+        pass
+    os.close(master)
+    err = p.stderr.read().decode()
+    return p.wait(), err, out
+rc, err, out = on_tty("ply")
+if rc != 64 or "refusing to write binary output to a terminal" not in err or out:
+    sys.exit("ply to a terminal: exit %d, stderr %r, %d bytes written" % (rc, err, len(out)))
+rc, err, out = on_tty("vtu")
+if rc != 0 or b"<VTKFile" not in out:
+    sys.exit("vtu to a terminal: exit %d, stderr %r" % (rc, err))
+print("ply to a terminal refused (exit 64), vtu written (%d bytes)" % len(out))
+PYEOF
+ok
 expect_error 64 "format" "$TMP/x.vtu" -- crom-export --format xyz -o "$TMP/x.vtu" "$TMP/c.h5"
 done_checks

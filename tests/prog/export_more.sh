@@ -102,6 +102,8 @@ ok
 crom-export --format pvd --model pod.h5 --mesh box.h5 -q -o onepvd red.h5
 [ "$(grep -l 'NumberOfPoints="'"$(h5ls box.h5/vertices | grep -o '{[0-9]*' | tr -d '{')"'"' onepvd/*.vtu | wc -l)" -eq 7 ] \
   || fail "pvd without --follow-schedule: all frames on --mesh"; ok
+# an MSH file holds one mesh: a run that switches meshes is refused, nothing left
+expect_error 64 "an MSH file holds one mesh" "fx.msh" -- crom-export --format msh --follow-schedule --model pod.h5 -o fx.msh red.h5
 expect_error 64 "give it as a file" "s.png" -- bash -c "crom-export --format strip --follow-schedule --model pod.h5 -o s.png - < red.h5"
 
 # 4. --frame all: OBJ and PLY sequences, one surface per frame, the last one
@@ -184,5 +186,5 @@ PYEOF
 ok
 
 # 6. an unknown format names the new list
-expect_error 64 "not vtu, pvd, xdmf" "x.out" -- crom-export --format vtk -o x.out full.h5
+expect_error 64 "not vtu, pvd, xdmf, msh, obj, ply, stl, png or strip" "x.out" -- crom-export --format vtk -o x.out full.h5
 done_checks

@@ -75,7 +75,7 @@ P=(-f "$CROM_TOP/pipelines/punching.mk" OUT=pun SIZE=$PSIZE STEPS=$PSTEPS "${TIN
    HOLES='-0.35,0.05,-1,-0.05,0.35,1 0.05,0.05,-1,0.35,0.35,1')
 "${MK[@]}" "${P[@]}" >pun.log 2>&1 || fail "punching pipeline: $(tail -5 pun.log)"
 grep -q 'punching-0-to-2(vs-intact-full)' pun.log || fail "punching: table not printed"; ok
-for f in strip.png pvd/frame.pvd punch.xdmf punch.xdmf.h5 loss.plot.png error.plot.png cost.plot.png; do
+for f in strip.png punch.pvd punch.xdmf punch.xdmf.h5 loss.plot.png error.plot.png cost.plot.png; do
   [ -s "pun/$f" ] || fail "punching: pun/$f missing"
 done; ok
 check_table pun/rows.txt.csv '[0-2]-holes\(trained\) 0.3' 'punching-0-to-2\(vs-intact-full\) 0.3'
@@ -95,7 +95,7 @@ check_rerun "${P[@]}"
 # 2. tug: two training tugs, a new one, a swap to a box half way
 T=(-f "$CROM_TOP/pipelines/tug.mk" OUT=tug SIZE=$TSIZE STEPS=$TSTEPS "${TINY[@]}" LOADS='800,0,0 0,0,800' PULL=0.1)
 "${MK[@]}" "${T[@]}" >tug.log 2>&1 || fail "tug pipeline: $(tail -5 tug.log)"
-for f in strip.png pvd/frame.pvd swap.xdmf loss.plot.png error.plot.png cost.plot.png; do
+for f in strip.png swap.pvd swap.xdmf loss.plot.png error.plot.png cost.plot.png; do
   [ -s "tug/$f" ] || fail "tug: tug/$f missing"
 done; ok
 check_table tug/rows.txt.csv 'trained-tug-[12] 0.2' 'new-tug 0.4' 'unseen-shape\(new-tug\) 0.4' \
@@ -111,7 +111,7 @@ if not (dq[s - 1] < 3 * max(dq[s - 2], dq[s]) + 1e-12):
     raise SystemExit(f"check failed: {dq!s}")
 # the swapped run's pvd holds the box after the swap
 import meshio
-a = meshio.read("tug/pvd/frame_%05d.vtu" % (s - 1)); b = meshio.read("tug/pvd/frame_%05d.vtu" % s)
+a = meshio.read("tug/swap/swap_%05d.vtu" % (s - 1)); b = meshio.read("tug/swap/swap_%05d.vtu" % s)
 o = h5py.File("tug/other.h5")["vertices"][()]; body = h5py.File("tug/body.h5")["vertices"][()]
 if not (np.array_equal(a.points, body) and np.array_equal(b.points, o)):
     raise SystemExit("check failed: " + str("pvd frames on the wrong meshes"))
@@ -124,7 +124,7 @@ check_rerun "${T[@]}"
 R=(-f "$CROM_TOP/pipelines/rolling.mk" OUT=rol SIZE=$RSIZE STEPS=$RSTEPS "${TINY[@]}" POINTS=$RPOINTS TRAIN='2 5' TEST='3'
    PLANE=0,0.7071067811865476,0.7071067811865476,-0.63)   # a small gap: they roll soon
 "${MK[@]}" "${R[@]}" >rol.log 2>&1 || fail "rolling pipeline: $(tail -5 rol.log)"
-for f in strip-2.png strip-3.png pvd-3/frame.pvd red-3.xdmf recon.md loss.plot.png error.plot.png cost.plot.png; do
+for f in strip-2.png strip-3.png red-3.pvd red-3.xdmf recon.md loss.plot.png error.plot.png cost.plot.png; do
   [ -s "rol/$f" ] || fail "rolling: rol/$f missing"
 done; ok
 check_table rol/rows.txt.csv 'trained-p[25] 0.25' 'interpolated-p3 0.2'
