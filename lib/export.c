@@ -7,10 +7,10 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <gmshc.h>
 
 #include "err.h"
 #include "export.h"
+#include "gmsh.h"
 #include "io.h"
 
 static void xml_text(FILE *f, const char *s);
@@ -765,50 +765,28 @@ int crom_export_material(crom_material *m, int *known, const crom_in *in, double
 /* ---------------------------------------------------------------- gmsh
  * gmsh writes MSH and STL to a named file: it writes a temporary file
  * (named with the extension that selects the format) whose bytes are then
- * copied into the output, so outputs stay atomic and may go to stdout. gmsh
- * keeps one global session (its state is global by design). */
-
-static int gmsh_fail(int ierr, const char *what)
-{
-    char *msg = NULL;
-    int e2;
-    gmshLoggerGetLastError(&msg, &e2);
-    int rc = crom_err(CROM_EDATA, "gmsh could not %s%s%s (error %d)", what, msg && *msg ? ": " : "",
-                      msg ? msg : "", ierr);
-    if (msg)
-        gmshFree(msg);
-    return rc;
-}
+ * copied into the output, so outputs stay atomic and may go to stdout. The
+ * session is lib/gmsh.h's. */
 
 #define G(call, what)                                                                              \
     do {                                                                                           \
         ierr = 0;                                                                                  \
         call;                                                                                      \
         if (ierr)                                                                                  \
-            return gmsh_fail(ierr, what);                                                          \
+            return crom_gmsh_fail(ierr, what);                                                     \
     } while (0)
 
-/* a session with one empty model, messages kept from the terminal (gmsh
- * prints to stdout, which may carry our output) */
-static void gmsh_start(void)
+/* a session (lib/gmsh.h) with one empty model, set to write MSH 4.1 text */
+static int gmsh_start(void)
 {
-    int ierr;
-    gmshInitialize(0, NULL, 0, &ierr);
-    gmshOptionSetNumber("General.Terminal", 0, &ierr);
-    gmshOptionSetNumber("General.Verbosity", 2, &ierr);
-    gmshOptionSetNumber("General.AbortOnError", 0, &ierr);
-    gmshLoggerStart(&ierr);
+    int ierr, rc = crom_gmsh_begin(NULL);
+    if (rc)
+        return rc;
     gmshModelAdd("crom", &ierr);
     gmshOptionSetNumber("Mesh.Binary", 0, &ierr);
     gmshOptionSetNumber("Mesh.MshFileVersion", 4.1, &ierr);
     gmshOptionSetNumber("PostProcessing.SaveMesh", 0, &ierr); /* the mesh once, by gmshWrite */
-}
-
-static void gmsh_stop(void)
-{
-    int ierr;
-    gmshLoggerStop(&ierr);
-    gmshFinalize(&ierr);
+    return 0;
 }
 
 /* gmsh writes the model (and the views[0..nviews), appended) to a
@@ -826,7 +804,7 @@ static int gmsh_write_into(FILE *f, const char *ext, const int *views, int nview
     for (int i = 0; i < nviews && !ierr; i++)
         gmshViewWrite(views[i], tmp, 1, &ierr);
     if (ierr)
-        rc = gmsh_fail(ierr, "write the file");
+        rc = crom_gmsh_fail(ierr, "write the file");
     FILE *in = rc ? NULL : fopen(tmp, "rb");
     if (!rc && !in)
         rc = crom_err(CROM_EIO, "cannot read back %s: %s", tmp, strerror(errno));
@@ -873,7 +851,7 @@ static int stl_model(const crom_mesh *m, const double *disp)
         if (!ierr)
             gmshModelMeshAddElementsByType(1, 2, etag, (size_t)nt, enode, 3 * (size_t)nt, &ierr);
         if (ierr)
-            rc = gmsh_fail(ierr, "take the surface");
+            rc = crom_gmsh_fail(ierr, "take the surface");
     }
     free(ntag);
     free(etag);
@@ -887,11 +865,13 @@ static int stl_model(const crom_mesh *m, const double *disp)
 
 int crom_export_stl(FILE *f, const crom_mesh *m, const double *disp)
 {
-    gmsh_start();
-    int rc = stl_model(m, disp);
+    int rc = gmsh_start();
+    if (rc)
+        return rc;
+    rc = stl_model(m, disp);
     if (!rc)
         rc = gmsh_write_into(f, "stl", NULL, 0);
-    gmsh_stop();
+    crom_gmsh_end(NULL, NULL);
     return rc;
 }
 
@@ -917,7 +897,7 @@ static int msh_model(crom_export_msh *w, const crom_mesh *m)
         if (!ierr) /* element type 4: the 4-node tetrahedron, our vertex order */
             gmshModelMeshAddElementsByType(1, 4, etag, nt, enode, 4 * nt, &ierr);
         if (ierr)
-            rc = gmsh_fail(ierr, "take the mesh");
+            rc = crom_gmsh_fail(ierr, "take the mesh");
     }
     free(etag);
     free(enode);
@@ -929,8 +909,13 @@ int crom_export_msh_open(crom_export_msh *w, const crom_mesh *m)
     memset(w, 0, sizeof *w);
     w->nv = m->nv;
     w->tags = crom_malloc(sizeof(size_t) * (size_t)(m->nv ? m->nv : 1));
-    gmsh_start();
-    int rc = msh_model(w, m);
+    int rc = gmsh_start();
+    if (rc) {
+        free(w->tags);
+        w->tags = NULL;
+        return rc;
+    }
+    rc = msh_model(w, m);
     if (rc)
         crom_export_msh_abort(w);
     return rc;
@@ -956,7 +941,7 @@ void crom_export_msh_abort(crom_export_msh *w)
 {
     free(w->tags);
     w->tags = NULL;
-    gmsh_stop();
+    crom_gmsh_end(NULL, NULL);
 }
 
 int crom_export_msh_finish(crom_export_msh *w, const char *path)
