@@ -14,20 +14,25 @@ d = sys.argv[1]
 f = h5py.File(d + "/c.h5"); X = f["vertices"][()]; T = f["tets"][()]; base = f["regions/base"][()]
 for name in ("c.vtu", "p.vtu"):
     m = meshio.read(d + "/" + name)
-    assert np.array_equal(m.points, X), "vertices differ"
-    assert np.array_equal(m.cells_dict["tetra"], T), "tets differ"
+    if not (np.array_equal(m.points, X)):
+        raise SystemExit("check failed: " + str("vertices differ"))
+    if not (np.array_equal(m.cells_dict["tetra"], T)):
+        raise SystemExit("check failed: " + str("tets differ"))
     mask = m.point_data["region_base"]
-    assert np.array_equal(np.nonzero(mask)[0], base), "region mask differs"
+    if not (np.array_equal(np.nonzero(mask)[0], base)):
+        raise SystemExit("check failed: " + str("region mask differs"))
 def vol(X, T):
     return np.sum(np.einsum("ij,ij->i", np.cross(X[T[:,1]]-X[T[:,0]], X[T[:,2]]-X[T[:,0]]), X[T[:,3]]-X[T[:,0]])) / 6
 V = vol(m.points, m.cells_dict["tetra"])
-assert abs(V - vol(X, T)) < 1e-14
+if not (abs(V - vol(X, T)) < 1e-14):
+    raise SystemExit("check failed: abs(V - vol(X, T)) < 1e-14")
 # the surfaces enclose the same volume (divergence theorem), outward oriented
 for name in ("c.obj", "c.ply"):
     s = meshio.read(d + "/" + name); P = s.points.astype(float); F = s.cells_dict["triangle"]
     Vs = np.sum(np.einsum("ij,ij->i", P[F[:,0]], np.cross(P[F[:,1]], P[F[:,2]]))) / 6
     tol = 1e-6 if name.endswith("ply") else 1e-7   # PLY stores float32
-    assert abs(Vs - V) < tol * 10, (name, Vs, V)
+    if not (abs(Vs - V) < tol * 10):
+        raise SystemExit(f"check failed: {(name, Vs, V)!s}")
 print("volume", V)
 PYEOF
 ok

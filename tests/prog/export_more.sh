@@ -24,15 +24,22 @@ bot = f["mesh/regions/bottom"][()]
 for name in ("run.xdmf", "dir/series.xdmf", "piped.xdmf"):
     with meshio.xdmf.TimeSeriesReader(name) as r:
         p, cells = r.read_points_cells()
-        assert np.array_equal(p, X), "vertices"
-        assert len(cells) == 1 and cells[0].type == "tetra" and np.array_equal(cells[0].data, T), "tets"
-        assert r.num_steps == len(t), (r.num_steps, len(t))
+        if not (np.array_equal(p, X)):
+            raise SystemExit("check failed: " + str("vertices"))
+        if not (len(cells) == 1 and cells[0].type == "tetra" and np.array_equal(cells[0].data, T)):
+            raise SystemExit("check failed: " + str("tets"))
+        if not (r.num_steps == len(t)):
+            raise SystemExit(f"check failed: {(r.num_steps, len(t))!s}")
         for k in range(r.num_steps):
             tk, pd, cd = r.read_data(k)
-            assert tk == t[k], (tk, t[k])
-            assert np.array_equal(pd["displacement"], U[k]), "displacement of frame %d" % k
-            assert np.array_equal(pd["velocity"], V[k]), "velocity of frame %d" % k
-            assert np.array_equal(np.nonzero(pd["region_bottom"])[0], bot), "region mask"
+            if not (tk == t[k]):
+                raise SystemExit(f"check failed: {(tk, t[k])!s}")
+            if not (np.array_equal(pd["displacement"], U[k])):
+                raise SystemExit("check failed: " + str("displacement of frame %d" % k))
+            if not (np.array_equal(pd["velocity"], V[k])):
+                raise SystemExit("check failed: " + str("velocity of frame %d" % k))
+            if not (np.array_equal(np.nonzero(pd["region_bottom"])[0], bot)):
+                raise SystemExit("check failed: " + str("region mask"))
 print("xdmf: %d frames of %d vertices read back exactly" % (len(t), len(X)))
 PYEOF
 ok
@@ -44,8 +51,8 @@ crom-export -q -o mesh.xdmf box.h5
 $PY -c "
 import meshio, h5py, numpy as np
 m = meshio.read('mesh.xdmf'); f = h5py.File('box.h5')
-assert np.array_equal(m.points, f['vertices'][()]) and np.array_equal(m.cells_dict['tetra'], f['tets'][()])
-assert np.array_equal(np.nonzero(m.point_data['region_top'])[0], f['regions/top'][()])
+if not (np.array_equal(m.points, f['vertices'][()]) and np.array_equal(m.cells_dict['tetra'], f['tets'][()])): raise SystemExit('check failed: mesh')
+if not np.array_equal(np.nonzero(m.point_data['region_top'])[0], f['regions/top'][()]): raise SystemExit('check failed: region top')
 " || fail "meshio.read of a mesh as XDMF"
 ok
 # --every keeps every K-th frame
@@ -82,19 +89,24 @@ B = h5py.File("pod.h5")["field/basis"][()]            # [nv][3][r] on box.h5's v
 X0 = h5py.File("box.h5")["vertices"][()]; X1 = h5py.File("punched.h5")["vertices"][()]
 # punched.h5's vertices are a subset of box.h5's: find them
 idx = {tuple(x): i for i, x in enumerate(X0)}; sub = np.array([idx[tuple(x)] for x in X1])
-assert list(cub) == [0, 0, 0, 0, 1, 1, 1], cub
+if not (list(cub) == [0, 0, 0, 0, 1, 1, 1]):
+    raise SystemExit(f"check failed: {cub!s}")
 with meshio.xdmf.TimeSeriesReader("fx.xdmf") as xr:
     xr.read_points_cells()
     for k in range(len(q)):
         v = meshio.read("fpvd/frame_%05d.vtu" % k)
         X, rows = (X0, slice(None)) if cub[k] == 0 else (X1, sub)
-        assert np.array_equal(v.points, X), "vtu %d on the wrong mesh" % k
+        if not (np.array_equal(v.points, X)):
+            raise SystemExit("check failed: " + str("vtu %d on the wrong mesh" % k))
         u = np.einsum("vcr,r->vc", B[rows], q[k])
-        assert np.allclose(v.point_data["displacement"], u, atol=1e-12), "vtu %d displacement" % k
+        if not (np.allclose(v.point_data["displacement"], u, atol=1e-12)):
+            raise SystemExit("check failed: " + str("vtu %d displacement" % k))
         t, pd, cd = xr.read_data(k)
-        assert np.allclose(pd["displacement"], u, atol=1e-12), "xdmf %d displacement" % k
+        if not (np.allclose(pd["displacement"], u, atol=1e-12)):
+            raise SystemExit("check failed: " + str("xdmf %d displacement" % k))
 x = open("fx.xdmf").read()
-assert x.count("fx.xdmf.h5:/mesh_1/vertices") == 3 and x.count("fx.xdmf.h5:/mesh/vertices") == 4
+if not (x.count("fx.xdmf.h5:/mesh_1/vertices") == 3 and x.count("fx.xdmf.h5:/mesh/vertices") == 4):
+    raise SystemExit("check failed: x.count(\"fx.xdmf.h5:/mesh_1/vertices\") == 3 and x.count(\"fx.xdmf.h5:/mesh/vertices\") == 4")
 print("follow-schedule: frames 0-3 on the box, 4-6 on the punched box")
 PYEOF
 ok
@@ -122,10 +134,12 @@ for k in range(7):
     # every surface point is a deformed vertex X + u of frame k
     x = X + U[k]
     d = np.min(np.linalg.norm(s.points[:, None, :] - x[None, :, :], axis=2), axis=1)
-    assert d.max() < 1e-8, (k, d.max())
+    if not (d.max() < 1e-8):
+        raise SystemExit(f"check failed: {(k, d.max())!s}")
     if k % 2 == 0:
         p = meshio.read("plys/frame_%05d.ply" % (k // 2))
-        assert len(p.points) == len(s.points) and np.allclose(p.points, s.points, atol=1e-6)
+        if not (len(p.points) == len(s.points) and np.allclose(p.points, s.points, atol=1e-6)):
+            raise SystemExit("check failed: len(p.points) == len(s.points) and np.allclose(p.points, s.points, atol=1e-6)")
 print("obj/ply sequences: every frame's surface at X + u")
 PYEOF
 ok
@@ -141,20 +155,24 @@ $PY - pngs/frame_00000.png pngs/frame_00006.png one.png strip.png fstrip.png <<'
 import struct, sys, zlib
 def decode(path):
     b = open(path, "rb").read()
-    assert b[:8] == b"\x89PNG\r\n\x1a\n", "signature"
+    if not (b[:8] == b"\x89PNG\r\n\x1a\n"):
+        raise SystemExit("check failed: " + str("signature"))
     pos, idat, w = 8, b"", None
     while pos < len(b):
         n, typ = struct.unpack(">I4s", b[pos:pos + 8]); data = b[pos + 8:pos + 8 + n]
         crc, = struct.unpack(">I", b[pos + 8 + n:pos + 12 + n])
-        assert zlib.crc32(typ + data) & 0xffffffff == crc, "CRC of " + typ.decode()
+        if not (zlib.crc32(typ + data) & 0xffffffff == crc):
+            raise SystemExit("check failed: " + str("CRC of " + typ.decode()))
         if typ == b"IHDR":
             w, h, depth, ctype, _, _, interlace = struct.unpack(">IIBBBBB", data)
-            assert depth == 8 and ctype == 2 and interlace == 0, "8-bit RGB expected"
+            if not (depth == 8 and ctype == 2 and interlace == 0):
+                raise SystemExit("check failed: " + str("8-bit RGB expected"))
         elif typ == b"IDAT":
             idat += data
         pos += 12 + n
     raw, bpp, stride = zlib.decompress(idat), 3, 3 * w
-    assert len(raw) == h * (stride + 1), "image data size"
+    if not (len(raw) == h * (stride + 1)):
+        raise SystemExit("check failed: " + str("image data size"))
     rows, prev = [], bytearray(stride)
     for y in range(h):
         f, line = raw[y * (stride + 1)], bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
@@ -166,7 +184,8 @@ def decode(path):
             elif f == 4:
                 p = a + up - c; pa, pb, pc = abs(p - a), abs(p - up), abs(p - c)
                 line[i] = (line[i] + (a if pa <= pb and pa <= pc else up if pb <= pc else c)) & 255
-            else: assert f == 0, "filter %d" % f
+            elif f != 0:
+                raise SystemExit("check failed: PNG filter %d" % f)
         rows.append(line); prev = line
     return w, h, rows
 for path in sys.argv[1:]:
@@ -177,11 +196,14 @@ for path in sys.argv[1:]:
     mean = [sum(p[c] for p in px) / len(px) for c in range(3)]
     var = sum((p[c] - mean[c]) ** 2 for p in px for c in range(3)) / (3 * len(px))
     print("%s: %d x %d, %.1f%% non-white, %d colours, variance %.0f" % (path, w, h, 100 * nonwhite, colours, var))
-    assert nonwhite > 0.05 and colours > 20 and var > 100, path + " looks blank"
+    if not (nonwhite > 0.05 and colours > 20 and var > 100):
+        raise SystemExit("check failed: " + str(path + " looks blank"))
     if path == "one.png":
-        assert (w, h) == (200, 160 + 34), (w, h)
+        if not ((w, h) == (200, 160 + 34)):
+            raise SystemExit(f"check failed: {(w, h)!s}")
     if path == "strip.png":
-        assert (w, h) == (3 * 160, 2 * 120 + 34), (w, h)
+        if not ((w, h) == (3 * 160, 2 * 120 + 34)):
+            raise SystemExit(f"check failed: {(w, h)!s}")
 PYEOF
 ok
 
