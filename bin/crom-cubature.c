@@ -351,7 +351,7 @@ static int run(crom_cli *cli, args *a)
             crom_cli_info(cli, "relative error on %d poses: elastic energy %.4f, reduced force %.4f", np, eE, eF);
     }
     crom_out o;
-    if (!rc && !(rc = crom_out_create(&o, a->out, CROM_CUB_SCHEMA, CROM_CUB_VERSION, cli, hist, CROM_OUT_PLAIN))) {
+    if (!rc && !(rc = crom_out_create(&o, a->out, CROM_CUB_SCHEMA, CROM_CUB_VERSION, cli->cmdline, hist, CROM_OUT_PLAIN))) {
         double wsec = crom_wall(tW), ssec = crom_wall(tsel);
         rc = crom_cub_write(o.h5, &c);
         if (!rc)

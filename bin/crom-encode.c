@@ -240,7 +240,7 @@ static int run(crom_cli *cli, args *a)
     if ((rc = proj_init(&P)))
         goto out;
     /* the output series */
-    if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli, in.history, CROM_OUT_SERIES)))
+    if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli->cmdline, in.history, CROM_OUT_SERIES)))
         goto out;
     out_open = 1;
     hsize_t dr = (hsize_t)r;

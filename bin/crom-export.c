@@ -263,7 +263,7 @@ static int export_mesh(crom_cli *cli, args *a, crom_in *probe)
             rc = crom_image_save(&im, path);
         crom_image_free(&im);
     } else {
-        rc = crom_export_mesh(&m, series_kind(a), a->format, a->out, a->name, a->dir, a->all, inputs, 1, cli, history);
+        rc = crom_export_mesh(&m, series_kind(a), a->format, a->out, a->name, a->dir, a->all, inputs, 1, cli->cmdline, history);
     }
     free(history);
     crom_mesh_free(&m);
@@ -293,7 +293,7 @@ static int export_series(crom_cli *cli, args *a, crom_follow *s, crom_export_cel
         inputs[3 + i] = a->compare[i];
     int kind = series_kind(a);
     crom_export_sink k;
-    int rc = crom_export_sink_open(&k, kind, a->format, a->out, a->name, a->dir, inputs, 3 + a->ncompare, s->n, cli,
+    int rc = crom_export_sink_open(&k, kind, a->format, a->out, a->name, a->dir, inputs, 3 + a->ncompare, s->n, cli->cmdline,
                                    s->res[0].in.history);
     if (rc)
         return rc;

@@ -557,7 +557,7 @@ static int run_datafree(crom_cli *cli, args *a)
     out.poisson = a->sc.poisson;
     out.density = a->sc.density;
     crom_out o;
-    if ((rc = crom_out_create(&o, a->out, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cli, hist, CROM_OUT_PLAIN)))
+    if ((rc = crom_out_create(&o, a->out, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cli->cmdline, hist, CROM_OUT_PLAIN)))
         goto out;
     rc = crom_model_write(o.h5, &out);
     if (!rc)
@@ -632,7 +632,7 @@ static int run(crom_cli *cli, args *a)
     }
     if (!rc) {
         crom_out o;
-        if (!(rc = crom_out_create(&o, a->out, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cli, S.history,
+        if (!(rc = crom_out_create(&o, a->out, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cli->cmdline, S.history,
                                    CROM_OUT_PLAIN))) {
             rc = crom_model_write(o.h5, &m);
             if (!rc)

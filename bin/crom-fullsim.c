@@ -105,7 +105,7 @@ static int run(crom_cli *cli, args *a)
         return rc;
     }
     crom_out o;
-    rc = crom_out_create(&o, a->out, "crom/trajectory", 1, cli, hist, a->kind);
+    rc = crom_out_create(&o, a->out, "crom/trajectory", 1, cli->cmdline, hist, a->kind);
     free(hist);
     if (rc)
         goto out_sim;

@@ -193,7 +193,7 @@ static int run(crom_cli *cli, args *a)
                           m.regions[r].source);
     }
     crom_out o;
-    if (!(rc = crom_out_create(&o, a->out, CROM_MESH_SCHEMA, CROM_MESH_VERSION, cli, NULL,
+    if (!(rc = crom_out_create(&o, a->out, CROM_MESH_SCHEMA, CROM_MESH_VERSION, cli->cmdline, NULL,
                                CROM_OUT_PLAIN))) {
         static const char *shape_names[] = {"box", "plate", "sphere", "cylinder", "superquadric", "import"};
         rc = crom_mesh_write(o.h5, &m);

@@ -169,7 +169,7 @@ static int write_model(crom_cli *cli, const args *a, const crom_mesh *m, const c
     }
     memcpy(model.frequencies, r->freq, sizeof(double) * (size_t)k);
     crom_out o;
-    if ((rc = crom_out_create(&o, a->out, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cli, hist, CROM_OUT_PLAIN))) {
+    if ((rc = crom_out_create(&o, a->out, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cli->cmdline, hist, CROM_OUT_PLAIN))) {
         free(text);
         crom_model_free(&model);
         return rc;

@@ -368,7 +368,7 @@ static int run_map(crom_cli *cli, args *a)
         if (rc)
             goto out;
     }
-    if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli, hist, a->kind)))
+    if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli->cmdline, hist, a->kind)))
         goto out;
     have_out = 1;
     if ((rc = start_output(&o, a, model.model_id, r, "gauss-newton", model.basis)))
@@ -449,7 +449,7 @@ static int run(crom_cli *cli, args *a)
     if (cli->verbose && s.nbc)
         crom_cli_info(cli, "boundary conditions constrain %d of %d latent directions (penalty rate %.3g 1/s^2)",
                       s.nconstrained, r, s.kappa);
-    if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli, sch[0].history, a->kind)))
+    if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli->cmdline, sch[0].history, a->kind)))
         goto out;
     have_out = 1;
     {

@@ -300,7 +300,7 @@ static int write_mesh(const crom_cli *cli, const char *path, const char *history
                       const crom_mesh *m, const char *generator, double size)
 {
     crom_out o;
-    int rc = crom_out_create(&o, path, CROM_MESH_SCHEMA, CROM_MESH_VERSION, cli, history,
+    int rc = crom_out_create(&o, path, CROM_MESH_SCHEMA, CROM_MESH_VERSION, cli->cmdline, history,
                              CROM_OUT_PLAIN);
     if (rc)
         return rc;

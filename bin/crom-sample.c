@@ -395,7 +395,7 @@ static int run(crom_cli *cli, args *a)
                       a->skip_rest ? ", or all are at rest and --skip-rest dropped them" : "");
     if (!rc) {
         crom_out o;
-        if (!(rc = crom_out_create(&o, a->out, CROM_SAMPLES_SCHEMA, CROM_SAMPLES_VERSION, cli,
+        if (!(rc = crom_out_create(&o, a->out, CROM_SAMPLES_SCHEMA, CROM_SAMPLES_VERSION, cli->cmdline,
                                    history, CROM_OUT_PLAIN))) {
             rc = crom_samples_write(o.h5, s);
             if (!rc)

@@ -602,7 +602,7 @@ static void xdmf_free(crom_xdmf_series *x)
 }
 
 int crom_xdmf_series_open(crom_xdmf_series *x, const char *out, const char *name, int dir,
-                          const char *const *inputs, int ninputs, int nmesh, const crom_cli *cli,
+                          const char *const *inputs, int ninputs, int nmesh, const char *cmdline,
                           const char *history)
 {
     memset(x, 0, sizeof *x);
@@ -616,7 +616,7 @@ int crom_xdmf_series_open(crom_xdmf_series *x, const char *out, const char *name
         xdmf_free(x);
         return CROM_EINTERNAL;
     }
-    if ((rc = crom_out_create(&x->o, x->h5, "xdmf/heavy-data", 1, cli, history, CROM_OUT_PLAIN)))
+    if ((rc = crom_out_create(&x->o, x->h5, "xdmf/heavy-data", 1, cmdline, history, CROM_OUT_PLAIN)))
         xdmf_free(x);
     return rc;
 }
@@ -961,7 +961,7 @@ int crom_export_msh_finish(crom_export_msh *w, const char *path)
 /* ---------------------------------------------------------------- sinks */
 
 int crom_export_sink_open(crom_export_sink *k, int kind, const char *format, const char *out, const char *name,
-                          int dir, const char *const *inputs, int ninputs, int nmesh, const crom_cli *cli,
+                          int dir, const char *const *inputs, int ninputs, int nmesh, const char *cmdline,
                           const char *history)
 {
     memset(k, 0, sizeof *k);
@@ -969,7 +969,7 @@ int crom_export_sink_open(crom_export_sink *k, int kind, const char *format, con
     k->format = format;
     k->out = out ? out : "-";
     if (kind == CROM_SERIES_XDMF)
-        return crom_xdmf_series_open(&k->xdmf, out, name, dir, inputs, ninputs, nmesh, cli, history);
+        return crom_xdmf_series_open(&k->xdmf, out, name, dir, inputs, ninputs, nmesh, cmdline, history);
     if (kind == CROM_SERIES_MSH)
         return 0;
     return crom_export_series_open(&k->files, out, name, kind == CROM_SERIES_FILES ? format : "vtu", kind);
@@ -1021,7 +1021,7 @@ int crom_export_sink_finish(crom_export_sink *k)
 }
 
 int crom_export_mesh(const crom_mesh *m, int kind, const char *format, const char *out, const char *name, int dir,
-                     int in_dir, const char *const *inputs, int ninputs, const crom_cli *cli, const char *history)
+                     int in_dir, const char *const *inputs, int ninputs, const char *cmdline, const char *history)
 {
     crom_export_cells cells = {0};
     crom_export_frame fr = {m, NULL, NULL, kind == CROM_SERIES_PVD_FILE ? 0 : NAN, &cells};
@@ -1029,7 +1029,7 @@ int crom_export_mesh(const crom_mesh *m, int kind, const char *format, const cha
     if (rc) {
     } else if (kind == CROM_SERIES_XDMF) {
         crom_xdmf_series x;
-        if (!(rc = crom_xdmf_series_open(&x, out, name, dir, inputs, ninputs, 1, cli, history))) {
+        if (!(rc = crom_xdmf_series_open(&x, out, name, dir, inputs, ninputs, 1, cmdline, history))) {
             if ((rc = crom_xdmf_series_mesh(&x, 0, m))) {
                 crom_xdmf_series_abort(&x);
                 crom_err_ctx("%s", x.h5);

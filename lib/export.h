@@ -225,7 +225,7 @@ typedef struct {
  * XDMF cannot refer to, or an input would be overwritten), CROM_ECANTCREAT
  * or CROM_EINTERNAL. */
 int crom_xdmf_series_open(crom_xdmf_series *x, const char *out, const char *name, int dir,
-                          const char *const *inputs, int ninputs, int nmesh, const crom_cli *cli,
+                          const char *const *inputs, int ninputs, int nmesh, const char *cmdline,
                           const char *history);
 
 /* Write mesh number mi (once; later calls do nothing). Returns 0 or an
@@ -253,7 +253,7 @@ void crom_xdmf_series_abort(crom_xdmf_series *x);
  * NAME.EXT (vtu for pvd) in the directory out; else the file out ("-":
  * stdout). Returns 0 or the writer's error. */
 int crom_export_mesh(const crom_mesh *m, int kind, const char *format, const char *out, const char *name, int dir,
-                     int in_dir, const char *const *inputs, int ninputs, const crom_cli *cli, const char *history);
+                     int in_dir, const char *const *inputs, int ninputs, const char *cmdline, const char *history);
 
 /* ---------------------------------------------------------------- sinks
  * Where the frames of a series go, one interface for every series format:
@@ -277,7 +277,7 @@ typedef struct {
  * an MSH file (written when finished; gmsh starts with the first frame).
  * Returns 0 or the error of the opening. */
 int crom_export_sink_open(crom_export_sink *k, int kind, const char *format, const char *out, const char *name,
-                          int dir, const char *const *inputs, int ninputs, int nmesh, const crom_cli *cli,
+                          int dir, const char *const *inputs, int ninputs, int nmesh, const char *cmdline,
                           const char *history);
 
 /* Add frame fr, on mesh number mi of the run. Returns 0, CROM_EUSAGE (an

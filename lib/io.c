@@ -1128,11 +1128,11 @@ void crom_fileout_abort(crom_fileout *o)
 }
 
 static int write_identity(crom_out *o, const char *schema, int version,
-                          const crom_cli *cli, const char *parent_history)
+                          const char *cmdline, const char *parent_history)
 {
     char when[32];
     crom_utc_now(when, sizeof when);
-    const char *cmd = cli && cli->cmdline ? cli->cmdline : "(library)";
+    const char *cmd = cmdline ? cmdline : "(library)";
     size_t n = (parent_history ? strlen(parent_history) : 0) + strlen(cmd) + 128;
     char *hist = crom_malloc(n);
     if (!hist)
@@ -1151,7 +1151,7 @@ static int write_identity(crom_out *o, const char *schema, int version,
 }
 
 int crom_out_create(crom_out *o, const char *path, const char *schema,
-                    int version, const crom_cli *cli,
+                    int version, const char *cmdline,
                     const char *parent_history, int kind)
 {
     memset(o, 0, sizeof *o);
@@ -1210,7 +1210,7 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
             return rc;
         }
     }
-    if ((rc = write_identity(o, schema, version, cli, parent_history))) {
+    if ((rc = write_identity(o, schema, version, cmdline, parent_history))) {
         crom_out_fail(o);
         return rc;
     }

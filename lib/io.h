@@ -22,7 +22,6 @@
 
 #include <hdf5.h>
 
-#include "cli.h"
 #include "clock.h"
 
 #define CROM_MAX_FIELDS 24
@@ -129,7 +128,7 @@ enum {
  * plus a line for this stage from cli). Returns 0, CROM_EUSAGE (stdout is a
  * terminal), or CROM_ECANTCREAT. */
 int crom_out_create(crom_out *o, const char *path, const char *schema,
-                    int version, const crom_cli *cli,
+                    int version, const char *cmdline,
                     const char *parent_history, int kind);
 
 /* Declare a per-frame field /frames/<name> (series only, before
