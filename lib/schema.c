@@ -70,7 +70,7 @@ static const crom_schema_dset samples_dsets[] = {
     {NULL, NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_attr model_attrs[] = {
-    {"basis", "str", 1, "mlp (neural field), pod or modes (piecewise-linear field on a mesh), energy or neuralmodes (data-free maps of one mesh), energy-field (continuous data-free map)"},
+    {"basis", "str", 1, "mlp (neural field), pod or modes (piecewise-linear field on a mesh), energy or neuralmodes (data-free maps of one mesh), energy-field (continuous data-free map), skinning (affine skinning handles)"},
     {"rank", "i64", 1, "r, the number of basis fields (latent dimension)"},
     {"encoder", "str", 1, "pointnet, lsq or none: how full states are turned into q"},
     {"model_id", "str", 1, "hex digest of the basis parameters; cubature and latent files name it"},
@@ -93,6 +93,9 @@ static const crom_schema_attr model_attrs[] = {
     {"origin_weight", "f64", 0, "weight of the penalty on y(0) (neuralmodes)"},
     {"modes_id", "str", 0, "model_id of the crom-modes model whose modes are the linear part (neuralmodes)"},
     {"cubature_tets", "i64", 0, "tets of the random cubature drawn at every training step (energy-field)"},
+    {"handles", "i64", 0, "H, the affine handles of a skinning subspace (12 coordinates each)"},
+    {"constant_handle", "i64", 0, "1 if handle 0 is the constant weight 1 (a free body), else 0 (skinning)"},
+    {"skin_weights", "str", 0, "trained (an MLP weight field) or eigen (skinning eigenmodes on field/mesh) (skinning)"},
     {NULL, NULL, 0, NULL}};
 
 static const crom_schema_dset model_dsets[] = {
@@ -120,6 +123,13 @@ static const crom_schema_dset model_dsets[] = {
     {"latent/pin_points", "f64", "?,3", 0, "m", "pinned vertices of the training mesh: part of the pin mask (energy-field)"},
     {"latent/pin_triangles", "f64", "?,3,3", 0, "m", "pinned boundary triangles of the training mesh, corners: part of the pin mask (energy-field)"},
     {"latent/pin_length", "f64", "1", 0, "m", "width l of the pin mask smoothstep(d / l) (energy-field)"},
+    {"skin/frame", "f64", "3,4", 0, "1/m, 1", "body frame F of a skinning subspace: X_hat = F [X; 1] (skinning)"},
+    {"skin/coordinates", "f64", "A,S", 0, "1", "C [4H][S]: orthonormal functions psi_s = sum_a C[a][s] phi_a of the handle functions (skinning)"},
+    {"skin/weights", "f64", "nv,H", 0, "1", "handle weights at the vertices of field/mesh (skinning, eigen)"},
+    {"skin/eigenvalues", "f64", "H", 0, "1/s^2", "eigenvalues of the weights: scalar stiffness against lumped mass (skinning, eigen)"},
+    {"skin/pin_points", "f64", "?,3", 0, "m", "pinned training points: part of the weights' pin mask (skinning, trained)"},
+    {"skin/pin_triangles", "f64", "?,3,3", 0, "m", "pinned boundary triangles of the training geometry, corners: part of the mask (skinning, trained)"},
+    {"skin/pin_length", "f64", "1", 0, "m", "width l of the weights' pin mask s(d / l), s(t) = t (2 - t) (skinning, trained)"},
     {NULL, NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_attr latent_attrs[] = {
