@@ -90,7 +90,7 @@ int crom_skin_basis(int H, const double F[12], const double *C, int S, size_t n,
                     psi[t] += phi[a] * C[(size_t)a * S + t];
         for (int c = 0; c < 3; c++)
             for (int t = 0; t < S; t++)
-                Wi[c * r + 3 * (size_t)t + c] = psi[t];
+                Wi[c * r + (size_t)c * S + t] = psi[t];
     }
     free(phi);
     return 0;
@@ -283,12 +283,12 @@ void crom_skin_handles(const crom_model *m, const double *q, double *T)
     double Qh[12];
     for (int h = 0; h < H; h++) {
         const double *Q = q + 12 * (size_t)h;
-        if (m->skin_C) { /* Q_h[c][j] = Σ_s C[4h + j][s] q[3s + c] */
+        if (m->skin_C) { /* Q_h[c][j] = Σ_s C[4h + j][s] q[cS + s] */
             for (int c = 0; c < 3; c++)
                 for (int j = 0; j < 4; j++) {
                     double v = 0;
                     for (int t = 0; t < S; t++)
-                        v += m->skin_C[(size_t)(4 * h + j) * S + t] * q[3 * t + c];
+                        v += m->skin_C[(size_t)(4 * h + j) * S + t] * q[(size_t)c * S + t];
                     Qh[4 * c + j] = v;
                 }
             Q = Qh;

@@ -31,12 +31,15 @@
  * ψ_s = Σ_a C[a][s] φ_a of the same span (over the training geometry:
  * Σ_v m_v ψ_s ψ_t = m δ_st), and then
  *
- *     W(X)[c][3s + c] = ψ_s(X),   rank 3S,   Q = C q (handle coordinates),
+ *     W(X)[c][cS + s] = ψ_s(X),   rank 3S,   Q_h[c][j] = Σ_s C[4h + j][s] q[cS + s],
  *
- * so WᵀMW = m I on the training geometry and q is in metres of RMS
- * displacement. On a free body ψ_0..3 = X̂_0, X̂_1, X̂_2, 1 (the constant
- * handle's functions, orthonormal by the choice of frame), so the affine
- * motions are q[0..11] exactly; the other ψ span the rest of the φ's, made
+ * component-major (the x displacements' S coordinates, then y's, then z's),
+ * so WᵀMW = m I on the training geometry, q is in metres of RMS
+ * displacement, and the rows of W of one component are nonzero in one
+ * contiguous block of columns (crom_cub_tet assembles W_eᵀ H_e W_e by blocks,
+ * a third of the dense work). On a free body ψ_0..3 = X̂_0, X̂_1, X̂_2, 1
+ * (the constant handle's functions, orthonormal by the choice of frame), so
+ * the affine motions are q[cS + 0..3], c = 0, 1, 2, exactly; the other ψ span the rest of the φ's, made
  * M-orthogonal to those, from the eigenvectors of their Gram matrix with
  * eigenvalue above tol times the largest (directions below that are
  * numerically dependent and dropped: S <= 4H), largest first. Without C

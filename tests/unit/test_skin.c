@@ -28,6 +28,7 @@
 
 #include "check.h"
 #include "cloud.h"
+#include "cubature.h"
 #include "dfskin.h"
 #include "err.h"
 #include "fem.h"
@@ -217,7 +218,7 @@ static double energy_at(const crom_model *m, const crom_mesh *mesh, const crom_m
 }
 
 /* A rotation by 0.7 rad about (1, 2, 3) and a translation of the whole free
- * body: in orthonormal coordinates q[3s + c], s < 4, are the affine part
+ * body: in orthonormal coordinates q[cS + s], s < 4, are the affine part
  * (ψ = X̂, 1), so q = [(R − I) P⁻¹ | (R − I) c + t] exactly. */
 static void check_rigid(const crom_model *m, const crom_mesh *mesh, const crom_material *mat, const char *what)
 {
@@ -256,12 +257,12 @@ static void check_rigid(const crom_model *m, const crom_mesh *mesh, const crom_m
             double v = 0;
             for (int k = 0; k < 3; k++)
                 v += (R[3 * cc + k] - (cc == k)) * Pi[3 * k + s];
-            q[3 * s + cc] = v;
+            q[cc * m->skin_S + s] = v;
         }
         double v = t[cc];
         for (int k = 0; k < 3; k++)
             v += (R[3 * cc + k] - (cc == k)) * c[k];
-        q[9 + cc] = v;
+        q[cc * m->skin_S + 3] = v;
     }
     double E = energy_at(m, mesh, mat, q, x), err = 0;
     for (int v = 0; v < nv; v++)
@@ -279,6 +280,65 @@ static void check_rigid(const crom_model *m, const crom_mesh *mesh, const crom_m
     CHECK_LT(fabs(E), 1e-14 * EV);
     free(q);
     free(x);
+}
+
+/* The reduced gradient and Hessian of one tet with a skinning basis in
+ * orthonormal coordinates (crom_cub_tet takes them by component blocks)
+ * against W4ᵀ g and W4ᵀ He W4 summed entry by entry. */
+static void check_tet_blocks(const crom_model *m, const crom_mesh *mesh, const crom_material *mat)
+{
+    int r = m->rank, t = mesh->nt / 2;
+    double Xe[12], *W4 = malloc(sizeof(double) * 12 * r), Dm[9], V;
+    for (int a = 0; a < 4; a++)
+        memcpy(Xe + 3 * a, mesh->X + 3 * mesh->tets[4 * t + a], sizeof(double) * 3);
+    CHECK(crom_model_eval(m, 4, Xe, W4, NULL) == 0);
+    CHECK(crom_fem_tet_rest(Xe, Dm, &V) == 0);
+    double *q = malloc(sizeof(double) * r), *g = calloc(r, 8), *H = calloc((size_t)r * r, 8);
+    double *work = malloc(sizeof(double) * (168 + 12 * (size_t)r));
+    crom_rng rng;
+    crom_rng_seed(&rng, 8);
+    for (int i = 0; i < r; i++)
+        q[i] = 0.02 * crom_rng_normal(&rng);
+    double E = crom_cub_tet(mat, Xe, W4, r, Dm, V, 0.7, q, 0, g, H, work);
+    double xe[12], ge[12], He[144], Ee;
+    for (int i = 0; i < 12; i++) {
+        xe[i] = Xe[i];
+        for (int k = 0; k < r; k++)
+            xe[i] += W4[i * r + k] * q[k];
+    }
+    CHECK(crom_fem_tet_eval(mat, xe, Dm, V, 0, &Ee, ge, He) == 0);
+    double eg = 0, eh = 0, gs = 0, hs = 0;
+    for (int k = 0; k < r; k++) {
+        double v = 0;
+        for (int i = 0; i < 12; i++)
+            v += 0.7 * W4[i * r + k] * ge[i];
+        eg = fmax(eg, fabs(g[k] - v));
+        gs = fmax(gs, fabs(v));
+        for (int l = 0; l < r; l++) {
+            double h = 0;
+            for (int i = 0; i < 12; i++)
+                for (int j = 0; j < 12; j++)
+                    h += 0.7 * W4[i * r + k] * He[i * 12 + j] * W4[j * r + l];
+            eh = fmax(eh, fabs(H[k * r + l] - h));
+            hs = fmax(hs, fabs(h));
+        }
+    }
+    fprintf(stderr, "one tet, rank %d by component blocks: energy %.6g (%.6g), |g - W^T g_e| %.1e of %.3g, "
+                    "|H - W^T H_e W| %.1e of %.3g\n", r, E, Ee, eg, gs, eh, hs);
+    CHECK_NEAR(E, Ee, 1e-12 * Ee);
+    /* the block structure the kernel detects: component c only in [cS, cS + S) */
+    int S = m->skin_S, outside = 0;
+    for (int i = 0; i < 12; i++)
+        for (int k = 0; k < r; k++)
+            outside += W4[i * r + k] != 0 && k / S != i % 3;
+    CHECK(outside == 0);
+    CHECK_LT(eg, 1e-12 * gs);
+    CHECK_LT(eh, 1e-12 * hs);
+    free(W4);
+    free(q);
+    free(g);
+    free(H);
+    free(work);
 }
 
 /* -------------------------------------------------- skinning eigenmodes */
@@ -367,6 +427,7 @@ static void test_eigen(const crom_mesh *m, const crom_mesh *other, const crom_ma
     fprintf(stderr, "orthonormal coordinates: %d functions for %d handles, |W^T M W / m - I| <= %.2e\n",
             free_m.skin_S, H, ge);
     CHECK_LT(ge, 1e-9);
+    check_tet_blocks(&free_m, m, mat);
     check_rigid(&free_m, m, mat, "eigen skinning, free body");
     check_rigid(&free_m, other, mat, "eigen skinning laid on another mesh");
     free(vv);
