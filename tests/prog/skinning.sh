@@ -96,6 +96,17 @@ crom-reducedstep --cubature cub_fine.h5 "${MAT[@]}" "${STATIC[@]}" --tol 1e-10 -
 e=$(crom-diff sag_model.h5 sag_cub.h5 --model eig8.h5 --mesh fine.h5 -q | sed -n 's/relative displacement error \([0-9.e+-]*\) over.*/\1/p')
 close "$e" 0 1e-8 "skinning through --model vs --cubature"
 
+# an optimized (NNLS) cubature fitted to the poses of that run: its sag
+# follows the run over every tet
+crom-reducedstep --cubature cub8.h5 "${MAT[@]}" "${STATIC[@]}" -q -o poses8.h5
+crom-cubature --model eig8.h5 --scheme optimized --count 200 --poses poses8.h5 -q -o opt8.h5 bar.h5
+crom-reducedstep --cubature opt8.h5 "${MAT[@]}" "${STATIC[@]}" --stats opt8.csv -q -o sopt8.h5
+e=$(crom-diff sopt8.h5 poses8.h5 --model eig8.h5 --mesh bar.h5 | awk '$1 ~ /^[0-9]+$/ {v = $3} END {print v}')
+k=$(sed -n 2p opt8.csv | cut -d, -f6)
+echo "eigen skinning over an optimized cubature of $k tets: static sag vs every tet $e"
+close "$e" 0 0.1 "optimized cubature vs every tet"
+[ "$k" -le 200 ] || fail "the optimized cubature has $k tets"; ok
+
 # 3. a free body (a constant handle: rigid motions exact) dropped on a plane,
 #    and a --schedule swap to another mesh of it mid-run
 crom-fitfield --objective skinning --weights eigen --handles 4 --mesh bar.h5 "${MAT[@]}" -q -o free.h5
@@ -123,6 +134,16 @@ crom-fitfield --objective skinning --handles 6 --mesh bar.h5 "${MAT[@]}" --pin c
 cat tr.log
 grep -q "trained skinning weights, 6 handles (rank [0-9]*) on [0-9]* vertices" tr.log || fail "trained summary"; ok
 crom-info --check tr.h5 >/dev/null || fail "crom-info --check tr.h5"; ok
+# the same bytes again, and with 2 threads the same model
+QUICK=(--objective skinning --handles 3 --mesh bar.h5 "${MAT[@]}" --pin clamp --steps 20 --tets 64 -q)
+crom-fitfield "${QUICK[@]}" >tr1.h5
+crom-fitfield "${QUICK[@]}" >tr2.h5
+crom-fitfield "${QUICK[@]}" --threads 2 >tr3.h5
+cmp -s tr1.h5 tr2.h5 || fail "same inputs and seed, different bytes"; ok
+$PY -c "
+import h5py, sys
+a, b = h5py.File('tr1.h5'), h5py.File('tr3.h5')
+sys.exit(0 if a.attrs['model_id'] == b.attrs['model_id'] else 1)" || fail "--threads 2 changed the model"; ok
 $PY - tr.h5 <<'PYEOF' || fail "trained model"
 import sys, h5py, numpy as np
 f = h5py.File(sys.argv[1])
