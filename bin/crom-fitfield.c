@@ -92,9 +92,10 @@ static const crom_optgroup groups[] = {{"Options", fit_opts},
 static const char doc_tail[] =
     "--objective skinning (Simplicits, Modi et al. 2024; skinning eigenmodes, Benchekroun et al. 2023): "
     "a LINEAR subspace of --handles H affine handles, u(X) = sum_h w_h(X) Q_h [X_hat; 1], X_hat the body's "
-    "rest position normalized by its centre of mass and mass covariance (so the 12H coordinates q, Q_h row "
-    "by row, are in metres and of comparable scale); the handle transforms are T_h = [I|0] + Q_h [F; 0 0 0 1] "
-    "with the stored frame F. q = 0 is the rest shape exactly. A free body has a constant handle, so rigid "
+    "rest position normalized by its centre of mass and mass covariance (so the 12H handle coordinates, Q_h "
+    "row by row, are in metres and of comparable scale); the handle transforms are T_h = [I|0] + Q_h [F; 0 0 0 "
+    "1] with the stored frame F. By default the latent is instead 3S mass-orthonormal coordinates of the same "
+    "span (--coordinates). q = 0 is the rest shape exactly. A free body has a constant handle, so rigid "
     "motions are in the subspace exactly; on a pinned body every weight vanishes on the pins. The model "
     "('skinning') is a linear basis: crom-cubature, crom-reducedstep (hard pins, contact planes, --schedule), "
     "crom-encode and crom-export use it as they use a LiCROM field, on any mesh of the body. --weights "

@@ -657,13 +657,13 @@ static void test_trained(const crom_mesh *m, const crom_mesh *other, const crom_
             wfar);
     CHECK_LT(wmax, 1e-14);
     CHECK(wfar > 0.1);
+    crom_df_log_free(&log);
+    crom_model_free(&tm);
     o.handles = 0;
     CHECK(crom_dfs_train(&P, &o, &tm, &log) == CROM_EUSAGE);
     P.fixed = NULL;
     o.handles = 1; /* only the constant */
     CHECK(crom_dfs_train(&P, &o, &tm, &log) == CROM_EUSAGE);
-    crom_df_log_free(&log);
-    crom_model_free(&tm);
     free(wo);
     free(vv);
     free(fixed);
