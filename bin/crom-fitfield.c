@@ -12,10 +12,13 @@
 #include <string.h>
 
 #include "cli.h"
+#include "cloud.h"
 #include "datafree.h"
+#include "dfskin.h"
 #include "err.h"
 #include "fit.h"
 #include "io.h"
+#include "locate.h"
 #include "map.h"
 #include "mesh.h"
 #include "model.h"
@@ -23,31 +26,43 @@
 #include "result.h"
 #include "samples.h"
 #include "scenario.h"
+#include "skin.h"
 
 enum { O_RANK = 300, O_ENCODER, O_BASIS, O_EPOCHS, O_MINUTES, O_LR, O_BATCH, O_PPS, O_ENCPTS,
        O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX,
-       O_ORTHO, O_ORIGIN, O_STEPS, O_FEATURES, O_TETS, O_PINW };
+       O_ORTHO, O_ORIGIN, O_STEPS, O_FEATURES, O_TETS, O_PINW, O_HANDLES, O_WEIGHTS, O_SURFACE, O_CLOUD,
+       O_SPOINTS, O_COORDS, O_COORDTOL };
+
+/* --objective skinning (lib/dfskin.h), next to the CROM_DF_* codes */
+#define OBJ_SKINNING 100
 
 static const crom_opt fit_opts[] = {
     {"output", 'o', "OUT", "Write the model to OUT (default: stdout, which must not be a terminal)."},
-    {"objective", O_OBJECTIVE, "KIND", "samples (default): fit a basis to the samples read from SAMPLES. energy: learn a nonlinear subspace of the mesh given with --mesh from its energy alone, no data (Sharp et al. 2023). neuralmodes: nonlinear modes x(z) = X + Phi z + y(z) on the linear modes of --modes (Wang et al. 2024). field: a continuous nonlinear subspace x(X, z) = X + W(X) phi(z), trained like energy from the energy integrated by a random cubature of --mesh, that lays on any mesh of the body (beyond both papers)."},
+    {"objective", O_OBJECTIVE, "KIND", "samples (default): fit a basis to the samples read from SAMPLES. energy: learn a nonlinear subspace of the mesh given with --mesh from its energy alone, no data (Sharp et al. 2023). neuralmodes: nonlinear modes x(z) = X + Phi z + y(z) on the linear modes of --modes (Wang et al. 2024). field: a continuous nonlinear subspace x(X, z) = X + W(X) phi(z), trained like energy from the energy integrated by a random cubature of --mesh, that lays on any mesh of the body (beyond both papers). skinning: a linear subspace of --handles affine skinning handles whose weights w(X) lay on any mesh (Simplicits, Modi et al. 2024; skinning eigenmodes, Benchekroun et al. 2023)."},
     {"rank", O_RANK, "R", "Number of basis fields r, the latent dimension (default 20; energy: 8; neuralmodes: every mode of --modes). At most the number of frames with a non-zero displacement (for pod: the numerical rank of the snapshots; data-free: the free degrees of freedom; neuralmodes: the modes in --modes)."},
     {"basis", O_BASIS, "KIND", "mlp (default): a neural field W(X), usable on any mesh. pod: classic POD of samples of ONE mesh taken with crom-sample --points all, stored as a piecewise-linear field on that mesh."},
     {"encoder", O_ENCODER, "KIND", "How q is found for a frame during and after training (mlp only). lsq (default): the least-squares fit of W to the frame's samples, re-solved at every step (variable projection; fast). pointnet: the paper's PointNet encoder, trained jointly with W (LiCROM eq. 4) and stored in the model."},
     {NULL, 0, NULL, NULL}};
 
 static const crom_opt df_opts[] = {
-    {"mesh", O_MESH, "MESH", "The crom/mesh the data-free subspace maps (required with --objective energy|neuralmodes|field; '-' for stdin). Its regions resolve --pin. energy and neuralmodes store it: the subspace lives on this mesh; field is trained on it and lays on any mesh."},
+    {"mesh", O_MESH, "MESH", "The crom/mesh the data-free subspace maps (required with --objective energy|neuralmodes; field and skinning take it, --surface or --cloud; '-' for stdin). Its regions resolve --pin. energy and neuralmodes store it: the subspace lives on this mesh; field and skinning are trained on it and lay on any mesh."},
+    {"surface", O_SURFACE, "FILE", "field, skinning (trained): train on a closed triangle surface (.stl or .obj) instead of a tet mesh: --sample-points points inside it (inside/outside by the winding number, on a jittered grid), each standing for an equal share of the enclosed volume, integrated through small virtual tets. --pin takes predicates ('x<-0.49'); the surface's triangles inside a pin hold the weights at exactly 0 there on any mesh."},
+    {"cloud", O_CLOUD, "FILE", "field, skinning (trained): train on a point cloud with volumes: a text file of lines 'x y z volume' (metres, cubic metres; blanks or commas; # comments), each point standing for its volume. --pin takes predicates."},
+    {"sample-points", O_SPOINTS, "N", "--surface: about N points inside it (default 8192)."},
+    {"handles", O_HANDLES, "H", "skinning: the number of affine handles, 12 latent coordinates each (default 8). A free body (no pin) has a constant handle among them, so rigid motions are in the subspace exactly. At most the free degrees of freedom / 12."},
+    {"coordinates", O_COORDS, "KIND", "skinning: orthonormal (default): the latent is 3S coordinates of S functions psi_s mass-orthonormal over the training geometry that span the same space as the 4H functions w_h [X_hat; 1]_j (the affine ones first on a free body), so W^T M W = m I and no latent direction is redundant; numerically dependent directions (Gram eigenvalue below --coordinate-tol of the largest) are dropped. handles: the 12H handle coordinates themselves, W[c][12h + 4c + j] = w_h [X_hat; 1]_j (near-dependent for smooth weights: an ill-conditioned reduced Hessian)."},
+    {"coordinate-tol", O_COORDTOL, "T", "skinning: the relative eigenvalue below which a direction of the handle span is dropped (default 1e-6)."},
+    {"weights", O_WEIGHTS, "KIND", "skinning: trained (default): an MLP 3 -> H trained data-free on the energy of random handle poses plus the orthogonality of the weights (Simplicits). eigen: no training, the lowest eigenvectors of the scalar stiffness (the elasticity Hessian at rest summed over the three components) against the lumped mass, pinned vertices eliminated (skinning eigenmodes; needs --mesh)."},
     {"modes", O_MODES, "MODEL", "neuralmodes (required): a crom/model of linear modes of the same mesh, from crom-modes. Its lowest --rank modes are the linear part Phi; its pins are kept, its material is the default."},
     {"steps", O_STEPS, "N", "Training steps of a data-free objective (default 2000), each on --batch samples (default 32). The learning rate is --lr (default 1e-3), halved after each quarter of the steps."},
-    {"sigma", O_SIGMA, "S", "energy: isometry scale in metres: the subspace should move the body by S (RMS displacement) per unit of latent distance, |f(z) - f(z')|_M / sqrt(m) ~ S |z - z'|, z ~ N(0, I) (default 0.05 times the bounding-box diagonal). Sharp et al.'s sigma divided by sqrt(body mass)."},
+    {"sigma", O_SIGMA, "S", "energy: isometry scale in metres: the subspace should move the body by S (RMS displacement) per unit of latent distance, |f(z) - f(z')|_M / sqrt(m) ~ S |z - z'|, z ~ N(0, I) (default 0.05 times the bounding-box diagonal). Sharp et al.'s sigma divided by sqrt(body mass). skinning: the RMS displacement in metres of the random handle poses the weights are trained on (default 0.01 times the diagonal)."},
     {"lambda", O_LAMBDA, "L", "energy: weight of the isometry term, the squared log-ratio of mass-norm distances to S |z - z'| over all pairs of a batch, against the energy in units of E V (Young's modulus times volume) (default 1)."},
     {"ramp", O_RAMP, "F", "energy: the seed-state blend rho grows linearly from 0 to 1 over the first fraction F of the steps, then stays 1 (default 0.5; Sharp et al. §4.1). The seed state is the rest shape."},
     {"box", O_BOX, "A", "neuralmodes: the modal coordinates z are drawn uniformly from [-A, A]^r, in metres of RMS displacement (default 0.1 times the bounding-box diagonal)."},
     {"features", O_FEATURES, "P", "field: the feature fields of W(X), the output width of phi (default 32)."},
-    {"tets", O_TETS, "K", "field: tets of the random cubature drawn afresh at every step, each standing for nt/K of them (default 512, at most every tet)."},
-    {"pin-length", O_PINW, "L", "field: the field is masked by smoothstep(d / L), d the distance to the nearest pinned vertex of --mesh, so it vanishes there on any mesh (default: twice the mean edge length)."},
-    {"ortho-weight", O_ORTHO, "W", "neuralmodes: weight of the penalty |Phi^T M y(z)|^2 keeping the correction M-orthogonal to the linear modes, relative to the linear energy of the highest mode at the box size (default 1e4)."},
+    {"tets", O_TETS, "K", "field, skinning: tets of the random cubature drawn afresh at every step, each standing for nt/K of them (default 512, at most every tet)."},
+    {"pin-length", O_PINW, "L", "field: the field is masked by smoothstep(d / L), d the distance to the nearest pinned vertex of --mesh, so it vanishes there on any mesh (default: twice the mean edge length). skinning (trained): the weights are masked by s(d / L), s(t) = t (2 - t) below 1 (default 0.05 times the diagonal)."},
+    {"ortho-weight", O_ORTHO, "W", "neuralmodes: weight of the penalty |Phi^T M y(z)|^2 keeping the correction M-orthogonal to the linear modes, relative to the linear energy of the highest mode at the box size (default 1e4). skinning: weight of the orthogonality loss |G - I|^2 of the weights' mass-mean Gram matrix G (default 1)."},
     {"origin-weight", O_ORIGIN, "W", "neuralmodes: weight of the penalty |y(0)|_M^2 (default 1e4)."},
     {NULL, 0, NULL, NULL}};
 
@@ -66,18 +81,43 @@ static const crom_opt train_opts[] = {
 
 static const crom_optgroup groups[] = {{"Options", fit_opts},
                                        {"Training", train_opts},
-                                       {"Data-free subspaces (--objective energy|neuralmodes|field)", df_opts},
+                                       {"Data-free subspaces (--objective energy|neuralmodes|field|skinning)", df_opts},
                                        {"Scenario options of data-free training (the flags of crom-fullsim: material, gravity and "
                                         "--pin are used, the others accepted and ignored)", crom_scenario_opts},
                                        {NULL, NULL}};
 
-static const crom_doc doc = {
+/* The end of the description, from the skinning paragraph on (joined to
+ * doc.description at start-up: a string literal may not exceed 4095
+ * characters in ISO C). */
+static const char doc_tail[] =
+    "--objective skinning (Simplicits, Modi et al. 2024; skinning eigenmodes, Benchekroun et al. 2023): "
+    "a LINEAR subspace of --handles H affine handles, u(X) = sum_h w_h(X) Q_h [X_hat; 1], X_hat the body's "
+    "rest position normalized by its centre of mass and mass covariance (so the 12H handle coordinates, Q_h "
+    "row by row, are in metres and of comparable scale); the handle transforms are T_h = [I|0] + Q_h [F; 0 0 0 "
+    "1] with the stored frame F. By default the latent is instead 3S mass-orthonormal coordinates of the same "
+    "span (--coordinates). q = 0 is the rest shape exactly. A free body has a constant handle, so rigid "
+    "motions are in the subspace exactly; on a pinned body every weight vanishes on the pins. The model "
+    "('skinning') is a linear basis: crom-cubature, crom-reducedstep (hard pins, contact planes, --schedule), "
+    "crom-encode and crom-export use it as they use a LiCROM field, on any mesh of the body. --weights "
+    "trained (default): an ELU MLP 3 -> H (4 layers of width 64) trained on batches of --batch random handle "
+    "poses (RMS displacement --sigma) to minimize the mean Rayleigh quotient of their elastic energy (a random "
+    "cubature of --tets tets) with the weights whitened over the cubature, in units of E V / D^2, plus "
+    "--ortho-weight times |G - I|^2, G the mass-mean Gram matrix of the weights (Simplicits' orthogonality "
+    "loss); no gravity. --weights eigen: the lowest eigenvectors of the scalar stiffness of --mesh against "
+    "its lumped mass (ARPACK, as crom-modes), no training; the weights are stored on that mesh. "
+    "--surface and --cloud train field and skinning without a tet mesh.\n\n"
+    "A data-free step costs --batch energy evaluations (of the whole mesh, or of --tets tets); "
+    "--threads runs them in parallel (the result does not depend on the thread count).";
+
+static crom_doc doc = {
     "crom-fitfield",
     "learn a displacement basis W(X) from point samples",
     "crom-fitfield [--rank R] [--encoder lsq|pointnet] [--basis mlp|pod] [--epochs N] [--minutes M] [--seed S] [-o OUT] [SAMPLES]\n"
     "crom-fitfield --objective energy --mesh MESH [--rank R] [--sigma S] [--lambda L] [--steps N] [scenario] [-o OUT]\n"
     "crom-fitfield --objective neuralmodes --mesh MESH --modes MODEL [--rank R] [--box A] [--steps N] [-o OUT]\n"
-    "crom-fitfield --objective field --mesh MESH [--rank R] [--features P] [--tets K] [--steps N] [scenario] [-o OUT]",
+    "crom-fitfield --objective field --mesh MESH [--rank R] [--features P] [--tets K] [--steps N] [scenario] [-o OUT]\n"
+    "crom-fitfield --objective skinning --handles H [--weights trained|eigen] --mesh MESH|--surface STL|--cloud XYZV\n"
+    "              [--steps N] [scenario] [-o OUT]",
     "Reads a crom/samples file (a path, or stdin) and writes a crom/model: a basis W(X) of r "
     "displacement fields, so that u(X) = W(X) q for a latent q in metres (LiCROM §3).\n\n"
     "--basis mlp trains a neural field: an MLP with ELU activations (5 layers of width 60 by "
@@ -124,9 +164,7 @@ static const crom_doc doc = {
     "W a neural field 3 -> 3p (--features p), phi an MLP r -> p, trained like energy with the "
     "integrals over the body taken by a random cubature of --tets tets per step; pins are a mask "
     "vanishing on the pinned faces. The model ('energy-field') stores no mesh and lays on "
-    "any mesh of the body (with --mesh).\n\n"
-    "A data-free step costs --batch energy evaluations (of the whole mesh, or of --tets tets); "
-    "--threads runs them in parallel (the result does not depend on the thread count).",
+    "any mesh of the body (with --mesh).\n\n",
     groups,
     "crom-sample run*.h5 | crom-fitfield --rank 20 -o model.h5\n"
     "crom-fitfield --encoder pointnet --epochs 3750 -o model.h5 samples.h5\n"
@@ -134,7 +172,10 @@ static const crom_doc doc = {
     "crom-fitfield --objective energy --mesh bar.h5 --pin clamp --youngs 1e6 --rank 3 -o df.h5\n"
     "crom-modes --pin clamp --youngs 1e6 --count 6 -o modes.h5 bar.h5\n"
     "crom-fitfield --objective neuralmodes --mesh bar.h5 --modes modes.h5 -o nm.h5\n"
-    "crom-fitfield --objective field --mesh bar.h5 --pin clamp --youngs 1e6 -o fld.h5",
+    "crom-fitfield --objective field --mesh bar.h5 --pin clamp --youngs 1e6 -o fld.h5\n"
+    "crom-fitfield --objective skinning --handles 8 --mesh bar.h5 --pin clamp --youngs 1e6 -o skin.h5\n"
+    "crom-fitfield --objective skinning --weights eigen --handles 8 --mesh bar.h5 --pin clamp -o eig.h5\n"
+    "crom-fitfield --objective skinning --surface bar.stl --pin 'x<-0.49' --youngs 1e6 -o skin.h5",
     "crom-sample(1), crom-encode(1), crom-cubature(1), crom-modes(1), crom-reducedstep(1), crom-metrics(1), crom-info(1)"};
 
 typedef struct {
@@ -144,11 +185,13 @@ typedef struct {
     int encoder_given;
     /* data-free */
     int objective;               /* 0: samples, else CROM_DF_* */
-    const char *mesh, *modes;
+    const char *mesh, *modes, *surface, *cloud;
+    int sample_points, handles, eigen, handles_given, raw_coords;
+    double coord_tol;
     crom_df_opts df;
     crom_scenario sc;
     const char *samples_only;    /* a samples-only option given, for the message */
-    int rank_given, act_given, width_given, depth_given, lr_given, batch_given, minutes_given;
+    int rank_given, act_given, width_given, depth_given, lr_given, batch_given, minutes_given, ortho_given;
     int material_given;
     const char *df_only;         /* a data-free-only option given */
     char df_flag[48];
@@ -189,6 +232,13 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_FEATURES: a->df_only = "--features"; break;
     case O_TETS: a->df_only = "--tets"; break;
     case O_PINW: a->df_only = "--pin-length"; break;
+    case O_HANDLES: a->df_only = "--handles"; break;
+    case O_WEIGHTS: a->df_only = "--weights"; break;
+    case O_COORDS: a->df_only = "--coordinates"; break;
+    case O_COORDTOL: a->df_only = "--coordinate-tol"; break;
+    case O_SURFACE: a->df_only = "--surface"; break;
+    case O_CLOUD: a->df_only = "--cloud"; break;
+    case O_SPOINTS: a->df_only = "--sample-points"; break;
     }
     switch (key) {
     case O_OBJECTIVE:
@@ -200,10 +250,46 @@ static int on_opt(void *ctx, int key, const char *v)
             a->objective = CROM_DF_NEURALMODES;
         else if (!strcmp(v, "field"))
             a->objective = CROM_DF_FIELD;
+        else if (!strcmp(v, "skinning"))
+            a->objective = OBJ_SKINNING;
         else
-            return crom_err(CROM_EUSAGE, "--objective: '%s' is not samples, energy, neuralmodes or field", v);
+            return crom_err(CROM_EUSAGE, "--objective: '%s' is not samples, energy, neuralmodes, field or skinning", v);
         return 0;
     case O_MESH: a->mesh = v; return 0;
+    case O_SURFACE: a->surface = v; return 0;
+    case O_CLOUD: a->cloud = v; return 0;
+    case O_SPOINTS:
+        if (crom_parse_int(v, "--sample-points", 1, 100000000L, &n))
+            return CROM_EUSAGE;
+        a->sample_points = (int)n;
+        return 0;
+    case O_HANDLES:
+        /* 0 parses, so that the training reports it as a count it cannot use */
+        if (crom_parse_int(v, "--handles", 0, 100000L, &n))
+            return CROM_EUSAGE;
+        a->handles = (int)n;
+        a->handles_given = 1;
+        return 0;
+    case O_COORDS:
+        if (!strcmp(v, "orthonormal"))
+            a->raw_coords = 0;
+        else if (!strcmp(v, "handles"))
+            a->raw_coords = 1;
+        else
+            return crom_err(CROM_EUSAGE, "--coordinates: '%s' is not orthonormal or handles", v);
+        return 0;
+    case O_COORDTOL:
+        if (crom_parse_double(v, "--coordinate-tol", &a->coord_tol) || !(a->coord_tol >= 0 && a->coord_tol < 1))
+            return crom_err(CROM_EUSAGE, "--coordinate-tol must be in [0, 1), got %s", v);
+        return 0;
+    case O_WEIGHTS:
+        if (!strcmp(v, "trained"))
+            a->eigen = 0;
+        else if (!strcmp(v, "eigen"))
+            a->eigen = 1;
+        else
+            return crom_err(CROM_EUSAGE, "--weights: '%s' is not trained or eigen", v);
+        return 0;
     case O_MODES: a->modes = v; return 0;
     case O_STEPS:
         if (crom_parse_int(v, "--steps", 1, 1000000000L, &n))
@@ -233,6 +319,7 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_PINW:
         return crom_parse_positive(v, "--pin-length", &a->df.pin_length);
     case O_ORTHO:
+        a->ortho_given = 1;
         if (crom_parse_double(v, "--ortho-weight", &a->df.ortho_weight))
             return CROM_EUSAGE;
         return a->df.ortho_weight >= 0 ? 0 : crom_err(CROM_EUSAGE, "--ortho-weight must be >= 0, got %s", v);
@@ -330,6 +417,11 @@ static void usage_exit(crom_cli *cli) { exit(crom_cli_exit(cli, CROM_EUSAGE)); }
 
 static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
 {
+    static char description[8192];
+    if (!strstr(doc.description, doc_tail)) {
+        snprintf(description, sizeof description, "%s%s", doc.description, doc_tail);
+        doc.description = description;
+    }
     memset(a, 0, sizeof *a);
     crom_fit_defaults(&a->fit);
     crom_df_defaults(&a->df, CROM_DF_ENERGY);
@@ -340,11 +432,36 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
         exit(crom_cli_exit(cli, CROM_EUSAGE));
     }
     if (!a->objective && a->df_only) {
-        crom_err(CROM_EUSAGE, "%s applies to a data-free subspace (--objective energy|neuralmodes|field)", a->df_only);
+        crom_err(CROM_EUSAGE, "%s applies to a data-free subspace (--objective energy|neuralmodes|field|skinning)",
+                 a->df_only);
         usage_exit(cli);
     }
     if (a->objective) {
-        const char *name = a->objective == CROM_DF_ENERGY ? "energy" : a->objective == CROM_DF_FIELD ? "field" : "neuralmodes";
+        int skin = a->objective == OBJ_SKINNING, cont = skin || a->objective == CROM_DF_FIELD;
+        const char *name = a->objective == CROM_DF_ENERGY ? "energy" : a->objective == CROM_DF_FIELD ? "field"
+                           : skin ? "skinning" : "neuralmodes";
+        int ngeom = !!a->mesh + !!a->surface + !!a->cloud;
+        const char *bad = !skin && a->handles_given ? "--handles" : !skin && a->eigen ? "--weights"
+                          : !skin && (a->raw_coords || a->coord_tol > 0) ? "--coordinates"
+                          : skin && a->rank_given ? "--rank" : !cont && a->surface ? "--surface"
+                          : !cont && a->cloud ? "--cloud" : !a->surface && a->sample_points ? "--sample-points" : NULL;
+        if (bad) {
+            crom_err(CROM_EUSAGE, "%s does not apply to --objective %s%s", bad, name,
+                     !strcmp(bad, "--rank") ? " (its latent has 12 coordinates per handle: --handles H)"
+                     : !strcmp(bad, "--sample-points") ? " without --surface"
+                     : !cont ? " (a map of one mesh needs that mesh: --mesh)" : "");
+            usage_exit(cli);
+        }
+        if (cont && ngeom != 1) {
+            crom_err(CROM_EUSAGE, "--objective %s trains on %s: --mesh MESH, --surface STL or --cloud FILE", name,
+                     ngeom ? "one body, give only one of" : "a body");
+            usage_exit(cli);
+        }
+        if (skin && a->eigen && !a->mesh) {
+            crom_err(CROM_EUSAGE, "--weights eigen solves an eigenproblem on a tet mesh: give --mesh MESH (or train "
+                                  "the weights from %s: --weights trained)", a->surface ? "the surface" : "the cloud");
+            usage_exit(cli);
+        }
         if (a->samples_only) {
             crom_err(CROM_EUSAGE, "%s applies to --objective samples, not %s%s", a->samples_only, name,
                      !strcmp(a->samples_only, "--epochs") ? " (use --steps)" : "");
@@ -355,7 +472,7 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
                                   "with --mesh)", name, a->input);
             usage_exit(cli);
         }
-        if (!a->mesh) {
+        if (!cont && !a->mesh) {
             crom_err(CROM_EUSAGE, "--objective %s needs the mesh it maps: --mesh MESH", name);
             usage_exit(cli);
         }
@@ -369,7 +486,7 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
             usage_exit(cli);
         }
         crom_df_opts d;
-        crom_df_defaults(&d, a->objective);
+        crom_df_defaults(&d, skin ? CROM_DF_FIELD : a->objective);
         d.rank = a->rank_given ? a->fit.rank : d.rank;
         d.act = a->act_given ? a->fit.act : d.act;
         d.width = a->width_given ? a->fit.width : d.width;
@@ -452,6 +569,192 @@ static char *df_scenario_text(const crom_scenario *s, int energy)
     return t;
 }
 
+/* The body a continuous objective trains on: --mesh, or the virtual tets
+ * of a point sampling of --surface or --cloud (lib/cloud.h), which cl
+ * then keeps (its surface makes the pin mask exact). */
+static int load_body(crom_cli *cli, const args *a, crom_mesh *mesh, char **hist, crom_cloud *cl)
+{
+    memset(cl, 0, sizeof *cl);
+    if (a->mesh)
+        return crom_mesh_load(a->mesh, 0, mesh, hist) ? crom_err_ctx("--mesh") : 0;
+    for (int i = 0; i < a->sc.npins; i++) /* before the sampling reports anything */
+        if (!crom_pred_is(a->sc.pins[i]))
+            return crom_err(CROM_EUSAGE, "--pin %s: a surface or point cloud has no named regions; give a predicate "
+                            "such as 'x<-0.49'", a->sc.pins[i]);
+    int rc = a->surface ? crom_cloud_from_surface(a->surface, a->sample_points ? a->sample_points : 8192,
+                                                  cli->seed ^ 0xc10d, cl)
+                        : crom_cloud_read(a->cloud, cl);
+    if (rc)
+        return crom_err_ctx(a->surface ? "--surface" : "--cloud");
+    if ((rc = crom_cloud_stencils(cl, cli->seed ^ 0x57e1, mesh)))
+        return rc;
+    crom_cli_info(cli, "%s: %d points standing for %.6g m^3, integrated through virtual tets", a->surface ? a->surface
+                  : a->cloud, cl->n, cl->volume);
+    return 0;
+}
+
+/* The scenario's material, and the pinned DOFs of mesh (pins by region or
+ * predicate; a sampled body's by predicate only, with what they hold in the
+ * cloud: its pinned points and triangles). */
+static int body_pins(const args *a, const crom_mesh *mesh, const crom_cloud *cl, crom_material *mat,
+                     unsigned char **fixed, int *npinned, int *npin, double **pinX, int *ntri, double **triX)
+{
+    int rc = crom_scenario_check(&a->sc);
+    if (!rc)
+        rc = crom_material_init(mat, a->sc.youngs, a->sc.poisson, a->sc.density);
+    if (rc)
+        return rc;
+    const char *refs[CROM_SC_MAX];
+    for (int i = 0; i < a->sc.npins; i++)
+        refs[i] = a->sc.pins[i];
+    *npin = *ntri = 0;
+    *pinX = *triX = NULL;
+    if (cl->n && (rc = crom_cloud_pins(cl, a->sc.npins, refs, npin, pinX, ntri, triX)))
+        return rc;
+    return crom_modes_pins(mesh, a->sc.npins, refs, fixed, npinned);
+}
+
+static int run_skinning(crom_cli *cli, args *a)
+{
+    crom_mesh mesh;
+    crom_cloud cl;
+    crom_model out;
+    crom_df_log log;
+    char *hist = NULL, *text = NULL;
+    unsigned char *fixed = NULL;
+    double *pinX = NULL, *triX = NULL;
+    int npinned = 0, npin = 0, ntri = 0, rc;
+    long solves = 0;
+    memset(&mesh, 0, sizeof mesh);
+    memset(&log, 0, sizeof log);
+    crom_model_clear(&out);
+    crom_material mat;
+    if ((rc = load_body(cli, a, &mesh, &hist, &cl)) ||
+        (rc = body_pins(a, &mesh, &cl, &mat, &fixed, &npinned, &npin, &pinX, &ntri, &triX)))
+        goto out;
+    crom_dfs_opts o;
+    crom_dfs_defaults(&o);
+    o.handles = a->handles_given ? a->handles : o.handles;
+    o.depth = a->depth_given ? a->df.depth : o.depth;
+    o.width = a->width_given ? a->df.width : o.width;
+    o.act = a->act_given ? a->df.act : o.act;
+    o.steps = a->df.steps;
+    o.minutes = a->df.minutes;
+    o.lr = a->df.lr;
+    o.batch = a->batch_given ? a->df.batch : o.batch;
+    o.sigma = a->df.sigma;
+    o.ortho_weight = a->ortho_given ? a->df.ortho_weight : o.ortho_weight;
+    o.tets = a->df.tets;
+    o.pin_length = a->df.pin_length;
+    o.threads = a->df.threads;
+    o.seed = cli->seed;
+    double t0 = crom_now();
+    if (a->eigen) {
+        rc = crom_dfs_eigen(&mesh, &mat, fixed, o.handles, &out, &solves);
+    } else {
+        if (cl.n && (rc = crom_dfs_check_handles(&mesh, fixed, o.handles)))
+            goto out;
+        crom_dfs_problem P = {&mesh, mat, fixed, cl.n > 0, npin, pinX, ntri, triX};
+        crom_progress prog;
+        crom_progress_start(&prog, cli, "fitfield", 1000);
+        o.progress = on_df_progress;
+        o.progress_ctx = &prog;
+        rc = crom_dfs_train(&P, &o, &out, &log);
+        crom_progress_end(&prog);
+    }
+    if (rc)
+        goto out;
+    if (!a->raw_coords) {
+        /* orthonormal coordinates over the training geometry: the mesh's
+         * vertices with their lumped volumes, or the sampled points */
+        double *vv = cl.n ? NULL : crom_malloc(sizeof(double) * (size_t)mesh.nv);
+        if (!cl.n && !vv) {
+            rc = CROM_EINTERNAL;
+            goto out;
+        }
+        if (vv)
+            crom_vertex_volumes(&mesh, vv);
+        rc = cl.n ? crom_skin_orthonormalize(&out, (size_t)cl.n, cl.X, cl.vol, a->coord_tol > 0 ? a->coord_tol : 1e-6)
+                  : crom_skin_orthonormalize(&out, (size_t)mesh.nv, mesh.X, vv, a->coord_tol > 0 ? a->coord_tol : 1e-6);
+        free(vv);
+        if (rc)
+            goto out;
+    }
+    double secs = crom_now() - t0;
+    if (a->eigen)
+        out.training_seconds = crom_wall(secs);
+    if (!(text = df_scenario_text(&a->sc, 0))) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    out.scenario = crom_strdup(text);
+    out.youngs = a->sc.youngs;
+    out.poisson = a->sc.poisson;
+    out.density = a->sc.density;
+    crom_out o5;
+    if ((rc = crom_out_create(&o5, a->out, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cli->cmdline, hist, CROM_OUT_PLAIN)))
+        goto out;
+    double mass = mat.rho * (cl.n ? cl.volume : crom_mesh_volume(&mesh));
+    rc = crom_model_write(o5.h5, &out);
+    if (!rc)
+        rc = crom_h5_set_f64(o5.h5, ".", "mass", &mass, 1);
+    if (!rc && !a->eigen) {
+        long long steps = log.steps, k = o.tets;
+        double sig = log.sigma;
+        hsize_t d = (hsize_t)log.nblocks;
+        rc = crom_h5_set_i64(o5.h5, ".", "training_steps", steps);
+        if (!rc)
+            rc = crom_h5_set_f64(o5.h5, ".", "sigma", &sig, 1);
+        if (!rc)
+            rc = crom_h5_set_f64(o5.h5, ".", "ortho_weight", &o.ortho_weight, 1);
+        if (!rc)
+            rc = crom_h5_set_i64(o5.h5, ".", "cubature_tets", k);
+        if (!rc && d > 0)
+            rc = crom_h5_put_f64(o5.h5, "training/objective", 1, &d, log.objective);
+        if (!rc && d > 0)
+            rc = crom_h5_put_f64(o5.h5, "training/energy", 1, &d, log.energy);
+        if (!rc && d > 0)
+            rc = crom_h5_put_f64(o5.h5, "training/penalty", 1, &d, log.penalty);
+        if (!rc && d > 0)
+            rc = crom_h5_put_f64(o5.h5, "training/seconds", 1, &d, log.seconds);
+    }
+    if (!rc)
+        rc = crom_out_commit(&o5);
+    else
+        crom_out_fail(&o5);
+    if (rc)
+        goto out;
+    if (a->eigen)
+        crom_cli_info(cli, "skinning eigenmodes, %d handles (rank %d%s) on %d vertices (%d pinned): %ld solves in "
+                      "%.2f s; eigenvalues %.4g .. %.4g 1/s^2", out.handles, out.rank,
+                      out.skin_constant ? ", one constant" : "", mesh.nv, npinned, solves, secs,
+                      out.skin_eig[out.skin_constant < out.handles ? out.skin_constant : 0], out.skin_eig[out.handles - 1]);
+    else {
+        char where[96];
+        if (cl.n)
+            snprintf(where, sizeof where, "%d points (pinned: %d points, %d surface triangles)", cl.n, npin, ntri);
+        else
+            snprintf(where, sizeof where, "%d vertices (%d pinned)", mesh.nv, npinned);
+        crom_cli_info(cli, "trained skinning weights, %d handles (rank %d%s) on %s: %ld steps in %.1f s; last "
+                      "objective %.4g, mean energy %.4g J, |G - I|^2 %.3g (sigma %.4g m)", out.handles, out.rank,
+                      out.skin_constant ? ", one constant" : "", where, log.steps, secs, log.objective[log.nblocks - 1],
+                      log.energy[log.nblocks - 1], log.penalty[log.nblocks - 1], log.sigma);
+    }
+    if (cli->verbose)
+        crom_cli_info(cli, "skinning: model_id %s", out.model_id);
+out:
+    crom_df_log_free(&log);
+    crom_model_free(&out);
+    crom_mesh_free(&mesh);
+    crom_cloud_free(&cl);
+    free(hist);
+    free(text);
+    free(fixed);
+    free(pinX);
+    free(triX);
+    return rc;
+}
+
 static int run_datafree(crom_cli *cli, args *a)
 {
     int nm = a->objective == CROM_DF_NEURALMODES, field = a->objective == CROM_DF_FIELD, rc;
@@ -466,8 +769,14 @@ static int run_datafree(crom_cli *cli, args *a)
     crom_df_log log;
     memset(&log, 0, sizeof log);
     memset(&mesh, 0, sizeof mesh);
-    if ((rc = crom_mesh_load(a->mesh, 0, &mesh, &hist)))
-        return crom_err_ctx("--mesh");
+    crom_cloud cl;
+    if ((rc = load_body(cli, a, &mesh, &hist, &cl))) {
+        crom_mesh_free(&mesh);
+        crom_cloud_free(&cl);
+        return rc;
+    }
+    double body_volume = cl.n ? cl.volume : crom_mesh_volume(&mesh);
+    crom_cloud_free(&cl);
     if (nm) {
         if ((rc = crom_model_load(a->modes, &modes))) {
             crom_err_ctx("--modes");
@@ -561,7 +870,7 @@ static int run_datafree(crom_cli *cli, args *a)
         goto out;
     rc = crom_model_write(o.h5, &out);
     if (!rc)
-        rc = crom_df_write_record(o.h5, &a->df, &P, &log, mat.rho * crom_mesh_volume(&mesh),
+        rc = crom_df_write_record(o.h5, &a->df, &P, &log, mat.rho * body_volume,
                                   nm ? modes.model_id : NULL);
     if (!rc)
         rc = crom_out_commit(&o);
@@ -602,6 +911,8 @@ out:
 
 static int run(crom_cli *cli, args *a)
 {
+    if (a->objective == OBJ_SKINNING)
+        return run_skinning(cli, a);
     if (a->objective)
         return run_datafree(cli, a);
     crom_in in;

@@ -28,6 +28,40 @@ static const char *scheme_name(int s)
 
 /* ------------------------------------------------------------ the kernel */
 
+/* Whether the rows 3a + c of W4 (component c of the tet's four vertices)
+ * are nonzero only inside one column block [lo_c, hi_c) per component, the
+ * three blocks disjoint (a basis whose latent directions each move one
+ * component, as a skinning basis in orthonormal coordinates: lib/skin.h).
+ * An empty block (a component that vanishes on the tet) has lo = hi. */
+static int component_blocks(const double *W4, int r, int lo[3], int hi[3])
+{
+    for (int c = 0; c < 3; c++) {
+        lo[c] = r;
+        hi[c] = 0;
+        for (int a = 0; a < 4; a++) {
+            const double *row = W4 + (size_t)(3 * a + c) * r;
+            int j = 0, k = r;
+            while (j < r && row[j] == 0)
+                j++;
+            if (j == r)
+                continue; /* a zero row */
+            while (row[k - 1] == 0)
+                k--;
+            lo[c] = j < lo[c] ? j : lo[c];
+            hi[c] = k > hi[c] ? k : hi[c];
+        }
+        if (hi[c] <= lo[c])
+            lo[c] = hi[c] = 0;
+        if (hi[c] - lo[c] > r / 2)
+            return 0; /* dense enough: one product does it */
+    }
+    for (int c = 0; c < 3; c++)
+        for (int d = c + 1; d < 3; d++)
+            if (lo[c] < hi[c] && lo[d] < hi[d] && lo[c] < hi[d] && lo[d] < hi[c])
+                return 0;
+    return 1;
+}
+
 double crom_cub_tet(const crom_material *mat, const double Xe[12], const double *W4, int r,
                     const double Dminv[9], double V, double w, const double *q, int project,
                     double *g_r, double *H_r, double *work)
@@ -41,9 +75,19 @@ double crom_cub_tet(const crom_material *mat, const double Xe[12], const double 
         return NAN;
     if (g_r) /* g_r += w W4ᵀ ge */
         cblas_dgemv(CblasRowMajor, CblasTrans, 12, r, w, W4, r, ge, 1, 1.0, g_r, 1);
-    if (H_r) { /* H_r += w W4ᵀ He W4 */
+    if (H_r) { /* H_r += w W4ᵀ He W4 = w Σ_rows i W4[i]ᵀ (He W4)[i] */
         cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, 12, r, 12, 1.0, He, 12, W4, r, 0.0, HW, r);
-        cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, r, 12, w, W4, r, HW, r, 1.0, H_r, r);
+        int lo[3], hi[3];
+        if (component_blocks(W4, r, lo, hi)) {
+            /* rows 3a + c touch only the rows [lo_c, hi_c) of H_r: three
+             * products over the 4 rows of each component (stride 3r) */
+            for (int c = 0; c < 3; c++)
+                if (hi[c] > lo[c])
+                    cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, hi[c] - lo[c], r, 4, w, W4 + (size_t)c * r + lo[c],
+                                3 * r, HW + (size_t)c * r, 3 * r, 1.0, H_r + (size_t)lo[c] * r, r);
+        } else {
+            cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, r, 12, w, W4, r, HW, r, 1.0, H_r, r);
+        }
     }
     return E;
 }

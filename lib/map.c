@@ -134,12 +134,12 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
                             mesh->nv == model->mesh.nv ? " at other positions" : "");
         /* the same mesh: keep the given one's regions if it has any */
         rc = crom_mesh_copy(mesh && mesh->nregions ? mesh : &model->mesh, &map->mesh);
-    } else if (model->field == CROM_FIELD_MESH) {
+    } else if (model->field == CROM_FIELD_MESH || (model->field == CROM_FIELD_SKIN && model->skin_w)) {
         rc = crom_mesh_copy(mesh ? mesh : &model->mesh, &map->mesh);
-    } else if (model->field == CROM_FIELD_MLP || model->field == CROM_FIELD_CMAP) {
+    } else if (model->field == CROM_FIELD_MLP || model->field == CROM_FIELD_CMAP || model->field == CROM_FIELD_SKIN) {
         if (!mesh)
             return crom_err(CROM_EUSAGE, "model %s is a neural field %s: give the mesh to lay it on",
-                            model->model_id, model->field == CROM_FIELD_MLP ? "W(X)" : "x(X, q)");
+                            model->model_id, model->field == CROM_FIELD_CMAP ? "x(X, q)" : "W(X)");
         rc = crom_mesh_copy(mesh, &map->mesh);
     } else {
         return crom_err(CROM_EINTERNAL, "model has no basis");

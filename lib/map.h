@@ -8,7 +8,7 @@
  *     x = X + W(X) φ(q), on any mesh: B = W(X_v) and a = φ(q);
  *   - a data-free map (crom/model basis "energy": W = 0; "neuralmodes": W the
  *     linear modes, N the learned correction y(q)) on its own mesh;
- *   - a linear basis (pod, modes, or an mlp neural field) sampled at the
+ *   - a linear basis (pod, modes, skinning, or an mlp neural field) sampled at the
  *     vertices of a mesh: N = 0 and W = W(X_v).
  *
  * The network N runs in double precision from the stored float32 weights
@@ -58,8 +58,9 @@ typedef struct crom_map_s {
  * own mesh: mesh must be NULL or have the same vertices and tets (its
  * regions are then used), else CROM_EDATA ("decodes only onto its own
  * mesh"). A mesh field (pod, modes) is sampled on mesh (NULL: its own mesh;
- * another mesh: interpolated as crom_model_eval does). A neural field (mlp)
- * needs a mesh (CROM_EUSAGE without one). CROM_EINTERNAL when out of
+ * another mesh: interpolated as crom_model_eval does), and so is an eigen
+ * skinning model. A neural field (mlp, trained skinning) needs a mesh
+ * (CROM_EUSAGE without one). CROM_EINTERNAL when out of
  * memory. On failure *map holds nothing to free. */
 int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh);
 

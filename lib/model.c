@@ -7,6 +7,7 @@
 
 #include "err.h"
 #include "model.h"
+#include "skin.h"
 
 void crom_model_clear(crom_model *m)
 {
@@ -29,6 +30,9 @@ void crom_model_free(crom_model *m)
     crom_mesh_free(&m->mesh);
     free(m->basis_v);
     free(m->frequencies);
+    free(m->skin_w);
+    free(m->skin_eig);
+    free(m->skin_C);
     crom_nn_pointnet_free(&m->enc);
     free(m->loss);
     free(m->seconds);
@@ -69,7 +73,9 @@ const char *crom_model_id(const crom_model *m, char id[17])
     fnv s = {0xcbf29ce484222325ULL};
     fnv_bytes(&s, m->basis, strlen(m->basis) + 1);
     fnv_i64(&s, m->rank);
-    if (m->field == CROM_FIELD_MLP || m->field == CROM_FIELD_CMAP) {
+    if (m->field == CROM_FIELD_SKIN) {
+        s.h = crom_skin_digest(m, s.h);
+    } else if (m->field == CROM_FIELD_MLP || m->field == CROM_FIELD_CMAP) {
         const crom_nn_spec *sp = &m->mlp.spec;
         for (int l = 0; l <= sp->nlayers; l++) {
             int32_t w = sp->width[l];
@@ -338,7 +344,9 @@ int crom_model_write(hid_t loc, crom_model *m)
         rc = crom_h5_set_f64(loc, ".", "density", &m->density, 1);
     if (rc)
         return rc;
-    if (m->field == CROM_FIELD_MAP) {
+    if (m->field == CROM_FIELD_SKIN) {
+        rc = crom_skin_write(loc, m);
+    } else if (m->field == CROM_FIELD_MAP) {
         hsize_t np = m->mlp.nparams, dr = (hsize_t)m->rank;
         rc = crom_h5_set_str(loc, ".", "activation", crom_nn_act_name(m->mlp.spec.act));
         if (!rc)
@@ -726,6 +734,8 @@ int crom_model_read(crom_in *in, crom_model *m)
         m->field = CROM_FIELD_MAP;
     else if (!strcmp(basis, "energy-field"))
         m->field = CROM_FIELD_CMAP;
+    else if (!strcmp(basis, "skinning"))
+        m->field = CROM_FIELD_SKIN;
     else if (!strcmp(basis, "mlp") || (strcmp(basis, "pod") && strcmp(basis, "modes") &&
                                        crom_h5_has(h, "field/params")))
         m->field = CROM_FIELD_MLP;
@@ -736,7 +746,11 @@ int crom_model_read(crom_in *in, crom_model *m)
                       in->name, basis);
         goto out;
     }
-    if (m->field == CROM_FIELD_MAP) {
+    if (m->field == CROM_FIELD_SKIN) {
+        if (crom_h5_has_attr(h, ".", "activation"))
+            crom_h5_get_str(h, ".", "activation", &act);
+        rc = crom_skin_read(h, m, act);
+    } else if (m->field == CROM_FIELD_MAP) {
         if (crom_h5_has_attr(h, ".", "activation"))
             crom_h5_get_str(h, ".", "activation", &act);
         rc = read_map(h, m, act ? act : "elu");
@@ -813,6 +827,8 @@ int crom_model_eval(const crom_model *m, size_t n, const double *X, double *W,
         crom_locate_interp(&m->loc, n, X, 3 * m->rank, m->basis_v, W, noutside);
         return 0;
     }
+    if (m->field == CROM_FIELD_SKIN)
+        return crom_skin_eval(m, n, X, W, noutside);
     if (m->field == CROM_FIELD_MAP)
         return crom_err(CROM_EDATA, "model %s is a nonlinear map of one mesh (basis '%s'), not a basis field "
                         "W(X): it has no encoding; simulate it with crom-reducedstep --model",

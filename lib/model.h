@@ -34,6 +34,13 @@
  *                   `latent` network, linear output, same activation). It
  *                   lays on any mesh like a LiCROM field (lib/map.h) but is
  *                   no linear basis: crom_model_eval refuses it too.
+ *   CROM_FIELD_SKIN (basis "skinning"): a LINEAR skinning-handle subspace,
+ *                   u(X) = Σ_h w_h(X) Q_h [X̂; 1] with H affine handles
+ *                   (rank 12H, or 3S in orthonormal coordinates), from
+ *                   weights w(X) stored as an MLP 3 -> H
+ *                   (trained) or a piecewise-linear field on a stored mesh
+ *                   (eigen); lib/skin.h has the layout. crom_model_eval
+ *                   gives its W(X) like any linear basis.
  *
  * model_id: 16 lowercase hex digits, the 64-bit FNV-1a digest of the basis:
  * the `basis` string (with its NUL), the rank (int64), then for an MLP the
@@ -44,7 +51,8 @@
  * vertices, the tets and (neuralmodes) the linear basis; for a continuous
  * map the field as for an MLP, then the latent network's widths (int32)
  * and parameters (float32), the pin point count (int64) and points, the
- * pin triangle count (int64) and corners, and the length (float64); all
+ * pin triangle count (int64) and corners, and the length (float64); for a
+ * skinning model what crom_skin_digest adds (lib/skin.h); all
  * little-endian,
  * exactly as stored. The encoder and the training record are
  * not part of it: latent coordinates and cached W depend on W alone.
@@ -64,7 +72,7 @@
 #define CROM_MODEL_SCHEMA "crom/model"
 #define CROM_MODEL_VERSION 1
 
-enum { CROM_FIELD_MLP = 1, CROM_FIELD_MESH = 2, CROM_FIELD_MAP = 3, CROM_FIELD_CMAP = 4 };
+enum { CROM_FIELD_MLP = 1, CROM_FIELD_MESH = 2, CROM_FIELD_MAP = 3, CROM_FIELD_CMAP = 4, CROM_FIELD_SKIN = 5 };
 enum { CROM_ENC_NONE = 0, CROM_ENC_LSQ = 1, CROM_ENC_POINTNET = 2 };
 
 typedef struct {
@@ -82,6 +90,16 @@ typedef struct {
     int npin_triangles;
     double *pin_triangles; /* [npin_triangles][3][3] pinned boundary triangles (m) */
     double pin_length;   /* its width ℓ (m) */
+    /* CROM_FIELD_SKIN (lib/skin.h): weights in mlp (trained, 3 -> H or
+     * H - 1, masked by the pin_* mask) or on mesh (eigen, skin_w) */
+    int handles;         /* H: rank = 12 H */
+    int skin_constant;   /* 1: handle 0 is the constant weight 1 */
+    double skin_frame[12]; /* [3][4] F: X̂ = F [X; 1] */
+    int skin_S;          /* orthonormal coordinates: S functions, rank 3 S */
+    double *skin_C;      /* [4H][S] their coefficients, or NULL (handle
+                          * coordinates, rank 12 H) */
+    double *skin_w;      /* eigen: [nv][H] weights at the vertices of mesh */
+    double *skin_eig;    /* eigen: [H] eigenvalues (1/s²), or NULL */
     /* CROM_FIELD_MESH (and CROM_FIELD_MAP: its mesh, with regions) */
     crom_mesh mesh;      /* vertices and tets */
     double *basis_v;     /* [nv][3][r] W at the vertices (MAP: linear part or NULL) */

@@ -904,3 +904,61 @@ out:
     crom_fem_free(&fem);
     return rc;
 }
+
+/* ----------------------------------------- a given generalized problem */
+
+int crom_modes_lowest(const crom_sym *K, const double *m, int nr, const double *R, int nev, double sigma,
+                      const crom_modes_opts *opt, double *lam, double *Y, long *solves)
+{
+    crom_modes_opts o;
+    if (opt)
+        o = *opt;
+    else
+        crom_modes_defaults(&o);
+    if (!(o.tol > 0))
+        o.tol = 1e-10;
+    o.count = nev;
+    int n = K->n, rc = 0;
+    if (nev < 1 || nev > n - nr)
+        return crom_err(CROM_EUSAGE, "%d eigenpairs asked for in a space of dimension %d", nev, n - nr);
+    if (!(sigma < 0) || !isfinite(sigma))
+        return crom_err(CROM_EUSAGE, "the shift must be negative, got %g", sigma);
+    int nnz = K->colptr[n];
+    double *A = crom_malloc(sizeof(double) * (size_t)(nnz ? nnz : 1));
+    eigprob P = {n, m, NULL, nr, R, crom_malloc(sizeof(double) * (size_t)n), crom_malloc(sizeof(double) * ((size_t)nr + 1)),
+                 0};
+    crom_chol *chol = NULL;
+    if (!A || !P.mx || !P.h) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    if (!(chol = crom_chol_analyze(n, K->colptr, K->rowind, 1))) {
+        rc = crom_errcode() ? crom_errcode() : CROM_EINTERNAL;
+        goto out;
+    }
+    for (int attempt = 0;; attempt++) {
+        memcpy(A, K->val, sizeof(double) * (size_t)nnz);
+        for (int j = 0; j < n; j++)
+            A[K->colptr[j + 1] - 1] -= sigma * m[j]; /* the diagonal is last */
+        if (!(rc = crom_chol_factor(chol, A)))
+            break;
+        if (rc != CROM_EDATA || attempt == 3) {
+            if (rc == CROM_EDATA)
+                rc = crom_err(CROM_EDATA, "the matrix shifted by %g M is not positive definite", -sigma);
+            goto out;
+        }
+        sigma *= 10; /* round-off beat a tiny shift: move it further */
+    }
+    P.chol = chol;
+    crom_modes stats;
+    memset(&stats, 0, sizeof stats);
+    rc = lowest_modes(&P, K, &o, sigma, nev, lam, Y, &stats);
+out:
+    if (solves)
+        *solves = P.solves;
+    crom_chol_free(chol);
+    free(A);
+    free(P.mx);
+    free(P.h);
+    return rc;
+}

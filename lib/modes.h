@@ -46,6 +46,7 @@
 
 #include "fem.h"
 #include "mesh.h"
+#include "solve.h"
 
 typedef struct {
     int count;         /* modes wanted in the result (>= 1); see keep_rigid */
@@ -117,5 +118,21 @@ void crom_modes_free(crom_modes *m);
  * holds. CROM_EUSAGE for an unknown region or an empty selection. */
 int crom_modes_pins(const crom_mesh *m, int n, const char *const *refs,
                     unsigned char **fixed, int *npinned);
+
+/* The nev lowest eigenpairs of another generalized problem K y = λ M y by
+ * the same machinery: K symmetric positive semidefinite (upper CSC over n
+ * unknowns, the diagonal last in each column, as crom_fem's Hessian), M =
+ * diag(m), m > 0, in the M-orthogonal complement of nr M-orthonormal vectors
+ * R [nr][n] (NULL if nr = 0; e.g. the null space of K, built by the caller).
+ * One CHOLMOD factor of K − σM (σ < 0, moved further out if round-off
+ * makes it indefinite), ARPACK shift-invert Lanczos with the check for
+ * missed copies of repeated eigenvalues, or a dense solve when nev is the
+ * whole complement. lam [nev] gets λ ascending, Y [nev][n] M-orthonormal
+ * vectors (sign as ARPACK leaves it), *solves (may be NULL) the solves with
+ * the factor. o (may be NULL) gives tol, basis, max_solves and seed; count
+ * is nev. CROM_EUSAGE when nev is not in 1..n − nr or σ >= 0, CROM_EDATA
+ * when K − σM is not positive definite, CROM_EINTERNAL when ARPACK fails. */
+int crom_modes_lowest(const crom_sym *K, const double *m, int nr, const double *R, int nev, double sigma,
+                      const crom_modes_opts *o, double *lam, double *Y, long *solves);
 
 #endif

@@ -103,7 +103,8 @@ static const crom_schema_dset samples_dsets[] = {
 
 static const crom_schema_attr model_attrs[] = {
     {"basis", "str", 1, "mlp (neural field), pod or modes (piecewise-linear field on a mesh), energy or neuralmodes "
-                        "(data-free maps of one mesh), energy-field (continuous data-free map)", NULL},
+                        "(data-free maps of one mesh), energy-field (continuous data-free map), skinning (affine skinning "
+                        "handles)", NULL},
     {"rank", "i64", 1, "r, the number of basis fields (latent dimension)", NULL},
     {"encoder", "str", 1, "pointnet, lsq or none: how full states are turned into q", NULL},
     {"model_id", "str", 1, "hex digest of the basis parameters; cubature and latent files name it", NULL},
@@ -129,6 +130,10 @@ static const crom_schema_attr model_attrs[] = {
     {"origin_weight", "f64", 0, "weight of the penalty on y(0) (neuralmodes)", NULL},
     {"modes_id", "str", 0, "model_id of the crom-modes model whose modes are the linear part (neuralmodes)", NULL},
     {"cubature_tets", "i64", 0, "tets of the random cubature drawn at every training step (energy-field)", NULL},
+    {"handles", "i64", 0, "H, the affine handles of a skinning subspace (12 coordinates each)", NULL},
+    {"constant_handle", "i64", 0, "1 if handle 0 is the constant weight 1 (a free body), else 0 (skinning)", NULL},
+    {"skin_weights", "str", 0, "trained (an MLP weight field) or eigen (skinning eigenmodes on field/mesh) (skinning)",
+     NULL},
     {NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_attr model_objattrs[] = {
@@ -159,7 +164,8 @@ static const crom_schema_dset model_dsets[] = {
                                                "mean over each block of steps", NULL},
     {"training/energy", "f64", "E", 0, "J", "mean energy of the batch samples over each block of steps", NULL},
     {"training/penalty", "f64", "E", 0, "1", "mean unweighted penalty: squared log isometry ratio (energy, energy-field) "
-                                             "or squared relative projection on the modes (neuralmodes)", NULL},
+                                             "or squared relative projection on the modes (neuralmodes) or the squared norm of G - I, "
+                                             "G the weights' Gram matrix (skinning)", NULL},
     {"latent/widths", "i32", "?", 0, "1", "layer widths of the latent network phi: R^r -> R^p, input first (energy-field)", NULL},
     {"latent/params", "f32", "?", 0, "1", "all weights and biases of phi, layer by layer (W row-major [out][in], then b) "
                                           "(energy-field)", NULL},
@@ -169,6 +175,18 @@ static const crom_schema_dset model_dsets[] = {
     {"latent/pin_triangles", "f64", "?,3,3", 0, "m", "pinned boundary triangles of the training mesh, corners "
                                                      "(energy-field): part of the mask", NULL},
     {"latent/pin_length", "f64", "1", 0, "m", "width of the pin mask (energy-field)", NULL},
+    {"skin/frame", "f64", "3,4", 0, "1/m, 1", "body frame F of a skinning subspace: X_hat = F [X; 1] (skinning)", NULL},
+    {"skin/coordinates", "f64", "A,S", 0, "1", "C [4H][S]: orthonormal functions psi_s = sum_a C[a][s] phi_a of the "
+                                               "handle functions (skinning)", NULL},
+    {"skin/weights", "f64", "nv,H", 0, "1", "handle weights at the vertices of field/mesh (skinning, eigen)", NULL},
+    {"skin/eigenvalues", "f64", "H", 0, "1/s^2", "eigenvalues of the weights: scalar stiffness against lumped mass "
+                                                 "(skinning, eigen)", NULL},
+    {"skin/pin_points", "f64", "?,3", 0, "m", "pinned training points: part of the weights' pin mask (skinning, "
+                                              "trained)", NULL},
+    {"skin/pin_triangles", "f64", "?,3,3", 0, "m", "pinned boundary triangles of the training geometry, corners: part "
+                                                   "of the mask (skinning, trained)", NULL},
+    {"skin/pin_length", "f64", "1", 0, "m", "width l of the weights' pin mask s(d / l), s(t) = t (2 - t) (skinning, "
+                                            "trained)", NULL},
     {NULL, NULL, NULL, 0, NULL, NULL, NULL}};
 
 static const crom_schema_attr latent_attrs[] = {

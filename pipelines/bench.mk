@@ -4,7 +4,8 @@
 # (`make bench`); sizes are variables, e.g.
 #   make bench T_SIZES="0.056" FULL_SIZES="0.056"      # a quick one
 #   make -f pipelines/bench.mk datafree DF_SIZE=0.1 DF_MINUTES=0.1 DF_STEPS=10 OUT=/tmp/df
-# About 45 minutes at the defaults on this 2-core machine (datafree: about 15).
+# About 45 minutes at the defaults on this 2-core machine (datafree: about 15,
+# and about 10 more for the soft bar).
 include $(dir $(lastword $(MAKEFILE_LIST)))common.mk
 .SECONDEXPANSION:
 
@@ -69,9 +70,29 @@ df_in = $(if $(filter modes-%,$(1)),,$(call df_model,$(1))) $(call df_cub,$(1))
 df_mesh = $(if $(filter field%,$(1)),--mesh $(OUT)/df-mesh.h5)
 df_args = $(if $(filter modes-%,$(1)),,--model $(call df_model,$(1)) $(call df_mesh,$(1))) $(if $(call df_cub,$(1)),--cubature $(call df_cub,$(1)))
 
+# --- the soft bar of issue 14 (the same mesh): nu = 0.45 and E = DF2_YOUNGS,
+#     so that the free end sags more than half the length under gravity (58%
+#     at 4e5 Pa, measured), dt = 0.05, 100 steps. Rows KIND-SCHEME: the
+#     skinning subspaces of DF2_HANDLES handles with eigen or trained weights
+#     (the training stopped by the clock at DF2_MINUTES), over an optimized
+#     cubature of at most DF2_COUNT tets fitted, with no data, to the poses of
+#     the dynamic and the static run over a METIS cubature of DF2_POSE_PARTS
+#     parts (opt), or over a METIS cubature of DF2_METIS parts (metis)
+DF2_YOUNGS ?= 4e5
+DF2_HANDLES ?= 20
+DF2_MINUTES ?= 2
+DF2_COUNT ?= 200
+DF2_METIS ?= 300
+DF2_POSE_PARTS ?= 1000
+DF2_MAT = --youngs $(DF2_YOUNGS) --poisson 0.45 --density 1000
+DF2_SCENARIO = $(DF2_MAT) $(DF_BC) --dt 0.05 --steps 100
+DF2_STATIC = $(DF2_SCENARIO) --damping 10
+DF2_ROWS = eigen-opt eigen-metis trained-opt trained-metis
+df2_kind = $(firstword $(subst -, ,$(1)))
+
 .PHONY: all fullsim tables training datafree plots micro
 all: fullsim tables training datafree plots micro
-	@cat $(OUT)/fullsim.md $(OUT)/tables.md $(OUT)/training.md $(OUT)/datafree.md $(OUT)/micro.md
+	@cat $(OUT)/fullsim.md $(OUT)/tables.md $(OUT)/training.md $(OUT)/datafree.md $(OUT)/datafree2.md $(OUT)/micro.md
 	@echo "plots: $(OUT)/steps.png $(OUT)/training.png"
 
 # ---------------------------------------------------------------- fullsim
@@ -132,7 +153,7 @@ $(OUT)/training.md: $(OUT)/tr-lsq.h5 $(OUT)/tr-pointnet.h5
 	/usr/bin/python3 $(TOP)/pipelines/benchtab.py training $(OUT) > $@.tmp && mv $@.tmp $@
 
 # --------------------------------------------------------------- datafree
-datafree: $(OUT)/datafree.md
+datafree: $(OUT)/datafree.md $(OUT)/datafree2.md
 $(eval $(call stamp_rule,df-mesh,$(DF_SIZE)))
 $(eval $(call stamp_rule,df-scenario,$(DF_SCENARIO)))
 $(eval $(call stamp_rule,df-static,$(DF_STATIC)))
@@ -189,6 +210,50 @@ $(OUT)/datafree.md: $(OUT)/df-mesh.h5 $(OUT)/df-full.csv $(OUT)/df-modes.log \
                     $(foreach r,$(DF_ROWS),$(OUT)/df-red-$(r).csv $(OUT)/df-diff-$(r).txt $(OUT)/df-sdiff-$(r).txt) \
                     $(foreach m,modes energy neuralmodes field,$(OUT)/df-metrics-$(m).txt)
 	/usr/bin/python3 $(TOP)/pipelines/benchtab.py datafree $(OUT) "$(DF_ROWS)" > $@.tmp && mv $@.tmp $@
+
+# the soft bar (issue 14): full runs, skinning weights, a METIS cubature for
+# data-free poses, the optimized cubature, the runs and their errors
+$(eval $(call stamp_rule,df2-scenario,$(DF2_SCENARIO)))
+$(eval $(call stamp_rule,df2-static,$(DF2_STATIC)))
+$(eval $(call stamp_rule,df2-train,$(DF2_MAT) $(DF2_HANDLES) $(DF2_MINUTES) $(SEED)))
+$(eval $(call stamp_rule,df2-cubature,$(DF2_COUNT) $(DF2_METIS) $(DF2_POSE_PARTS) $(DF2_YOUNGS) $(SEED)))
+$(OUT)/df2-full.h5 $(OUT)/df2-full.csv &: $(OUT)/df-mesh.h5 $(call stamp,df2-scenario)
+	crom-fullsim $(DF2_SCENARIO) --threads 1 --stats $(OUT)/df2-full.csv $(QUIET) -o $(OUT)/df2-full.h5 $<
+$(OUT)/df2-sfull.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-static)
+	crom-fullsim $(DF2_STATIC) --threads 1 $(QUIET) -o $@ $<
+$(OUT)/df2-skin-%.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-train)
+	crom-fitfield --objective skinning --weights $* --handles $(DF2_HANDLES) --mesh $< $(DF2_MAT) --pin clamp \
+	  $(if $(filter trained,$*),--steps 1000000 --minutes $(DF2_MINUTES)) --seed $(SEED) --threads 1 $(QUIET) -o $@
+$(OUT)/df2-pcub-%.h5: $(OUT)/df2-skin-%.h5 $(OUT)/df-mesh.h5 $(call stamp,df2-cubature)
+	crom-cubature --model $< --scheme metis --count $(DF2_POSE_PARTS) --threads 1 $(QUIET) -o $@ $(OUT)/df-mesh.h5
+$(OUT)/df2-poses-%.h5: $(OUT)/df2-pcub-%.h5 $(call stamp,df2-scenario)
+	crom-reducedstep --cubature $< $(DF2_SCENARIO) --threads 1 $(QUIET) -o $@
+$(OUT)/df2-sposes-%.h5: $(OUT)/df2-pcub-%.h5 $(call stamp,df2-static)
+	crom-reducedstep --cubature $< $(DF2_STATIC) --threads 1 $(QUIET) -o $@
+$(OUT)/df2-cub-%-opt.h5: $(OUT)/df2-skin-%.h5 $(OUT)/df2-poses-%.h5 $(OUT)/df2-sposes-%.h5 $(OUT)/df-mesh.h5 \
+                         $(call stamp,df2-cubature)
+	crom-cubature --model $< --scheme optimized --count $(DF2_COUNT) --max-poses 80 --poses $(OUT)/df2-poses-$*.h5 \
+	  --poses $(OUT)/df2-sposes-$*.h5 --youngs $(DF2_YOUNGS) --poisson 0.45 --seed $(SEED) --threads 1 $(QUIET) \
+	  -o $@ $(OUT)/df-mesh.h5
+$(OUT)/df2-cub-%-metis.h5: $(OUT)/df2-skin-%.h5 $(OUT)/df-mesh.h5 $(call stamp,df2-cubature)
+	crom-cubature --model $< --scheme metis --count $(DF2_METIS) --threads 1 $(QUIET) -o $@ $(OUT)/df-mesh.h5
+$(OUT)/df2-red-%.h5 $(OUT)/df2-red-%.csv &: $(OUT)/df2-cub-%.h5 $(call stamp,df2-scenario)
+	crom-reducedstep --cubature $< $(DF2_SCENARIO) --threads 1 --stats $(OUT)/df2-red-$*.csv $(QUIET) \
+	  -o $(OUT)/df2-red-$*.h5
+$(OUT)/df2-sred-%.h5: $(OUT)/df2-cub-%.h5 $(call stamp,df2-static)
+	crom-reducedstep --cubature $< $(DF2_STATIC) --threads 1 $(QUIET) -o $@
+$(OUT)/df2-diff-%.txt: $(OUT)/df2-red-%.h5 $(OUT)/df2-full.h5 $$(OUT)/df2-skin-$$(call df2_kind,$$*).h5
+	crom-diff $< $(OUT)/df2-full.h5 --model $(OUT)/df2-skin-$(call df2_kind,$*).h5 --mesh $(OUT)/df-mesh.h5 \
+	  --threads 1 > $@
+$(OUT)/df2-sdiff-%.txt: $(OUT)/df2-sred-%.h5 $(OUT)/df2-sfull.h5 $$(OUT)/df2-skin-$$(call df2_kind,$$*).h5
+	crom-diff $< $(OUT)/df2-sfull.h5 --model $(OUT)/df2-skin-$(call df2_kind,$*).h5 --mesh $(OUT)/df-mesh.h5 \
+	  --threads 1 > $@
+$(OUT)/df2-metrics-%.txt: $(OUT)/df2-skin-%.h5 $(OUT)/df-mesh.h5
+	crom-metrics --mesh $(OUT)/df-mesh.h5 --samples $(DF_SAMPLES) --seed $(SEED) --threads 1 $< > $@
+$(OUT)/datafree2.md: $(OUT)/df-mesh.h5 $(OUT)/df2-full.csv $(OUT)/df2-sfull.h5 \
+                     $(foreach r,$(DF2_ROWS),$(OUT)/df2-red-$(r).csv $(OUT)/df2-diff-$(r).txt $(OUT)/df2-sdiff-$(r).txt \
+                       $(OUT)/df2-metrics-$(call df2_kind,$(r)).txt $(OUT)/df2-cub-$(r).h5)
+	/usr/bin/python3 $(TOP)/pipelines/benchskin.py $(OUT) "$(DF2_ROWS)" > $@.tmp && mv $@.tmp $@
 
 # ------------------------------------------------------------------ micro
 # the micro-benchmarks of lib/ (tests/unit/bench_*.c, built by `make bench`,
