@@ -13,7 +13,7 @@ source "$(dirname "$0")/common.bash"
 cd "$CROM_TOP"
 # run as a user would, not as a sub-make of `make test` (whose flags and
 # "Entering directory" lines would leak in)
-unset MAKEFLAGS MFLAGS MAKELEVEL MAKEOVERRIDES
+unset MAKEFLAGS MFLAGS MAKELEVEL MAKEOVERRIDES SANITIZE WERROR CFLAGS OPT CC
 
 src="$TMP/src"
 mkdir -p "$src"
