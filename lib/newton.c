@@ -33,14 +33,20 @@ int crom_newton_solve(const crom_newton_problem *p, void *ctx, const crom_newton
     *converged = 0;
     for (int it = 0; it < max_iter && !rc;) {
         double E;
-        if ((rc = p->objective(ctx, q, &E, w->g, gd ? NULL : w->H, project)))
+        /* fresh: a Hessian computed at this iteration (not reused) */
+        int fresh = !gd && (!p->wants_hessian || p->wants_hessian(ctx, it));
+        if ((rc = p->objective(ctx, q, &E, w->g, fresh ? w->H : NULL, project)))
             break;
-        int dr = p->direction(ctx, it, project, q, w->g, gd ? NULL : w->H, w->d);
+        int dr = p->direction(ctx, it, project, q, w->g, fresh ? w->H : NULL, w->d);
         if (dr > 1) {
             rc = dr;
             break;
         }
         if (dr == 1) {
+            if (!gd && !fresh) {
+                p->stale(ctx); /* a reused Hessian: try a fresh one first */
+                continue;
+            }
             if (!gd && !project) {
                 project = 1; /* indefinite: project element Hessians from now on */
                 continue;
@@ -52,6 +58,10 @@ int crom_newton_solve(const crom_newton_problem *p, void *ctx, const crom_newton
         for (int i = 0; i < r; i++)
             slope += w->g[i] * w->d[i];
         if (!(slope < 0)) {
+            if (!gd && !fresh) {
+                p->stale(ctx);
+                continue;
+            }
             if (!gd && !project) {
                 project = 1;
                 continue;
@@ -76,6 +86,10 @@ int crom_newton_solve(const crom_newton_problem *p, void *ctx, const crom_newton
         double alpha = crom_linesearch(ls_eval, &lc, (size_t)r, q, w->d, E, slope, 64 * DBL_EPSILON * scale,
                                        -slope < 1e-10 * scale, w->qt, gt, NULL);
         if (alpha == 0) {
+            if (!gd && !fresh) {
+                p->stale(ctx);
+                continue;
+            }
             if (!gd && !project) {
                 project = 1;
                 continue;

@@ -11,6 +11,13 @@
  * gradient descent of the paper's reference code instead: it never projects,
  * never stops on a full correction, and stops when the accepted step is
  * within the tolerance.
+ *
+ * A problem may reuse a factored Hessian across iterations and steps (the
+ * chord or "lagged" Newton method): it says through wants_hessian when the
+ * objective must compute H, and its direction then uses the last factor.
+ * When such a direction fails (no direction, no descent, no acceptable
+ * step), the driver asks for a fresh Hessian (stale) before it switches to
+ * projected Hessians.
  */
 #ifndef CROM_NEWTON_H
 #define CROM_NEWTON_H
@@ -22,12 +29,18 @@ typedef struct {
      * SPD-projected element Hessians. Returns 0 or an error (recorded). */
     int (*objective)(void *ctx, const double *q, double *E, double *g, double *H, int project);
     /* The direction d [r] at iteration it, at q, from g and H (H is NULL
-     * in descent mode). Returns 0 with d set, 1 when no direction exists here
+     * in descent mode and when the problem reuses its last Hessian). Returns 0 with d set, 1 when no direction exists here
      * (a singular or indefinite matrix), or an error code > 1 (recorded). */
     int (*direction)(void *ctx, int it, int project, const double *q, const double *g, const double *H,
                      double *d);
     /* The size of a correction d, in the units of the tolerance. */
     double (*size)(void *ctx, const double *d);
+    /* Optional (NULL: a Hessian at every iteration): 1 if iteration it
+     * needs a fresh Hessian, 0 if the direction may reuse the last one. */
+    int (*wants_hessian)(void *ctx, int it);
+    /* Optional, with wants_hessian: the reused Hessian failed; the next
+     * iteration must compute a fresh one. */
+    void (*stale)(void *ctx);
     int descent;        /* 1: gradient descent (see above), no Hessian */
     const char *method; /* "Newton", "Gauss-Newton": for messages */
     const char *singular; /* what failed when no direction exists, for messages */

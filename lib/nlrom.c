@@ -738,7 +738,7 @@ int crom_nlsim_step(crom_nlsim *s, crom_rstep_stats *st)
         free(c.Hs);
         return CROM_EINTERNAL;
     }
-    const crom_newton_problem prob = {r, step_objective, step_direction, step_size, 0, "Gauss-Newton",
+    const crom_newton_problem prob = {r, step_objective, step_direction, step_size, NULL, NULL, 0, "Gauss-Newton",
                                       "the Gauss-Newton matrix is singular (the map's latent directions are "
                                       "degenerate here)"};
     const crom_newton_work w = {s->g, s->H, s->d, s->qt};
