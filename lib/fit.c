@@ -886,6 +886,9 @@ int crom_fit_mlp(const crom_samples *S, const crom_fit_opts *opts, crom_model *o
     if (rc)
         return rc;
     double t0 = crom_now();
+    /* threaded MLP passes call sgemm per thread: OpenBLAS single-threaded
+     * meanwhile (nn.h), the caller's setting restored on return */
+    int blas_threads = openblas_get_num_threads();
     if (o.threads > 1)
         openblas_set_num_threads(1);
     trainer t;
@@ -1088,6 +1091,8 @@ done:
     free(params);
     free(grad);
     trainer_free(&t);
+    if (o.threads > 1)
+        openblas_set_num_threads(blas_threads);
     return rc;
 }
 
