@@ -183,10 +183,121 @@ static void lsq_group(crom_fit_ctx *c, const double *Wd, int Pg, int Bg, const d
     }
 }
 
+/* The weight of a batch's samples: every cell of a dense group, the sum
+ * of the mask in the others. */
+static double batch_weight(const crom_fit_batch *b)
+{
+    double n = 0;
+    size_t cell = 0;
+    for (int g = 0; g < b->ngroups; g++) {
+        size_t k = (size_t)b->rows[g] * b->frames[g];
+        if (b->dense[g])
+            n += (double)k;
+        else
+            for (size_t i = 0; i < k; i++)
+                n += b->M[cell + i];
+        cell += k;
+    }
+    return n;
+}
+
+/* One group of a batch: Pg points in Bg frames, from row row0, sample
+ * cell0 and frame fr0 of the batch on. */
+typedef struct {
+    int Pg, Bg, dense, fr0;
+    size_t row0, cell0;
+} loss_group;
+
+/* The group's fields W (from the network output Y) into c->Wd, its
+ * latents into c->Q (the lsq fit of W to its samples, or the encoder's;
+ * also into qout when given), its masked residual R = W Q^T - U into c->R
+ * and |q_f|^2 into c->qn; adds |R|^2 to *mis and the lsq fits' Tikhonov
+ * terms to *reg. */
+static void group_residual(crom_fit_ctx *c, const crom_fit_batch *b, const loss_group *gr, const float *Y,
+                           double *qout, double *mis, double *reg)
+{
+    int r = c->rank, Pg = gr->Pg, Bg = gr->Bg, m3 = 3 * Pg, dense = gr->dense;
+    const double *U = b->U + 3 * gr->cell0, *M = b->M + gr->cell0;
+    double *Wd = c->Wd, *Q = c->Q, *R = c->R;
+    const float *Yg = Y + gr->row0 * 3 * r;
+    for (size_t i = 0; i < (size_t)m3 * r; i++)
+        Wd[i] = Yg[i];
+    if (!c->P) {
+        lsq_group(c, Wd, Pg, Bg, U, M, dense, Q, c->lam);
+    } else {
+        for (int j = 0; j < Bg; j++)
+            for (int k = 0; k < r; k++)
+                Q[j * r + k] = c->qf[(size_t)(gr->fr0 + j) * r + k];
+    }
+    /* residual R = Wd Q^T - U, masked */
+    memcpy(R, U, sizeof(double) * (size_t)m3 * Bg);
+    cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasTrans, m3, Bg, r, 1.0, Wd, r, Q, r, -1.0, R, Bg);
+    if (!dense)
+        for (int i = 0; i < Pg; i++)
+            for (int cc = 0; cc < 3; cc++) {
+                double *Ri = R + (size_t)(3 * i + cc) * Bg;
+                const double *Mi = M + (size_t)i * Bg;
+                for (int j = 0; j < Bg; j++)
+                    Ri[j] *= Mi[j];
+            }
+    for (size_t i = 0; i < (size_t)m3 * Bg; i++)
+        *mis += R[i] * R[i];
+    for (int j = 0; j < Bg; j++) {
+        double s = 0;
+        for (int k = 0; k < r; k++)
+            s += Q[j * r + k] * Q[j * r + k];
+        c->qn[j] = s;
+        if (!c->P)
+            *reg += c->lam[j] * s;
+    }
+    if (qout)
+        memcpy(qout + (size_t)gr->fr0 * r, Q, sizeof(double) * (size_t)Bg * r);
+}
+
+/* The group's part of the loss gradient (scale = 2/n), from what
+ * group_residual left in c: d/dW at its rows into c->dy (as float), and
+ * with an encoder d/dq of its frames into c->dqf. */
+static void group_gradient(crom_fit_ctx *c, const crom_fit_batch *b, const loss_group *gr, double scale)
+{
+    int r = c->rank, Pg = gr->Pg, Bg = gr->Bg, m3 = 3 * Pg;
+    const double *M = b->M + gr->cell0, *Wd = c->Wd, *Q = c->Q, *R = c->R;
+    double *dW = c->dW;
+    cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, m3, r, Bg, scale, R, Bg, Q, r, 0.0, dW, r);
+    if (!c->P && c->tikhonov > 0) {
+        /* d/dW_i of sum_f lambda_f |q_f|^2 / n, lambda_f = tik tr(G_f) / r */
+        if (gr->dense) {
+            double s = 0;
+            for (int j = 0; j < Bg; j++)
+                s += c->lam[j] > 0 ? c->qn[j] : 0;
+            for (int i = 0; i < Pg; i++)
+                c->cvec[i] = s;
+        } else {
+            for (int j = 0; j < Bg; j++)
+                if (!(c->lam[j] > 0))
+                    c->qn[j] = 0;
+            cblas_dgemv(CblasRowMajor, CblasNoTrans, Pg, Bg, 1.0, M, Bg, c->qn, 1, 0.0, c->cvec, 1);
+        }
+        double coef = scale * c->tikhonov / r;
+        for (int i = 0; i < Pg; i++) {
+            double ci = coef * c->cvec[i];
+            for (int k = 0; k < 3 * r; k++)
+                dW[(size_t)i * 3 * r + k] += ci * Wd[(size_t)i * 3 * r + k];
+        }
+    }
+    float *dy = c->dy + gr->row0 * 3 * r;
+    for (size_t i = 0; i < (size_t)m3 * r; i++)
+        dy[i] = (float)dW[i];
+    if (c->P) {
+        cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, Bg, r, m3, scale, R, Bg, Wd, r, 0.0, c->Bm, r);
+        for (int j = 0; j < Bg; j++)
+            for (int k = 0; k < r; k++)
+                c->dqf[(size_t)(gr->fr0 + j) * r + k] = (float)c->Bm[j * r + k];
+    }
+}
+
 int crom_fit_loss(crom_fit_ctx *c, const crom_fit_batch *b, double *objective, double *misfit,
                   float *grad, double *qout)
 {
-    int r = c->rank;
     if (b->nrows > c->maxrows || b->nframes > c->maxframes || b->nrows < 1 || b->nframes < 1)
         return crom_err(CROM_EUSAGE, "batch of %d points and %d frames exceeds the loss buffers",
                         b->nrows, b->nframes);
@@ -202,97 +313,19 @@ int crom_fit_loss(crom_fit_ctx *c, const crom_fit_batch *b, double *objective, d
     if (c->P && (rc = crom_nn_pointnet_forward(c->P, &c->pws, b->nframes, b->enc_points, b->enc,
                                                c->qf)))
         return rc;
-    double n = 0;
-    size_t cell = 0;
-    for (int g = 0; g < b->ngroups; g++) {
-        size_t k = (size_t)b->rows[g] * b->frames[g];
-        if (b->dense[g])
-            n += (double)k;
-        else
-            for (size_t i = 0; i < k; i++)
-                n += b->M[cell + i];
-        cell += k;
-    }
+    double n = batch_weight(b);
     double mis = 0, reg = 0, scale = n > 0 ? 2.0 / n : 0;
-    size_t row0 = 0, cell0 = 0;
-    int fr0 = 0;
+    loss_group gr = {0, 0, 0, 0, 0, 0};
     for (int g = 0; g < b->ngroups; g++) {
-        int Pg = b->rows[g], Bg = b->frames[g], m3 = 3 * Pg, dense = b->dense[g];
-        const double *U = b->U + 3 * cell0, *M = b->M + cell0;
-        double *Wd = c->Wd, *Q = c->Q, *R = c->R;
-        const float *Yg = Y + row0 * 3 * r;
-        for (size_t i = 0; i < (size_t)m3 * r; i++)
-            Wd[i] = Yg[i];
-        if (!c->P) {
-            lsq_group(c, Wd, Pg, Bg, U, M, dense, Q, c->lam);
-        } else {
-            for (int j = 0; j < Bg; j++)
-                for (int k = 0; k < r; k++)
-                    Q[j * r + k] = c->qf[(size_t)(fr0 + j) * r + k];
-        }
-        /* residual R = Wd Q^T - U, masked */
-        memcpy(R, U, sizeof(double) * (size_t)m3 * Bg);
-        cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasTrans, m3, Bg, r, 1.0, Wd, r, Q, r, -1.0, R, Bg);
-        if (!dense)
-            for (int i = 0; i < Pg; i++)
-                for (int cc = 0; cc < 3; cc++) {
-                    double *Ri = R + (size_t)(3 * i + cc) * Bg;
-                    const double *Mi = M + (size_t)i * Bg;
-                    for (int j = 0; j < Bg; j++)
-                        Ri[j] *= Mi[j];
-                }
-        for (size_t i = 0; i < (size_t)m3 * Bg; i++)
-            mis += R[i] * R[i];
-        for (int j = 0; j < Bg; j++) {
-            double s = 0;
-            for (int k = 0; k < r; k++)
-                s += Q[j * r + k] * Q[j * r + k];
-            c->qn[j] = s;
-            if (!c->P)
-                reg += c->lam[j] * s;
-        }
-        if (qout)
-            memcpy(qout + (size_t)fr0 * r, Q, sizeof(double) * (size_t)Bg * r);
-        if (grad && n > 0) {
-            double *dW = c->dW;
-            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, m3, r, Bg, scale, R, Bg, Q, r,
-                        0.0, dW, r);
-            if (!c->P && c->tikhonov > 0) {
-                /* d/dW_i of sum_f lambda_f |q_f|^2 / n, lambda_f = tik tr(G_f) / r */
-                if (dense) {
-                    double s = 0;
-                    for (int j = 0; j < Bg; j++)
-                        s += c->lam[j] > 0 ? c->qn[j] : 0;
-                    for (int i = 0; i < Pg; i++)
-                        c->cvec[i] = s;
-                } else {
-                    for (int j = 0; j < Bg; j++)
-                        if (!(c->lam[j] > 0))
-                            c->qn[j] = 0;
-                    cblas_dgemv(CblasRowMajor, CblasNoTrans, Pg, Bg, 1.0, M, Bg, c->qn, 1, 0.0,
-                                c->cvec, 1);
-                }
-                double coef = scale * c->tikhonov / r;
-                for (int i = 0; i < Pg; i++) {
-                    double ci = coef * c->cvec[i];
-                    for (int k = 0; k < 3 * r; k++)
-                        dW[(size_t)i * 3 * r + k] += ci * Wd[(size_t)i * 3 * r + k];
-                }
-            }
-            float *dy = c->dy + row0 * 3 * r;
-            for (size_t i = 0; i < (size_t)m3 * r; i++)
-                dy[i] = (float)dW[i];
-            if (c->P) {
-                cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, Bg, r, m3, scale, R, Bg, Wd, r,
-                            0.0, c->Bm, r);
-                for (int j = 0; j < Bg; j++)
-                    for (int k = 0; k < r; k++)
-                        c->dqf[(size_t)(fr0 + j) * r + k] = (float)c->Bm[j * r + k];
-            }
-        }
-        row0 += (size_t)Pg;
-        cell0 += (size_t)Pg * Bg;
-        fr0 += Bg;
+        gr.Pg = b->rows[g];
+        gr.Bg = b->frames[g];
+        gr.dense = b->dense[g];
+        group_residual(c, b, &gr, Y, qout, &mis, &reg);
+        if (grad && n > 0)
+            group_gradient(c, b, &gr, scale);
+        gr.row0 += (size_t)gr.Pg;
+        gr.cell0 += (size_t)gr.Pg * gr.Bg;
+        gr.fr0 += gr.Bg;
     }
     if (objective)
         *objective = n > 0 ? (mis + reg) / n : 0;
@@ -1189,6 +1222,46 @@ int crom_fit_mlp(const crom_samples *S, const crom_fit_opts *opts, crom_model *o
 
 /* ============================================================ POD */
 
+/* The frames of S (every vertex once in each: CROM_EDATA otherwise) as
+ * snapshots in vertex order: U [F][3nv] the displacements, Y the same
+ * weighted by sqrt(w_v / vol), w the vertex volumes; seen [nv] scratch. */
+static int pod_snapshots(const crom_samples *S, const double *w, double vol, unsigned char *seen, double *U,
+                         double *Y)
+{
+    int nv = S->N;
+    size_t n3 = 3 * (size_t)nv;
+    for (int f = 0; f < S->F; f++) {
+        memset(seen, 0, (size_t)nv);
+        for (int i = 0; i < nv; i++) {
+            int v = S->vertex[(size_t)f * nv + i];
+            if (v < 0 || seen[v])
+                return crom_err(CROM_EDATA, "--basis pod needs every vertex in every frame "
+                                            "(crom-sample --points all); frame %d lacks some", f);
+            seen[v] = 1;
+            for (int d = 0; d < 3; d++) {
+                double u = S->U[((size_t)f * nv + i) * 3 + d];
+                U[(size_t)f * n3 + 3 * (size_t)v + d] = u;
+                Y[(size_t)f * n3 + 3 * (size_t)v + d] = u * sqrt(w[v] / vol);
+            }
+        }
+    }
+    return 0;
+}
+
+/* Each column of A [n][r] signed so that its largest entry is positive. */
+static void sign_columns(double *A, size_t n, int r)
+{
+    for (int j = 0; j < r; j++) {
+        size_t big = 0;
+        for (size_t i = 0; i < n; i++)
+            if (fabs(A[i * r + j]) > fabs(A[big * r + j]))
+                big = i;
+        if (A[big * r + j] < 0)
+            for (size_t i = 0; i < n; i++)
+                A[i * r + j] = -A[i * r + j];
+    }
+}
+
 int crom_fit_pod(const crom_samples *S, int rank, crom_model *out, double *captured)
 {
     crom_model_clear(out);
@@ -1221,24 +1294,7 @@ int crom_fit_pod(const crom_samples *S, int rank, crom_model *out, double *captu
         goto done;
     }
     double vol = crom_vertex_volumes(m, w);
-    for (int f = 0; f < F && !rc; f++) {
-        memset(seen, 0, (size_t)nv);
-        for (int i = 0; i < nv; i++) {
-            int v = S->vertex[(size_t)f * nv + i];
-            if (v < 0 || seen[v]) {
-                rc = crom_err(CROM_EDATA, "--basis pod needs every vertex in every frame "
-                                          "(crom-sample --points all); frame %d lacks some", f);
-                break;
-            }
-            seen[v] = 1;
-            for (int d = 0; d < 3; d++) {
-                double u = S->U[((size_t)f * nv + i) * 3 + d];
-                U[(size_t)f * n3 + 3 * (size_t)v + d] = u;
-                Y[(size_t)f * n3 + 3 * (size_t)v + d] = u * sqrt(w[v] / vol);
-            }
-        }
-    }
-    if (rc)
+    if ((rc = pod_snapshots(S, w, vol, seen, U, Y)))
         goto done;
     /* Gram matrix of the weighted snapshots and its eigenvectors */
     cblas_dsyrk(CblasRowMajor, CblasUpper, CblasNoTrans, F, (int)n3, 1.0, Y, (int)n3, 0.0, K, F);
@@ -1271,15 +1327,7 @@ int crom_fit_pod(const crom_samples *S, int rank, crom_model *out, double *captu
     /* Phi = U^T V Lambda^{-1/2}: M-orthonormal modes, [3nv][r] */
     cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, (int)n3, rank, F, 1.0, U, (int)n3, Vr,
                 rank, 0.0, Phi, rank);
-    for (int j = 0; j < rank; j++) {
-        size_t big = 0;
-        for (size_t i = 0; i < n3; i++)
-            if (fabs(Phi[i * rank + j]) > fabs(Phi[big * rank + j]))
-                big = i;
-        if (Phi[big * rank + j] < 0)
-            for (size_t i = 0; i < n3; i++)
-                Phi[i * rank + j] = -Phi[i * rank + j];
-    }
+    sign_columns(Phi, n3, rank);
     if ((rc = crom_model_from_mesh(out, "pod", m, Phi, rank)))
         goto done;
     double err;
