@@ -850,19 +850,22 @@ void crom_fem_free(crom_fem *fem)
     memset(fem, 0, sizeof *fem);
 }
 
-/* Sparse pattern: for each vertex j the sorted list nbr[nptr[j]..nptr[j+1])
- * of vertices i <= j sharing a tet with j (j itself last). Then the CSC
- * upper pattern over DOFs and the per-tet scatter map. */
-static int build_pattern(crom_fem *fem)
+/* For each vertex j the sorted list nbr[nptr[j]..nptr[j+1]) of vertices
+ * i <= j sharing a tet with j (j itself last), found through the
+ * vertex -> incident tets lists. nptr [nv + 1] and nbr [nv + 12 nt] are
+ * the caller's. */
+static int vertex_neighbours(const crom_fem *fem, int *nptr, int *nbr)
 {
-    int nv = fem->nv, nt = fem->nt, rc = CROM_EINTERNAL;
+    int nv = fem->nv, nt = fem->nt;
     int *vtp = crom_calloc((size_t)nv + 1, sizeof *vtp);
     int *vt = crom_malloc(sizeof *vt * 4 * (size_t)nt);
-    int *nptr = crom_malloc(sizeof *nptr * ((size_t)nv + 1));
-    int *nbr = crom_malloc(sizeof *nbr * ((size_t)nv + 12 * (size_t)nt));
     int *stamp = crom_malloc(sizeof *stamp * (size_t)nv);
-    if (!vtp || !vt || !nptr || !nbr || !stamp)
-        goto done;
+    if (!vtp || !vt || !stamp) {
+        free(vtp);
+        free(vt);
+        free(stamp);
+        return CROM_EINTERNAL;
+    }
     /* vertex -> incident tets (CSR) */
     for (int t = 0; t < nt; t++)
         for (int k = 0; k < 4; k++)
@@ -903,32 +906,38 @@ static int build_pattern(crom_fem *fem)
         nbr[cnt++] = j;
     }
     nptr[nv] = (int)cnt;
+    free(vtp);
+    free(vt);
+    free(stamp);
+    return CROM_OK;
+}
 
-    /* DOF-level CSC, upper triangle */
-    int n = 3 * nv;
+/* The CSC upper pattern over DOFs (colptr, rowind, n, nnz) from the
+ * vertex neighbour lists: column 3j+d holds the three DOFs of each lower
+ * neighbour of j, then DOFs 3j..3j+d. CROM_EDATA past INT_MAX entries. */
+static int dof_pattern(crom_fem *fem, const int *nptr, const int *nbr)
+{
+    int nv = fem->nv, n = 3 * nv;
     fem->colptr = crom_malloc(sizeof *fem->colptr * ((size_t)n + 1));
     if (!fem->colptr)
-        goto done;
+        return CROM_EINTERNAL;
     long long nnz = 0;
     for (int j = 0; j < nv; j++) {
         int nlow = nptr[j + 1] - nptr[j] - 1;
         for (int d = 0; d < 3; d++) {
             fem->colptr[3 * j + d] = (int)nnz;
             nnz += 3LL * nlow + d + 1;
-            if (nnz > INT_MAX) {
-                rc = crom_err(CROM_EDATA, "mesh too large: Hessian has more "
-                                          "than %d entries", INT_MAX);
-                goto done;
-            }
+            if (nnz > INT_MAX)
+                return crom_err(CROM_EDATA, "mesh too large: Hessian has more "
+                                            "than %d entries", INT_MAX);
         }
     }
     fem->colptr[n] = (int)nnz;
     fem->n = n;
     fem->nnz = (int)nnz;
     fem->rowind = crom_malloc(sizeof *fem->rowind * (size_t)(nnz ? nnz : 1));
-    fem->scatter = crom_malloc(sizeof *fem->scatter * NUP * (size_t)nt);
-    if (!fem->rowind || !fem->scatter)
-        goto done;
+    if (!fem->rowind)
+        return CROM_EINTERNAL;
     for (int j = 0; j < nv; j++)
         for (int d = 0; d < 3; d++) {
             int p = fem->colptr[3 * j + d];
@@ -938,11 +947,19 @@ static int build_pattern(crom_fem *fem)
             for (int c = 0; c <= d; c++)
                 fem->rowind[p++] = 3 * j + c;
         }
+    return CROM_OK;
+}
 
-    /* scatter: element upper entry (i, j), i = 3k+c, j = 3l+d, lands at
-     * global (r, s) = (3v_k+c, 3v_l+d), swapped if r > s; its value index is
-     * colptr[s] + 3·(position of row vertex in s's neighbour list) + r%3. */
-    for (int t = 0; t < nt; t++) {
+/* The per-tet scatter map: element upper entry (i, j), i = 3k+c,
+ * j = 3l+d, lands at global (r, s) = (3v_k+c, 3v_l+d), swapped if r > s;
+ * its value index is colptr[s] + 3·(position of row vertex in s's
+ * neighbour list) + r%3. */
+static int tet_scatter(crom_fem *fem, const int *nptr, const int *nbr)
+{
+    fem->scatter = crom_malloc(sizeof *fem->scatter * NUP * (size_t)fem->nt);
+    if (!fem->scatter)
+        return CROM_EINTERNAL;
+    for (int t = 0; t < fem->nt; t++) {
         const int *tv = fem->tets + 4 * t;
         int pos[4][4]; /* pos[k][l]: index of min(vk,vl) in nbr list of max */
         for (int k = 0; k < 4; k++)
@@ -972,13 +989,21 @@ static int build_pattern(crom_fem *fem)
                 sc[e++] = fem->colptr[s] + 3 * pos[k][l] + r % 3;
             }
     }
-    rc = CROM_OK;
-done:
-    free(vtp);
-    free(vt);
+    return CROM_OK;
+}
+
+/* Sparse pattern: the vertex neighbour lists, then the CSC upper pattern
+ * over DOFs and the per-tet scatter map. */
+static int build_pattern(crom_fem *fem)
+{
+    int nv = fem->nv, nt = fem->nt, rc = CROM_EINTERNAL;
+    int *nptr = crom_malloc(sizeof *nptr * ((size_t)nv + 1));
+    int *nbr = crom_malloc(sizeof *nbr * ((size_t)nv + 12 * (size_t)nt));
+    if (nptr && nbr && (rc = vertex_neighbours(fem, nptr, nbr)) == CROM_OK &&
+        (rc = dof_pattern(fem, nptr, nbr)) == CROM_OK)
+        rc = tet_scatter(fem, nptr, nbr);
     free(nptr);
     free(nbr);
-    free(stamp);
     return rc;
 }
 

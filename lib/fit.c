@@ -183,10 +183,121 @@ static void lsq_group(crom_fit_ctx *c, const double *Wd, int Pg, int Bg, const d
     }
 }
 
+/* The weight of a batch's samples: every cell of a dense group, the sum
+ * of the mask in the others. */
+static double batch_weight(const crom_fit_batch *b)
+{
+    double n = 0;
+    size_t cell = 0;
+    for (int g = 0; g < b->ngroups; g++) {
+        size_t k = (size_t)b->rows[g] * b->frames[g];
+        if (b->dense[g])
+            n += (double)k;
+        else
+            for (size_t i = 0; i < k; i++)
+                n += b->M[cell + i];
+        cell += k;
+    }
+    return n;
+}
+
+/* One group of a batch: Pg points in Bg frames, from row row0, sample
+ * cell0 and frame fr0 of the batch on. */
+typedef struct {
+    int Pg, Bg, dense, fr0;
+    size_t row0, cell0;
+} loss_group;
+
+/* The group's fields W (from the network output Y) into c->Wd, its
+ * latents into c->Q (the lsq fit of W to its samples, or the encoder's;
+ * also into qout when given), its masked residual R = W Q^T - U into c->R
+ * and |q_f|^2 into c->qn; adds |R|^2 to *mis and the lsq fits' Tikhonov
+ * terms to *reg. */
+static void group_residual(crom_fit_ctx *c, const crom_fit_batch *b, const loss_group *gr, const float *Y,
+                           double *qout, double *mis, double *reg)
+{
+    int r = c->rank, Pg = gr->Pg, Bg = gr->Bg, m3 = 3 * Pg, dense = gr->dense;
+    const double *U = b->U + 3 * gr->cell0, *M = b->M + gr->cell0;
+    double *Wd = c->Wd, *Q = c->Q, *R = c->R;
+    const float *Yg = Y + gr->row0 * 3 * r;
+    for (size_t i = 0; i < (size_t)m3 * r; i++)
+        Wd[i] = Yg[i];
+    if (!c->P) {
+        lsq_group(c, Wd, Pg, Bg, U, M, dense, Q, c->lam);
+    } else {
+        for (int j = 0; j < Bg; j++)
+            for (int k = 0; k < r; k++)
+                Q[j * r + k] = c->qf[(size_t)(gr->fr0 + j) * r + k];
+    }
+    /* residual R = Wd Q^T - U, masked */
+    memcpy(R, U, sizeof(double) * (size_t)m3 * Bg);
+    cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasTrans, m3, Bg, r, 1.0, Wd, r, Q, r, -1.0, R, Bg);
+    if (!dense)
+        for (int i = 0; i < Pg; i++)
+            for (int cc = 0; cc < 3; cc++) {
+                double *Ri = R + (size_t)(3 * i + cc) * Bg;
+                const double *Mi = M + (size_t)i * Bg;
+                for (int j = 0; j < Bg; j++)
+                    Ri[j] *= Mi[j];
+            }
+    for (size_t i = 0; i < (size_t)m3 * Bg; i++)
+        *mis += R[i] * R[i];
+    for (int j = 0; j < Bg; j++) {
+        double s = 0;
+        for (int k = 0; k < r; k++)
+            s += Q[j * r + k] * Q[j * r + k];
+        c->qn[j] = s;
+        if (!c->P)
+            *reg += c->lam[j] * s;
+    }
+    if (qout)
+        memcpy(qout + (size_t)gr->fr0 * r, Q, sizeof(double) * (size_t)Bg * r);
+}
+
+/* The group's part of the loss gradient (scale = 2/n), from what
+ * group_residual left in c: d/dW at its rows into c->dy (as float), and
+ * with an encoder d/dq of its frames into c->dqf. */
+static void group_gradient(crom_fit_ctx *c, const crom_fit_batch *b, const loss_group *gr, double scale)
+{
+    int r = c->rank, Pg = gr->Pg, Bg = gr->Bg, m3 = 3 * Pg;
+    const double *M = b->M + gr->cell0, *Wd = c->Wd, *Q = c->Q, *R = c->R;
+    double *dW = c->dW;
+    cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, m3, r, Bg, scale, R, Bg, Q, r, 0.0, dW, r);
+    if (!c->P && c->tikhonov > 0) {
+        /* d/dW_i of sum_f lambda_f |q_f|^2 / n, lambda_f = tik tr(G_f) / r */
+        if (gr->dense) {
+            double s = 0;
+            for (int j = 0; j < Bg; j++)
+                s += c->lam[j] > 0 ? c->qn[j] : 0;
+            for (int i = 0; i < Pg; i++)
+                c->cvec[i] = s;
+        } else {
+            for (int j = 0; j < Bg; j++)
+                if (!(c->lam[j] > 0))
+                    c->qn[j] = 0;
+            cblas_dgemv(CblasRowMajor, CblasNoTrans, Pg, Bg, 1.0, M, Bg, c->qn, 1, 0.0, c->cvec, 1);
+        }
+        double coef = scale * c->tikhonov / r;
+        for (int i = 0; i < Pg; i++) {
+            double ci = coef * c->cvec[i];
+            for (int k = 0; k < 3 * r; k++)
+                dW[(size_t)i * 3 * r + k] += ci * Wd[(size_t)i * 3 * r + k];
+        }
+    }
+    float *dy = c->dy + gr->row0 * 3 * r;
+    for (size_t i = 0; i < (size_t)m3 * r; i++)
+        dy[i] = (float)dW[i];
+    if (c->P) {
+        cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, Bg, r, m3, scale, R, Bg, Wd, r, 0.0, c->Bm, r);
+        for (int j = 0; j < Bg; j++)
+            for (int k = 0; k < r; k++)
+                c->dqf[(size_t)(gr->fr0 + j) * r + k] = (float)c->Bm[j * r + k];
+    }
+}
+
 int crom_fit_loss(crom_fit_ctx *c, const crom_fit_batch *b, double *objective, double *misfit,
                   float *grad, double *qout)
 {
-    int r = c->rank;
     if (b->nrows > c->maxrows || b->nframes > c->maxframes || b->nrows < 1 || b->nframes < 1)
         return crom_err(CROM_EUSAGE, "batch of %d points and %d frames exceeds the loss buffers",
                         b->nrows, b->nframes);
@@ -202,97 +313,19 @@ int crom_fit_loss(crom_fit_ctx *c, const crom_fit_batch *b, double *objective, d
     if (c->P && (rc = crom_nn_pointnet_forward(c->P, &c->pws, b->nframes, b->enc_points, b->enc,
                                                c->qf)))
         return rc;
-    double n = 0;
-    size_t cell = 0;
-    for (int g = 0; g < b->ngroups; g++) {
-        size_t k = (size_t)b->rows[g] * b->frames[g];
-        if (b->dense[g])
-            n += (double)k;
-        else
-            for (size_t i = 0; i < k; i++)
-                n += b->M[cell + i];
-        cell += k;
-    }
+    double n = batch_weight(b);
     double mis = 0, reg = 0, scale = n > 0 ? 2.0 / n : 0;
-    size_t row0 = 0, cell0 = 0;
-    int fr0 = 0;
+    loss_group gr = {0, 0, 0, 0, 0, 0};
     for (int g = 0; g < b->ngroups; g++) {
-        int Pg = b->rows[g], Bg = b->frames[g], m3 = 3 * Pg, dense = b->dense[g];
-        const double *U = b->U + 3 * cell0, *M = b->M + cell0;
-        double *Wd = c->Wd, *Q = c->Q, *R = c->R;
-        const float *Yg = Y + row0 * 3 * r;
-        for (size_t i = 0; i < (size_t)m3 * r; i++)
-            Wd[i] = Yg[i];
-        if (!c->P) {
-            lsq_group(c, Wd, Pg, Bg, U, M, dense, Q, c->lam);
-        } else {
-            for (int j = 0; j < Bg; j++)
-                for (int k = 0; k < r; k++)
-                    Q[j * r + k] = c->qf[(size_t)(fr0 + j) * r + k];
-        }
-        /* residual R = Wd Q^T - U, masked */
-        memcpy(R, U, sizeof(double) * (size_t)m3 * Bg);
-        cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasTrans, m3, Bg, r, 1.0, Wd, r, Q, r, -1.0, R, Bg);
-        if (!dense)
-            for (int i = 0; i < Pg; i++)
-                for (int cc = 0; cc < 3; cc++) {
-                    double *Ri = R + (size_t)(3 * i + cc) * Bg;
-                    const double *Mi = M + (size_t)i * Bg;
-                    for (int j = 0; j < Bg; j++)
-                        Ri[j] *= Mi[j];
-                }
-        for (size_t i = 0; i < (size_t)m3 * Bg; i++)
-            mis += R[i] * R[i];
-        for (int j = 0; j < Bg; j++) {
-            double s = 0;
-            for (int k = 0; k < r; k++)
-                s += Q[j * r + k] * Q[j * r + k];
-            c->qn[j] = s;
-            if (!c->P)
-                reg += c->lam[j] * s;
-        }
-        if (qout)
-            memcpy(qout + (size_t)fr0 * r, Q, sizeof(double) * (size_t)Bg * r);
-        if (grad && n > 0) {
-            double *dW = c->dW;
-            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, m3, r, Bg, scale, R, Bg, Q, r,
-                        0.0, dW, r);
-            if (!c->P && c->tikhonov > 0) {
-                /* d/dW_i of sum_f lambda_f |q_f|^2 / n, lambda_f = tik tr(G_f) / r */
-                if (dense) {
-                    double s = 0;
-                    for (int j = 0; j < Bg; j++)
-                        s += c->lam[j] > 0 ? c->qn[j] : 0;
-                    for (int i = 0; i < Pg; i++)
-                        c->cvec[i] = s;
-                } else {
-                    for (int j = 0; j < Bg; j++)
-                        if (!(c->lam[j] > 0))
-                            c->qn[j] = 0;
-                    cblas_dgemv(CblasRowMajor, CblasNoTrans, Pg, Bg, 1.0, M, Bg, c->qn, 1, 0.0,
-                                c->cvec, 1);
-                }
-                double coef = scale * c->tikhonov / r;
-                for (int i = 0; i < Pg; i++) {
-                    double ci = coef * c->cvec[i];
-                    for (int k = 0; k < 3 * r; k++)
-                        dW[(size_t)i * 3 * r + k] += ci * Wd[(size_t)i * 3 * r + k];
-                }
-            }
-            float *dy = c->dy + row0 * 3 * r;
-            for (size_t i = 0; i < (size_t)m3 * r; i++)
-                dy[i] = (float)dW[i];
-            if (c->P) {
-                cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, Bg, r, m3, scale, R, Bg, Wd, r,
-                            0.0, c->Bm, r);
-                for (int j = 0; j < Bg; j++)
-                    for (int k = 0; k < r; k++)
-                        c->dqf[(size_t)(fr0 + j) * r + k] = (float)c->Bm[j * r + k];
-            }
-        }
-        row0 += (size_t)Pg;
-        cell0 += (size_t)Pg * Bg;
-        fr0 += Bg;
+        gr.Pg = b->rows[g];
+        gr.Bg = b->frames[g];
+        gr.dense = b->dense[g];
+        group_residual(c, b, &gr, Y, qout, &mis, &reg);
+        if (grad && n > 0)
+            group_gradient(c, b, &gr, scale);
+        gr.row0 += (size_t)gr.Pg;
+        gr.cell0 += (size_t)gr.Pg * gr.Bg;
+        gr.fr0 += gr.Bg;
     }
     if (objective)
         *objective = n > 0 ? (mis + reg) / n : 0;
@@ -427,6 +460,116 @@ static void partial_shuffle(crom_rng *rng, int *p, int n, int k)
     }
 }
 
+/* The frames of each source: srcF[srcFoff[k] .. srcFoff[k+1]) in frame
+ * order. */
+static int group_by_source(trainer *t)
+{
+    const crom_samples *S = t->S;
+    int ns = S->nsources;
+    t->srcFoff = crom_calloc((size_t)ns + 1, sizeof(int));
+    t->srcF = crom_malloc(sizeof(int) * (size_t)S->F);
+    int *fill = crom_calloc((size_t)ns, sizeof(int));
+    if (!t->srcFoff || !t->srcF || !fill) {
+        free(fill);
+        return CROM_EINTERNAL;
+    }
+    for (int f = 0; f < S->F; f++)
+        t->srcFoff[S->source[f] + 1]++;
+    for (int k = 0; k < ns; k++)
+        t->srcFoff[k + 1] += t->srcFoff[k];
+    for (int f = 0; f < S->F; f++) {
+        int k = S->source[f];
+        t->srcF[t->srcFoff[k] + fill[k]++] = f;
+    }
+    free(fill);
+    return 0;
+}
+
+/* Shared mode: each source's vertices as float (Xsrc, xoff) and their
+ * permutation, the vertices per step vsz of each source (P scaled by
+ * nv / N), every frame's sample vertices sorted (sv, si), and the row
+ * buffers sized by the largest vsz. */
+static int init_shared(trainer *t)
+{
+    const crom_samples *S = t->S;
+    int ns = S->nsources;
+    t->xoff = crom_malloc(sizeof(size_t) * (size_t)ns);
+    t->vsz = crom_malloc(sizeof(int) * (size_t)ns);
+    if (!t->xoff || !t->vsz)
+        return CROM_EINTERNAL;
+    size_t tot = 0;
+    int maxv = 0;
+    for (int k = 0; k < ns; k++) {
+        t->xoff[k] = tot;
+        tot += (size_t)S->src[k].nv;
+    }
+    t->Xsrc = crom_malloc(sizeof(float) * 3 * (tot ? tot : 1));
+    t->perm = crom_malloc(sizeof(int) * (tot ? tot : 1));
+    t->sv = crom_malloc(sizeof(int) * (size_t)S->F * S->N);
+    t->si = crom_malloc(sizeof(int) * (size_t)S->F * S->N);
+    vpair *tmp = crom_malloc(sizeof(vpair) * (size_t)S->N);
+    if (!t->Xsrc || !t->perm || !t->sv || !t->si || !tmp) {
+        free(tmp);
+        return CROM_EINTERNAL;
+    }
+    for (int k = 0; k < ns; k++) {
+        const crom_mesh *m = &S->src[k];
+        for (size_t i = 0; i < 3 * (size_t)m->nv; i++)
+            t->Xsrc[3 * t->xoff[k] + i] = (float)m->X[i];
+        for (int i = 0; i < m->nv; i++)
+            t->perm[t->xoff[k] + i] = i;
+        double v = ceil((double)t->P * m->nv / S->N);
+        t->vsz[k] = v < m->nv ? (int)v : m->nv;
+        if (t->srcFoff[k + 1] > t->srcFoff[k] && t->vsz[k] > maxv)
+            maxv = t->vsz[k];
+    }
+    for (int f = 0; f < S->F; f++) {
+        const int *vx = S->vertex + (size_t)f * S->N;
+        for (int i = 0; i < S->N; i++)
+            tmp[i] = (vpair){vx[i], i};
+        qsort(tmp, (size_t)S->N, sizeof *tmp, cmp_vpair);
+        for (int i = 0; i < S->N; i++) {
+            t->sv[(size_t)f * S->N + i] = tmp[i].v;
+            t->si[(size_t)f * S->N + i] = tmp[i].i;
+        }
+    }
+    free(tmp);
+    t->Vbuf = crom_malloc(sizeof(int) * (size_t)(maxv ? maxv : 1));
+    if (!t->Vbuf)
+        return CROM_EINTERNAL;
+    t->maxrows = maxv;
+    t->maxcells = maxv * t->B;
+    return 0;
+}
+
+/* The batch buffers (pn: with the encoder's points) and the epoch plan. */
+static int alloc_batches(trainer *t, int pn)
+{
+    const crom_samples *S = t->S;
+    crom_fit_batch *b = &t->b;
+    int B = t->B, maxgroups = t->shared ? 1 : B;
+    b->rows = crom_malloc(sizeof(int) * (size_t)maxgroups);
+    b->frames = crom_malloc(sizeof(int) * (size_t)maxgroups);
+    b->dense = crom_malloc(sizeof(int) * (size_t)maxgroups);
+    b->X = crom_malloc(sizeof(float) * 3 * (size_t)t->maxrows);
+    b->U = crom_malloc(sizeof(double) * 3 * (size_t)t->maxcells);
+    b->M = crom_malloc(sizeof(double) * (size_t)t->maxcells);
+    b->frame_id = crom_malloc(sizeof(int) * (size_t)B);
+    if (pn)
+        b->enc = crom_malloc(sizeof(float) * 6 * (size_t)B * t->Pe);
+    b->enc_points = t->Pe;
+    t->order = crom_malloc(sizeof(int) * (size_t)S->F);
+    t->maxbatches = S->F + S->nsources + 1;
+    t->bstart = crom_malloc(sizeof(int) * ((size_t)t->maxbatches + 1));
+    t->border = crom_malloc(sizeof(int) * ((size_t)t->maxbatches + 1));
+    if (!b->rows || !b->frames || !b->dense || !b->X || !b->U || !b->M || !b->frame_id ||
+        (pn && !b->enc) || !t->order || !t->bstart || !t->border)
+        return CROM_EINTERNAL;
+    return 0;
+}
+
+/* A trainer for S under o: the displacement scale, the frames by source,
+ * shared or per-frame points, and the buffers. */
 static int trainer_init(trainer *t, const crom_samples *S, const crom_fit_opts *o)
 {
     memset(t, 0, sizeof *t);
@@ -447,32 +590,15 @@ static int trainer_init(trainer *t, const crom_samples *S, const crom_fit_opts *
     t->s = sqrt(ss / ((double)S->F * S->N));
     if (!(t->s > 0))
         return crom_err(CROM_EDATA, "every displacement in the sample set is zero: nothing to learn");
-    /* frames grouped by source */
-    int ns = S->nsources;
-    t->srcFoff = crom_calloc((size_t)ns + 1, sizeof(int));
-    t->srcF = crom_malloc(sizeof(int) * (size_t)S->F);
-    if (!t->srcFoff || !t->srcF)
-        return CROM_EINTERNAL;
-    for (int f = 0; f < S->F; f++)
-        t->srcFoff[S->source[f] + 1]++;
-    for (int k = 0; k < ns; k++)
-        t->srcFoff[k + 1] += t->srcFoff[k];
-    {
-        int *fill = crom_calloc((size_t)ns, sizeof(int));
-        if (!fill)
-            return CROM_EINTERNAL;
-        for (int f = 0; f < S->F; f++) {
-            int k = S->source[f];
-            t->srcF[t->srcFoff[k] + fill[k]++] = f;
-        }
-        free(fill);
-    }
+    int rc = group_by_source(t);
+    if (rc)
+        return rc;
     /* shared points: vertex samples that cover at least a quarter of each mesh */
     t->shared = 1;
     for (size_t i = 0; i < (size_t)S->F * S->N && t->shared; i++)
         if (S->vertex[i] < 0)
             t->shared = 0;
-    for (int k = 0; k < ns && t->shared; k++)
+    for (int k = 0; k < S->nsources && t->shared; k++)
         if (t->srcFoff[k + 1] > t->srcFoff[k] && 4L * S->N < S->src[k].nv)
             t->shared = 0;
     t->permN = crom_malloc(sizeof(int) * (size_t)S->N);
@@ -481,79 +607,14 @@ static int trainer_init(trainer *t, const crom_samples *S, const crom_fit_opts *
         return CROM_EINTERNAL;
     for (int i = 0; i < S->N; i++)
         t->permN[i] = t->permE[i] = i;
-    int B = t->B;
     if (t->shared) {
-        t->xoff = crom_malloc(sizeof(size_t) * (size_t)ns);
-        t->vsz = crom_malloc(sizeof(int) * (size_t)ns);
-        if (!t->xoff || !t->vsz)
-            return CROM_EINTERNAL;
-        size_t tot = 0;
-        int maxv = 0;
-        for (int k = 0; k < ns; k++) {
-            t->xoff[k] = tot;
-            tot += (size_t)S->src[k].nv;
-        }
-        t->Xsrc = crom_malloc(sizeof(float) * 3 * (tot ? tot : 1));
-        t->perm = crom_malloc(sizeof(int) * (tot ? tot : 1));
-        t->sv = crom_malloc(sizeof(int) * (size_t)S->F * S->N);
-        t->si = crom_malloc(sizeof(int) * (size_t)S->F * S->N);
-        vpair *tmp = crom_malloc(sizeof(vpair) * (size_t)S->N);
-        if (!t->Xsrc || !t->perm || !t->sv || !t->si || !tmp) {
-            free(tmp);
-            return CROM_EINTERNAL;
-        }
-        for (int k = 0; k < ns; k++) {
-            const crom_mesh *m = &S->src[k];
-            for (size_t i = 0; i < 3 * (size_t)m->nv; i++)
-                t->Xsrc[3 * t->xoff[k] + i] = (float)m->X[i];
-            for (int i = 0; i < m->nv; i++)
-                t->perm[t->xoff[k] + i] = i;
-            double v = ceil((double)t->P * m->nv / S->N);
-            t->vsz[k] = v < m->nv ? (int)v : m->nv;
-            if (t->srcFoff[k + 1] > t->srcFoff[k] && t->vsz[k] > maxv)
-                maxv = t->vsz[k];
-        }
-        for (int f = 0; f < S->F; f++) {
-            const int *vx = S->vertex + (size_t)f * S->N;
-            for (int i = 0; i < S->N; i++)
-                tmp[i] = (vpair){vx[i], i};
-            qsort(tmp, (size_t)S->N, sizeof *tmp, cmp_vpair);
-            for (int i = 0; i < S->N; i++) {
-                t->sv[(size_t)f * S->N + i] = tmp[i].v;
-                t->si[(size_t)f * S->N + i] = tmp[i].i;
-            }
-        }
-        free(tmp);
-        t->Vbuf = crom_malloc(sizeof(int) * (size_t)(maxv ? maxv : 1));
-        if (!t->Vbuf)
-            return CROM_EINTERNAL;
-        t->maxrows = maxv;
-        t->maxcells = maxv * B;
+        if ((rc = init_shared(t)))
+            return rc;
     } else {
-        t->maxrows = B * t->P;
-        t->maxcells = B * t->P;
+        t->maxrows = t->B * t->P;
+        t->maxcells = t->B * t->P;
     }
-    /* batch buffers */
-    crom_fit_batch *b = &t->b;
-    int maxgroups = t->shared ? 1 : B;
-    b->rows = crom_malloc(sizeof(int) * (size_t)maxgroups);
-    b->frames = crom_malloc(sizeof(int) * (size_t)maxgroups);
-    b->dense = crom_malloc(sizeof(int) * (size_t)maxgroups);
-    b->X = crom_malloc(sizeof(float) * 3 * (size_t)t->maxrows);
-    b->U = crom_malloc(sizeof(double) * 3 * (size_t)t->maxcells);
-    b->M = crom_malloc(sizeof(double) * (size_t)t->maxcells);
-    b->frame_id = crom_malloc(sizeof(int) * (size_t)B);
-    if (pn)
-        b->enc = crom_malloc(sizeof(float) * 6 * (size_t)B * t->Pe);
-    b->enc_points = t->Pe;
-    t->order = crom_malloc(sizeof(int) * (size_t)S->F);
-    t->maxbatches = S->F + ns + 1;
-    t->bstart = crom_malloc(sizeof(int) * ((size_t)t->maxbatches + 1));
-    t->border = crom_malloc(sizeof(int) * ((size_t)t->maxbatches + 1));
-    if (!b->rows || !b->frames || !b->dense || !b->X || !b->U || !b->M || !b->frame_id ||
-        (pn && !b->enc) || !t->order || !t->bstart || !t->border)
-        return CROM_EINTERNAL;
-    return 0;
+    return alloc_batches(t, pn);
 }
 
 /* The batches of one epoch: frames shuffled (within each source in shared
@@ -870,117 +931,160 @@ static int rotate_by_variance(const double *q, int F, int r, crom_nn_mlp *W, cro
     return rc;
 }
 
-int crom_fit_mlp(const crom_samples *S, const crom_fit_opts *opts, crom_model *out)
-{
-    crom_model_clear(out);
-    crom_fit_opts o = *opts;
-    int pn = o.encoder == CROM_ENC_POINTNET;
-    if (o.epochs <= 0)
-        o.epochs = pn ? CROM_FIT_EPOCHS_POINTNET : CROM_FIT_EPOCHS_LSQ;
-    if (o.lr <= 0)
-        o.lr = pn ? CROM_FIT_LR_POINTNET : CROM_FIT_LR_LSQ;
-    if (o.rank < 1 || o.depth < 2 || o.depth > CROM_NN_MAX_LAYERS || o.width < 1 || o.batch < 1 ||
-        !(o.lr > 0) || o.enc_points < 1 || o.threads < 1 || !(o.tikhonov >= 0))
-        return crom_err(CROM_EUSAGE, "invalid training options");
-    int rc = crom_fit_check(S, o.rank);
-    if (rc)
-        return rc;
-    double t0 = crom_now();
-    if (o.threads > 1)
-        openblas_set_num_threads(1);
+/* One training run of crom_fit_mlp: the options with the encoder's
+ * defaults resolved, the batches, the networks and their parameters, the
+ * loss and the optimizer, and what the run records. */
+typedef struct {
+    crom_fit_opts o;
+    int pn;               /* a PointNet encoder is trained with the field */
     trainer t;
     crom_nn_mlp W;
     crom_nn_pointnet P;
+    size_t nW, nP;        /* parameters of W and of P */
+    float *params, *grad; /* [nW + nP] */
     crom_fit_ctx ctx;
     crom_nn_adam adam;
-    memset(&W, 0, sizeof W);
-    memset(&P, 0, sizeof P);
-    memset(&ctx, 0, sizeof ctx);
-    memset(&adam, 0, sizeof adam);
-    float *params = NULL, *grad = NULL;
-    double *Qall = NULL, *loss = NULL, *secs = NULL;
-    if ((rc = trainer_init(&t, S, &o)))
-        goto done;
-    /* networks: W: 3 -> width x (depth-1) -> 3r; P: 6 -> 64 -> 128 -> 256, 256 -> 128 -> 64 -> r */
+    double *loss, *secs;  /* [o.epochs] per epoch: mean misfit (m²), wall time */
+    int epochs_done;
+    crom_fit_stats st;
+} fitrun;
+
+static void fitrun_free(fitrun *R)
+{
+    free(R->loss);
+    free(R->secs);
+    crom_nn_adam_free(&R->adam);
+    crom_fit_ctx_free(&R->ctx);
+    crom_nn_pointnet_free(&R->P);
+    crom_nn_mlp_free(&R->W);
+    free(R->params);
+    free(R->grad);
+    trainer_free(&R->t);
+}
+
+/* The networks, initialized from o.seed: W: 3 -> width x (depth-1) -> 3r;
+ * P: 6 -> 64 -> 128 -> 256, 256 -> 128 -> 64 -> r. */
+static int make_networks(fitrun *R)
+{
+    const crom_fit_opts *o = &R->o;
     crom_nn_spec ws_, ps, hs;
-    int widths[CROM_NN_MAX_LAYERS + 1];
+    int widths[CROM_NN_MAX_LAYERS + 1], rc;
     widths[0] = 3;
-    for (int l = 1; l < o.depth; l++)
-        widths[l] = o.width;
-    widths[o.depth] = 3 * o.rank;
-    if ((rc = crom_nn_spec_set(&ws_, o.depth + 1, widths, o.act)))
-        goto done;
+    for (int l = 1; l < o->depth; l++)
+        widths[l] = o->width;
+    widths[o->depth] = 3 * o->rank;
+    if ((rc = crom_nn_spec_set(&ws_, o->depth + 1, widths, o->act)))
+        return rc;
     static const int pw[] = {6, 64, 128, 256};
-    int hw[] = {256, 128, 64, o.rank};
-    size_t nW = crom_nn_spec_nparams(&ws_), nP = 0;
-    if (pn) {
+    int hw[] = {256, 128, 64, o->rank};
+    R->nW = crom_nn_spec_nparams(&ws_);
+    R->nP = 0;
+    if (R->pn) {
         if ((rc = crom_nn_pointnet_spec(&ps, &hs, 4, pw, 4, hw)))
-            goto done;
-        nP = crom_nn_pointnet_nparams(&ps, &hs);
+            return rc;
+        R->nP = crom_nn_pointnet_nparams(&ps, &hs);
     }
-    params = crom_calloc(nW + nP, sizeof(float));
-    grad = crom_calloc(nW + nP, sizeof(float));
-    if (!params || !grad) {
-        rc = CROM_EINTERNAL;
-        goto done;
-    }
+    R->params = crom_calloc(R->nW + R->nP, sizeof(float));
+    R->grad = crom_calloc(R->nW + R->nP, sizeof(float));
+    if (!R->params || !R->grad)
+        return CROM_EINTERNAL;
     crom_rng irng;
-    crom_rng_seed(&irng, o.seed);
-    if ((rc = crom_nn_mlp_init(&W, &ws_, params, &irng)))
-        goto done;
-    if (pn && (rc = crom_nn_pointnet_init(&P, &ps, &hs, params + nW, &irng)))
-        goto done;
-    /* input normalization: the bounding box of every sample point (and of
-     * the scaled u for P), given to crom_nn_norm_fit as its two corners */
-    {
-        size_t n = (size_t)S->F * S->N;
-        double box[12];
-        for (int d = 0; d < 6; d++) {
-            box[d] = INFINITY;
-            box[6 + d] = -INFINITY;
+    crom_rng_seed(&irng, o->seed);
+    if ((rc = crom_nn_mlp_init(&R->W, &ws_, R->params, &irng)))
+        return rc;
+    if (R->pn && (rc = crom_nn_pointnet_init(&R->P, &ps, &hs, R->params + R->nW, &irng)))
+        return rc;
+    return 0;
+}
+
+/* Input normalization: the bounding box of every sample point (and of
+ * the scaled u for P), given to crom_nn_norm_fit as its two corners. */
+static int set_input_norm(fitrun *R, const crom_samples *S)
+{
+    size_t n = (size_t)S->F * S->N;
+    double box[12];
+    for (int d = 0; d < 6; d++) {
+        box[d] = INFINITY;
+        box[6 + d] = -INFINITY;
+    }
+    for (size_t i = 0; i < n; i++)
+        for (int d = 0; d < 3; d++) {
+            double x = S->X[3 * i + d], u = S->U[3 * i + d] / R->t.s;
+            box[d] = fmin(box[d], x);
+            box[6 + d] = fmax(box[6 + d], x);
+            box[3 + d] = fmin(box[3 + d], u);
+            box[9 + d] = fmax(box[9 + d], u);
         }
-        for (size_t i = 0; i < n; i++)
-            for (int d = 0; d < 3; d++) {
-                double x = S->X[3 * i + d], u = S->U[3 * i + d] / t.s;
-                box[d] = fmin(box[d], x);
-                box[6 + d] = fmax(box[6 + d], x);
-                box[3 + d] = fmin(box[3 + d], u);
-                box[9 + d] = fmax(box[9 + d], u);
-            }
-        float sh[6], sc[6];
-        double xb[6] = {box[0], box[1], box[2], box[6], box[7], box[8]};
-        rc = crom_nn_norm_fit(xb, 2, 3, sh, sc);
+    float sh[6], sc[6];
+    double xb[6] = {box[0], box[1], box[2], box[6], box[7], box[8]};
+    int rc = crom_nn_norm_fit(xb, 2, 3, sh, sc);
+    if (!rc)
+        rc = crom_nn_mlp_set_norm(&R->W, sh, sc);
+    if (!rc && R->pn) {
+        rc = crom_nn_norm_fit(box, 2, 6, sh, sc);
         if (!rc)
-            rc = crom_nn_mlp_set_norm(&W, sh, sc);
-        if (!rc && pn) {
-            rc = crom_nn_norm_fit(box, 2, 6, sh, sc);
-            if (!rc)
-                rc = crom_nn_mlp_set_norm(&P.point, sh, sc);
-        }
-        if (rc)
-            goto done;
+            rc = crom_nn_mlp_set_norm(&R->P.point, sh, sc);
     }
-    if ((rc = crom_fit_ctx_init(&ctx, &W, pn ? &P : NULL, t.maxrows, t.B, t.maxcells,
-                                pn ? t.Pe : 1, o.tikhonov, o.threads)))
-        goto done;
-    if ((rc = crom_nn_adam_init(&adam, nW + nP)))
-        goto done;
-    loss = crom_malloc(sizeof(double) * (size_t)o.epochs);
-    secs = crom_malloc(sizeof(double) * (size_t)o.epochs);
-    if (!loss || !secs) {
-        rc = CROM_EINTERNAL;
-        goto done;
+    return rc;
+}
+
+/* The loss, the optimizer and the per-epoch log. */
+static int make_optimizer(fitrun *R)
+{
+    const crom_fit_opts *o = &R->o;
+    int rc = crom_fit_ctx_init(&R->ctx, &R->W, R->pn ? &R->P : NULL, R->t.maxrows, R->t.B, R->t.maxcells,
+                               R->pn ? R->t.Pe : 1, o->tikhonov, o->threads);
+    if (rc || (rc = crom_nn_adam_init(&R->adam, R->nW + R->nP)))
+        return rc;
+    R->loss = crom_malloc(sizeof(double) * (size_t)o->epochs);
+    R->secs = crom_malloc(sizeof(double) * (size_t)o->epochs);
+    return R->loss && R->secs ? 0 : CROM_EINTERNAL;
+}
+
+/* One step on batch bj of the epoch's plan (epoch e) at learning rate lr:
+ * the loss and its gradient, one Adam step, the counts of the run; *mis
+ * gets the batch's misfit. */
+static int train_batch(fitrun *R, int bj, int e, double lr, double *mis)
+{
+    trainer *t = &R->t;
+    build_batch(t, t->order + t->bstart[bj], t->bstart[bj + 1] - t->bstart[bj]);
+    double obj;
+    int rc = crom_fit_loss(&R->ctx, &t->b, &obj, mis, R->grad, NULL);
+    if (rc)
+        return rc;
+    if (!isfinite(obj))
+        return crom_err(CROM_EDATA, "training diverged (loss %g at epoch %d): try a smaller --lr", obj, e + 1);
+    crom_nn_adam_step(&R->adam, R->params, R->grad, lr);
+    R->st.steps++;
+    R->st.rows += t->b.nrows;
+    for (int g = 0, c0 = 0; g < t->b.ngroups; g++) {
+        int nc = t->b.rows[g] * t->b.frames[g];
+        if (t->b.dense[g])
+            R->st.samples += nc;
+        else
+            for (int i = 0; i < nc; i++)
+                R->st.samples += t->b.M[c0 + i];
+        c0 += nc;
     }
-    /* the loop */
-    double budget = o.minutes > 0 ? 60 * o.minutes : 0, tstart = crom_now();
-    crom_fit_stats st = {0, 0, 0, 0};
-    int epochs_done = 0, stop = 0;
-    for (int e = 0; e < o.epochs && !stop; e++) {
-        plan_epoch(&t);
+    return 0;
+}
+
+/* Epochs until o.epochs or the wall-time budget; the learning rate
+ * follows the LiCROM step schedule over the fraction of the run done,
+ * max(epoch / epochs, elapsed / budget). Each epoch's mean misfit goes to
+ * the log and to o.progress. */
+static int train(fitrun *R)
+{
+    const crom_fit_opts *o = &R->o;
+    trainer *t = &R->t;
+    double budget = o->minutes > 0 ? 60 * o->minutes : 0, tstart = crom_now();
+    int stop = 0, rc;
+    for (int e = 0; e < o->epochs && !stop; e++) {
+        plan_epoch(t);
         double sum = 0;
         int nsum = 0;
-        for (int k = 0; k < t.nbatches; k++) {
-            double frac = (e + (double)k / t.nbatches) / o.epochs;
+        for (int k = 0; k < t->nbatches; k++) {
+            double frac = (e + (double)k / t->nbatches) / o->epochs;
             double el = crom_now() - tstart;
             if (budget > 0) {
                 if (el >= budget) {
@@ -989,109 +1093,174 @@ int crom_fit_mlp(const crom_samples *S, const crom_fit_opts *opts, crom_model *o
                 }
                 frac = fmax(frac, el / budget);
             }
-            int ev = (int)floor(frac * o.epochs);
-            double lr = crom_nn_lr_schedule(o.lr, ev < o.epochs ? ev : o.epochs - 1, o.epochs);
-            int bj = t.border[k];
-            build_batch(&t, t.order + t.bstart[bj], t.bstart[bj + 1] - t.bstart[bj]);
-            double obj, mis;
-            if ((rc = crom_fit_loss(&ctx, &t.b, &obj, &mis, grad, NULL)))
-                goto done;
-            if (!isfinite(obj)) {
-                rc = crom_err(CROM_EDATA, "training diverged (loss %g at epoch %d): try a smaller --lr",
-                              obj, e + 1);
-                goto done;
-            }
-            crom_nn_adam_step(&adam, params, grad, lr);
+            int ev = (int)floor(frac * o->epochs);
+            double lr = crom_nn_lr_schedule(o->lr, ev < o->epochs ? ev : o->epochs - 1, o->epochs);
+            double mis;
+            if ((rc = train_batch(R, t->border[k], e, lr, &mis)))
+                return rc;
             sum += mis;
             nsum++;
-            st.steps++;
-            st.rows += t.b.nrows;
-            for (int g = 0, c0 = 0; g < t.b.ngroups; g++) {
-                int nc = t.b.rows[g] * t.b.frames[g];
-                if (t.b.dense[g])
-                    st.samples += nc;
-                else
-                    for (int i = 0; i < nc; i++)
-                        st.samples += t.b.M[c0 + i];
-                c0 += nc;
-            }
         }
         if (nsum == 0)
             break;
-        loss[epochs_done] = sum / nsum * t.s * t.s;
-        secs[epochs_done] = crom_wall(crom_now() - tstart);
-        epochs_done++;
-        if (o.progress) {
-            double frac = (double)(e + 1) / o.epochs;
+        R->loss[R->epochs_done] = sum / nsum * t->s * t->s;
+        R->secs[R->epochs_done] = crom_wall(crom_now() - tstart);
+        R->epochs_done++;
+        if (o->progress) {
+            double frac = (double)(e + 1) / o->epochs;
             if (budget > 0)
                 frac = fmax(frac, (crom_now() - tstart) / budget);
-            o.progress(o.progress_ctx, e + 1, fmin(frac, 1.0), loss[epochs_done - 1]);
+            o->progress(o->progress_ctx, e + 1, fmin(frac, 1.0), R->loss[R->epochs_done - 1]);
         }
     }
-    st.seconds = crom_now() - tstart;
-    if (o.stats)
-        *o.stats = st;
-    /* q in metres: the encoder's output and u input carry the scale s */
-    if (pn) {
-        double *A = crom_calloc((size_t)o.rank * o.rank, sizeof(double));
-        if (!A) {
-            rc = CROM_EINTERNAL;
-            goto done;
-        }
-        for (int k = 0; k < o.rank; k++)
-            A[k * o.rank + k] = t.s;
-        fold_head(&P, A, o.rank);
-        free(A);
-        float sh[6], sc[6];
-        for (int d = 0; d < 6; d++) {
-            sh[d] = P.point.shift[d] * (float)(d >= 3 ? t.s : 1);
-            sc[d] = P.point.scale[d] * (float)(d >= 3 ? t.s : 1);
-        }
-        crom_nn_mlp_set_norm(&P.point, sh, sc);
+    R->st.seconds = crom_now() - tstart;
+    return 0;
+}
+
+/* q in metres: the encoder's output and u input carry the scale s. */
+static int unscale_encoder(fitrun *R)
+{
+    int r = R->o.rank;
+    double s = R->t.s;
+    double *A = crom_calloc((size_t)r * r, sizeof(double));
+    if (!A)
+        return CROM_EINTERNAL;
+    for (int k = 0; k < r; k++)
+        A[k * r + k] = s;
+    fold_head(&R->P, A, r);
+    free(A);
+    float sh[6], sc[6];
+    for (int d = 0; d < 6; d++) {
+        sh[d] = R->P.point.shift[d] * (float)(d >= 3 ? s : 1);
+        sc[d] = R->P.point.scale[d] * (float)(d >= 3 ? s : 1);
     }
-    /* canonical basis: orthonormal over the points, ordered by variance */
-    if ((rc = orthonormalize(&t, &W, pn ? &P : NULL)))
-        goto done;
-    Qall = crom_malloc(sizeof(double) * (size_t)S->F * o.rank);
-    if (!Qall) {
-        rc = CROM_EINTERNAL;
-        goto done;
-    }
+    crom_nn_mlp_set_norm(&R->P.point, sh, sc);
+    return 0;
+}
+
+/* Canonical basis: orthonormal over the points, then rotated to the
+ * principal axes of the frames' latents, ordered by variance. */
+static int canonicalize(fitrun *R, const crom_samples *S)
+{
+    int rc = orthonormalize(&R->t, &R->W, R->pn ? &R->P : NULL);
+    if (rc)
+        return rc;
+    double *Qall = crom_malloc(sizeof(double) * (size_t)S->F * R->o.rank);
+    if (!Qall)
+        return CROM_EINTERNAL;
     crom_model tmp;
     double err;
-    if ((rc = crom_model_from_mlp(&tmp, &W, pn ? &P : NULL)))
-        goto done;
-    rc = crom_fit_error(&tmp, S, o.tikhonov, pn, t.Pe ? t.Pe : 1, &err, NULL, Qall);
+    if ((rc = crom_model_from_mlp(&tmp, &R->W, R->pn ? &R->P : NULL))) {
+        free(Qall);
+        return rc;
+    }
+    rc = crom_fit_error(&tmp, S, R->o.tikhonov, R->pn, R->t.Pe ? R->t.Pe : 1, &err, NULL, Qall);
     crom_model_free(&tmp);
-    if (rc || (rc = rotate_by_variance(Qall, S->F, o.rank, &W, pn ? &P : NULL)))
-        goto done;
-    if ((rc = crom_model_from_mlp(out, &W, pn ? &P : NULL)))
-        goto done;
-    if ((rc = crom_fit_error(out, S, o.tikhonov, pn, t.Pe ? t.Pe : 1, &err, NULL, NULL))) {
+    if (!rc)
+        rc = rotate_by_variance(Qall, S->F, R->o.rank, &R->W, R->pn ? &R->P : NULL);
+    free(Qall);
+    return rc;
+}
+
+/* The trained model into out, with its reconstruction error over S and
+ * the training log (taken from R); t0 is when the run started. */
+static int make_model(fitrun *R, const crom_samples *S, double t0, crom_model *out)
+{
+    double err;
+    int rc = crom_model_from_mlp(out, &R->W, R->pn ? &R->P : NULL);
+    if (rc)
+        return rc;
+    if ((rc = crom_fit_error(out, S, R->o.tikhonov, R->pn, R->t.Pe ? R->t.Pe : 1, &err, NULL, NULL))) {
         crom_model_free(out);
-        goto done;
+        return rc;
     }
     out->reconstruction_error = err;
-    out->nepochs = epochs_done;
-    out->loss = loss;
-    out->seconds = secs;
-    loss = secs = NULL;
+    out->nepochs = R->epochs_done;
+    out->loss = R->loss;
+    out->seconds = R->secs;
+    R->loss = R->secs = NULL;
     out->training_seconds = crom_wall(crom_now() - t0);
-done:
-    free(loss);
-    free(secs);
-    free(Qall);
-    crom_nn_adam_free(&adam);
-    crom_fit_ctx_free(&ctx);
-    crom_nn_pointnet_free(&P);
-    crom_nn_mlp_free(&W);
-    free(params);
-    free(grad);
-    trainer_free(&t);
+    return 0;
+}
+
+int crom_fit_mlp(const crom_samples *S, const crom_fit_opts *opts, crom_model *out)
+{
+    crom_model_clear(out);
+    fitrun R;
+    memset(&R, 0, sizeof R);
+    crom_fit_opts *o = &R.o;
+    *o = *opts;
+    R.pn = o->encoder == CROM_ENC_POINTNET;
+    if (o->epochs <= 0)
+        o->epochs = R.pn ? CROM_FIT_EPOCHS_POINTNET : CROM_FIT_EPOCHS_LSQ;
+    if (o->lr <= 0)
+        o->lr = R.pn ? CROM_FIT_LR_POINTNET : CROM_FIT_LR_LSQ;
+    if (o->rank < 1 || o->depth < 2 || o->depth > CROM_NN_MAX_LAYERS || o->width < 1 || o->batch < 1 ||
+        !(o->lr > 0) || o->enc_points < 1 || o->threads < 1 || !(o->tikhonov >= 0))
+        return crom_err(CROM_EUSAGE, "invalid training options");
+    int rc = crom_fit_check(S, o->rank);
+    if (rc)
+        return rc;
+    double t0 = crom_now();
+    /* threaded MLP passes call sgemm per thread: OpenBLAS single-threaded
+     * meanwhile (nn.h), the caller's setting restored on return */
+    int blas_threads = openblas_get_num_threads(), threaded = o->threads > 1;
+    if (threaded)
+        openblas_set_num_threads(1);
+    if (!(rc = trainer_init(&R.t, S, o)) && !(rc = make_networks(&R)) && !(rc = set_input_norm(&R, S)) &&
+        !(rc = make_optimizer(&R)) && !(rc = train(&R))) {
+        if (o->stats)
+            *o->stats = R.st;
+        if (!(rc = R.pn ? unscale_encoder(&R) : 0) && !(rc = canonicalize(&R, S)))
+            rc = make_model(&R, S, t0, out);
+    }
+    fitrun_free(&R);
+    if (threaded)
+        openblas_set_num_threads(blas_threads);
     return rc;
 }
 
 /* ============================================================ POD */
+
+/* The frames of S (every vertex once in each: CROM_EDATA otherwise) as
+ * snapshots in vertex order: U [F][3nv] the displacements, Y the same
+ * weighted by sqrt(w_v / vol), w the vertex volumes; seen [nv] scratch. */
+static int pod_snapshots(const crom_samples *S, const double *w, double vol, unsigned char *seen, double *U,
+                         double *Y)
+{
+    int nv = S->N;
+    size_t n3 = 3 * (size_t)nv;
+    for (int f = 0; f < S->F; f++) {
+        memset(seen, 0, (size_t)nv);
+        for (int i = 0; i < nv; i++) {
+            int v = S->vertex[(size_t)f * nv + i];
+            if (v < 0 || seen[v])
+                return crom_err(CROM_EDATA, "--basis pod needs every vertex in every frame "
+                                            "(crom-sample --points all); frame %d lacks some", f);
+            seen[v] = 1;
+            for (int d = 0; d < 3; d++) {
+                double u = S->U[((size_t)f * nv + i) * 3 + d];
+                U[(size_t)f * n3 + 3 * (size_t)v + d] = u;
+                Y[(size_t)f * n3 + 3 * (size_t)v + d] = u * sqrt(w[v] / vol);
+            }
+        }
+    }
+    return 0;
+}
+
+/* Each column of A [n][r] signed so that its largest entry is positive. */
+static void sign_columns(double *A, size_t n, int r)
+{
+    for (int j = 0; j < r; j++) {
+        size_t big = 0;
+        for (size_t i = 0; i < n; i++)
+            if (fabs(A[i * r + j]) > fabs(A[big * r + j]))
+                big = i;
+        if (A[big * r + j] < 0)
+            for (size_t i = 0; i < n; i++)
+                A[i * r + j] = -A[i * r + j];
+    }
+}
 
 int crom_fit_pod(const crom_samples *S, int rank, crom_model *out, double *captured)
 {
@@ -1125,24 +1294,7 @@ int crom_fit_pod(const crom_samples *S, int rank, crom_model *out, double *captu
         goto done;
     }
     double vol = crom_vertex_volumes(m, w);
-    for (int f = 0; f < F && !rc; f++) {
-        memset(seen, 0, (size_t)nv);
-        for (int i = 0; i < nv; i++) {
-            int v = S->vertex[(size_t)f * nv + i];
-            if (v < 0 || seen[v]) {
-                rc = crom_err(CROM_EDATA, "--basis pod needs every vertex in every frame "
-                                          "(crom-sample --points all); frame %d lacks some", f);
-                break;
-            }
-            seen[v] = 1;
-            for (int d = 0; d < 3; d++) {
-                double u = S->U[((size_t)f * nv + i) * 3 + d];
-                U[(size_t)f * n3 + 3 * (size_t)v + d] = u;
-                Y[(size_t)f * n3 + 3 * (size_t)v + d] = u * sqrt(w[v] / vol);
-            }
-        }
-    }
-    if (rc)
+    if ((rc = pod_snapshots(S, w, vol, seen, U, Y)))
         goto done;
     /* Gram matrix of the weighted snapshots and its eigenvectors */
     cblas_dsyrk(CblasRowMajor, CblasUpper, CblasNoTrans, F, (int)n3, 1.0, Y, (int)n3, 0.0, K, F);
@@ -1175,15 +1327,7 @@ int crom_fit_pod(const crom_samples *S, int rank, crom_model *out, double *captu
     /* Phi = U^T V Lambda^{-1/2}: M-orthonormal modes, [3nv][r] */
     cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, (int)n3, rank, F, 1.0, U, (int)n3, Vr,
                 rank, 0.0, Phi, rank);
-    for (int j = 0; j < rank; j++) {
-        size_t big = 0;
-        for (size_t i = 0; i < n3; i++)
-            if (fabs(Phi[i * rank + j]) > fabs(Phi[big * rank + j]))
-                big = i;
-        if (Phi[big * rank + j] < 0)
-            for (size_t i = 0; i < n3; i++)
-                Phi[i * rank + j] = -Phi[i * rank + j];
-    }
+    sign_columns(Phi, n3, rank);
     if ((rc = crom_model_from_mesh(out, "pod", m, Phi, rank)))
         goto done;
     double err;

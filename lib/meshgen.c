@@ -756,52 +756,42 @@ int crom_meshgen_plan(crom_meshgen_opts *o, crom_meshgen_plan_info *info)
     return 0;
 }
 
-int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m)
+/* What a shape starts from before gmsh: an imported .stl/.obj surface
+ * (closed) or a superquadric's skin into s; *import_groups for a .msh or
+ * .geo file gmsh reads itself. */
+static int shape_input(const crom_meshgen_opts *o, surf *s, int *import_groups)
 {
-    memset(m, 0, sizeof *m);
-    int rc = check_opts(o), ierr = 0;
-    if (rc)
-        return rc;
-    surf s = {0};
-    int import_groups = 0;
+    int rc;
+    *import_groups = 0;
     if (o->shape == CROM_SHAPE_IMPORT) {
         struct stat st;
         if (stat(o->file, &st) != 0) /* gmshOpen is silent on missing files */
             return crom_err(CROM_ENOINPUT, "%s: %s", o->file, strerror(errno));
         if (ends_with(o->file, ".stl") || ends_with(o->file, ".obj")) {
-            if ((rc = crom_surface_read(o->file, &s.nv, &s.V, &s.nt, &s.T)))
+            if ((rc = crom_surface_read(o->file, &s->nv, &s->V, &s->nt, &s->T)))
                 return rc;
-            s.capv = s.nv;
-            s.capt = s.nt;
-            if ((rc = crom_surface_check_closed(s.nv, s.nt, s.T, o->file))) {
-                free(s.V);
-                free(s.T);
-                return rc;
-            }
-        } else if (ends_with(o->file, ".msh") || ends_with(o->file, ".geo")) {
-            import_groups = 1;
-        } else {
-            return crom_err(CROM_EUSAGE, "%s: unknown format (expected .stl, .obj, .msh or .geo)", o->file);
+            s->capv = s->nv;
+            s->capt = s->nt;
+            return crom_surface_check_closed(s->nv, s->nt, s->T, o->file);
         }
-    } else if (o->shape == CROM_SHAPE_SUPERQUADRIC) {
+        if (ends_with(o->file, ".msh") || ends_with(o->file, ".geo")) {
+            *import_groups = 1;
+            return 0;
+        }
+        return crom_err(CROM_EUSAGE, "%s: unknown format (expected .stl, .obj, .msh or .geo)", o->file);
+    }
+    if (o->shape == CROM_SHAPE_SUPERQUADRIC) {
         double half[3] = {o->dims[0] / 2, o->dims[1] / 2, o->dims[2] / 2};
-        if ((rc = superquadric_skin(half, o->exponent, o->size, &s)))
-            return rc;
+        return superquadric_skin(half, o->exponent, o->size, s);
     }
+    return 0;
+}
 
-    if ((rc = crom_gmsh_begin(o->log))) {
-        free(s.V);
-        free(s.T);
-        return rc;
-    }
-    gmshModelAdd("crom", &ierr);
-    gmshOptionSetNumber("Mesh.MeshSizeMax", o->size, &ierr);
-    gmshOptionSetNumber("Mesh.MeshSizeMin", o->size * 0.25, &ierr);
-    gmshOptionSetNumber("Mesh.MeshSizeFromCurvature", 0, &ierr);
-    gmshOptionSetNumber("Mesh.MeshSizeFromPoints", 0, &ierr);
-    gmshOptionSetNumber("Mesh.Algorithm3D", o->algorithm, &ierr);
-    gmshOptionSetNumber("Mesh.Optimize", o->optimize, &ierr);
-
+/* The geometry of the shape in the current gmsh model: an OpenCASCADE
+ * solid, a volume bounded by the surface s, or the file gmsh reads. */
+static int make_geometry(const crom_meshgen_opts *o, surf *s, int import_groups)
+{
+    int ierr = 0, rc = 0;
     const double *d = o->dims;
     switch (o->shape) {
     case CROM_SHAPE_BOX:
@@ -822,8 +812,7 @@ int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m)
         G(gmshModelOccSynchronize(&ierr), "synchronize");
         break;
     case CROM_SHAPE_SUPERQUADRIC:
-        if ((rc = gmsh_volume_from_surface(&s, 0)))
-            goto out;
+        rc = gmsh_volume_from_surface(s, 0);
         break;
     case CROM_SHAPE_IMPORT:
         if (import_groups) {
@@ -836,41 +825,67 @@ int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m)
              * the target, whose kept triangles would make a far finer mesh */
             int remesh = o->remesh;
             if (remesh == CROM_REMESH_AUTO) {
-                double med = median_edge(&s);
-                if (med < 0) {
-                    rc = crom_err(CROM_EINTERNAL, "out of memory");
-                    goto out;
-                }
+                double med = median_edge(s);
+                if (med < 0)
+                    return crom_err(CROM_EINTERNAL, "out of memory");
                 remesh = much_finer(med, o->size);
             }
-            if (!remesh && (rc = refine_to(&s, o->size)))
-                goto out;
-            if ((rc = gmsh_volume_from_surface(&s, remesh)))
-                goto out;
+            if (!remesh && (rc = refine_to(s, o->size)))
+                return rc;
+            rc = gmsh_volume_from_surface(s, remesh);
         }
         break;
     }
-    /* a .msh may already hold a volume mesh: keep it rather than remesh */
-    int have_tets = 0;
-    if (import_groups) {
-        int *types = NULL;
-        size_t nty = 0;
-        size_t **et = NULL, *etn = NULL, net = 0, **en = NULL, *enn = NULL, nen = 0;
-        gmshModelMeshGetElements(&types, &nty, &et, &etn, &net, &en, &enn, &nen, 3, -1, &ierr);
-        for (size_t i = 0; i < nty; i++)
-            if (types[i] == 4 && etn[i] > 0)
-                have_tets = 1;
-        for (size_t i = 0; i < net; i++)
-            gmshFree(et[i]);
-        for (size_t i = 0; i < nen; i++)
-            gmshFree(en[i]);
-        if (types) gmshFree(types);
-        if (et) gmshFree(et);
-        if (etn) gmshFree(etn);
-        if (en) gmshFree(en);
-        if (enn) gmshFree(enn);
+out:
+    return rc;
+}
+
+/* 1 when the current gmsh model already holds tets (a .msh volume mesh). */
+static int have_tets(void)
+{
+    int ierr = 0, *types = NULL, found = 0;
+    size_t nty = 0;
+    size_t **et = NULL, *etn = NULL, net = 0, **en = NULL, *enn = NULL, nen = 0;
+    gmshModelMeshGetElements(&types, &nty, &et, &etn, &net, &en, &enn, &nen, 3, -1, &ierr);
+    for (size_t i = 0; i < nty; i++)
+        if (types[i] == 4 && etn[i] > 0)
+            found = 1;
+    for (size_t i = 0; i < net; i++)
+        gmshFree(et[i]);
+    for (size_t i = 0; i < nen; i++)
+        gmshFree(en[i]);
+    if (types) gmshFree(types);
+    if (et) gmshFree(et);
+    if (etn) gmshFree(etn);
+    if (en) gmshFree(en);
+    if (enn) gmshFree(enn);
+    return found;
+}
+
+int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m)
+{
+    memset(m, 0, sizeof *m);
+    int rc = check_opts(o), ierr = 0;
+    if (rc)
+        return rc;
+    surf s = {0};
+    int import_groups;
+    if ((rc = shape_input(o, &s, &import_groups)) || (rc = crom_gmsh_begin(o->log))) {
+        free(s.V);
+        free(s.T);
+        return rc;
     }
-    if (!have_tets)
+    gmshModelAdd("crom", &ierr);
+    gmshOptionSetNumber("Mesh.MeshSizeMax", o->size, &ierr);
+    gmshOptionSetNumber("Mesh.MeshSizeMin", o->size * 0.25, &ierr);
+    gmshOptionSetNumber("Mesh.MeshSizeFromCurvature", 0, &ierr);
+    gmshOptionSetNumber("Mesh.MeshSizeFromPoints", 0, &ierr);
+    gmshOptionSetNumber("Mesh.Algorithm3D", o->algorithm, &ierr);
+    gmshOptionSetNumber("Mesh.Optimize", o->optimize, &ierr);
+    if ((rc = make_geometry(o, &s, import_groups)))
+        goto out;
+    /* a .msh may already hold a volume mesh: keep it rather than remesh */
+    if (!(import_groups && have_tets()))
         G(gmshModelMeshGenerate(3, &ierr), "mesh the volume");
     if ((rc = gmsh_extract(m, import_groups)))
         goto out;

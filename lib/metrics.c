@@ -83,32 +83,33 @@ static int energies(const crom_fem *fem, const double *X, const double *x, const
     return 0;
 }
 
-int crom_metrics_compute(crom_map *map, const crom_fem *fem, const double g[3], const crom_metrics_opts *o,
-                         crom_map *compare, crom_metrics *out)
+/* What the three measures share: the map on its mesh operator, the
+ * comparison basis (or NULL), gravity, the options, and the first P
+ * samples, kept for the pairs. */
+typedef struct {
+    crom_map *map, *compare;
+    const crom_fem *fem;
+    const double *g;
+    const crom_metrics_opts *o;
+    int P;           /* samples kept */
+    double *xs, *qs; /* [P][n], [P][r] their positions and latents */
+} measure;
+
+/* Energy over the samples: of each latent sample q of o's distribution,
+ * the elastic and potential energies and the RMS displacement of x(q)
+ * (the first P samples kept), and with a comparison basis the energy of a
+ * random direction of it at the same RMS displacement. */
+static int energy_samples(measure *M, crom_metrics *out)
 {
-    memset(out, 0, sizeof *out);
-    int r = map->r, n = map->n, S = o->samples < 1 ? 1 : o->samples, rc = 0;
-    out->r = r;
-    out->samples = S;
-    out->cmp_energy_mean = NAN;
-    if (fem->nv != map->nv)
-        return crom_err(CROM_EUSAGE, "the mesh operator has %d vertices, the map %d", fem->nv, map->nv);
-    if (compare && (compare->nonlinear || compare->nv != map->nv ||
-                    crom_map_same_mesh(&compare->mesh, &map->mesh)))
-        return crom_err(CROM_EUSAGE, "the comparison subspace must be a linear basis of the same mesh");
-    int P = S < o->pairs_of ? S : o->pairs_of;
+    const crom_fem *fem = M->fem;
+    const crom_metrics_opts *o = M->o;
+    crom_map *map = M->map, *compare = M->compare;
+    int r = map->r, n = map->n, S = out->samples, P = M->P, rc = 0;
     const double *X = map->mesh.X;
-    double *xs = crom_malloc(sizeof(double) * (size_t)P * n), *x = crom_malloc(sizeof(double) * (size_t)n);
-    double *q = crom_malloc(sizeof(double) * (size_t)r), *qs = crom_malloc(sizeof(double) * (size_t)P * r);
-    double *J = crom_malloc(sizeof(double) * (size_t)n * r), *G = crom_malloc(sizeof(double) * (size_t)r * r);
-    double *C = crom_malloc(sizeof(double) * (size_t)r * r);
+    double *x = crom_malloc(sizeof(double) * (size_t)n), *q = crom_malloc(sizeof(double) * (size_t)r);
     int rc2 = compare ? compare->r : 1;
     double *c = crom_malloc(sizeof(double) * (size_t)rc2), *uc = crom_malloc(sizeof(double) * (size_t)n);
-    long np = (long)P * (P - 1) / 2;
-    double *ratio = crom_malloc(sizeof(double) * (size_t)(np > 0 ? np : 1));
-    out->gram_eig = crom_malloc(sizeof(double) * (size_t)r);
-    out->corr_eig = crom_malloc(sizeof(double) * (size_t)r);
-    if (!xs || !x || !q || !qs || !J || !G || !C || !c || !uc || !ratio || !out->gram_eig || !out->corr_eig) {
+    if (!x || !q || !c || !uc) {
         rc = CROM_EINTERNAL;
         goto done;
     }
@@ -121,7 +122,7 @@ int crom_metrics_compute(crom_map *map, const crom_fem *fem, const double g[3], 
         if ((rc = crom_map_eval(map, q, x, NULL)))
             goto done;
         double Eel, Egr, rms;
-        if ((rc = energies(fem, X, x, g, &Eel, &Egr, &rms)))
+        if ((rc = energies(fem, X, x, M->g, &Eel, &Egr, &rms)))
             goto done;
         se += Eel;
         sp += Eel + Egr;
@@ -130,8 +131,8 @@ int crom_metrics_compute(crom_map *map, const crom_fem *fem, const double g[3], 
         emax = fmax(emax, Eel);
         rmax = fmax(rmax, rms);
         if (s < P) {
-            memcpy(xs + (size_t)s * n, x, sizeof(double) * (size_t)n);
-            memcpy(qs + (size_t)s * r, q, sizeof(double) * (size_t)r);
+            memcpy(M->xs + (size_t)s * n, x, sizeof(double) * (size_t)n);
+            memcpy(M->qs + (size_t)s * r, q, sizeof(double) * (size_t)r);
         }
         if (compare) {
             /* a random direction of the other basis at the same RMS displacement */
@@ -144,7 +145,7 @@ int crom_metrics_compute(crom_map *map, const crom_fem *fem, const double g[3], 
             double t = u2 > 0 ? rms / sqrt(u2 / fem->total_mass) : 0, Ec, Eg2, r2;
             for (int i = 0; i < n; i++)
                 x[i] = X[i] + t * uc[i];
-            if ((rc = energies(fem, X, x, g, &Ec, &Eg2, &r2)))
+            if ((rc = energies(fem, X, x, M->g, &Ec, &Eg2, &r2)))
                 goto done;
             sc += Ec;
         }
@@ -157,23 +158,40 @@ int crom_metrics_compute(crom_map *map, const crom_fem *fem, const double g[3], 
     out->energy_max = emax;
     if (compare)
         out->cmp_energy_mean = sc / S;
-    /* isometry over pairs */
-    long k = 0;
+done:
+    free(x);
+    free(q);
+    free(c);
+    free(uc);
+    return rc;
+}
+
+/* Isometry over the pairs of the P kept samples (Sharp et al. eqs. 2-3):
+ * the quantiles of |x(q) - x(q')|_M / sqrt(m) / (σ |q - q'|) and the mean
+ * squared log-ratio. */
+static int isometry(const measure *M, crom_metrics *out)
+{
+    const crom_fem *fem = M->fem;
+    int r = M->map->r, n = M->map->n, P = M->P;
+    long np = (long)P * (P - 1) / 2, k = 0;
+    double *ratio = crom_malloc(sizeof(double) * (size_t)(np > 0 ? np : 1));
+    if (!ratio)
+        return CROM_EINTERNAL;
     double lsq = 0;
     for (int a = 0; a < P; a++)
         for (int b = a + 1; b < P; b++) {
             double D2 = 0, dq = 0;
             for (int i = 0; i < n; i++) {
-                double d = xs[(size_t)a * n + i] - xs[(size_t)b * n + i];
+                double d = M->xs[(size_t)a * n + i] - M->xs[(size_t)b * n + i];
                 D2 += fem->mass[i / 3] * d * d;
             }
             for (int j = 0; j < r; j++) {
-                double d = qs[(size_t)a * r + j] - qs[(size_t)b * r + j];
+                double d = M->qs[(size_t)a * r + j] - M->qs[(size_t)b * r + j];
                 dq += d * d;
             }
             if (!(dq > 0))
                 continue;
-            double ra = sqrt(D2 / fem->total_mass) / (o->sigma * sqrt(dq));
+            double ra = sqrt(D2 / fem->total_mass) / (M->o->sigma * sqrt(dq));
             ratio[k++] = ra;
             double l = ra > 0 ? log(ra) : -745;
             lsq += l * l;
@@ -184,9 +202,23 @@ int crom_metrics_compute(crom_map *map, const crom_fem *fem, const double g[3], 
     out->iso_median = quantile(ratio, k, 0.5);
     out->iso_q95 = quantile(ratio, k, 0.95);
     out->iso_logsq = k ? lsq / k : NAN;
-    /* collapse: G = JᵀMJ / m at q = 0 */
-    memset(q, 0, sizeof(double) * (size_t)r);
-    if ((rc = crom_map_eval(map, q, NULL, J)))
+    free(ratio);
+    return 0;
+}
+
+/* Collapse (Neural Modes §4.4): G = JᵀMJ / m at q = 0, the eigenvalues of
+ * r G / tr G and of the correlation matrix D^-1/2 G D^-1/2. */
+static int collapse(const measure *M, crom_metrics *out)
+{
+    const crom_fem *fem = M->fem;
+    int r = M->map->r, n = M->map->n, rc = 0;
+    double *q = crom_calloc((size_t)r, sizeof(double)), *J = crom_malloc(sizeof(double) * (size_t)n * r);
+    double *G = crom_malloc(sizeof(double) * (size_t)r * r), *C = crom_malloc(sizeof(double) * (size_t)r * r);
+    if (!q || !J || !G || !C) {
+        rc = CROM_EINTERNAL;
+        goto done;
+    }
+    if ((rc = crom_map_eval(M->map, q, NULL, J)))
         goto done;
     for (int i = 0; i < n; i++) {
         double s = sqrt(fem->mass[i / 3] / fem->total_mass);
@@ -212,16 +244,41 @@ int crom_metrics_compute(crom_map *map, const crom_fem *fem, const double g[3], 
         LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'N', 'U', r, C, r, out->corr_eig) != 0)
         rc = crom_err(CROM_EINTERNAL, "eigenvalues of the latent Gram matrix failed");
 done:
-    free(xs);
-    free(x);
     free(q);
-    free(qs);
     free(J);
     free(G);
     free(C);
-    free(c);
-    free(uc);
-    free(ratio);
+    return rc;
+}
+
+int crom_metrics_compute(crom_map *map, const crom_fem *fem, const double g[3], const crom_metrics_opts *o,
+                         crom_map *compare, crom_metrics *out)
+{
+    memset(out, 0, sizeof *out);
+    int r = map->r, n = map->n, S = o->samples < 1 ? 1 : o->samples, rc = 0;
+    out->r = r;
+    out->samples = S;
+    out->cmp_energy_mean = NAN;
+    if (fem->nv != map->nv)
+        return crom_err(CROM_EUSAGE, "the mesh operator has %d vertices, the map %d", fem->nv, map->nv);
+    if (compare && (compare->nonlinear || compare->nv != map->nv ||
+                    crom_map_same_mesh(&compare->mesh, &map->mesh)))
+        return crom_err(CROM_EUSAGE, "the comparison subspace must be a linear basis of the same mesh");
+    int P = S < o->pairs_of ? S : o->pairs_of;
+    measure M = {map, compare, fem, g, o, P, crom_malloc(sizeof(double) * (size_t)P * n),
+                 crom_malloc(sizeof(double) * (size_t)P * r)};
+    out->gram_eig = crom_malloc(sizeof(double) * (size_t)r);
+    out->corr_eig = crom_malloc(sizeof(double) * (size_t)r);
+    if (!M.xs || !M.qs || !out->gram_eig || !out->corr_eig)
+        rc = CROM_EINTERNAL;
+    if (!rc)
+        rc = energy_samples(&M, out);
+    if (!rc)
+        rc = isometry(&M, out);
+    if (!rc)
+        rc = collapse(&M, out);
+    free(M.xs);
+    free(M.qs);
     if (rc)
         crom_metrics_free(out);
     return rc;

@@ -89,28 +89,35 @@ static int uf_root(int *parent, int v)
     return v;
 }
 
-/* The rigid motions the pins leave free, as nr M-orthonormal columns R
- * [nr][n] on the n free DOFs (dof[j] their global index, mf their masses).
- * Each connected piece of the mesh (vertices joined by tets) moves as
- * u(X) = t + ω × (X − c), c its centre of mass: the six parameters (t, ω)
- * that make u vanish on the piece's fixed DOFs are the null space of the
- * 6×6 matrix Gᵀ G, G holding the six generators' values at those DOFs (its
- * eigenvalues below 1e-9 of the largest count as zero). Their motions on the
- * free DOFs are M-orthonormalized by Gram–Schmidt, twice. A free body gets
- * six, one pinned at a vertex the three rotations about it, one pinned
- * along a line the rotation about the line, each further free piece six. */
-static int rigid_basis(const crom_mesh *mesh, const crom_fem *fem, const unsigned char *fixed, int n,
-                       const int *dof, const double *mf, double **Rout, int *nrout)
+/* The connected pieces of a mesh (vertices joined by tets) and the rigid
+ * motions the pins leave each of them. */
+typedef struct {
+    int np;             /* pieces */
+    int *piece;         /* [nv] the piece of each vertex, −1: on no tet */
+    double *c;          /* [np][5] centre of mass (3), radius of gyration, mass */
+    double *G;          /* [np][6][6] the constraints' Gram matrix, then its eigenvectors */
+    int *nnull, *first; /* [np] motions each piece admits; [np + 1] the index of its first */
+} pieces;
+
+static void pieces_free(pieces *pc)
 {
-    int nv = fem->nv, np = 0, nr = 0, rc = 0;
-    *Rout = NULL;
-    *nrout = 0;
-    int *root = crom_malloc(sizeof(int) * (size_t)nv), *piece = crom_malloc(sizeof(int) * (size_t)nv);
-    int *nnull = NULL, *first = NULL;
-    double *c = NULL, *G = NULL, *R = NULL;
-    if (!root || !piece) {
-        rc = CROM_EINTERNAL;
-        goto out;
+    free(pc->piece);
+    free(pc->c);
+    free(pc->G);
+    free(pc->nnull);
+    free(pc->first);
+}
+
+/* The pieces, by union-find over the tets; piece[v] numbered at the
+ * piece's root, in vertex order. */
+static int find_pieces(const crom_mesh *mesh, const crom_fem *fem, pieces *pc)
+{
+    int nv = fem->nv;
+    int *root = crom_malloc(sizeof(int) * (size_t)nv);
+    pc->piece = crom_malloc(sizeof(int) * (size_t)nv);
+    if (!root || !pc->piece) {
+        free(root);
+        return CROM_EINTERNAL;
     }
     for (int v = 0; v < nv; v++)
         root[v] = v;
@@ -120,26 +127,29 @@ static int rigid_basis(const crom_mesh *mesh, const crom_fem *fem, const unsigne
             if (r0 != r1)
                 root[r1] = r0;
         }
-    /* piece[v]: the index of v's piece (−1: on no tet), numbered at its root */
+    int *piece = pc->piece;
     for (int v = 0; v < nv; v++)
         piece[v] = -1;
     for (int v = 0; v < nv; v++)
         if (fem->mass[v] > 0) {
             int r = uf_root(root, v);
             if (piece[r] < 0)
-                piece[r] = np++;
+                piece[r] = pc->np++;
             piece[v] = piece[r];
         }
-    /* per piece: centre of mass c, radius of gyration (the rotations' scale),
-     * mass, then the Gram matrix of the constraints */
-    c = crom_calloc(5 * (size_t)np, sizeof(double));
-    G = crom_calloc(36 * (size_t)np, sizeof(double));
-    nnull = crom_calloc((size_t)np, sizeof(int));
-    first = crom_calloc((size_t)np + 1, sizeof(int));
-    if (!c || !G || !nnull || !first) {
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
+    free(root);
+    return 0;
+}
+
+/* Per piece: its centre of mass, radius of gyration (the rotations'
+ * scale) and mass into c. */
+static int piece_frames(const crom_mesh *mesh, const crom_fem *fem, pieces *pc)
+{
+    int nv = fem->nv, np = pc->np;
+    const int *piece = pc->piece;
+    double *c = pc->c = crom_calloc(5 * (size_t)np, sizeof(double));
+    if (!c)
+        return CROM_EINTERNAL;
     for (int v = 0; v < nv; v++)
         if (piece[v] >= 0) {
             double *ck = c + 5 * (size_t)piece[v];
@@ -158,6 +168,23 @@ static int rigid_basis(const crom_mesh *mesh, const crom_fem *fem, const unsigne
         }
     for (int p = 0; p < np; p++)
         c[5 * (size_t)p + 3] = sqrt(c[5 * (size_t)p + 3] / c[5 * (size_t)p + 4]);
+    return 0;
+}
+
+/* Per piece: the Gram matrix Gᵀ G of the six generators' values at its
+ * fixed DOFs, and its null space: its eigenvectors (columns of the
+ * row-major G after dsyev, ascending) of eigenvalue below 1e-9 of the
+ * largest, nnull of them, numbered from first. */
+static int piece_freedoms(const crom_mesh *mesh, const unsigned char *fixed, int nv, pieces *pc)
+{
+    int np = pc->np;
+    const int *piece = pc->piece;
+    const double *c = pc->c;
+    double *G = pc->G = crom_calloc(36 * (size_t)np, sizeof(double));
+    pc->nnull = crom_calloc((size_t)np, sizeof(int));
+    pc->first = crom_calloc((size_t)np + 1, sizeof(int));
+    if (!G || !pc->nnull || !pc->first)
+        return CROM_EINTERNAL;
     for (int d = 0; fixed && d < 3 * nv; d++) {
         int p = piece[d / 3];
         if (!fixed[d] || p < 0)
@@ -170,37 +197,23 @@ static int rigid_basis(const crom_mesh *mesh, const crom_fem *fem, const unsigne
             for (int b = 0; b < 6; b++)
                 G[36 * (size_t)p + 6 * a + b] += g[a] * g[b];
     }
-    /* the null space of each Gram matrix: its eigenvectors (columns of the
-     * row-major G after dsyev, ascending) of eigenvalue ~0 */
     for (int p = 0; p < np; p++) {
         double w[6], *Gp = G + 36 * (size_t)p;
-        if (LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'V', 'U', 6, Gp, 6, w) != 0) {
-            rc = crom_err(CROM_EINTERNAL, "LAPACK dsyev failed on the pins' rigid constraints");
-            goto out;
-        }
-        while (nnull[p] < 6 && w[nnull[p]] <= 1e-9 * w[5])
-            nnull[p]++;
-        first[p + 1] = first[p] + nnull[p];
+        if (LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'V', 'U', 6, Gp, 6, w) != 0)
+            return crom_err(CROM_EINTERNAL, "LAPACK dsyev failed on the pins' rigid constraints");
+        while (pc->nnull[p] < 6 && w[pc->nnull[p]] <= 1e-9 * w[5])
+            pc->nnull[p]++;
+        pc->first[p + 1] = pc->first[p] + pc->nnull[p];
     }
-    nr = first[np];
-    if (nr > 0) {
-        R = crom_calloc((size_t)n * nr, sizeof(double));
-        if (!R) {
-            rc = CROM_EINTERNAL;
-            goto out;
-        }
-    }
-    for (int j = 0; j < n && nr > 0; j++) {
-        int v = dof[j] / 3, p = piece[v];
-        const double *ck = c + 5 * (size_t)p, *Gp = G + 36 * (size_t)p;
-        for (int a = 0; a < 6; a++) {
-            double g = rigid_motion(a, mesh->X + 3 * (size_t)v, dof[j] % 3, ck, ck[3]);
-            for (int q = 0; q < nnull[p]; q++)
-                R[(size_t)(first[p] + q) * n + j] += Gp[6 * a + q] * g;
-        }
-    }
-    /* M-orthonormal, within each piece (the pieces' columns are disjoint) */
-    for (int p = 0; p < np; p++)
+    return 0;
+}
+
+/* The columns of R [nr][n] M-orthonormal (masses mf) within each piece
+ * (the pieces' columns are disjoint): Gram–Schmidt, twice. */
+static int m_orthonormalize(double *R, int n, const double *mf, const pieces *pc)
+{
+    const int *first = pc->first;
+    for (int p = 0; p < pc->np; p++)
         for (int q = first[p]; q < first[p + 1]; q++) {
             double *x = R + (size_t)q * n;
             for (int pass = 0; pass < 2; pass++)
@@ -216,25 +229,60 @@ static int rigid_basis(const crom_mesh *mesh, const crom_fem *fem, const unsigne
             for (int i = 0; i < n; i++)
                 nrm += mf[i] * x[i] * x[i];
             nrm = sqrt(nrm);
-            if (!(nrm > 0)) {
-                rc = crom_err(CROM_EINTERNAL, "a rigid motion allowed by the pins vanishes on the free DOFs");
-                goto out;
-            }
+            if (!(nrm > 0))
+                return crom_err(CROM_EINTERNAL, "a rigid motion allowed by the pins vanishes on the free DOFs");
             for (int i = 0; i < n; i++)
                 x[i] /= nrm;
         }
+    return 0;
+}
+
+/* The rigid motions the pins leave free, as nr M-orthonormal columns R
+ * [nr][n] on the n free DOFs (dof[j] their global index, mf their masses).
+ * Each connected piece of the mesh (vertices joined by tets) moves as
+ * u(X) = t + ω × (X − c), c its centre of mass: the six parameters (t, ω)
+ * that make u vanish on the piece's fixed DOFs are the null space of the
+ * 6×6 matrix Gᵀ G, G holding the six generators' values at those DOFs (its
+ * eigenvalues below 1e-9 of the largest count as zero). Their motions on the
+ * free DOFs are M-orthonormalized by Gram–Schmidt, twice. A free body gets
+ * six, one pinned at a vertex the three rotations about it, one pinned
+ * along a line the rotation about the line, each further free piece six. */
+static int rigid_basis(const crom_mesh *mesh, const crom_fem *fem, const unsigned char *fixed, int n,
+                       const int *dof, const double *mf, double **Rout, int *nrout)
+{
+    pieces pc;
+    memset(&pc, 0, sizeof pc);
+    double *R = NULL;
+    *Rout = NULL;
+    *nrout = 0;
+    int rc = find_pieces(mesh, fem, &pc);
+    if (!rc)
+        rc = piece_frames(mesh, fem, &pc);
+    if (!rc)
+        rc = piece_freedoms(mesh, fixed, fem->nv, &pc);
+    int nr = rc ? 0 : pc.first[pc.np];
+    if (nr > 0 && !(R = crom_calloc((size_t)n * nr, sizeof(double))))
+        rc = CROM_EINTERNAL;
+    /* each piece's admitted motions, on its free DOFs */
+    for (int j = 0; !rc && j < n && nr > 0; j++) {
+        int v = dof[j] / 3, p = pc.piece[v];
+        const double *ck = pc.c + 5 * (size_t)p, *Gp = pc.G + 36 * (size_t)p;
+        for (int a = 0; a < 6; a++) {
+            double g = rigid_motion(a, mesh->X + 3 * (size_t)v, dof[j] % 3, ck, ck[3]);
+            for (int q = 0; q < pc.nnull[p]; q++)
+                R[(size_t)(pc.first[p] + q) * n + j] += Gp[6 * a + q] * g;
+        }
+    }
+    if (!rc)
+        rc = m_orthonormalize(R, n, mf, &pc);
+    pieces_free(&pc);
+    if (rc) {
+        free(R);
+        return rc;
+    }
     *Rout = R;
     *nrout = nr;
-    R = NULL;
-out:
-    free(root);
-    free(piece);
-    free(c);
-    free(G);
-    free(nnull);
-    free(first);
-    free(R);
-    return rc;
+    return 0;
 }
 
 /* Re-express the r0 M-orthonormal rigid modes P (columns of length n,
@@ -602,54 +650,135 @@ static int lowest_modes(eigprob *P, const crom_sym *K, const crom_modes_opts *o,
 
 /* ------------------------------------------------------------- driver */
 
-int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const unsigned char *fixed,
-                       const crom_modes_opts *opt, crom_modes *out)
-{
+/* One crom_modes_compute: the operator, the free-DOF system (K_ff at rest
+ * in upper CSC, the masses), its shifted factor, the rigid motions, the
+ * lowest pairs of their complement and the result's modes on the free
+ * DOFs. */
+typedef struct {
     crom_modes_opts o;
-    if (opt)
-        o = *opt;
-    else
-        crom_modes_defaults(&o);
-    memset(out, 0, sizeof *out);
-    out->next_omega2 = NAN;
-    if (o.count < 1)
-        return crom_err(CROM_EUSAGE, "the number of modes must be positive, got %d", o.count);
-    if (!(o.tol > 0))
-        o.tol = 1e-10;
-    if (!(o.rigid_tol > 0))
-        o.rigid_tol = 1e-12;
-    if (!isfinite(o.shift) || o.shift > 0)
-        return crom_err(CROM_EUSAGE, "the shift must be negative, got %g", o.shift);
-
     crom_fem fem;
-    double t0 = crom_now();
-    int rc = crom_fem_init(&fem, mesh, mat);
-    if (rc)
-        return rc;
-    int N = fem.n;
-    int *map = NULL, *dof = NULL, *cp = NULL, *ri = NULL, *comp = NULL;
-    double *Hval = NULL, *Kf = NULL, *Af = NULL, *mf = NULL, *X3 = NULL, *Phi = NULL;
-    double *R = NULL, *lam = NULL, *Y = NULL;
-    int nr = 0;
-    crom_chol *chol = NULL;
-    eigprob P = {0};
-    Hval = crom_malloc(sizeof(double) * (size_t)fem.nnz);
-    map = crom_malloc(sizeof(int) * (size_t)N);
+    int nf, nnz;      /* free DOFs; entries of K_ff */
+    int whole;        /* each vertex has all of its DOFs free or none */
+    int *dof, *comp;  /* [nf] global index and coordinate of each free DOF */
+    int *cp, *ri;     /* K_ff's pattern */
+    double *Kf, *Af;  /* [nnz] K_ff, and K_ff − σM for the factor */
+    double *mf, *X3;  /* [nf] masses; [nf][3] rest position of each free DOF's vertex */
+    double xc[3];     /* the body's centre of mass */
+    crom_chol *chol;  /* the factor of K_ff − σM */
+    double sigma;
+    double *R;        /* [nr][nf] the rigid motions the pins leave free */
+    int nr;
+    eigprob P;
+    double *lam, *Y;  /* [have], [have][nf] the lowest pairs of the complement */
+    int have, z;      /* pairs found; the zero-energy ones among them */
+    int nkr;          /* rigid modes among the result's */
+    double *Phi;      /* the result's modes on the free DOFs */
+} modesrun;
+
+static void modesrun_free(modesrun *M)
+{
+    crom_chol_free(M->chol);
+    free(M->P.mx);
+    free(M->P.h);
+    free(M->R);
+    free(M->lam);
+    free(M->Y);
+    free(M->Phi);
+    free(M->dof);
+    free(M->cp);
+    free(M->ri);
+    free(M->Kf);
+    free(M->Af);
+    free(M->mf);
+    free(M->X3);
+    free(M->comp);
+    crom_fem_free(&M->fem);
+}
+
+/* K_ff (upper CSC: cp, ri, Kf) of the nf free DOFs from the full Hessian
+ * Hval (map: DOF -> free index or −1), their masses, coordinates and
+ * vertices' rest positions, and the body's centre of mass (for the
+ * canonical rigid rotations); out->lambda_mean (mean of K_dd / m_d) and
+ * rigid_threshold. CROM_EDATA for a non-positive diagonal. */
+static int gather_free(modesrun *M, const crom_mesh *mesh, const int *map, const double *Hval, crom_modes *out)
+{
+    const crom_fem *fem = &M->fem;
+    int N = fem->n, nf = M->nf;
+    M->dof = crom_malloc(sizeof(int) * (size_t)nf);
+    M->cp = crom_calloc((size_t)nf + 1, sizeof(int));
+    M->mf = crom_malloc(sizeof(double) * (size_t)nf);
+    M->X3 = crom_malloc(sizeof(double) * 3 * (size_t)nf);
+    M->comp = crom_malloc(sizeof(int) * (size_t)nf);
+    if (!M->dof || !M->cp || !M->mf || !M->X3 || !M->comp)
+        return CROM_EINTERNAL;
+    int *cp = M->cp, nnz = 0;
+    for (int c = 0; c < N; c++) {
+        if (map[c] < 0)
+            continue;
+        for (int k = fem->colptr[c]; k < fem->colptr[c + 1]; k++)
+            nnz += map[fem->rowind[k]] >= 0;
+        cp[map[c] + 1] = nnz;
+    }
+    M->nnz = nnz;
+    M->ri = crom_malloc(sizeof(int) * (size_t)(nnz ? nnz : 1));
+    M->Kf = crom_malloc(sizeof(double) * (size_t)(nnz ? nnz : 1));
+    M->Af = crom_malloc(sizeof(double) * (size_t)(nnz ? nnz : 1));
+    if (!M->ri || !M->Kf || !M->Af)
+        return CROM_EINTERNAL;
+    double lsum = 0, mtot = 0, *xc = M->xc;
+    for (int c = 0, e = 0; c < N; c++) {
+        int j = map[c];
+        if (j < 0)
+            continue;
+        M->dof[j] = c;
+        M->mf[j] = fem->mass[c / 3];
+        M->comp[j] = c % 3;
+        memcpy(M->X3 + 3 * (size_t)j, mesh->X + 3 * (size_t)(c / 3), 3 * sizeof(double));
+        for (int k = fem->colptr[c]; k < fem->colptr[c + 1]; k++) {
+            int r = map[fem->rowind[k]];
+            if (r < 0)
+                continue;
+            M->ri[e] = r;
+            M->Kf[e++] = Hval[k];
+        }
+        double kdd = M->Kf[cp[j + 1] - 1]; /* the diagonal is last */
+        if (!(kdd > 0))
+            return crom_err(CROM_EDATA, "the rest stiffness has a non-positive diagonal at vertex %d", c / 3);
+        lsum += kdd / M->mf[j];
+    }
+    for (int v = 0; v < fem->nv; v++) {
+        mtot += fem->mass[v];
+        for (int t = 0; t < 3; t++)
+            xc[t] += fem->mass[v] * mesh->X[3 * (size_t)v + t];
+    }
+    for (int t = 0; t < 3; t++)
+        xc[t] /= mtot;
+    out->lambda_mean = lsum / nf;
+    out->rigid_threshold = M->o.rigid_tol * out->lambda_mean;
+    return 0;
+}
+
+/* The free DOFs (not fixed, on some tet) and their system at rest, from
+ * the unprojected Hessian (no mass, no fixed DOFs); out->n and nfree.
+ * CROM_EUSAGE when nothing is free or fewer DOFs than modes asked for. */
+static int free_system(modesrun *M, const crom_mesh *mesh, const unsigned char *fixed, crom_modes *out)
+{
+    int N = M->fem.n, rc;
+    double *Hval = crom_malloc(sizeof(double) * (size_t)M->fem.nnz);
+    int *map = crom_malloc(sizeof(int) * (size_t)N);
     if (!Hval || !map) {
         rc = CROM_EINTERNAL;
         goto out;
     }
-    /* the unprojected Hessian at rest, no mass, no fixed DOFs */
-    crom_fem_opts fo = {0, 0, NULL, o.nthreads};
-    if ((rc = crom_fem_assemble(&fem, mesh->X, &fo, NULL, NULL, Hval)))
+    crom_fem_opts fo = {0, 0, NULL, M->o.nthreads};
+    if ((rc = crom_fem_assemble(&M->fem, mesh->X, &fo, NULL, NULL, Hval)))
         goto out;
-    /* free DOFs: not fixed and on some tet */
     int nf = 0, whole = 1;
     for (int d = 0; d < N; d++) {
-        int f = !(fixed && fixed[d]) && fem.mass[d / 3] > 0;
+        int f = !(fixed && fixed[d]) && M->fem.mass[d / 3] > 0;
         map[d] = f ? nf++ : -1;
     }
-    for (int v = 0; v < fem.nv && whole; v++)
+    for (int v = 0; v < M->fem.nv && whole; v++)
         whole = (map[3 * v] < 0) == (map[3 * v + 1] < 0) && (map[3 * v] < 0) == (map[3 * v + 2] < 0);
     out->n = N;
     out->nfree = nf;
@@ -657,76 +786,28 @@ int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const un
         rc = crom_err(CROM_EUSAGE, "every degree of freedom is pinned: there is nothing to vibrate");
         goto out;
     }
-    if (o.count > nf) {
+    if (M->o.count > nf) {
         rc = crom_err(CROM_EUSAGE, "%d modes asked for, but the body has only %d free degrees of freedom",
-                      o.count, nf);
+                      M->o.count, nf);
         goto out;
     }
-    /* the free-DOF system: K_ff (upper CSC) and the masses */
-    dof = crom_malloc(sizeof(int) * (size_t)nf);
-    cp = crom_calloc((size_t)nf + 1, sizeof(int));
-    mf = crom_malloc(sizeof(double) * (size_t)nf);
-    X3 = crom_malloc(sizeof(double) * 3 * (size_t)nf);
-    comp = crom_malloc(sizeof(int) * (size_t)nf);
-    if (!dof || !cp || !mf || !X3 || !comp) {
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
-    int nnz = 0;
-    for (int c = 0; c < N; c++) {
-        if (map[c] < 0)
-            continue;
-        for (int k = fem.colptr[c]; k < fem.colptr[c + 1]; k++)
-            nnz += map[fem.rowind[k]] >= 0;
-        cp[map[c] + 1] = nnz;
-    }
-    ri = crom_malloc(sizeof(int) * (size_t)(nnz ? nnz : 1));
-    Kf = crom_malloc(sizeof(double) * (size_t)(nnz ? nnz : 1));
-    Af = crom_malloc(sizeof(double) * (size_t)(nnz ? nnz : 1));
-    if (!ri || !Kf || !Af) {
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
-    double lsum = 0, mtot = 0, xc[3] = {0, 0, 0};
-    for (int c = 0, e = 0; c < N; c++) {
-        int j = map[c];
-        if (j < 0)
-            continue;
-        dof[j] = c;
-        mf[j] = fem.mass[c / 3];
-        comp[j] = c % 3;
-        memcpy(X3 + 3 * (size_t)j, mesh->X + 3 * (size_t)(c / 3), 3 * sizeof(double));
-        for (int k = fem.colptr[c]; k < fem.colptr[c + 1]; k++) {
-            int r = map[fem.rowind[k]];
-            if (r < 0)
-                continue;
-            ri[e] = r;
-            Kf[e++] = Hval[k];
-        }
-        double kdd = Kf[cp[j + 1] - 1]; /* the diagonal is last */
-        if (!(kdd > 0)) {
-            rc = crom_err(CROM_EDATA, "the rest stiffness has a non-positive diagonal at vertex %d", c / 3);
-            goto out;
-        }
-        lsum += kdd / mf[j];
-    }
-    /* the body's centre of mass (for the canonical rigid rotations) */
-    for (int v = 0; v < fem.nv; v++) {
-        mtot += fem.mass[v];
-        for (int t = 0; t < 3; t++)
-            xc[t] += fem.mass[v] * mesh->X[3 * (size_t)v + t];
-    }
-    for (int t = 0; t < 3; t++)
-        xc[t] /= mtot;
+    M->nf = nf;
+    M->whole = whole;
+    rc = gather_free(M, mesh, map, Hval, out);
+out:
     free(Hval);
-    Hval = NULL;
-    out->lambda_mean = lsum / nf;
-    out->rigid_threshold = o.rigid_tol * out->lambda_mean;
-    out->t_assemble = crom_now() - t0;
+    free(map);
+    return rc;
+}
 
-    crom_sym K = {nf, cp, ri, Kf};
-    /* shift: a small fraction of the lowest frequencies' scale E/(ρ D²) */
-    double sigma = o.shift;
+/* The factor of K_ff − σM: σ is o.shift or, when 0, a small fraction of
+ * the lowest frequencies' scale E/(ρ D²), moved tenfold further (up to
+ * three times) when round-off beats it. CROM_EDATA when the shifted
+ * stiffness is not positive definite. */
+static int factor_shifted(modesrun *M, const crom_mesh *mesh, const crom_material *mat)
+{
+    int nf = M->nf, rc;
+    double sigma = M->o.shift;
     if (sigma == 0) {
         double lo[3], hi[3], D2 = 0;
         crom_mesh_bbox(mesh, lo, hi);
@@ -734,105 +815,110 @@ int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const un
             D2 += (hi[t] - lo[t]) * (hi[t] - lo[t]);
         sigma = -0.01 * mat->E / (mat->rho * D2);
     }
-    chol = crom_chol_analyze(nf, cp, ri, whole ? 3 : 1);
-    if (!chol) {
-        rc = crom_errcode() ? crom_errcode() : CROM_EINTERNAL;
-        goto out;
-    }
+    M->chol = crom_chol_analyze(nf, M->cp, M->ri, M->whole ? 3 : 1);
+    if (!M->chol)
+        return crom_errcode() ? crom_errcode() : CROM_EINTERNAL;
     for (int attempt = 0;; attempt++) {
-        memcpy(Af, Kf, sizeof(double) * (size_t)nnz);
+        memcpy(M->Af, M->Kf, sizeof(double) * (size_t)M->nnz);
         for (int j = 0; j < nf; j++)
-            Af[cp[j + 1] - 1] -= sigma * mf[j];
-        if (!(rc = crom_chol_factor(chol, Af)))
+            M->Af[M->cp[j + 1] - 1] -= sigma * M->mf[j];
+        if (!(rc = crom_chol_factor(M->chol, M->Af)))
             break;
-        if (rc != CROM_EDATA || attempt == 3 || o.shift != 0) {
+        if (rc != CROM_EDATA || attempt == 3 || M->o.shift != 0) {
             if (rc == CROM_EDATA)
                 rc = crom_err(CROM_EDATA, "the rest stiffness shifted by %g M is not positive definite "
                                           "(is the mesh valid?)", -sigma);
-            goto out;
+            return rc;
         }
         sigma *= 10; /* round-off beat a tiny shift: move it further */
     }
-    out->sigma = sigma;
-    crom_chol_stats(chol, &out->t_analyze, &out->t_factor, NULL, NULL, NULL);
-    double tl = crom_now();
+    M->sigma = sigma;
+    return 0;
+}
 
-    /* the rigid motions, built, and the lowest modes of their complement */
-    if ((rc = rigid_basis(mesh, &fem, fixed, nf, dof, mf, &R, &nr)))
-        goto out;
-    P = (eigprob){nf, mf, chol, nr, R, crom_malloc(sizeof(double) * (size_t)nf),
-                  crom_malloc(sizeof(double) * ((size_t)nr + 1)), 0};
-    if (!P.mx || !P.h) {
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
-    /* how many the result needs: o.count deformation modes after the z
-     * zero-energy ones among them (dropped), or o.count in all after the
-     * nr + z rigid ones (kept); one more to see where the zero block ends
-     * and for next_omega2 */
-    int nc = nf - nr, z = 0, have = 0, k = o.count;
+/* The rigid motions, built, and the lowest pairs of their complement, as
+ * many as the result needs: o.count deformation modes after the z
+ * zero-energy ones among them (dropped), or o.count in all after the
+ * nr + z rigid ones (kept); one more to see where the zero block ends and
+ * for next_omega2. */
+static int lowest_pairs(modesrun *M, const crom_mesh *mesh, const unsigned char *fixed, crom_modes *out)
+{
+    const crom_modes_opts *o = &M->o;
+    int nf = M->nf, rc;
+    if ((rc = rigid_basis(mesh, &M->fem, fixed, nf, M->dof, M->mf, &M->R, &M->nr)))
+        return rc;
+    int nr = M->nr;
+    M->P = (eigprob){nf, M->mf, M->chol, nr, M->R, crom_malloc(sizeof(double) * (size_t)nf),
+                     crom_malloc(sizeof(double) * ((size_t)nr + 1)), 0};
+    if (!M->P.mx || !M->P.h)
+        return CROM_EINTERNAL;
+    crom_sym K = {nf, M->cp, M->ri, M->Kf};
+    int nc = nf - nr, k = o->count;
     double thr = out->rigid_threshold;
     for (;;) {
-        if (!o.keep_rigid && k + z > nc) {
-            rc = crom_err(CROM_EUSAGE,
-                          "%d deformation modes asked for, but the body has only %d (%d free degrees "
-                          "of freedom, %d rigid modes)",
-                          k, nc - z, nf, nr + z);
-            goto out;
-        }
-        int req = o.keep_rigid ? (k - nr > z ? k - nr : z) : k + z;
+        int z = M->z;
+        if (!o->keep_rigid && k + z > nc)
+            return crom_err(CROM_EUSAGE,
+                            "%d deformation modes asked for, but the body has only %d (%d free degrees "
+                            "of freedom, %d rigid modes)",
+                            k, nc - z, nf, nr + z);
+        int req = o->keep_rigid ? (k - nr > z ? k - nr : z) : k + z;
         int need = req < nc ? req + 1 : nc;
         if (need == nc && req < nc && nf > DENSE_MAX)
             need = req; /* the one more is not worth a dense solve */
-        if (need <= have)
+        if (need <= M->have)
             break;
-        free(lam);
-        free(Y);
-        lam = crom_malloc(sizeof(double) * (size_t)need);
-        Y = crom_malloc(sizeof(double) * (size_t)nf * need);
-        if (!lam || !Y) {
-            rc = CROM_EINTERNAL;
-            goto out;
-        }
-        if ((rc = lowest_modes(&P, &K, &o, sigma, need, lam, Y, out)))
-            goto out;
-        have = need;
-        z = 0;
-        while (z < have && lam[z] <= thr)
-            z++;
+        free(M->lam);
+        free(M->Y);
+        M->lam = crom_malloc(sizeof(double) * (size_t)need);
+        M->Y = crom_malloc(sizeof(double) * (size_t)nf * need);
+        if (!M->lam || !M->Y)
+            return CROM_EINTERNAL;
+        if ((rc = lowest_modes(&M->P, &K, o, M->sigma, need, M->lam, M->Y, out)))
+            return rc;
+        M->have = need;
+        M->z = 0;
+        while (M->z < M->have && M->lam[M->z] <= thr)
+            M->z++;
     }
-    out->solves = P.solves;
-    crom_chol_stats(chol, NULL, NULL, &out->t_solve, NULL, NULL);
+    out->solves = M->P.solves;
+    return 0;
+}
 
-    /* the result: kept, the rigid block (ω² 0 for the built motions, λ for
-     * the zero-energy modes found), canonical; then the deformation modes */
-    int nrigid = nr + z, nkr = o.keep_rigid ? (nrigid < k ? nrigid : k) : 0;
-    int skip = o.keep_rigid ? nrigid : 0; /* Y[z + j − skip] is result j >= nkr */
-    Phi = crom_malloc(sizeof(double) * (size_t)nf * (k > nrigid ? k : nrigid));
+/* The result's k modes on the free DOFs into Phi, with out->omega2 and
+ * next_omega2: when kept, the rigid block first (ω² 0 for the built
+ * motions, λ for the zero-energy modes found), canonical; then the
+ * deformation modes. */
+static int order_result(modesrun *M, crom_modes *out)
+{
+    int nf = M->nf, nr = M->nr, z = M->z, k = M->o.count, keep = M->o.keep_rigid, rc;
+    const double *lam = M->lam;
+    int nrigid = nr + z, nkr = keep ? (nrigid < k ? nrigid : k) : 0;
+    int skip = keep ? nrigid : 0; /* Y[z + j − skip] is result j >= nkr */
+    M->nkr = nkr;
+    double *Phi = M->Phi = crom_malloc(sizeof(double) * (size_t)nf * (k > nrigid ? k : nrigid));
     out->omega2 = crom_malloc(sizeof(double) * (size_t)k);
     out->freq = crom_malloc(sizeof(double) * (size_t)k);
     out->residual = crom_malloc(sizeof(double) * (size_t)k);
-    out->phi = crom_calloc((size_t)N * k, sizeof(double));
-    if (!Phi || !out->omega2 || !out->freq || !out->residual || !out->phi) {
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
+    out->phi = crom_calloc((size_t)M->fem.n * k, sizeof(double));
+    if (!Phi || !out->omega2 || !out->freq || !out->residual || !out->phi)
+        return CROM_EINTERNAL;
     out->nrigid = nrigid;
-    out->rigid_kept = o.keep_rigid && nrigid > 0;
+    out->rigid_kept = keep && nrigid > 0;
     for (int j = nkr; j < k; j++) {
-        memcpy(Phi + (size_t)j * nf, Y + (size_t)(z + j - skip) * nf, sizeof(double) * (size_t)nf);
+        memcpy(Phi + (size_t)j * nf, M->Y + (size_t)(z + j - skip) * nf, sizeof(double) * (size_t)nf);
         out->omega2[j] = lam[z + j - skip];
     }
-    if (k >= skip && z + k - skip < have)
+    if (k >= skip && z + k - skip < M->have)
         out->next_omega2 = lam[z + k - skip];
     if (nkr > 0) {
         /* all nrigid of them (even beyond k), then the first nkr */
         if (nr > 0)
-            memcpy(Phi, R, sizeof(double) * (size_t)nf * nr);
+            memcpy(Phi, M->R, sizeof(double) * (size_t)nf * nr);
         if (z > 0)
-            memcpy(Phi + (size_t)nf * nr, Y, sizeof(double) * (size_t)nf * z);
-        if ((rc = canonical_rigid(nf, mf, X3, comp, xc, Phi, nf, nrigid)))
-            goto out;
+            memcpy(Phi + (size_t)nf * nr, M->Y, sizeof(double) * (size_t)nf * z);
+        if ((rc = canonical_rigid(nf, M->mf, M->X3, M->comp, M->xc, Phi, nf, nrigid)))
+            return rc;
         /* their ω², ascending: the z found (<= thr, maybe below 0) among nr zeros */
         for (int j = 0, a = 0, b = 0; j < nrigid; j++) {
             double w = a < z && (b == nr || lam[a] < 0) ? lam[a++] : (b++, 0.0);
@@ -842,14 +928,23 @@ int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const un
                 out->next_omega2 = w;
         }
     }
-    /* M-normalize (already so up to round-off), sign, residuals, scatter */
+    return 0;
+}
+
+/* Each mode of Phi M-normalized (already so up to round-off) and signed
+ * so that its largest entry is positive, its residual ‖Kφ − ω²Mφ‖ relative
+ * to ‖Kφ‖ (to λ_mean ‖Mφ‖ for the rigid block) and its frequency into out,
+ * and the mode scattered into out->phi. */
+static int finish_modes(modesrun *M, crom_modes *out)
+{
+    int nf = M->nf, k = M->o.count;
+    const double *mf = M->mf;
+    crom_sym K = {nf, M->cp, M->ri, M->Kf};
     double *kx = crom_malloc(sizeof(double) * (size_t)nf);
-    if (!kx) {
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
+    if (!kx)
+        return CROM_EINTERNAL;
     for (int j = 0; j < k; j++) {
-        double *x = Phi + (size_t)j * nf;
+        double *x = M->Phi + (size_t)j * nf;
         double s = 0;
         for (int i = 0; i < nf; i++)
             s += mf[i] * x[i] * x[i];
@@ -871,37 +966,61 @@ int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const un
             kn += kx[i] * kx[i];
             mn += mf[i] * mf[i] * x[i] * x[i];
         }
-        out->residual[j] = j < nkr ? sqrt(rn) / (out->lambda_mean * sqrt(mn)) : sqrt(rn) / sqrt(kn);
+        out->residual[j] = j < M->nkr ? sqrt(rn) / (out->lambda_mean * sqrt(mn)) : sqrt(rn) / sqrt(kn);
         out->freq[j] = sqrt(w > 0 ? w : 0) / (2 * M_PI);
         for (int i = 0; i < nf; i++)
-            out->phi[(size_t)dof[i] * k + j] = x[i];
+            out->phi[(size_t)M->dof[i] * k + j] = x[i];
     }
     free(kx);
-    out->k = k;
+    return 0;
+}
+
+int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const unsigned char *fixed,
+                       const crom_modes_opts *opt, crom_modes *out)
+{
+    modesrun M;
+    memset(&M, 0, sizeof M);
+    crom_modes_opts *o = &M.o;
+    if (opt)
+        *o = *opt;
+    else
+        crom_modes_defaults(o);
+    memset(out, 0, sizeof *out);
+    out->next_omega2 = NAN;
+    if (o->count < 1)
+        return crom_err(CROM_EUSAGE, "the number of modes must be positive, got %d", o->count);
+    if (!(o->tol > 0))
+        o->tol = 1e-10;
+    if (!(o->rigid_tol > 0))
+        o->rigid_tol = 1e-12;
+    if (!isfinite(o->shift) || o->shift > 0)
+        return crom_err(CROM_EUSAGE, "the shift must be negative, got %g", o->shift);
+
+    double t0 = crom_now();
+    int rc = crom_fem_init(&M.fem, mesh, mat);
+    if (rc)
+        return rc;
+    if ((rc = free_system(&M, mesh, fixed, out)))
+        goto out;
+    out->t_assemble = crom_now() - t0;
+    if ((rc = factor_shifted(&M, mesh, mat)))
+        goto out;
+    out->sigma = M.sigma;
+    crom_chol_stats(M.chol, &out->t_analyze, &out->t_factor, NULL, NULL, NULL);
+    double tl = crom_now();
+    if ((rc = lowest_pairs(&M, mesh, fixed, out)))
+        goto out;
+    crom_chol_stats(M.chol, NULL, NULL, &out->t_solve, NULL, NULL);
+    if ((rc = order_result(&M, out)) || (rc = finish_modes(&M, out)))
+        goto out;
+    out->k = o->count;
     out->t_lanczos = crom_now() - tl;
 out:
     if (rc) {
         crom_modes_free(out);
         out->next_omega2 = NAN;
     }
-    crom_chol_free(chol);
-    free(P.mx);
-    free(P.h);
-    free(R);
-    free(lam);
-    free(Y);
-    free(Phi);
-    free(Hval);
-    free(map);
-    free(dof);
-    free(cp);
-    free(ri);
-    free(Kf);
-    free(Af);
-    free(mf);
-    free(X3);
-    free(comp);
-    crom_fem_free(&fem);
+    modesrun_free(&M);
     return rc;
 }
 

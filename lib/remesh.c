@@ -301,51 +301,63 @@ int crom_remesh_cut_faces(const crom_mesh *m, const crom_cut *c, unsigned char *
     return 0;
 }
 
-int crom_remesh_split(const crom_mesh *m, const unsigned char *cut, crom_mesh *out, int *ndup)
+/* A mesh being split along cut faces: the vertex stars, and the vertex
+ * (kept or copy) each slot of them gets. */
+typedef struct {
+    int *start, *star; /* the star of each vertex: CSR of slots 4t + c (tet t, corner c), in increasing tet order */
+    int maxdeg;        /* the largest star */
+    int *newidx;       /* [4 nt] per star entry: the vertex it gets */
+    int *orig;         /* [nnew − nv] the vertex each copy copies */
+    int nnew, cap;     /* vertices after the split; orig's capacity */
+} splitting;
+
+static void splitting_free(splitting *sp)
 {
-    int rc, *nbr = NULL;
-    if ((rc = tet_neighbors(m, &nbr)))
-        return rc;
+    free(sp->start);
+    free(sp->star);
+    free(sp->newidx);
+    free(sp->orig);
+}
+
+/* The vertex stars of m and the buffer for their new indices. */
+static int vertex_stars(const crom_mesh *m, splitting *sp)
+{
     size_t nslot = 4 * (size_t)m->nt;
-    /* the star of each vertex: CSR of slots 4t + c (tet t, corner c), in
-     * increasing tet order */
-    int *start = crom_calloc((size_t)m->nv + 1, sizeof(int));
-    int *star = crom_malloc(sizeof(int) * (nslot ? nslot : 1));
-    int *newidx = crom_malloc(sizeof(int) * (nslot ? nslot : 1));
-    int *orig = NULL, *parent = NULL;
-    if (!start || !star || !newidx) {
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
+    int *start = sp->start = crom_calloc((size_t)m->nv + 1, sizeof(int));
+    sp->star = crom_malloc(sizeof(int) * (nslot ? nslot : 1));
+    sp->newidx = crom_malloc(sizeof(int) * (nslot ? nslot : 1));
+    if (!start || !sp->star || !sp->newidx)
+        return CROM_EINTERNAL;
     for (size_t s = 0; s < nslot; s++)
         start[m->tets[s] + 1]++;
-    int maxdeg = 0;
     for (int v = 0; v < m->nv; v++) {
-        if (start[v + 1] > maxdeg)
-            maxdeg = start[v + 1];
+        if (start[v + 1] > sp->maxdeg)
+            sp->maxdeg = start[v + 1];
         start[v + 1] += start[v];
     }
-    {
-        int *fill = crom_malloc(sizeof(int) * (size_t)(m->nv ? m->nv : 1));
-        if (!fill) {
-            rc = CROM_EINTERNAL;
-            goto out;
-        }
-        memcpy(fill, start, sizeof(int) * (size_t)m->nv);
-        for (size_t s = 0; s < nslot; s++)
-            star[fill[m->tets[s]]++] = (int)s;
-        free(fill);
-    }
-    parent = crom_malloc(sizeof(int) * (size_t)(maxdeg ? maxdeg : 1));
-    if (!parent) {
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
-    /* group each star into components joined by un-cut faces; the
-     * component of the lowest tet keeps v, the others get copies */
-    int nnew = m->nv, cap = 0;
+    int *fill = crom_malloc(sizeof(int) * (size_t)(m->nv ? m->nv : 1));
+    if (!fill)
+        return CROM_EINTERNAL;
+    memcpy(fill, start, sizeof(int) * (size_t)m->nv);
+    for (size_t s = 0; s < nslot; s++)
+        sp->star[fill[m->tets[s]]++] = (int)s;
+    free(fill);
+    return 0;
+}
+
+/* Each star grouped into components joined by un-cut faces (nbr: the tet
+ * neighbours): the component of the lowest tet keeps v, the others get
+ * copies, numbered from nv on in vertex order. */
+static int group_stars(const crom_mesh *m, const unsigned char *cut, const int *nbr, splitting *sp)
+{
+    int *parent = crom_malloc(sizeof(int) * (size_t)(sp->maxdeg ? sp->maxdeg : 1));
+    if (!parent)
+        return CROM_EINTERNAL;
+    const int *star = sp->star;
+    int *newidx = sp->newidx;
+    sp->nnew = m->nv;
     for (int v = 0; v < m->nv; v++) {
-        int b = start[v], deg = start[v + 1] - b;
+        int b = sp->start[v], deg = sp->start[v + 1] - b;
         for (int i = 0; i < deg; i++)
             parent[i] = i;
         for (int i = 0; i < deg; i++) {
@@ -364,45 +376,50 @@ int crom_remesh_split(const crom_mesh *m, const unsigned char *cut, crom_mesh *o
         }
         for (int i = 0; i < deg; i++) {
             int r = uf_find(parent, i);
-            if (r == i) {
-                if (i == 0) {
-                    newidx[b + i] = v;
-                } else {
-                    if (nnew - m->nv == cap) {
-                        cap = cap ? 2 * cap : 256;
-                        int *no = crom_realloc(orig, sizeof(int) * (size_t)cap);
-                        if (!no) {
-                            rc = CROM_EINTERNAL;
-                            goto out;
-                        }
-                        orig = no;
-                    }
-                    orig[nnew - m->nv] = v;
-                    newidx[b + i] = nnew++;
-                }
-            } else {
+            if (r != i) {
                 newidx[b + i] = newidx[b + r]; /* r < i: assigned already */
+            } else if (i == 0) {
+                newidx[b + i] = v;
+            } else {
+                if (sp->nnew - m->nv == sp->cap) {
+                    sp->cap = sp->cap ? 2 * sp->cap : 256;
+                    int *no = crom_realloc(sp->orig, sizeof(int) * (size_t)sp->cap);
+                    if (!no) {
+                        free(parent);
+                        return CROM_EINTERNAL;
+                    }
+                    sp->orig = no;
+                }
+                sp->orig[sp->nnew - m->nv] = v;
+                newidx[b + i] = sp->nnew++;
             }
         }
     }
-    int nd = nnew - m->nv;
+    free(parent);
+    return 0;
+}
+
+/* The split mesh into out: m's vertices then the copies, the tets with
+ * their slots' new vertices; copies inherit their vertex's regions. */
+static int split_mesh(const crom_mesh *m, const splitting *sp, crom_mesh *out)
+{
+    int nd = sp->nnew - m->nv, rc = 0;
+    size_t nslot = 4 * (size_t)m->nt;
     memset(out, 0, sizeof *out);
-    out->nv = nnew;
+    out->nv = sp->nnew;
     out->nt = m->nt;
-    out->X = crom_malloc(sizeof(double) * 3 * (size_t)nnew);
+    out->X = crom_malloc(sizeof(double) * 3 * (size_t)sp->nnew);
     out->tets = crom_malloc(sizeof(int) * (nslot ? nslot : 1));
     if (!out->X || !out->tets) {
         crom_mesh_free(out);
-        rc = CROM_EINTERNAL;
-        goto out;
+        return CROM_EINTERNAL;
     }
     memcpy(out->X, m->X, sizeof(double) * 3 * (size_t)m->nv);
     for (int i = 0; i < nd; i++)
-        memcpy(out->X + 3 * ((size_t)m->nv + i), VX(m, orig[i]), 3 * sizeof(double));
+        memcpy(out->X + 3 * ((size_t)m->nv + i), VX(m, sp->orig[i]), 3 * sizeof(double));
     for (int v = 0; v < m->nv; v++)
-        for (int i = start[v]; i < start[v + 1]; i++)
-            out->tets[star[i]] = newidx[i];
-    /* copies inherit their vertex's regions */
+        for (int i = sp->start[v]; i < sp->start[v + 1]; i++)
+            out->tets[sp->star[i]] = sp->newidx[i];
     for (int r = 0; r < m->nregions && !rc; r++) {
         const crom_region *g = &m->regions[r];
         unsigned char *in = crom_calloc((size_t)(m->nv ? m->nv : 1), 1);
@@ -414,7 +431,7 @@ int crom_remesh_split(const crom_mesh *m, const unsigned char *cut, crom_mesh *o
             idx[k++] = g->idx[j];
         }
         for (int i = 0; !rc && i < nd; i++)
-            if (in[orig[i]])
+            if (in[sp->orig[i]])
                 idx[k++] = m->nv + i;
         if (!rc)
             rc = crom_mesh_add_region(out, g->name, g->source, idx, k);
@@ -425,15 +442,21 @@ int crom_remesh_split(const crom_mesh *m, const unsigned char *cut, crom_mesh *o
         rc = finish(out);
     if (rc)
         crom_mesh_free(out);
-    else if (ndup)
-        *ndup = nd;
-out:
+    return rc;
+}
+
+int crom_remesh_split(const crom_mesh *m, const unsigned char *cut, crom_mesh *out, int *ndup)
+{
+    splitting sp;
+    memset(&sp, 0, sizeof sp);
+    int *nbr = NULL, rc = tet_neighbors(m, &nbr);
+    if (rc)
+        return rc;
+    if (!(rc = vertex_stars(m, &sp)) && !(rc = group_stars(m, cut, nbr, &sp)) && !(rc = split_mesh(m, &sp, out)) &&
+        ndup)
+        *ndup = sp.nnew - m->nv;
     free(nbr);
-    free(start);
-    free(star);
-    free(newidx);
-    free(orig);
-    free(parent);
+    splitting_free(&sp);
     return rc;
 }
 
@@ -702,54 +725,20 @@ int crom_remesh_swap(const crom_mesh *in, const crom_mesh *other, const crom_xfo
 
 #define GMSH(call, what) CROM_GMSH(call, what)
 
-/* One 1:8 refinement of m by gmsh into out (regions not yet set): the
- * original vertices keep their indices 0..nv-1, midpoints follow. */
-static int gmsh_refine_once(const crom_mesh *m, int step, crom_mesh *out)
+/* The refined mesh into out (its X and tets) from gmsh's nn nodes (tags
+ * ntags, coordinates coord) and ne tets (node tags enodes): the original
+ * vertices of m (tags 1..nv, unmoved) keep their index; new ones follow
+ * in gmsh's order. */
+static int renumber_refined(const crom_mesh *m, const size_t *ntags, size_t nn, const double *coord,
+                            const size_t *enodes, size_t ne, crom_mesh *out)
 {
-    int ierr = 0, rc = 0;
-    size_t nv = (size_t)m->nv, nt = (size_t)m->nt;
-    size_t *vtag = crom_malloc(sizeof(size_t) * nv), *etag = crom_malloc(sizeof(size_t) * nt);
-    size_t *enode = crom_malloc(sizeof(size_t) * 4 * nt);
-    size_t *ntags = NULL, nn = 0, nc = 0, np = 0, *etags = NULL, ne = 0, *enodes = NULL, nen = 0;
-    double *coord = NULL, *param = NULL;
-    int *map = NULL;
-    char model[32];
-    memset(out, 0, sizeof *out);
-    if (!vtag || !etag || !enode) {
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
-    for (size_t i = 0; i < nv; i++)
-        vtag[i] = i + 1;
-    for (size_t t = 0; t < nt; t++) {
-        etag[t] = t + 1;
-        for (int c = 0; c < 4; c++)
-            enode[4 * t + c] = (size_t)m->tets[4 * t + c] + 1;
-    }
-    snprintf(model, sizeof model, "refine%d", step);
-    GMSH(gmshModelAdd(model, &ierr), "add a model");
-    GMSH(gmshModelAddDiscreteEntity(3, 1, NULL, 0, &ierr), "add a discrete volume");
-    GMSH(gmshModelMeshAddNodes(3, 1, vtag, nv, m->X, 3 * nv, NULL, 0, &ierr), "add the vertices");
-    GMSH(gmshModelMeshAddElementsByType(1, 4, etag, nt, enode, 4 * nt, &ierr), "add the tets");
-    GMSH(gmshModelMeshRefine(&ierr), "refine the mesh");
-    GMSH(gmshModelMeshGetNodes(&ntags, &nn, &coord, &nc, &param, &np, -1, -1, 0, 0, &ierr),
-         "read the refined vertices");
-    GMSH(gmshModelMeshGetElementsByType(4, &etags, &ne, &enodes, &nen, -1, 0, 1, &ierr),
-         "read the refined tets");
-    if (ne != 8 * nt || nn < nv) {
-        rc = crom_err(CROM_EINTERNAL, "gmsh refined %zu tets into %zu with %zu vertices (expected %zu tets)",
-                      nt, ne, nn, 8 * nt);
-        goto out;
-    }
-    size_t maxtag = 0;
+    size_t nv = (size_t)m->nv, maxtag = 0;
     for (size_t i = 0; i < nn; i++)
         if (ntags[i] > maxtag)
             maxtag = ntags[i];
-    if (maxtag > (size_t)INT32_MAX / 4) {
-        rc = crom_err(CROM_EUSAGE, "refined mesh too large");
-        goto out;
-    }
-    map = crom_malloc(sizeof(int) * (maxtag + 1));
+    if (maxtag > (size_t)INT32_MAX / 4)
+        return crom_err(CROM_EUSAGE, "refined mesh too large");
+    int *map = crom_malloc(sizeof(int) * (maxtag + 1)), rc = 0;
     out->X = crom_malloc(sizeof(double) * 3 * nn);
     out->tets = crom_malloc(sizeof(int) * 4 * ne);
     if (!map || !out->X || !out->tets) {
@@ -758,7 +747,6 @@ static int gmsh_refine_once(const crom_mesh *m, int step, crom_mesh *out)
     }
     for (size_t i = 0; i <= maxtag; i++)
         map[i] = -1;
-    /* the original vertices keep their index; new ones follow in gmsh's order */
     memcpy(out->X, m->X, sizeof(double) * 3 * nv);
     int next = (int)nv;
     for (size_t i = 0; i < nn; i++) {
@@ -789,6 +777,50 @@ static int gmsh_refine_once(const crom_mesh *m, int step, crom_mesh *out)
     out->nv = (int)nn;
     out->nt = (int)ne;
 out:
+    free(map);
+    return rc;
+}
+
+/* One 1:8 refinement of m by gmsh into out (regions not yet set): the
+ * original vertices keep their indices 0..nv-1, midpoints follow. */
+static int gmsh_refine_once(const crom_mesh *m, int step, crom_mesh *out)
+{
+    int ierr = 0, rc = 0;
+    size_t nv = (size_t)m->nv, nt = (size_t)m->nt;
+    size_t *vtag = crom_malloc(sizeof(size_t) * nv), *etag = crom_malloc(sizeof(size_t) * nt);
+    size_t *enode = crom_malloc(sizeof(size_t) * 4 * nt);
+    size_t *ntags = NULL, nn = 0, nc = 0, np = 0, *etags = NULL, ne = 0, *enodes = NULL, nen = 0;
+    double *coord = NULL, *param = NULL;
+    char model[32];
+    memset(out, 0, sizeof *out);
+    if (!vtag || !etag || !enode) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    for (size_t i = 0; i < nv; i++)
+        vtag[i] = i + 1;
+    for (size_t t = 0; t < nt; t++) {
+        etag[t] = t + 1;
+        for (int c = 0; c < 4; c++)
+            enode[4 * t + c] = (size_t)m->tets[4 * t + c] + 1;
+    }
+    snprintf(model, sizeof model, "refine%d", step);
+    GMSH(gmshModelAdd(model, &ierr), "add a model");
+    GMSH(gmshModelAddDiscreteEntity(3, 1, NULL, 0, &ierr), "add a discrete volume");
+    GMSH(gmshModelMeshAddNodes(3, 1, vtag, nv, m->X, 3 * nv, NULL, 0, &ierr), "add the vertices");
+    GMSH(gmshModelMeshAddElementsByType(1, 4, etag, nt, enode, 4 * nt, &ierr), "add the tets");
+    GMSH(gmshModelMeshRefine(&ierr), "refine the mesh");
+    GMSH(gmshModelMeshGetNodes(&ntags, &nn, &coord, &nc, &param, &np, -1, -1, 0, 0, &ierr),
+         "read the refined vertices");
+    GMSH(gmshModelMeshGetElementsByType(4, &etags, &ne, &enodes, &nen, -1, 0, 1, &ierr),
+         "read the refined tets");
+    if (ne != 8 * nt || nn < nv) {
+        rc = crom_err(CROM_EINTERNAL, "gmsh refined %zu tets into %zu with %zu vertices (expected %zu tets)",
+                      nt, ne, nn, 8 * nt);
+        goto out;
+    }
+    rc = renumber_refined(m, ntags, nn, coord, enodes, ne, out);
+out:
     ierr = 0;
     gmshModelRemove(&ierr);
     if (ntags)
@@ -804,7 +836,6 @@ out:
     free(vtag);
     free(etag);
     free(enode);
-    free(map);
     if (rc)
         crom_mesh_free(out);
     return rc;

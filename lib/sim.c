@@ -14,7 +14,7 @@
  * the next Newton iteration; CG gives up (and we factor now) at CG_MAX. */
 #define CG_SLOW 12
 #define CG_MAX 60
-/* see the simplified Newton check in crom_sim_step */
+/* see simplified_step and newton_solve */
 #define CHECK_CG 3
 
 /* Relative accuracy asked of CG (inexact Newton). Measured on the 19K-vertex
@@ -285,23 +285,22 @@ static int ip_eval(void *ctx, const double *x, double *f, double *g)
     return rc ? rc : potential(c->s, x, E, f, NULL);
 }
 
-int crom_sim_step(crom_sim *s, crom_step_stats *st)
+/* Start a step ending at t1: the start xn, the inertial prediction xhat,
+ * the friction model's lagged normal forces, the external force, and the
+ * initial guess: the prediction, with Dirichlet DOFs at their targets. */
+static void step_begin(crom_sim *s, double t1)
 {
     const crom_scenario *sc = s->sc;
-    /* the time at the end of the step is step * dt, not a running sum of dt */
-    double h = sc->dt, t1 = (double)(s->step + 1) * h, tstart = crom_now();
+    double h = sc->dt;
     size_t n = (size_t)s->n;
-    memset(st, 0, sizeof *st);
     memcpy(s->xn, s->x, sizeof(double) * n);
     for (size_t i = 0; i < n; i++)
         s->xhat[i] = s->xn[i] + h * s->v[i];
-    /* lagged normal forces of the friction model, from the start of the step */
     for (int p = 0; p < sc->nplanes; p++)
         for (int i = 0; i < s->nv; i++)
             s->lam[(size_t)p * s->nv + i] =
                 sc->contact_stiffness * s->fem.mass[i] * crom_contact_depth(&sc->plane[p], s->xn + 3 * i);
     external_force(s, t1, s->fext);
-    /* initial guess: the inertial prediction; Dirichlet DOFs at their targets */
     memcpy(s->x, s->xhat, sizeof(double) * n);
     const double *X = s->mesh->X;
     for (int b = 0; b < s->nvel; b++) {
@@ -315,118 +314,201 @@ int crom_sim_step(crom_sim *s, crom_step_stats *st)
     }
     for (int k = 0; k < s->npin; k++)
         memcpy(s->x + 3 * (size_t)s->pin[k], X + 3 * (size_t)s->pin[k], 3 * sizeof(double));
+}
 
-    /* Newton on the true Hessian (plus M/h²), which converges quadratically;
-     * when it is not positive definite (CG meets negative curvature, the
-     * factorization fails, or the direction does not descend) the rest of
-     * the step uses per-element SPD-projected Hessians instead. */
-    crom_fem_opts fo = {0, 1.0 / (h * h) + sc->damping / h, s->fixed, 0};
-    st->residual = INFINITY;
-    double rtol = CG_RTOL, prev_res = INFINITY;
-    crom_sym A = {s->n, s->fem.colptr, s->fem.rowind, s->H};
-    double ip = 0, E = 0;
-    int rc = 0, converged = 0, it = 0;
-    int check = 0; /* the next iteration is predicted to be the last */
-    while (!rc) {
-        double t0 = crom_now();
-        if (check && s->have_factor && !s->refactor) {
-            /* Newton contracts fast enough that the next correction is
-             * predicted below tol: measure it first with a cheap simplified
-             * Newton correction, the gradient (no Hessian) and one solve with
-             * the reused factor, z = -P⁻¹g; the test asks it to be below tol
-             * with a margin of 2, for the factor is of an older Hessian. */
-            check = 0;
-            if ((rc = ip_gradient(s, s->x, &fo, &E, s->g, NULL)))
-                break;
-            st->t_assemble += crom_now() - t0;
-            for (size_t i = 0; i < n; i++)
-                s->xt[i] = -s->g[i];
-            t0 = crom_now();
-            if ((rc = crom_chol_solve(s->chol, s->xt, s->d)))
-                break;
-            st->t_solve += crom_now() - t0;
-            st->cg++;
-            double res = 0;
-            for (size_t i = 0; i < n; i++)
-                res = fmax(res, fabs(s->d[i]));
-            res /= s->L;
-            if (res <= 0.5 * sc->tol) {
-                for (size_t i = 0; i < n; i++)
-                    s->x[i] += s->d[i];
-                st->residual = res;
-                st->newton++;
-                converged = 1;
-                break;
-            }
-            t0 = crom_now();
-        }
-        if ((rc = ip_gradient(s, s->x, &fo, &E, s->g, s->H)))
-            break;
-        st->t_assemble += crom_now() - t0;
-        if (it == sc->max_iter)
-            break;
-        /* Newton direction: H d = -g */
+/* The state of a step's Newton iteration. */
+typedef struct {
+    crom_fem_opts fo; /* Hessians true, or SPD-projected (fo.project) once found indefinite */
+    crom_sym A;       /* the Hessian, s->H */
+    double rtol;      /* relative accuracy asked of CG */
+    double prev_res;  /* the previous iteration's correction (relative to L) */
+    double E;         /* elastic energy at x */
+    int it;           /* Newton iterations taken */
+    int check;        /* the next iteration is predicted to be the last */
+    int cg;           /* CG iterations of the last direction, −1: a direct solve */
+} newton;
+
+/* The largest entry of |d| relative to the body size L. */
+static double correction(const crom_sim *s, const double *d)
+{
+    double res = 0;
+    for (size_t i = 0; i < (size_t)s->n; i++)
+        res = fmax(res, fabs(d[i]));
+    return res / s->L;
+}
+
+/* Newton contracts fast enough that the next correction is predicted
+ * below tol: measure it first with a cheap simplified Newton correction,
+ * the gradient (no Hessian) and one solve with the reused factor,
+ * z = -P⁻¹g; the test asks it to be below tol with a margin of 2, for the
+ * factor is of an older Hessian. When it passes, x takes it and
+ * *converged is set. */
+static int simplified_step(crom_sim *s, newton *nw, crom_step_stats *st, int *converged)
+{
+    size_t n = (size_t)s->n;
+    double t0 = crom_now();
+    int rc = ip_gradient(s, s->x, &nw->fo, &nw->E, s->g, NULL);
+    if (rc)
+        return rc;
+    st->t_assemble += crom_now() - t0;
+    for (size_t i = 0; i < n; i++)
+        s->xt[i] = -s->g[i];
+    t0 = crom_now();
+    if ((rc = crom_chol_solve(s->chol, s->xt, s->d)))
+        return rc;
+    st->t_solve += crom_now() - t0;
+    st->cg++;
+    double res = correction(s, s->d);
+    if (res <= 0.5 * s->sc->tol) {
         for (size_t i = 0; i < n; i++)
-            s->xt[i] = -s->g[i];
-        int cg = -1;
-        t0 = crom_now();
-        if (s->have_factor && !s->refactor) {
-            memset(s->d, 0, sizeof(double) * n);
-            cg = crom_pcg(&A, s->chol, s->xt, s->d, rtol, CG_MAX, s->work);
-            if (cg < -1) {
-                rc = -cg;
-                break;
-            }
-            if (cg >= 0)
-                st->cg += cg;
-            s->refactor = cg < 0 || cg > CG_SLOW;
+            s->x[i] += s->d[i];
+        st->residual = res;
+        st->newton++;
+        *converged = 1;
+    }
+    return 0;
+}
+
+/* The Newton direction d, H d = -g: by CG preconditioned with the reused
+ * factor while it serves (nw->cg its iterations), else from a fresh
+ * factorization (nw->cg = -1). *retry when H proved indefinite: the
+ * Hessians are projected from now on, and the iteration assembles again. */
+static int newton_direction(crom_sim *s, newton *nw, crom_step_stats *st, int *retry)
+{
+    size_t n = (size_t)s->n;
+    *retry = 0;
+    for (size_t i = 0; i < n; i++)
+        s->xt[i] = -s->g[i];
+    int cg = -1, rc;
+    double t0 = crom_now();
+    if (s->have_factor && !s->refactor) {
+        memset(s->d, 0, sizeof(double) * n);
+        cg = crom_pcg(&nw->A, s->chol, s->xt, s->d, nw->rtol, CG_MAX, s->work);
+        if (cg < -1)
+            return -cg;
+        if (cg >= 0)
+            st->cg += cg;
+        s->refactor = cg < 0 || cg > CG_SLOW;
+    }
+    st->t_solve += crom_now() - t0;
+    nw->cg = cg;
+    if (cg >= 0)
+        return 0;
+    t0 = crom_now();
+    rc = crom_chol_factor(s->chol, s->H);
+    st->t_factor += crom_now() - t0;
+    st->factorizations++;
+    s->have_factor = rc == 0;
+    if (rc == CROM_EDATA && !nw->fo.project) {
+        nw->fo.project = 1; /* indefinite: project from now on */
+        crom_err_clear();
+        *retry = 1;
+        return 0;
+    }
+    if (rc) {
+        crom_err_ctx("step %ld", s->step + 1);
+        return rc;
+    }
+    s->refactor = 0;
+    t0 = crom_now();
+    if ((rc = crom_chol_solve(s->chol, s->xt, s->d)))
+        return rc;
+    st->t_solve += crom_now() - t0;
+    return 0;
+}
+
+/* The slope g·d of the direction, which must descend. When it does not:
+ * *retry with projected Hessians, or, projected already (which an SPD
+ * matrix cannot give), fall back to a scaled gradient. */
+static double descent_slope(crom_sim *s, newton *nw, int *retry)
+{
+    size_t n = (size_t)s->n;
+    double h = s->sc->dt, slope = 0;
+    *retry = 0;
+    for (size_t i = 0; i < n; i++)
+        slope += s->g[i] * s->d[i];
+    if (!(slope < 0)) {
+        if (!nw->fo.project) {
+            nw->fo.project = 1;
+            *retry = 1;
+            return slope;
         }
-        st->t_solve += crom_now() - t0;
-        if (cg < 0) {
-            t0 = crom_now();
-            rc = crom_chol_factor(s->chol, s->H);
-            st->t_factor += crom_now() - t0;
-            st->factorizations++;
-            s->have_factor = rc == 0;
-            if (rc == CROM_EDATA && !fo.project) {
-                rc = 0; /* indefinite: project from now on */
-                fo.project = 1;
-                crom_err_clear();
-                continue;
-            }
-            if (rc) {
-                crom_err_ctx("step %ld", s->step + 1);
-                break;
-            }
-            s->refactor = 0;
-            t0 = crom_now();
-            if ((rc = crom_chol_solve(s->chol, s->xt, s->d)))
-                break;
-            st->t_solve += crom_now() - t0;
-        }
-        double slope = 0;
+        for (size_t i = 0; i < n; i++)
+            s->d[i] = -s->g[i] * h * h / s->m3[i];
+        slope = 0;
         for (size_t i = 0; i < n; i++)
             slope += s->g[i] * s->d[i];
-        if (!(slope < 0)) {
-            if (!fo.project) {
-                fo.project = 1;
-                continue;
-            }
-            /* cannot happen with an SPD matrix; fall back to a scaled gradient */
-            for (size_t i = 0; i < n; i++)
-                s->d[i] = -s->g[i] * h * h / s->m3[i];
-            slope = 0;
-            for (size_t i = 0; i < n; i++)
-                slope += s->g[i] * s->d[i];
+    }
+    return slope;
+}
+
+/* Armijo backtracking on the incremental potential from x along d (slope
+ * g·d < 0); the test allows the potential's own round-off (a few ulps of
+ * its terms), without which no step could be accepted near convergence.
+ * Without progress the Hessians are projected, or once they are, the
+ * factor is renewed. */
+static int line_search(crom_sim *s, newton *nw, double slope, crom_step_stats *st)
+{
+    double t0 = crom_now(), ip, noise;
+    int rc = potential(s, s->x, nw->E, &ip, &noise);
+    if (rc)
+        return rc;
+    /* a predicted decrease this small is below what the potential's
+     * floating-point value resolves (its terms carry ~1e-12 relative
+     * round-off): judge such steps by the directional derivative
+     * φ'(α) = ∇IP(x + αd)·d instead, |φ'(α)| <= ½|φ'(0)| */
+    int tiny = -slope < 1e-8 * noise / (64 * DBL_EPSILON);
+    ip_ctx lc = {s, &nw->fo};
+    double alpha = crom_linesearch(ip_eval, &lc, (size_t)s->n, s->x, s->d, ip, slope, noise, tiny, s->xt, s->work,
+                                   &st->cuts);
+    nw->check = nw->check && alpha == 1;
+    if (alpha > 0)
+        memcpy(s->x, s->xt, sizeof(double) * (size_t)s->n);
+    else if (!nw->fo.project)
+        nw->fo.project = 1; /* no progress along this direction: project */
+    else
+        s->refactor = 1;
+    st->t_linesearch += crom_now() - t0;
+    return 0;
+}
+
+/* Newton on the true Hessian (plus M/h²), which converges quadratically;
+ * when it is not positive definite (CG meets negative curvature, the
+ * factorization fails, or the direction does not descend) the rest of
+ * the step uses per-element SPD-projected Hessians instead. Converged
+ * when the Newton correction is below tol of the body size: x takes it
+ * without a line search. CROM_EDATA when not converged in max_iter. */
+static int newton_solve(crom_sim *s, crom_step_stats *st)
+{
+    const crom_scenario *sc = s->sc;
+    double h = sc->dt;
+    size_t n = (size_t)s->n;
+    newton nw = {{0, 1.0 / (h * h) + sc->damping / h, s->fixed, 0},
+                 {s->n, s->fem.colptr, s->fem.rowind, s->H},
+                 CG_RTOL, INFINITY, 0, 0, 0, -1};
+    st->residual = INFINITY;
+    int rc = 0, converged = 0, retry;
+    while (!rc) {
+        double t0 = crom_now();
+        if (nw.check && s->have_factor && !s->refactor) {
+            nw.check = 0;
+            if ((rc = simplified_step(s, &nw, st, &converged)) || converged)
+                break;
+            t0 = crom_now();
         }
-        it++;
+        if ((rc = ip_gradient(s, s->x, &nw.fo, &nw.E, s->g, s->H)))
+            break;
+        st->t_assemble += crom_now() - t0;
+        if (nw.it == sc->max_iter)
+            break;
+        if ((rc = newton_direction(s, &nw, st, &retry)) || retry)
+            continue;
+        double slope = descent_slope(s, &nw, &retry);
+        if (retry)
+            continue;
+        nw.it++;
         st->newton++;
-        /* converged when the Newton correction is below tol of the body size:
-         * take it without a line search and stop */
-        double res = 0;
-        for (size_t i = 0; i < n; i++)
-            res = fmax(res, fabs(s->d[i]));
-        res /= s->L;
+        double res = correction(s, s->d);
         st->residual = res;
         if (!isfinite(res)) {
             rc = crom_err(CROM_EDATA, "step %ld: the state became non-finite", s->step + 1);
@@ -438,50 +520,40 @@ int crom_sim_step(crom_sim *s, crom_step_stats *st)
             converged = 1;
             break;
         }
-        if (res > 0.5 * prev_res) { /* not contracting: solve more exactly */
-            rtol *= 0.1;
-            if (rtol < 1e-6)
+        if (res > 0.5 * nw.prev_res) { /* not contracting: solve more exactly */
+            nw.rtol *= 0.1;
+            if (nw.rtol < 1e-6)
                 s->refactor = 1;
         }
         /* the simplified correction is as good as the factor approximates
          * the Hessian, which CG's iteration count measures: try it only
          * when CG needed few iterations (measured on the 19K and 83K-vertex
          * benchmarks: at 3 it passes, at 4-5 it mostly fails) */
-        check = isfinite(prev_res) && res * (res / prev_res) <= sc->tol && cg >= 0 && cg <= CHECK_CG;
-        prev_res = res;
-        /* Armijo backtracking on the incremental potential; the test allows
-         * the potential's own round-off (a few ulps of its terms), without
-         * which no step could be accepted near convergence */
-        t0 = crom_now();
-        double noise;
-        if ((rc = potential(s, s->x, E, &ip, &noise)))
-            break;
-        /* a predicted decrease this small is below what the potential's
-         * floating-point value resolves (its terms carry ~1e-12 relative
-         * round-off): judge such steps by the directional derivative
-         * φ'(α) = ∇IP(x + αd)·d instead, |φ'(α)| <= ½|φ'(0)| */
-        int tiny = -slope < 1e-8 * noise / (64 * DBL_EPSILON);
-        ip_ctx lc = {s, &fo};
-        double alpha = crom_linesearch(ip_eval, &lc, n, s->x, s->d, ip, slope, noise, tiny, s->xt, s->work, &st->cuts);
-        check = check && alpha == 1;
-        if (alpha > 0)
-            memcpy(s->x, s->xt, sizeof(double) * n);
-        else if (!fo.project)
-            fo.project = 1; /* no progress along this direction: project */
-        else
-            s->refactor = 1;
-        st->t_linesearch += crom_now() - t0;
+        nw.check = isfinite(nw.prev_res) && res * (res / nw.prev_res) <= sc->tol && nw.cg >= 0 &&
+                   nw.cg <= CHECK_CG;
+        nw.prev_res = res;
+        rc = line_search(s, &nw, slope, st);
     }
     if (!rc && !converged)
         rc = crom_err(CROM_EDATA,
                       "step %ld did not converge: residual %.3g > --tol %.3g after %d Newton iterations "
                       "(try a smaller --dt, a larger --max-iter or a looser --tol)",
                       s->step + 1, st->residual, sc->tol, sc->max_iter);
+    return rc;
+}
+
+int crom_sim_step(crom_sim *s, crom_step_stats *st)
+{
+    /* the time at the end of the step is step * dt, not a running sum of dt */
+    double h = s->sc->dt, t1 = (double)(s->step + 1) * h, tstart = crom_now();
+    memset(st, 0, sizeof *st);
+    step_begin(s, t1);
+    int rc = newton_solve(s, st);
     if (rc) {
         st->t_total = crom_now() - tstart;
         return rc;
     }
-    for (size_t i = 0; i < n; i++)
+    for (size_t i = 0; i < (size_t)s->n; i++)
         s->v[i] = (s->x[i] - s->xn[i]) / h;
     s->t = t1;
     s->step++;
