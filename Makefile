@@ -9,6 +9,10 @@
 #   make install PREFIX=/usr/local
 #
 # WERROR=1 turns warnings into errors (CI does this).
+#
+# lib/ is built in layers, each a folder, each including only itself and the
+# layers below it: base < io < mesh < phys < nn < rom < datafree < view < cli
+# (lib/README.md says what each holds; tests/prog/layers.sh keeps the order).
 
 VERSION := 0.1.0
 PREFIX  ?= /usr/local

@@ -4,13 +4,13 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
-#include "cubature.h"
-#include "err.h"
-#include "io.h"
-#include "map.h"
-#include "metrics.h"
-#include "model.h"
+#include "base/err.h"
+#include "cli/cli.h"
+#include "io/io.h"
+#include "rom/cubature.h"
+#include "rom/map.h"
+#include "rom/metrics.h"
+#include "rom/model.h"
 
 enum { O_MODEL = 300, O_SCHEME, O_COUNT, O_POSES, O_TOL, O_CAND, O_YOUNGS, O_POISSON, O_MAXPOSE, O_SHRINK };
 
@@ -203,7 +203,7 @@ out:
 }
 
 /* A nonlinear map model (energy, neuralmodes, energy-field) is integrated
- * through its features: x = X + B a(q) (lib/map.h), so the cubature caches
+ * through its features: x = X + B a(q) (lib/rom/map.h), so the cubature caches
  * B as its basis and fits, at latent samples q_j of the model's training
  * distribution (or the --poses given in *poses), the latent forces
  * T(q_j)ᵀ B_eᵀ f_e of each tet. Replaces the poses and their count with

@@ -4,10 +4,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
-#include "err.h"
-#include "io.h"
-#include "result.h"
+#include "base/err.h"
+#include "cli/cli.h"
+#include "io/io.h"
+#include "rom/result.h"
 
 enum { O_MESH = 300, O_MODEL, O_MODEL_A, O_MODEL_B, O_CSV, O_MAX };
 

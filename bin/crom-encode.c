@@ -8,12 +8,12 @@
 
 #include <cblas.h>
 
-#include "cli.h"
-#include "err.h"
-#include "io.h"
-#include "locate.h"
-#include "mesh.h"
-#include "model.h"
+#include "base/err.h"
+#include "cli/cli.h"
+#include "io/io.h"
+#include "mesh/locate.h"
+#include "mesh/mesh.h"
+#include "rom/model.h"
 
 enum { O_MODEL = 300, O_ENCODER, O_LSQ };
 

@@ -5,13 +5,13 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
-#include "err.h"
-#include "export.h"
-#include "follow.h"
-#include "io.h"
-#include "mesh.h"
-#include "picture.h"
+#include "base/err.h"
+#include "cli/cli.h"
+#include "io/io.h"
+#include "mesh/mesh.h"
+#include "view/export.h"
+#include "view/follow.h"
+#include "view/picture.h"
 
 enum { O_FORMAT = 300, O_FRAME, O_EVERY, O_NAME, O_MESH, O_MODEL, O_COMPARE, O_COLUMNS, O_PANEL, O_RANGE, O_FOLLOW,
        O_YOUNGS, O_POISSON };

@@ -11,29 +11,29 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
-#include "cloud.h"
-#include "datafree.h"
-#include "dfskin.h"
-#include "err.h"
-#include "fit.h"
-#include "io.h"
-#include "locate.h"
-#include "map.h"
-#include "mesh.h"
-#include "model.h"
-#include "modes.h"
-#include "result.h"
-#include "samples.h"
-#include "scenario.h"
-#include "skin.h"
+#include "base/err.h"
+#include "cli/cli.h"
+#include "datafree/datafree.h"
+#include "datafree/dfskin.h"
+#include "io/io.h"
+#include "mesh/cloud.h"
+#include "mesh/locate.h"
+#include "mesh/mesh.h"
+#include "phys/modes.h"
+#include "phys/scenario.h"
+#include "rom/fit.h"
+#include "rom/map.h"
+#include "rom/model.h"
+#include "rom/result.h"
+#include "rom/samples.h"
+#include "rom/skin.h"
 
 enum { O_RANK = 300, O_ENCODER, O_BASIS, O_EPOCHS, O_MINUTES, O_LR, O_BATCH, O_PPS, O_ENCPTS,
        O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX,
        O_ORTHO, O_ORIGIN, O_STEPS, O_FEATURES, O_TETS, O_PINW, O_HANDLES, O_WEIGHTS, O_SURFACE, O_CLOUD,
        O_SPOINTS, O_COORDS, O_COORDTOL };
 
-/* --objective skinning (lib/dfskin.h), next to the CROM_DF_* codes */
+/* --objective skinning (lib/datafree/dfskin.h), next to the CROM_DF_* codes */
 #define OBJ_SKINNING 100
 
 static const crom_opt fit_opts[] = {
@@ -570,7 +570,7 @@ static char *df_scenario_text(const crom_scenario *s, int energy)
 }
 
 /* The body a continuous objective trains on: --mesh, or the virtual tets
- * of a point sampling of --surface or --cloud (lib/cloud.h), which cl
+ * of a point sampling of --surface or --cloud (lib/mesh/cloud.h), which cl
  * then keeps (its surface makes the pin mask exact). */
 static int load_body(crom_cli *cli, const args *a, crom_mesh *mesh, char **hist, crom_cloud *cl)
 {

@@ -4,13 +4,13 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
-#include "err.h"
-#include "io.h"
-#include "mesh.h"
-#include "result.h"
-#include "scenario.h"
-#include "sim.h"
+#include "base/err.h"
+#include "cli/cli.h"
+#include "io/io.h"
+#include "mesh/mesh.h"
+#include "phys/scenario.h"
+#include "phys/sim.h"
+#include "rom/result.h"
 
 enum { O_STREAM = 300, O_HDF5, O_STATS };
 
@@ -116,7 +116,7 @@ static int run(crom_cli *cli, args *a)
     if (!rc)
         rc = crom_scenario_write_attrs(o.h5, &a->sc);
     hsize_t dims[2] = {(hsize_t)m.nv, 3};
-    /* the frame fields, in order; their units and descriptions are lib/schema.c's */
+    /* the frame fields, in order; their units and descriptions are lib/io/schema.c's */
     static const char *const f[] = {"time", "step", "displacement", "velocity", "kinetic_energy", "elastic_energy",
                                     "external_energy", "total_energy", "newton_iterations", "residual",
                                     "step_seconds"};

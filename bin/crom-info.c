@@ -4,12 +4,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
-#include "err.h"
-#include "io.h"
-#include "mesh.h"
-#include "schema.h"
-#include "validate.h"
+#include "base/err.h"
+#include "cli/cli.h"
+#include "io/io.h"
+#include "io/schema.h"
+#include "mesh/mesh.h"
+#include "view/validate.h"
 
 enum { O_CHECK = 300, O_FRAMES, O_HISTORY };
 
@@ -30,7 +30,7 @@ static const crom_doc doc = {
     "span and energies of a trajectory; rank and training of a model; ...) and every dataset "
     "with its type, shape and units. Reads HDF5 files and crom frame streams, from a path or "
     "from stdin ('-').\n\n"
-    "With --check it validates each file against the table of its schema (lib/schema.c, the "
+    "With --check it validates each file against the table of its schema (lib/io/schema.c, the "
     "same as schemas/*.md): every dataset and attribute must be in it, with its type, shape "
     "and units; it exits non-zero when anything is wrong.",
     groups,

@@ -5,10 +5,10 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "cli.h"
-#include "err.h"
-#include "io.h"
-#include "meshgen.h"
+#include "base/err.h"
+#include "cli/cli.h"
+#include "io/io.h"
+#include "mesh/meshgen.h"
 
 enum { O_SIZE = 'S' + 256, O_DIMS, O_RADIUS, O_HEIGHT, O_EXP, O_REGION, O_ALGO, O_NOOPT,
        O_REMESH, O_KEEP, O_TIMEOUT };

@@ -6,16 +6,16 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
-#include "datafree.h"
-#include "err.h"
-#include "fem.h"
-#include "io.h"
-#include "map.h"
-#include "metrics.h"
-#include "model.h"
-#include "result.h"
-#include "scenario.h"
+#include "base/err.h"
+#include "cli/cli.h"
+#include "datafree/datafree.h"
+#include "io/io.h"
+#include "phys/fem.h"
+#include "phys/scenario.h"
+#include "rom/map.h"
+#include "rom/metrics.h"
+#include "rom/model.h"
+#include "rom/result.h"
 
 enum { O_MESH = 300, O_COMPARE, O_SAMPLES, O_SPHERE, O_BOX, O_NORMAL, O_SIGMA, O_PAIRS, O_THRESH };
 

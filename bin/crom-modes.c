@@ -6,15 +6,15 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
-#include "err.h"
-#include "fem.h"
-#include "io.h"
-#include "mesh.h"
-#include "model.h"
-#include "modes.h"
-#include "result.h"
-#include "scenario.h"
+#include "base/err.h"
+#include "cli/cli.h"
+#include "io/io.h"
+#include "mesh/mesh.h"
+#include "phys/fem.h"
+#include "phys/modes.h"
+#include "phys/scenario.h"
+#include "rom/model.h"
+#include "rom/result.h"
 
 enum { O_COUNT = 300, O_KEEP, O_SHIFT, O_TOL, O_RIGID_TOL };
 

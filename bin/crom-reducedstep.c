@@ -7,16 +7,16 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
-#include "cubature.h"
-#include "err.h"
-#include "io.h"
-#include "map.h"
-#include "model.h"
-#include "nlrom.h"
-#include "result.h"
-#include "rom.h"
-#include "scenario.h"
+#include "base/err.h"
+#include "cli/cli.h"
+#include "io/io.h"
+#include "phys/scenario.h"
+#include "rom/cubature.h"
+#include "rom/map.h"
+#include "rom/model.h"
+#include "rom/nlrom.h"
+#include "rom/result.h"
+#include "rom/rom.h"
 
 enum { O_CUB = 300, O_INIT, O_SCHED, O_SOLVER, O_KAPPA, O_STATS, O_STREAM, O_HDF5, O_INITFRAME, O_BCTHR,
        O_MODEL, O_MESH };
@@ -285,7 +285,7 @@ static int put_frame(crom_out *o, crom_rsim *s, const crom_rstep_stats *st, int 
 }
 
 /* The latent output's attributes and frame fields (kind: the model's basis,
- * NULL for a run over cubatures; units and descriptions are lib/schema.c's). */
+ * NULL for a run over cubatures; units and descriptions are lib/io/schema.c's). */
 static int start_output(crom_out *o, const args *a, const char *model_id, int r, const char *solver,
                         const char *kind)
 {

@@ -7,11 +7,11 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "cli.h"
-#include "err.h"
-#include "io.h"
-#include "mesh.h"
-#include "remesh.h"
+#include "base/err.h"
+#include "cli/cli.h"
+#include "io/io.h"
+#include "mesh/mesh.h"
+#include "mesh/remesh.h"
 
 enum { SUB_CUT = 1, SUB_PUNCH, SUB_SWAP, SUB_REFINE };
 static const char *sub_names[] = {"", "cut", "punch", "swap", "refine"};

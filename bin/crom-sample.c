@@ -7,13 +7,13 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "cli.h"
-#include "err.h"
-#include "io.h"
-#include "locate.h"
-#include "mesh.h"
-#include "rng.h"
-#include "samples.h"
+#include "base/err.h"
+#include "base/rng.h"
+#include "cli/cli.h"
+#include "io/io.h"
+#include "mesh/locate.h"
+#include "mesh/mesh.h"
+#include "rom/samples.h"
 
 enum { O_POINTS = 300, O_MODE, O_EVERY, O_SKIPREST };
 

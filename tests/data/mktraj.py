@@ -87,7 +87,7 @@ def main():
         f.attrs["poisson"] = 0.3
         f.attrs["density"] = 1000.0
         f.attrs["gravity"] = np.zeros(3)
-        # units and descriptions as lib/schema.c has them (crom-info --check)
+        # units and descriptions as lib/io/schema.c has them (crom-info --check)
         f["mesh/vertices"] = X
         f["mesh/vertices"].attrs.update(units="m", description="rest positions X of the vertices")
         f["mesh/tets"] = T

@@ -43,16 +43,16 @@ done
 
 # 2. changing the flags rebuilds; the same flags do not (the package check is
 #    pretended done: the packages are on this machine, the suite runs after a build)
-( cd "$src" && mkdir -p build && touch build/.deps-ok && make -s build/lib/err.o >/dev/null ) \
-  || fail "could not compile lib/err.c in the copy"
-( cd "$src" && make -q build/lib/err.o ) || fail "build/lib/err.o is out of date right after building it"; ok
-rc=0; ( cd "$src" && make -q build/lib/err.o OPT=-O1 ) || rc=$?
-[ $rc -eq 1 ] || fail "changing OPT does not rebuild build/lib/err.o (make -q exited $rc)"; ok
-( cd "$src" && make -s build/lib/err.o OPT=-O1 >/dev/null && make -q build/lib/err.o OPT=-O1 ) \
-  || fail "build/lib/err.o is out of date after rebuilding it with OPT=-O1"; ok
-rc=0; ( cd "$src" && make -q build/lib/err.o CFLAGS='-g -O0' ) || rc=$?
-[ $rc -eq 1 ] || fail "changing CFLAGS does not rebuild build/lib/err.o (make -q exited $rc)"; ok
-san=$(cd "$src" && make -n SANITIZE=1 build-san/lib/err.o | grep -c 'fsanitize=address' || true)
+( cd "$src" && mkdir -p build && touch build/.deps-ok && make -s build/lib/base/err.o >/dev/null ) \
+  || fail "could not compile lib/base/err.c in the copy"
+( cd "$src" && make -q build/lib/base/err.o ) || fail "build/lib/base/err.o is out of date right after building it"; ok
+rc=0; ( cd "$src" && make -q build/lib/base/err.o OPT=-O1 ) || rc=$?
+[ $rc -eq 1 ] || fail "changing OPT does not rebuild build/lib/base/err.o (make -q exited $rc)"; ok
+( cd "$src" && make -s build/lib/base/err.o OPT=-O1 >/dev/null && make -q build/lib/base/err.o OPT=-O1 ) \
+  || fail "build/lib/base/err.o is out of date after rebuilding it with OPT=-O1"; ok
+rc=0; ( cd "$src" && make -q build/lib/base/err.o CFLAGS='-g -O0' ) || rc=$?
+[ $rc -eq 1 ] || fail "changing CFLAGS does not rebuild build/lib/base/err.o (make -q exited $rc)"; ok
+san=$(cd "$src" && make -n SANITIZE=1 build-san/lib/base/err.o | grep -c 'fsanitize=address' || true)
 [ "$san" -ge 1 ] || fail "SANITIZE=1 does not compile with -fsanitize=address into build-san/"; ok
 
 # 3. distclean and install have recipes; install ships what the README names

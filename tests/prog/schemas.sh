@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# schemas.sh — schemas/*.md, the table in lib/schema.c and the files the
+# schemas.sh — schemas/*.md, the table in lib/io/schema.c and the files the
 # programs write say the same thing.
 #
 # 1. Documents against the table (`test_schema --dump` prints it). For every
@@ -30,7 +30,7 @@ DUMPER="${CROM_BUILD:-$TOP/build}/tests/test_schema"
 "$DUMPER" --dump >"$TMP/table.tsv" || fail "test_schema --dump"
 
 # ------------------------------------------------- 1. documents and the table
-$PY - "$TMP/table.tsv" "$TOP/lib/io.c" "$TOP/schemas" <<'EOF' || fail "schemas/ and lib/schema.c disagree"
+$PY - "$TMP/table.tsv" "$TOP/lib/io/io.c" "$TOP/schemas" <<'EOF' || fail "schemas/ and lib/io/schema.c disagree"
 import os, re, sys
 
 table, iosrc, docdir = sys.argv[1:4]
@@ -102,7 +102,7 @@ def yn(r):
 
 def same_meaning(where, what, doc, tab):
     if plain(doc) != tab.replace('`', ''):
-        err(f"{where}: {what}: the meaning is\n    '{plain(doc)}' in the doc,\n    '{tab}' in lib/schema.c")
+        err(f"{where}: {what}: the meaning is\n    '{plain(doc)}' in the doc,\n    '{tab}' in lib/io/schema.c")
 
 def check_attrs(where_doc, rows, want, objects):
     """rows: (line, cells) of a doc table; want: table rows; objects: other-attribute table."""
@@ -121,30 +121,30 @@ def check_attrs(where_doc, rows, want, objects):
         seen.add(key)
         row = want.get(key)
         if not row:
-            err(f"{where}: {label} is documented but not in lib/schema.c")
+            err(f"{where}: {label} is documented but not in lib/io/schema.c")
             continue
         if plain(typ) != row['type']:
-            err(f"{where}: {label}: type '{plain(typ)}' in the doc, '{row['type']}' in lib/schema.c")
+            err(f"{where}: {label}: type '{plain(typ)}' in the doc, '{row['type']}' in lib/io/schema.c")
         if norm_req(req, where) != row['req']:
-            err(f"{where}: {label}: required '{plain(req)}' in the doc, {yn(row['req'])} in lib/schema.c")
+            err(f"{where}: {label}: required '{plain(req)}' in the doc, {yn(row['req'])} in lib/io/schema.c")
         same_meaning(where, label, meaning, row['meaning'])
     for key, row in want.items():
         if key not in seen:
             err(f"{where_doc}: {'attribute' if not key[0] else 'attribute of /' + key[0]} '{key[1]}' "
-                f"({row['type']}) from lib/schema.c is not documented")
+                f"({row['type']}) from lib/io/schema.c is not documented")
 
 for schema, version in specs:
     short = schema.split('/', 1)[1]
     doc = os.path.join(docdir, short + '.md')
     if not os.path.exists(doc):
-        err(f"{doc}: missing (lib/schema.c defines {schema} v{version})")
+        err(f"{doc}: missing (lib/io/schema.c defines {schema} v{version})")
         continue
     text = open(doc).read()
     m = re.search(r'^`schema` = `([^`]*)`, `schema_version` = (\d+)', text, re.M)
     if not m:
         err(f"{doc}: no line '`schema` = `{schema}`, `schema_version` = {version}'")
     elif m.group(1) != schema or int(m.group(2)) != version:
-        err(f"{doc}: says {m.group(1)} v{m.group(2)}, lib/schema.c has {schema} v{version}")
+        err(f"{doc}: says {m.group(1)} v{m.group(2)}, lib/io/schema.c has {schema} v{version}")
     t = re.search(r'^# (\S+) v(\d+)\s*$', text, re.M)
     if not t or t.group(1) != schema or int(t.group(2)) != version:
         err(f"{doc}: title should be '# {schema} v{version}'")
@@ -161,19 +161,19 @@ for schema, version in specs:
         d = want.get(key)
         if not d:
             units = [u for p, u in want if p == key[0]]
-            err(f"{where}: /{key[0]} in units '{key[1]}' is documented but not in lib/schema.c"
+            err(f"{where}: /{key[0]} in units '{key[1]}' is documented but not in lib/io/schema.c"
                 + (f" (which has it in {', '.join(units)})" if units else ""))
             continue
         if plain(c[1]) != d['dtype']:
-            err(f"{where}: /{key[0]}: dtype '{plain(c[1])}' in the doc, '{d['dtype']}' in lib/schema.c")
+            err(f"{where}: /{key[0]}: dtype '{plain(c[1])}' in the doc, '{d['dtype']}' in lib/io/schema.c")
         if norm_shape(c[2]) != d['shape']:
-            err(f"{where}: /{key[0]}: shape {c[2]} in the doc, [{d['shape']}] in lib/schema.c")
+            err(f"{where}: /{key[0]}: shape {c[2]} in the doc, [{d['shape']}] in lib/io/schema.c")
         if norm_req(c[4], where) != d['req']:
-            err(f"{where}: /{key[0]}: required '{plain(c[4])}' in the doc, {yn(d['req'])} in lib/schema.c")
+            err(f"{where}: /{key[0]}: required '{plain(c[4])}' in the doc, {yn(d['req'])} in lib/io/schema.c")
         same_meaning(where, f"/{key[0]}", c[5], d['meaning'])
     for key, d in want.items():
         if key not in seen:
-            err(f"{doc}: dataset /{key[0]} ({d['dtype']} [{d['shape']}] {d['units']}) from lib/schema.c "
+            err(f"{doc}: dataset /{key[0]} ({d['dtype']} [{d['shape']}] {d['units']}) from lib/io/schema.c "
                 "is not documented")
     a = attrs.get(schema, [])
     check_attrs(doc, tabs['attr'], {(None, r['name']): r for r in a if r['obj'] is None}, False)
@@ -199,9 +199,9 @@ elif not s or s.group(1) != m.group(1):
 for e in errors:
     print("schemas.sh:", e, file=sys.stderr)
 if errors:
-    sys.exit(f"schemas.sh: {len(errors)} mismatch(es) between schemas/ and lib/schema.c")
+    sys.exit(f"schemas.sh: {len(errors)} mismatch(es) between schemas/ and lib/io/schema.c")
 n = sum(len(v) for v in dsets.values()), sum(len(v) for v in attrs.values())
-print(f"schemas.sh: {len(specs)} schemas, {n[0]} dataset rows and {n[1]} attribute rows in step with lib/schema.c")
+print(f"schemas.sh: {len(specs)} schemas, {n[0]} dataset rows and {n[1]} attribute rows in step with lib/io/schema.c")
 EOF
 ok
 
@@ -242,7 +242,7 @@ for f in "${FILES[@]}"; do
   crom-info --check "$f" >"$TMP/check.txt" || fail "crom-info --check $f: $(cat "$TMP/check.txt")"
 done; ok
 # the latents' q: metres for linear bases and neural modes, dimensionless for data-free maps
-$PY - "$TMP/table.tsv" "${FILES[@]}" <<'EOF' || fail "files and lib/schema.c disagree"
+$PY - "$TMP/table.tsv" "${FILES[@]}" <<'EOF' || fail "files and lib/io/schema.c disagree"
 import io, struct, sys, h5py
 table, files = sys.argv[1], sys.argv[2:]
 rows = {}
@@ -274,7 +274,7 @@ for name in files:
         cand = [r for (sc, pat), rs in rows.items() if sc == schema and match(pat, path) for r in rs]
         got = (s(obj.attrs.get('units')), s(obj.attrs.get('description')))
         if got not in cand:
-            bad.append(f"{name}: /{path} has units {got[0]!r}, description {got[1]!r}; lib/schema.c: {cand}")
+            bad.append(f"{name}: /{path} has units {got[0]!r}, description {got[1]!r}; lib/io/schema.c: {cand}")
         if path == 'frames/q':
             units_q[name] = got[0]
     f.visititems(visit)
@@ -286,8 +286,8 @@ for k, v in want_q.items():
 for b in bad:
     print(b, file=sys.stderr)
 if bad or ndsets < 150:
-    sys.exit(f"{len(bad)} datasets differ from lib/schema.c ({ndsets} checked)")
-print(f"{ndsets} datasets in {len(files)} files carry the units and descriptions of lib/schema.c")
+    sys.exit(f"{len(bad)} datasets differ from lib/io/schema.c ({ndsets} checked)")
+print(f"{ndsets} datasets in {len(files)} files carry the units and descriptions of lib/io/schema.c")
 EOF
 ok
 

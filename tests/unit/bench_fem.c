@@ -2,8 +2,8 @@
  * tets (not a test: speed is measured, never asserted).
  *
  *   cc -std=c17 -D_DEFAULT_SOURCE -O2 -march=x86-64-v2 -fopenmp -Ilib \
- *      -I/usr/include/hdf5/serial tests/unit/bench_fem.c lib/fem.c lib/err.c \
- *      lib/rng.c -lm -o /tmp/bench_fem && /tmp/bench_fem [NX NY NZ]
+ *      -I/usr/include/hdf5/serial tests/unit/bench_fem.c lib/phys/fem.c lib/base/err.c \
+ *      lib/base/rng.c -lm -o /tmp/bench_fem && /tmp/bench_fem [NX NY NZ]
  */
 #include <stdio.h>
 #include <stdlib.h>
@@ -11,10 +11,10 @@
 #include <time.h>
 
 #include "check.h"
-#include "err.h"
+#include "base/err.h"
 #include "fixtures.h"
-#include "fem.h"
-#include "rng.h"
+#include "phys/fem.h"
+#include "base/rng.h"
 
 static double now(void)
 {

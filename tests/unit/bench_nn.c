@@ -2,7 +2,7 @@
  * and of the PointNet encoder, forward + backward, on one core.
  * Not a test (speed is never asserted); build and run by hand:
  *   cc -std=c17 -D_DEFAULT_SOURCE -O2 -march=x86-64-v2 -fopenmp -Ilib \
- *      tests/unit/bench_nn.c lib/nn.c lib/err.c lib/rng.c -lopenblas -lm -o /tmp/bench_nn
+ *      tests/unit/bench_nn.c lib/nn/nn.c lib/base/err.c lib/base/rng.c -lopenblas -lm -o /tmp/bench_nn
  *   /tmp/bench_nn [batch] [reps] [field|pointnet|all] [threads]
  */
 #include <stdio.h>
@@ -12,9 +12,9 @@
 
 #include <cblas.h>
 
-#include "err.h"
-#include "nn.h"
-#include "rng.h"
+#include "base/err.h"
+#include "nn/nn.h"
+#include "base/rng.h"
 
 static double now(void)
 {

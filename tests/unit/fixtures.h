@@ -9,11 +9,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "err.h"
-#include "mesh.h"
-#include "meshgen.h"
-#include "rng.h"
-#include "samples.h"
+#include "base/err.h"
+#include "mesh/mesh.h"
+#include "mesh/meshgen.h"
+#include "base/rng.h"
+#include "rom/samples.h"
 
 /* nx x ny x nz boxes of sides h [3] from lo [3] (lo NULL: the origin),
  * each split into 6 tets along its main diagonal (Kuhn subdivision), vertex

@@ -5,9 +5,9 @@
 
 #include "check.h"
 #include "fixtures.h"
-#include "err.h"
-#include "fem.h"
-#include "rng.h"
+#include "base/err.h"
+#include "phys/fem.h"
+#include "base/rng.h"
 
 /* ---- helpers ------------------------------------------------------------ */
 

@@ -14,11 +14,11 @@
 #include <string.h>
 
 #include "check.h"
-#include "err.h"
-#include "fit.h"
+#include "base/err.h"
+#include "rom/fit.h"
 #include "fixtures.h"
-#include "model.h"
-#include "nn.h"
+#include "rom/model.h"
+#include "nn/nn.h"
 
 #define FD_H 1e-3
 #define FD_TOL 2e-3

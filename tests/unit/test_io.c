@@ -8,12 +8,12 @@
 #include <unistd.h>
 
 #include "check.h"
-#include "cli.h"
-#include "err.h"
-#include "io.h"
-#include "mesh.h"
-#include "schema.h"
-#include "validate.h"
+#include "cli/cli.h"
+#include "base/err.h"
+#include "io/io.h"
+#include "mesh/mesh.h"
+#include "io/schema.h"
+#include "view/validate.h"
 
 static char dir[] = "/tmp/crom-io-XXXXXX";
 

@@ -7,8 +7,8 @@
 #include <stdio.h>
 
 #include "check.h"
-#include "err.h"
-#include "linesearch.h"
+#include "base/err.h"
+#include "base/linesearch.h"
 
 /* f = off + ½ Σ a_i (x_i − c)², undefined for x_0 > lim; evaluated away
  * from x_0 = start it comes out `bump` larger (a stand-in for round-off) */

@@ -8,9 +8,9 @@
 
 #include "check.h"
 #include "fixtures.h"
-#include "err.h"
-#include "mesh.h"
-#include "meshgen.h"
+#include "base/err.h"
+#include "mesh/mesh.h"
+#include "mesh/meshgen.h"
 
 static double mesh_of(int shape, double size, double p, crom_mesh *m)
 {

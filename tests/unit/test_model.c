@@ -8,12 +8,12 @@
 #include <unistd.h>
 
 #include "check.h"
-#include "err.h"
-#include "io.h"
+#include "base/err.h"
+#include "io/io.h"
 #include "fixtures.h"
-#include "locate.h"
-#include "model.h"
-#include "nn.h"
+#include "mesh/locate.h"
+#include "rom/model.h"
+#include "nn/nn.h"
 
 static char dir[] = "/tmp/crom-model-XXXXXX";
 

@@ -13,11 +13,11 @@
 
 #include "check.h"
 #include "fixtures.h"
-#include "err.h"
-#include "fem.h"
-#include "mesh.h"
-#include "meshgen.h"
-#include "modes.h"
+#include "base/err.h"
+#include "phys/fem.h"
+#include "mesh/mesh.h"
+#include "mesh/meshgen.h"
+#include "phys/modes.h"
 
 static int make_box(double size, double dx, double dy, double dz, crom_mesh *m)
 {

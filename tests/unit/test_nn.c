@@ -24,9 +24,9 @@
 #include <string.h>
 
 #include "check.h"
-#include "err.h"
-#include "nn.h"
-#include "rng.h"
+#include "base/err.h"
+#include "nn/nn.h"
+#include "base/rng.h"
 
 #define FD_H 1e-3
 #define FD_TOL 2e-3

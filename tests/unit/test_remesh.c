@@ -8,10 +8,10 @@
 
 #include "check.h"
 #include "fixtures.h"
-#include "err.h"
-#include "mesh.h"
-#include "meshgen.h"
-#include "remesh.h"
+#include "base/err.h"
+#include "mesh/mesh.h"
+#include "mesh/meshgen.h"
+#include "mesh/remesh.h"
 
 /* ------------------------------------------------------------ helpers */
 

@@ -12,12 +12,12 @@
 
 #include "check.h"
 #include "fixtures.h"
-#include "cubature.h"
-#include "err.h"
-#include "fem.h"
-#include "meshgen.h"
-#include "remesh.h"
-#include "rom.h"
+#include "rom/cubature.h"
+#include "base/err.h"
+#include "phys/fem.h"
+#include "mesh/meshgen.h"
+#include "mesh/remesh.h"
+#include "rom/rom.h"
 
 /* An analytic basis: translations, linear fields and a few quadratic
  * bending fields, W [nv][3][r]. */

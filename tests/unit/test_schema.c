@@ -1,5 +1,5 @@
-/* test_schema.c — the table of crom's file types (lib/schema.c) and its use by
- * the writers (lib/io.c): lookups, rows by model kind, the table's own
+/* test_schema.c — the table of crom's file types (lib/io/schema.c) and its use by
+ * the writers (lib/io/io.c): lookups, rows by model kind, the table's own
  * consistency, and writers that take units and descriptions from it and
  * refuse what it does not list. */
 #include <stdio.h>
@@ -8,9 +8,9 @@
 #include <unistd.h>
 
 #include "check.h"
-#include "err.h"
-#include "io.h"
-#include "schema.h"
+#include "base/err.h"
+#include "io/io.h"
+#include "io/schema.h"
 
 static char dir[] = "/tmp/crom-schema-XXXXXX";
 

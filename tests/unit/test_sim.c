@@ -9,13 +9,13 @@
 
 #include "check.h"
 #include "fixtures.h"
-#include "contact.h"
-#include "err.h"
-#include "fem.h"
-#include "mesh.h"
-#include "meshgen.h"
-#include "scenario.h"
-#include "sim.h"
+#include "phys/contact.h"
+#include "base/err.h"
+#include "phys/fem.h"
+#include "mesh/mesh.h"
+#include "mesh/meshgen.h"
+#include "phys/scenario.h"
+#include "phys/sim.h"
 
 /* ----------------------------------------------------------- contact */
 

@@ -27,17 +27,17 @@
 #include <string.h>
 
 #include "check.h"
-#include "cloud.h"
-#include "cubature.h"
-#include "dfskin.h"
-#include "err.h"
-#include "fem.h"
-#include "locate.h"
-#include "meshgen.h"
-#include "model.h"
-#include "nn.h"
-#include "rng.h"
-#include "skin.h"
+#include "mesh/cloud.h"
+#include "rom/cubature.h"
+#include "datafree/dfskin.h"
+#include "base/err.h"
+#include "phys/fem.h"
+#include "mesh/locate.h"
+#include "mesh/meshgen.h"
+#include "rom/model.h"
+#include "nn/nn.h"
+#include "base/rng.h"
+#include "rom/skin.h"
 
 static void make_bar(crom_mesh *m, double size)
 {

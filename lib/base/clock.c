@@ -1,0 +1,32 @@
+/* clock.c — the monotonic clock and the UTC time stamp (see clock.h). */
+#include <stdio.h>
+#include <stdlib.h>
+#include <time.h>
+
+#include "base/clock.h"
+
+double crom_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+void crom_utc_now(char *buf, size_t n)
+{
+    time_t t = time(NULL);
+    const char *sde = getenv("SOURCE_DATE_EPOCH");
+    if (sde && *sde)
+        t = (time_t)strtoll(sde, NULL, 10);
+    struct tm tm;
+    gmtime_r(&t, &tm);
+    strftime(buf, n, "%Y-%m-%dT%H:%M:%SZ", &tm);
+}
+
+int crom_reproducible(void)
+{
+    const char *sde = getenv("SOURCE_DATE_EPOCH");
+    return sde && *sde;
+}
+
+double crom_wall(double seconds) { return crom_reproducible() ? 0.0 : seconds; }

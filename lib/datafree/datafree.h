@@ -1,0 +1,261 @@
+/* datafree.h — subspaces learned from the energy alone, with no simulation
+ * data (crom-fitfield --objective energy|neuralmodes).
+ *
+ * Both learn a map of a latent q in R^r to the positions of every vertex of
+ * ONE mesh (crom/model basis "energy" or "neuralmodes", lib/rom/map.h):
+ *
+ * energy (Sharp et al. 2023, "Data-Free Learning of Reduced-Order
+ * Kinematics", eq. 4 and §4.1): x(z) = X + N(z), N an ELU MLP r -> 3nv
+ * (5 hidden layers), trained on batches of z ~ N(0, I) to minimize
+ *
+ *   L = 1/B Σ_b E_pot(X + ρ N(z_b)) / (E V)
+ *     + λ · mean over the pairs b < c of ( log( D_bc / (σ ‖z_b − z_c‖) ) )²,
+ *
+ *   D_bc = sqrt( (N(z_b) − N(z_c))ᵀ M (N(z_b) − N(z_c)) / m ),
+ *
+ * with E_pot the stable neo-Hookean energy plus the potential of gravity
+ * −Σ_v m_v g·u_v, M the lumped mass and m the body's mass (so D and σ are
+ * RMS displacements in metres: the paper's ‖·‖_M divided by sqrt(m)), E V
+ * Young's modulus times the volume (the energy unit that makes L
+ * dimensionless), and ρ the seed-state blend of §4.1: the map is
+ * ρ N(z) + (1 − ρ) q_seed with the rest state as seed, i.e. X + ρ N(z), and
+ * σ is scaled by ρ too, which cancels in the log-ratio (so the isometry term
+ * is written with N itself and is defined at ρ = 0). ρ grows linearly from 0
+ * to 1 over the first `ramp` fraction of the steps, then stays 1, so the map
+ * that is stored (ρ = 1) is the one trained last. Pinned vertices are built
+ * in: their outputs are masked in the loss and their rows of the last layer
+ * are zero, so the stored map holds them exactly at rest.
+ *
+ * neuralmodes (Wang et al. 2024, "Neural Modes", eq. 12–13): x(z) = X + W z
+ * + y(z) on the r lowest linear modes W (crom-modes, orthonormal in the mass
+ * mean: WᵀMW = m I, q in metres), y a GELU MLP r -> 3nv, trained on z
+ * uniform in the box [−a, a]^r to minimize
+ *
+ *   L = 1/B Σ_b [ E(X + W z_b + y(z_b)) / E_ref + w_o ‖Wᵀ M y(z_b) / m‖² / a² ]
+ *     + w_0 ‖y(0)‖²_M / (m a²),
+ *
+ * the elastic energy (no gravity: nonlinear modes are equilibria of the
+ * elastic energy in the space M-orthogonal to the linear ones), a penalty
+ * keeping y M-orthogonal to the linear span, and one on y at the origin;
+ * E_ref = ½ m ω_r² a², the linear energy of the highest mode at the box
+ * size (E V if that is zero); the default w_o = w_0 = 1e4 holds the
+ * projection of y onto the modes and y(0) to about 1 % of the box. The last layer starts at zero: training
+ * starts from the linear modes.
+ *
+ * field (beyond both papers: a CONTINUOUS data-free subspace, crom/model
+ * basis "energy-field"): x(X, z) = X + W(X) φ(z) with W a neural field
+ * 3 -> 3p over the body (LiCROM's representation, laid on any mesh) and φ
+ * an ELU MLP r -> p, trained on Sharp et al.'s loss with the integrals
+ * over the body replaced by a random cubature drawn afresh each step: K
+ * tets, each standing for nt/K of them (an unbiased estimate of E and of
+ * the gravity potential, lumped masses of the drawn tets for M), so W is
+ * evaluated only at their vertices:
+ *
+ *   L = 1/B Σ_b Ê_pot(X + ρ W φ(z_b)) / (E V)
+ *     + λ · mean over pairs ( log( D̂_bc / (σ ‖z_b − z_c‖) ) )²,
+ *
+ *   D̂²_bc = Δφᵀ Ĝ Δφ / m̂,  Ĝ = Σ_v m̂_v W(X_v)ᵀ W(X_v),  Δφ = φ(z_b) − φ(z_c),
+ *
+ * with z ~ N(0, I) and ρ ramped as above. Pins are built in as a mask
+ * over space: W(X) = s(d(X)/ℓ) W̃(X), s the smoothstep 3t² − 2t³ (1 for t
+ * >= 1) and d the distance to the pinned part of the training mesh: its
+ * boundary triangles with three pinned vertices, and its pinned vertices
+ * (for pins off the boundary), stored in the model with ℓ; so the field is
+ * exactly zero on a pinned face of the body on ANY mesh of it, and the
+ * reduced simulation's own penalty holds whatever else a region pins. (A
+ * penalty on the pins instead competes with the energy, which is weak in
+ * units of E V, and the trained map then barely moves under gravity.)
+ *
+ * Training: Adam, learning rate halved after each quarter of the steps (the
+ * paper's schedule, on a shorter run), batch B. The energies of the B
+ * samples are computed in parallel over `threads` threads, each sample
+ * serially, so results do not depend on the thread count; the network runs
+ * single-threaded (float32), the losses in double.
+ */
+#ifndef CROM_DATAFREE_H
+#define CROM_DATAFREE_H
+
+#include <stdint.h>
+
+#include <hdf5.h>
+
+#include "mesh/mesh.h"
+#include "nn/nn.h"
+#include "phys/fem.h"
+#include "phys/scenario.h"
+#include "rom/model.h"
+
+enum { CROM_DF_ENERGY = 1, CROM_DF_NEURALMODES = 2, CROM_DF_FIELD = 3 };
+
+/* The physical problem (all borrowed). */
+typedef struct {
+    const crom_mesh *mesh;
+    crom_material mat;
+    double gravity[3];           /* m/s² (energy objective only) */
+    const unsigned char *fixed;  /* [3nv] pinned DOFs, or NULL */
+    const double *modes;         /* neuralmodes: W [nv][3][r] */
+    const double *freq;          /* neuralmodes: [r] frequencies (Hz), or NULL */
+} crom_df_problem;
+
+typedef struct {
+    int objective;          /* CROM_DF_ENERGY or CROM_DF_NEURALMODES */
+    int rank;               /* r */
+    int depth, width;       /* dense layers (6: 5 hidden) and hidden width (64) */
+    crom_nn_act act;        /* ELU (energy) or GELU (neuralmodes) */
+    int steps;              /* training steps (2000) */
+    double minutes;         /* wall-time budget (0: none) */
+    double lr;              /* base learning rate (1e-3) */
+    int batch;              /* samples per step (32) */
+    double sigma;           /* energy: isometry scale, RMS metres per unit z */
+    double lambda;          /* energy: isometry weight (1) */
+    double ramp;            /* energy: fraction of the steps over which ρ grows (0.5) */
+    double box;             /* neuralmodes: half-width a of the z box (m) */
+    double ortho_weight;    /* neuralmodes: w_o (1e4) */
+    double origin_weight;   /* neuralmodes: w_0 (1e4) */
+    int features;           /* field: p, the feature fields of W (32) */
+    int field_depth, field_width; /* field: dense layers (4) and hidden width (64) of W */
+    int tets;               /* field: tets of the random cubature per step (512) */
+    double pin_length;      /* field: width of the mask at the pins (m; 0: twice the mean edge) */
+    int threads;            /* energy evaluations in parallel (1) */
+    uint64_t seed;
+    void (*progress)(void *ctx, long step, double frac, double objective);
+    void *progress_ctx;
+} crom_df_opts;
+
+/* Defaults of an objective (above); sigma and box are 0: crom_df_train
+ * picks 0.05 and 0.1 times the bounding-box diagonal. */
+void crom_df_defaults(crom_df_opts *o, int objective);
+
+/* ------------------------------------------------------------- the loss */
+
+/* What one evaluation of the loss gives, besides its value. */
+typedef struct {
+    double objective; /* L (dimensionless) */
+    double energy;    /* mean E_pot (energy) or elastic energy (neuralmodes) of the samples (J) */
+    double penalty;   /* energy: mean squared log-ratio; neuralmodes: mean ‖WᵀMy/m‖²/a² */
+    double origin;    /* neuralmodes: ‖y(0)‖²_M/(m a²) */
+} crom_df_terms;
+
+typedef struct {
+    crom_df_problem P;
+    crom_df_opts o;
+    const crom_nn_mlp *net;  /* r -> 3nv */
+    crom_fem fem;            /* rest shapes, volumes, lumped masses */
+    crom_nn_ws ws;
+    int r, n, maxbatch, nthreads;
+    double mass, Eref;
+    double *mw;              /* [n] m_i / m per DOF */
+    double *MWm;             /* neuralmodes: [n][r] M W / m */
+    double *Y, *G, *dY, *E, *xb;
+    float *zf, *dyf;
+    int *bad;
+    double *cb;              /* [r] scratch */
+} crom_df_ctx;
+
+/* Set up the loss of options o (objective, sigma, lambda, box, weights,
+ * threads) on problem p for network net and batches of up to maxbatch
+ * samples. sigma and box must be set (> 0). Returns 0, CROM_EUSAGE (bad
+ * sizes), CROM_EDATA (bad mesh), CROM_EINTERNAL (out of memory). */
+int crom_df_ctx_init(crom_df_ctx *c, const crom_df_problem *p, const crom_df_opts *o,
+                     const crom_nn_mlp *net, int maxbatch);
+void crom_df_ctx_free(crom_df_ctx *c);
+
+/* The loss L of B samples z [B][r] at blend rho (energy objective; ignored
+ * for neuralmodes, whose origin term is evaluated at an extra z = 0), and
+ * if grad != NULL its gradient dL/dparams (overwritten, layout of
+ * net->params). Returns 0, or CROM_EDATA for a non-finite energy. */
+int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_terms *t,
+                 float *grad);
+
+/* ------------------------------------------- the continuous field's loss */
+
+typedef struct {
+    crom_df_problem P;
+    crom_df_opts o;
+    const crom_nn_mlp *W, *phi; /* 3 -> 3p and r -> p */
+    crom_fem fem;
+    crom_nn_ws wsW, wsP;
+    int r, p, maxbatch, maxtets, maxrows, nthreads, ns, npins;
+    double mass, Eref, pin_length;
+    int *loc, *vs, *bad;
+    float *xf, *zf, *dFf, *dPf;
+    double *pinX;            /* [npins][3] pinned vertices' positions */
+    int ntri;                /* pinned boundary triangles */
+    double *triX;            /* [ntri][3][3] their corners */
+    double *mask;            /* [nv] s(d(X_v)/ℓ) */
+    double *F, *Phi, *gu, *dF, *dPhi, *mloc, *E, *G, *S, *tmp, *xb;
+} crom_dff_ctx;
+
+/* Set up the loss of the continuous field (objective field: o->sigma,
+ * lambda, pin_length, threads) for networks W (3 -> 3p, unmasked) and phi
+ * (r -> p), batches of up to maxbatch samples over up to maxtets tets. */
+int crom_dff_ctx_init(crom_dff_ctx *c, const crom_df_problem *p, const crom_df_opts *o, const crom_nn_mlp *W,
+                      const crom_nn_mlp *phi, int maxbatch, int maxtets);
+void crom_dff_ctx_free(crom_dff_ctx *c);
+
+/* The loss L of B samples z [B][r] at blend rho over the K tets tets [K]
+ * (repeats allowed), and if gW, gP != NULL its gradients with respect to
+ * the parameters of W and phi (overwritten). t->penalty is the isometry
+ * term. Returns 0, CROM_EUSAGE (sizes), CROM_EDATA (a non-finite energy). */
+int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_df_terms *t,
+                  float *gW, float *gP);
+
+/* The learning rate at fraction frac of the run: base, halved after each
+ * quarter (Sharp et al.'s schedule on a shorter run). */
+double crom_df_lr(double base, double frac);
+
+/* ------------------------------------------------------------- training */
+
+/* The record of a run: per block of steps (about 100 blocks), the mean
+ * terms and the wall time at its end; and totals. */
+typedef struct {
+    int nblocks;
+    double *objective, *energy, *penalty, *seconds;
+    long steps;
+    double seconds_total;
+    double sigma, box, Eref; /* as used */
+} crom_df_log;
+
+void crom_df_log_free(crom_df_log *l);
+
+/* The clock and record of a training run, shared by the objectives: the
+ * schedule's fraction done (steps or --minutes, whichever is further) and
+ * the per-block means of the terms, with progress reports. */
+typedef struct {
+    crom_df_log *log;
+    const crom_df_opts *o;
+    int block, inblock;
+    double budget, tstart, sobj, sen, spen;
+} crom_df_run;
+
+/* Start: allocate the record for o->steps steps. CROM_EINTERNAL. */
+int crom_df_run_begin(crom_df_run *R, crom_df_log *log, const crom_df_opts *o);
+/* Before step k: 0 when the time budget is spent, else 1 with the
+ * fraction of the schedule done in *frac. */
+int crom_df_run_next(crom_df_run *R, long k, double *frac);
+/* After step k: record its terms. */
+void crom_df_run_record(crom_df_run *R, long k, const crom_df_terms *t);
+/* After the last step (k steps taken): close the record. CROM_EUSAGE if
+ * no step was taken (the time budget ran out first). */
+int crom_df_run_end(crom_df_run *R, long k);
+
+/* Train the continuous field (crom_df_train calls it for CROM_DF_FIELD). */
+int crom_df_train_field(const crom_df_problem *p, const crom_df_opts *o, crom_model *out, crom_df_log *log);
+
+/* Train a map on problem p with options o; out gets a model of kind
+ * "energy" or "neuralmodes" (mesh copied with its regions; neuralmodes also
+ * keeps W and the frequencies) and log the record. Returns 0, CROM_EUSAGE
+ * (rank larger than the free degrees of freedom, a free body under gravity,
+ * bad options), CROM_EDATA (training diverged) or CROM_EINTERNAL. */
+int crom_df_train(const crom_df_problem *p, const crom_df_opts *o, crom_model *out, crom_df_log *log);
+
+/* Write what a data-free model records beyond its basis (after
+ * crom_model_write): the options as attributes (sigma, isometry_weight,
+ * gravity; latent_box, ortho_weight, origin_weight, modes_id), the body's
+ * mass, and the training record (training/objective, /energy, /penalty,
+ * /seconds). modes_id may be NULL. Returns 0 or an HDF5 error. */
+int crom_df_write_record(hid_t loc, const crom_df_opts *o, const crom_df_problem *p,
+                         const crom_df_log *log, double mass, const char *modes_id);
+
+
+#endif

@@ -1,0 +1,823 @@
+/* dfskin.c — skinning weights with no data: trained (Simplicits) or the
+ * lowest eigenvectors of the scalar stiffness (skinning eigenmodes); see
+ * dfskin.h. */
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <lapacke.h>
+
+#include "base/clock.h"
+#include "base/err.h"
+#include "base/rng.h"
+#include "datafree/dfskin.h"
+#include "phys/modes.h"
+#include "rom/skin.h"
+
+void crom_dfs_defaults(crom_dfs_opts *o)
+{
+    memset(o, 0, sizeof *o);
+    o->handles = 8;
+    o->depth = 4;
+    o->width = 64;
+    o->act = CROM_NN_ELU;
+    o->steps = 2000;
+    o->lr = 1e-3;
+    o->batch = 16;
+    o->sigma = 0;
+    o->ortho_weight = 1;
+    o->tets = 512;
+    o->pin_length = 0;
+    o->threads = 1;
+    o->seed = 1;
+}
+
+static int count_free(const crom_mesh *mesh, const unsigned char *fixed, int *npinned)
+{
+    int nfree = 0, np = 0;
+    for (int v = 0; v < mesh->nv; v++) {
+        int pin = fixed && (fixed[3 * v] || fixed[3 * v + 1] || fixed[3 * v + 2]);
+        np += pin;
+        nfree += !pin;
+    }
+    if (npinned)
+        *npinned = np;
+    return nfree;
+}
+
+int crom_dfs_check_handles(const crom_mesh *mesh, const unsigned char *fixed, int H)
+{
+    int np, nfree = count_free(mesh, fixed, &np);
+    if (H < 1)
+        return crom_err(CROM_EUSAGE, "--handles %d: a skinning subspace needs at least one handle", H);
+    if (nfree == 0)
+        return crom_err(CROM_EUSAGE, "every vertex is pinned: there is nothing to move");
+    if ((long)12 * H > 3L * nfree)
+        return crom_err(CROM_EUSAGE, "--handles %d: %d latent coordinates (12 per handle) for a body with only %d free "
+                        "degrees of freedom (%d vertices, %d pinned): at most %d handles", H, 12 * H, 3 * nfree,
+                        mesh->nv, np, nfree / 4);
+    return 0;
+}
+
+/* ============================================================ the loss */
+
+void crom_dfs_ctx_free(crom_dfs_ctx *c)
+{
+    if (!c)
+        return;
+    crom_fem_free(&c->fem);
+    crom_nn_ws_free(&c->ws);
+    void *bufs[] = {c->pinX, c->triX, c->mask, c->loc, c->vs, c->bad, c->xf, c->dwf, c->w, c->xh, c->wh, c->L,
+                    c->U, c->gu, c->dw, c->mloc, c->E, c->R, c->G, c->xb};
+    for (size_t i = 0; i < sizeof bufs / sizeof *bufs; i++)
+        free(bufs[i]);
+    memset(c, 0, sizeof *c);
+}
+
+static double bbox_diag(const crom_mesh *m)
+{
+    double lo[3], hi[3];
+    crom_mesh_bbox(m, lo, hi);
+    return sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                (hi[2] - lo[2]) * (hi[2] - lo[2]));
+}
+
+/* The pinned part of the training geometry: for a tet mesh its pinned
+ * vertices and its boundary triangles with three pinned vertices, then the
+ * given points and triangles. */
+static int pinned_part(crom_dfs_ctx *c, const crom_dfs_problem *p)
+{
+    const crom_mesh *m = p->mesh;
+    int nv = m->nv, ntb = 0, *tri = NULL;
+    int own = !p->virtual_tets && p->fixed;
+    if (own && crom_mesh_boundary(m, &ntb, &tri, NULL))
+        return CROM_EINTERNAL;
+    c->pinX = crom_malloc(sizeof(double) * 3 * ((size_t)(own ? nv : 0) + (size_t)p->npin + 1));
+    c->triX = crom_malloc(sizeof(double) * 9 * ((size_t)ntb + (size_t)p->ntri + 1));
+    if (!c->pinX || !c->triX) {
+        free(tri);
+        return CROM_EINTERNAL;
+    }
+    for (int v = 0; own && v < nv; v++)
+        if (p->fixed[3 * v] || p->fixed[3 * v + 1] || p->fixed[3 * v + 2])
+            memcpy(c->pinX + 3 * (size_t)c->npins++, m->X + 3 * (size_t)v, sizeof(double) * 3);
+    if (p->npin)
+        memcpy(c->pinX + 3 * (size_t)c->npins, p->pinX, sizeof(double) * 3 * (size_t)p->npin);
+    c->npins += p->npin;
+    for (int k = 0; k < ntb; k++) {
+        int all = 1;
+        for (int a = 0; a < 3; a++)
+            all &= p->fixed[3 * (size_t)tri[3 * k + a]] != 0;
+        if (!all)
+            continue;
+        for (int a = 0; a < 3; a++)
+            memcpy(c->triX + 9 * (size_t)c->ntri + 3 * a, m->X + 3 * (size_t)tri[3 * k + a], sizeof(double) * 3);
+        c->ntri++;
+    }
+    free(tri);
+    if (p->ntri)
+        memcpy(c->triX + 9 * (size_t)c->ntri, p->triX, sizeof(double) * 9 * (size_t)p->ntri);
+    c->ntri += p->ntri;
+    return 0;
+}
+
+int crom_dfs_ctx_init(crom_dfs_ctx *c, const crom_dfs_problem *p, const crom_dfs_opts *o, const crom_nn_mlp *net,
+                      int maxbatch, int maxtets)
+{
+    memset(c, 0, sizeof *c);
+    c->P = *p;
+    c->o = *o;
+    c->net = net;
+    int nv = p->mesh->nv, H = o->handles, rc;
+    if (maxbatch < 1 || maxtets < 1 || H < 1 || H > CROM_DFS_MAXH)
+        return crom_err(CROM_EUSAGE, "batch of %d poses, %d tets, %d handles (at most %d trained)", maxbatch, maxtets,
+                        H, CROM_DFS_MAXH);
+    if (!(o->sigma > 0) || !(o->pin_length > 0) || !(o->ortho_weight >= 0))
+        return crom_err(CROM_EUSAGE, "sigma and the pin length must be positive, the orthogonality weight >= 0");
+    c->H = H;
+    c->maxbatch = maxbatch;
+    c->maxtets = maxtets;
+    c->maxrows = 4 * maxtets < nv ? 4 * maxtets : nv;
+    c->nthreads = o->threads < 1 ? 1 : o->threads > 256 ? 256 : o->threads;
+    c->pin_length = o->pin_length;
+    if ((rc = crom_fem_init(&c->fem, p->mesh, &p->mat)) || (rc = pinned_part(c, p))) {
+        crom_dfs_ctx_free(c);
+        return rc;
+    }
+    c->constant = c->npins == 0 && c->ntri == 0 && !(p->fixed && count_free(p->mesh, p->fixed, NULL) < nv);
+    c->Ht = H - c->constant;
+    const crom_nn_spec *sp = &net->spec;
+    if (sp->width[0] != 3 || sp->width[sp->nlayers] != c->Ht) {
+        rc = crom_err(CROM_EUSAGE, "the weight network goes %d -> %d, expected 3 -> %d", sp->width[0],
+                      sp->width[sp->nlayers], c->Ht);
+        crom_dfs_ctx_free(c);
+        return rc;
+    }
+    if ((rc = crom_skin_frame((size_t)nv, p->mesh->X, c->fem.mass, c->F))) {
+        crom_dfs_ctx_free(c);
+        return rc;
+    }
+    size_t R = (size_t)c->maxrows, B = (size_t)maxbatch, Hs = (size_t)H;
+    if ((rc = crom_nn_ws_init(&c->ws, net, c->maxrows, 1))) {
+        crom_dfs_ctx_free(c);
+        return rc;
+    }
+    c->mask = crom_malloc(sizeof(double) * (size_t)nv);
+    c->loc = crom_malloc(sizeof(int) * (size_t)nv);
+    c->vs = crom_malloc(sizeof(int) * R);
+    c->bad = crom_malloc(sizeof(int) * B);
+    c->xf = crom_malloc(sizeof(float) * 3 * R);
+    c->dwf = crom_malloc(sizeof(float) * R * Hs);
+    c->w = crom_malloc(sizeof(double) * R * Hs);
+    c->xh = crom_malloc(sizeof(double) * R * 4);
+    c->wh = crom_malloc(sizeof(double) * R * Hs);
+    c->L = crom_malloc(sizeof(double) * 4 * Hs * Hs);
+    c->U = crom_malloc(sizeof(double) * (size_t)c->nthreads * 3 * R);
+    c->gu = crom_malloc(sizeof(double) * B * 3 * R);
+    c->dw = crom_malloc(sizeof(double) * R * Hs);
+    c->mloc = crom_malloc(sizeof(double) * R);
+    c->E = crom_malloc(sizeof(double) * B);
+    c->R = crom_malloc(sizeof(double) * B);
+    c->G = crom_malloc(sizeof(double) * Hs * Hs);
+    c->xb = crom_malloc(sizeof(double) * Hs);
+    if (!c->mask || !c->loc || !c->vs || !c->bad || !c->xf || !c->dwf || !c->w || !c->xh || !c->wh || !c->L || !c->U ||
+        !c->gu || !c->dw || !c->mloc || !c->E || !c->R || !c->G || !c->xb) {
+        crom_dfs_ctx_free(c);
+        return CROM_EINTERNAL;
+    }
+    for (int v = 0; v < nv; v++) {
+        c->loc[v] = -1;
+        c->mask[v] = crom_skin_mask_at(p->mesh->X + 3 * (size_t)v, c->npins, c->pinX, c->ntri, c->triX, c->pin_length);
+    }
+    c->mass = c->fem.total_mass;
+    double D = bbox_diag(p->mesh);
+    c->Eref = p->mat.E * c->fem.volume / (D * D);
+    return 0;
+}
+
+/* The weights w [ns][H] of the collected vertices from the network's
+ * output (mask and constant handle), and their frame coordinates xh. */
+static int weights_at(crom_dfs_ctx *c, int ns)
+{
+    const double *X = c->P.mesh->X;
+    int H = c->H, Ht = c->Ht, k = c->constant, rc;
+    for (int i = 0; i < ns; i++) {
+        const double *x = X + 3 * (size_t)c->vs[i];
+        for (int d = 0; d < 3; d++)
+            c->xf[3 * i + d] = (float)x[d];
+        double *xh = c->xh + 4 * (size_t)i;
+        for (int a = 0; a < 3; a++)
+            xh[a] = c->F[4 * a] * x[0] + c->F[4 * a + 1] * x[1] + c->F[4 * a + 2] * x[2] + c->F[4 * a + 3];
+        xh[3] = 1;
+    }
+    if ((rc = crom_nn_mlp_forward(c->net, &c->ws, ns, c->xf, NULL)))
+        return rc;
+    const float *wt = crom_nn_ws_output(&c->ws);
+    for (int i = 0; i < ns; i++) {
+        double s = c->mask[c->vs[i]];
+        if (k)
+            c->w[(size_t)i * H] = 1;
+        for (int h = 0; h < Ht; h++)
+            c->w[(size_t)i * H + k + h] = s * wt[(size_t)i * Ht + h];
+    }
+    return 0;
+}
+
+static int local(crom_dfs_ctx *c, int v)
+{
+    if (c->loc[v] < 0) {
+        c->loc[v] = c->ns;
+        c->vs[c->ns++] = v;
+    }
+    return c->loc[v];
+}
+
+int crom_dfs_loss(crom_dfs_ctx *c, int B, const double *q, int K, const int *tets, crom_df_terms *t, float *grad)
+{
+    const crom_fem *fem = &c->fem;
+    const double *X = c->P.mesh->X;
+    int H = c->H, Ht = c->Ht, k0 = c->constant, nt = fem->nt, rc = 0;
+    if (B < 1 || B > c->maxbatch || K < 1 || K > c->maxtets)
+        return crom_err(CROM_EUSAGE, "batch of %d poses, %d tets (at most %d, %d)", B, K, c->maxbatch, c->maxtets);
+    c->ns = 0;
+    for (int k = 0; k < K; k++) {
+        if (tets[k] < 0 || tets[k] >= nt) {
+            rc = crom_err(CROM_EUSAGE, "tet %d out of range", tets[k]);
+            goto out;
+        }
+        for (int a = 0; a < 4; a++) {
+            if (c->ns >= c->maxrows && c->loc[fem->tets[4 * (size_t)tets[k] + a]] < 0) {
+                rc = crom_err(CROM_EUSAGE, "more than %d vertices", c->maxrows);
+                goto out;
+            }
+            local(c, fem->tets[4 * (size_t)tets[k] + a]);
+        }
+    }
+    int ns = c->ns, m3 = 3 * ns;
+    if ((rc = weights_at(c, ns)))
+        goto out;
+    /* the cubature: each drawn tet stands for nt/K; lumped masses of the drawn tets */
+    double wK = (double)nt / K, mhat = 0;
+    memset(c->mloc, 0, sizeof(double) * (size_t)ns);
+    for (int k = 0; k < K; k++)
+        for (int a = 0; a < 4; a++)
+            c->mloc[c->loc[fem->tets[4 * (size_t)tets[k] + a]]] += wK * c->P.mat.rho * fem->vol[tets[k]] / 4;
+    for (int i = 0; i < ns; i++)
+        mhat += c->mloc[i];
+    /* the Gram matrix G = Σ m̂ w wᵀ / m̂ = L Lᵀ of the weights over the
+     * drawn vertices, and the whitened weights ŵ_v = L⁻¹ w_v (orthonormal
+     * there) that the energy sees: it depends on their span only */
+    double *G = c->G, *L = c->L, *Li = c->L + (size_t)H * H, *S = Li + (size_t)H * H, *T = S + (size_t)H * H;
+    memset(G, 0, sizeof(double) * (size_t)H * H);
+    for (int i = 0; i < ns; i++) {
+        const double *wi = c->w + (size_t)i * H;
+        double f = c->mloc[i] / mhat;
+        for (int a = 0; a < H; a++)
+            for (int b = 0; b <= a; b++)
+                G[a * H + b] += f * wi[a] * wi[b];
+    }
+    for (int a = 0; a < H; a++)
+        for (int b = 0; b < H; b++) {
+            if (b > a)
+                G[a * H + b] = G[b * H + a];
+            L[a * H + b] = b <= a ? G[a * H + b] : 0;
+        }
+    if (LAPACKE_dpotrf(LAPACK_ROW_MAJOR, 'L', H, L, H) != 0) {
+        rc = crom_err(CROM_EDATA, "the skinning weights became linearly dependent over the drawn tets");
+        goto out;
+    }
+    memcpy(Li, L, sizeof(double) * (size_t)H * H);
+    if (LAPACKE_dtrtri(LAPACK_ROW_MAJOR, 'L', 'N', H, Li, H) != 0) {
+        rc = crom_err(CROM_EDATA, "the skinning weights' Gram matrix is singular");
+        goto out;
+    }
+    for (int a = 0; a < H; a++)
+        for (int b = a + 1; b < H; b++)
+            L[a * H + b] = Li[a * H + b] = 0;
+    for (int i = 0; i < ns; i++) {
+        const double *wi = c->w + (size_t)i * H;
+        double *wh = c->wh + (size_t)i * H;
+        for (int a = 0; a < H; a++) {
+            double v = 0;
+            for (int b = 0; b <= a; b++)
+                v += Li[a * H + b] * wi[b];
+            wh[a] = v;
+        }
+    }
+    /* energies of the poses: u_v = Σ_h ŵ_hv Q_bh x̂_v, and their gradients gu */
+#pragma omp parallel for num_threads(c->nthreads) schedule(static)
+    for (int b = 0; b < B; b++) {
+        int tid = 0;
+#ifdef _OPENMP
+        tid = omp_get_thread_num();
+#endif
+        double *u = c->U + (size_t)tid * 3 * c->maxrows, *gb = c->gu + (size_t)b * m3, Eb = 0;
+        const double *qb = q + (size_t)b * 12 * H;
+        for (int i = 0; i < ns; i++) {
+            const double *wi = c->wh + (size_t)i * H, *xh = c->xh + 4 * (size_t)i;
+            for (int d = 0; d < 3; d++) {
+                double s = 0;
+                for (int h = 0; h < H; h++) {
+                    const double *Q = qb + 12 * (size_t)h + 4 * d;
+                    s += wi[h] * (Q[0] * xh[0] + Q[1] * xh[1] + Q[2] * xh[2] + Q[3]);
+                }
+                u[3 * i + d] = s;
+            }
+        }
+        memset(gb, 0, sizeof(double) * (size_t)m3);
+        c->bad[b] = 0;
+        for (int k = 0; k < K && !c->bad[b]; k++) {
+            int tt = tets[k], l[4];
+            double xe[12], ge[12], Ee;
+            for (int a = 0; a < 4; a++) {
+                int v = fem->tets[4 * (size_t)tt + a];
+                l[a] = c->loc[v];
+                for (int d = 0; d < 3; d++)
+                    xe[3 * a + d] = X[3 * (size_t)v + d] + u[3 * l[a] + d];
+            }
+            if (crom_fem_tet_eval(&fem->mat, xe, fem->Dminv + 9 * (size_t)tt, fem->vol[tt], 0, &Ee, ge, NULL)) {
+                c->bad[b] = 1;
+                break;
+            }
+            Eb += wK * Ee;
+            for (int a = 0; a < 4; a++)
+                for (int d = 0; d < 3; d++)
+                    gb[3 * l[a] + d] += wK * ge[3 * a + d];
+        }
+        /* the pose's Rayleigh quotient E_b / d_b², d_b² = Σ m̂ |u|² / m̂ its
+         * mean squared displacement: dL/du = (g − (E/d²) 2 m̂ u / m̂) / d² */
+        double d2 = 0;
+        for (int i = 0; i < ns; i++)
+            d2 += c->mloc[i] * (u[3 * i] * u[3 * i] + u[3 * i + 1] * u[3 * i + 1] + u[3 * i + 2] * u[3 * i + 2]);
+        d2 /= mhat;
+        if (!(d2 > 0))
+            c->bad[b] = 1;
+        else {
+            double R = Eb / d2;
+            for (int i = 0; i < ns; i++)
+                for (int d = 0; d < 3; d++)
+                    gb[3 * i + d] = (gb[3 * i + d] - R * 2 * c->mloc[i] * u[3 * i + d] / mhat) / d2;
+        }
+        c->E[b] = Eb;
+        c->R[b] = d2 > 0 ? Eb / d2 : NAN;
+    }
+    for (int b = 0; b < B; b++)
+        if (c->bad[b] || !isfinite(c->E[b])) {
+            rc = crom_err(CROM_EDATA, "pose %d of the batch has a non-finite energy", b);
+            goto out;
+        }
+    double obj = 0, Em = 0, scale = 1.0 / (B * c->Eref);
+    for (int b = 0; b < B; b++) {
+        Em += c->E[b] / B;
+        obj += c->R[b] * scale;
+    }
+    /* dL/dw_hv = s Σ_b gu_bv · (Q_bh x̂_v) */
+    for (int i = 0; i < ns; i++) {
+        const double *xh = c->xh + 4 * (size_t)i;
+        double *dwi = c->dw + (size_t)i * H;
+        for (int h = 0; h < H; h++) {
+            double acc = 0;
+            for (int b = 0; b < B; b++) {
+                const double *g = c->gu + (size_t)b * m3 + 3 * (size_t)i, *Q = q + (size_t)b * 12 * H + 12 * (size_t)h;
+                for (int d = 0; d < 3; d++)
+                    acc += g[d] * (Q[4 * d] * xh[0] + Q[4 * d + 1] * xh[1] + Q[4 * d + 2] * xh[2] + Q[4 * d + 3]);
+            }
+            dwi[h] = scale * acc;
+        }
+    }
+    /* back through the whitening ŵ_v = L⁻¹ w_v, G = L Lᵀ: with g_v = dL/dŵ_v
+     * and S = Σ_v ŵ_v g_vᵀ, dL/dw_v = L⁻ᵀ g_v − 2 m̂_v/m̂ sym(P) w_v,
+     * P = L⁻ᵀ Φ(Sᵀ) L⁻¹ (Φ: the lower triangle, diagonal halved; the
+     * derivative of the Cholesky factor, δL = L Φ(L⁻¹ δG L⁻ᵀ)) */
+    memset(S, 0, sizeof(double) * (size_t)H * H);
+    for (int i = 0; i < ns; i++) {
+        const double *wh = c->wh + (size_t)i * H, *g = c->dw + (size_t)i * H;
+        for (int a = 0; a < H; a++)
+            for (int b = 0; b < H; b++)
+                S[a * H + b] += wh[a] * g[b];
+    }
+    for (int a = 0; a < H; a++) /* T = Φ(Sᵀ) */
+        for (int b = 0; b < H; b++)
+            T[a * H + b] = b < a ? S[b * H + a] : b == a ? 0.5 * S[a * H + a] : 0;
+    /* P = Li ᵀ T Li, kept in S */
+    for (int a = 0; a < H; a++)
+        for (int b = 0; b < H; b++) {
+            double v = 0;
+            for (int k = 0; k < H; k++)
+                v += T[a * H + k] * Li[k * H + b];
+            S[a * H + b] = v;
+        }
+    for (int a = 0; a < H; a++)
+        for (int b = 0; b < H; b++) {
+            double v = 0;
+            for (int k = 0; k < H; k++)
+                v += Li[k * H + a] * S[k * H + b];
+            T[a * H + b] = v;
+        }
+    for (int a = 0; a < H; a++)
+        for (int b = 0; b <= a; b++)
+            S[a * H + b] = S[b * H + a] = 0.5 * (T[a * H + b] + T[b * H + a]);
+    for (int i = 0; i < ns; i++) {
+        const double *wi = c->w + (size_t)i * H;
+        double *g = c->dw + (size_t)i * H, gn[CROM_DFS_MAXH], f = 2 * c->mloc[i] / mhat;
+        for (int a = 0; a < H; a++) {
+            double v = 0;
+            for (int k = a; k < H; k++)
+                v += Li[k * H + a] * g[k];
+            for (int b = 0; b < H; b++)
+                v -= f * S[a * H + b] * wi[b];
+            gn[a] = v;
+        }
+        memcpy(g, gn, sizeof(double) * (size_t)H);
+    }
+    /* orthogonality of the raw weights: λ ‖G − I‖²; dL/dw_v = 4λ m̂_v/m̂ (G − I) w_v
+     * (it keeps G, hence the whitening, well conditioned) */
+    double pen = 0, lam = c->o.ortho_weight;
+    for (int a = 0; a < H; a++)
+        G[a * H + a] -= 1;
+    for (int a = 0; a < H * H; a++)
+        pen += G[a] * G[a];
+    obj += lam * pen;
+    for (int i = 0; i < ns; i++) {
+        const double *wi = c->w + (size_t)i * H;
+        double f = 4 * lam * c->mloc[i] / mhat;
+        for (int a = 0; a < H; a++) {
+            double v = 0;
+            for (int b = 0; b < H; b++)
+                v += G[a * H + b] * wi[b];
+            c->dw[(size_t)i * H + a] += f * v;
+        }
+    }
+    if (t) {
+        t->objective = obj;
+        t->energy = Em;
+        t->penalty = pen;
+        t->origin = 0;
+    }
+    if (!isfinite(obj)) {
+        rc = crom_err(CROM_EDATA, "the skinning objective is not finite");
+        goto out;
+    }
+    if (grad) { /* through the mask to the network's outputs */
+        for (int i = 0; i < ns; i++)
+            for (int h = 0; h < Ht; h++)
+                c->dwf[(size_t)i * Ht + h] = (float)(c->mask[c->vs[i]] * c->dw[(size_t)i * H + k0 + h]);
+        memset(grad, 0, sizeof(float) * c->net->nparams);
+        rc = crom_nn_mlp_backward(c->net, &c->ws, ns, c->dwf, grad, NULL);
+    }
+out:
+    for (int i = 0; i < c->ns; i++)
+        c->loc[c->vs[i]] = -1;
+    return rc;
+}
+
+/* ============================================================ training */
+
+/* Scale the network's last layer so that its weights start with unit mean
+ * square over (up to maxrows random) vertices, mask included. */
+static int init_scale(crom_dfs_ctx *c, crom_nn_mlp *net, crom_rng *rng)
+{
+    int nv = c->P.mesh->nv, n = c->maxrows < nv ? c->maxrows : nv, Ht = c->Ht, rc;
+    if (Ht == 0)
+        return 0;
+    for (int i = 0; i < n; i++) {
+        int v = n == nv ? i : (int)crom_rng_below(rng, (uint64_t)nv);
+        for (int d = 0; d < 3; d++)
+            c->xf[3 * i + d] = (float)c->P.mesh->X[3 * (size_t)v + d];
+        c->vs[i] = v;
+    }
+    if ((rc = crom_nn_mlp_forward(net, &c->ws, n, c->xf, NULL)))
+        return rc;
+    const float *w = crom_nn_ws_output(&c->ws);
+    double s2 = 0, mw = 0;
+    for (int i = 0; i < n; i++) {
+        double m = c->fem.mass[c->vs[i]], s = c->mask[c->vs[i]];
+        mw += m;
+        for (int h = 0; h < Ht; h++)
+            s2 += m * s * s * w[(size_t)i * Ht + h] * w[(size_t)i * Ht + h];
+    }
+    double rms = sqrt(s2 / (mw * Ht));
+    if (!(rms > 0) || !isfinite(rms))
+        return crom_err(CROM_EDATA, "the initial weights are zero or not finite");
+    crom_nn_layer *ly = &net->layer[net->spec.nlayers - 1];
+    float f = (float)(1 / rms);
+    for (int i = 0; i < ly->out * ly->in; i++)
+        ly->W[i] *= f;
+    for (int i = 0; i < ly->out; i++)
+        ly->b[i] *= f;
+    return 0;
+}
+
+int crom_dfs_train(const crom_dfs_problem *p, const crom_dfs_opts *o_in, crom_model *out, crom_df_log *log)
+{
+    crom_model_clear(out);
+    memset(log, 0, sizeof *log);
+    crom_dfs_opts o = *o_in;
+    const crom_mesh *mesh = p->mesh;
+    int nt = mesh->nt, H = o.handles, rc = 0;
+    double t0 = crom_now();
+    if (!p->virtual_tets && (rc = crom_dfs_check_handles(mesh, p->fixed, H)))
+        return rc;
+    if (H < 1)
+        return crom_err(CROM_EUSAGE, "--handles %d: a skinning subspace needs at least one handle", H);
+    if (o.steps < 1 || o.batch < 1 || o.depth < 2 || o.width < 1 || o.tets < 1)
+        return crom_err(CROM_EUSAGE, "steps, batch, depth (>= 2), width and tets must be positive");
+    if (o.depth > CROM_NN_MAX_LAYERS)
+        return crom_err(CROM_EUSAGE, "--depth %d: at most %d layers", o.depth, CROM_NN_MAX_LAYERS);
+    double D = bbox_diag(mesh);
+    if (!(o.sigma > 0))
+        o.sigma = 0.01 * D;
+    if (!(o.pin_length > 0))
+        o.pin_length = 0.05 * D;
+    if (!isfinite(o.sigma) || !isfinite(o.pin_length) || !(o.ortho_weight >= 0) || !isfinite(o.ortho_weight) ||
+        !(o.lr > 0) || !isfinite(o.lr))
+        return crom_err(CROM_EUSAGE, "non-finite or negative training weight");
+    int K = o.tets < nt ? o.tets : nt;
+    /* is there a pin? then every handle is masked, else handle 0 is constant */
+    int pinned = p->npin > 0 || p->ntri > 0;
+    for (int i = 0; !pinned && p->fixed && i < 3 * mesh->nv; i++)
+        pinned = p->fixed[i] != 0;
+    int Ht = H - !pinned;
+    if (Ht < 1)
+        return crom_err(CROM_EUSAGE, "--handles 1 on a free body is only its constant handle (affine motions): "
+                        "train at least 2");
+    int widths[CROM_NN_MAX_LAYERS + 1];
+    widths[0] = 3;
+    for (int l = 1; l < o.depth; l++)
+        widths[l] = o.width;
+    widths[o.depth] = Ht;
+    crom_nn_spec spec;
+    if ((rc = crom_nn_spec_set(&spec, o.depth + 1, widths, o.act)))
+        return rc;
+    crom_nn_mlp net;
+    memset(&net, 0, sizeof net);
+    crom_dfs_ctx ctx;
+    memset(&ctx, 0, sizeof ctx);
+    crom_nn_adam adam;
+    memset(&adam, 0, sizeof adam);
+    float *grad = NULL;
+    double *q = crom_malloc(sizeof(double) * (size_t)o.batch * 12 * H);
+    int *tets = crom_malloc(sizeof(int) * (size_t)K);
+    /* the shared clock and record of the data-free trainers */
+    crom_df_opts ro;
+    crom_df_defaults(&ro, CROM_DF_FIELD);
+    ro.steps = o.steps;
+    ro.minutes = o.minutes;
+    ro.progress = o.progress;
+    ro.progress_ctx = o.progress_ctx;
+    crom_df_run R;
+    int rcr = crom_df_run_begin(&R, log, &ro);
+    if (!q || !tets || rcr) {
+        rc = CROM_EINTERNAL;
+        goto done;
+    }
+    crom_rng irng, srng;
+    crom_rng_seed(&irng, o.seed);
+    crom_rng_seed(&srng, o.seed ^ 0x5eed5a3b1e5ULL);
+    if ((rc = crom_nn_mlp_init(&net, &spec, NULL, &irng)))
+        goto done;
+    {
+        float sh[3], sc[3];
+        double lo[3], hi[3];
+        crom_mesh_bbox(mesh, lo, hi);
+        double corners[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
+        if ((rc = crom_nn_norm_fit(corners, 2, 3, sh, sc)) || (rc = crom_nn_mlp_set_norm(&net, sh, sc)))
+            goto done;
+    }
+    if ((rc = crom_dfs_ctx_init(&ctx, p, &o, &net, o.batch, K)))
+        goto done;
+    if (ctx.constant == pinned) {
+        rc = crom_err(CROM_EINTERNAL, "pin detection disagrees");
+        goto done;
+    }
+    if ((rc = init_scale(&ctx, &net, &srng)))
+        goto done;
+    if (!(grad = crom_malloc(sizeof(float) * net.nparams)) || (rc = crom_nn_adam_init(&adam, net.nparams))) {
+        rc = rc ? rc : CROM_EINTERNAL;
+        goto done;
+    }
+    log->sigma = o.sigma;
+    log->Eref = ctx.Eref;
+    /* pose coordinates: the translations Q_h[c][3] carry 90 % of the
+     * variance, the linear parts Q_h[c][0..2] (times X̂, unit variance) the
+     * rest, for an RMS displacement σ. A linear part weighs a weight's
+     * gradient by |Q X̂|², large far from the centre, which steers the
+     * weights' variation away from the ends where a clamped body bends most
+     * (measured on a clamped bar, 16 handles, 3000 steps: static sag error
+     * 28 % with every coordinate of equal variance, 13-18 % at 90 %, 21 % with
+     * translations alone) */
+    double tfrac = 0.9;
+    double qt = o.sigma * sqrt(tfrac / (3.0 * H)), ql = o.sigma * sqrt((1 - tfrac) / (9.0 * H));
+    long k;
+    R.tstart = crom_now(); /* the clock starts after the set-up */
+    for (k = 0; k < o.steps; k++) {
+        double frac;
+        if (!crom_df_run_next(&R, k, &frac))
+            break;
+        for (int i = 0; i < o.batch * 12 * H; i++)
+            q[i] = (i % 4 == 3 ? qt : ql) * crom_rng_normal(&srng);
+        for (int i = 0; i < K; i++) /* a fresh random cubature each step */
+            tets[i] = K == nt ? i : (int)crom_rng_below(&srng, (uint64_t)nt);
+        crom_df_terms tm;
+        if ((rc = crom_dfs_loss(&ctx, o.batch, q, K, tets, &tm, grad))) {
+            if (rc == CROM_EDATA)
+                crom_err_ctx("training diverged at step %ld (try a smaller --lr or --sigma)", k + 1);
+            goto done;
+        }
+        crom_nn_adam_step(&adam, net.params, grad, crom_df_lr(o.lr, frac));
+        crom_df_run_record(&R, k, &tm);
+    }
+    if ((rc = crom_df_run_end(&R, k)))
+        goto done;
+    if ((rc = crom_skin_model_mlp(out, &net, H, ctx.constant, ctx.F, ctx.npins, ctx.pinX, ctx.ntri, ctx.triX,
+                                  ctx.pin_length)))
+        goto done;
+    out->training_seconds = crom_wall(crom_now() - t0);
+done:
+    crom_nn_adam_free(&adam);
+    crom_dfs_ctx_free(&ctx);
+    crom_nn_mlp_free(&net);
+    free(grad);
+    free(q);
+    free(tets);
+    if (rc)
+        crom_df_log_free(log);
+    return rc;
+}
+
+/* ============================================================ eigen */
+
+/* The scalar stiffness K_s of the free vertices (upper CSC, diagonal last):
+ * (K_s)_ij = Σ_c K_(3i+c)(3j+c) from the rest Hessian K (crom_fem's
+ * pattern); vmap[v] the free index of vertex v or -1. */
+static int scalar_stiffness(const crom_fem *fem, const double *Kv, const int *vmap, int nf, int **cp_out,
+                            int **ri_out, double **val_out)
+{
+    int nv = fem->nv, rc = 0;
+    int *cp = crom_calloc((size_t)nf + 1, sizeof(int)), *pos = crom_malloc(sizeof(int) * (size_t)nv);
+    int *ri = NULL;
+    double *val = NULL;
+    if (!cp || !pos) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    /* pattern: column j holds the free vertices i <= j sharing a tet with it,
+     * the rows of DOF column 3j that are x-DOFs (3i) */
+    for (int v = 0; v < nv; v++) {
+        int j = vmap[v];
+        if (j < 0)
+            continue;
+        int c = 3 * v, cnt = 0;
+        for (int k = fem->colptr[c]; k < fem->colptr[c + 1]; k++)
+            cnt += fem->rowind[k] % 3 == 0 && vmap[fem->rowind[k] / 3] >= 0;
+        cp[j + 1] = cnt;
+    }
+    for (int j = 0; j < nf; j++)
+        cp[j + 1] += cp[j];
+    ri = crom_malloc(sizeof(int) * (size_t)(cp[nf] ? cp[nf] : 1));
+    val = crom_calloc((size_t)(cp[nf] ? cp[nf] : 1), sizeof(double));
+    if (!ri || !val) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    for (int v = 0; v < nv; v++)
+        pos[v] = -1;
+    for (int v = 0; v < nv; v++) {
+        int j = vmap[v];
+        if (j < 0)
+            continue;
+        int e = cp[j];
+        /* rows ascend in each DOF column, so free rows come out ascending
+         * and the diagonal (i = j) last */
+        for (int k = fem->colptr[3 * v]; k < fem->colptr[3 * v + 1]; k++) {
+            int r = fem->rowind[k];
+            if (r % 3 == 0 && vmap[r / 3] >= 0) {
+                pos[r / 3] = e;
+                ri[e++] = vmap[r / 3];
+            }
+        }
+        for (int c = 0; c < 3; c++)
+            for (int k = fem->colptr[3 * v + c]; k < fem->colptr[3 * v + c + 1]; k++) {
+                int r = fem->rowind[k];
+                if (r % 3 == c && vmap[r / 3] >= 0)
+                    val[pos[r / 3]] += Kv[k];
+            }
+        for (int k = fem->colptr[3 * v]; k < fem->colptr[3 * v + 1]; k++)
+            if (fem->rowind[k] % 3 == 0)
+                pos[fem->rowind[k] / 3] = -1;
+    }
+    *cp_out = cp;
+    *ri_out = ri;
+    *val_out = val;
+    cp = ri = NULL;
+    val = NULL;
+out:
+    free(cp);
+    free(pos);
+    free(ri);
+    free(val);
+    return rc;
+}
+
+int crom_dfs_eigen(const crom_mesh *mesh, const crom_material *mat, const unsigned char *fixed, int H,
+                   crom_model *out, long *solves)
+{
+    crom_model_clear(out);
+    if (solves)
+        *solves = 0;
+    int rc = crom_dfs_check_handles(mesh, fixed, H);
+    if (rc)
+        return rc;
+    crom_fem fem;
+    if ((rc = crom_fem_init(&fem, mesh, mat)))
+        return rc;
+    int nv = mesh->nv, nf = 0, np = 0, *vmap = crom_malloc(sizeof(int) * (size_t)nv);
+    int *cp = NULL, *ri = NULL;
+    double *Kv = crom_malloc(sizeof(double) * (size_t)fem.nnz), *Ks = NULL, *mf = NULL, *R = NULL;
+    double *lam = NULL, *Y = NULL, *w = NULL, *eig = NULL;
+    if (!vmap || !Kv) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    /* the unprojected Hessian at rest: linear elasticity */
+    crom_fem_opts fo = {0, 0, NULL, 1};
+    if ((rc = crom_fem_assemble(&fem, mesh->X, &fo, NULL, NULL, Kv)))
+        goto out;
+    for (int v = 0; v < nv; v++) {
+        int pin = fixed && (fixed[3 * v] || fixed[3 * v + 1] || fixed[3 * v + 2]);
+        np += pin;
+        vmap[v] = !pin && fem.mass[v] > 0 ? nf++ : -1;
+    }
+    if ((rc = scalar_stiffness(&fem, Kv, vmap, nf, &cp, &ri, &Ks)))
+        goto out;
+    mf = crom_malloc(sizeof(double) * (size_t)nf);
+    w = crom_calloc((size_t)nv * H, sizeof(double));
+    eig = crom_calloc((size_t)H, sizeof(double));
+    lam = crom_malloc(sizeof(double) * (size_t)H);
+    Y = crom_malloc(sizeof(double) * (size_t)nf * H);
+    R = crom_malloc(sizeof(double) * (size_t)nf);
+    if (!mf || !w || !eig || !lam || !Y || !R) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    double mtot = 0;
+    for (int v = 0; v < nv; v++)
+        if (vmap[v] >= 0) {
+            mf[vmap[v]] = fem.mass[v];
+            mtot += fem.mass[v];
+        }
+    /* a free body: the constant, built (M-orthonormal), is handle 0 */
+    int constant = np == 0, nr = constant;
+    for (int j = 0; j < nf; j++)
+        R[j] = 1 / sqrt(mtot);
+    int nev = H - constant;
+    if (nev > 0) {
+        double D = 0, lo[3], hi[3];
+        crom_mesh_bbox(mesh, lo, hi);
+        for (int k = 0; k < 3; k++)
+            D += (hi[k] - lo[k]) * (hi[k] - lo[k]);
+        crom_sym K = {nf, cp, ri, Ks};
+        crom_modes_opts mo;
+        crom_modes_defaults(&mo);
+        if ((rc = crom_modes_lowest(&K, mf, nr, nr ? R : NULL, nev, -0.01 * mat->E / (mat->rho * D), &mo, lam, Y,
+                                    solves)))
+            goto out;
+    }
+    /* weights with unit RMS over the body, largest entry positive */
+    double sm = sqrt(fem.total_mass);
+    for (int h = 0; h < H; h++) {
+        int e = h - constant;
+        const double *y = e >= 0 ? Y + (size_t)e * nf : NULL;
+        double big = 0, sign = 1;
+        for (int j = 0; y && j < nf; j++)
+            if (fabs(y[j]) > big) {
+                big = fabs(y[j]);
+                sign = y[j] < 0 ? -1 : 1;
+            }
+        for (int v = 0; v < nv; v++)
+            if (vmap[v] >= 0)
+                w[(size_t)v * H + h] = y ? sign * sm * y[vmap[v]] : 1;
+        eig[h] = y ? lam[e] : 0;
+    }
+    double F[12];
+    if ((rc = crom_skin_frame((size_t)nv, mesh->X, fem.mass, F)))
+        goto out;
+    rc = crom_skin_model_mesh(out, mesh, w, H, constant, F, eig);
+out:
+    crom_fem_free(&fem);
+    free(vmap);
+    free(Kv);
+    free(cp);
+    free(ri);
+    free(Ks);
+    free(mf);
+    free(R);
+    free(lam);
+    free(Y);
+    free(w);
+    free(eig);
+    return rc;
+}

@@ -1,0 +1,680 @@
+/* mesh.c — tetrahedral meshes: geometry, orientation, quality, boundary,
+ * named regions and predicates, and the crom/mesh layout in HDF5. */
+#include <ctype.h>
+#include <float.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/err.h"
+#include "base/parse.h"
+#include "io/io.h"
+#include "mesh/mesh.h"
+
+/* ---------------------------------------------------------------- geometry */
+
+double crom_tet_volume(const double *a, const double *b, const double *c, const double *d)
+{
+    double u[3], v[3], w[3];
+    for (int i = 0; i < 3; i++) {
+        u[i] = b[i] - a[i];
+        v[i] = c[i] - a[i];
+        w[i] = d[i] - a[i];
+    }
+    return (u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0]) +
+            u[2] * (v[0] * w[1] - v[1] * w[0])) / 6.0;
+}
+
+double crom_tet_quality(const double *a, const double *b, const double *c, const double *d)
+{
+    const double *p[4] = {a, b, c, d};
+    double l2 = 0;
+    for (int i = 0; i < 4; i++)
+        for (int j = i + 1; j < 4; j++)
+            for (int k = 0; k < 3; k++)
+                l2 += (p[i][k] - p[j][k]) * (p[i][k] - p[j][k]);
+    double V = crom_tet_volume(a, b, c, d);
+    if (l2 <= 0)
+        return 0;
+    double q = 12.0 * pow(3.0 * fabs(V), 2.0 / 3.0) / l2;
+    return V < 0 ? -q : q;
+}
+
+#define VX(m, i) ((m)->X + 3 * (size_t)(i))
+
+double crom_mesh_volume(const crom_mesh *m)
+{
+    double V = 0;
+    for (int t = 0; t < m->nt; t++) {
+        const int *e = m->tets + 4 * (size_t)t;
+        V += crom_tet_volume(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
+    }
+    return V;
+}
+
+void crom_mesh_quality(const crom_mesh *m, double *worst, double *mean, int *worst_tet)
+{
+    double w = INFINITY, s = 0;
+    int wt = -1;
+    for (int t = 0; t < m->nt; t++) {
+        const int *e = m->tets + 4 * (size_t)t;
+        double q = crom_tet_quality(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
+        s += q;
+        if (q < w) {
+            w = q;
+            wt = t;
+        }
+    }
+    if (worst)
+        *worst = m->nt ? w : 0;
+    if (mean)
+        *mean = m->nt ? s / m->nt : 0;
+    if (worst_tet)
+        *worst_tet = wt;
+}
+
+void crom_mesh_bbox(const crom_mesh *m, double lo[3], double hi[3])
+{
+    for (int k = 0; k < 3; k++) {
+        lo[k] = INFINITY;
+        hi[k] = -INFINITY;
+    }
+    for (int i = 0; i < m->nv; i++)
+        for (int k = 0; k < 3; k++) {
+            double x = m->X[3 * (size_t)i + k];
+            if (x < lo[k])
+                lo[k] = x;
+            if (x > hi[k])
+                hi[k] = x;
+        }
+}
+
+static double degenerate_tol(const crom_mesh *m)
+{
+    double lo[3], hi[3];
+    crom_mesh_bbox(m, lo, hi);
+    double L = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+    return 1e-14 * L * L * L;
+}
+
+int crom_mesh_orient(crom_mesh *m, int *nflipped)
+{
+    double tol = degenerate_tol(m);
+    int nf = 0;
+    for (int t = 0; t < m->nt; t++) {
+        int *e = m->tets + 4 * (size_t)t;
+        double V = crom_tet_volume(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
+        if (fabs(V) <= tol)
+            return crom_err(CROM_EDATA, "tet %d is degenerate (volume %.3g m^3)", t, V);
+        if (V < 0) {
+            int tmp = e[2];
+            e[2] = e[3];
+            e[3] = tmp;
+            nf++;
+        }
+    }
+    if (nflipped)
+        *nflipped = nf;
+    return 0;
+}
+
+int crom_mesh_compact(crom_mesh *m)
+{
+    int *map = crom_malloc(sizeof(int) * (size_t)(m->nv ? m->nv : 1));
+    if (!map)
+        return CROM_EINTERNAL;
+    for (int i = 0; i < m->nv; i++)
+        map[i] = -1;
+    for (size_t k = 0; k < 4 * (size_t)m->nt; k++)
+        map[m->tets[k]] = 0;
+    int n = 0;
+    for (int i = 0; i < m->nv; i++)
+        if (map[i] == 0) {
+            map[i] = n;
+            memmove(m->X + 3 * (size_t)n, m->X + 3 * (size_t)i, 3 * sizeof(double));
+            n++;
+        }
+    for (size_t k = 0; k < 4 * (size_t)m->nt; k++)
+        m->tets[k] = map[m->tets[k]];
+    for (int r = 0; r < m->nregions; r++) {
+        crom_region *g = &m->regions[r];
+        int k = 0;
+        for (int j = 0; j < g->n; j++)
+            if (map[g->idx[j]] >= 0)
+                g->idx[k++] = map[g->idx[j]];
+        g->n = k; /* order preserved: map is monotone */
+    }
+    m->nv = n;
+    free(map);
+    return 0;
+}
+
+int crom_mesh_validate(const crom_mesh *m)
+{
+    if (m->nv < 4 || m->nt < 1)
+        return crom_err(CROM_EDATA, "mesh has %d vertices and %d tets; a solid needs at least 4 and 1",
+                        m->nv, m->nt);
+    for (size_t i = 0; i < 3 * (size_t)m->nv; i++)
+        if (!isfinite(m->X[i]))
+            return crom_err(CROM_EDATA, "vertex %zu has a non-finite coordinate", i / 3);
+    for (size_t k = 0; k < 4 * (size_t)m->nt; k++)
+        if (m->tets[k] < 0 || m->tets[k] >= m->nv)
+            return crom_err(CROM_EDATA, "tet %zu refers to vertex %d, but there are %d vertices",
+                            k / 4, m->tets[k], m->nv);
+    double tol = degenerate_tol(m);
+    for (int t = 0; t < m->nt; t++) {
+        const int *e = m->tets + 4 * (size_t)t;
+        double V = crom_tet_volume(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
+        if (!(V > tol))
+            return crom_err(CROM_EDATA, "tet %d has non-positive volume %.3g m^3 (tets must be positively oriented)",
+                            t, V);
+    }
+    for (int r = 0; r < m->nregions; r++)
+        for (int j = 0; j < m->regions[r].n; j++)
+            if (m->regions[r].idx[j] < 0 || m->regions[r].idx[j] >= m->nv)
+                return crom_err(CROM_EDATA, "region '%s' refers to vertex %d, but there are %d vertices",
+                                m->regions[r].name, m->regions[r].idx[j], m->nv);
+    return 0;
+}
+
+/* ---------------------------------------------------------------- boundary */
+
+typedef struct {
+    int v[3]; /* sorted */
+    int tet, local;
+} face_key;
+
+static int face_cmp(const void *pa, const void *pb)
+{
+    const face_key *a = pa, *b = pb;
+    for (int i = 0; i < 3; i++)
+        if (a->v[i] != b->v[i])
+            return a->v[i] < b->v[i] ? -1 : 1;
+    return 0;
+}
+
+/* outward faces of a positively oriented tet */
+static const int tet_faces[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+
+int crom_mesh_boundary(const crom_mesh *m, int *ntri, int **tris, int **tri_tet)
+{
+    size_t nf = 4 * (size_t)m->nt;
+    face_key *f = crom_malloc(sizeof(face_key) * (nf ? nf : 1));
+    if (!f)
+        return CROM_EINTERNAL;
+    for (int t = 0; t < m->nt; t++)
+        for (int l = 0; l < 4; l++) {
+            face_key *k = &f[4 * (size_t)t + l];
+            int a = m->tets[4 * (size_t)t + tet_faces[l][0]], b = m->tets[4 * (size_t)t + tet_faces[l][1]],
+                c = m->tets[4 * (size_t)t + tet_faces[l][2]], s;
+            if (a > b) { s = a; a = b; b = s; }
+            if (b > c) { s = b; b = c; c = s; }
+            if (a > b) { s = a; a = b; b = s; }
+            k->v[0] = a;
+            k->v[1] = b;
+            k->v[2] = c;
+            k->tet = t;
+            k->local = l;
+        }
+    qsort(f, nf, sizeof *f, face_cmp);
+    int n = 0;
+    for (size_t i = 0; i < nf;) {
+        size_t j = i + 1;
+        while (j < nf && !face_cmp(&f[i], &f[j]))
+            j++;
+        if (j - i == 1)
+            f[n++] = f[i];
+        i = j;
+    }
+    int *T = crom_malloc(sizeof(int) * 3 * (size_t)(n ? n : 1));
+    int *TT = tri_tet ? crom_malloc(sizeof(int) * (size_t)(n ? n : 1)) : NULL;
+    if (!T || (tri_tet && !TT)) {
+        free(f);
+        free(T);
+        free(TT);
+        return CROM_EINTERNAL;
+    }
+    for (int i = 0; i < n; i++) {
+        const int *e = m->tets + 4 * (size_t)f[i].tet;
+        for (int c = 0; c < 3; c++)
+            T[3 * i + c] = e[tet_faces[f[i].local][c]];
+        if (TT)
+            TT[i] = f[i].tet;
+    }
+    free(f);
+    *ntri = n;
+    *tris = T;
+    if (tri_tet)
+        *tri_tet = TT;
+    return 0;
+}
+
+/* ----------------------------------------------------------- field points */
+
+typedef struct {
+    double x[3];
+    int v;
+} vpos;
+
+static int vpos_cmp(const void *a, const void *b)
+{
+    const vpos *p = a, *q = b;
+    for (int i = 0; i < 3; i++)
+        if (p->x[i] != q->x[i])
+            return p->x[i] < q->x[i] ? -1 : 1;
+    return (p->v > q->v) - (p->v < q->v);
+}
+
+double *crom_mesh_field_points(const crom_mesh *m, double s, int *nshifted)
+{
+    int nv = m->nv, nt = m->nt;
+    double *P = crom_malloc(sizeof(double) * 3 * (size_t)nv), *ctr = crom_calloc(3 * (size_t)nv, sizeof(double));
+    int *cnt = crom_calloc((size_t)nv, sizeof(int));
+    vpos *k = crom_malloc(sizeof(vpos) * (size_t)nv);
+    unsigned char *dup = crom_calloc((size_t)nv, 1);
+    if (!P || !ctr || !cnt || !k || !dup) {
+        free(P);
+        P = NULL;
+        goto out;
+    }
+    memcpy(P, m->X, sizeof(double) * 3 * (size_t)nv);
+    for (int v = 0; v < nv; v++) {
+        memcpy(k[v].x, m->X + 3 * (size_t)v, 3 * sizeof(double));
+        k[v].v = v;
+    }
+    qsort(k, (size_t)nv, sizeof *k, vpos_cmp);
+    for (int i = 1; i < nv; i++)
+        if (!memcmp(k[i].x, k[i - 1].x, 3 * sizeof(double)))
+            dup[k[i].v] = dup[k[i - 1].v] = 1;
+    /* centroid of each duplicated vertex's own tets */
+    for (int t = 0; t < nt; t++) {
+        const int *e = m->tets + 4 * (size_t)t;
+        double c[3] = {0, 0, 0};
+        for (int a = 0; a < 4; a++)
+            for (int i = 0; i < 3; i++)
+                c[i] += 0.25 * m->X[3 * (size_t)e[a] + i];
+        for (int a = 0; a < 4; a++)
+            if (dup[e[a]]) {
+                for (int i = 0; i < 3; i++)
+                    ctr[3 * (size_t)e[a] + i] += c[i];
+                cnt[e[a]]++;
+            }
+    }
+    int n = 0;
+    for (int v = 0; v < nv; v++)
+        if (dup[v] && cnt[v]) {
+            for (int i = 0; i < 3; i++)
+                P[3 * (size_t)v + i] += s * (ctr[3 * (size_t)v + i] / cnt[v] - P[3 * (size_t)v + i]);
+            n++;
+        }
+    if (nshifted)
+        *nshifted = n;
+out:
+    free(ctr);
+    free(cnt);
+    free(k);
+    free(dup);
+    return P;
+}
+
+/* ------------------------------------------------------------ copy & free */
+
+static void free_regions(crom_region *r, int n)
+{
+    for (int i = 0; i < n; i++) {
+        free(r[i].name);
+        free(r[i].source);
+        free(r[i].idx);
+    }
+    free(r);
+}
+
+void crom_mesh_free(crom_mesh *m)
+{
+    free(m->X);
+    free(m->tets);
+    free_regions(m->regions, m->nregions);
+    memset(m, 0, sizeof *m);
+}
+
+int crom_mesh_copy(const crom_mesh *s, crom_mesh *d)
+{
+    memset(d, 0, sizeof *d);
+    d->nv = s->nv;
+    d->nt = s->nt;
+    d->X = crom_malloc(sizeof(double) * 3 * (size_t)s->nv);
+    d->tets = crom_malloc(sizeof(int) * 4 * (size_t)s->nt);
+    if (!d->X || !d->tets) {
+        crom_mesh_free(d);
+        return CROM_EINTERNAL;
+    }
+    memcpy(d->X, s->X, sizeof(double) * 3 * (size_t)s->nv);
+    memcpy(d->tets, s->tets, sizeof(int) * 4 * (size_t)s->nt);
+    for (int r = 0; r < s->nregions; r++) {
+        int rc = crom_mesh_add_region(d, s->regions[r].name, s->regions[r].source,
+                                      s->regions[r].idx, s->regions[r].n);
+        if (rc) {
+            crom_mesh_free(d);
+            return rc;
+        }
+    }
+    return 0;
+}
+
+/* ------------------------------------------------------------ predicates */
+
+enum { P_LT, P_GT, P_LE, P_GE, P_BOX, P_SPHERE, P_PLANE, P_ALL };
+
+static int parse_term(const char *s, size_t len, crom_pred *p)
+{
+    char buf[256];
+    if (len >= sizeof buf)
+        return crom_err(CROM_EUSAGE, "predicate term too long");
+    memcpy(buf, s, len);
+    buf[len] = 0;
+    if (p->nterms == CROM_PRED_MAX)
+        return crom_err(CROM_EUSAGE, "predicate has more than %d terms", CROM_PRED_MAX);
+    int i = p->nterms;
+    char what[300];
+    if (!strcmp(buf, "all")) {
+        p->term[i].kind = P_ALL;
+    } else if (!strncmp(buf, "box:", 4)) {
+        p->term[i].kind = P_BOX;
+        snprintf(what, sizeof what, "predicate '%s'", buf);
+        if (crom_parse_doubles(buf + 4, what, 6, p->term[i].a))
+            return CROM_EUSAGE;
+        for (int k = 0; k < 3; k++)
+            if (p->term[i].a[k] > p->term[i].a[k + 3])
+                return crom_err(CROM_EUSAGE, "predicate '%s': box corner 1 must not exceed corner 2", buf);
+    } else if (!strncmp(buf, "sphere:", 7)) {
+        p->term[i].kind = P_SPHERE;
+        snprintf(what, sizeof what, "predicate '%s'", buf);
+        if (crom_parse_doubles(buf + 7, what, 4, p->term[i].a))
+            return CROM_EUSAGE;
+        if (!(p->term[i].a[3] > 0))
+            return crom_err(CROM_EUSAGE, "predicate '%s': radius must be positive", buf);
+    } else if (!strncmp(buf, "plane:", 6)) {
+        p->term[i].kind = P_PLANE;
+        snprintf(what, sizeof what, "predicate '%s'", buf);
+        if (crom_parse_doubles(buf + 6, what, 4, p->term[i].a))
+            return CROM_EUSAGE;
+        double n = sqrt(p->term[i].a[0] * p->term[i].a[0] + p->term[i].a[1] * p->term[i].a[1] +
+                        p->term[i].a[2] * p->term[i].a[2]);
+        if (!(n > 0))
+            return crom_err(CROM_EUSAGE, "predicate '%s': plane normal is zero", buf);
+    } else if ((buf[0] == 'x' || buf[0] == 'y' || buf[0] == 'z') &&
+               (buf[1] == '<' || buf[1] == '>')) {
+        int axis = buf[0] - 'x';
+        int ge = buf[1] == '>', eq = buf[2] == '=';
+        p->term[i].kind = ge ? (eq ? P_GE : P_GT) : (eq ? P_LE : P_LT);
+        p->term[i].a[0] = axis;
+        snprintf(what, sizeof what, "predicate '%s'", buf);
+        if (crom_parse_double(buf + 2 + eq, what, &p->term[i].a[1]))
+            return CROM_EUSAGE;
+    } else {
+        return crom_err(CROM_EUSAGE,
+                        "'%s' is not a predicate (x<V, y>=V, box:X0,Y0,Z0,X1,Y1,Z1, sphere:CX,CY,CZ,R, plane:NX,NY,NZ,D, all)",
+                        buf);
+    }
+    p->nterms++;
+    return 0;
+}
+
+int crom_pred_parse(const char *s, crom_pred *p)
+{
+    memset(p, 0, sizeof *p);
+    if (!s || !*s)
+        return crom_err(CROM_EUSAGE, "empty predicate");
+    for (;;) {
+        const char *e = strchr(s, '&');
+        size_t len = e ? (size_t)(e - s) : strlen(s);
+        int rc = parse_term(s, len, p);
+        if (rc)
+            return rc;
+        if (!e)
+            return 0;
+        s = e + 1;
+    }
+}
+
+int crom_pred_eval(const crom_pred *p, const double X[3])
+{
+    for (int i = 0; i < p->nterms; i++) {
+        const double *a = p->term[i].a;
+        int ok = 1;
+        switch (p->term[i].kind) {
+        case P_LT: ok = X[(int)a[0]] < a[1]; break;
+        case P_GT: ok = X[(int)a[0]] > a[1]; break;
+        case P_LE: ok = X[(int)a[0]] <= a[1]; break;
+        case P_GE: ok = X[(int)a[0]] >= a[1]; break;
+        case P_BOX:
+            ok = X[0] >= a[0] && X[1] >= a[1] && X[2] >= a[2] && X[0] <= a[3] && X[1] <= a[4] &&
+                 X[2] <= a[5];
+            break;
+        case P_SPHERE: {
+            double dx = X[0] - a[0], dy = X[1] - a[1], dz = X[2] - a[2];
+            ok = dx * dx + dy * dy + dz * dz <= a[3] * a[3];
+            break;
+        }
+        case P_PLANE: ok = a[0] * X[0] + a[1] * X[1] + a[2] * X[2] >= a[3]; break;
+        case P_ALL: ok = 1; break;
+        }
+        if (!ok)
+            return 0;
+    }
+    return 1;
+}
+
+int crom_pred_is(const char *s)
+{
+    if (!strcmp(s, "all") || !strncmp(s, "box:", 4) || !strncmp(s, "sphere:", 7) ||
+        !strncmp(s, "plane:", 6))
+        return 1;
+    if ((s[0] == 'x' || s[0] == 'y' || s[0] == 'z') && (s[1] == '<' || s[1] == '>'))
+        return 1;
+    return strchr(s, '&') != NULL;
+}
+
+/* ---------------------------------------------------------------- regions */
+
+const crom_region *crom_mesh_region(const crom_mesh *m, const char *name)
+{
+    for (int r = 0; r < m->nregions; r++)
+        if (!strcmp(m->regions[r].name, name))
+            return &m->regions[r];
+    return NULL;
+}
+
+static int int_cmp(const void *a, const void *b)
+{
+    int x = *(const int *)a, y = *(const int *)b;
+    return (x > y) - (x < y);
+}
+
+static int valid_name(const char *s)
+{
+    if (!*s || strlen(s) > 64)
+        return 0;
+    for (; *s; s++)
+        if (!(isalnum((unsigned char)*s) || *s == '_' || *s == '-' || *s == '.'))
+            return 0;
+    return 1;
+}
+
+int crom_mesh_add_region(crom_mesh *m, const char *name, const char *source,
+                         const int *idx, int n)
+{
+    if (!valid_name(name))
+        return crom_err(CROM_EUSAGE, "region name '%s' is not allowed (use letters, digits, '_', '-', '.')",
+                        name);
+    int *v = crom_malloc(sizeof(int) * (size_t)(n ? n : 1));
+    if (!v)
+        return CROM_EINTERNAL;
+    memcpy(v, idx, sizeof(int) * (size_t)n);
+    qsort(v, (size_t)n, sizeof(int), int_cmp);
+    int k = 0;
+    for (int i = 0; i < n; i++)
+        if (i == 0 || v[i] != v[i - 1])
+            v[k++] = v[i];
+    crom_region *slot = (crom_region *)crom_mesh_region(m, name);
+    if (!slot) {
+        crom_region *nr = crom_realloc(m->regions, sizeof(crom_region) * (size_t)(m->nregions + 1));
+        if (!nr) {
+            free(v);
+            return CROM_EINTERNAL;
+        }
+        m->regions = nr;
+        slot = &m->regions[m->nregions++];
+        memset(slot, 0, sizeof *slot);
+        slot->name = crom_strdup(name);
+    } else {
+        free(slot->idx);
+        free(slot->source);
+    }
+    slot->source = crom_strdup(source ? source : "");
+    slot->idx = v;
+    slot->n = k;
+    return 0;
+}
+
+static int select_pred(const crom_mesh *m, const char *text, int **idx, int *n)
+{
+    crom_pred p;
+    int rc = crom_pred_parse(text, &p);
+    if (rc)
+        return rc;
+    int *v = crom_malloc(sizeof(int) * (size_t)(m->nv ? m->nv : 1)), k = 0;
+    if (!v)
+        return CROM_EINTERNAL;
+    for (int i = 0; i < m->nv; i++)
+        if (crom_pred_eval(&p, VX(m, i)))
+            v[k++] = i;
+    *idx = v;
+    *n = k;
+    return 0;
+}
+
+int crom_mesh_region_spec(crom_mesh *m, const char *spec)
+{
+    const char *eq = strchr(spec, '=');
+    if (!eq || eq == spec)
+        return crom_err(CROM_EUSAGE, "--region '%s': expected NAME=PREDICATE", spec);
+    char name[80];
+    size_t len = (size_t)(eq - spec);
+    if (len >= sizeof name)
+        return crom_err(CROM_EUSAGE, "--region '%s': name too long", spec);
+    memcpy(name, spec, len);
+    name[len] = 0;
+    /* PRED is a predicate, or the name of a region the mesh already has
+     * (a gmsh physical group of an imported file) */
+    int *idx, n, rc = crom_mesh_select(m, eq + 1, &idx, &n);
+    if (rc)
+        return crom_err_ctx("--region %s", name);
+    rc = crom_mesh_add_region(m, name, eq + 1, idx, n);
+    free(idx);
+    return rc;
+}
+
+int crom_mesh_select(const crom_mesh *m, const char *ref, int **idx, int *n)
+{
+    const crom_region *r = crom_mesh_region(m, ref);
+    if (r) {
+        if (r->n == 0)
+            return crom_err(CROM_EUSAGE, "region '%s' is empty", ref);
+        *idx = crom_malloc(sizeof(int) * (size_t)r->n);
+        if (!*idx)
+            return CROM_EINTERNAL;
+        memcpy(*idx, r->idx, sizeof(int) * (size_t)r->n);
+        *n = r->n;
+        return 0;
+    }
+    if (!crom_pred_is(ref) && valid_name(ref)) {
+        char known[512] = "";
+        size_t off = 0;
+        for (int i = 0; i < m->nregions && off < sizeof known - 80; i++)
+            off += (size_t)snprintf(known + off, sizeof known - off, "%s%s", i ? ", " : "",
+                                    m->regions[i].name);
+        return crom_err(CROM_EUSAGE, "unknown region '%s' (the mesh has: %s)", ref,
+                        m->nregions ? known : "no named regions");
+    }
+    int rc = select_pred(m, ref, idx, n);
+    if (rc)
+        return rc;
+    if (*n == 0) {
+        free(*idx);
+        *idx = NULL;
+        return crom_err(CROM_EUSAGE, "predicate '%s' selects no vertex", ref);
+    }
+    return 0;
+}
+
+/* ------------------------------------------------------------------ files */
+
+int crom_mesh_write(hid_t loc, const crom_mesh *m)
+{
+    hsize_t dv[2] = {(hsize_t)m->nv, 3}, dt[2] = {(hsize_t)m->nt, 4};
+    int rc = crom_h5_put_f64(loc, "vertices", 2, dv, m->X);
+    if (!rc)
+        rc = crom_h5_put_i32(loc, "tets", 2, dt, m->tets);
+    if (rc)
+        return rc;
+    hid_t g = crom_h5_group(loc, "regions");
+    if (g < 0)
+        return CROM_EINTERNAL;
+    for (int r = 0; r < m->nregions && !rc; r++) {
+        hsize_t d = (hsize_t)m->regions[r].n;
+        rc = crom_h5_put_i32(g, m->regions[r].name, 1, &d, m->regions[r].idx);
+        if (!rc)
+            rc = crom_h5_set_str(g, m->regions[r].name, "source", m->regions[r].source);
+    }
+    H5Gclose(g);
+    return rc;
+}
+
+int crom_mesh_read(hid_t loc, crom_mesh *m)
+{
+    memset(m, 0, sizeof *m);
+    hsize_t dv[2], dt[2];
+    int rc = crom_h5_read_f64(loc, "vertices", 2, dv, &m->X);
+    if (!rc && dv[1] != 3)
+        rc = crom_err(CROM_EDATA, "'vertices' has %llu columns, expected 3", (unsigned long long)dv[1]);
+    if (!rc)
+        rc = crom_h5_read_i32(loc, "tets", 2, dt, &m->tets);
+    if (!rc && dt[1] != 4)
+        rc = crom_err(CROM_EDATA, "'tets' has %llu columns, expected 4", (unsigned long long)dt[1]);
+    if (!rc && (dv[0] > INT32_MAX / 3 || dt[0] > INT32_MAX / 4))
+        rc = crom_err(CROM_EDATA, "mesh too large");
+    if (rc) {
+        crom_mesh_free(m);
+        return rc;
+    }
+    m->nv = (int)dv[0];
+    m->nt = (int)dt[0];
+    if (crom_h5_has(loc, "regions")) {
+        char **names = crom_h5_list(loc, "regions");
+        if (!names)
+            rc = CROM_EDATA;
+        for (int i = 0; names && names[i] && !rc; i++) {
+            char path[128];
+            snprintf(path, sizeof path, "regions/%s", names[i]);
+            hsize_t d;
+            int *idx;
+            rc = crom_h5_read_i32(loc, path, 1, &d, &idx);
+            if (rc)
+                break;
+            char *src = NULL;
+            if (crom_h5_has_attr(loc, path, "source"))
+                crom_h5_get_str(loc, path, "source", &src);
+            rc = crom_mesh_add_region(m, names[i], src, idx, (int)d);
+            free(src);
+            free(idx);
+        }
+        crom_h5_list_free(names);
+    }
+    if (!rc)
+        rc = crom_mesh_validate(m);
+    if (rc)
+        crom_mesh_free(m);
+    return rc;
+}

@@ -1,0 +1,901 @@
+/* meshgen.c — tetrahedral meshing through the gmsh C API (see meshgen.h).
+ *
+ * gmsh's session, logger and checked calls are lib/mesh/gmsh.h's. */
+#include <ctype.h>
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "base/err.h"
+#include "mesh/gmsh.h"
+#include "mesh/meshgen.h"
+
+void crom_meshgen_defaults(crom_meshgen_opts *o, int shape)
+{
+    memset(o, 0, sizeof *o);
+    o->shape = shape;
+    o->dims[0] = o->dims[1] = o->dims[2] = 1.0;
+    if (shape == CROM_SHAPE_PLATE) {
+        /* a plate lies in the xz-plane, thin along y (gravity is -y) */
+        o->dims[1] = 0.05;
+    }
+    o->radius = 0.5;
+    o->height = 1.0;
+    o->exponent = 4.0;
+    o->size = 0.1;
+    o->algorithm = 1;
+    o->optimize = 1;
+    o->remesh = CROM_REMESH_AUTO;
+}
+
+int crom_meshgen_shape(const char *s)
+{
+    static const char *names[] = {"box", "plate", "sphere", "cylinder", "superquadric", "import"};
+    for (int i = 0; i < 6; i++)
+        if (!strcmp(s, names[i]))
+            return i;
+    return -1;
+}
+
+/* ---------------------------------------------------------- surface files */
+
+typedef struct {
+    double *V;
+    int nv, capv;
+    int *T;
+    int nt, capt;
+} surf;
+
+static int surf_addv(surf *s, const double p[3])
+{
+    if (s->nv == s->capv) {
+        s->capv = s->capv ? 2 * s->capv : 1024;
+        double *nv = crom_realloc(s->V, sizeof(double) * 3 * (size_t)s->capv);
+        if (!nv)
+            return CROM_EINTERNAL;
+        s->V = nv;
+    }
+    memcpy(s->V + 3 * (size_t)s->nv, p, 3 * sizeof(double));
+    s->nv++;
+    return 0;
+}
+
+static int surf_addt(surf *s, int a, int b, int c)
+{
+    if (s->nt == s->capt) {
+        s->capt = s->capt ? 2 * s->capt : 1024;
+        int *nt = crom_realloc(s->T, sizeof(int) * 3 * (size_t)s->capt);
+        if (!nt)
+            return CROM_EINTERNAL;
+        s->T = nt;
+    }
+    s->T[3 * (size_t)s->nt] = a;
+    s->T[3 * (size_t)s->nt + 1] = b;
+    s->T[3 * (size_t)s->nt + 2] = c;
+    s->nt++;
+    return 0;
+}
+
+typedef struct {
+    double p[3];
+    int i;
+} vkey;
+
+static int vkey_cmp(const void *a, const void *b)
+{
+    const vkey *x = a, *y = b;
+    for (int k = 0; k < 3; k++)
+        if (x->p[k] != y->p[k])
+            return x->p[k] < y->p[k] ? -1 : 1;
+    return (x->i > y->i) - (x->i < y->i);
+}
+
+/* Merge exactly coincident vertices (STL repeats them per triangle). */
+static int surf_weld(surf *s)
+{
+    vkey *k = crom_malloc(sizeof(vkey) * (size_t)(s->nv ? s->nv : 1));
+    int *map = crom_malloc(sizeof(int) * (size_t)(s->nv ? s->nv : 1));
+    if (!k || !map) {
+        free(k);
+        free(map);
+        return CROM_EINTERNAL;
+    }
+    for (int i = 0; i < s->nv; i++) {
+        memcpy(k[i].p, s->V + 3 * (size_t)i, 3 * sizeof(double));
+        k[i].i = i;
+    }
+    qsort(k, (size_t)s->nv, sizeof *k, vkey_cmp);
+    int n = 0;
+    for (int i = 0; i < s->nv; i++) {
+        if (i == 0 || memcmp(k[i].p, k[i - 1].p, 3 * sizeof(double)) != 0) {
+            memcpy(s->V + 3 * (size_t)n, k[i].p, 3 * sizeof(double));
+            n++;
+        }
+        map[k[i].i] = n - 1;
+    }
+    for (size_t j = 0; j < 3 * (size_t)s->nt; j++)
+        s->T[j] = map[s->T[j]];
+    s->nv = n;
+    free(k);
+    free(map);
+    return 0;
+}
+
+static int read_stl(FILE *f, const char *path, surf *s)
+{
+    struct stat st;
+    fstat(fileno(f), &st);
+    unsigned char hdr[84];
+    size_t got = fread(hdr, 1, 84, f);
+    int binary = 0;
+    if (got == 84) {
+        unsigned n = (unsigned)hdr[80] | (unsigned)hdr[81] << 8 | (unsigned)hdr[82] << 16 |
+                     (unsigned)hdr[83] << 24;
+        binary = (off_t)84 + (off_t)50 * n == st.st_size;
+        if (!binary && strncmp((char *)hdr, "solid", 5))
+            return crom_err(CROM_EDATA, "%s: not an STL file (bad size for binary, no 'solid' for ASCII)",
+                            path);
+        if (binary) {
+            for (unsigned t = 0; t < n; t++) {
+                unsigned char rec[50];
+                if (fread(rec, 1, 50, f) != 50)
+                    return crom_err(CROM_EDATA, "%s: truncated binary STL", path);
+                for (int c = 0; c < 3; c++) {
+                    float xyz[3];
+                    memcpy(xyz, rec + 12 + 12 * c, 12);
+                    double p[3] = {xyz[0], xyz[1], xyz[2]};
+                    if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
+                        return crom_err(CROM_EDATA, "%s: triangle %u has a non-finite vertex", path, t);
+                    if (surf_addv(s, p))
+                        return CROM_EINTERNAL;
+                }
+                if (surf_addt(s, s->nv - 3, s->nv - 2, s->nv - 1))
+                    return CROM_EINTERNAL;
+            }
+            return surf_weld(s);
+        }
+    } else if (got < 5 || strncmp((char *)hdr, "solid", 5)) {
+        return crom_err(CROM_EDATA, "%s: not an STL file", path);
+    }
+    rewind(f);
+    char word[64];
+    int nvert = 0;
+    while (fscanf(f, "%63s", word) == 1) {
+        if (!strcmp(word, "vertex")) {
+            double p[3];
+            if (fscanf(f, "%lf %lf %lf", &p[0], &p[1], &p[2]) != 3)
+                return crom_err(CROM_EDATA, "%s: bad 'vertex' line in ASCII STL", path);
+            if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
+                return crom_err(CROM_EDATA, "%s: non-finite vertex in ASCII STL", path);
+            if (surf_addv(s, p))
+                return CROM_EINTERNAL;
+            nvert++;
+        } else if (!strcmp(word, "endloop")) {
+            if (nvert != 3)
+                return crom_err(CROM_EDATA, "%s: a facet with %d vertices (STL needs 3)", path, nvert);
+            if (surf_addt(s, s->nv - 3, s->nv - 2, s->nv - 1))
+                return CROM_EINTERNAL;
+            nvert = 0;
+        }
+    }
+    if (s->nt == 0)
+        return crom_err(CROM_EDATA, "%s: no triangles in ASCII STL", path);
+    return surf_weld(s);
+}
+
+static int read_obj(FILE *f, const char *path, surf *s)
+{
+    char line[4096];
+    int lineno = 0;
+    while (fgets(line, sizeof line, f)) {
+        lineno++;
+        char *p = line;
+        while (isspace((unsigned char)*p))
+            p++;
+        if (p[0] == 'v' && isspace((unsigned char)p[1])) {
+            double q[3];
+            if (sscanf(p + 1, "%lf %lf %lf", &q[0], &q[1], &q[2]) != 3 || !isfinite(q[0]) ||
+                !isfinite(q[1]) || !isfinite(q[2]))
+                return crom_err(CROM_EDATA, "%s:%d: bad vertex line", path, lineno);
+            if (surf_addv(s, q))
+                return CROM_EINTERNAL;
+        } else if (p[0] == 'f' && isspace((unsigned char)p[1])) {
+            int idx[64], n = 0;
+            char *tok = p + 1, *end;
+            for (;;) {
+                while (isspace((unsigned char)*tok))
+                    tok++;
+                if (!*tok)
+                    break;
+                long v = strtol(tok, &end, 10);
+                if (end == tok)
+                    return crom_err(CROM_EDATA, "%s:%d: bad face line", path, lineno);
+                if (v < 0)
+                    v = s->nv + v + 1;
+                if (v < 1 || v > s->nv)
+                    return crom_err(CROM_EDATA, "%s:%d: face refers to vertex %ld of %d", path,
+                                    lineno, v, s->nv);
+                if (n == 64)
+                    return crom_err(CROM_EDATA, "%s:%d: face with too many vertices", path, lineno);
+                idx[n++] = (int)v - 1;
+                tok = end;
+                while (*tok && !isspace((unsigned char)*tok))
+                    tok++; /* skip /vt/vn */
+            }
+            if (n < 3)
+                return crom_err(CROM_EDATA, "%s:%d: face with %d vertices", path, lineno, n);
+            for (int k = 1; k + 1 < n; k++)
+                if (surf_addt(s, idx[0], idx[k], idx[k + 1]))
+                    return CROM_EINTERNAL;
+        }
+    }
+    if (s->nt == 0)
+        return crom_err(CROM_EDATA, "%s: no faces in OBJ file", path);
+    return 0;
+}
+
+static int ends_with(const char *s, const char *suf)
+{
+    size_t n = strlen(s), m = strlen(suf);
+    return n >= m && !strcasecmp(s + n - m, suf);
+}
+
+int crom_surface_read(const char *path, int *nv, double **V, int *nt, int **T)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return crom_err(CROM_ENOINPUT, "%s: %s", path, strerror(errno));
+    surf s = {0};
+    int rc;
+    if (ends_with(path, ".stl"))
+        rc = read_stl(f, path, &s);
+    else if (ends_with(path, ".obj"))
+        rc = read_obj(f, path, &s);
+    else
+        rc = crom_err(CROM_EUSAGE, "%s: unknown surface format (expected .stl or .obj)", path);
+    fclose(f);
+    if (rc) {
+        free(s.V);
+        free(s.T);
+        return rc;
+    }
+    *nv = s.nv;
+    *V = s.V;
+    *nt = s.nt;
+    *T = s.T;
+    return 0;
+}
+
+typedef struct {
+    int a, b; /* a < b */
+    int dir;  /* +1 if the triangle had a->b, -1 if b->a */
+} hedge;
+
+static int hedge_cmp(const void *x, const void *y)
+{
+    const hedge *p = x, *q = y;
+    if (p->a != q->a)
+        return p->a < q->a ? -1 : 1;
+    return (p->b > q->b) - (p->b < q->b);
+}
+
+int crom_surface_check_closed(int nv, int nt, const int *T, const char *name)
+{
+    (void)nv;
+    if (nt < 4)
+        return crom_err(CROM_EDATA, "%s: %d triangles cannot close a volume", name, nt);
+    size_t ne = 3 * (size_t)nt;
+    hedge *e = crom_malloc(sizeof(hedge) * ne);
+    if (!e)
+        return CROM_EINTERNAL;
+    for (int t = 0; t < nt; t++)
+        for (int k = 0; k < 3; k++) {
+            int a = T[3 * t + k], b = T[3 * t + (k + 1) % 3];
+            hedge *h = &e[3 * (size_t)t + k];
+            if (a == b) {
+                free(e);
+                return crom_err(CROM_EDATA, "%s: triangle %d is degenerate (repeated vertex)", name, t);
+            }
+            h->a = a < b ? a : b;
+            h->b = a < b ? b : a;
+            h->dir = a < b ? 1 : -1;
+        }
+    qsort(e, ne, sizeof *e, hedge_cmp);
+    int rc = 0, open = 0, nonmanifold = 0, flipped = 0;
+    for (size_t i = 0; i < ne;) {
+        size_t j = i + 1;
+        while (j < ne && e[j].a == e[i].a && e[j].b == e[i].b)
+            j++;
+        if (j - i == 1)
+            open++;
+        else if (j - i > 2)
+            nonmanifold++;
+        else if (e[i].dir == e[i + 1].dir)
+            flipped++;
+        i = j;
+    }
+    if (open)
+        rc = crom_err(CROM_EDATA, "%s: surface is not closed (%d boundary edges); crom meshes the inside of a closed surface",
+                      name, open);
+    else if (nonmanifold)
+        rc = crom_err(CROM_EDATA, "%s: surface is non-manifold (%d edges shared by more than two triangles)",
+                      name, nonmanifold);
+    else if (flipped)
+        rc = crom_err(CROM_EDATA, "%s: surface is not consistently oriented (%d edges)", name, flipped);
+    free(e);
+    return rc;
+}
+
+/* ------------------------------------------------- surface subdivision */
+
+typedef struct {
+    int a, b, tri;
+} ekey;
+
+static int ekey_cmp(const void *x, const void *y)
+{
+    const ekey *p = x, *q = y;
+    if (p->a != q->a)
+        return p->a < q->a ? -1 : 1;
+    return (p->b > q->b) - (p->b < q->b);
+}
+
+static double max_edge(const surf *s)
+{
+    double m = 0;
+    for (int t = 0; t < s->nt; t++)
+        for (int k = 0; k < 3; k++) {
+            const double *p = s->V + 3 * (size_t)s->T[3 * t + k], *q = s->V + 3 * (size_t)s->T[3 * t + (k + 1) % 3];
+            double d = sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) +
+                            (p[2] - q[2]) * (p[2] - q[2]));
+            if (d > m)
+                m = d;
+        }
+    return m;
+}
+
+/* One conforming 1-to-4 midpoint subdivision of every triangle. */
+static int subdivide(surf *s)
+{
+    size_t ne = 3 * (size_t)s->nt;
+    ekey *e = crom_malloc(sizeof(ekey) * ne);
+    int *mid = crom_malloc(sizeof(int) * ne);
+    int *T = s->T, nt = s->nt, rc = 0;
+    if (!e || !mid) {
+        free(e);
+        free(mid);
+        return CROM_EINTERNAL;
+    }
+    for (int t = 0; t < nt; t++)
+        for (int k = 0; k < 3; k++) {
+            int a = T[3 * t + k], b = T[3 * t + (k + 1) % 3];
+            e[3 * (size_t)t + k] = (ekey){a < b ? a : b, a < b ? b : a, 3 * t + k};
+        }
+    qsort(e, ne, sizeof *e, ekey_cmp);
+    for (size_t i = 0; i < ne && !rc; i++) {
+        if (i == 0 || ekey_cmp(&e[i], &e[i - 1])) {
+            const double *p = s->V + 3 * (size_t)e[i].a, *q = s->V + 3 * (size_t)e[i].b;
+            double m[3] = {(p[0] + q[0]) / 2, (p[1] + q[1]) / 2, (p[2] + q[2]) / 2};
+            rc = surf_addv(s, m);
+        }
+        mid[e[i].tri] = s->nv - 1;
+    }
+    s->T = NULL;
+    s->nt = s->capt = 0;
+    for (int t = 0; t < nt && !rc; t++) {
+        int a = T[3 * t], b = T[3 * t + 1], c = T[3 * t + 2];
+        int ab = mid[3 * t], bc = mid[3 * t + 1], ca = mid[3 * t + 2];
+        rc = surf_addt(s, a, ab, ca) || surf_addt(s, ab, b, bc) || surf_addt(s, ca, bc, c) ||
+             surf_addt(s, ab, bc, ca);
+    }
+    free(T);
+    free(e);
+    free(mid);
+    return rc ? CROM_EINTERNAL : 0;
+}
+
+/* Subdivide until no edge is longer than h (at most 8 levels and 4M triangles). */
+static int refine_to(surf *s, double h)
+{
+    for (int level = 0; level < 8 && max_edge(s) > h; level++) {
+        if ((size_t)s->nt * 4 > 4000000)
+            return crom_err(CROM_EUSAGE, "the surface would need more than 4M triangles to reach --size %g", h);
+        int rc = subdivide(s);
+        if (rc)
+            return rc;
+    }
+    return 0;
+}
+
+/* ------------------------------------------------------- superquadric skin */
+
+/* Cube point q (on the face of [-1,1]^3) pushed radially onto the surface
+ * |x/a|^p+|y/b|^p+|z/c|^p = 1; grid coordinates are spaced by a blend of
+ * tan() (even cells on a sphere) and uniform (even cells on a cube). */
+static void sq_point(const double half[3], double p, double wa, int axis, int side,
+                     double a, double b, double out[3])
+{
+    int u = (axis + 1) % 3, v = (axis + 2) % 3;
+    double q[3];
+    q[axis] = side;
+    /* tan(pi/4) is not exactly 1 in floating point: keep the cube's edges
+     * exact so that neighbouring faces produce bit-identical points */
+    q[u] = fabs(a) == 1 ? a : wa * tan(M_PI / 4 * a) + (1 - wa) * a;
+    q[v] = fabs(b) == 1 ? b : wa * tan(M_PI / 4 * b) + (1 - wa) * b;
+    double r = pow(pow(fabs(q[0]), p) + pow(fabs(q[1]), p) + pow(fabs(q[2]), p), 1.0 / p);
+    for (int k = 0; k < 3; k++)
+        out[k] = q[k] / r * half[k];
+}
+
+/* A closed triangulated superquadric at edge length about h: the six faces
+ * of a cube, each a grid, pushed onto the surface. The cell count along cube
+ * axis k is shared by all faces, so neighbouring faces meet exactly. */
+static int superquadric_skin(const double half[3], double p, double h, surf *s)
+{
+    double wa = p <= 2 ? 1.0 : fmax(0.0, 1.0 - (p - 2) / 6.0);
+    int n[3] = {1, 1, 1};
+    for (int axis = 0; axis < 3; axis++)
+        for (int dir = 1; dir <= 2; dir++) {
+            /* length of the face's centre line along cube axis (axis+dir)%3 */
+            int k = (axis + dir) % 3;
+            double len = 0, prev[3], cur[3];
+            for (int i = 0; i <= 256; i++) {
+                double t = -1 + 2.0 * i / 256;
+                sq_point(half, p, wa, axis, 1, dir == 1 ? t : 0, dir == 2 ? t : 0, cur);
+                if (i)
+                    len += sqrt((cur[0] - prev[0]) * (cur[0] - prev[0]) +
+                                (cur[1] - prev[1]) * (cur[1] - prev[1]) +
+                                (cur[2] - prev[2]) * (cur[2] - prev[2]));
+                memcpy(prev, cur, sizeof prev);
+            }
+            int nk = (int)ceil(len / h);
+            if (nk > n[k])
+                n[k] = nk;
+        }
+    /* even counts put grid lines on the coordinate planes, so no cell
+     * straddles a crease of the surface (the octahedron p = 1 is exact) */
+    for (int k = 0; k < 3; k++)
+        n[k] = n[k] < 2 ? 2 : n[k] + (n[k] & 1);
+    for (int axis = 0; axis < 3; axis++)
+        for (int side = -1; side <= 1; side += 2) {
+            int u = (axis + 1) % 3, v = (axis + 2) % 3, nu = n[u], nv = n[v];
+            int base = s->nv;
+            for (int j = 0; j <= nv; j++)
+                for (int i = 0; i <= nu; i++) {
+                    double q[3];
+                    sq_point(half, p, wa, axis, side, -1 + 2.0 * i / nu, -1 + 2.0 * j / nv, q);
+                    if (surf_addv(s, q))
+                        return CROM_EINTERNAL;
+                }
+            for (int j = 0; j < nv; j++)
+                for (int i = 0; i < nu; i++) {
+                    int a00 = base + j * (nu + 1) + i, a10 = a00 + 1, a01 = a00 + nu + 1, a11 = a01 + 1;
+                    /* (u, v, axis) is right-handed: counter-clockwise seen from outside on
+                     * the + side; alternate the diagonal to avoid a directional bias */
+                    int flip = (i + j) & 1, rc;
+                    if (side > 0)
+                        rc = flip ? (surf_addt(s, a00, a10, a01) || surf_addt(s, a10, a11, a01))
+                                  : (surf_addt(s, a00, a10, a11) || surf_addt(s, a00, a11, a01));
+                    else
+                        rc = flip ? (surf_addt(s, a00, a01, a10) || surf_addt(s, a10, a01, a11))
+                                  : (surf_addt(s, a00, a11, a10) || surf_addt(s, a00, a01, a11));
+                    if (rc)
+                        return CROM_EINTERNAL;
+                }
+        }
+    /* points on shared cube edges were computed from identical cube points,
+     * so they are bit-identical: weld them, and make sure the skin closed */
+    int rc = surf_weld(s);
+    return rc ? rc : crom_surface_check_closed(s->nv, s->nt, s->T, "superquadric");
+}
+
+/* ------------------------------------------------------------------ gmsh */
+
+#define G(call, what) CROM_GMSH(call, what)
+
+/* Put a closed triangle surface into gmsh as a discrete surface, make it a
+ * geometry gmsh can remesh, and bound a volume by it. */
+static int gmsh_volume_from_surface(const surf *s, int remesh)
+{
+    int ierr = 0, rc = 0;
+    size_t *ntags = NULL, *etags = NULL, *enodes = NULL;
+    int *stags = NULL;
+    int *dimtags = NULL;
+    size_t ndt = 0;
+    ntags = crom_malloc(sizeof(size_t) * (size_t)s->nv);
+    etags = crom_malloc(sizeof(size_t) * (size_t)s->nt);
+    enodes = crom_malloc(sizeof(size_t) * 3 * (size_t)s->nt);
+    if (!ntags || !etags || !enodes) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    for (int i = 0; i < s->nv; i++)
+        ntags[i] = (size_t)i + 1;
+    for (int t = 0; t < s->nt; t++) {
+        etags[t] = (size_t)t + 1;
+        for (int k = 0; k < 3; k++)
+            enodes[3 * (size_t)t + k] = (size_t)s->T[3 * (size_t)t + k] + 1;
+    }
+    G(gmshModelAddDiscreteEntity(2, 1, NULL, 0, &ierr), "add the surface");
+    G(gmshModelMeshAddNodes(2, 1, ntags, (size_t)s->nv, s->V, 3 * (size_t)s->nv, NULL, 0, &ierr),
+      "add surface nodes");
+    G(gmshModelMeshAddElementsByType(1, 2, etags, (size_t)s->nt, enodes, 3 * (size_t)s->nt, &ierr),
+      "add surface triangles");
+    if (!remesh) {
+        /* keep the given triangles as the boundary mesh of the volume: a
+         * discrete surface without parametrization is not remeshed */
+        int one = 1, loop0;
+        G(loop0 = gmshModelGeoAddSurfaceLoop(&one, 1, -1, &ierr), "close the surface loop");
+        G(gmshModelGeoAddVolume(&loop0, 1, -1, &ierr), "make the volume");
+        G(gmshModelGeoSynchronize(&ierr), "synchronize");
+        goto out;
+    }
+    /* split the surface at sharp creases (40°) into patches gmsh can
+     * parametrize, then remesh them at the target size */
+    G(gmshModelMeshClassifySurfaces(40 * M_PI / 180, 1, 1, M_PI, 0, &ierr), "classify the surface");
+    G(gmshModelMeshCreateGeometry(NULL, 0, &ierr), "parametrize the surface");
+    G(gmshModelGetEntities(&dimtags, &ndt, 2, &ierr), "list surfaces");
+    stags = crom_malloc(sizeof(int) * (ndt / 2 + 1));
+    if (!stags) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    for (size_t i = 0; i < ndt / 2; i++)
+        stags[i] = dimtags[2 * i + 1];
+    int loop;
+    G(loop = gmshModelGeoAddSurfaceLoop(stags, ndt / 2, -1, &ierr), "close the surface loop");
+    G(gmshModelGeoAddVolume(&loop, 1, -1, &ierr), "make the volume");
+    G(gmshModelGeoSynchronize(&ierr), "synchronize");
+out:
+    if (dimtags)
+        gmshFree(dimtags);
+    free(stags);
+    free(ntags);
+    free(etags);
+    free(enodes);
+    return rc;
+}
+
+static int gmsh_extract(crom_mesh *m, int import_groups)
+{
+    int ierr = 0, rc = 0;
+    size_t *ntags = NULL, nn = 0, nc = 0, np = 0, *etags = NULL, ne = 0, *enodes = NULL, nen = 0;
+    double *coord = NULL, *param = NULL;
+    int *map = NULL, *dimtags = NULL;
+    size_t ndt = 0;
+    G(gmshModelMeshGetNodes(&ntags, &nn, &coord, &nc, &param, &np, -1, -1, 0, 0, &ierr),
+      "read the nodes");
+    G(gmshModelMeshGetElementsByType(4, &etags, &ne, &enodes, &nen, -1, 0, 1, &ierr),
+      "read the tetrahedra");
+    if (ne == 0) {
+        rc = crom_err(CROM_EDATA, "gmsh produced no linear tetrahedra (is the input a closed volume?)");
+        goto out;
+    }
+    size_t maxtag = 0;
+    for (size_t i = 0; i < nn; i++)
+        if (ntags[i] > maxtag)
+            maxtag = ntags[i];
+    map = crom_malloc(sizeof(int) * (maxtag + 1));
+    if (!map) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    for (size_t i = 0; i <= maxtag; i++)
+        map[i] = -1;
+    memset(m, 0, sizeof *m);
+    m->nv = (int)nn;
+    m->nt = (int)ne;
+    m->X = crom_malloc(sizeof(double) * 3 * nn);
+    m->tets = crom_malloc(sizeof(int) * 4 * ne);
+    if (!m->X || !m->tets) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    for (size_t i = 0; i < nn; i++) {
+        map[ntags[i]] = (int)i;
+        memcpy(m->X + 3 * i, coord + 3 * i, 3 * sizeof(double));
+    }
+    for (size_t k = 0; k < 4 * ne; k++) {
+        if (enodes[k] > maxtag || map[enodes[k]] < 0) {
+            rc = crom_err(CROM_EDATA, "gmsh tetrahedron refers to an unknown node");
+            goto out;
+        }
+        m->tets[k] = map[enodes[k]];
+    }
+    if (import_groups) {
+        G(gmshModelGetPhysicalGroups(&dimtags, &ndt, -1, &ierr), "read physical groups");
+        for (size_t g = 0; g < ndt / 2 && !rc; g++) {
+            int dim = dimtags[2 * g], tag = dimtags[2 * g + 1];
+            char *pname = NULL, name[80];
+            G(gmshModelGetPhysicalName(dim, tag, &pname, &ierr), "read a physical name");
+            if (pname && *pname) {
+                size_t j = 0;
+                for (const char *c = pname; *c && j < sizeof name - 1; c++)
+                    name[j++] = (isalnum((unsigned char)*c) || *c == '-' || *c == '.') ? *c : '_';
+                name[j] = 0;
+            } else {
+                snprintf(name, sizeof name, "physical%d_%d", dim, tag);
+            }
+            if (pname)
+                gmshFree(pname);
+            size_t *gt = NULL, gn = 0, gc = 0;
+            double *gcoord = NULL;
+            G(gmshModelMeshGetNodesForPhysicalGroup(dim, tag, &gt, &gn, &gcoord, &gc, &ierr),
+              "read physical group nodes");
+            int *idx = crom_malloc(sizeof(int) * (gn + 1)), k = 0;
+            for (size_t i = 0; idx && i < gn; i++)
+                if (gt[i] <= maxtag && map[gt[i]] >= 0)
+                    idx[k++] = map[gt[i]];
+            char src[128];
+            snprintf(src, sizeof src, "gmsh:%s", name);
+            if (!idx)
+                rc = CROM_EINTERNAL;
+            else if (k > 0)
+                rc = crom_mesh_add_region(m, name, src, idx, k);
+            free(idx);
+            if (gt)
+                gmshFree(gt);
+            if (gcoord)
+                gmshFree(gcoord);
+        }
+    }
+out:
+    if (ntags)
+        gmshFree(ntags);
+    if (coord)
+        gmshFree(coord);
+    if (param)
+        gmshFree(param);
+    if (etags)
+        gmshFree(etags);
+    if (enodes)
+        gmshFree(enodes);
+    if (dimtags)
+        gmshFree(dimtags);
+    free(map);
+    return rc;
+}
+
+static int check_opts(const crom_meshgen_opts *o)
+{
+    if (!(o->size > 0) || !isfinite(o->size))
+        return crom_err(CROM_EUSAGE, "--size must be a positive edge length, got %g", o->size);
+    switch (o->shape) {
+    case CROM_SHAPE_BOX:
+    case CROM_SHAPE_PLATE:
+    case CROM_SHAPE_SUPERQUADRIC:
+        for (int k = 0; k < 3; k++)
+            if (!(o->dims[k] > 0) || !isfinite(o->dims[k]))
+                return crom_err(CROM_EUSAGE, "--dims must be three positive extents");
+        if (o->shape == CROM_SHAPE_SUPERQUADRIC && (!(o->exponent >= 1) || o->exponent > 200))
+            return crom_err(CROM_EUSAGE, "--exponent must be in [1, 200], got %g", o->exponent);
+        break;
+    case CROM_SHAPE_SPHERE:
+    case CROM_SHAPE_CYLINDER:
+        if (!(o->radius > 0) || !isfinite(o->radius))
+            return crom_err(CROM_EUSAGE, "--radius must be positive");
+        if (o->shape == CROM_SHAPE_CYLINDER && (!(o->height > 0) || !isfinite(o->height)))
+            return crom_err(CROM_EUSAGE, "--height must be positive");
+        break;
+    case CROM_SHAPE_IMPORT:
+        if (!o->file)
+            return crom_err(CROM_EUSAGE, "import needs a file");
+        break;
+    default:
+        return crom_err(CROM_EUSAGE, "unknown shape");
+    }
+    /* guard against accidental giant meshes: estimate the tet count */
+    double L = o->shape == CROM_SHAPE_SPHERE || o->shape == CROM_SHAPE_CYLINDER
+                   ? 2 * o->radius
+                   : fmax(o->dims[0], fmax(o->dims[1], o->dims[2]));
+    if (o->shape != CROM_SHAPE_IMPORT && L / o->size > 400)
+        return crom_err(CROM_EUSAGE, "--size %g is too small for a %g m shape (more than 400 edges across)",
+                        o->size, L);
+    return 0;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Median edge length of a surface (m): over its 3 nt half-edges, which is
+ * the median over edges of a closed surface (each edge counted twice).
+ * Returns 0 on an empty surface, -1 when out of memory. */
+static double median_edge(const surf *s)
+{
+    if (s->nt <= 0)
+        return 0;
+    double *len = malloc(sizeof(double) * 3 * (size_t)s->nt);
+    if (!len)
+        return -1;
+    for (int t = 0; t < s->nt; t++)
+        for (int e = 0; e < 3; e++) {
+            const double *a = s->V + 3 * (size_t)s->T[3 * t + e], *b = s->V + 3 * (size_t)s->T[3 * t + (e + 1) % 3];
+            len[3 * t + e] = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                                  (a[2] - b[2]) * (a[2] - b[2]));
+        }
+    qsort(len, 3 * (size_t)s->nt, sizeof *len, cmp_double);
+    double med = len[3 * (size_t)s->nt / 2];
+    free(len);
+    return med;
+}
+
+/* The rule of CROM_REMESH_AUTO: remesh a surface much finer than size. */
+static int much_finer(double med, double size) { return med < size / CROM_REMESH_FINER; }
+
+int crom_meshgen_plan(crom_meshgen_opts *o, crom_meshgen_plan_info *info)
+{
+    memset(info, 0, sizeof *info);
+    int surface = o->shape == CROM_SHAPE_IMPORT && o->file &&
+                  (ends_with(o->file, ".stl") || ends_with(o->file, ".obj"));
+    if (!surface) {
+        if (o->remesh == CROM_REMESH_AUTO)
+            o->remesh = 0;
+        return 0;
+    }
+    surf s = {0};
+    int rc = crom_surface_read(o->file, &s.nv, &s.V, &s.nt, &s.T);
+    if (rc)
+        return rc;
+    double med = median_edge(&s);
+    free(s.V);
+    free(s.T);
+    if (med < 0)
+        return crom_err(CROM_EINTERNAL, "out of memory");
+    info->triangles = s.nt;
+    info->median_edge = med;
+    info->finer = much_finer(med, o->size);
+    if (o->remesh == CROM_REMESH_AUTO) {
+        info->automatic = 1;
+        o->remesh = info->finer;
+    }
+    return 0;
+}
+
+/* What a shape starts from before gmsh: an imported .stl/.obj surface
+ * (closed) or a superquadric's skin into s; *import_groups for a .msh or
+ * .geo file gmsh reads itself. */
+static int shape_input(const crom_meshgen_opts *o, surf *s, int *import_groups)
+{
+    int rc;
+    *import_groups = 0;
+    if (o->shape == CROM_SHAPE_IMPORT) {
+        struct stat st;
+        if (stat(o->file, &st) != 0) /* gmshOpen is silent on missing files */
+            return crom_err(CROM_ENOINPUT, "%s: %s", o->file, strerror(errno));
+        if (ends_with(o->file, ".stl") || ends_with(o->file, ".obj")) {
+            if ((rc = crom_surface_read(o->file, &s->nv, &s->V, &s->nt, &s->T)))
+                return rc;
+            s->capv = s->nv;
+            s->capt = s->nt;
+            return crom_surface_check_closed(s->nv, s->nt, s->T, o->file);
+        }
+        if (ends_with(o->file, ".msh") || ends_with(o->file, ".geo")) {
+            *import_groups = 1;
+            return 0;
+        }
+        return crom_err(CROM_EUSAGE, "%s: unknown format (expected .stl, .obj, .msh or .geo)", o->file);
+    }
+    if (o->shape == CROM_SHAPE_SUPERQUADRIC) {
+        double half[3] = {o->dims[0] / 2, o->dims[1] / 2, o->dims[2] / 2};
+        return superquadric_skin(half, o->exponent, o->size, s);
+    }
+    return 0;
+}
+
+/* The geometry of the shape in the current gmsh model: an OpenCASCADE
+ * solid, a volume bounded by the surface s, or the file gmsh reads. */
+static int make_geometry(const crom_meshgen_opts *o, surf *s, int import_groups)
+{
+    int ierr = 0, rc = 0;
+    const double *d = o->dims;
+    switch (o->shape) {
+    case CROM_SHAPE_BOX:
+    case CROM_SHAPE_PLATE:
+        G(gmshModelOccAddBox(-d[0] / 2, -d[1] / 2, -d[2] / 2, d[0], d[1], d[2], -1, &ierr),
+          "make the box");
+        G(gmshModelOccSynchronize(&ierr), "synchronize");
+        break;
+    case CROM_SHAPE_SPHERE:
+        G(gmshModelOccAddSphere(0, 0, 0, o->radius, -1, -M_PI / 2, M_PI / 2, 2 * M_PI, &ierr),
+          "make the sphere");
+        G(gmshModelOccSynchronize(&ierr), "synchronize");
+        break;
+    case CROM_SHAPE_CYLINDER:
+        G(gmshModelOccAddCylinder(0, -o->height / 2, 0, 0, o->height, 0, o->radius, -1, 2 * M_PI,
+                                  &ierr),
+          "make the cylinder");
+        G(gmshModelOccSynchronize(&ierr), "synchronize");
+        break;
+    case CROM_SHAPE_SUPERQUADRIC:
+        rc = gmsh_volume_from_surface(s, 0);
+        break;
+    case CROM_SHAPE_IMPORT:
+        if (import_groups) {
+            G(gmshOpen(o->file, &ierr), "read the file");
+        } else {
+            /* keep the file's triangles, subdivided down to the target
+             * size, or let gmsh reparametrize and remesh them (better
+             * elements, but it can spin on bad input: bounded by crom-mesh
+             * --timeout); automatically: remesh a surface much finer than
+             * the target, whose kept triangles would make a far finer mesh */
+            int remesh = o->remesh;
+            if (remesh == CROM_REMESH_AUTO) {
+                double med = median_edge(s);
+                if (med < 0)
+                    return crom_err(CROM_EINTERNAL, "out of memory");
+                remesh = much_finer(med, o->size);
+            }
+            if (!remesh && (rc = refine_to(s, o->size)))
+                return rc;
+            rc = gmsh_volume_from_surface(s, remesh);
+        }
+        break;
+    }
+out:
+    return rc;
+}
+
+/* 1 when the current gmsh model already holds tets (a .msh volume mesh). */
+static int have_tets(void)
+{
+    int ierr = 0, *types = NULL, found = 0;
+    size_t nty = 0;
+    size_t **et = NULL, *etn = NULL, net = 0, **en = NULL, *enn = NULL, nen = 0;
+    gmshModelMeshGetElements(&types, &nty, &et, &etn, &net, &en, &enn, &nen, 3, -1, &ierr);
+    for (size_t i = 0; i < nty; i++)
+        if (types[i] == 4 && etn[i] > 0)
+            found = 1;
+    for (size_t i = 0; i < net; i++)
+        gmshFree(et[i]);
+    for (size_t i = 0; i < nen; i++)
+        gmshFree(en[i]);
+    if (types) gmshFree(types);
+    if (et) gmshFree(et);
+    if (etn) gmshFree(etn);
+    if (en) gmshFree(en);
+    if (enn) gmshFree(enn);
+    return found;
+}
+
+int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m)
+{
+    memset(m, 0, sizeof *m);
+    int rc = check_opts(o), ierr = 0;
+    if (rc)
+        return rc;
+    surf s = {0};
+    int import_groups;
+    if ((rc = shape_input(o, &s, &import_groups)) || (rc = crom_gmsh_begin(o->log))) {
+        free(s.V);
+        free(s.T);
+        return rc;
+    }
+    gmshModelAdd("crom", &ierr);
+    gmshOptionSetNumber("Mesh.MeshSizeMax", o->size, &ierr);
+    gmshOptionSetNumber("Mesh.MeshSizeMin", o->size * 0.25, &ierr);
+    gmshOptionSetNumber("Mesh.MeshSizeFromCurvature", 0, &ierr);
+    gmshOptionSetNumber("Mesh.MeshSizeFromPoints", 0, &ierr);
+    gmshOptionSetNumber("Mesh.Algorithm3D", o->algorithm, &ierr);
+    gmshOptionSetNumber("Mesh.Optimize", o->optimize, &ierr);
+    if ((rc = make_geometry(o, &s, import_groups)))
+        goto out;
+    /* a .msh may already hold a volume mesh: keep it rather than remesh */
+    if (!(import_groups && have_tets()))
+        G(gmshModelMeshGenerate(3, &ierr), "mesh the volume");
+    if ((rc = gmsh_extract(m, import_groups)))
+        goto out;
+    if ((rc = crom_mesh_compact(m)) || (rc = crom_mesh_orient(m, NULL)))
+        goto out;
+out:
+    crom_gmsh_end(o->log, o->log_ctx);
+    free(s.V);
+    free(s.T);
+    if (rc)
+        crom_mesh_free(m);
+    return rc;
+}

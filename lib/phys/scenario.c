@@ -1,0 +1,348 @@
+/* scenario.c — scenario flags shared by the full and reduced simulators. */
+#include <float.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/err.h"
+#include "base/parse.h"
+#include "io/io.h"
+#include "phys/scenario.h"
+
+enum {
+    SC_YOUNGS = 0x1000, SC_POISSON, SC_DENSITY, SC_DT, SC_STEPS, SC_EVERY, SC_GRAVITY,
+    SC_PIN, SC_VELOCITY, SC_FORCE, SC_PLANE, SC_DAMPING, SC_CONTACT_K, SC_FRICTION_EPS,
+    SC_TOL, SC_MAXIT, SC_V0, SC_SPIN
+};
+
+const crom_opt crom_scenario_opts[] = {
+    {"youngs", SC_YOUNGS, "E", "Young's modulus in Pa (default 2.5e6, LiCROM Table 1)."},
+    {"poisson", SC_POISSON, "NU", "Poisson ratio in (-1, 0.5) (default 0.25)."},
+    {"density", SC_DENSITY, "RHO", "Density in kg/m^3 (default 1000)."},
+    {"dt", SC_DT, "H", "Time step in s (default 0.01)."},
+    {"steps", SC_STEPS, "N", "Number of time steps (default 100)."},
+    {"every", SC_EVERY, "K", "Store every K-th step (default 1); frame 0 is the initial state."},
+    {"gravity", SC_GRAVITY, "GX,GY,GZ", "Gravitational acceleration in m/s^2 (default 0,-9.81,0)."},
+    {"pin", SC_PIN, "REGION", "Hold the vertices of REGION (a mesh region name or a predicate such as 'y<-0.45') at rest (repeatable)."},
+    {"velocity", SC_VELOCITY, "REGION=VX,VY,VZ[@T0:T1]", "Move REGION at the given velocity (m/s) during [T0, T1] (default: always) and hold it still outside (repeatable). LiCROM's compression: --velocity 'y>0.45=0,-2,0' --pin 'y<-0.45'."},
+    {"force", SC_FORCE, "REGION=FX,FY,FZ[@T0:T1]", "Apply a total force (N) to REGION, spread over its vertices by mass, during [T0, T1] (repeatable)."},
+    {"plane", SC_PLANE, "NX,NY,NZ,D[,MU]", "Collision half-space: keep n.x >= D (n is normalized), with Coulomb friction coefficient MU (default 0) (repeatable)."},
+    {"damping", SC_DAMPING, "A", "Mass-proportional damping rate in 1/s (default 0): a drag force A m v."},
+    {"contact-stiffness", SC_CONTACT_K, "K", "Penalty rate of the collision planes in 1/s^2: a vertex of mass m at depth d feels K m d (default 1e5)."},
+    {"friction-eps", SC_FRICTION_EPS, "V", "Tangential speed in m/s below which friction is smoothed (default 1e-3)."},
+    {"tol", SC_TOL, "TOL", "Newton stops when its correction to any vertex position is below TOL times the bounding-box diagonal (default 1e-7); near convergence crom-fullsim first tries a cheaper simplified Newton correction with its reused factor, accepted below TOL/2."},
+    {"max-iter", SC_MAXIT, "N", "Newton iterations allowed per step before the run fails (default 50)."},
+    {"initial-velocity", SC_V0, "VX,VY,VZ", "Uniform initial velocity in m/s (default 0)."},
+    {"spin", SC_SPIN, "WX,WY,WZ", "Initial angular velocity about the centroid in rad/s (default 0)."},
+    {NULL, 0, NULL, NULL}};
+
+void crom_scenario_defaults(crom_scenario *s)
+{
+    memset(s, 0, sizeof *s);
+    s->youngs = 2.5e6;
+    s->poisson = 0.25;
+    s->density = 1000;
+    s->dt = 0.01;
+    s->steps = 100;
+    s->every = 1;
+    s->gravity[1] = -9.81;
+    s->contact_stiffness = 1e5;
+    s->friction_eps = 1e-3;
+    s->tol = 1e-7;
+    s->max_iter = 50;
+}
+
+/* "REGION=X,Y,Z[@T0:T1]" */
+static int parse_bc(const char *flag, const char *v, crom_bc *b)
+{
+    const char *eq = strrchr(v, '=');
+    if (!eq || eq == v)
+        return crom_err(CROM_EUSAGE, "%s '%s': expected REGION=X,Y,Z[@T0:T1]", flag, v);
+    size_t len = (size_t)(eq - v);
+    if (len >= sizeof b->ref)
+        return crom_err(CROM_EUSAGE, "%s: region too long", flag);
+    memcpy(b->ref, v, len);
+    b->ref[len] = 0;
+    char vec[256];
+    snprintf(vec, sizeof vec, "%s", eq + 1);
+    b->t0 = 0;
+    b->t1 = INFINITY;
+    char *at = strchr(vec, '@');
+    if (at) {
+        *at = 0;
+        char *colon = strchr(at + 1, ':');
+        if (!colon)
+            return crom_err(CROM_EUSAGE, "%s '%s': time window must be @T0:T1", flag, v);
+        *colon = 0;
+        if (crom_parse_double(at + 1, flag, &b->t0))
+            return CROM_EUSAGE;
+        if (*(colon + 1) && crom_parse_double(colon + 1, flag, &b->t1))
+            return CROM_EUSAGE;
+        if (!(b->t1 > b->t0))
+            return crom_err(CROM_EUSAGE, "%s '%s': the window must have T1 > T0", flag, v);
+    }
+    return crom_parse_doubles(vec, flag, 3, b->v);
+}
+
+const char *crom_scenario_opt_name(int key)
+{
+    for (const crom_opt *o = crom_scenario_opts; o->name; o++)
+        if (o->key == key)
+            return o->name;
+    return NULL;
+}
+
+int crom_scenario_option(crom_scenario *s, int key, const char *v)
+{
+    long n;
+    double d[5];
+    int k;
+    switch (key) {
+    case SC_YOUNGS: return crom_parse_double(v, "--youngs", &s->youngs);
+    case SC_POISSON: return crom_parse_double(v, "--poisson", &s->poisson);
+    case SC_DENSITY: return crom_parse_double(v, "--density", &s->density);
+    case SC_DT: return crom_parse_positive(v, "--dt", &s->dt);
+    case SC_STEPS:
+        if (crom_parse_int(v, "--steps", 0, 100000000L, &n))
+            return CROM_EUSAGE;
+        s->steps = (int)n;
+        return 0;
+    case SC_EVERY:
+        if (crom_parse_int(v, "--every", 1, 100000000L, &n))
+            return CROM_EUSAGE;
+        s->every = (int)n;
+        return 0;
+    case SC_GRAVITY: return crom_parse_doubles(v, "--gravity", 3, s->gravity);
+    case SC_PIN:
+        if (s->npins == CROM_SC_MAX)
+            return crom_err(CROM_EUSAGE, "--pin: at most %d", CROM_SC_MAX);
+        if (!*v || strlen(v) >= sizeof s->pins[0])
+            return crom_err(CROM_EUSAGE, "--pin: empty or too long region '%s'", v);
+        snprintf(s->pins[s->npins++], sizeof s->pins[0], "%s", v);
+        return 0;
+    case SC_VELOCITY:
+        if (s->nvel == CROM_SC_MAX)
+            return crom_err(CROM_EUSAGE, "--velocity: at most %d", CROM_SC_MAX);
+        if (parse_bc("--velocity", v, &s->vel[s->nvel]))
+            return CROM_EUSAGE;
+        s->nvel++;
+        return 0;
+    case SC_FORCE:
+        if (s->nforce == CROM_SC_MAX)
+            return crom_err(CROM_EUSAGE, "--force: at most %d", CROM_SC_MAX);
+        if (parse_bc("--force", v, &s->force[s->nforce]))
+            return CROM_EUSAGE;
+        s->nforce++;
+        return 0;
+    case SC_PLANE: {
+        if (s->nplanes == CROM_SC_MAX)
+            return crom_err(CROM_EUSAGE, "--plane: at most %d", CROM_SC_MAX);
+        if (crom_parse_doubles_var(v, "--plane", 4, 5, d, &k))
+            return CROM_EUSAGE;
+        double nn = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        if (!(nn > 0))
+            return crom_err(CROM_EUSAGE, "--plane '%s': the normal is zero", v);
+        crom_plane *p = &s->plane[s->nplanes++];
+        if (fabs(nn - 1) < 8 * DBL_EPSILON)
+            nn = 1; /* already unit: keep the bits, so the text round-trips */
+        for (int i = 0; i < 3; i++)
+            p->n[i] = d[i] / nn;
+        p->d = d[3] / nn;
+        p->mu = k == 5 ? d[4] : 0;
+        if (p->mu < 0)
+            return crom_err(CROM_EUSAGE, "--plane '%s': friction coefficient must be >= 0", v);
+        return 0;
+    }
+    case SC_DAMPING:
+        if (crom_parse_double(v, "--damping", &s->damping))
+            return CROM_EUSAGE;
+        return s->damping < 0 ? crom_err(CROM_EUSAGE, "--damping must be >= 0, got %s", v) : 0;
+    case SC_CONTACT_K: return crom_parse_positive(v, "--contact-stiffness", &s->contact_stiffness);
+    case SC_FRICTION_EPS: return crom_parse_positive(v, "--friction-eps", &s->friction_eps);
+    case SC_TOL: return crom_parse_positive(v, "--tol", &s->tol);
+    case SC_MAXIT:
+        if (crom_parse_int(v, "--max-iter", 1, 100000, &n))
+            return CROM_EUSAGE;
+        s->max_iter = (int)n;
+        return 0;
+    case SC_V0: return crom_parse_doubles(v, "--initial-velocity", 3, s->v0);
+    case SC_SPIN: return crom_parse_doubles(v, "--spin", 3, s->spin);
+    }
+    return -1;
+}
+
+int crom_scenario_check(const crom_scenario *s)
+{
+    if (!isfinite(s->youngs) || !(s->youngs > 0))
+        return crom_err(CROM_EUSAGE, "--youngs must be a positive modulus in Pa, got %g", s->youngs);
+    if (!isfinite(s->poisson) || !(s->poisson > -1 && s->poisson < 0.5))
+        return crom_err(CROM_EUSAGE, "--poisson must be in (-1, 0.5), got %g", s->poisson);
+    if (!isfinite(s->density) || !(s->density > 0))
+        return crom_err(CROM_EUSAGE, "--density must be positive, got %g", s->density);
+    if (s->every > s->steps && s->steps > 0)
+        return crom_err(CROM_EUSAGE, "--every %d is more than --steps %d: no frame but the first would be stored",
+                        s->every, s->steps);
+    return 0;
+}
+
+static void appendf(char **buf, size_t *len, size_t *cap, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+static void appendf(char **buf, size_t *len, size_t *cap, const char *fmt, ...)
+{
+    va_list ap;
+    for (;;) {
+        va_start(ap, fmt);
+        int n = vsnprintf(*buf ? *buf + *len : NULL, *buf ? *cap - *len : 0, fmt, ap);
+        va_end(ap);
+        if (n < 0)
+            return;
+        if (*buf && *len + (size_t)n < *cap) {
+            *len += (size_t)n;
+            return;
+        }
+        size_t nc = (*cap ? *cap * 2 : 1024) + (size_t)n;
+        char *nb = realloc(*buf, nc);
+        if (!nb)
+            return;
+        *buf = nb;
+        *cap = nc;
+    }
+}
+
+static void bc_text(char **b, size_t *l, size_t *c, const char *flag, const crom_bc *bc)
+{
+    appendf(b, l, c, "%s %s=%.17g,%.17g,%.17g", flag, bc->ref, bc->v[0], bc->v[1], bc->v[2]);
+    if (bc->t0 != 0 || isfinite(bc->t1)) {
+        appendf(b, l, c, "@%.17g:", bc->t0);
+        if (isfinite(bc->t1))
+            appendf(b, l, c, "%.17g", bc->t1);
+    }
+    appendf(b, l, c, "\n");
+}
+
+char *crom_scenario_text(const crom_scenario *s)
+{
+    char *b = NULL;
+    size_t l = 0, c = 0;
+    appendf(&b, &l, &c, "--youngs %.17g\n--poisson %.17g\n--density %.17g\n", s->youngs,
+            s->poisson, s->density);
+    appendf(&b, &l, &c, "--dt %.17g\n--steps %d\n--every %d\n", s->dt, s->steps, s->every);
+    appendf(&b, &l, &c, "--gravity %.17g,%.17g,%.17g\n", s->gravity[0], s->gravity[1], s->gravity[2]);
+    for (int i = 0; i < s->npins; i++)
+        appendf(&b, &l, &c, "--pin %s\n", s->pins[i]);
+    for (int i = 0; i < s->nvel; i++)
+        bc_text(&b, &l, &c, "--velocity", &s->vel[i]);
+    for (int i = 0; i < s->nforce; i++)
+        bc_text(&b, &l, &c, "--force", &s->force[i]);
+    for (int i = 0; i < s->nplanes; i++)
+        appendf(&b, &l, &c, "--plane %.17g,%.17g,%.17g,%.17g,%.17g\n", s->plane[i].n[0],
+                s->plane[i].n[1], s->plane[i].n[2], s->plane[i].d, s->plane[i].mu);
+    if (s->damping)
+        appendf(&b, &l, &c, "--damping %.17g\n", s->damping);
+    appendf(&b, &l, &c, "--contact-stiffness %.17g\n--friction-eps %.17g\n--tol %.17g\n--max-iter %d\n",
+            s->contact_stiffness, s->friction_eps, s->tol, s->max_iter);
+    if (s->v0[0] || s->v0[1] || s->v0[2])
+        appendf(&b, &l, &c, "--initial-velocity %.17g,%.17g,%.17g\n", s->v0[0], s->v0[1], s->v0[2]);
+    if (s->spin[0] || s->spin[1] || s->spin[2])
+        appendf(&b, &l, &c, "--spin %.17g,%.17g,%.17g\n", s->spin[0], s->spin[1], s->spin[2]);
+    return b;
+}
+
+/* Time spent inside the window [t0, t1] up to time t. */
+static double window(const crom_bc *b, double t)
+{
+    double e = t < b->t1 ? t : b->t1;
+    return e > b->t0 ? e - b->t0 : 0;
+}
+
+void crom_scenario_initial_velocity(const crom_scenario *s, const double c[3], const double X[3], double v[3])
+{
+    const double *w = s->spin;
+    double r[3] = {X[0] - c[0], X[1] - c[1], X[2] - c[2]};
+    v[0] = s->v0[0] + w[1] * r[2] - w[2] * r[1];
+    v[1] = s->v0[1] + w[2] * r[0] - w[0] * r[2];
+    v[2] = s->v0[2] + w[0] * r[1] - w[1] * r[0];
+}
+
+void crom_bc_velocity(const crom_bc *b, double t, double v[3])
+{
+    int on = t >= b->t0 && t <= b->t1;
+    for (int i = 0; i < 3; i++)
+        v[i] = on ? b->v[i] : 0;
+}
+
+void crom_bc_displacement(const crom_bc *b, double t, double u[3])
+{
+    double w = window(b, t);
+    for (int i = 0; i < 3; i++)
+        u[i] = b->v[i] * w;
+}
+
+void crom_bc_force(const crom_bc *b, double t, double f[3])
+{
+    crom_bc_velocity(b, t, f);
+}
+
+int crom_scenario_parse_text(const char *text, crom_scenario *s)
+{
+    if (!text)
+        return 0;
+    const char *p = text;
+    while (*p) {
+        const char *e = strchr(p, '\n');
+        size_t len = e ? (size_t)(e - p) : strlen(p);
+        char line[512];
+        if (len >= sizeof line)
+            return crom_err(CROM_EDATA, "scenario line too long");
+        memcpy(line, p, len);
+        line[len] = 0;
+        p += len + (e != NULL);
+        char *c = line;
+        while (*c == ' ' || *c == '\t')
+            c++;
+        if (strncmp(c, "--", 2))
+            continue;
+        c += 2;
+        char *v = c + strcspn(c, " \t=");
+        if (*v)
+            *v++ = 0;
+        while (*v == ' ' || *v == '\t')
+            v++;
+        for (const crom_opt *op = crom_scenario_opts; op->name; op++)
+            if (!strcmp(op->name, c)) {
+                int rc = crom_scenario_option(s, op->key, v);
+                if (rc > 0)
+                    return crom_err(CROM_EDATA, "scenario flag --%s %s: %s", c, v, crom_errmsg());
+                break;
+            }
+    }
+    return 0;
+}
+
+int crom_scenario_write_attrs(hid_t h, const crom_scenario *s)
+{
+    char *text = crom_scenario_text(s);
+    if (!text)
+        return crom_err(CROM_EINTERNAL, "out of memory");
+    int rc = crom_h5_set_str(h, ".", "scenario", text);
+    free(text);
+    if (!rc)
+        rc = crom_h5_set_f64(h, ".", "dt", &s->dt, 1);
+    if (!rc)
+        rc = crom_h5_set_i64(h, ".", "every", s->every);
+    if (!rc)
+        rc = crom_h5_set_i64(h, ".", "steps", s->steps);
+    if (!rc)
+        rc = crom_h5_set_f64(h, ".", "youngs", &s->youngs, 1);
+    if (!rc)
+        rc = crom_h5_set_f64(h, ".", "poisson", &s->poisson, 1);
+    if (!rc)
+        rc = crom_h5_set_f64(h, ".", "density", &s->density, 1);
+    if (!rc)
+        rc = crom_h5_set_f64(h, ".", "gravity", s->gravity, 3);
+    if (!rc)
+        rc = crom_h5_set_f64(h, ".", "tolerance", &s->tol, 1);
+    return rc;
+}

@@ -1,0 +1,94 @@
+/* scenario.h — the scenario both simulators run (crom-fullsim and
+ * crom-reducedstep parse it with this one module): material, time stepping,
+ * gravity, pinned and prescribed-velocity regions, time-scheduled forces,
+ * collision half-spaces with friction, damping, solver tolerance.
+ *
+ * A scenario is a set of flags (DESIGN.md); a file of flags can stand in for
+ * them (@FILE, expanded by crom_cli_parse). crom_scenario_text() gives the
+ * canonical flag text stored in every output, which parses back to the same
+ * scenario. Regions are named mesh regions or inline predicates (mesh.h). */
+#ifndef CROM_SCENARIO_H
+#define CROM_SCENARIO_H
+
+#include "base/opt.h"
+#include "mesh/mesh.h"
+#include "phys/contact.h"
+
+#define CROM_SC_MAX 32
+
+/* A boundary condition on a region: a prescribed velocity or a total force,
+ * active during [t0, t1] (t1 = +inf when open). */
+typedef struct {
+    char ref[128];   /* region name or predicate */
+    double v[3];     /* velocity (m/s) or force (N) */
+    double t0, t1;
+} crom_bc;
+
+typedef struct {
+    double youngs, poisson, density; /* Pa, 1, kg/m³ */
+    double dt;                       /* s */
+    int steps, every;
+    double gravity[3];               /* m/s² */
+    int npins;
+    char pins[CROM_SC_MAX][128];     /* regions held at rest */
+    int nvel;
+    crom_bc vel[CROM_SC_MAX];        /* prescribed velocities (held still outside [t0, t1]) */
+    int nforce;
+    crom_bc force[CROM_SC_MAX];      /* total forces, spread over the region by mass */
+    int nplanes;
+    crom_plane plane[CROM_SC_MAX];
+    double damping;                  /* mass-proportional damping rate (1/s) */
+    double contact_stiffness;        /* penalty rate k (1/s²): force k·m_v·depth */
+    double friction_eps;             /* velocity below which friction is smoothed (m/s) */
+    double tol;                      /* Newton tolerance on the step's displacement error / size */
+    int max_iter;                    /* Newton iteration limit per step */
+    double v0[3];                    /* initial velocity (m/s) */
+    double spin[3];                  /* initial angular velocity about the centroid (rad/s) */
+} crom_scenario;
+
+/* Defaults: E = 2.5 MPa, nu = 0.25 (LiCROM Table 1), rho = 1000 kg/m³,
+ * dt = 0.01 s, 100 steps, every step stored, gravity (0, -9.81, 0), no
+ * boundary conditions, no damping, tol 1e-7, 50 Newton iterations. */
+void crom_scenario_defaults(crom_scenario *s);
+
+/* The scenario options, for a program's crom_doc. */
+extern const crom_opt crom_scenario_opts[];
+
+/* The name of scenario option key ("youngs", "pin", ...), or NULL when key
+ * is not a scenario option. */
+const char *crom_scenario_opt_name(int key);
+
+/* Handle a scenario option: returns 0, CROM_EUSAGE with a message, or -1 if
+ * key is not a scenario option (so a program handler can chain). */
+int crom_scenario_option(crom_scenario *s, int key, const char *value);
+
+/* Check values that only make sense together (after parsing): material,
+ * dt, steps, every. Returns 0 or CROM_EUSAGE. */
+int crom_scenario_check(const crom_scenario *s);
+
+/* Canonical flag text, one flag per line (malloc'ed). */
+char *crom_scenario_text(const crom_scenario *s);
+
+/* Parse flag text ("--youngs 1e6\n--pin clamp\n", as crom_scenario_text
+ * writes it and `scenario` attributes store it) into s. Flags that are not
+ * scenario options are skipped; NULL text is no flags. Returns 0 or
+ * CROM_EDATA naming the bad flag. */
+int crom_scenario_parse_text(const char *text, crom_scenario *s);
+
+/* Initial velocity of the material point at X: the uniform velocity plus
+ * the spin about the centroid c, v = v0 + ω × (X − c). */
+void crom_scenario_initial_velocity(const crom_scenario *s, const double c[3], const double X[3], double v[3]);
+
+/* Velocity of prescribed-velocity BC b at time t (zero outside its window),
+ * and the displacement it has accumulated by time t. */
+void crom_bc_velocity(const crom_bc *b, double t, double v[3]);
+void crom_bc_displacement(const crom_bc *b, double t, double u[3]);
+
+/* Force of force BC b at time t (zero outside its window). */
+void crom_bc_force(const crom_bc *b, double t, double f[3]);
+
+/* Write the scenario as root attributes (scenario text, dt, every, steps,
+ * youngs, poisson, density, gravity, tolerance) of an output. */
+int crom_scenario_write_attrs(hid_t loc, const crom_scenario *s);
+
+#endif

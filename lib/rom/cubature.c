@@ -1,0 +1,843 @@
+/* cubature.c — cubature schemes and the reduced element kernel (see
+ * cubature.h). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cblas.h>
+#include <lapacke.h>
+#include <metis.h>
+
+#include "base/err.h"
+#include "rom/cubature.h"
+
+int crom_cub_scheme(const char *name)
+{
+    static const char *n[] = {"all", "random", "metis", "optimized"};
+    for (int i = 0; i < 4; i++)
+        if (!strcmp(name, n[i]))
+            return i;
+    return -1;
+}
+
+static const char *scheme_name(int s)
+{
+    static const char *n[] = {"all", "random", "metis", "optimized"};
+    return s >= 0 && s < 4 ? n[s] : "?";
+}
+
+/* ------------------------------------------------------------ the kernel */
+
+/* Whether the rows 3a + c of W4 (component c of the tet's four vertices)
+ * are nonzero only inside one column block [lo_c, hi_c) per component, the
+ * three blocks disjoint (a basis whose latent directions each move one
+ * component, as a skinning basis in orthonormal coordinates: lib/rom/skin.h).
+ * An empty block (a component that vanishes on the tet) has lo = hi. */
+static int component_blocks(const double *W4, int r, int lo[3], int hi[3])
+{
+    for (int c = 0; c < 3; c++) {
+        lo[c] = r;
+        hi[c] = 0;
+        for (int a = 0; a < 4; a++) {
+            const double *row = W4 + (size_t)(3 * a + c) * r;
+            int j = 0, k = r;
+            while (j < r && row[j] == 0)
+                j++;
+            if (j == r)
+                continue; /* a zero row */
+            while (row[k - 1] == 0)
+                k--;
+            lo[c] = j < lo[c] ? j : lo[c];
+            hi[c] = k > hi[c] ? k : hi[c];
+        }
+        if (hi[c] <= lo[c])
+            lo[c] = hi[c] = 0;
+        if (hi[c] - lo[c] > r / 2)
+            return 0; /* dense enough: one product does it */
+    }
+    for (int c = 0; c < 3; c++)
+        for (int d = c + 1; d < 3; d++)
+            if (lo[c] < hi[c] && lo[d] < hi[d] && lo[c] < hi[d] && lo[d] < hi[c])
+                return 0;
+    return 1;
+}
+
+double crom_cub_tet(const crom_material *mat, const double Xe[12], const double *W4, int r,
+                    const double Dminv[9], double V, double w, const double *q, int project,
+                    double *g_r, double *H_r, double *work)
+{
+    double *xe = work, *ge = work + 12, *He = work + 24, *HW = work + 168;
+    /* x = X + W q at the four vertices: xe = Xe + W4 q (W4 is 12 × r) */
+    memcpy(xe, Xe, 12 * sizeof(double));
+    cblas_dgemv(CblasRowMajor, CblasNoTrans, 12, r, 1.0, W4, r, q, 1, 1.0, xe, 1);
+    double E;
+    if (crom_fem_tet_eval(mat, xe, Dminv, V, project, &E, g_r ? ge : NULL, H_r ? He : NULL))
+        return NAN;
+    if (g_r) /* g_r += w W4ᵀ ge */
+        cblas_dgemv(CblasRowMajor, CblasTrans, 12, r, w, W4, r, ge, 1, 1.0, g_r, 1);
+    if (H_r) { /* H_r += w W4ᵀ He W4 = w Σ_rows i W4[i]ᵀ (He W4)[i] */
+        cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, 12, r, 12, 1.0, He, 12, W4, r, 0.0, HW, r);
+        int lo[3], hi[3];
+        if (component_blocks(W4, r, lo, hi)) {
+            /* rows 3a + c touch only the rows [lo_c, hi_c) of H_r: three
+             * products over the 4 rows of each component (stride 3r) */
+            for (int c = 0; c < 3; c++)
+                if (hi[c] > lo[c])
+                    cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, hi[c] - lo[c], r, 4, w, W4 + (size_t)c * r + lo[c],
+                                3 * r, HW + (size_t)c * r, 3 * r, 1.0, H_r + (size_t)lo[c] * r, r);
+        } else {
+            cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, r, 12, w, W4, r, HW, r, 1.0, H_r, r);
+        }
+    }
+    return E;
+}
+
+/* gather the [4][3][r] W block and rest positions of tet t */
+static void gather(const crom_cub *c, int t, double *Xe, double *W4)
+{
+    const int *e = c->mesh.tets + 4 * (size_t)t;
+    size_t blk = 3 * (size_t)c->r;
+    for (int a = 0; a < 4; a++) {
+        memcpy(Xe + 3 * a, c->mesh.X + 3 * (size_t)e[a], 3 * sizeof(double));
+        memcpy(W4 + a * blk, c->W + (size_t)e[a] * blk, blk * sizeof(double));
+    }
+}
+
+void crom_cub_gather(const crom_cub *c, int k, double Xe[12], double *W4, double Dminv[9])
+{
+    gather(c, c->elem[k], Xe, W4);
+    memcpy(Dminv, c->Dminv + 9 * (size_t)k, 9 * sizeof(double));
+}
+
+/* ------------------------------------------------------------- schemes */
+
+static int scheme_all(crom_cub *c)
+{
+    c->k = c->mesh.nt;
+    c->elem = crom_malloc(sizeof(int) * (size_t)c->k);
+    c->weight = crom_malloc(sizeof(double) * (size_t)c->k);
+    if (!c->elem || !c->weight)
+        return CROM_EINTERNAL;
+    for (int t = 0; t < c->k; t++) {
+        c->elem[t] = t;
+        c->weight[t] = 1;
+    }
+    return 0;
+}
+
+/* LiCROM §5: m random vertices plus all their incident tets, equal weights */
+static int scheme_random(crom_cub *c, const double *tetvol, int m, crom_rng *rng)
+{
+    int nv = c->mesh.nv, nt = c->mesh.nt;
+    int *perm = crom_malloc(sizeof(int) * (size_t)nv);
+    unsigned char *pick = crom_calloc((size_t)nv, 1), *use = crom_calloc((size_t)nt, 1);
+    if (!perm || !pick || !use) {
+        free(perm);
+        free(pick);
+        free(use);
+        return CROM_EINTERNAL;
+    }
+    for (int i = 0; i < nv; i++)
+        perm[i] = i;
+    crom_rng_shuffle(rng, perm, nv);
+    for (int i = 0; i < m && i < nv; i++)
+        pick[perm[i]] = 1;
+    c->k = 0;
+    double vsel = 0;
+    for (int t = 0; t < nt; t++) {
+        const int *e = c->mesh.tets + 4 * (size_t)t;
+        if (pick[e[0]] || pick[e[1]] || pick[e[2]] || pick[e[3]]) {
+            use[t] = 1;
+            c->k++;
+            vsel += tetvol[t];
+        }
+    }
+    c->elem = crom_malloc(sizeof(int) * (size_t)c->k);
+    c->weight = crom_malloc(sizeof(double) * (size_t)c->k);
+    int rc = 0;
+    if (!c->elem || !c->weight)
+        rc = CROM_EINTERNAL;
+    for (int t = 0, j = 0; !rc && t < nt; t++)
+        if (use[t]) {
+            c->elem[j] = t;
+            c->weight[j++] = c->mesh_volume / vsel;
+        }
+    free(perm);
+    free(pick);
+    free(use);
+    return rc;
+}
+
+/* METIS partition of the dual graph, one representative tet per part */
+static int scheme_metis(crom_cub *c, const double *tetvol, int parts)
+{
+    int nt = c->mesh.nt, nv = c->mesh.nv;
+    if (parts > nt)
+        return crom_err(CROM_EUSAGE, "--count %d: the mesh has only %d tets to split into parts", parts, nt);
+    idx_t *epart = crom_malloc(sizeof(idx_t) * (size_t)nt);
+    idx_t *npart = crom_malloc(sizeof(idx_t) * (size_t)nv);
+    idx_t *eptr = crom_malloc(sizeof(idx_t) * ((size_t)nt + 1)), *eind = crom_malloc(sizeof(idx_t) * 4 * (size_t)nt);
+    double *pv = crom_calloc((size_t)parts, sizeof(double)), *pc = crom_calloc(3 * (size_t)parts, sizeof(double));
+    double *best = crom_malloc(sizeof(double) * (size_t)parts);
+    int *rep = crom_malloc(sizeof(int) * (size_t)parts), rc = 0;
+    if (!epart || !npart || !eptr || !eind || !pv || !pc || !best || !rep) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    if (parts == 1) { /* METIS divides by zero for one part (TOOLCHAIN.md) */
+        for (int t = 0; t < nt; t++)
+            epart[t] = 0;
+    } else {
+        for (int t = 0; t <= nt; t++)
+            eptr[t] = 4 * t;
+        for (size_t i = 0; i < 4 * (size_t)nt; i++)
+            eind[i] = c->mesh.tets[i];
+        idx_t ne = nt, nn = nv, ncommon = 3, np = parts, objval, opts[METIS_NOPTIONS];
+        METIS_SetDefaultOptions(opts);
+        opts[METIS_OPTION_SEED] = 1;
+        if (METIS_PartMeshDual(&ne, &nn, eptr, eind, NULL, NULL, &ncommon, &np, NULL, opts, &objval,
+                               epart, npart) != METIS_OK) {
+            rc = crom_err(CROM_EINTERNAL, "METIS_PartMeshDual failed");
+            goto out;
+        }
+    }
+    for (int t = 0; t < nt; t++) {
+        const int *e = c->mesh.tets + 4 * (size_t)t;
+        int p = (int)epart[t];
+        pv[p] += tetvol[t];
+        for (int a = 0; a < 4; a++)
+            for (int k = 0; k < 3; k++)
+                pc[3 * p + k] += tetvol[t] * c->mesh.X[3 * (size_t)e[a] + k] / 4;
+    }
+    for (int p = 0; p < parts; p++) {
+        best[p] = INFINITY;
+        rep[p] = -1;
+        if (pv[p] > 0)
+            for (int k = 0; k < 3; k++)
+                pc[3 * p + k] /= pv[p];
+    }
+    for (int t = 0; t < nt; t++) {
+        const int *e = c->mesh.tets + 4 * (size_t)t;
+        int p = (int)epart[t];
+        double d = 0;
+        for (int k = 0; k < 3; k++) {
+            double x = 0;
+            for (int a = 0; a < 4; a++)
+                x += c->mesh.X[3 * (size_t)e[a] + k] / 4;
+            d += (x - pc[3 * p + k]) * (x - pc[3 * p + k]);
+        }
+        if (d < best[p]) {
+            best[p] = d;
+            rep[p] = t;
+        }
+    }
+    c->k = 0;
+    for (int p = 0; p < parts; p++)
+        c->k += rep[p] >= 0;
+    c->elem = crom_malloc(sizeof(int) * (size_t)c->k);
+    c->weight = crom_malloc(sizeof(double) * (size_t)c->k);
+    if (!c->elem || !c->weight) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    for (int p = 0, j = 0; p < parts; p++)
+        if (rep[p] >= 0) {
+            c->elem[j] = rep[p];
+            c->weight[j++] = pv[p] / tetvol[rep[p]];
+        }
+out:
+    free(epart);
+    free(npart);
+    free(eptr);
+    free(eind);
+    free(pv);
+    free(pc);
+    free(best);
+    free(rep);
+    return rc;
+}
+
+/* --------------------------------------------- optimized (greedy NNLS) */
+
+/* Lawson–Hanson NNLS on the normal equations of the selected columns:
+ * minimize ‖A w − b‖ with w >= 0, given G = AᵀA (s × s) and h = Aᵀb. w holds
+ * a feasible start on entry. */
+static int nnls_normal(int s, const double *G, const double *h, double *w, double *work, int *P)
+{
+    double *z = work, *Gp = work + s, *grad = work + s + (size_t)s * s;
+    int *idx = P;
+    for (int outer = 0; outer < 3 * s + 10; outer++) {
+        /* gradient of ½‖Aw − b‖²: G w − h */
+        for (int i = 0; i < s; i++) {
+            double v = -h[i];
+            for (int j = 0; j < s; j++)
+                v += G[i * s + j] * w[j];
+            grad[i] = v;
+        }
+        /* passive set: w > 0 ; add the most negative gradient among zeros */
+        int add = -1;
+        double most = -1e-14;
+        for (int i = 0; i < s; i++)
+            if (w[i] <= 0 && grad[i] < most) {
+                most = grad[i];
+                add = i;
+            }
+        int np = 0;
+        for (int i = 0; i < s; i++)
+            if (w[i] > 0 || i == add)
+                idx[np++] = i;
+        if (add < 0 && outer > 0)
+            return 0;
+        for (int inner = 0; inner < 3 * s + 10; inner++) {
+            /* unconstrained solve on the passive set */
+            for (int a = 0; a < np; a++) {
+                for (int b = 0; b < np; b++)
+                    Gp[a * np + b] = G[idx[a] * s + idx[b]];
+                z[a] = h[idx[a]];
+                Gp[a * np + a] *= 1 + 1e-12; /* a hair of regularization */
+            }
+            if (np == 0)
+                break;
+            if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', np, 1, Gp, np, z, 1) != 0)
+                return crom_err(CROM_EINTERNAL, "NNLS: singular normal equations");
+            int allpos = 1;
+            for (int a = 0; a < np; a++)
+                allpos &= z[a] > 0;
+            if (allpos) {
+                for (int i = 0; i < s; i++)
+                    w[i] = 0;
+                for (int a = 0; a < np; a++)
+                    w[idx[a]] = z[a];
+                break;
+            }
+            /* step toward z until a weight hits zero */
+            double alpha = 1;
+            for (int a = 0; a < np; a++)
+                if (z[a] <= 0) {
+                    double wa = w[idx[a]], t = wa / (wa - z[a]);
+                    if (t < alpha)
+                        alpha = t;
+                }
+            for (int a = 0; a < np; a++)
+                w[idx[a]] += alpha * (z[a] - w[idx[a]]);
+            int k = 0;
+            for (int a = 0; a < np; a++)
+                if (w[idx[a]] > 1e-15)
+                    idx[k++] = idx[a];
+                else
+                    w[idx[a]] = 0;
+            np = k;
+        }
+    }
+    return 0;
+}
+
+/* One column of the fitting matrix for tet t: per pose its reduced force
+ * (ro rows: r, or rout projected by the pose's T) and its energy (1 row),
+ * each scaled by the pose's row scale. */
+static int tet_column(const crom_cub *c, const crom_cub_opts *o, const crom_material *mat, int t,
+                      const double *fscale, const double *escale, double *col, double *work)
+{
+    int r = c->r, ro = o->proj ? o->rout : r;
+    double Xe[12], *W4 = work, *gf = work + 12 * (size_t)r, *kw = gf + r, Dm[9], V;
+    gather(c, t, Xe, W4);
+    if (crom_fem_tet_rest(Xe, Dm, &V))
+        return CROM_EDATA;
+    for (int j = 0; j < o->npose; j++) {
+        double *g = col + (size_t)j * (ro + 1);
+        memset(gf, 0, sizeof(double) * (size_t)r);
+        double E = crom_cub_tet(mat, Xe, W4, r, Dm, V, 1.0, o->poses + (size_t)j * r, 0, gf, NULL, kw);
+        if (!isfinite(E))
+            return CROM_EDATA;
+        if (o->proj)
+            cblas_dgemv(CblasRowMajor, CblasTrans, r, ro, fscale[j], o->proj + (size_t)j * r * ro, ro, gf, 1, 0.0, g, 1);
+        else
+            for (int i = 0; i < r; i++)
+                g[i] = gf[i] * fscale[j];
+        g[ro] = E * escale[j];
+    }
+    return 0;
+}
+
+static int scheme_optimized(crom_cub *c, const crom_cub_opts *o, crom_rng *rng)
+{
+    int r = c->r, nt = c->mesh.nt, P = o->npose, ro = o->proj ? o->rout : r, m = P * (ro + 1), K = o->count;
+    crom_material mat;
+    int rc = crom_material_init(&mat, o->youngs, o->poisson, 1000);
+    if (rc)
+        return rc;
+    if (!o->poses || P < 1)
+        return crom_err(CROM_EUSAGE, "the optimized scheme needs training poses (--poses LATENT)");
+    if (K > nt)
+        K = nt;
+    double *b = crom_calloc((size_t)m, sizeof(double)), *col = crom_malloc(sizeof(double) * (size_t)m);
+    double *fscale = crom_malloc(sizeof(double) * (size_t)P), *escale = crom_malloc(sizeof(double) * (size_t)P);
+    double *work = crom_malloc(sizeof(double) * (size_t)(12 * r + r + 168 + 12 * r));
+    double *A = crom_malloc(sizeof(double) * (size_t)m * (size_t)K); /* selected columns */
+    double *G = crom_calloc((size_t)K * K, sizeof(double)), *hv = crom_calloc((size_t)K, sizeof(double));
+    double *w = crom_calloc((size_t)K, sizeof(double)), *res = crom_malloc(sizeof(double) * (size_t)m);
+    double *nwork = crom_malloc(sizeof(double) * ((size_t)K * K + 2 * (size_t)K + 1));
+    int *sel = crom_malloc(sizeof(int) * (size_t)K), *P_idx = crom_malloc(sizeof(int) * (size_t)K);
+    unsigned char *taken = crom_calloc((size_t)nt, 1);
+    int *cand = crom_malloc(sizeof(int) * (size_t)nt);
+    if (!b || !col || !fscale || !escale || !work || !A || !G || !hv || !w || !res || !nwork || !sel ||
+        !P_idx || !taken || !cand) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    /* targets: the exact reduced forces and energies over all tets, each
+     * pose normalized so every pose counts equally */
+    for (int j = 0; j < P; j++)
+        fscale[j] = escale[j] = 1;
+    for (int t = 0; t < nt && !rc; t++) {
+        rc = tet_column(c, o, &mat, t, fscale, escale, col, work);
+        for (int i = 0; !rc && i < m; i++)
+            b[i] += col[i];
+    }
+    if (rc) {
+        crom_err(CROM_EDATA, "optimized cubature: a training pose gives a non-finite elastic force");
+        goto out;
+    }
+    for (int j = 0; j < P; j++) {
+        double *bj = b + (size_t)j * (ro + 1), n2 = 0;
+        for (int i = 0; i < ro; i++)
+            n2 += bj[i] * bj[i];
+        fscale[j] = n2 > 0 ? 1 / sqrt(n2) : 0;
+        escale[j] = fabs(bj[ro]) > 0 ? 1 / fabs(bj[ro]) : 0;
+        for (int i = 0; i < ro; i++)
+            bj[i] *= fscale[j];
+        bj[ro] *= escale[j];
+    }
+    double bnorm = cblas_dnrm2(m, b, 1);
+    if (!(bnorm > 0)) {
+        rc = crom_err(CROM_EDATA, "optimized cubature: the training poses have no elastic force (all at rest?)");
+        goto out;
+    }
+    memcpy(res, b, sizeof(double) * (size_t)m);
+    for (int i = 0; i < nt; i++)
+        cand[i] = i;
+    int s = 0, ncand = o->candidates > 0 ? o->candidates : 256;
+    double err = 1;
+    while (s < K && err > o->tol) {
+        /* score a random sample of unselected tets by their correlation with
+         * the residual; the best joins */
+        crom_rng_shuffle(rng, cand, nt);
+        int bestt = -1, tried = 0;
+        double bests = 0;
+        for (int i = 0; i < nt && tried < ncand; i++) {
+            int t = cand[i];
+            if (taken[t])
+                continue;
+            tried++;
+            if (tet_column(c, o, &mat, t, fscale, escale, col, work))
+                continue;
+            double dot = cblas_ddot(m, col, 1, res, 1), nrm = cblas_dnrm2(m, col, 1);
+            if (nrm > 0 && dot / nrm > bests) {
+                bests = dot / nrm;
+                bestt = t;
+            }
+        }
+        if (bestt < 0)
+            break; /* nothing correlates with what is left */
+        taken[bestt] = 1;
+        tet_column(c, o, &mat, bestt, fscale, escale, A + (size_t)s * m, work);
+        sel[s] = bestt;
+        /* grow G = AᵀA and h = Aᵀb (stored with leading dimension K) */
+        double *Gs = nwork; /* repack to s+1 square for the solver */
+        for (int i = 0; i <= s; i++) {
+            double v = cblas_ddot(m, A + (size_t)i * m, 1, A + (size_t)s * m, 1);
+            G[(size_t)i * K + s] = G[(size_t)s * K + i] = v;
+        }
+        hv[s] = cblas_ddot(m, A + (size_t)s * m, 1, b, 1);
+        s++;
+        double *Gc = crom_malloc(sizeof(double) * (size_t)s * s), *nw = crom_malloc(sizeof(double) * ((size_t)s * s + 2 * (size_t)s + 1));
+        if (!Gc || !nw) {
+            free(Gc);
+            free(nw);
+            rc = CROM_EINTERNAL;
+            goto out;
+        }
+        for (int i = 0; i < s; i++)
+            for (int j = 0; j < s; j++)
+                Gc[i * s + j] = G[(size_t)i * K + j];
+        (void)Gs;
+        rc = nnls_normal(s, Gc, hv, w, nw, P_idx);
+        free(Gc);
+        free(nw);
+        if (rc)
+            goto out;
+        memcpy(res, b, sizeof(double) * (size_t)m);
+        for (int i = 0; i < s; i++)
+            if (w[i] > 0)
+                cblas_daxpy(m, -w[i], A + (size_t)i * m, 1, res, 1);
+        err = cblas_dnrm2(m, res, 1) / bnorm;
+    }
+    /* keep the tets with positive weight */
+    c->k = 0;
+    for (int i = 0; i < s; i++)
+        c->k += w[i] > 0;
+    if (c->k == 0) {
+        rc = crom_err(CROM_EDATA, "optimized cubature selected no tet");
+        goto out;
+    }
+    c->elem = crom_malloc(sizeof(int) * (size_t)c->k);
+    c->weight = crom_malloc(sizeof(double) * (size_t)c->k);
+    if (!c->elem || !c->weight) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    for (int i = 0, j = 0; i < s; i++)
+        if (w[i] > 0) {
+            c->elem[j] = sel[i];
+            c->weight[j++] = w[i];
+        }
+out:
+    free(b);
+    free(col);
+    free(fscale);
+    free(escale);
+    free(work);
+    free(A);
+    free(G);
+    free(hv);
+    free(w);
+    free(res);
+    free(nwork);
+    free(sel);
+    free(P_idx);
+    free(taken);
+    free(cand);
+    return rc;
+}
+
+/* ------------------------------------------------------------------ build */
+
+static int cmp_int(const void *a, const void *b)
+{
+    int x = *(const int *)a, y = *(const int *)b;
+    return (x > y) - (x < y);
+}
+
+int crom_cub_build(crom_cub *c, const crom_mesh *mesh, const double *W, int r,
+                   const char *model_id, const crom_cub_opts *o, crom_rng *rng)
+{
+    memset(c, 0, sizeof *c);
+    int rc = crom_mesh_copy(mesh, &c->mesh);
+    if (rc)
+        return rc;
+    int nv = mesh->nv, nt = mesh->nt;
+    c->r = r;
+    snprintf(c->model_id, sizeof c->model_id, "%s", model_id);
+    snprintf(c->scheme, sizeof c->scheme, "%s", scheme_name(o->scheme));
+    size_t nw = (size_t)nv * 3 * r;
+    c->W = crom_malloc(sizeof(double) * nw);
+    c->vvol = crom_calloc((size_t)nv, sizeof(double));
+    c->WtVW = crom_calloc((size_t)r * r, sizeof(double));
+    c->WtV = crom_calloc((size_t)r * 3, sizeof(double));
+    double *tetvol = crom_malloc(sizeof(double) * (size_t)nt), *B = crom_malloc(sizeof(double) * nw);
+    if (!c->W || !c->vvol || !c->WtVW || !c->WtV || !tetvol || !B) {
+        rc = CROM_EINTERNAL;
+        goto fail;
+    }
+    memcpy(c->W, W, sizeof(double) * nw);
+    for (size_t i = 0; i < nw; i++)
+        if (!isfinite(W[i])) {
+            rc = crom_err(CROM_EDATA, "the basis is not finite at vertex %zu", i / (3 * (size_t)r));
+            goto fail;
+        }
+    for (int t = 0; t < nt; t++) {
+        const int *e = mesh->tets + 4 * (size_t)t;
+        double V = crom_tet_volume(mesh->X + 3 * (size_t)e[0], mesh->X + 3 * (size_t)e[1],
+                                   mesh->X + 3 * (size_t)e[2], mesh->X + 3 * (size_t)e[3]);
+        tetvol[t] = V;
+        c->mesh_volume += V;
+        for (int a = 0; a < 4; a++)
+            c->vvol[e[a]] += V / 4;
+    }
+    /* WᵀVW = BᵀB with B = V^½ W (rows 3v+c scaled by sqrt(V_v)); WᵀV */
+    for (int v = 0; v < nv; v++) {
+        double s = sqrt(c->vvol[v]);
+        for (int k = 0; k < 3 * r; k++)
+            B[(size_t)v * 3 * r + k] = s * W[(size_t)v * 3 * r + k];
+        for (int i = 0; i < r; i++)
+            for (int k = 0; k < 3; k++)
+                c->WtV[i * 3 + k] += c->vvol[v] * W[((size_t)v * 3 + k) * r + i];
+    }
+    cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, r, 3 * nv, 1.0, B, r, 0.0, c->WtVW, r);
+    for (int i = 0; i < r; i++)
+        for (int j = 0; j < i; j++)
+            c->WtVW[i * r + j] = c->WtVW[j * r + i];
+    /* contact points: the boundary vertices */
+    int ntri, *tri;
+    if ((rc = crom_mesh_boundary(mesh, &ntri, &tri, NULL)))
+        goto fail;
+    qsort(tri, 3 * (size_t)ntri, sizeof(int), cmp_int);
+    c->surf = crom_malloc(sizeof(int) * 3 * (size_t)(ntri ? ntri : 1));
+    if (!c->surf) {
+        free(tri);
+        rc = CROM_EINTERNAL;
+        goto fail;
+    }
+    for (int i = 0; i < 3 * ntri; i++)
+        if (i == 0 || tri[i] != tri[i - 1])
+            c->surf[c->nsurf++] = tri[i];
+    free(tri);
+    /* the scheme */
+    switch (o->scheme) {
+    case CROM_CUB_ALL: rc = scheme_all(c); break;
+    case CROM_CUB_RANDOM:
+        rc = o->count < 1 ? crom_err(CROM_EUSAGE, "--count must be at least 1") : scheme_random(c, tetvol, o->count, rng);
+        break;
+    case CROM_CUB_METIS:
+        rc = o->count < 1 ? crom_err(CROM_EUSAGE, "--count must be at least 1") : scheme_metis(c, tetvol, o->count);
+        break;
+    case CROM_CUB_OPTIMIZED:
+        rc = o->count < 1 ? crom_err(CROM_EUSAGE, "--count must be at least 1") : scheme_optimized(c, o, rng);
+        break;
+    default: rc = crom_err(CROM_EUSAGE, "unknown cubature scheme");
+    }
+    if (rc)
+        goto fail;
+    c->Dminv = crom_malloc(sizeof(double) * 9 * (size_t)c->k);
+    c->vol = crom_malloc(sizeof(double) * (size_t)c->k);
+    if (!c->Dminv || !c->vol) {
+        rc = CROM_EINTERNAL;
+        goto fail;
+    }
+    for (int j = 0; j < c->k; j++) {
+        double Xe[12];
+        const int *e = mesh->tets + 4 * (size_t)c->elem[j];
+        for (int a = 0; a < 4; a++)
+            memcpy(Xe + 3 * a, mesh->X + 3 * (size_t)e[a], 3 * sizeof(double));
+        if ((rc = crom_fem_tet_rest(Xe, c->Dminv + 9 * (size_t)j, &c->vol[j])))
+            goto fail;
+    }
+    free(tetvol);
+    free(B);
+    return 0;
+fail:
+    free(tetvol);
+    free(B);
+    crom_cub_free(c);
+    return rc;
+}
+
+int crom_cub_error(const crom_cub *c, const crom_material *mat, const double *poses, int npose,
+                   const double *proj, int rout, double *energy_err, double *force_err)
+{
+    int r = c->r, nt = c->mesh.nt, ro = proj ? rout : r;
+    double *fe = crom_calloc((size_t)r, sizeof(double)), *fc = crom_calloc((size_t)r, sizeof(double));
+    double *pe = crom_calloc((size_t)ro, sizeof(double)), *pc = crom_calloc((size_t)ro, sizeof(double));
+    double *W4 = crom_malloc(sizeof(double) * 12 * (size_t)r), *work = crom_malloc(sizeof(double) * (168 + 12 * (size_t)r));
+    int rc = fe && fc && pe && pc && W4 && work ? 0 : CROM_EINTERNAL;
+    double dE = 0, sE = 0, df = 0, sf = 0;
+    for (int j = 0; j < npose && !rc; j++) {
+        const double *q = poses + (size_t)j * r;
+        double Ee = 0, Ec = 0, Xe[12], Dm[9], V;
+        memset(fe, 0, sizeof(double) * (size_t)r);
+        memset(fc, 0, sizeof(double) * (size_t)r);
+        for (int t = 0; t < nt && !rc; t++) {
+            gather(c, t, Xe, W4);
+            crom_fem_tet_rest(Xe, Dm, &V);
+            double E = crom_cub_tet(mat, Xe, W4, r, Dm, V, 1.0, q, 0, fe, NULL, work);
+            if (!isfinite(E))
+                rc = CROM_EDATA;
+            Ee += E;
+        }
+        for (int k = 0; k < c->k && !rc; k++) {
+            double Dk[9];
+            crom_cub_gather(c, k, Xe, W4, Dk);
+            double E = crom_cub_tet(mat, Xe, W4, r, Dk, c->vol[k], c->weight[k], q, 0, fc, NULL, work);
+            if (!isfinite(E))
+                rc = CROM_EDATA;
+            Ec += c->weight[k] * E;
+        }
+        dE += fabs(Ee - Ec);
+        sE += fabs(Ee);
+        if (proj) { /* the latent forces Tᵀ f */
+            cblas_dgemv(CblasRowMajor, CblasTrans, r, ro, 1.0, proj + (size_t)j * r * ro, ro, fe, 1, 0.0, pe, 1);
+            cblas_dgemv(CblasRowMajor, CblasTrans, r, ro, 1.0, proj + (size_t)j * r * ro, ro, fc, 1, 0.0, pc, 1);
+        } else {
+            memcpy(pe, fe, sizeof(double) * (size_t)r);
+            memcpy(pc, fc, sizeof(double) * (size_t)r);
+        }
+        for (int i = 0; i < ro; i++) {
+            df += (pe[i] - pc[i]) * (pe[i] - pc[i]);
+            sf += pe[i] * pe[i];
+        }
+    }
+    if (!rc) {
+        *energy_err = sE > 0 ? dE / sE : 0;
+        *force_err = sf > 0 ? sqrt(df / sf) : 0;
+    }
+    free(fe);
+    free(fc);
+    free(pe);
+    free(pc);
+    free(W4);
+    free(work);
+    return rc == CROM_EDATA ? crom_err(CROM_EDATA, "a pose gives a non-finite elastic energy") : rc;
+}
+
+/* -------------------------------------------------------------- file I/O */
+
+int crom_cub_write(hid_t loc, const crom_cub *c)
+{
+    int rc = crom_h5_set_str(loc, ".", "model_id", c->model_id);
+    if (!rc)
+        rc = crom_h5_set_str(loc, ".", "scheme", c->scheme);
+    if (!rc)
+        rc = crom_h5_set_i64(loc, ".", "rank", c->r);
+    if (!rc)
+        rc = crom_h5_set_f64(loc, ".", "mesh_volume", &c->mesh_volume, 1);
+    if (!rc)
+        rc = crom_h5_set_i64(loc, ".", "count", c->k);
+    if (!rc && c->map_rank > 0)
+        rc = crom_h5_set_i64(loc, ".", "map_rank", c->map_rank);
+    hid_t g = crom_h5_group(loc, "mesh");
+    if (!rc)
+        rc = g < 0 ? CROM_EINTERNAL : crom_mesh_write(g, &c->mesh);
+    if (g >= 0)
+        H5Gclose(g);
+    hsize_t nv = (hsize_t)c->mesh.nv, k = (hsize_t)c->k, r = (hsize_t)c->r;
+    hsize_t dW[3] = {nv, 3, r}, d9[3] = {k, 3, 3}, drr[2] = {r, r}, dr3[2] = {r, 3}, ds = (hsize_t)c->nsurf;
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "W", 3, dW, c->W);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "lumped_volume", 1, &nv, c->vvol);
+    if (!rc)
+        rc = crom_h5_put_i32(loc, "elements", 1, &k, c->elem);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "weights", 1, &k, c->weight);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "Dminv", 3, d9, c->Dminv);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "volume", 1, &k, c->vol);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "WtVW", 2, drr, c->WtVW);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "WtV", 2, dr3, c->WtV);
+    if (!rc)
+        rc = crom_h5_put_i32(loc, "surface", 1, &ds, c->surf);
+    return rc;
+}
+
+int crom_cub_read(crom_in *in, crom_cub *c)
+{
+    memset(c, 0, sizeof *c);
+    int rc = crom_in_expect(in, CROM_CUB_SCHEMA, CROM_CUB_VERSION);
+    if (rc)
+        return rc;
+    char *s = NULL;
+    long long r = 0;
+    hsize_t d[4];
+    hid_t g = -1;
+    if ((rc = crom_h5_get_str(in->h5, ".", "model_id", &s)))
+        goto fail;
+    snprintf(c->model_id, sizeof c->model_id, "%s", s);
+    free(s);
+    s = NULL;
+    if ((rc = crom_h5_get_str(in->h5, ".", "scheme", &s)))
+        goto fail;
+    snprintf(c->scheme, sizeof c->scheme, "%s", s);
+    free(s);
+    if ((rc = crom_h5_get_i64(in->h5, ".", "rank", &r)))
+        goto fail;
+    if (r < 1 || r > 10000) {
+        rc = crom_err(CROM_EDATA, "rank %lld is out of range", r);
+        goto fail;
+    }
+    c->r = (int)r;
+    if (crom_h5_has_attr(in->h5, ".", "map_rank")) {
+        long long mr = 0;
+        if ((rc = crom_h5_get_i64(in->h5, ".", "map_rank", &mr)))
+            goto fail;
+        if (mr < 1 || mr > r) {
+            rc = crom_err(CROM_EDATA, "map_rank %lld is out of range (1..%lld)", mr, r);
+            goto fail;
+        }
+        c->map_rank = (int)mr;
+    }
+    g = H5Gopen2(in->h5, "mesh", H5P_DEFAULT);
+    if (g < 0) {
+        rc = crom_err(CROM_EDATA, "no /mesh group");
+        goto fail;
+    }
+    rc = crom_mesh_read(g, &c->mesh);
+    H5Gclose(g);
+    if (rc)
+        goto fail;
+    size_t nv = (size_t)c->mesh.nv;
+    if ((rc = crom_h5_read_f64(in->h5, "W", 3, d, &c->W)))
+        goto fail;
+    if (d[0] != nv || d[1] != 3 || d[2] != (hsize_t)r) {
+        rc = crom_err(CROM_EDATA, "W has shape [%llu,%llu,%llu], expected [%zu,3,%lld]", (unsigned long long)d[0],
+                      (unsigned long long)d[1], (unsigned long long)d[2], nv, r);
+        goto fail;
+    }
+    if ((rc = crom_h5_read_f64(in->h5, "lumped_volume", 1, d, &c->vvol)) || d[0] != nv) {
+        rc = rc ? rc : crom_err(CROM_EDATA, "lumped_volume has the wrong length");
+        goto fail;
+    }
+    if ((rc = crom_h5_read_i32(in->h5, "elements", 1, d, &c->elem)))
+        goto fail;
+    c->k = (int)d[0];
+    if (c->k < 1) {
+        rc = crom_err(CROM_EDATA, "the cubature is empty (no tets)");
+        goto fail;
+    }
+    hsize_t k = d[0];
+    if ((rc = crom_h5_read_f64(in->h5, "weights", 1, d, &c->weight)) || d[0] != k ||
+        (rc = crom_h5_read_f64(in->h5, "Dminv", 3, d, &c->Dminv)) || d[0] != k ||
+        (rc = crom_h5_read_f64(in->h5, "volume", 1, d, &c->vol)) || d[0] != k) {
+        rc = rc ? rc : crom_err(CROM_EDATA, "weights, Dminv and volume must have one entry per cubature tet");
+        goto fail;
+    }
+    if ((rc = crom_h5_read_f64(in->h5, "WtVW", 2, d, &c->WtVW)) || d[0] != (hsize_t)r || d[1] != (hsize_t)r ||
+        (rc = crom_h5_read_f64(in->h5, "WtV", 2, d, &c->WtV)) || d[0] != (hsize_t)r || d[1] != 3) {
+        rc = rc ? rc : crom_err(CROM_EDATA, "WtVW or WtV has the wrong shape for rank %lld", r);
+        goto fail;
+    }
+    if ((rc = crom_h5_read_i32(in->h5, "surface", 1, d, &c->surf)))
+        goto fail;
+    c->nsurf = (int)d[0];
+    for (int j = 0; j < c->k; j++)
+        if (c->elem[j] < 0 || c->elem[j] >= c->mesh.nt || !(c->weight[j] >= 0) || !isfinite(c->weight[j]) ||
+            !(c->vol[j] > 0)) {
+            rc = crom_err(CROM_EDATA, "cubature tet %d is invalid (index, weight or volume)", j);
+            goto fail;
+        }
+    for (int j = 0; j < c->nsurf; j++)
+        if (c->surf[j] < 0 || c->surf[j] >= c->mesh.nv) {
+            rc = crom_err(CROM_EDATA, "surface vertex %d is out of range", j);
+            goto fail;
+        }
+    for (size_t i = 0; i < nv * 3 * (size_t)r; i++)
+        if (!isfinite(c->W[i])) {
+            rc = crom_err(CROM_EDATA, "W is not finite");
+            goto fail;
+        }
+    if (crom_h5_get_f64(in->h5, ".", "mesh_volume", &c->mesh_volume, 1))
+        c->mesh_volume = crom_mesh_volume(&c->mesh);
+    crom_err_clear();
+    return 0;
+fail:
+    crom_err_ctx("%s", in->name);
+    crom_cub_free(c);
+    return rc ? rc : CROM_EDATA;
+}
+
+void crom_cub_free(crom_cub *c)
+{
+    crom_mesh_free(&c->mesh);
+    free(c->W);
+    free(c->vvol);
+    free(c->elem);
+    free(c->weight);
+    free(c->Dminv);
+    free(c->vol);
+    free(c->WtVW);
+    free(c->WtV);
+    free(c->surf);
+    memset(c, 0, sizeof *c);
+}

@@ -1,0 +1,314 @@
+/* map.c — one-mesh subspace maps x(q) = X + W q + N(q) in double (see map.h). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cblas.h>
+
+#include "base/err.h"
+#include "rom/map.h"
+
+#define INV_SQRT2 0.70710678118654752440
+#define INV_SQRT2PI 0.39894228040143267794
+
+void crom_map_free(crom_map *map)
+{
+    if (!map)
+        return;
+    crom_mesh_free(&map->mesh);
+    free(map->B);
+    free(map->fa);
+    free(map->fT);
+    free(map->mem);
+    free(map->a0);
+    free(map->a1);
+    free(map->z1);
+    free(map->t0);
+    free(map->t1);
+    memset(map, 0, sizeof *map);
+}
+
+int crom_map_same_mesh(const crom_mesh *a, const crom_mesh *b)
+{
+    if (a->nv != b->nv || a->nt != b->nt)
+        return 1;
+    for (size_t i = 0; i < 3 * (size_t)a->nv; i++)
+        if (fabs(a->X[i] - b->X[i]) > 1e-9 * (1 + fabs(a->X[i])))
+            return 1;
+    return memcmp(a->tets, b->tets, sizeof(int) * 4 * (size_t)a->nt) != 0;
+}
+
+/* The layers of a network in double (map->mem, w, b), the scratch of a
+ * forward pass with tangents, and the feature basis B [n][p] (unfilled). */
+static int copy_layers(crom_map *map, const crom_nn_mlp *net, int p)
+{
+    const crom_nn_spec *sp = &net->spec;
+    int L = sp->nlayers, maxw = 1; /* widest input of a layer: the latent and the hidden layers */
+    map->nlayers = L;
+    map->act = sp->act;
+    map->omega0 = sp->omega0;
+    for (int l = 0; l <= L; l++) {
+        map->width[l] = sp->width[l];
+        if (l < L && sp->width[l] > maxw)
+            maxw = sp->width[l];
+    }
+    map->p = p;
+    size_t wr = (size_t)maxw * (size_t)(map->r + 1);
+    map->mem = crom_malloc(sizeof(double) * net->nparams);
+    map->a0 = crom_malloc(sizeof(double) * (size_t)maxw);
+    map->a1 = crom_malloc(sizeof(double) * (size_t)maxw);
+    map->z1 = crom_malloc(sizeof(double) * (size_t)maxw);
+    map->t0 = crom_malloc(sizeof(double) * wr);
+    map->t1 = crom_malloc(sizeof(double) * wr);
+    map->B = crom_malloc(sizeof(double) * (size_t)map->n * p);
+    if (!map->mem || !map->a0 || !map->a1 || !map->z1 || !map->t0 || !map->t1 || !map->B)
+        return CROM_EINTERNAL;
+    for (size_t i = 0; i < net->nparams; i++)
+        map->mem[i] = net->params[i];
+    for (int l = 0; l < L; l++) {
+        map->w[l] = map->mem + net->layer[l].woff;
+        map->b[l] = map->mem + net->layer[l].boff;
+    }
+    map->nonlinear = 1;
+    return 0;
+}
+
+/* A map of one mesh: the hidden layers of its network, and its last layer
+ * and linear part W (basis_v, [n][r] or NULL) laid out as the feature
+ * basis B = [W | W_L | b_L]. */
+static int load_net(crom_map *map, const crom_nn_mlp *net, const double *basis_v)
+{
+    const crom_nn_spec *sp = &net->spec;
+    int L = sp->nlayers, r = map->r, n = map->n, h = sp->width[L - 1];
+    if (sp->width[L] != n)
+        return crom_err(CROM_EDATA, "the map's network has %d outputs for %d vertices", sp->width[L], map->nv);
+    map->rl = basis_v ? r : 0;
+    int rc = copy_layers(map, net, map->rl + h + 1);
+    if (rc)
+        return rc;
+    for (int i = 0; i < n; i++) {
+        double *Bi = map->B + (size_t)i * map->p;
+        if (basis_v)
+            memcpy(Bi, basis_v + (size_t)i * r, sizeof(double) * (size_t)r);
+        memcpy(Bi + map->rl, map->w[L - 1] + (size_t)i * h, sizeof(double) * (size_t)h);
+        Bi[map->p - 1] = map->b[L - 1][i];
+    }
+    return 0;
+}
+
+/* A continuous map x = X + W(X) φ(q): φ's layers in double (its last one
+ * gives the features), B = the pin mask times W at the vertices (the field
+ * in float, as for an mlp basis). */
+static int load_field_map(crom_map *map, const crom_model *model)
+{
+    const crom_nn_mlp *phi = &model->latent;
+    int p = phi->spec.width[phi->spec.nlayers];
+    int rc = copy_layers(map, phi, p);
+    if (rc)
+        return rc;
+    map->phi = 1;
+    crom_nn_ws ws;
+    if ((rc = crom_nn_ws_init(&ws, &model->mlp, map->nv < 4096 ? map->nv : 4096, 1)))
+        return rc;
+    rc = crom_nn_mlp_eval(&model->mlp, &ws, (size_t)map->nv, map->mesh.X, map->B, NULL);
+    crom_nn_ws_free(&ws);
+    for (int v = 0; !rc && v < map->nv; v++) { /* the pin mask */
+        double s = crom_model_mask(model, map->mesh.X + 3 * (size_t)v);
+        if (s != 1)
+            for (int k = 0; k < 3 * p; k++)
+                map->B[(size_t)v * 3 * p + k] *= s;
+    }
+    return rc;
+}
+
+int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
+{
+    memset(map, 0, sizeof *map);
+    int rc = 0, r = model->rank;
+    map->r = r;
+    if (model->field == CROM_FIELD_MAP) {
+        if (mesh && crom_map_same_mesh(mesh, &model->mesh))
+            return crom_err(CROM_EDATA, "model %s (basis '%s') is a map of one mesh and decodes only onto its own "
+                            "mesh (%d vertices, %d tets); the given mesh has %d vertices, %d tets%s",
+                            model->model_id, model->basis, model->mesh.nv, model->mesh.nt, mesh->nv, mesh->nt,
+                            mesh->nv == model->mesh.nv ? " at other positions" : "");
+        /* the same mesh: keep the given one's regions if it has any */
+        rc = crom_mesh_copy(mesh && mesh->nregions ? mesh : &model->mesh, &map->mesh);
+    } else if (model->field == CROM_FIELD_MESH || (model->field == CROM_FIELD_SKIN && model->skin_w)) {
+        rc = crom_mesh_copy(mesh ? mesh : &model->mesh, &map->mesh);
+    } else if (model->field == CROM_FIELD_MLP || model->field == CROM_FIELD_CMAP || model->field == CROM_FIELD_SKIN) {
+        if (!mesh)
+            return crom_err(CROM_EUSAGE, "model %s is a neural field %s: give the mesh to lay it on",
+                            model->model_id, model->field == CROM_FIELD_CMAP ? "x(X, q)" : "W(X)");
+        rc = crom_mesh_copy(mesh, &map->mesh);
+    } else {
+        return crom_err(CROM_EINTERNAL, "model has no basis");
+    }
+    if (rc) {
+        crom_map_free(map);
+        return rc;
+    }
+    map->nv = map->mesh.nv;
+    map->n = 3 * map->nv;
+    if (model->field == CROM_FIELD_MAP) {
+        rc = load_net(map, &model->mlp, model->basis_v);
+    } else if (model->field == CROM_FIELD_CMAP) {
+        rc = load_field_map(map, model);
+    } else { /* a linear basis: a = q, B = W(X_v) */
+        map->p = r;
+        map->B = crom_malloc(sizeof(double) * (size_t)map->n * r);
+        rc = map->B ? crom_model_eval(model, (size_t)map->nv, map->mesh.X, map->B, NULL) : CROM_EINTERNAL;
+    }
+    if (!rc) { /* crom_map_eval's features */
+        map->fa = crom_malloc(sizeof(double) * (size_t)map->p);
+        map->fT = crom_malloc(sizeof(double) * (size_t)map->p * r);
+        if (!map->fa || !map->fT)
+            rc = CROM_EINTERNAL;
+    }
+    if (rc)
+        crom_map_free(map);
+    return rc;
+}
+
+/* activation value and derivative at pre-activation v */
+static inline double act_f(crom_nn_act a, double om, double v, double *d)
+{
+    switch (a) {
+    case CROM_NN_ELU:
+        if (v > 0) {
+            *d = 1;
+            return v;
+        } else {
+            double e = exp(v);
+            *d = e;
+            return e - 1;
+        }
+    case CROM_NN_SINE:
+        *d = om * cos(om * v);
+        return sin(om * v);
+    case CROM_NN_GELU: {
+        double Phi = 0.5 * (1 + erf(v * INV_SQRT2));
+        *d = Phi + v * INV_SQRT2PI * exp(-0.5 * v * v);
+        return v * Phi;
+    }
+    default:
+        *d = 1;
+        return v;
+    }
+}
+
+int crom_map_features(crom_map *map, const double *q, double *a, double *T)
+{
+    int r = map->r, p = map->p;
+    if (!map->nonlinear) {
+        if (a)
+            memcpy(a, q, sizeof(double) * (size_t)r);
+        if (T) {
+            memset(T, 0, sizeof(double) * (size_t)r * r);
+            for (int i = 0; i < r; i++)
+                T[i * r + i] = 1;
+        }
+        return 0;
+    }
+    /* forward through the hidden layers: h activations [w], t tangents
+     * [w][r] (dh/dq) */
+    double *h = map->a0, *hn = map->a1, *z = map->z1, *t = map->t0, *tn = map->t1;
+    int J = T != NULL, L = map->nlayers;
+    memcpy(h, q, sizeof(double) * (size_t)r);
+    if (J) {
+        memset(t, 0, sizeof(double) * (size_t)r * r);
+        for (int i = 0; i < r; i++)
+            t[i * r + i] = 1;
+    }
+    for (int l = 0; l < L - 1; l++) {
+        int in = map->width[l], out = map->width[l + 1];
+        memcpy(z, map->b[l], sizeof(double) * (size_t)out);
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, out, in, 1.0, map->w[l], in, h, 1, 1.0, z, 1);
+        if (J)
+            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, out, r, in, 1.0, map->w[l], in, t, r, 0.0, tn, r);
+        for (int j = 0; j < out; j++) {
+            double dv;
+            hn[j] = act_f(map->act, map->omega0, z[j], &dv);
+            if (J)
+                for (int k = 0; k < r; k++)
+                    tn[j * r + k] *= dv;
+        }
+        double *s = h;
+        h = hn;
+        hn = s;
+        s = t;
+        t = tn;
+        tn = s;
+    }
+    int nh = map->width[L - 1], rl = map->rl;
+    if (map->phi) { /* a = W_L h + b_L, T = W_L t */
+        if (a) {
+            memcpy(a, map->b[L - 1], sizeof(double) * (size_t)p);
+            cblas_dgemv(CblasRowMajor, CblasNoTrans, p, nh, 1.0, map->w[L - 1], nh, h, 1, 1.0, a, 1);
+            for (int i = 0; i < p; i++)
+                if (!isfinite(a[i]))
+                    return crom_err(CROM_EDATA, "the map's network is not finite at this latent");
+        }
+        if (T)
+            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, p, r, nh, 1.0, map->w[L - 1], nh, t, r, 0.0, T,
+                        r);
+        return 0;
+    }
+    if (a) {
+        memcpy(a, q, sizeof(double) * (size_t)rl);
+        memcpy(a + rl, h, sizeof(double) * (size_t)nh);
+        a[p - 1] = 1;
+        for (int i = 0; i < p; i++)
+            if (!isfinite(a[i]))
+                return crom_err(CROM_EDATA, "the map's network is not finite at this latent");
+    }
+    if (T) {
+        memset(T, 0, sizeof(double) * (size_t)rl * r);
+        for (int i = 0; i < rl; i++)
+            T[i * r + i] = 1;
+        memcpy(T + (size_t)rl * r, t, sizeof(double) * (size_t)nh * r);
+        memset(T + (size_t)(p - 1) * r, 0, sizeof(double) * (size_t)r);
+    }
+    return 0;
+}
+
+void crom_map_rows(const crom_map *map, const int *idx, int nidx, const double *a, const double *T, double *x,
+                   double *J)
+{
+    int p = map->p, r = map->r;
+    const double *X = map->mesh.X;
+    if (!idx) { /* every vertex: two BLAS calls */
+        int n = map->n;
+        if (x) {
+            memcpy(x, X, sizeof(double) * (size_t)n);
+            cblas_dgemv(CblasRowMajor, CblasNoTrans, n, p, 1.0, map->B, p, a, 1, 1.0, x, 1);
+        }
+        if (J)
+            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, n, r, p, 1.0, map->B, p, T, r, 0.0, J, r);
+        return;
+    }
+    for (int k = 0; k < nidx; k++) {
+        const double *Bv = map->B + (size_t)idx[k] * 3 * p;
+        if (x)
+            for (int c = 0; c < 3; c++)
+                x[3 * k + c] = X[3 * (size_t)idx[k] + c] + cblas_ddot(p, Bv + (size_t)c * p, 1, a, 1);
+        if (J)
+            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, 3, r, p, 1.0, Bv, p, T, r, 0.0,
+                        J + (size_t)k * 3 * r, r);
+    }
+}
+
+int crom_map_eval(crom_map *map, const double *q, double *x, double *J)
+{
+    if (!x && !J)
+        return 0;
+    int rc = crom_map_features(map, q, map->fa, J ? map->fT : NULL);
+    if (rc)
+        return rc;
+    crom_map_rows(map, NULL, 0, map->fa, map->fT, x, J);
+    if (x)
+        for (int i = 0; i < map->n; i++)
+            if (!isfinite(x[i]))
+                return crom_err(CROM_EDATA, "the map gives a non-finite position");
+    return 0;
+}

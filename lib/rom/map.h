@@ -1,0 +1,90 @@
+/* map.h — a subspace of ONE mesh as a map from the latent q in R^r to the
+ * positions of every vertex, evaluated in double with its Jacobian:
+ *
+ *     x(q) = X + W q + N(q),        J(q) = dx/dq = W + dN/dq,
+ *
+ * the common form of every model that can be laid on a mesh:
+ *   - a continuous data-free map (crom/model basis "energy-field"),
+ *     x = X + W(X) φ(q), on any mesh: B = W(X_v) and a = φ(q);
+ *   - a data-free map (crom/model basis "energy": W = 0; "neuralmodes": W the
+ *     linear modes, N the learned correction y(q)) on its own mesh;
+ *   - a linear basis (pod, modes, skinning, or an mlp neural field) sampled at the
+ *     vertices of a mesh: N = 0 and W = W(X_v).
+ *
+ * The network N runs in double precision from the stored float32 weights
+ * (converted once), so x(q) is smooth to round-off: Gauss–Newton on it
+ * (lib/rom/nlrom.h) and finite-difference checks see no float noise. Output
+ * 3v + c of N is component c of vertex v in metres; there is no input
+ * normalization (the latent enters as is).
+ *
+ * A map holds work buffers: one map per thread.
+ */
+#ifndef CROM_MAP_H
+#define CROM_MAP_H
+
+#include "mesh/mesh.h"
+#include "nn/nn.h"
+#include "rom/model.h"
+
+typedef struct crom_map_s {
+    int r;               /* latent dimension */
+    int nv, n;           /* vertices and 3 nv */
+    int nonlinear;       /* 1 if N is present */
+    crom_mesh mesh;      /* the mesh (owned copy, with regions) */
+    /* The map as a linear basis over features a(q) in R^p:
+     *     x(q) = X + B a(q),   J(q) = B T(q),  T = da/dq [p][r],
+     * a = [q (if W) | the last hidden layer of N | 1 (if N)] and
+     * B = [W | W_L | b_L] ([n][p] row-major), so that everything a reduced
+     * simulation needs from a few vertices costs p flops per row and
+     * quadratic forms over all vertices are p x p (lib/rom/nlrom.h). A linear
+     * basis has a = q, T = I, B = W. */
+    int p;
+    double *B;           /* [n][p] */
+    int rl;              /* leading features equal to q: r with a linear part, else 0 */
+    int phi;             /* 1: the features are the network's output, a = φ(q)
+                          * (a continuous map, x = X + W(X) φ(q): B = W(X_v)) */
+    /* the hidden layers of N in double: layer l maps width[l] to width[l+1] */
+    int nlayers, width[CROM_NN_MAX_LAYERS + 1];
+    crom_nn_act act;     /* hidden activation; the output layer is linear */
+    double omega0;
+    double *w[CROM_NN_MAX_LAYERS], *b[CROM_NN_MAX_LAYERS];
+    double *mem;
+    /* scratch: activations and tangents of the widest hidden layer */
+    double *a0, *a1, *z1, *t0, *t1;
+    double *fa, *fT;     /* crom_map_eval's features and their Jacobian */
+} crom_map;
+
+/* Build the map of a model. A map model (energy, neuralmodes) lives on its
+ * own mesh: mesh must be NULL or have the same vertices and tets (its
+ * regions are then used), else CROM_EDATA ("decodes only onto its own
+ * mesh"). A mesh field (pod, modes) is sampled on mesh (NULL: its own mesh;
+ * another mesh: interpolated as crom_model_eval does), and so is an eigen
+ * skinning model. A neural field (mlp, trained skinning) needs a mesh
+ * (CROM_EUSAGE without one). CROM_EINTERNAL when out of
+ * memory. On failure *map holds nothing to free. */
+int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh);
+
+/* Positions x [n] (NULL to skip) and Jacobian J [n][r] row-major (NULL to
+ * skip) at latent q [r]. Returns 0 or CROM_EDATA when the result is not
+ * finite. */
+int crom_map_eval(crom_map *map, const double *q, double *x, double *J);
+
+/* Features a [p] (NULL to skip) and their Jacobian T [p][r] row-major
+ * (NULL to skip) at latent q [r] (see above). Returns 0 or CROM_EDATA when a
+ * feature is not finite. */
+int crom_map_features(crom_map *map, const double *q, double *a, double *T);
+
+/* Positions x [nidx][3] = X_v + B_v a of the vertices idx [nidx] (all
+ * vertices when idx is NULL, nidx then ignored) at features a [p], and
+ * (J non-NULL) their Jacobian rows J [3 nidx][r] = B_v T. */
+void crom_map_rows(const crom_map *map, const int *idx, int nidx, const double *a, const double *T, double *x,
+                   double *J);
+
+/* Release what init allocated (NULL-safe). */
+void crom_map_free(crom_map *map);
+
+/* 0 if meshes a and b have the same vertices (within 1e-9 relative) and
+ * tets; else 1. */
+int crom_map_same_mesh(const crom_mesh *a, const crom_mesh *b);
+
+#endif

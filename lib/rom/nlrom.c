@@ -1,0 +1,817 @@
+/* nlrom.c — implicit Euler over the latent of a one-mesh map, Gauss–Newton
+ * on the full-space incremental potential (see nlrom.h). */
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cblas.h>
+#include <lapacke.h>
+
+#include "base/clock.h"
+#include "base/err.h"
+#include "base/linesearch.h"
+#include "phys/contact.h"
+#include "rom/cubature.h"
+#include "rom/newton.h"
+#include "rom/nlrom.h"
+
+#define TW(r) (168 + 24 * (size_t)(r) + 12) /* per-thread tet scratch: crom_cub_tet's, J4, xe */
+
+static void free_bcs(crom_nlbc *b, int n)
+{
+    for (int i = 0; b && i < n; i++)
+        free(b[i].idx);
+    free(b);
+}
+
+void crom_nlsim_free(crom_nlsim *s)
+{
+    if (!s)
+        return;
+    crom_fem_free(&s->fem);
+    double **bufs[] = {&s->q,  &s->qd, &s->va, &s->Bg, &s->qn, &s->fa, &s->gx, &s->J,  &s->Jt,
+                       &s->g,  &s->H,  &s->d,  &s->qt, &s->Gm, &s->lam,  &s->zero, &s->tw, &s->tH,
+                       &s->tg, &s->tE, &s->a,  &s->T,  &s->an, &s->Tp, &s->ga,   &s->A0, &s->Aq, &s->bq,
+                       &s->AT, &s->xc, &s->Jc, &s->gc, &s->ew, &s->xt, &s->wd, &s->Bc, &s->Xc};
+    for (size_t i = 0; i < sizeof bufs / sizeof *bufs; i++)
+        free(*bufs[i]);
+    free(s->surf);
+    free(s->xs);
+    free(s->eidx);
+    free(s->cv);
+    free(s->eloc);
+    free_bcs(s->bc, s->nbc);
+    free_bcs(s->force, s->nforce);
+    memset(s, 0, sizeof *s);
+}
+
+static int region(crom_nlsim *s, const char *ref, const crom_bc *bc, crom_nlbc *b)
+{
+    int rc = crom_mesh_select(&s->map->mesh, ref, &b->idx, &b->n);
+    if (rc)
+        return rc;
+    b->bc = bc;
+    for (int k = 0; k < b->n; k++)
+        b->mass += s->fem.mass[b->idx[k]];
+    return 0;
+}
+
+/* H = Jᵀ M J (upper triangle) of the Jacobian in s->J: the mass-weighted
+ * Gram matrix of the latent directions */
+static void mass_gram(crom_nlsim *s)
+{
+    int r = s->r, n = s->n;
+    for (int i = 0; i < n; i++) {
+        double sq = sqrt(s->fem.mass[i / 3]);
+        for (int k = 0; k < r; k++)
+            s->Jt[(size_t)i * r + k] = sq * s->J[(size_t)i * r + k];
+    }
+    cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, r, n, 1.0, s->Jt, r, 0.0, s->H, r);
+}
+
+/* q̇ minimizing ‖J q̇ − v‖_M, v = v0 + ω × (X − c) */
+static int initial_velocity(crom_nlsim *s)
+{
+    const crom_scenario *sc = s->sc;
+    int r = s->r, n = s->n;
+    if (!(sc->v0[0] || sc->v0[1] || sc->v0[2] || sc->spin[0] || sc->spin[1] || sc->spin[2]))
+        return 0;
+    double c[3] = {0, 0, 0}, m = 0;
+    const double *X = s->map->mesh.X;
+    for (int v = 0; v < s->map->nv; v++) {
+        m += s->fem.mass[v];
+        for (int k = 0; k < 3; k++)
+            c[k] += s->fem.mass[v] * X[3 * v + k];
+    }
+    for (int k = 0; k < 3; k++)
+        c[k] /= m;
+    for (int v = 0; v < s->map->nv; v++) {
+        double vv[3];
+        crom_scenario_initial_velocity(sc, c, X + 3 * v, vv);
+        for (int k = 0; k < 3; k++)
+            s->gx[3 * v + k] = s->fem.mass[v] * vv[k];
+    }
+    int rc = crom_map_eval(s->map, s->q, NULL, s->J);
+    if (rc)
+        return rc;
+    mass_gram(s);
+    cblas_dgemv(CblasRowMajor, CblasTrans, n, r, 1.0, s->J, r, s->gx, 1, 0.0, s->qd, 1);
+    if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, s->H, r, s->qd, 1) != 0)
+        return crom_err(CROM_EDATA, "the map's latent directions are degenerate at the initial state");
+    return 0;
+}
+
+/* The fit of x(q) to the rest shape, ½‖x(q) − X‖²_M, and its gradient
+ * Jᵀ M (x(q) − X) (J left in s->J), for the line search. */
+static int rest_eval(void *ctx, const double *q, double *f, double *g)
+{
+    crom_nlsim *s = ctx;
+    int rc = crom_map_eval(s->map, q, s->xt, g ? s->J : NULL);
+    if (rc)
+        return rc;
+    const double *X = s->map->mesh.X;
+    double e = 0;
+    for (int i = 0; i < s->n; i++) {
+        double d = s->xt[i] - X[i];
+        s->gx[i] = s->fem.mass[i / 3] * d;
+        e += 0.5 * d * s->gx[i];
+    }
+    *f = e;
+    if (g)
+        cblas_dgemv(CblasRowMajor, CblasTrans, s->n, s->r, 1.0, s->J, s->r, s->gx, 1, 0.0, g, 1);
+    return 0;
+}
+
+/* Start at rest: the latent whose shape is nearest the rest shape in the
+ * mass norm, q = argmin ½‖x(q) − X‖²_M, by Gauss–Newton from q = 0. A
+ * data-free map's origin need not be the rest state (Sharp et al. §4.1:
+ * the seed state is gone once training ends); for linear bases and maps
+ * with x(0) = X this leaves q = 0. */
+static int nearest_rest(crom_nlsim *s)
+{
+    int r = s->r, n = s->n;
+    for (int it = 0; it < 100; it++) {
+        double f;
+        int rc = rest_eval(s, s->q, &f, s->g);
+        if (rc)
+            return rc;
+        mass_gram(s);
+        for (int k = 0; k < r; k++)
+            s->d[k] = -s->g[k];
+        if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, s->H, r, s->d, 1) != 0)
+            return crom_err(CROM_EDATA, "the map's latent directions are degenerate near the rest shape");
+        double slope = cblas_ddot(r, s->g, 1, s->d, 1);
+        if (!(slope < 0))
+            break; /* at the minimum (x(0) = X exactly for a linear basis) */
+        /* converged when the step moves no vertex by more than 1e-10 L */
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, n, r, 1.0, s->J, r, s->d, 1, 0.0, s->wd, 1);
+        double move = 0;
+        for (int i = 0; i < n; i++)
+            move = fmax(move, fabs(s->wd[i]));
+        if (move <= 1e-10 * s->L) {
+            cblas_daxpy(r, 1.0, s->d, 1, s->q, 1);
+            break;
+        }
+        double alpha = crom_linesearch(rest_eval, s, (size_t)r, s->q, s->d, f, slope, 64 * DBL_EPSILON * f,
+                                       -slope < 1e-10 * f, s->qt, s->tg, NULL);
+        if (alpha == 0)
+            break; /* no decrease left that f resolves */
+        memcpy(s->q, s->qt, sizeof(double) * (size_t)r);
+    }
+    return 0;
+}
+
+/* The tets of the elastic energy, their weights and the vertices they
+ * touch (cv: NULL when that is every vertex). */
+static int set_elastic(crom_nlsim *s, int k, const int *elem, const double *weight)
+{
+    int nv = s->map->nv, r = s->r;
+    const int *tets = s->map->mesh.tets;
+    int *eidx = crom_malloc(sizeof(int) * (size_t)(k ? k : 1)), *eloc = crom_malloc(sizeof(int) * 4 * (size_t)(k ? k : 1));
+    double *ew = crom_malloc(sizeof(double) * (size_t)(k ? k : 1));
+    int *loc = crom_malloc(sizeof(int) * (size_t)nv), *cv = crom_malloc(sizeof(int) * (size_t)nv), ncv = 0;
+    if (!eidx || !eloc || !ew || !loc || !cv) {
+        free(eidx), free(eloc), free(ew), free(loc), free(cv);
+        return CROM_EINTERNAL;
+    }
+    for (int v = 0; v < nv; v++)
+        loc[v] = -1;
+    for (int j = 0; j < k; j++) {
+        eidx[j] = elem ? elem[j] : j;
+        ew[j] = weight ? weight[j] : 1;
+        for (int c = 0; c < 4; c++) {
+            int v = tets[4 * (size_t)eidx[j] + c];
+            if (loc[v] < 0) {
+                loc[v] = ncv;
+                cv[ncv++] = v;
+            }
+        }
+    }
+    int every = ncv == nv;
+    for (int j = 0; j < k; j++)
+        for (int c = 0; c < 4; c++) {
+            int v = tets[4 * (size_t)eidx[j] + c];
+            eloc[4 * j + c] = every ? v : loc[v];
+        }
+    free(loc);
+    if (every) {
+        free(cv);
+        cv = NULL;
+    }
+    free(s->eidx), free(s->eloc), free(s->ew), free(s->cv), free(s->xc), free(s->Jc), free(s->gc), free(s->Bc),
+        free(s->Xc);
+    s->Bc = s->Xc = NULL;
+    s->eidx = eidx;
+    s->eloc = eloc;
+    s->ew = ew;
+    s->cv = cv;
+    s->ne = k;
+    s->ncv = ncv;
+    s->xc = crom_malloc(sizeof(double) * 3 * (size_t)(ncv ? ncv : 1));
+    s->gc = crom_malloc(sizeof(double) * 3 * (size_t)(ncv ? ncv : 1));
+    s->Jc = crom_malloc(sizeof(double) * 3 * (size_t)(ncv ? ncv : 1) * r);
+    if (!s->xc || !s->gc || !s->Jc)
+        return CROM_EINTERNAL;
+    if (cv) { /* the rows of B and X at the elastic vertices, contiguous: two BLAS calls per evaluation */
+        int p = s->p;
+        s->Bc = crom_malloc(sizeof(double) * 3 * (size_t)ncv * p);
+        s->Xc = crom_malloc(sizeof(double) * 3 * (size_t)ncv);
+        if (!s->Bc || !s->Xc)
+            return CROM_EINTERNAL;
+        for (int i = 0; i < ncv; i++) {
+            memcpy(s->Bc + (size_t)i * 3 * p, s->map->B + (size_t)cv[i] * 3 * p, sizeof(double) * 3 * (size_t)p);
+            memcpy(s->Xc + 3 * (size_t)i, s->map->mesh.X + 3 * (size_t)cv[i], sizeof(double) * 3);
+        }
+    }
+    return 0;
+}
+
+int crom_nlsim_use_cubature(crom_nlsim *s, int k, const int *elem, const double *weight)
+{
+    if (k < 1)
+        return crom_err(CROM_EDATA, "the cubature has no tets");
+    for (int j = 0; j < k; j++) {
+        if (elem[j] < 0 || elem[j] >= s->fem.nt)
+            return crom_err(CROM_EDATA, "cubature tet %d is not a tet of the map's mesh (%d tets)", elem[j], s->fem.nt);
+        if (!(isfinite(weight[j]) && weight[j] >= 0))
+            return crom_err(CROM_EDATA, "cubature weight %d is %g: weights must be finite and >= 0", j, weight[j]);
+    }
+    return set_elastic(s, k, elem, weight);
+}
+
+/* B_vᵀ y for the 3 rows of vertex v, accumulated into out [p] */
+static void rows_t(const crom_map *map, int v, double alpha, const double y[3], double *out)
+{
+    cblas_dgemv(CblasRowMajor, CblasTrans, 3, map->p, alpha, map->B + (size_t)v * 3 * map->p, map->p, y, 1, 1.0, out, 1);
+}
+
+/* The step-independent quadratic: A0 = BᵀMB and Aq = (1/h² + A/h) A0 +
+ * κ Σ_bc B_vᵀ m_v B_v (full, symmetric). */
+static int quadratic_setup(crom_nlsim *s)
+{
+    const crom_map *map = s->map;
+    int n = s->n, p = s->p;
+    double h = s->sc->dt, cq = 1 / (h * h) + s->sc->damping / h;
+    double *Bs = crom_malloc(sizeof(double) * (size_t)n * p);
+    if (!Bs)
+        return CROM_EINTERNAL;
+    for (int i = 0; i < n; i++) {
+        double sq = sqrt(s->fem.mass[i / 3]);
+        for (int k = 0; k < p; k++)
+            Bs[(size_t)i * p + k] = sq * map->B[(size_t)i * p + k];
+    }
+    cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, p, n, 1.0, Bs, p, 0.0, s->A0, p);
+    free(Bs);
+    /* Bg [c][p] = Bᵀ M 1_c: the features' share of a uniform acceleration */
+    memset(s->Bg, 0, sizeof(double) * 3 * (size_t)p);
+    for (int i = 0; i < n; i++)
+        cblas_daxpy(p, s->fem.mass[i / 3], map->B + (size_t)i * p, 1, s->Bg + (size_t)(i % 3) * p, 1);
+    for (int i = 0; i < p; i++)
+        for (int j = 0; j < i; j++)
+            s->A0[i * p + j] = s->A0[j * p + i];
+    for (size_t i = 0; i < (size_t)p * p; i++)
+        s->Aq[i] = cq * s->A0[i];
+    for (int k = 0; k < s->nbc; k++) {
+        const crom_nlbc *b = &s->bc[k];
+        for (int j = 0; j < b->n; j++) {
+            int v = b->idx[j];
+            cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, p, 3, s->kappa * s->fem.mass[v],
+                        map->B + (size_t)v * 3 * p, p, 1.0, s->Aq, p);
+        }
+    }
+    for (int i = 0; i < p; i++)
+        for (int j = 0; j < i; j++)
+            s->Aq[i * p + j] = s->Aq[j * p + i];
+    return 0;
+}
+
+int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, double kappa, const double *q0,
+                    const double *qd0, int nthreads)
+{
+    memset(s, 0, sizeof *s);
+    int rc = crom_scenario_check(sc);
+    if (rc)
+        return rc;
+    crom_material mat;
+    if ((rc = crom_material_init(&mat, sc->youngs, sc->poisson, sc->density)))
+        return rc;
+    s->sc = sc;
+    s->map = map;
+    s->r = map->r;
+    s->n = map->n;
+    s->p = map->p;
+    s->nthreads = nthreads < 1 ? 1 : nthreads > 256 ? 256 : nthreads;
+    s->kappa = kappa > 0 ? kappa : 1e4 / (sc->dt * sc->dt);
+    if ((rc = crom_fem_init(&s->fem, &map->mesh, &mat)))
+        return rc;
+    int r = s->r, n = s->n, p = s->p, T = s->nthreads;
+    size_t rr = (size_t)r * r, nr = (size_t)n * r, pp = (size_t)p * p, pr = (size_t)p * r;
+    double **vr[] = {&s->q, &s->qd, &s->qn, &s->g, &s->d, &s->qt, &s->zero};
+    double **vn[] = {&s->xt, &s->wd, &s->gx};
+    double **vrr[] = {&s->H, &s->Gm};
+    double **vp[] = {&s->a, &s->an, &s->va, &s->fa, &s->ga, &s->bq, &s->Bg, &s->T, &s->Tp, &s->AT, &s->A0, &s->Aq};
+    size_t np[] = {p, p, p, p, p, p, 3 * (size_t)p, pr, pr, pr, pp, pp};
+    for (size_t i = 0; i < sizeof vp / sizeof *vp; i++)
+        *vp[i] = crom_calloc(np[i], sizeof(double));
+    for (size_t i = 0; i < sizeof vr / sizeof *vr; i++)
+        *vr[i] = crom_calloc((size_t)r, sizeof(double));
+    for (size_t i = 0; i < sizeof vn / sizeof *vn; i++)
+        *vn[i] = crom_calloc((size_t)n, sizeof(double));
+    for (size_t i = 0; i < sizeof vrr / sizeof *vrr; i++)
+        *vrr[i] = crom_calloc(rr, sizeof(double));
+    s->J = crom_malloc(sizeof(double) * nr);
+    s->Jt = crom_malloc(sizeof(double) * nr);
+    s->tw = crom_malloc(sizeof(double) * TW(r) * T);
+    s->tH = crom_malloc(sizeof(double) * rr * T);
+    s->tg = crom_malloc(sizeof(double) * (size_t)r * T);
+    s->tE = crom_malloc(sizeof(double) * (size_t)T);
+    s->bc = crom_calloc((size_t)(sc->npins + sc->nvel + 1), sizeof(crom_nlbc));
+    s->force = crom_calloc((size_t)(sc->nforce + 1), sizeof(crom_nlbc));
+    int ok = s->J && s->Jt && s->tw && s->tH && s->tg && s->tE && s->bc && s->force;
+    for (size_t i = 0; i < sizeof vr / sizeof *vr; i++)
+        ok = ok && *vr[i];
+    for (size_t i = 0; i < sizeof vn / sizeof *vn; i++)
+        ok = ok && *vn[i];
+    for (size_t i = 0; i < sizeof vrr / sizeof *vrr; i++)
+        ok = ok && *vrr[i];
+    for (size_t i = 0; i < sizeof vp / sizeof *vp; i++)
+        ok = ok && *vp[i];
+    if (!ok) {
+        crom_nlsim_free(s);
+        return CROM_EINTERNAL;
+    }
+    double lo[3], hi[3];
+    crom_mesh_bbox(&map->mesh, lo, hi);
+    s->L = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    for (int i = 0; i < sc->npins && !rc; i++)
+        rc = region(s, sc->pins[i], NULL, &s->bc[s->nbc++]);
+    for (int i = 0; i < sc->nvel && !rc; i++)
+        rc = region(s, sc->vel[i].ref, &sc->vel[i], &s->bc[s->nbc++]);
+    for (int i = 0; i < sc->nforce && !rc; i++)
+        rc = region(s, sc->force[i].ref, &sc->force[i], &s->force[s->nforce++]);
+    if (rc) {
+        crom_err_ctx("scenario");
+        crom_nlsim_free(s);
+        return CROM_EUSAGE;
+    }
+    if ((rc = quadratic_setup(s)) || (rc = set_elastic(s, s->fem.nt, NULL, NULL))) {
+        crom_nlsim_free(s);
+        return rc;
+    }
+    if (sc->nplanes) { /* contact points: the boundary vertices */
+        int ntri, *tris = NULL;
+        unsigned char *on = crom_calloc((size_t)map->nv, 1);
+        if (!on || (rc = crom_mesh_boundary(&map->mesh, &ntri, &tris, NULL))) {
+            free(on);
+            crom_nlsim_free(s);
+            return rc ? rc : CROM_EINTERNAL;
+        }
+        for (int i = 0; i < 3 * ntri; i++)
+            on[tris[i]] = 1;
+        free(tris);
+        s->surf = crom_malloc(sizeof(int) * (size_t)map->nv);
+        s->xs = crom_malloc(sizeof(double) * 3 * (size_t)map->nv);
+        s->lam = crom_calloc((size_t)sc->nplanes * map->nv, sizeof(double));
+        if (!s->surf || !s->xs || !s->lam) {
+            free(on);
+            crom_nlsim_free(s);
+            return CROM_EINTERNAL;
+        }
+        for (int v = 0; v < map->nv; v++)
+            if (on[v])
+                s->surf[s->nsurf++] = v;
+        free(on);
+    }
+    /* initial state */
+    if (q0)
+        memcpy(s->q, q0, sizeof(double) * (size_t)r);
+    else if ((rc = nearest_rest(s)))
+        goto fail;
+    if (qd0)
+        memcpy(s->qd, qd0, sizeof(double) * (size_t)r);
+    else if ((rc = initial_velocity(s)))
+        goto fail;
+    /* the state's features and their velocity va = T q̇ (v = J q̇ = B va) */
+    if ((rc = crom_map_features(map, s->q, s->an, s->T)))
+        goto fail;
+    cblas_dgemv(CblasRowMajor, CblasNoTrans, p, r, 1.0, s->T, r, s->qd, 1, 0.0, s->va, 1);
+    return 0;
+fail:
+    crom_nlsim_free(s);
+    return rc;
+}
+
+/* fa = Bᵀ f_ext(t): gravity through Bg, the region forces through their
+ * vertices' rows */
+static void feature_loads(crom_nlsim *s, double t, double *fa)
+{
+    int p = s->p;
+    const double *g = s->sc->gravity;
+    cblas_dgemv(CblasRowMajor, CblasTrans, 3, p, 1.0, s->Bg, p, g, 1, 0.0, fa, 1);
+    for (int b = 0; b < s->nforce; b++) {
+        const crom_nlbc *fb = &s->force[b];
+        double F[3];
+        crom_bc_force(fb->bc, t, F);
+        for (int k = 0; k < fb->n; k++) {
+            int v = fb->idx[k];
+            rows_t(s->map, v, s->fem.mass[v] / fb->mass, F, fa);
+        }
+    }
+}
+
+void crom_nlsim_begin_step(crom_nlsim *s)
+{
+    const crom_scenario *sc = s->sc;
+    const crom_map *map = s->map;
+    int p = s->p;
+    double h = sc->dt, t1 = (double)(s->step + 1) * h; /* step * dt, not a running sum */
+    const double *m = s->fem.mass;
+    memcpy(s->qn, s->q, sizeof(double) * (size_t)s->r);
+    /* the linear term b and constant of the quadratic in δ = a − a_n:
+     * inertia ½/h² ‖Bδ − h B va‖²_M, external −f·Bδ, penalty
+     * ½κ Σ m_v ‖B_v δ + e_v‖², e_v = B_v a_n − ū_v(t+h) */
+    feature_loads(s, t1, s->bq);
+    cblas_dsymv(CblasRowMajor, CblasUpper, p, -1 / h, s->A0, p, s->va, 1, -1.0, s->bq, 1);
+    cblas_dsymv(CblasRowMajor, CblasUpper, p, 1.0, s->A0, p, s->va, 1, 0.0, s->fa, 1);
+    double c0 = 0.5 * cblas_ddot(p, s->va, 1, s->fa, 1);
+    for (int k = 0; k < s->nbc; k++) {
+        const crom_nlbc *b = &s->bc[k];
+        double u[3] = {0, 0, 0};
+        if (b->bc)
+            crom_bc_displacement(b->bc, t1, u);
+        for (int j = 0; j < b->n; j++) {
+            int v = b->idx[j];
+            double e[3];
+            crom_map_rows(map, &v, 1, s->an, NULL, e, NULL);
+            for (int c = 0; c < 3; c++)
+                e[c] -= map->mesh.X[3 * v + c] + u[c];
+            rows_t(map, v, s->kappa * m[v], e, s->bq);
+            c0 += 0.5 * s->kappa * m[v] * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+        }
+    }
+    s->c0 = c0;
+    /* the surface vertices at the step's start (contact's x_n) and the
+     * lagged normal forces of friction */
+    if (sc->nplanes)
+        crom_map_rows(map, s->surf, s->nsurf, s->an, NULL, s->xs, NULL);
+    for (int pl = 0; pl < sc->nplanes; pl++)
+        for (int k = 0; k < s->nsurf; k++)
+            s->lam[(size_t)pl * s->nsurf + k] =
+                sc->contact_stiffness * m[s->surf[k]] * crom_contact_depth(&sc->plane[pl], s->xs + 3 * (size_t)k);
+}
+
+/* Elastic energy at the features in s->a, and (g, H non-NULL) its reduced
+ * gradient and Hessian Σ_e w_e J_eᵀ H_e J_e, over the elastic tets, split
+ * over the threads. The positions (and with g or H the Jacobian rows) of
+ * their vertices are left in s->xc (s->Jc). */
+static int elastic(crom_nlsim *s, double *E, double *g, double *H, int project)
+{
+    int r = s->r, T = s->nthreads, bad = 0, ne = s->ne;
+    size_t rr = (size_t)r * r;
+    const crom_fem *f = &s->fem;
+    if (s->cv) { /* xc = Xc + Bc a, Jc = Bc T */
+        int m3 = 3 * s->ncv, p = s->p;
+        memcpy(s->xc, s->Xc, sizeof(double) * (size_t)m3);
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, m3, p, 1.0, s->Bc, p, s->a, 1, 1.0, s->xc, 1);
+        if (g || H)
+            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, m3, r, p, 1.0, s->Bc, p, s->T, r, 0.0, s->Jc, r);
+    } else {
+        crom_map_rows(s->map, NULL, 0, s->a, s->T, s->xc, g || H ? s->Jc : NULL);
+    }
+#pragma omp parallel num_threads(T) reduction(| : bad)
+    {
+        int tid = 0;
+#ifdef _OPENMP
+        tid = omp_get_thread_num();
+#endif
+        double *w = s->tw + (size_t)tid * TW(r), *J4 = w + 168 + 12 * (size_t)r, *xe = J4 + 12 * (size_t)r;
+        double *tg = g ? s->tg + (size_t)tid * r : NULL, *tH = H ? s->tH + (size_t)tid * rr : NULL, Et = 0;
+        if (tg)
+            memset(tg, 0, sizeof(double) * (size_t)r);
+        if (tH)
+            memset(tH, 0, sizeof(double) * rr);
+#pragma omp for schedule(static)
+        for (int j = 0; j < ne; j++) {
+            int t = s->eidx[j];
+            const int *e = s->eloc + 4 * (size_t)j;
+            for (int a = 0; a < 4; a++) {
+                memcpy(xe + 3 * a, s->xc + 3 * (size_t)e[a], 3 * sizeof(double));
+                if (g || H)
+                    memcpy(J4 + (size_t)a * 3 * r, s->Jc + (size_t)e[a] * 3 * r, 3 * (size_t)r * sizeof(double));
+            }
+            double Ee = (g || H) ? crom_cub_tet(&f->mat, xe, J4, r, f->Dminv + 9 * (size_t)t, f->vol[t], s->ew[j],
+                                                s->zero, project, tg, tH, w)
+                                 : crom_fem_tet_energy(&f->mat, xe, f->Dminv + 9 * (size_t)t, f->vol[t]);
+            if (!isfinite(Ee))
+                bad = 1;
+            Et += s->ew[j] * Ee;
+        }
+        s->tE[tid] = Et;
+    }
+    if (bad)
+        return crom_err(CROM_EDATA, "non-finite elastic energy");
+    double Es = 0;
+    for (int k = 0; k < T; k++) {
+        Es += s->tE[k];
+        if (g)
+            for (int i = 0; i < r; i++)
+                g[i] += s->tg[(size_t)k * r + i];
+        if (H)
+            for (size_t i = 0; i < rr; i++)
+                H[i] += s->tH[(size_t)k * rr + i];
+    }
+    *E = Es;
+    return 0;
+}
+
+/* out [r][r] (upper triangle and lower) = Tᵀ A T for symmetric A [p][p] */
+static void sandwich(crom_nlsim *s, const double *A, double *out, double alpha, double beta)
+{
+    int p = s->p, r = s->r;
+    cblas_dsymm(CblasRowMajor, CblasLeft, CblasUpper, p, r, 1.0, A, p, s->T, r, 0.0, s->AT, r);
+    cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, r, p, alpha, s->T, r, s->AT, r, beta, out, r);
+}
+
+int crom_nlsim_objective(crom_nlsim *s, const double *q, double *Eout, double *g, double *H, int project)
+{
+    const crom_scenario *sc = s->sc;
+    const crom_map *map = s->map;
+    int r = s->r, p = s->p, rc;
+    size_t rr = (size_t)r * r;
+    double h = sc->dt;
+    const double *m = s->fem.mass;
+    if ((rc = crom_map_features(s->map, q, s->a, g || H ? s->T : NULL)))
+        return rc;
+    /* the quadratic: ½ δᵀAδ + bᵀδ + c; ga = Aδ + b, its gradient in a */
+    double *delta = s->AT; /* scratch, free until the sandwich below */
+    for (int i = 0; i < p; i++)
+        delta[i] = s->a[i] - s->an[i];
+    memcpy(s->ga, s->bq, sizeof(double) * (size_t)p);
+    cblas_dsymv(CblasRowMajor, CblasUpper, p, 1.0, s->Aq, p, delta, 1, 1.0, s->ga, 1);
+    double E = s->c0 + 0.5 * (cblas_ddot(p, delta, 1, s->ga, 1) + cblas_ddot(p, delta, 1, s->bq, 1));
+    if (g)
+        memset(g, 0, sizeof(double) * (size_t)r);
+    if (H)
+        memset(H, 0, sizeof(double) * rr);
+    /* contact at the surface vertices (gradient into ga, Hessian into H) */
+    for (int k = 0; sc->nplanes && k < s->nsurf; k++) {
+        int v = s->surf[k], jv = 0;
+        double xv[3], *Jv = s->Jt, *HJ = s->Jt + 3 * (size_t)r; /* scratch */
+        crom_map_rows(map, &v, 1, s->a, NULL, xv, NULL);
+        for (int pl = 0; pl < sc->nplanes; pl++) {
+            double lam = s->lam[(size_t)pl * s->nsurf + k];
+            if (crom_contact_depth(&sc->plane[pl], xv) <= 0 && !(lam > 0 && sc->plane[pl].mu > 0))
+                continue;
+            double gcv[3] = {0, 0, 0}, Hv[9] = {0};
+            E += crom_contact_eval(&sc->plane[pl], sc->contact_stiffness, m[v], xv, s->xs + 3 * (size_t)k, lam,
+                                   sc->friction_eps * h, g ? gcv : NULL, H ? Hv : NULL);
+            rows_t(map, v, 1.0, gcv, s->ga);
+            if (H) { /* H += J_vᵀ Hv J_v */
+                if (!jv++)
+                    crom_map_rows(map, &v, 1, s->a, s->T, NULL, Jv);
+                cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, 3, r, 3, 1.0, Hv, 3, Jv, r, 0.0, HJ, r);
+                cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, r, 3, 1.0, Jv, r, HJ, r, 1.0, H, r);
+            }
+        }
+    }
+    /* elastic energy over the elastic tets */
+    double Ee = 0;
+    if ((rc = elastic(s, &Ee, g, H, project)))
+        return rc;
+    E += Ee;
+    if (g) /* g += Tᵀ ga */
+        cblas_dgemv(CblasRowMajor, CblasTrans, p, r, 1.0, s->T, r, s->ga, 1, 1.0, g, 1);
+    if (H) { /* H += Tᵀ A T; Gm = Tᵀ A0 T / m */
+        sandwich(s, s->Aq, H, 1.0, 1.0);
+        sandwich(s, s->A0, s->Gm, 1 / s->fem.total_mass, 0.0);
+        for (int i = 0; i < r; i++) /* exactly symmetric */
+            for (int j = 0; j < i; j++) {
+                H[i * r + j] = H[j * r + i] = 0.5 * (H[i * r + j] + H[j * r + i]);
+                s->Gm[i * r + j] = s->Gm[j * r + i] = 0.5 * (s->Gm[i * r + j] + s->Gm[j * r + i]);
+            }
+    }
+    *Eout = E;
+    return isfinite(E) ? 0 : crom_err(CROM_EDATA, "the reduced energy is not finite");
+}
+
+/* The map's curvature term of the Hessian of Φ at q, C_ab = Σ_k (∇_aΦ)_k
+ * ∂²a_k/∂q_a∂q_b (x is linear in the features a), by central differences
+ * of T(q)ᵀ∇_aΦ with ∇_aΦ held fixed (2r evaluations of the network's
+ * features; step 1e-5 (1 + |q|_∞), so C is good to about 1e-10 relative).
+ * Must follow crom_nlsim_objective at the same q with g or H requested
+ * (its ∇_aΦ of the non-elastic terms and the elastic vertices' positions). */
+int crom_nlsim_curvature(crom_nlsim *s, const double *q, double *C)
+{
+    int r = s->r, p = s->p, rc;
+    const crom_fem *f = &s->fem;
+    /* ∇_aΦ = ga + Σ_e w_e B_eᵀ ∇_x E_e (the elastic gradient scattered to
+     * the elastic vertices first) */
+    double *gt = crom_malloc(sizeof(double) * (size_t)p), *qp = s->qt;
+    if (!gt)
+        return CROM_EINTERNAL;
+    memset(s->gc, 0, sizeof(double) * 3 * (size_t)s->ncv);
+    for (int j = 0; j < s->ne; j++) {
+        int t = s->eidx[j];
+        const int *e = s->eloc + 4 * (size_t)j;
+        double xe[12], ge[12], Ee;
+        for (int a = 0; a < 4; a++)
+            memcpy(xe + 3 * a, s->xc + 3 * (size_t)e[a], 3 * sizeof(double));
+        if (crom_fem_tet_eval(&f->mat, xe, f->Dminv + 9 * (size_t)t, f->vol[t], 0, &Ee, ge, NULL)) {
+            free(gt);
+            return crom_err(CROM_EDATA, "non-finite elastic energy");
+        }
+        for (int a = 0; a < 4; a++)
+            for (int c = 0; c < 3; c++)
+                s->gc[3 * (size_t)e[a] + c] += s->ew[j] * ge[3 * a + c];
+    }
+    memcpy(gt, s->ga, sizeof(double) * (size_t)p);
+    cblas_dgemv(CblasRowMajor, CblasTrans, 3 * s->ncv, p, 1.0, s->cv ? s->Bc : s->map->B, p, s->gc, 1, 1.0, gt, 1);
+    double qmax = 0;
+    for (int a = 0; a < r; a++)
+        qmax = fmax(qmax, fabs(q[a]));
+    double eps = 1e-5 * (1 + qmax);
+    rc = 0;
+    for (int b = 0; b < r && !rc; b++) {
+        memcpy(qp, q, sizeof(double) * (size_t)r);
+        qp[b] = q[b] + eps;
+        if ((rc = crom_map_features(s->map, qp, NULL, s->Tp)))
+            break;
+        cblas_dgemv(CblasRowMajor, CblasTrans, p, r, 1.0 / (2 * eps), s->Tp, r, gt, 1, 0.0, C + (size_t)b * r, 1);
+        qp[b] = q[b] - eps;
+        if ((rc = crom_map_features(s->map, qp, NULL, s->Tp)))
+            break;
+        cblas_dgemv(CblasRowMajor, CblasTrans, p, r, -1.0 / (2 * eps), s->Tp, r, gt, 1, 1.0, C + (size_t)b * r, 1);
+    }
+    free(gt);
+    if (rc)
+        return rc;
+    for (int a = 0; a < r; a++) /* symmetric (second derivatives) */
+        for (int b = 0; b < a; b++)
+            C[a * r + b] = C[b * r + a] = 0.5 * (C[a * r + b] + C[b * r + a]);
+    return 0;
+}
+
+/* RMS displacement ‖J d‖_M / sqrt(m) relative to the size (Gm of the last
+ * objective with H) */
+static double rms_disp(const crom_nlsim *s, const double *d)
+{
+    int r = s->r;
+    double v = 0;
+    for (int i = 0; i < r; i++)
+        for (int j = 0; j < r; j++)
+            v += d[i] * s->Gm[i * r + j] * d[j];
+    return sqrt(fmax(v, 0)) / s->L;
+}
+
+/* The step's problem for the latent minimizer (lib/rom/newton.h): the
+ * objective, the Gauss–Newton direction with the map's curvature term once
+ * Gauss–Newton has had `newton_after` iterations, the size of a correction
+ * as an RMS displacement relative to the body. ctx is a step_ctx: the
+ * stepper and r x r scratch for the curvature C and the factorization. */
+typedef struct {
+    crom_nlsim *s;
+    double *C, *Hs;
+} step_ctx;
+
+static int step_objective(void *ctx, const double *q, double *E, double *g, double *H, int project)
+{
+    return crom_nlsim_objective(((step_ctx *)ctx)->s, q, E, g, H, project);
+}
+
+/* Gauss–Newton; when it stalls (the map's curvature matters: large forces
+ * along strongly curved or nearly degenerate latent directions), Newton
+ * with the curvature term, whenever that matrix is positive definite and
+ * gives descent. */
+static int step_direction(void *ctx, int it, int project, const double *q, const double *g, const double *H,
+                          double *d)
+{
+    step_ctx *c = ctx;
+    crom_nlsim *s = c->s;
+    int r = s->r, newton_after = 2, rc;
+    size_t rr = (size_t)r * r;
+    int curv = it >= newton_after && s->map->nonlinear;
+    if (curv && (rc = crom_nlsim_curvature(s, q, c->C)))
+        return rc;
+    for (int pass = curv ? 0 : 1; pass < 2; pass++) {
+        for (int i = 0; i < r; i++)
+            d[i] = -g[i];
+        memcpy(c->Hs, H, sizeof(double) * rr);
+        if (pass == 0)
+            for (size_t i = 0; i < rr; i++)
+                c->Hs[i] += c->C[i];
+        double dmax = 0; /* a nearly collapsed latent direction moves nothing: keep H invertible */
+        for (int i = 0; i < r; i++)
+            dmax = fmax(dmax, fabs(H[i * r + i]));
+        for (int i = 0; i < r; i++)
+            c->Hs[i * r + i] += 1e-12 * dmax;
+        if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, c->Hs, r, d, 1) != 0)
+            continue;
+        double sl = 0;
+        for (int i = 0; i < r; i++)
+            sl += g[i] * d[i];
+        if (pass == 1 || sl < 0)
+            return 0;
+    }
+    return 1;
+}
+
+static double step_size(void *ctx, const double *d) { return rms_disp(((step_ctx *)ctx)->s, d); }
+
+int crom_nlsim_step(crom_nlsim *s, crom_rstep_stats *st)
+{
+    const crom_scenario *sc = s->sc;
+    int r = s->r;
+    size_t rr = (size_t)r * r;
+    double h = sc->dt, t0 = crom_now();
+    memset(st, 0, sizeof *st);
+    crom_nlsim_begin_step(s);
+    for (int i = 0; i < r; i++)
+        s->q[i] = s->qn[i] + h * s->qd[i];
+    step_ctx c = {s, crom_malloc(sizeof(double) * rr), crom_malloc(sizeof(double) * rr)};
+    if (!c.C || !c.Hs) {
+        free(c.C);
+        free(c.Hs);
+        return CROM_EINTERNAL;
+    }
+    const crom_newton_problem prob = {r, step_objective, step_direction, step_size, NULL, NULL, 0, "Gauss-Newton",
+                                      "the Gauss-Newton matrix is singular (the map's latent directions are "
+                                      "degenerate here)"};
+    const crom_newton_work w = {s->g, s->H, s->d, s->qt};
+    int rc = crom_newton_solve(&prob, &c, &w, s->q, sc->tol, sc->max_iter, s->step, &st->iterations,
+                               &st->residual, &st->converged);
+    free(c.C);
+    free(c.Hs);
+    if (!rc)
+        rc = crom_map_features(s->map, s->q, s->a, NULL);
+    if (rc)
+        return rc;
+    for (int i = 0; i < s->p; i++) {
+        s->va[i] = (s->a[i] - s->an[i]) / h;
+        s->an[i] = s->a[i];
+    }
+    for (int i = 0; i < r; i++)
+        s->qd[i] = (s->q[i] - s->qn[i]) / h;
+    s->step++;
+    s->t = (double)s->step * h; /* exact multiples of dt (issue 12) */
+    st->constraint_residual = crom_nlsim_constraint_residual(s);
+    st->seconds = crom_now() - t0;
+    return 0;
+}
+
+double crom_nlsim_constraint_residual(const crom_nlsim *s)
+{
+    const double *X = s->map->mesh.X;
+    double worst = 0;
+    for (int k = 0; k < s->nbc; k++) {
+        double u[3] = {0, 0, 0};
+        if (s->bc[k].bc)
+            crom_bc_displacement(s->bc[k].bc, s->t, u);
+        for (int j = 0; j < s->bc[k].n; j++) {
+            int v = s->bc[k].idx[j];
+            double e2 = 0, xv[3];
+            crom_map_rows(s->map, &v, 1, s->an, NULL, xv, NULL);
+            for (int c = 0; c < 3; c++) {
+                double e = xv[c] - X[3 * v + c] - u[c];
+                e2 += e * e;
+            }
+            worst = fmax(worst, sqrt(e2));
+        }
+    }
+    return worst;
+}
+
+void crom_nlsim_positions(const crom_nlsim *s, double *x, double *v)
+{
+    const crom_map *map = s->map;
+    if (x) {
+        memcpy(x, map->mesh.X, sizeof(double) * (size_t)s->n);
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, s->n, s->p, 1.0, map->B, s->p, s->an, 1, 1.0, x, 1);
+    }
+    if (v)
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, s->n, s->p, 1.0, map->B, s->p, s->va, 1, 0.0, v, 1);
+}
+
+int crom_nlsim_energies(crom_nlsim *s, double *kinetic, double *elastic_e, double *external)
+{
+    int p = s->p;
+    /* K = ½ vaᵀ BᵀMB va; W = −f·(x − X) = −(Bᵀf)·a */
+    cblas_dsymv(CblasRowMajor, CblasUpper, p, 1.0, s->A0, p, s->va, 1, 0.0, s->fa, 1);
+    double K = 0.5 * cblas_ddot(p, s->va, 1, s->fa, 1);
+    feature_loads(s, s->t, s->fa);
+    double W = -cblas_ddot(p, s->fa, 1, s->an, 1);
+    /* the elastic energy as the steps see it: over the elastic tets */
+    memcpy(s->a, s->an, sizeof(double) * (size_t)p);
+    double Ee = 0;
+    int rc = elastic(s, &Ee, NULL, NULL, 0);
+    if (rc)
+        return rc;
+    *elastic_e = Ee;
+    *kinetic = K;
+    *external = W;
+    return 0;
+}

@@ -1,0 +1,139 @@
+/* nlrom.h — implicit Euler in the latent space of a one-mesh subspace map
+ * x(q) (lib/rom/map.h: data-free maps, or any linear basis laid on its mesh),
+ * the nonlinear counterpart of rom.h with the same scenario.
+ *
+ * Each step minimizes over q (Sharp et al. 2023 eq. 6, Fulton et al. 2019)
+ *
+ *   Φ(q) = 1/(2h²) ‖x(q) − x̂‖²_M + A/(2h) ‖x(q) − x_n‖²_M + E(x(q))
+ *        − f_ext·(x(q) − x_n) + κ/2 Σ_bc Σ_v m_v ‖x_v(q) − X_v − ū_v(t)‖²
+ *        + contact(x(q) at the surface vertices),
+ *
+ *   x̂ = x_n + h v_n,  v_n = (x_n − x_{n−1}) / h,
+ *
+ * the full-space incremental potential restricted to the map: inertia with
+ * the full-space velocity (so momentum is that of the body, not of q), the
+ * elastic energy E over every tet of the mesh or over the weighted tets of
+ * a cubature (crom_nlsim_use_cubature; LiCROM eq. 8 on the map's features),
+ * gravity and scheduled forces, pinned and prescribed-velocity regions as a
+ * stiff mass-weighted penalty (a data-free map holds its training pins by
+ * construction, so the penalty only matters for other regions), and the
+ * frictional planes of the full simulator.
+ *
+ * Cost. The map is linear in its features a(q) (lib/rom/map.h): x = X + B a,
+ * and so is the velocity, v = B va with va = (a_{n+1} − a_n)/h (at the
+ * start, the features' share of the initial velocity). With δ = a − a_n,
+ * every term but the elastic energy and contact is a quadratic in δ whose
+ * matrix,
+ *   A = (1/h² + A/h) BᵀMB + κ Σ_bc B_vᵀ m_v B_v,
+ * is formed once, and whose linear term
+ *   b = −(1/h) BᵀMB va − Bᵀf_ext + κ Σ_bc B_vᵀ m_v (B_v a_n − ū_v),
+ *   Bᵀf_ext = BᵀM 1_c g_c + Σ_forces Σ_v B_vᵀ F m_v / m_region,
+ * costs p² plus the rows of the loaded and penalized vertices per step. An
+ * iteration adds the rows of B at the elastic (cubature) vertices and,
+ * with contact, at the surface vertices. Nothing in a step is O(mesh):
+ * full-space positions are formed only on request (crom_nlsim_positions).
+ * Expanding about a_n keeps the quadratic's round-off at the scale of the
+ * step's motion, not of the displacement.
+ *
+ * Solver: Gauss–Newton with line search. With J = ∂x/∂q (exact, from the
+ * map in double precision) the gradient is Jᵀ ∇_xΦ and the matrix
+ * H = Jᵀ (M (1/h² + A/h) + κ M_bc + K + C) J, with K the element Hessians
+ * (true ones first, projected to SPD when H is not positive definite or
+ * gives no descent, as rom.c does) and C the contact Hessians; it omits the
+ * curvature of the map, Σ_i (∇_xΦ)_i ∇²x_i, which vanishes for a linear
+ * basis (then this is rom.c's Newton on the same energy). Gauss–Newton
+ * converges only linearly where that term matters (large forces along
+ * curved or nearly collapsed latent directions), so from the third
+ * iteration of a step on, a nonlinear map gets Newton steps with the
+ * curvature added (by central differences of Tᵀ∇_aΦ: 2r evaluations of the
+ * network's features) whenever that matrix is positive definite and gives
+ * descent, and Gauss–Newton steps otherwise. Converged when the
+ * RMS displacement of the correction, ‖J d‖_M / sqrt(m), is below tol times
+ * the bounding-box diagonal. Afterwards v = (x_{n+1} − x_n)/h and
+ * q̇ = (q_{n+1} − q_n)/h.
+ */
+#ifndef CROM_NLROM_H
+#define CROM_NLROM_H
+
+#include "phys/fem.h"
+#include "phys/scenario.h"
+#include "rom/map.h"
+#include "rom/rom.h"
+
+typedef struct {
+    int *idx;          /* vertices */
+    int n;
+    double mass;       /* Σ m_v */
+    const crom_bc *bc; /* NULL for a pin */
+} crom_nlbc;
+
+typedef struct {
+    const crom_scenario *sc;
+    crom_map *map;      /* borrowed */
+    crom_fem fem;       /* the map's mesh with the scenario's material */
+    int r, n, p, nthreads;
+    double L, kappa;
+    double t;
+    long step;
+    double *q, *qd;     /* latent state and velocity */
+    double *an, *va;    /* features a(q) of the state and their velocity (v = B va): full-space
+                         * positions and velocities on demand, crom_nlsim_positions */
+    /* the elastic energy: ne tets (every tet, or a cubature) with weights,
+     * over ncv vertices (cv NULL: all of them, in order) */
+    int ne, ncv, *eidx, *cv, *eloc;
+    double *ew;
+    /* private */
+    double *qn, *xt, *wd, *gx, *J, *Jt, *g, *H, *d, *qt, *Gm, *lam, *zero, *tw, *tH, *tg, *tE;
+    double *a, *T, *Tp, *ga, *A0, *Aq, *bq, *AT, *xc, *Jc, *gc, *Bc, *Xc, *Bg, *fa, c0;
+    int nbc, nforce, nsurf, *surf;
+    double *xs;         /* [nsurf][3] the surface vertices at the step's start */
+    crom_nlbc *bc, *force;
+} crom_nlsim;
+
+/* Set up on map (borrowed; its mesh's regions resolve the scenario's) with
+ * scenario sc (borrowed); q = q0 (NULL: the latent nearest the rest shape,
+ * argmin ‖x(q) − X‖_M, which for a data-free map need not be 0), q̇ = qd0 (NULL: from the
+ * scenario's initial velocity and spin, projected: q̇ minimizes
+ * ‖J q̇ − v‖_M). kappa <= 0 picks 1e4/h². nthreads splits the passes over
+ * tets (deterministic for a given count). CROM_EUSAGE for an unknown or
+ * empty region, CROM_EDATA for a bad mesh or state. */
+int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, double kappa, const double *q0,
+                    const double *qd0, int nthreads);
+
+/* Integrate the elastic energy over k tets elem [k] (indices into the
+ * map's mesh) with weights weight [k] instead of every tet (a crom/cubature
+ * of the map, lib/rom/cubature.h). Call after init, before stepping.
+ * CROM_EDATA for an index out of range or a weight not finite and >= 0. */
+int crom_nlsim_use_cubature(crom_nlsim *s, int k, const int *elem, const double *weight);
+
+/* Advance one step. CROM_EDATA when the iteration does not converge in
+ * max_iter iterations or the state goes non-finite. */
+int crom_nlsim_step(crom_nlsim *s, crom_rstep_stats *st);
+
+/* Prepare the step's predictor, loads and lagged contact forces (for tests). */
+void crom_nlsim_begin_step(crom_nlsim *s);
+
+/* Φ(q) of the current step, its gradient g [r] and the Gauss–Newton matrix
+ * H [r][r] (either may be NULL); project: SPD-projected element Hessians. */
+int crom_nlsim_objective(crom_nlsim *s, const double *q, double *E, double *g, double *H, int project);
+
+/* The map's curvature term C [r][r] of the Hessian of Φ at q,
+ * Σ_i (∇_xΦ)_i ∂²x_i/∂q∂q (central differences of Jᵀ∇_xΦ), so that
+ * H + C is the exact Hessian (true element Hessians). Call right after
+ * crom_nlsim_objective at the same q with H requested. */
+int crom_nlsim_curvature(crom_nlsim *s, const double *q, double *C);
+
+/* Full-space positions x [n] = X + B a and velocities v [n] = B va of the
+ * current state (either may be NULL): O(n p), which a step never pays. */
+void crom_nlsim_positions(const crom_nlsim *s, double *x, double *v);
+
+/* Kinetic ½vᵀMv, elastic E(x) and external −f_ext(t)·(x − X) energies of
+ * the current state. */
+int crom_nlsim_energies(crom_nlsim *s, double *kinetic, double *elastic, double *external);
+
+/* Largest ‖x_v − X_v − ū_v(t)‖ over BC vertices (m). */
+double crom_nlsim_constraint_residual(const crom_nlsim *s);
+
+void crom_nlsim_free(crom_nlsim *s);
+
+#endif

@@ -1,0 +1,255 @@
+/* result.c — results as displacement frames on a mesh (see result.h). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cblas.h>
+
+#include "base/err.h"
+#include "rom/map.h"
+#include "rom/model.h"
+#include "rom/result.h"
+
+int crom_mesh_load(const char *path, int carriers, crom_mesh *m, char **history)
+{
+    crom_in in;
+    int rc = crom_in_open(&in, path);
+    if (rc)
+        return rc;
+    const char *group = "/";
+    if (!carriers || !strcmp(in.schema, "crom/mesh"))
+        rc = crom_in_expect(&in, CROM_MESH_SCHEMA, CROM_MESH_VERSION);
+    else if (!strcmp(in.schema, "crom/trajectory") || !strcmp(in.schema, "crom/cubature"))
+        rc = crom_in_expect(&in, in.schema, 1), group = "mesh";
+    else
+        rc = crom_err(CROM_EDATA, "%s is %s v%d, expected a crom/mesh (or a file carrying one)", in.name,
+                      in.schema, in.version);
+    if (!rc) {
+        hid_t g = H5Gopen2(in.h5, group, H5P_DEFAULT);
+        rc = g < 0 ? crom_err(CROM_EDATA, "%s has no mesh", in.name) : crom_mesh_read(g, m);
+        if (g >= 0)
+            H5Gclose(g);
+        if (rc && g >= 0)
+            crom_err_ctx("%s", in.name);
+    }
+    if (!rc && history) {
+        *history = in.history;
+        in.history = NULL;
+    }
+    crom_in_close(&in);
+    return rc;
+}
+
+int crom_result_open(crom_result *res, const char *path, const char *mesh_path, const char *model_path)
+{
+    crom_in in;
+    int rc = crom_in_open(&in, path);
+    if (rc) {
+        memset(res, 0, sizeof *res);
+        return rc;
+    }
+    return crom_result_adopt(res, &in, mesh_path, model_path);
+}
+
+/* A latent decoded by a nonlinear map: x(q) on the map's own mesh, or
+ * (continuous) on the one at mesh_path; J its Jacobian's buffer. */
+static int latent_map(crom_result *res, const crom_model *model, const char *mesh_path)
+{
+    crom_mesh given;
+    memset(&given, 0, sizeof given);
+    int rc = 0;
+    res->map = crom_calloc(1, sizeof *res->map);
+    if (!res->map)
+        rc = CROM_EINTERNAL;
+    if (!rc && mesh_path)
+        rc = crom_mesh_load(mesh_path, 1, &given, NULL);
+    if (!rc) {
+        rc = crom_map_init(res->map, model, mesh_path ? &given : NULL);
+        if (rc && mesh_path)
+            crom_err_ctx("--mesh %s", mesh_path);
+    }
+    crom_mesh_free(&given);
+    if (!rc)
+        rc = crom_mesh_copy(&res->map->mesh, &res->mesh);
+    res->J = rc ? NULL : crom_malloc(sizeof(double) * 3 * (size_t)res->r * (size_t)res->mesh.nv);
+    if (!rc && !res->J)
+        rc = CROM_EINTERNAL;
+    return rc;
+}
+
+/* A latent decoded by a linear basis: W evaluated at the field points of
+ * the mesh at mesh_path (required). */
+static int latent_basis(crom_result *res, const crom_model *model, const char *mesh_path)
+{
+    if (!mesh_path)
+        return crom_err(CROM_EUSAGE, "%s is a crom/latent: decoding it needs --model and --mesh", res->in.name);
+    int rc = crom_mesh_load(mesh_path, 1, &res->mesh, NULL);
+    if (rc)
+        return rc;
+    res->W = crom_malloc(sizeof(double) * 3 * (size_t)res->r * (size_t)res->mesh.nv);
+    double *P = crom_mesh_field_points(&res->mesh, CROM_CRACK_OFFSET, NULL);
+    rc = res->W && P ? crom_model_eval(model, (size_t)res->mesh.nv, P, res->W, &res->outside) : CROM_EINTERNAL;
+    free(P);
+    return rc;
+}
+
+/* A crom/latent: its fields, the model at model_path (required), which
+ * must be the one it names, and the decoder. */
+static int adopt_latent(crom_result *res, const char *mesh_path, const char *model_path)
+{
+    crom_in *in = &res->in;
+    res->latent = 1;
+    int rc = crom_in_expect(in, "crom/latent", 1);
+    if (rc)
+        return rc;
+    if (!model_path)
+        return crom_err(CROM_EUSAGE, "%s is a crom/latent: decoding it needs --model and --mesh", in->name);
+    char *id = NULL;
+    if ((rc = crom_h5_get_str(in->h5, ".", "model_id", &id))) {
+        crom_err_ctx("%s", in->name);
+        return rc;
+    }
+    snprintf(res->model_id, sizeof res->model_id, "%s", id);
+    free(id);
+    res->ft = crom_in_field(in, "time");
+    res->fu = crom_in_field(in, "q");
+    if (res->ft < 0 || res->fu < 0)
+        return CROM_EDATA;
+    res->fv = crom_in_field(in, "qdot");
+    crom_err_clear();
+    crom_model model;
+    if ((rc = crom_model_load(model_path, &model)))
+        return rc;
+    if (strcmp(model.model_id, res->model_id)) {
+        rc = crom_err(CROM_EDATA, "%s holds coordinates of model %s, but --model %s is model %s", in->name,
+                      res->model_id, model_path, model.model_id);
+    } else {
+        res->r = model.rank;
+        if ((int)in->fields[res->fu].count != res->r)
+            rc = crom_err(CROM_EDATA, "%s: q has %zu entries, the model's rank is %d", in->name,
+                          in->fields[res->fu].count, res->r);
+        else if (crom_model_is_nonlinear(&model))
+            rc = latent_map(res, &model, mesh_path);
+        else
+            rc = latent_basis(res, &model, mesh_path);
+    }
+    crom_model_free(&model);
+    return rc;
+}
+
+/* A crom/trajectory: its fields and its own mesh, or the one at mesh_path
+ * when that has the same vertices. */
+static int adopt_trajectory(crom_result *res, const char *mesh_path)
+{
+    crom_in *in = &res->in;
+    int rc = crom_in_expect(in, "crom/trajectory", 1);
+    if (rc)
+        return rc;
+    res->ft = crom_in_field(in, "time");
+    res->fu = crom_in_field(in, "displacement");
+    if (res->ft < 0 || res->fu < 0)
+        return CROM_EDATA;
+    res->fv = crom_in_field(in, "velocity");
+    crom_err_clear();
+    hid_t g = H5Gopen2(in->h5, "mesh", H5P_DEFAULT);
+    crom_mesh own;
+    rc = g < 0 ? crom_err(CROM_EDATA, "%s has no mesh", in->name) : crom_mesh_read(g, &own);
+    if (g >= 0)
+        H5Gclose(g);
+    if (rc) {
+        crom_err_ctx("%s", in->name);
+        return rc;
+    }
+    if (mesh_path) {
+        if ((rc = crom_mesh_load(mesh_path, 1, &res->mesh, NULL))) {
+            crom_mesh_free(&own);
+            return rc;
+        }
+        int same = res->mesh.nv == own.nv;
+        for (int i = 0; same && i < 3 * own.nv; i++)
+            same = fabs(res->mesh.X[i] - own.X[i]) <= 1e-9 * (1 + fabs(own.X[i]));
+        crom_mesh_free(&own);
+        if (!same)
+            return crom_err(CROM_EDATA, "--mesh %s does not have the vertices of the mesh %s was computed on (a "
+                                        "trajectory lives on its own mesh; decode a crom/latent to move between "
+                                        "meshes)", mesh_path, in->name);
+    } else {
+        res->mesh = own;
+    }
+    if (in->fields[res->fu].count != 3 * (size_t)res->mesh.nv)
+        return crom_err(CROM_EDATA, "%s: displacement has %zu values per frame, the mesh needs %d", in->name,
+                        in->fields[res->fu].count, 3 * res->mesh.nv);
+    return 0;
+}
+
+int crom_result_adopt(crom_result *res, crom_in *opened, const char *mesh_path, const char *model_path)
+{
+    memset(res, 0, sizeof *res);
+    res->in = *opened;
+    memset(opened, 0, sizeof *opened);
+    opened->h5 = -1;
+    int rc = !strcmp(res->in.schema, "crom/latent") ? adopt_latent(res, mesh_path, model_path)
+                                                     : adopt_trajectory(res, mesh_path);
+    if (rc)
+        crom_result_close(res);
+    return rc;
+}
+
+int crom_result_next(crom_result *res, double *t, double *u, double *v)
+{
+    int rc = crom_in_next(&res->in);
+    if (rc != 1)
+        return rc;
+    *t = crom_in_get(&res->in, res->ft)[0];
+    int n = 3 * res->mesh.nv;
+    if (!res->latent) {
+        memcpy(u, crom_in_get(&res->in, res->fu), sizeof(double) * (size_t)n);
+        if (v) {
+            if (res->fv >= 0)
+                memcpy(v, crom_in_get(&res->in, res->fv), sizeof(double) * (size_t)n);
+            else
+                memset(v, 0, sizeof(double) * (size_t)n);
+        }
+        return 1;
+    }
+    if (res->map) { /* u = x(q) − X, v = J(q) q̇ */
+        rc = crom_map_eval(res->map, crom_in_get(&res->in, res->fu), u, v ? res->J : NULL);
+        if (rc)
+            return rc;
+        for (int i = 0; i < n; i++)
+            u[i] -= res->mesh.X[i];
+        if (v) {
+            if (res->fv >= 0)
+                cblas_dgemv(CblasRowMajor, CblasNoTrans, n, res->r, 1.0, res->J, res->r,
+                            crom_in_get(&res->in, res->fv), 1, 0.0, v, 1);
+            else
+                memset(v, 0, sizeof(double) * (size_t)n);
+        }
+        return 1;
+    }
+    /* u = W q: W is [nv·3][r] */
+    cblas_dgemv(CblasRowMajor, CblasNoTrans, n, res->r, 1.0, res->W, res->r, crom_in_get(&res->in, res->fu), 1,
+                0.0, u, 1);
+    if (v) {
+        if (res->fv >= 0)
+            cblas_dgemv(CblasRowMajor, CblasNoTrans, n, res->r, 1.0, res->W, res->r,
+                        crom_in_get(&res->in, res->fv), 1, 0.0, v, 1);
+        else
+            memset(v, 0, sizeof(double) * (size_t)n);
+    }
+    return 1;
+}
+
+void crom_result_close(crom_result *res)
+{
+    crom_in_close(&res->in);
+    crom_mesh_free(&res->mesh);
+    free(res->W);
+    res->W = NULL;
+    if (res->map)
+        crom_map_free(res->map);
+    free(res->map);
+    res->map = NULL;
+    free(res->J);
+    res->J = NULL;
+}

@@ -1,0 +1,54 @@
+/* result.h — any simulation result as displacement frames on a mesh: a
+ * crom/trajectory (its own mesh, or a given mesh with the same vertices), or a
+ * crom/latent decoded through a model's basis, u = W(X) q, onto any mesh
+ * (the training mesh, a finer display mesh, another shape), or through a
+ * nonlinear one-mesh map (data-free models: u = x(q) − X, velocity J(q) q̇)
+ * onto its own mesh only. Used by crom-export and crom-diff so both decode
+ * the same way. */
+#ifndef CROM_RESULT_H
+#define CROM_RESULT_H
+
+#include "io/io.h"
+#include "mesh/mesh.h"
+
+typedef struct {
+    crom_in in;
+    int latent;         /* 1: a crom/latent decoded through W */
+    crom_mesh mesh;     /* where the displacements live */
+    int r;
+    double *W;          /* latent: [nv][3][r] */
+    struct crom_map_s *map; /* latent of a nonlinear map model: its evaluator (else NULL) */
+    double *J;          /* map: [3nv][r] Jacobian scratch */
+    char model_id[17];
+    int ft, fu, fv;     /* frame fields: time, displacement or q, velocity or qdot */
+    size_t outside;     /* latent: mesh vertices outside a mesh-field model */
+} crom_result;
+
+/* Open path (a trajectory or a latent). mesh_path (may be NULL) names a
+ * crom/mesh (or a file carrying one: trajectory, cubature) to use; model_path
+ * (may be NULL) the crom/model to decode a latent. A latent needs both (its
+ * model_id must match the model's), except for a map model (energy,
+ * neuralmodes), which brings its mesh and accepts only a mesh with the same
+ * vertices; a trajectory needs neither, and a given mesh must have its
+ * vertices. Returns 0 or an error naming the problem. */
+int crom_result_open(crom_result *res, const char *path, const char *mesh_path,
+                     const char *model_path);
+
+/* The same for an input already open (e.g. stdin after looking at its
+ * schema): takes it over (opened is left empty), closes it on failure. */
+int crom_result_adopt(crom_result *res, crom_in *opened, const char *mesh_path,
+                      const char *model_path);
+
+/* Read the next frame: time, displacement u [nv][3] and velocity v [nv][3]
+ * (v may be NULL). Returns 1 for a frame, 0 at the end, or an error code. */
+int crom_result_next(crom_result *res, double *t, double *u, double *v);
+
+void crom_result_close(crom_result *res);
+
+/* Read the crom/mesh at path (NULL or "-": stdin) or, when carriers is set,
+ * also the /mesh of a crom/trajectory or crom/cubature. When history is not
+ * NULL it takes over the input's history attribute (malloc'ed; NULL if it
+ * had none), for the output's provenance. */
+int crom_mesh_load(const char *path, int carriers, crom_mesh *m, char **history);
+
+#endif

@@ -1,0 +1,601 @@
+/* rom.c — reduced implicit Euler on a cubature (see rom.h). */
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cblas.h>
+#include <lapacke.h>
+
+#include "base/clock.h"
+#include "base/err.h"
+#include "phys/contact.h"
+#include "rom/newton.h"
+#include "rom/rom.h"
+
+static void free_bcs(crom_rbc *b, int n)
+{
+    for (int i = 0; b && i < n; i++) {
+        free(b[i].idx);
+        free(b[i].P);
+        free(b[i].S);
+    }
+    free(b);
+}
+
+static void free_cub_data(crom_rsim *s)
+{
+    free(s->Mr);
+    free(s->fg);
+    free(s->G);
+    free(s->Gfac);
+    free(s->lam);
+    free(s->work);
+    free(s->qn);
+    free(s->qhat);
+    free(s->g);
+    free(s->H);
+    free(s->d);
+    free(s->qt);
+    free(s->gt);
+    free(s->fext);
+    free(s->Hfac);
+    free_bcs(s->bc, s->nbc);
+    free_bcs(s->force, s->nforce);
+    s->Mr = s->fg = s->G = s->Gfac = s->lam = s->work = NULL;
+    s->qn = s->qhat = s->g = s->H = s->d = s->qt = s->gt = s->fext = s->Hfac = NULL;
+    s->fac_ok = 0;
+    s->bc = s->force = NULL;
+    s->nbc = s->nforce = 0;
+}
+
+/* mass-weighted sums over a vertex set: P = Σ m W_vᵀW_v, S = Σ m W_vᵀ */
+static int region_sums(const crom_cub *c, double rho, const char *ref, crom_rbc *b)
+{
+    int r = c->r, rc = crom_mesh_select(&c->mesh, ref, &b->idx, &b->n);
+    if (rc)
+        return rc;
+    b->P = crom_calloc((size_t)r * r, sizeof(double));
+    b->S = crom_calloc((size_t)r * 3, sizeof(double));
+    if (!b->P || !b->S)
+        return CROM_EINTERNAL;
+    for (int k = 0; k < b->n; k++) {
+        int v = b->idx[k];
+        double m = rho * c->vvol[v];
+        const double *Wv = c->W + (size_t)v * 3 * r; /* 3 × r */
+        b->mass += m;
+        cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, r, 3, m, Wv, r, 1.0, b->P, r);
+        for (int i = 0; i < r; i++)
+            for (int cc = 0; cc < 3; cc++)
+                b->S[i * 3 + cc] += m * Wv[cc * r + i];
+    }
+    for (int i = 0; i < r; i++)
+        for (int j = 0; j < i; j++)
+            b->P[i * r + j] = b->P[j * r + i];
+    return 0;
+}
+
+/* Which latent directions the boundary conditions constrain. With P the
+ * mass-weighted sum of W_vᵀW_v over BC vertices, the generalized eigenpairs
+ * P v = μ M_r v (VᵀM_rV = I) give for each direction the fraction μ of its
+ * motion carried by those vertices. A learned basis is only nearly zero
+ * where its training data was pinned: the directions the data determined
+ * have small μ, while weakly determined ones move the pins freely. A stiff
+ * penalty on all of them would freeze the body, so the penalty acts on the
+ * M-orthogonal projection Πq (Π = V_c V_cᵀ M_r) onto the directions with
+ * μ >= τ = threshold × (BC mass / total mass) only: P_b ← ΠᵀP_bΠ,
+ * S_b ← ΠᵀS_b. threshold 0 constrains every direction (a plain penalty). */
+static int constrain_directions(crom_rsim *s)
+{
+    int r = s->r, rc = 0;
+    size_t rr = (size_t)r * r;
+    double *P = crom_calloc(rr, sizeof(double)), *M = crom_malloc(sizeof(double) * rr);
+    double *mu = crom_malloc(sizeof(double) * (size_t)r), *Pi = crom_calloc(rr, sizeof(double));
+    double *T = crom_malloc(sizeof(double) * rr * 3);
+    if (!P || !M || !mu || !Pi || !T) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    double mbc = 0, mtot = s->sc->density * s->cub->mesh_volume;
+    for (int b = 0; b < s->nbc; b++) {
+        for (size_t i = 0; i < rr; i++)
+            P[i] += s->bc[b].P[i];
+        mbc += s->bc[b].mass;
+    }
+    memcpy(M, s->Mr, sizeof(double) * rr);
+    /* P v = μ M v: eigenvectors overwrite P (columns, M-orthonormal) */
+    if (LAPACKE_dsygv(LAPACK_ROW_MAJOR, 1, 'V', 'U', r, P, r, M, r, mu) != 0) {
+        rc = crom_err(CROM_EDATA, "the reduced mass matrix is not positive definite");
+        goto out;
+    }
+    double tau = s->bc_threshold * mbc / mtot;
+    s->nconstrained = 0;
+    /* Π = V_c V_cᵀ M_r */
+    for (int k = 0; k < r; k++) {
+        if (mu[k] < tau)
+            continue;
+        s->nconstrained++;
+        for (int i = 0; i < r; i++) {
+            double vi = P[i * r + k];
+            for (int j = 0; j < r; j++) {
+                double vMj = 0; /* (vᵀ M)_j */
+                for (int l = 0; l < r; l++)
+                    vMj += P[l * r + k] * s->Mr[l * r + j];
+                Pi[i * r + j] += vi * vMj;
+            }
+        }
+    }
+    for (int b = 0; b < s->nbc; b++) {
+        /* P_b ← Πᵀ P_b Π, S_b ← Πᵀ S_b */
+        cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, r, r, r, 1.0, s->bc[b].P, r, Pi, r, 0.0, T, r);
+        cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, r, r, 1.0, Pi, r, T, r, 0.0, s->bc[b].P, r);
+        cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, 3, r, 1.0, Pi, r, s->bc[b].S, 3, 0.0, T, 3);
+        memcpy(s->bc[b].S, T, sizeof(double) * 3 * (size_t)r);
+        for (int i = 0; i < r; i++) /* keep it exactly symmetric */
+            for (int j = 0; j < i; j++)
+                s->bc[b].P[i * r + j] = s->bc[b].P[j * r + i] = 0.5 * (s->bc[b].P[i * r + j] + s->bc[b].P[j * r + i]);
+    }
+out:
+    free(P);
+    free(M);
+    free(mu);
+    free(Pi);
+    free(T);
+    return rc;
+}
+
+static int build(crom_rsim *s)
+{
+    const crom_cub *c = s->cub;
+    const crom_scenario *sc = s->sc;
+    int r = c->r, rc = 0;
+    double rho = sc->density;
+    s->r = r;
+    size_t rr = (size_t)r * r;
+    s->Mr = crom_malloc(sizeof(double) * rr);
+    s->fg = crom_calloc((size_t)r, sizeof(double));
+    s->G = crom_calloc(rr, sizeof(double));
+    s->Gfac = crom_malloc(sizeof(double) * rr);
+    s->lam = crom_calloc((size_t)(sc->nplanes ? sc->nplanes : 1) * (size_t)(c->nsurf ? c->nsurf : 1), sizeof(double));
+    s->work = crom_malloc(sizeof(double) * (24 * (size_t)r + 168));
+    s->qn = crom_malloc(sizeof(double) * (size_t)r);
+    s->qhat = crom_malloc(sizeof(double) * (size_t)r);
+    s->g = crom_malloc(sizeof(double) * (size_t)r);
+    s->H = crom_malloc(sizeof(double) * rr);
+    s->d = crom_malloc(sizeof(double) * (size_t)r);
+    s->qt = crom_malloc(sizeof(double) * (size_t)r);
+    s->gt = crom_malloc(sizeof(double) * 3 * (size_t)r);
+    s->fext = crom_calloc((size_t)r, sizeof(double));
+    s->Hfac = crom_malloc(sizeof(double) * rr);
+    s->fac_ok = 0;
+    s->bc = crom_calloc((size_t)(sc->npins + sc->nvel + 1), sizeof(crom_rbc));
+    s->force = crom_calloc((size_t)(sc->nforce + 1), sizeof(crom_rbc));
+    if (!s->Mr || !s->fg || !s->G || !s->Gfac || !s->lam || !s->work || !s->qn || !s->qhat || !s->g ||
+        !s->H || !s->d || !s->qt || !s->gt || !s->fext || !s->Hfac || !s->bc || !s->force)
+        return CROM_EINTERNAL;
+    for (size_t i = 0; i < rr; i++)
+        s->Mr[i] = rho * c->WtVW[i];
+    for (int i = 0; i < r; i++)
+        for (int k = 0; k < 3; k++)
+            s->fg[i] += rho * c->WtV[i * 3 + k] * sc->gravity[k];
+    double lo[3], hi[3];
+    crom_mesh_bbox(&c->mesh, lo, hi);
+    s->L = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    /* boundary conditions: pins and prescribed velocities share the penalty */
+    for (int i = 0; i < sc->npins && !rc; i++) {
+        rc = region_sums(c, rho, sc->pins[i], &s->bc[s->nbc]);
+        s->nbc++;
+    }
+    for (int i = 0; i < sc->nvel && !rc; i++) {
+        s->bc[s->nbc].bc = &sc->vel[i];
+        rc = region_sums(c, rho, sc->vel[i].ref, &s->bc[s->nbc]);
+        s->nbc++;
+    }
+    for (int i = 0; i < sc->nforce && !rc; i++) {
+        s->force[s->nforce].bc = &sc->force[i];
+        rc = region_sums(c, rho, sc->force[i].ref, &s->force[s->nforce]);
+        s->nforce++;
+    }
+    if (rc) {
+        crom_err_ctx("scenario");
+        return CROM_EUSAGE;
+    }
+    if (s->nbc && s->bc_threshold > 0 && (rc = constrain_directions(s)))
+        return rc;
+    /* the gd preconditioner: G = Σ_e w_e V_e/4 Σ_{a in e} W_aᵀ W_a (LiCROM
+     * eq. 10, each cubature point weighted by its share of volume), scaled by
+     * ρ/h² to mass units (the cubature's estimate of M_r/h²), plus the boundary-condition penalty's
+     * own quadratic term κP so that stiff constraints do not stall descent
+     * (the paper keeps prescribed points fixed in the projection) */
+    for (int k = 0; k < c->k; k++) {
+        const int *e = c->mesh.tets + 4 * (size_t)c->elem[k];
+        for (int a = 0; a < 4; a++)
+            cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, r, 3,
+                        c->weight[k] * c->vol[k] / 4 * rho / (sc->dt * sc->dt), c->W + (size_t)e[a] * 3 * r, r,
+                        1.0, s->G, r);
+    }
+    for (int b = 0; b < s->nbc; b++)
+        for (int i = 0; i < r; i++)
+            for (int j = i; j < r; j++)
+                s->G[i * r + j] += s->kappa * s->bc[b].P[i * r + j];
+    double tr = 0;
+    for (int i = 0; i < r; i++)
+        tr += s->G[i * r + i];
+    for (int i = 0; i < r; i++) {
+        s->G[i * r + i] += 1e-12 * tr / r; /* a small cubature may not span every mode */
+        for (int j = 0; j < i; j++)
+            s->G[i * r + j] = s->G[j * r + i];
+    }
+    memcpy(s->Gfac, s->G, sizeof(double) * rr);
+    if (LAPACKE_dpotrf(LAPACK_ROW_MAJOR, 'U', r, s->Gfac, r) != 0)
+        return crom_err(CROM_EDATA, "the cubature's W^T W is singular");
+    return 0;
+}
+
+/* The scenario's initial velocity field (uniform plus spin, the same as the
+ * full simulation's) projected onto the subspace in the mass norm: the q̇ that
+ * minimizes Σ_v m_v |W_v q̇ − v_v|², i.e. M_r q̇ = Σ_v m_v W_vᵀ v_v. */
+static int initial_velocity(crom_rsim *s)
+{
+    const crom_scenario *sc = s->sc;
+    const crom_cub *c = s->cub;
+    if (!sc->v0[0] && !sc->v0[1] && !sc->v0[2] && !sc->spin[0] && !sc->spin[1] && !sc->spin[2])
+        return 0;
+    int r = s->r, nv = c->mesh.nv;
+    double cen[3] = {0, 0, 0}, vol = 0;
+    for (int v = 0; v < nv; v++) {
+        vol += c->vvol[v];
+        for (int k = 0; k < 3; k++)
+            cen[k] += c->vvol[v] * c->mesh.X[3 * v + k];
+    }
+    for (int k = 0; k < 3; k++)
+        cen[k] /= vol;
+    double *M = crom_malloc(sizeof(double) * (size_t)r * r);
+    if (!M)
+        return CROM_EINTERNAL;
+    memcpy(M, s->Mr, sizeof(double) * (size_t)r * r);
+    memset(s->qd, 0, sizeof(double) * (size_t)r);
+    for (int v = 0; v < nv; v++) {
+        double vel[3];
+        crom_scenario_initial_velocity(sc, cen, c->mesh.X + 3 * v, vel);
+        cblas_dgemv(CblasRowMajor, CblasTrans, 3, r, sc->density * c->vvol[v], c->W + (size_t)v * 3 * r, r, vel,
+                    1, 1.0, s->qd, 1);
+    }
+    int info = LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, M, r, s->qd, 1);
+    free(M);
+    if (info)
+        return crom_err(CROM_EDATA, "the reduced mass matrix is not positive definite");
+    return 0;
+}
+
+int crom_rsim_init(crom_rsim *s, const crom_cub *cub, const crom_scenario *sc, int solver,
+                   double kappa, const double *q0, const double *qd0)
+{
+    memset(s, 0, sizeof *s);
+    int rc = crom_scenario_check(sc);
+    if (rc)
+        return rc;
+    if ((rc = crom_material_init(&s->mat, sc->youngs, sc->poisson, sc->density)))
+        return rc;
+    s->sc = sc;
+    s->cub = cub;
+    s->solver = solver;
+    s->lagged = 1;
+    s->kappa = kappa > 0 ? kappa : 1e4 / (sc->dt * sc->dt);
+    s->bc_threshold = 0.1;
+    s->r = cub->r;
+    s->q = crom_calloc((size_t)s->r, sizeof(double));
+    s->qd = crom_calloc((size_t)s->r, sizeof(double));
+    if (!s->q || !s->qd) {
+        crom_rsim_free(s);
+        return CROM_EINTERNAL;
+    }
+    if (q0)
+        memcpy(s->q, q0, sizeof(double) * (size_t)s->r);
+    if (qd0)
+        memcpy(s->qd, qd0, sizeof(double) * (size_t)s->r);
+    if ((rc = build(s)) || (!qd0 && (rc = initial_velocity(s)))) {
+        crom_rsim_free(s);
+        return rc;
+    }
+    return 0;
+}
+
+int crom_rsim_set_cubature(crom_rsim *s, const crom_cub *cub)
+{
+    if (cub->r != s->r || strcmp(cub->model_id, s->cub->model_id))
+        return crom_err(CROM_EDATA, "the cubature belongs to model %s (rank %d), the run uses model %s (rank %d)",
+                        cub->model_id, cub->r, s->cub->model_id, s->r);
+    free_cub_data(s);
+    s->cub = cub;
+    return build(s);
+}
+
+void crom_rsim_free(crom_rsim *s)
+{
+    free_cub_data(s);
+    free(s->q);
+    free(s->qd);
+    memset(s, 0, sizeof *s);
+}
+
+/* reduced external load at time t: gravity plus region forces */
+static void loads(const crom_rsim *s, double t, double *f)
+{
+    int r = s->r;
+    memcpy(f, s->fg, sizeof(double) * (size_t)r);
+    for (int b = 0; b < s->nforce; b++) {
+        double F[3];
+        crom_bc_force(s->force[b].bc, t, F);
+        for (int i = 0; i < r; i++)
+            for (int k = 0; k < 3; k++)
+                f[i] += s->force[b].S[i * 3 + k] * F[k] / s->force[b].mass;
+    }
+}
+
+/* per-step data kept in the work buffer tail */
+#define FEXT(s) ((s)->fext)
+
+void crom_rsim_begin_step(crom_rsim *s)
+{
+    const crom_scenario *sc = s->sc;
+    const crom_cub *c = s->cub;
+    int r = s->r;
+    double h = sc->dt;
+    memcpy(s->qn, s->q, sizeof(double) * (size_t)r);
+    for (int i = 0; i < r; i++)
+        s->qhat[i] = s->q[i] + h * s->qd[i];
+    loads(s, (double)(s->step + 1) * h, FEXT(s));
+    /* lagged normal forces of the contact points, from the start of the step */
+    for (int p = 0; p < sc->nplanes; p++)
+        for (int k = 0; k < c->nsurf; k++) {
+            int v = c->surf[k];
+            double x[3];
+            memcpy(x, c->mesh.X + 3 * (size_t)v, sizeof x);
+            cblas_dgemv(CblasRowMajor, CblasNoTrans, 3, r, 1.0, c->W + (size_t)v * 3 * r, r, s->qn, 1, 1.0, x, 1);
+            s->lam[(size_t)p * c->nsurf + k] =
+                sc->contact_stiffness * sc->density * c->vvol[v] * crom_contact_depth(&sc->plane[p], x);
+        }
+}
+
+int crom_rsim_objective(crom_rsim *s, const double *q, double *Eout, double *g, double *H, int project)
+{
+    const crom_scenario *sc = s->sc;
+    const crom_cub *c = s->cub;
+    int r = s->r;
+    size_t rr = (size_t)r * r;
+    double h = sc->dt, *fext = FEXT(s);
+    double *W4 = s->work, *kw = s->work + 12 * (size_t)r; /* kernel scratch: 168 + 12r */
+    double *a = s->gt, *b = s->gt + r, *Ma = s->gt + 2 * (size_t)r;
+    if (g)
+        memset(g, 0, sizeof(double) * (size_t)r);
+    if (H)
+        memset(H, 0, sizeof(double) * rr);
+    /* inertia and damping: ½h⁻²aᵀM a + A/(2h) bᵀM b */
+    for (int i = 0; i < r; i++) {
+        a[i] = q[i] - s->qhat[i];
+        b[i] = q[i] - s->qn[i];
+    }
+    double E = 0, cin = 1 / (h * h), cd = sc->damping / h;
+    for (int i = 0; i < r; i++)
+        Ma[i] = cin * a[i] + cd * b[i];
+    double ka = 0, kb = 0;
+    for (int i = 0; i < r; i++) {
+        double mai = 0, mbi = 0;
+        for (int j = 0; j < r; j++) {
+            mai += s->Mr[i * r + j] * a[j];
+            mbi += s->Mr[i * r + j] * b[j];
+        }
+        ka += a[i] * mai;
+        kb += b[i] * mbi;
+        if (g)
+            g[i] += cin * mai + cd * mbi - fext[i];
+    }
+    E += 0.5 * cin * ka + 0.5 * cd * kb;
+    for (int i = 0; i < r; i++)
+        E -= fext[i] * b[i]; /* external work relative to the step start */
+    if (H)
+        for (size_t i = 0; i < rr; i++)
+            H[i] += (cin + cd) * s->Mr[i];
+    /* boundary-condition penalty κ/2 Σ m ‖W q − ū‖² = κ/2 (qᵀPq − 2qᵀSū + Σm|ū|²) */
+    double t1 = (double)(s->step + 1) * h; /* step * dt, not a running sum */
+    for (int k = 0; k < s->nbc; k++) {
+        const crom_rbc *bc = &s->bc[k];
+        double u[3] = {0, 0, 0};
+        if (bc->bc)
+            crom_bc_displacement(bc->bc, t1, u);
+        double qPq = 0, qSu = 0;
+        for (int i = 0; i < r; i++) {
+            double Pq = 0, Su = bc->S[i * 3] * u[0] + bc->S[i * 3 + 1] * u[1] + bc->S[i * 3 + 2] * u[2];
+            for (int j = 0; j < r; j++)
+                Pq += bc->P[i * r + j] * q[j];
+            qPq += q[i] * Pq;
+            qSu += q[i] * Su;
+            if (g)
+                g[i] += s->kappa * (Pq - Su);
+        }
+        E += 0.5 * s->kappa * (qPq - 2 * qSu + bc->mass * (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]));
+        if (H)
+            for (size_t i = 0; i < rr; i++)
+                H[i] += s->kappa * bc->P[i];
+    }
+    /* elastic energy by cubature */
+    for (int k = 0; k < c->k; k++) {
+        double Xe[12], Dk[9];
+        crom_cub_gather(c, k, Xe, W4, Dk);
+        double Ee = crom_cub_tet(&s->mat, Xe, W4, r, Dk, c->vol[k], c->weight[k], q, project, g, H, kw);
+        if (!isfinite(Ee))
+            return crom_err(CROM_EDATA, "cubature tet %d: non-finite elastic energy", k);
+        E += c->weight[k] * Ee;
+    }
+    /* contact at the surface vertices */
+    for (int p = 0; p < sc->nplanes; p++)
+        for (int k = 0; k < c->nsurf; k++) {
+            int v = c->surf[k];
+            double lam = s->lam[(size_t)p * c->nsurf + k];
+            const double *Wv = c->W + (size_t)v * 3 * r;
+            double x[3], xp[3];
+            memcpy(x, c->mesh.X + 3 * (size_t)v, sizeof x);
+            cblas_dgemv(CblasRowMajor, CblasNoTrans, 3, r, 1.0, Wv, r, q, 1, 1.0, x, 1);
+            if (crom_contact_depth(&sc->plane[p], x) <= 0 && !(lam > 0 && sc->plane[p].mu > 0))
+                continue;
+            memcpy(xp, c->mesh.X + 3 * (size_t)v, sizeof xp);
+            cblas_dgemv(CblasRowMajor, CblasNoTrans, 3, r, 1.0, Wv, r, s->qn, 1, 1.0, xp, 1);
+            double gc[3] = {0, 0, 0}, Hc[9] = {0}, WH[3 * 64];
+            E += crom_contact_eval(&sc->plane[p], sc->contact_stiffness, sc->density * c->vvol[v], x, xp, lam,
+                                   sc->friction_eps * h, g ? gc : NULL, H ? Hc : NULL);
+            if (g)
+                cblas_dgemv(CblasRowMajor, CblasTrans, 3, r, 1.0, Wv, r, gc, 1, 1.0, g, 1);
+            if (H) { /* H += Wvᵀ Hc Wv, in slices of 64 columns */
+                for (int j0 = 0; j0 < r; j0 += 64) {
+                    int nj = r - j0 < 64 ? r - j0 : 64;
+                    cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, 3, nj, 3, 1.0, Hc, 3, Wv + j0, r, 0.0,
+                                WH, nj);
+                    cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, nj, 3, 1.0, Wv, r, WH, nj, 1.0,
+                                H + j0, r);
+                }
+            }
+        }
+    *Eout = E;
+    return isfinite(E) ? 0 : crom_err(CROM_EDATA, "the reduced energy is not finite");
+}
+
+/* RMS displacement over the body of u = W d, relative to the size */
+static double rms_disp(const crom_rsim *s, const double *d)
+{
+    int r = s->r;
+    double v = 0;
+    for (int i = 0; i < r; i++)
+        for (int j = 0; j < r; j++)
+            v += d[i] * s->cub->WtVW[i * r + j] * d[j];
+    return sqrt(fmax(v, 0) / s->cub->mesh_volume) / s->L;
+}
+
+/* The step's problem for the latent minimizer (lib/rom/newton.h): the
+ * objective, the Newton (or the paper's descent) direction, the size of a
+ * correction as an RMS displacement relative to the body.
+ *
+ * The reduced Hessian costs K 12 r² flops over a cubature of K tets, the
+ * gradient K 24 r: with r in the hundreds (skinning handles) the Hessian is
+ * nearly all of a step. So its Cholesky factor is kept and reused across
+ * iterations and steps (the chord method; the Hessian changes little from
+ * one step to the next: M/h² dominates it and the elastic part moves
+ * slowly), and a fresh one is made when the reused one has served
+ * LAG_ITERS iterations of a step without convergence, or fails to give an
+ * acceptable step (newton.h). Measured on a 222-dimensional skinning
+ * subspace over 190 tets (soft bar, dt 0.05): 13 ms per step with a fresh
+ * Hessian at every iteration (3.6 iterations), 6.7 ms reusing it for 2 or
+ * 3 iterations (5.4-6.5 iterations), 8-12 ms for 6-20. */
+#define LAG_ITERS 3
+
+static int step_objective(void *ctx, const double *q, double *E, double *g, double *H, int project)
+{
+    return crom_rsim_objective(ctx, q, E, g, H, project);
+}
+
+static int step_wants_hessian(void *ctx, int it)
+{
+    crom_rsim *s = ctx;
+    return !s->fac_ok || s->fac_iters >= LAG_ITERS;
+}
+
+static void step_stale(void *ctx) { ((crom_rsim *)ctx)->fac_ok = 0; }
+
+static int step_direction(void *ctx, int it, int project, const double *q, const double *g, const double *H,
+                          double *d)
+{
+    crom_rsim *s = ctx;
+    int r = s->r;
+    for (int i = 0; i < r; i++)
+        d[i] = -g[i];
+    if (s->solver == CROM_SOLVER_GD) { /* descent: the gradient in the metric of the reduced mass */
+        LAPACKE_dpotrs(LAPACK_ROW_MAJOR, 'U', r, 1, s->Gfac, r, d, 1);
+        return 0;
+    }
+    if (H) { /* a fresh Hessian: factor it */
+        memcpy(s->Hfac, H, sizeof(double) * (size_t)r * r);
+        s->fac_iters = 0;
+        if (!(s->fac_ok = LAPACKE_dpotrf(LAPACK_ROW_MAJOR, 'U', r, s->Hfac, r) == 0))
+            return 1;
+    }
+    s->fac_iters++;
+    LAPACKE_dpotrs(LAPACK_ROW_MAJOR, 'U', r, 1, s->Hfac, r, d, 1);
+    return 0;
+}
+
+static double step_size(void *ctx, const double *d) { return rms_disp(ctx, d); }
+
+int crom_rsim_step(crom_rsim *s, crom_rstep_stats *st)
+{
+    const crom_scenario *sc = s->sc;
+    int r = s->r;
+    double h = sc->dt, t0 = crom_now();
+    memset(st, 0, sizeof *st);
+    crom_rsim_begin_step(s);
+    memcpy(s->q, s->qhat, sizeof(double) * (size_t)r);
+    int lag = s->lagged && s->solver != CROM_SOLVER_GD;
+    if (!lag)
+        s->fac_ok = 0;
+    s->fac_iters = 0; /* a reused factor gets LAG_ITERS iterations in each step */
+    const crom_newton_problem prob = {r, step_objective, step_direction, step_size,
+                                      lag ? step_wants_hessian : NULL, lag ? step_stale : NULL,
+                                      s->solver == CROM_SOLVER_GD, "Newton", "the reduced Hessian is singular"};
+    const crom_newton_work w = {s->g, s->H, s->d, s->qt};
+    int rc = crom_newton_solve(&prob, s, &w, s->q, sc->tol, sc->max_iter, s->step, &st->iterations,
+                               &st->residual, &st->converged);
+    if (rc)
+        return rc;
+    for (int i = 0; i < r; i++)
+        s->qd[i] = (s->q[i] - s->qn[i]) / h;
+    s->step++;
+    s->t = (double)s->step * h; /* exact multiples of dt (issue 12) */
+    st->constraint_residual = crom_rsim_constraint_residual(s);
+    st->seconds = crom_now() - t0;
+    return 0;
+}
+
+double crom_rsim_constraint_residual(const crom_rsim *s)
+{
+    const crom_cub *c = s->cub;
+    int r = s->r;
+    double worst = 0;
+    for (int k = 0; k < s->nbc; k++) {
+        double u[3] = {0, 0, 0};
+        if (s->bc[k].bc)
+            crom_bc_displacement(s->bc[k].bc, s->t, u);
+        for (int j = 0; j < s->bc[k].n; j++) {
+            int v = s->bc[k].idx[j];
+            double w[3] = {-u[0], -u[1], -u[2]};
+            cblas_dgemv(CblasRowMajor, CblasNoTrans, 3, r, 1.0, c->W + (size_t)v * 3 * r, r, s->q, 1, 1.0, w, 1);
+            worst = fmax(worst, sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]));
+        }
+    }
+    return worst;
+}
+
+int crom_rsim_energies(crom_rsim *s, double *kinetic, double *elastic, double *external)
+{
+    const crom_cub *c = s->cub;
+    int r = s->r;
+    double K = 0, Ee = 0, W = 0, *f = s->gt;
+    for (int i = 0; i < r; i++)
+        for (int j = 0; j < r; j++)
+            K += 0.5 * s->qd[i] * s->Mr[i * r + j] * s->qd[j];
+    loads(s, s->t, f);
+    for (int i = 0; i < r; i++)
+        W -= f[i] * s->q[i];
+    double *W4 = s->work, *kw = s->work + 12 * (size_t)r;
+    for (int k = 0; k < c->k; k++) {
+        double Xe[12], Dk[9];
+        crom_cub_gather(c, k, Xe, W4, Dk);
+        double E = crom_cub_tet(&s->mat, Xe, W4, r, Dk, c->vol[k], 1.0, s->q, 0, NULL, NULL, kw);
+        if (!isfinite(E))
+            return crom_err(CROM_EDATA, "non-finite elastic energy");
+        Ee += c->weight[k] * E;
+    }
+    *kinetic = K;
+    *elastic = Ee;
+    *external = W;
+    return 0;
+}

@@ -1,0 +1,105 @@
+/* rom.h — implicit Euler in a linear subspace u(X) = W(X) q (LiCROM §4–5,
+ * eq. 5–8), the reduced counterpart of sim.h with the same scenario.
+ *
+ * Each step minimizes over q
+ *   E(q) = 1/(2h²) (q − q̂)ᵀ M_r (q − q̂) + A/(2h) (q − q_n)ᵀ M_r (q − q_n)
+ *        + Σ_e w_e V_e Ψ(F_e(X + W q)) − f_rᵀ q + κ/2 Σ_bc Σ_v m_v ‖W_v q − ū_v(t)‖²
+ *        + contact(X + W q at the surface vertices),
+ *   q̂ = q_n + h q̇_n,
+ * with the exact reduced mass M_r = ρ WᵀVW (lumped volumes), the elastic
+ * energy by cubature (weights w_e), reduced gravity and forces f_r, pinned and
+ * prescribed-velocity regions as a stiff penalty of rate κ on the latent
+ * directions that move them (their largest miss is reported), and the same frictional planes as the full simulator at
+ * every surface vertex. Solvers:
+ *   newton  exact reduced gradient and Hessian Σ w_e W_eᵀ H_e W_e (LiCROM §7),
+ *           true element Hessians, projected to SPD when the sum is not
+ *           positive definite; line search; converged when the RMS
+ *           displacement of the correction is below tol times the size;
+ *   gd      LiCROM §5: descent directions −G⁻¹∇E with G = Σ w_e Σ_a W_aᵀ W_a
+ *           prefactored (the least-squares projection of full-space
+ *           increments at the cubature points, eq. 10), scaled by ρ/h² and
+ *           with the boundary penalty's κP added so that constraints hold;
+ *           line search; the paper runs a fixed number of iterations:
+ *           max_iter is that count. Slow where stiffness dominates inertia. */
+#ifndef CROM_ROM_H
+#define CROM_ROM_H
+
+#include "phys/scenario.h"
+#include "rom/cubature.h"
+
+enum { CROM_SOLVER_NEWTON = 0, CROM_SOLVER_GD = 1 };
+
+typedef struct {
+    int iterations;
+    double residual;            /* last correction, RMS displacement / size */
+    double constraint_residual; /* largest ‖W_v q − ū_v‖ over BC vertices (m) */
+    double seconds;
+    int converged;
+} crom_rstep_stats;
+
+typedef struct {
+    int *idx;           /* vertices of the cubature mesh */
+    int n;
+    double mass;        /* Σ m_v */
+    double *P;          /* [r][r] Σ m_v W_vᵀ W_v */
+    double *S;          /* [r][3] Σ m_v W_vᵀ */
+    const crom_bc *bc;  /* NULL for a pin */
+} crom_rbc;
+
+typedef struct {
+    const crom_scenario *sc;
+    const crom_cub *cub;
+    crom_material mat;
+    int r, solver;
+    double kappa;       /* BC penalty rate (1/s²) */
+    double bc_threshold;/* constrained directions: μ >= threshold × BC mass fraction */
+    int nconstrained;   /* how many latent directions the BCs constrain */
+    double t;
+    long step;
+    double *q, *qd;     /* state (m, m/s) */
+    /* private, rebuilt per cubature */
+    double *Mr, *fg, *G, *Gfac, L;
+    int nbc, nforce;
+    crom_rbc *bc, *force;
+    double *lam;        /* [nplanes][nsurf] lagged normal forces */
+    double *work, *qn, *qhat, *g, *H, *d, *qt, *gt, *fext;
+    /* the factored reduced Hessian reused across iterations and steps (see
+     * rom.c, step_direction) */
+    int lagged;         /* 1: reuse it (the default); 0: a fresh Hessian every iteration */
+    double *Hfac;       /* [r][r] its Cholesky factor */
+    int fac_ok;         /* Hfac holds a factor */
+    int fac_iters;      /* iterations since it was made */
+} crom_rsim;
+
+/* Set up on a cubature (borrowed) with a scenario (borrowed); q = q0 and
+ * q̇ = qd0 (NULL: rest). Regions resolve against the cubature's mesh: an
+ * unknown or empty one is CROM_EUSAGE. kappa <= 0 picks 1e4/h². The penalty
+ * acts only on the latent directions that move the BC vertices (see
+ * rom.c, constrain_directions: threshold 0.1 of the BC mass fraction);
+ * set s->bc_threshold and call crom_rsim_set_cubature to change it. */
+int crom_rsim_init(crom_rsim *s, const crom_cub *cub, const crom_scenario *sc, int solver,
+                   double kappa, const double *q0, const double *qd0);
+
+/* Switch to another cubature (a remeshed body, LiCROM §4): the state q, q̇
+ * carries over unchanged. CROM_EDATA if its model_id or rank differs. */
+int crom_rsim_set_cubature(crom_rsim *s, const crom_cub *cub);
+
+/* Advance one step. CROM_EDATA when Newton does not converge in max_iter
+ * iterations (gd never fails that way: its count is fixed). */
+int crom_rsim_step(crom_rsim *s, crom_rstep_stats *st);
+
+/* Reduced energy E(q) of the current step and its gradient (for tests). */
+int crom_rsim_objective(crom_rsim *s, const double *q, double *E, double *g, double *H, int project);
+
+/* Prepare the step's predictor and loads without solving (for tests). */
+void crom_rsim_begin_step(crom_rsim *s);
+
+/* Kinetic ½q̇ᵀM_r q̇, elastic (by cubature) and external −f_r·q energies. */
+int crom_rsim_energies(crom_rsim *s, double *kinetic, double *elastic, double *external);
+
+/* Largest ‖W_v q − ū_v(t)‖ over BC vertices at the current state (m). */
+double crom_rsim_constraint_residual(const crom_rsim *s);
+
+void crom_rsim_free(crom_rsim *s);
+
+#endif
