@@ -30,7 +30,6 @@ static void free_cub_data(crom_rsim *s)
     free(s->G);
     free(s->Gfac);
     free(s->lam);
-    free(s->work);
     free(s->qn);
     free(s->qhat);
     free(s->g);
@@ -40,9 +39,10 @@ static void free_cub_data(crom_rsim *s)
     free(s->gt);
     free(s->fext);
     free(s->Hfac);
+    crom_elastic_free(&s->el);
     free_bcs(s->bc, s->nbc);
     free_bcs(s->force, s->nforce);
-    s->Mr = s->fg = s->G = s->Gfac = s->lam = s->work = NULL;
+    s->Mr = s->fg = s->G = s->Gfac = s->lam = NULL;
     s->qn = s->qhat = s->g = s->H = s->d = s->qt = s->gt = s->fext = s->Hfac = NULL;
     s->fac_ok = 0;
     s->bc = s->force = NULL;
@@ -157,22 +157,23 @@ static int build(crom_rsim *s)
     s->G = crom_calloc(rr, sizeof(double));
     s->Gfac = crom_malloc(sizeof(double) * rr);
     s->lam = crom_calloc((size_t)(sc->nplanes ? sc->nplanes : 1) * (size_t)(c->nsurf ? c->nsurf : 1), sizeof(double));
-    s->work = crom_malloc(sizeof(double) * (24 * (size_t)r + 168));
     s->qn = crom_malloc(sizeof(double) * (size_t)r);
     s->qhat = crom_malloc(sizeof(double) * (size_t)r);
     s->g = crom_malloc(sizeof(double) * (size_t)r);
     s->H = crom_malloc(sizeof(double) * rr);
     s->d = crom_malloc(sizeof(double) * (size_t)r);
     s->qt = crom_malloc(sizeof(double) * (size_t)r);
-    s->gt = crom_malloc(sizeof(double) * 3 * (size_t)r);
+    s->gt = crom_malloc(sizeof(double) * 4 * (size_t)r);
     s->fext = crom_calloc((size_t)r, sizeof(double));
     s->Hfac = crom_malloc(sizeof(double) * rr);
     s->fac_ok = 0;
     s->bc = crom_calloc((size_t)(sc->npins + sc->nvel + 1), sizeof(crom_rbc));
     s->force = crom_calloc((size_t)(sc->nforce + 1), sizeof(crom_rbc));
-    if (!s->Mr || !s->fg || !s->G || !s->Gfac || !s->lam || !s->work || !s->qn || !s->qhat || !s->g ||
+    if (!s->Mr || !s->fg || !s->G || !s->Gfac || !s->lam || !s->qn || !s->qhat || !s->g ||
         !s->H || !s->d || !s->qt || !s->gt || !s->fext || !s->Hfac || !s->bc || !s->force)
         return CROM_EINTERNAL;
+    if ((rc = crom_elastic_init(&s->el, c)))
+        return rc;
     for (size_t i = 0; i < rr; i++)
         s->Mr[i] = rho * c->WtVW[i];
     for (int i = 0; i < r; i++)
@@ -366,8 +367,7 @@ int crom_rsim_objective(crom_rsim *s, const double *q, double *Eout, double *g, 
     int r = s->r;
     size_t rr = (size_t)r * r;
     double h = sc->dt, *fext = FEXT(s);
-    double *W4 = s->work, *kw = s->work + 12 * (size_t)r; /* kernel scratch: 168 + 12r */
-    double *a = s->gt, *b = s->gt + r, *Ma = s->gt + 2 * (size_t)r;
+    double *a = s->gt, *b = s->gt + r, *Ma = s->gt + 2 * (size_t)r, *Mb = s->gt + 3 * (size_t)r;
     if (g)
         memset(g, 0, sizeof(double) * (size_t)r);
     if (H)
@@ -378,26 +378,15 @@ int crom_rsim_objective(crom_rsim *s, const double *q, double *Eout, double *g, 
         b[i] = q[i] - s->qn[i];
     }
     double E = 0, cin = 1 / (h * h), cd = sc->damping / h;
-    for (int i = 0; i < r; i++)
-        Ma[i] = cin * a[i] + cd * b[i];
-    double ka = 0, kb = 0;
-    for (int i = 0; i < r; i++) {
-        double mai = 0, mbi = 0;
-        for (int j = 0; j < r; j++) {
-            mai += s->Mr[i * r + j] * a[j];
-            mbi += s->Mr[i * r + j] * b[j];
-        }
-        ka += a[i] * mai;
-        kb += b[i] * mbi;
-        if (g)
-            g[i] += cin * mai + cd * mbi - fext[i];
-    }
-    E += 0.5 * cin * ka + 0.5 * cd * kb;
-    for (int i = 0; i < r; i++)
-        E -= fext[i] * b[i]; /* external work relative to the step start */
+    cblas_dsymv(CblasRowMajor, CblasUpper, r, 1.0, s->Mr, r, a, 1, 0.0, Ma, 1);
+    cblas_dsymv(CblasRowMajor, CblasUpper, r, 1.0, s->Mr, r, b, 1, 0.0, Mb, 1);
+    E += 0.5 * cin * cblas_ddot(r, a, 1, Ma, 1) + 0.5 * cd * cblas_ddot(r, b, 1, Mb, 1);
+    E -= cblas_ddot(r, fext, 1, b, 1); /* external work relative to the step start */
+    if (g)
+        for (int i = 0; i < r; i++)
+            g[i] += cin * Ma[i] + cd * Mb[i] - fext[i];
     if (H)
-        for (size_t i = 0; i < rr; i++)
-            H[i] += (cin + cd) * s->Mr[i];
+        cblas_daxpy((int)rr, cin + cd, s->Mr, 1, H, 1);
     /* boundary-condition penalty κ/2 Σ m ‖W q − ū‖² = κ/2 (qᵀPq − 2qᵀSū + Σm|ū|²) */
     double t1 = (double)(s->step + 1) * h; /* step * dt, not a running sum */
     for (int k = 0; k < s->nbc; k++) {
@@ -405,30 +394,23 @@ int crom_rsim_objective(crom_rsim *s, const double *q, double *Eout, double *g, 
         double u[3] = {0, 0, 0};
         if (bc->bc)
             crom_bc_displacement(bc->bc, t1, u);
-        double qPq = 0, qSu = 0;
-        for (int i = 0; i < r; i++) {
-            double Pq = 0, Su = bc->S[i * 3] * u[0] + bc->S[i * 3 + 1] * u[1] + bc->S[i * 3 + 2] * u[2];
-            for (int j = 0; j < r; j++)
-                Pq += bc->P[i * r + j] * q[j];
-            qPq += q[i] * Pq;
-            qSu += q[i] * Su;
-            if (g)
-                g[i] += s->kappa * (Pq - Su);
-        }
+        double *Pq = Ma, *Su = Mb; /* free again */
+        cblas_dsymv(CblasRowMajor, CblasUpper, r, 1.0, bc->P, r, q, 1, 0.0, Pq, 1);
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, r, 3, 1.0, bc->S, 3, u, 1, 0.0, Su, 1);
+        double qPq = cblas_ddot(r, q, 1, Pq, 1), qSu = cblas_ddot(r, q, 1, Su, 1);
+        if (g)
+            for (int i = 0; i < r; i++)
+                g[i] += s->kappa * (Pq[i] - Su[i]);
         E += 0.5 * s->kappa * (qPq - 2 * qSu + bc->mass * (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]));
         if (H)
-            for (size_t i = 0; i < rr; i++)
-                H[i] += s->kappa * bc->P[i];
+            cblas_daxpy((int)rr, s->kappa, bc->P, 1, H, 1);
     }
-    /* elastic energy by cubature */
-    for (int k = 0; k < c->k; k++) {
-        double Xe[12], Dk[9];
-        crom_cub_gather(c, k, Xe, W4, Dk);
-        double Ee = crom_cub_tet(&s->mat, Xe, W4, r, Dk, c->vol[k], c->weight[k], q, project, g, H, kw);
-        if (!isfinite(Ee))
-            return crom_err(CROM_EDATA, "cubature tet %d: non-finite elastic energy", k);
-        E += c->weight[k] * Ee;
-    }
+    /* elastic energy by cubature (LiCROM eq. 7-8), in the space of F */
+    double Ee;
+    int rc = crom_elastic_eval(&s->el, &s->mat, q, project, &Ee, g, H);
+    if (rc)
+        return rc;
+    E += Ee;
     /* contact at the surface vertices */
     for (int p = 0; p < sc->nplanes; p++)
         for (int k = 0; k < c->nsurf; k++) {
@@ -465,10 +447,9 @@ int crom_rsim_objective(crom_rsim *s, const double *q, double *Eout, double *g, 
 static double rms_disp(const crom_rsim *s, const double *d)
 {
     int r = s->r;
-    double v = 0;
-    for (int i = 0; i < r; i++)
-        for (int j = 0; j < r; j++)
-            v += d[i] * s->cub->WtVW[i * r + j] * d[j];
+    double *Vd = s->gt + 3 * (size_t)r; /* free outside the objective */
+    cblas_dsymv(CblasRowMajor, CblasUpper, r, 1.0, s->cub->WtVW, r, d, 1, 0.0, Vd, 1);
+    double v = cblas_ddot(r, d, 1, Vd, 1);
     return sqrt(fmax(v, 0) / s->cub->mesh_volume) / s->L;
 }
 
@@ -484,10 +465,11 @@ static double rms_disp(const crom_rsim *s, const double *d)
  * slowly), and a fresh one is made when the reused one has served
  * LAG_ITERS iterations of a step without convergence, or fails to give an
  * acceptable step (newton.h). Measured on a 222-dimensional skinning
- * subspace over 190 tets (soft bar, dt 0.05): 13 ms per step with a fresh
- * Hessian at every iteration (3.6 iterations), 6.7 ms reusing it for 2 or
- * 3 iterations (5.4-6.5 iterations), 8-12 ms for 6-20. */
-#define LAG_ITERS 3
+ * subspace over 190 tets (soft bar, dt 0.05, lib/rom/elastic.c's Hessian):
+ * 9.2 ms per step with a fresh Hessian at every iteration (5.2 iterations),
+ * 2.4-4 ms reusing it for 2-6 iterations (5.4-8.1 iterations); never
+ * refreshing it within a step does not converge. */
+#define LAG_ITERS 4
 
 static int step_objective(void *ctx, const double *q, double *E, double *g, double *H, int project)
 {
@@ -513,14 +495,16 @@ static int step_direction(void *ctx, int it, int project, const double *q, const
         LAPACKE_dpotrs(LAPACK_ROW_MAJOR, 'U', r, 1, s->Gfac, r, d, 1);
         return 0;
     }
-    if (H) { /* a fresh Hessian: factor it */
+    if (H) { /* a fresh Hessian: factor it, H = UᵀU (row-major upper U is the
+              * column-major lower factor: no transposed copies) */
         memcpy(s->Hfac, H, sizeof(double) * (size_t)r * r);
         s->fac_iters = 0;
-        if (!(s->fac_ok = LAPACKE_dpotrf(LAPACK_ROW_MAJOR, 'U', r, s->Hfac, r) == 0))
+        if (!(s->fac_ok = LAPACKE_dpotrf_work(LAPACK_COL_MAJOR, 'L', r, s->Hfac, r) == 0))
             return 1;
     }
     s->fac_iters++;
-    LAPACKE_dpotrs(LAPACK_ROW_MAJOR, 'U', r, 1, s->Hfac, r, d, 1);
+    cblas_dtrsv(CblasRowMajor, CblasUpper, CblasTrans, CblasNonUnit, r, s->Hfac, r, d, 1);
+    cblas_dtrsv(CblasRowMajor, CblasUpper, CblasNoTrans, CblasNonUnit, r, s->Hfac, r, d, 1);
     return 0;
 }
 
@@ -576,7 +560,6 @@ double crom_rsim_constraint_residual(const crom_rsim *s)
 
 int crom_rsim_energies(crom_rsim *s, double *kinetic, double *elastic, double *external)
 {
-    const crom_cub *c = s->cub;
     int r = s->r;
     double K = 0, Ee = 0, W = 0, *f = s->gt;
     for (int i = 0; i < r; i++)
@@ -585,15 +568,9 @@ int crom_rsim_energies(crom_rsim *s, double *kinetic, double *elastic, double *e
     loads(s, s->t, f);
     for (int i = 0; i < r; i++)
         W -= f[i] * s->q[i];
-    double *W4 = s->work, *kw = s->work + 12 * (size_t)r;
-    for (int k = 0; k < c->k; k++) {
-        double Xe[12], Dk[9];
-        crom_cub_gather(c, k, Xe, W4, Dk);
-        double E = crom_cub_tet(&s->mat, Xe, W4, r, Dk, c->vol[k], 1.0, s->q, 0, NULL, NULL, kw);
-        if (!isfinite(E))
-            return crom_err(CROM_EDATA, "non-finite elastic energy");
-        Ee += c->weight[k] * E;
-    }
+    int rc = crom_elastic_eval(&s->el, &s->mat, s->q, 0, &Ee, NULL, NULL);
+    if (rc)
+        return rc;
     *kinetic = K;
     *elastic = Ee;
     *external = W;

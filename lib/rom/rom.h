@@ -26,6 +26,7 @@
 
 #include "phys/scenario.h"
 #include "rom/cubature.h"
+#include "rom/elastic.h"
 
 enum { CROM_SOLVER_NEWTON = 0, CROM_SOLVER_GD = 1 };
 
@@ -62,13 +63,14 @@ typedef struct {
     int nbc, nforce;
     crom_rbc *bc, *force;
     double *lam;        /* [nplanes][nsurf] lagged normal forces */
-    double *work, *qn, *qhat, *g, *H, *d, *qt, *gt, *fext;
+    double *qn, *qhat, *g, *H, *d, *qt, *gt, *fext;
     /* the factored reduced Hessian reused across iterations and steps (see
      * rom.c, step_direction) */
     int lagged;         /* 1: reuse it (the default); 0: a fresh Hessian every iteration */
     double *Hfac;       /* [r][r] its Cholesky factor */
     int fac_ok;         /* Hfac holds a factor */
     int fac_iters;      /* iterations since it was made */
+    crom_elastic el;    /* the elastic energy over the cubature (rebuilt per cubature) */
 } crom_rsim;
 
 /* Set up on a cubature (borrowed) with a scenario (borrowed); q = q0 and
