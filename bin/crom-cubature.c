@@ -297,12 +297,12 @@ static int run(crom_cli *cli, args *a)
         }
         np = a->maxpose;
     }
-    double t0 = crom_now(), tW;
+    double t0 = crom_clock_now(), tW;
     if (is_map) {
         if ((rc = crom_map_init(&map, &model, &m)) ||
             (rc = map_poses(cli, a, &model, &map, &poses, &np, &proj)))
             goto out;
-        tW = crom_now() - t0;
+        tW = crom_clock_now() - t0;
     } else {
         if (a->o.scheme == CROM_CUB_OPTIMIZED && !poses) {
             rc = crom_err(CROM_EUSAGE, "--scheme optimized needs --poses LATENT (training poses of the model)");
@@ -324,7 +324,7 @@ static int run(crom_cli *cli, args *a)
         if (nshift)
             crom_cli_info(cli, "%d vertices along cracks sample W on their own side (--crack-offset %g)", nshift,
                           a->crack_offset);
-        tW = crom_now() - t0;
+        tW = crom_clock_now() - t0;
         if (outside)
             crom_cli_warn(cli, "%zu of %d vertices lie outside the model's mesh: W is extended there", outside, m.nv);
     }
@@ -336,11 +336,11 @@ static int run(crom_cli *cli, args *a)
     crom_rng rng;
     crom_rng_seed(&rng, cli->seed);
     crom_cub c;
-    t0 = crom_now();
+    t0 = crom_clock_now();
     if ((rc = crom_cub_build(&c, &m, is_map ? map.B : W, rb, model.model_id, &a->o, &rng)))
         goto out;
     c.map_rank = is_map ? r : 0;
-    double tsel = crom_now() - t0;
+    double tsel = crom_clock_now() - t0;
     crom_cli_info(cli, "%s: %d of %d tets (%.1f%%), W on %d vertices in %.1f ms, selection in %.1f ms",
                   c.scheme, c.k, m.nt, 100.0 * c.k / m.nt, m.nv, 1e3 * tW, 1e3 * tsel);
     if (poses) {
@@ -352,7 +352,7 @@ static int run(crom_cli *cli, args *a)
     }
     crom_out o;
     if (!rc && !(rc = crom_out_create(&o, a->out, CROM_CUB_SCHEMA, CROM_CUB_VERSION, cli->cmdline, hist, CROM_OUT_PLAIN))) {
-        double wsec = crom_wall(tW), ssec = crom_wall(tsel);
+        double wsec = crom_clock_wall(tW), ssec = crom_clock_wall(tsel);
         rc = crom_cub_write(o.h5, &c);
         if (!rc)
             rc = crom_h5_set_f64(o.h5, ".", "w_seconds", &wsec, 1);

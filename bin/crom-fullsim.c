@@ -86,7 +86,7 @@ static int put_frame(crom_out *o, crom_sim *s, const crom_step_stats *st, double
         return rc;
     crom_sim_displacement(s, u);
     double step = (double)s->step, tot = K + E + W, it = st->newton, res = st->residual,
-           secs = crom_wall(st->t_total);
+           secs = crom_clock_wall(st->t_total);
     const double *vals[] = {&s->t, &step, u, s->v, &K, &E, &W, &tot, &it, &res, &secs};
     return crom_out_frame(o, vals);
 }

@@ -157,7 +157,7 @@ static int run(crom_cli *cli, args *a)
     crom_mesh m;
     signal(SIGALRM, on_alarm);
     alarm((unsigned)(a->timeout + 0.999));
-    double t0 = crom_now();
+    double t0 = crom_clock_now();
     crom_meshgen_plan_info plan;
     int rc = crom_meshgen_plan(&a->gen, &plan);
     if (rc)
@@ -187,7 +187,7 @@ static int run(crom_cli *cli, args *a)
         int wt;
         crom_mesh_quality(&m, &worst, &mean, &wt);
         crom_cli_info(cli, "%d vertices, %d tets, volume %.6g m^3, quality worst %.3f (tet %d) mean %.3f, %.2f s",
-                      m.nv, m.nt, crom_mesh_volume(&m), worst, wt, mean, crom_now() - t0);
+                      m.nv, m.nt, crom_mesh_volume(&m), worst, wt, mean, crom_clock_now() - t0);
         for (int r = 0; r < m.nregions; r++)
             crom_cli_info(cli, "region %s: %d vertices (%s)", m.regions[r].name, m.regions[r].n,
                           m.regions[r].source);

@@ -270,7 +270,7 @@ static int put_values(crom_out *o, double t, long nstep, const double *q, const 
                       double W, const crom_rstep_stats *st, int entry)
 {
     double step = (double)nstep, tot = K + E + W, it = st->iterations, res = st->residual,
-           cres = st->constraint_residual, cub = entry, secs = crom_wall(st->seconds);
+           cres = st->constraint_residual, cub = entry, secs = crom_clock_wall(st->seconds);
     const double *vals[] = {&t, &step, q, qd, &K, &E, &W, &tot, &it, &res, &cres, &cub, &secs};
     return crom_out_frame(o, vals);
 }

@@ -629,7 +629,7 @@ void crom_progress_start(crom_progress *p, const crom_cli *cli,
     p->active = !cli->quiet && isatty(2);
     p->label = label;
     p->total = total;
-    p->t0 = crom_now();
+    p->t0 = crom_clock_now();
     p->last = 0;
 }
 
@@ -637,7 +637,7 @@ void crom_progress_update(crom_progress *p, long done, const char *extra)
 {
     if (!p->active)
         return;
-    double t = crom_now();
+    double t = crom_clock_now();
     if (t - p->last < 0.2 && done < p->total)
         return;
     p->last = t;

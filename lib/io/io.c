@@ -1131,7 +1131,7 @@ static int write_identity(crom_out *o, const char *schema, int version,
                           const char *cmdline, const char *parent_history)
 {
     char when[32];
-    crom_utc_now(when, sizeof when);
+    crom_clock_utc(when, sizeof when);
     const char *cmd = cmdline ? cmdline : "(library)";
     size_t n = (parent_history ? strlen(parent_history) : 0) + strlen(cmd) + 128;
     char *hist = crom_malloc(n);

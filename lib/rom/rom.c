@@ -530,7 +530,7 @@ int crom_rsim_step(crom_rsim *s, crom_rstep_stats *st)
 {
     const crom_scenario *sc = s->sc;
     int r = s->r;
-    double h = sc->dt, t0 = crom_now();
+    double h = sc->dt, t0 = crom_clock_now();
     memset(st, 0, sizeof *st);
     crom_rsim_begin_step(s);
     memcpy(s->q, s->qhat, sizeof(double) * (size_t)r);
@@ -551,7 +551,7 @@ int crom_rsim_step(crom_rsim *s, crom_rstep_stats *st)
     s->step++;
     s->t = (double)s->step * h; /* exact multiples of dt (issue 12) */
     st->constraint_residual = crom_rsim_constraint_residual(s);
-    st->seconds = crom_now() - t0;
+    st->seconds = crom_clock_now() - t0;
     return 0;
 }
 
