@@ -28,9 +28,9 @@ static const crom_opt cub_opts[] = {
     {"output", 'o', "OUT", "Write the cubature to OUT (default stdout)."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", cub_opts}, {NULL, NULL}};
+static const crom_cli_optgroup groups[] = {{"Options", cub_opts}, {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-cubature",
     "pick and weight cubature tets for reduced simulation, caching W on the mesh",
     "crom-cubature --model MODEL [--scheme random|metis|optimized|all] [--count K]\n"

@@ -20,9 +20,9 @@ static const crom_opt diff_opts[] = {
     {"max-error", O_MAX, "E", "Exit with status 1 when the relative error over the run exceeds E (like diff(1) for differing files)."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", diff_opts}, {NULL, NULL}};
+static const crom_cli_optgroup groups[] = {{"Options", diff_opts}, {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-diff",
     "relative displacement error between two simulation results",
     "crom-diff A B [--mesh MESH] [--model MODEL] [--csv FILE] [--max-error E]",

@@ -24,9 +24,9 @@ static const crom_opt encode_opts[] = {
     {"lsq", O_LSQ, NULL, "Same as --encoder lsq."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", encode_opts}, {NULL, NULL}};
+static const crom_cli_optgroup groups[] = {{"Options", encode_opts}, {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-encode",
     "encode the frames of a trajectory on any mesh as latent coordinates q",
     "crom-encode --model M [--encoder lsq|pointnet] [-o OUT] [TRAJ]",
@@ -253,8 +253,8 @@ static int run(crom_cli *cli, args *a)
         (rc = crom_out_field(&o, "reconstruction_error", 0, NULL, M.basis)) ||
         (rc = crom_out_begin(&o)))
         goto out;
-    crom_progress prog;
-    crom_progress_start(&prog, cli, "encode", in.form == CROM_FORM_H5 ? in.nframes : 0);
+    crom_cli_progress prog;
+    crom_cli_progress_start(&prog, cli, "encode", in.form == CROM_FORM_H5 ? in.nframes : 0);
     double E2 = 0, U2 = 0;
     long nf = 0;
     while ((rc = crom_in_next(&in)) == 1) {
@@ -298,9 +298,9 @@ static int run(crom_cli *cli, args *a)
         if ((rc = crom_out_frame(&o, vals)))
             break;
         nf++;
-        crom_progress_update(&prog, nf, NULL);
+        crom_cli_progress_update(&prog, nf, NULL);
     }
-    crom_progress_end(&prog);
+    crom_cli_progress_end(&prog);
     if (rc < 0)
         rc = -rc;
     if (rc)

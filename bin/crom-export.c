@@ -33,9 +33,9 @@ static const crom_opt export_opts[] = {
     {"poisson", O_POISSON, "NU", "vtu, pvd, xdmf: Poisson ratio of the same (default: the input's 'poisson' attribute). When the input records no material and none is given, those two fields are left out (with a note)."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", export_opts}, {NULL, NULL}};
+static const crom_cli_optgroup groups[] = {{"Options", export_opts}, {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-export",
     "write crom meshes, trajectories and decoded latent runs as VTU/PVD, XDMF, MSH, OBJ, PLY, STL or PNG",
     "crom-export --format vtu|pvd|xdmf|msh|obj|ply|stl|png|strip [options] -o OUT [MESH|TRAJ|-]\n"
@@ -297,8 +297,8 @@ static int export_series(crom_cli *cli, args *a, crom_follow *s, crom_export_cel
                                    s->res[0].in.history);
     if (rc)
         return rc;
-    crom_progress prog;
-    crom_progress_start(&prog, cli, "export", s->res[0].in.form == CROM_FORM_H5 ? s->res[0].in.nframes : 0);
+    crom_cli_progress prog;
+    crom_cli_progress_start(&prog, cli, "export", s->res[0].in.form == CROM_FORM_H5 ? s->res[0].in.nframes : 0);
     long i = 0;
     double t;
     crom_export_frame fr;
@@ -308,9 +308,9 @@ static int export_series(crom_cli *cli, args *a, crom_follow *s, crom_export_cel
         if ((rc = frame_at(s, s->cur, s->u[s->cur], s->v[s->cur], t, cells, &fr)) ||
             (rc = crom_export_sink_frame(&k, s->cur, &fr)))
             break;
-        crom_progress_update(&prog, i, NULL);
+        crom_cli_progress_update(&prog, i, NULL);
     }
-    crom_progress_end(&prog);
+    crom_cli_progress_end(&prog);
     if (!rc && k.n == 0 && kind >= CROM_SERIES_XDMF)
         rc = crom_err(CROM_EDATA, "%s has no frames", s->res[0].in.name);
     if (rc) {

@@ -21,12 +21,12 @@ static const crom_opt out_opts[] = {
     {"stats", O_STATS, "CSV", "Write one line per step to CSV: Newton and CG iterations, factorizations, residual, and the wall-time split (total, assembly, factorization, solves, line search) in seconds."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {
+static const crom_cli_optgroup groups[] = {
     {"Scenario options (the same in crom-reducedstep)", crom_scenario_opts},
     {"Output options", out_opts},
     {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-fullsim",
     "implicit FEM of a stable neo-Hookean solid (crom/mesh to crom/trajectory)",
     "crom-fullsim [scenario options] [-o OUT] [MESH|-]",
@@ -133,8 +133,8 @@ static int run(crom_cli *cli, args *a)
     crom_fileout csv = {0};
     if (!rc && a->stats && !(rc = crom_fileout_open(&csv, a->stats, 0)))
         fprintf(csv.f, "step,newton,cg,factorizations,residual,seconds,assembly,factorization,solves,line_search\n");
-    crom_progress prog;
-    crom_progress_start(&prog, cli, "fullsim", a->sc.steps);
+    crom_cli_progress prog;
+    crom_cli_progress_start(&prog, cli, "fullsim", a->sc.steps);
     for (int k = 1; k <= a->sc.steps && !rc; k++) {
         if ((rc = crom_sim_step(&s, &st)))
             break;
@@ -159,9 +159,9 @@ static int run(crom_cli *cli, args *a)
             rc = put_frame(&o, &s, &st, u);
         char extra[64];
         snprintf(extra, sizeof extra, "%d Newton, res %.1e", st.newton, st.residual);
-        crom_progress_update(&prog, k, extra);
+        crom_cli_progress_update(&prog, k, extra);
     }
-    crom_progress_end(&prog);
+    crom_cli_progress_end(&prog);
     free(u);
     if ((rc = crom_out_finish_run(&o, &csv, rc)))
         goto out_sim;

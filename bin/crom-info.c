@@ -19,9 +19,9 @@ static const crom_opt info_opts[] = {
     {"history", O_HISTORY, NULL, "Print the whole history (default: the last 3 lines)."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", info_opts}, {NULL, NULL}};
+static const crom_cli_optgroup groups[] = {{"Options", info_opts}, {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-info",
     "summarize or validate crom files",
     "crom-info [--check] [--frames] FILE|- ...",

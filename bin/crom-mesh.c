@@ -28,9 +28,9 @@ static const crom_opt mesh_opts[] = {
     {"timeout", O_TIMEOUT, "S", "Give up meshing after S seconds (default 600): bad surfaces can make gmsh spin."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", mesh_opts}, {NULL, NULL}};
+static const crom_cli_optgroup groups[] = {{"Options", mesh_opts}, {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-mesh",
     "make a tetrahedral mesh of a shape or a surface/volume file",
     "crom-mesh box|plate|sphere|cylinder|superquadric [options] [-o OUT]\n"

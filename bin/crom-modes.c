@@ -31,13 +31,13 @@ static const crom_opt modes_opts[] = {
  * uses, and the rest (accepted, so one @FILE serves every stage). */
 static crom_opt used_opts[8], ignored_opts[40];
 
-static crom_optgroup groups[] = {
+static crom_cli_optgroup groups[] = {
     {"Material and boundary conditions (the scenario options of crom-fullsim)", used_opts},
     {"Options", modes_opts},
     {"Other scenario options (accepted and ignored: modes are computed at rest)", ignored_opts},
     {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-modes",
     "linear vibration modes of a mesh with its pins (crom/mesh to crom/model)",
     "crom-modes [--youngs E] [--poisson NU] [--density RHO] [--pin REGION ...] [--count K]\n"

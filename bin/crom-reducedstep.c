@@ -37,12 +37,12 @@ static const crom_opt red_opts[] = {
     {"hdf5", O_HDF5, NULL, "Write HDF5 even into a pipe."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {
+static const crom_cli_optgroup groups[] = {
     {"Scenario options (the same in crom-fullsim)", crom_scenario_opts},
     {"Reduced simulation options", red_opts},
     {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-reducedstep",
     "implicit Euler in a model's latent space, on any mesh, across mesh changes",
     "crom-reducedstep --cubature CUB [scenario options] [--init LATENT] [--schedule FILE]\n"
@@ -379,8 +379,8 @@ static int run_map(crom_cli *cli, args *a)
         rc = put_values(&o, s.t, s.step, s.q, s.qd, K, E, W, &st, 0);
     if (!rc && a->stats && !(rc = crom_fileout_open(&csv, a->stats, 0)))
         fprintf(csv.f, "step,iterations,residual,constraint_residual,seconds,cubature_tets\n");
-    crom_progress prog;
-    crom_progress_start(&prog, cli, "reducedstep", a->sc.steps);
+    crom_cli_progress prog;
+    crom_cli_progress_start(&prog, cli, "reducedstep", a->sc.steps);
     double tsum = 0;
     long iters = 0;
     for (int k = 1; k <= a->sc.steps && !rc; k++) {
@@ -393,9 +393,9 @@ static int run_map(crom_cli *cli, args *a)
                     st.seconds, s.ne);
         if (k % a->sc.every == 0 && !(rc = crom_nlsim_energies(&s, &K, &E, &W)))
             rc = put_values(&o, s.t, s.step, s.q, s.qd, K, E, W, &st, 0);
-        crom_progress_update(&prog, k, NULL);
+        crom_cli_progress_update(&prog, k, NULL);
     }
-    crom_progress_end(&prog);
+    crom_cli_progress_end(&prog);
     rc = crom_out_finish_run(&o, &csv, rc);
     have_out = 0;
     if (rc)
@@ -469,8 +469,8 @@ static int run(crom_cli *cli, args *a)
         rc = put_frame(&o, &s, &st, 0);
     if (!rc && a->stats && !(rc = crom_fileout_open(&csv, a->stats, 0)))
         fprintf(csv.f, "step,iterations,residual,constraint_residual,seconds,cubature_tets\n");
-    crom_progress prog;
-    crom_progress_start(&prog, cli, "reducedstep", a->sc.steps);
+    crom_cli_progress prog;
+    crom_cli_progress_start(&prog, cli, "reducedstep", a->sc.steps);
     int cur = 0;
     double tsum = 0;
     for (int k = 1; k <= a->sc.steps && !rc; k++) {
@@ -489,9 +489,9 @@ static int run(crom_cli *cli, args *a)
                     st.seconds, sch[cur].cub.k);
         if (k % a->sc.every == 0)
             rc = put_frame(&o, &s, &st, cur);
-        crom_progress_update(&prog, k, NULL);
+        crom_cli_progress_update(&prog, k, NULL);
     }
-    crom_progress_end(&prog);
+    crom_cli_progress_end(&prog);
     rc = crom_out_finish_run(&o, &csv, rc);
     have_out = 0;
     if (rc)

@@ -47,14 +47,14 @@ static const crom_opt refine_opts[] = {
     {"times", O_TIMES, "N", "Number of uniform refinements, 1..6 (default 1): each splits every tet into 8."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", common},
+static const crom_cli_optgroup groups[] = {{"Options", common},
                                        {"cut options", cut_opts},
                                        {"punch options", punch_opts},
                                        {"swap options", swap_opts},
                                        {"refine options", refine_opts},
                                        {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-remesh",
     "cut, punch, swap or refine a mesh for run-time topology changes",
     "crom-remesh cut --segment AU,AV,BU,BV... [--axis y] [--stages N --stage K | --all-stages DIR] [-o OUT] [MESH|-]\n"

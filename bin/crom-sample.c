@@ -25,9 +25,9 @@ static const crom_opt sample_opts[] = {
     {"skip-rest", O_SKIPREST, NULL, "Drop frames whose displacement is zero everywhere (such as frame 0 at rest). By default they are kept: they are legitimate data."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", sample_opts}, {NULL, NULL}};
+static const crom_cli_optgroup groups[] = {{"Options", sample_opts}, {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-sample",
     "sample (X, u) point pairs from the frames of trajectories, for training",
     "crom-sample [--points N|all] [--mode vertices|interior] [--every K] [--seed S] [-o OUT] TRAJ...",
@@ -250,8 +250,8 @@ static int sample_source(crom_cli *cli, args *a, acc *A, const char *path, int k
                                m.X + 3 * (size_t)v[2], m.X + 3 * (size_t)v[3]);
         cum[t] = tot;
     }
-    crom_progress prog;
-    crom_progress_start(&prog, cli, "sample", in.form == CROM_FORM_H5 ? in.nframes : 0);
+    crom_cli_progress prog;
+    crom_cli_progress_start(&prog, cli, "sample", in.form == CROM_FORM_H5 ? in.nframes : 0);
     long idx = 0, kept = 0;
     int N = s->N;
     while ((rc = crom_in_next(&in)) == 1) {
@@ -333,10 +333,10 @@ static int sample_source(crom_cli *cli, args *a, acc *A, const char *path, int k
         s->time[s->F] = crom_in_get(&in, ft)[0];
         s->F++;
         kept++;
-        crom_progress_update(&prog, idx, NULL);
+        crom_cli_progress_update(&prog, idx, NULL);
     }
 endloop:
-    crom_progress_end(&prog);
+    crom_cli_progress_end(&prog);
     if (rc < 0)
         rc = -rc;
     if (rc)

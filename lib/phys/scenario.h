@@ -51,7 +51,7 @@ typedef struct {
  * boundary conditions, no damping, tol 1e-7, 50 Newton iterations. */
 void crom_scenario_defaults(crom_scenario *s);
 
-/* The scenario options, for a program's crom_doc. */
+/* The scenario options, for a program's crom_cli_doc. */
 extern const crom_opt crom_scenario_opts[];
 
 /* The name of scenario option key ("youngs", "pin", ...), or NULL when key
