@@ -254,7 +254,7 @@ static int run(crom_cli *cli, args *a)
         (rc = crom_out_begin(&o)))
         goto out;
     crom_cli_progress prog;
-    crom_cli_progress_start(&prog, cli, "encode", in.form == CROM_FORM_H5 ? in.nframes : 0);
+    crom_cli_progress_start(&prog, cli, "encode", in.form == CROM_IO_H5 ? in.nframes : 0);
     double E2 = 0, U2 = 0;
     long nf = 0;
     while ((rc = crom_in_next(&in)) == 1) {

@@ -298,7 +298,7 @@ static int export_series(crom_cli *cli, args *a, crom_follow *s, crom_export_cel
     if (rc)
         return rc;
     crom_cli_progress prog;
-    crom_cli_progress_start(&prog, cli, "export", s->res[0].in.form == CROM_FORM_H5 ? s->res[0].in.nframes : 0);
+    crom_cli_progress_start(&prog, cli, "export", s->res[0].in.form == CROM_IO_H5 ? s->res[0].in.nframes : 0);
     long i = 0;
     double t;
     crom_export_frame fr;

@@ -251,7 +251,7 @@ static int sample_source(crom_cli *cli, args *a, acc *A, const char *path, int k
         cum[t] = tot;
     }
     crom_cli_progress prog;
-    crom_cli_progress_start(&prog, cli, "sample", in.form == CROM_FORM_H5 ? in.nframes : 0);
+    crom_cli_progress_start(&prog, cli, "sample", in.form == CROM_IO_H5 ? in.nframes : 0);
     long idx = 0, kept = 0;
     int N = s->N;
     while ((rc = crom_in_next(&in)) == 1) {

@@ -529,7 +529,7 @@ int crom_h5_shape(hid_t loc, const char *name, int *rank, hsize_t *dims)
     hid_t s = H5Dget_space(d);
     int r = H5Sget_simple_extent_ndims(s);
     int rc = 0;
-    if (r < 0 || r > CROM_MAX_RANK)
+    if (r < 0 || r > CROM_IO_MAX_RANK)
         rc = crom_err(CROM_EDATA, "dataset '%s' has unsupported rank %d", name, r);
     else {
         H5Sget_simple_extent_dims(s, dims, NULL);
@@ -558,7 +558,7 @@ int crom_h5_read(hid_t loc, const char *name, hid_t memtype, int rank,
         rc = crom_err(CROM_EDATA, "dataset '%s' has the wrong type (%s, expected %s)", name,
                       have == H5T_FLOAT ? "float" : have == H5T_INTEGER ? "integer" : "other",
                       want == H5T_FLOAT ? "float" : "integer");
-    else if ((rank >= 0 && r != rank) || r > CROM_MAX_RANK || r < 0)
+    else if ((rank >= 0 && r != rank) || r > CROM_IO_MAX_RANK || r < 0)
         rc = crom_err(CROM_EDATA, "dataset '%s' has rank %d, expected %d", name, r, rank);
     if (!rc) {
         H5Sget_simple_extent_dims(s, dims, NULL);
@@ -648,15 +648,15 @@ static int read_fields(crom_in *in)
     long nframes = -1;
     char *save = NULL;
     for (char *tok = strtok_r(list, ",", &save); tok && !rc; tok = strtok_r(NULL, ",", &save)) {
-        if (in->nfields == CROM_MAX_FIELDS) {
+        if (in->nfields == CROM_IO_MAX_FIELDS) {
             rc = crom_err(CROM_EDATA, "%s: too many frame fields", in->name);
             break;
         }
-        crom_field *f = &in->fields[in->nfields];
+        crom_io_field *f = &in->fields[in->nfields];
         snprintf(f->name, sizeof f->name, "%s", tok);
         char path[80];
         snprintf(path, sizeof path, "frames/%s", tok);
-        hsize_t dims[CROM_MAX_RANK];
+        hsize_t dims[CROM_IO_MAX_RANK];
         int rank;
         if ((rc = crom_h5_shape(in->h5, path, &rank, dims))) {
             crom_err_ctx("%s", in->name);
@@ -724,7 +724,7 @@ int crom_in_open(crom_in *in, const char *path)
         goto fail;
     }
     if (n == 8 && !memcmp(head, hdf5_sig, 8)) {
-        in->form = CROM_FORM_H5;
+        in->form = CROM_IO_H5;
         if (from_stdin) {
             if ((rc = slurp(in->fp, head, 8, &in->image, &in->image_size)))
                 goto fail;
@@ -740,7 +740,7 @@ int crom_in_open(crom_in *in, const char *path)
             goto fail;
         }
     } else if (n == 8 && !memcmp(head, STREAM_MAGIC, 8)) {
-        in->form = CROM_FORM_STREAM;
+        in->form = CROM_IO_STREAM;
         uint32_t ver_flags[2];
         uint64_t hlen;
         if (read_all(in->fp, ver_flags, 8) != 8 || read_all(in->fp, &hlen, 8) != 8) {
@@ -799,7 +799,7 @@ int crom_in_open(crom_in *in, const char *path)
     crom_err_clear();
     if ((rc = read_fields(in)))
         goto fail;
-    if (in->form == CROM_FORM_STREAM) {
+    if (in->form == CROM_IO_STREAM) {
         in->nframes = 0;
     } else if (crom_h5_has_attr(in->h5, ".", "complete")) {
         long long c = 1;
@@ -843,8 +843,8 @@ const double *crom_in_get(const crom_in *in, int field)
 static int read_h5_frame(crom_in *in, long k)
 {
     for (int i = 0; i < in->nfields; i++) {
-        crom_field *f = &in->fields[i];
-        hsize_t start[CROM_MAX_RANK + 1] = {0}, count[CROM_MAX_RANK + 1];
+        crom_io_field *f = &in->fields[i];
+        hsize_t start[CROM_IO_MAX_RANK + 1] = {0}, count[CROM_IO_MAX_RANK + 1];
         start[0] = (hsize_t)k;
         count[0] = 1;
         for (int j = 0; j < f->rank; j++)
@@ -866,7 +866,7 @@ static int read_h5_frame(crom_in *in, long k)
 
 int crom_in_next(crom_in *in)
 {
-    if (in->form == CROM_FORM_H5) {
+    if (in->form == CROM_IO_H5) {
         if (in->cursor >= in->nframes)
             return 0;
         int rc = read_h5_frame(in, in->cursor);
@@ -923,7 +923,7 @@ int crom_in_next(crom_in *in)
 
 int crom_in_seek(crom_in *in, long k)
 {
-    if (in->form == CROM_FORM_STREAM) {
+    if (in->form == CROM_IO_STREAM) {
         if (k != in->cursor)
             return crom_err(CROM_EUSAGE, "%s: a stream can only be read forward", in->name);
         int rc = crom_in_next(in);
@@ -1174,13 +1174,13 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
             return crom_err(CROM_ECANTCREAT, "cannot open %s: %s", path, strerror(errno));
         o->to_stdout = 1;
     }
-    o->form = CROM_FORM_H5;
+    o->form = CROM_IO_H5;
     if (kind == CROM_OUT_SERIES_STREAM)
-        o->form = CROM_FORM_STREAM;
+        o->form = CROM_IO_STREAM;
     else if (kind == CROM_OUT_SERIES && o->to_stdout) {
         struct stat st;
         if (fstat(1, &st) != 0 || !S_ISREG(st.st_mode))
-            o->form = CROM_FORM_STREAM;
+            o->form = CROM_IO_STREAM;
     }
     int rc = 0;
     if (!o->to_stdout) {
@@ -1191,7 +1191,7 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
             return rc ? rc : CROM_EINTERNAL;
         }
     }
-    if (o->form == CROM_FORM_H5 && !o->to_stdout)
+    if (o->form == CROM_IO_H5 && !o->to_stdout)
         o->h5 = H5Fcreate(o->tmp, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     else
         o->h5 = create_core(o);
@@ -1200,7 +1200,7 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
         drop_tmp(o);
         return rc;
     }
-    if (o->form == CROM_FORM_STREAM) {
+    if (o->form == CROM_IO_STREAM) {
         if (o->to_stdout)
             o->fp = o->out ? o->out : stdout;
         else if (!(o->fp = fopen(o->tmp, "wb"))) {
@@ -1222,7 +1222,7 @@ int crom_out_field(crom_out *o, const char *name, int rank, const hsize_t *dims,
 {
     if (!o->series || o->begun)
         return crom_err(CROM_EINTERNAL, "crom_out_field('%s') on a non-series or begun output", name);
-    if (o->nfields == CROM_MAX_FIELDS || rank > CROM_MAX_RANK - 1 ||
+    if (o->nfields == CROM_IO_MAX_FIELDS || rank > CROM_IO_MAX_RANK - 1 ||
         strlen(name) >= sizeof o->fields[0].name)
         return crom_err(CROM_EINTERNAL, "too many or too large frame fields");
     const crom_schema_dset *row;
@@ -1231,7 +1231,7 @@ int crom_out_field(crom_out *o, const char *name, int rank, const hsize_t *dims,
     int rc = table_row(o->h5, rel, "f64", rank + 1, kind, &row, path, sizeof path);
     if (rc)
         return rc;
-    crom_field *f = &o->fields[o->nfields];
+    crom_io_field *f = &o->fields[o->nfields];
     snprintf(f->name, sizeof f->name, "%s", name);
     f->rank = rank;
     f->count = 1;
@@ -1241,7 +1241,7 @@ int crom_out_field(crom_out *o, const char *name, int rank, const hsize_t *dims,
     }
     f->offset = o->frame_len;
     /* dataset /frames/<name> with an unlimited frame dimension */
-    hsize_t d[CROM_MAX_RANK + 1], maxd[CROM_MAX_RANK + 1], chunk[CROM_MAX_RANK + 1];
+    hsize_t d[CROM_IO_MAX_RANK + 1], maxd[CROM_IO_MAX_RANK + 1], chunk[CROM_IO_MAX_RANK + 1];
     d[0] = 0;
     maxd[0] = H5S_UNLIMITED;
     chunk[0] = f->count >= 4096 ? 1 : 4096 / f->count;
@@ -1314,7 +1314,7 @@ int crom_out_begin(crom_out *o)
     }
     if (!rc && o->series)
         rc = crom_h5_set_i64(o->h5, ".", "complete", 0);
-    if (!rc && o->form == CROM_FORM_STREAM) {
+    if (!rc && o->form == CROM_IO_STREAM) {
         void *img;
         size_t len;
         if ((rc = get_image(o->h5, &img, &len, o->name)))
@@ -1347,7 +1347,7 @@ int crom_out_frame(crom_out *o, const double *const *vals)
     int rc = 0;
     if (!o->begun && (rc = crom_out_begin(o)))
         return rc;
-    if (o->form == CROM_FORM_STREAM) {
+    if (o->form == CROM_IO_STREAM) {
         for (int i = 0; i < o->nfields; i++)
             memcpy(o->pack + o->fields[i].offset, vals[i], o->fields[i].count * sizeof(double));
         uint32_t reserved = 0;
@@ -1368,9 +1368,9 @@ int crom_out_frame(crom_out *o, const double *const *vals)
         return rc;
     }
     for (int i = 0; i < o->nfields && !rc; i++) {
-        crom_field *f = &o->fields[i];
-        hsize_t size[CROM_MAX_RANK + 1], start[CROM_MAX_RANK + 1] = {0},
-                count[CROM_MAX_RANK + 1];
+        crom_io_field *f = &o->fields[i];
+        hsize_t size[CROM_IO_MAX_RANK + 1], start[CROM_IO_MAX_RANK + 1] = {0},
+                count[CROM_IO_MAX_RANK + 1];
         size[0] = (hsize_t)o->nframes + 1;
         start[0] = (hsize_t)o->nframes;
         count[0] = 1;
@@ -1500,7 +1500,7 @@ int crom_out_commit(crom_out *o)
             return rc;
         }
     }
-    int rc = o->form == CROM_FORM_STREAM ? finish_stream(o, 1) : finish_h5(o, 1);
+    int rc = o->form == CROM_IO_STREAM ? finish_stream(o, 1) : finish_h5(o, 1);
     release(o);
     return rc;
 }
@@ -1515,10 +1515,10 @@ int crom_out_fail(crom_out *o)
         char saved[1024];
         int code = crom_errcode();
         snprintf(saved, sizeof saved, "%s", crom_errmsg());
-        int rc = o->form == CROM_FORM_STREAM ? finish_stream(o, 0) : finish_h5(o, 0);
+        int rc = o->form == CROM_IO_STREAM ? finish_stream(o, 0) : finish_h5(o, 0);
         kept = rc == 0;
         crom_err(code ? code : CROM_EINTERNAL, "%s", saved);
-    } else if (o->form == CROM_FORM_STREAM && o->begun) {
+    } else if (o->form == CROM_IO_STREAM && o->begun) {
         uint32_t status = 1;
         uint64_t count = 0;
         /* a stream already started: end it as incomplete so readers know */

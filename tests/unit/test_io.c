@@ -108,7 +108,7 @@ static void test_series(void)
     CHECK(write_series(p, CROM_OUT_SERIES_STREAM, 7, -1) == 0);
     read_series(p, 7, 1);
     CHECK(crom_in_open(&in, p) == 0);
-    CHECK(in.form == CROM_FORM_STREAM);
+    CHECK(in.form == CROM_IO_STREAM);
     CHECK(crom_validate_file(&in, stderr) == 0);
     crom_in_close(&in);
     /* a stream cut short (the writer died): frames so far, not complete */
