@@ -386,7 +386,7 @@ int main(int argc, char **argv)
     a.o.youngs = 2.5e6;
     a.o.poisson = 0.25;
     a.maxpose = 40;
-    a.crack_offset = CROM_CRACK_OFFSET;
+    a.crack_offset = CROM_MESH_CRACK_OFFSET;
     crom_cli_parse(&cli, &doc, argc, argv, on_opt, &a);
     if (!a.model)
         return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--model MODEL is required (see crom-cubature --help)"));

@@ -116,8 +116,8 @@ static int run(crom_cli *cli, args *a)
     }
     for (int t = 0; t < A.mesh.nt; t++) { /* lumped volumes: the M-norm per unit density */
         const int *e = A.mesh.tets + 4 * (size_t)t;
-        double V = crom_tet_volume(A.mesh.X + 3 * (size_t)e[0], A.mesh.X + 3 * (size_t)e[1],
-                                   A.mesh.X + 3 * (size_t)e[2], A.mesh.X + 3 * (size_t)e[3]);
+        double V = crom_mesh_tet_volume(A.mesh.X + 3 * (size_t)e[0], A.mesh.X + 3 * (size_t)e[1],
+                                        A.mesh.X + 3 * (size_t)e[2], A.mesh.X + 3 * (size_t)e[3]);
         for (int k = 0; k < 4; k++)
             m[e[k]] += V / 4;
     }

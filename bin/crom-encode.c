@@ -223,7 +223,7 @@ static int run(crom_cli *cli, args *a)
         goto out;
     }
     size_t nout = 0;
-    double *fp = crom_mesh_field_points(&m, CROM_CRACK_OFFSET, NULL); /* see mesh.h */
+    double *fp = crom_mesh_field_points(&m, CROM_MESH_CRACK_OFFSET, NULL); /* see mesh.h */
     rc = fp ? crom_model_eval(&M, (size_t)m.nv, fp, Wv, &nout) : CROM_EINTERNAL;
     free(fp);
     if (rc)

@@ -236,7 +236,7 @@ static int sample_source(crom_cli *cli, args *a, acc *A, const char *path, int k
     }
     perm = crom_malloc(sizeof(int) * (size_t)m.nv);
     cum = crom_malloc(sizeof(double) * (size_t)m.nt);
-    fp = crom_mesh_field_points(&m, CROM_CRACK_OFFSET, NULL);
+    fp = crom_mesh_field_points(&m, CROM_MESH_CRACK_OFFSET, NULL);
     if (!perm || !cum || !fp) {
         rc = CROM_EINTERNAL;
         goto out;
@@ -246,8 +246,8 @@ static int sample_source(crom_cli *cli, args *a, acc *A, const char *path, int k
     double tot = 0;
     for (int t = 0; t < m.nt; t++) {
         const int *v = m.tets + 4 * (size_t)t;
-        tot += crom_tet_volume(m.X + 3 * (size_t)v[0], m.X + 3 * (size_t)v[1],
-                               m.X + 3 * (size_t)v[2], m.X + 3 * (size_t)v[3]);
+        tot += crom_mesh_tet_volume(m.X + 3 * (size_t)v[0], m.X + 3 * (size_t)v[1],
+                                    m.X + 3 * (size_t)v[2], m.X + 3 * (size_t)v[3]);
         cum[t] = tot;
     }
     crom_cli_progress prog;

@@ -350,8 +350,8 @@ double crom_vertex_volumes(const crom_mesh *m, double *w)
     memset(w, 0, sizeof(double) * (size_t)m->nv);
     for (int t = 0; t < m->nt; t++) {
         const int *v = m->tets + 4 * (size_t)t;
-        double V = crom_tet_volume(m->X + 3 * (size_t)v[0], m->X + 3 * (size_t)v[1],
-                                   m->X + 3 * (size_t)v[2], m->X + 3 * (size_t)v[3]);
+        double V = crom_mesh_tet_volume(m->X + 3 * (size_t)v[0], m->X + 3 * (size_t)v[1],
+                                        m->X + 3 * (size_t)v[2], m->X + 3 * (size_t)v[3]);
         total += V;
         for (int k = 0; k < 4; k++)
             w[v[k]] += V / 4;

@@ -14,7 +14,7 @@
 
 /* ---------------------------------------------------------------- geometry */
 
-double crom_tet_volume(const double *a, const double *b, const double *c, const double *d)
+double crom_mesh_tet_volume(const double *a, const double *b, const double *c, const double *d)
 {
     double u[3], v[3], w[3];
     for (int i = 0; i < 3; i++) {
@@ -26,7 +26,7 @@ double crom_tet_volume(const double *a, const double *b, const double *c, const 
             u[2] * (v[0] * w[1] - v[1] * w[0])) / 6.0;
 }
 
-double crom_tet_quality(const double *a, const double *b, const double *c, const double *d)
+double crom_mesh_tet_quality(const double *a, const double *b, const double *c, const double *d)
 {
     const double *p[4] = {a, b, c, d};
     double l2 = 0;
@@ -34,7 +34,7 @@ double crom_tet_quality(const double *a, const double *b, const double *c, const
         for (int j = i + 1; j < 4; j++)
             for (int k = 0; k < 3; k++)
                 l2 += (p[i][k] - p[j][k]) * (p[i][k] - p[j][k]);
-    double V = crom_tet_volume(a, b, c, d);
+    double V = crom_mesh_tet_volume(a, b, c, d);
     if (l2 <= 0)
         return 0;
     double q = 12.0 * pow(3.0 * fabs(V), 2.0 / 3.0) / l2;
@@ -48,7 +48,7 @@ double crom_mesh_volume(const crom_mesh *m)
     double V = 0;
     for (int t = 0; t < m->nt; t++) {
         const int *e = m->tets + 4 * (size_t)t;
-        V += crom_tet_volume(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
+        V += crom_mesh_tet_volume(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
     }
     return V;
 }
@@ -59,7 +59,7 @@ void crom_mesh_quality(const crom_mesh *m, double *worst, double *mean, int *wor
     int wt = -1;
     for (int t = 0; t < m->nt; t++) {
         const int *e = m->tets + 4 * (size_t)t;
-        double q = crom_tet_quality(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
+        double q = crom_mesh_tet_quality(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
         s += q;
         if (q < w) {
             w = q;
@@ -104,7 +104,7 @@ int crom_mesh_orient(crom_mesh *m, int *nflipped)
     int nf = 0;
     for (int t = 0; t < m->nt; t++) {
         int *e = m->tets + 4 * (size_t)t;
-        double V = crom_tet_volume(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
+        double V = crom_mesh_tet_volume(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
         if (fabs(V) <= tol)
             return crom_err(CROM_EDATA, "tet %d is degenerate (volume %.3g m^3)", t, V);
         if (V < 0) {
@@ -138,7 +138,7 @@ int crom_mesh_compact(crom_mesh *m)
     for (size_t k = 0; k < 4 * (size_t)m->nt; k++)
         m->tets[k] = map[m->tets[k]];
     for (int r = 0; r < m->nregions; r++) {
-        crom_region *g = &m->regions[r];
+        crom_mesh_region *g = &m->regions[r];
         int k = 0;
         for (int j = 0; j < g->n; j++)
             if (map[g->idx[j]] >= 0)
@@ -165,7 +165,7 @@ int crom_mesh_validate(const crom_mesh *m)
     double tol = degenerate_tol(m);
     for (int t = 0; t < m->nt; t++) {
         const int *e = m->tets + 4 * (size_t)t;
-        double V = crom_tet_volume(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
+        double V = crom_mesh_tet_volume(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
         if (!(V > tol))
             return crom_err(CROM_EDATA, "tet %d has non-positive volume %.3g m^3 (tets must be positively oriented)",
                             t, V);
@@ -320,7 +320,7 @@ out:
 
 /* ------------------------------------------------------------ copy & free */
 
-static void free_regions(crom_region *r, int n)
+static void free_regions(crom_mesh_region *r, int n)
 {
     for (int i = 0; i < n; i++) {
         free(r[i].name);
@@ -478,7 +478,7 @@ int crom_pred_is(const char *s)
 
 /* ---------------------------------------------------------------- regions */
 
-const crom_region *crom_mesh_region(const crom_mesh *m, const char *name)
+const crom_mesh_region *crom_mesh_find_region(const crom_mesh *m, const char *name)
 {
     for (int r = 0; r < m->nregions; r++)
         if (!strcmp(m->regions[r].name, name))
@@ -517,9 +517,9 @@ int crom_mesh_add_region(crom_mesh *m, const char *name, const char *source,
     for (int i = 0; i < n; i++)
         if (i == 0 || v[i] != v[i - 1])
             v[k++] = v[i];
-    crom_region *slot = (crom_region *)crom_mesh_region(m, name);
+    crom_mesh_region *slot = (crom_mesh_region *)crom_mesh_find_region(m, name);
     if (!slot) {
-        crom_region *nr = crom_realloc(m->regions, sizeof(crom_region) * (size_t)(m->nregions + 1));
+        crom_mesh_region *nr = crom_realloc(m->regions, sizeof(crom_mesh_region) * (size_t)(m->nregions + 1));
         if (!nr) {
             free(v);
             return CROM_EINTERNAL;
@@ -578,7 +578,7 @@ int crom_mesh_region_spec(crom_mesh *m, const char *spec)
 
 int crom_mesh_select(const crom_mesh *m, const char *ref, int **idx, int *n)
 {
-    const crom_region *r = crom_mesh_region(m, ref);
+    const crom_mesh_region *r = crom_mesh_find_region(m, ref);
     if (r) {
         if (r->n == 0)
             return crom_err(CROM_EUSAGE, "region '%s' is empty", ref);

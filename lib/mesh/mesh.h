@@ -15,14 +15,14 @@ typedef struct {
     char *source; /* how it was made: the predicate text, or "gmsh:GROUP" */
     int n;        /* number of vertices */
     int *idx;     /* sorted, unique 0-based vertex indices */
-} crom_region;
+} crom_mesh_region;
 
 typedef struct {
     int nv, nt;
     double *X;    /* [nv][3] rest positions (m) */
     int *tets;    /* [nt][4] vertex indices, positively oriented */
     int nregions;
-    crom_region *regions;
+    crom_mesh_region *regions;
 } crom_mesh;
 
 
@@ -31,11 +31,11 @@ typedef struct {
 /* ------------------------------------------------------------ geometry */
 
 /* Signed volume of tet (a,b,c,d): det[b-a, c-a, d-a] / 6. */
-double crom_tet_volume(const double *a, const double *b, const double *c, const double *d);
+double crom_mesh_tet_volume(const double *a, const double *b, const double *c, const double *d);
 
 /* Mean-ratio quality 12·(3|V|)^(2/3) / Σ edge² in (0, 1] (1 = regular),
  * negated for inverted tets. */
-double crom_tet_quality(const double *a, const double *b, const double *c, const double *d);
+double crom_mesh_tet_quality(const double *a, const double *b, const double *c, const double *d);
 
 /* Sum of the signed tet volumes (m³). */
 double crom_mesh_volume(const crom_mesh *m);
@@ -65,15 +65,15 @@ int crom_mesh_boundary(const crom_mesh *m, int *ntri, int **tris, int **tri_tet)
 /* Where a continuous field (a basis W(X)) is sampled for each vertex
  * [nv][3] (malloc'ed): the rest position X, except for vertices that share
  * their position with another — the copies a cut made (crom-remesh cut) —
- * each of which samples a fraction s (CROM_CRACK_OFFSET) of the way toward
- * the centroid of its own tets. At X both copies of a crack vertex would get
+ * each of which samples a fraction s (CROM_MESH_CRACK_OFFSET) of the way
+ * toward the centroid of its own tets. At X both copies of a crack vertex would get
  * the same displacement and the crack could never open; on their own sides
  * they follow the jump a basis learned from cut data, while an intact body
  * still sees the jump through its shared vertices. Every program that
  * evaluates a field at mesh vertices uses this, so sampling, training,
  * cubature, encoding and decoding agree. *nshifted (may be NULL) gets how
  * many vertices moved; NULL when out of memory. */
-#define CROM_CRACK_OFFSET 0.25
+#define CROM_MESH_CRACK_OFFSET 0.25
 double *crom_mesh_field_points(const crom_mesh *m, double s, int *nshifted);
 
 /* Deep copy. */
@@ -109,7 +109,7 @@ int crom_pred_eval(const crom_pred *p, const double X[3]);
 int crom_pred_is(const char *s);
 
 /* The region named `name`, or NULL. */
-const crom_region *crom_mesh_region(const crom_mesh *m, const char *name);
+const crom_mesh_region *crom_mesh_find_region(const crom_mesh *m, const char *name);
 
 /* Add (or replace) a region from an index list (sorted and de-duplicated
  * here). Names must match [A-Za-z0-9_.-]+. */

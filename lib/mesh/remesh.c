@@ -178,7 +178,7 @@ int crom_remesh_remove_region(crom_mesh *m, const char *name)
             free(m->regions[r].source);
             free(m->regions[r].idx);
             memmove(&m->regions[r], &m->regions[r + 1],
-                    sizeof(crom_region) * (size_t)(m->nregions - r - 1));
+                    sizeof(crom_mesh_region) * (size_t)(m->nregions - r - 1));
             m->nregions--;
             return 1;
         }
@@ -421,7 +421,7 @@ static int split_mesh(const crom_mesh *m, const splitting *sp, crom_mesh *out)
         for (int i = sp->start[v]; i < sp->start[v + 1]; i++)
             out->tets[sp->star[i]] = sp->newidx[i];
     for (int r = 0; r < m->nregions && !rc; r++) {
-        const crom_region *g = &m->regions[r];
+        const crom_mesh_region *g = &m->regions[r];
         unsigned char *in = crom_calloc((size_t)(m->nv ? m->nv : 1), 1);
         int *idx = crom_malloc(sizeof(int) * (size_t)(g->n + nd + 1)), k = 0;
         if (!in || !idx)
@@ -675,11 +675,11 @@ int crom_remesh_swap(const crom_mesh *in, const crom_mesh *other, const crom_xfo
         return CROM_EINTERNAL;
     }
     for (int g = 0; g < in->nregions && !rc; g++) {
-        const crom_region *reg = &in->regions[g];
+        const crom_mesh_region *reg = &in->regions[g];
         /* follow a region defined as another region of `in` to its predicate */
         const char *src = reg->source ? reg->source : "";
         for (int depth = 0; depth < 8 && !crom_pred_is(src); depth++) {
-            const crom_region *up = crom_mesh_region(in, src);
+            const crom_mesh_region *up = crom_mesh_find_region(in, src);
             if (!up || up == reg)
                 break;
             src = up->source ? up->source : "";
@@ -705,7 +705,7 @@ int crom_remesh_swap(const crom_mesh *in, const crom_mesh *other, const crom_xfo
                   src);
             continue;
         }
-        if (crom_mesh_region(&r, reg->name))
+        if (crom_mesh_find_region(&r, reg->name))
             warnf(warn, ctx, "region '%s' of the swapped mesh is replaced by the input's (%s)", reg->name,
                   src);
         rc = crom_mesh_add_region(&r, reg->name, src, idx, n);
@@ -893,7 +893,7 @@ static int refine_regions(const crom_mesh *m, crom_mesh *r)
     if (!in)
         rc = rc ? rc : CROM_EINTERNAL;
     for (int g = 0; g < m->nregions && !rc; g++) {
-        const crom_region *reg = &m->regions[g];
+        const crom_mesh_region *reg = &m->regions[g];
         memset(in, 0, (size_t)nv);
         idx = crom_malloc(sizeof(int) * (size_t)(reg->n + nw + 1));
         if (!idx) {

@@ -547,8 +547,8 @@ int crom_cub_build(crom_cub *c, const crom_mesh *mesh, const double *W, int r,
         }
     for (int t = 0; t < nt; t++) {
         const int *e = mesh->tets + 4 * (size_t)t;
-        double V = crom_tet_volume(mesh->X + 3 * (size_t)e[0], mesh->X + 3 * (size_t)e[1],
-                                   mesh->X + 3 * (size_t)e[2], mesh->X + 3 * (size_t)e[3]);
+        double V = crom_mesh_tet_volume(mesh->X + 3 * (size_t)e[0], mesh->X + 3 * (size_t)e[1],
+                                        mesh->X + 3 * (size_t)e[2], mesh->X + 3 * (size_t)e[3]);
         tetvol[t] = V;
         c->mesh_volume += V;
         for (int a = 0; a < 4; a++)

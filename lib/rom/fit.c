@@ -1385,7 +1385,7 @@ int crom_fit_error(const crom_model *m, const crom_samples *S, double tik, int u
                 rc = CROM_EINTERNAL;
                 goto done;
             }
-            double *fp = crom_mesh_field_points(sm, CROM_CRACK_OFFSET, NULL);
+            double *fp = crom_mesh_field_points(sm, CROM_MESH_CRACK_OFFSET, NULL);
             rc = fp ? crom_model_eval(m, (size_t)sm->nv, fp, cache[k], NULL) : CROM_EINTERNAL;
             free(fp);
             if (rc)

@@ -87,7 +87,7 @@ static int latent_basis(crom_result *res, const crom_model *model, const char *m
     if (rc)
         return rc;
     res->W = crom_malloc(sizeof(double) * 3 * (size_t)res->r * (size_t)res->mesh.nv);
-    double *P = crom_mesh_field_points(&res->mesh, CROM_CRACK_OFFSET, NULL);
+    double *P = crom_mesh_field_points(&res->mesh, CROM_MESH_CRACK_OFFSET, NULL);
     rc = res->W && P ? crom_model_eval(model, (size_t)res->mesh.nv, P, res->W, &res->outside) : CROM_EINTERNAL;
     free(P);
     return rc;

@@ -235,7 +235,7 @@ static int check_frames(const crom_in *in, const crom_samples *s)
             break;
         }
         const crom_mesh *m = &s->src[k];
-        if (!fps[k] && !(fps[k] = crom_mesh_field_points(m, CROM_CRACK_OFFSET, NULL))) {
+        if (!fps[k] && !(fps[k] = crom_mesh_field_points(m, CROM_MESH_CRACK_OFFSET, NULL))) {
             rc = CROM_EINTERNAL;
             break;
         }

@@ -56,8 +56,8 @@ static inline void fx_grid(crom_mesh *m, int nx, int ny, int nz, const double lo
                             c[perms[p][s - 1]]++;
                         t[s] = (c[2] * vy + c[1]) * vx + c[0];
                     }
-                    if (orient && crom_tet_volume(m->X + 3 * t[0], m->X + 3 * t[1], m->X + 3 * t[2],
-                                                  m->X + 3 * t[3]) < 0) {
+                    if (orient && crom_mesh_tet_volume(m->X + 3 * t[0], m->X + 3 * t[1], m->X + 3 * t[2],
+                                                       m->X + 3 * t[3]) < 0) {
                         int tmp = t[2];
                         t[2] = t[3];
                         t[3] = tmp;

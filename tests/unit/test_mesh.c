@@ -28,7 +28,7 @@ static void all_positive(const crom_mesh *m, const char *what)
     int bad = 0;
     for (int t = 0; t < m->nt; t++) {
         const int *e = m->tets + 4 * t;
-        if (!(crom_tet_volume(m->X + 3 * e[0], m->X + 3 * e[1], m->X + 3 * e[2], m->X + 3 * e[3]) > 0))
+        if (!(crom_mesh_tet_volume(m->X + 3 * e[0], m->X + 3 * e[1], m->X + 3 * e[2], m->X + 3 * e[3]) > 0))
             bad++;
     }
     CHECK_MSG(bad == 0, "%s: %d tets with non-positive volume", what, bad);
@@ -177,13 +177,13 @@ static void test_orient_and_regions(void)
         free(idx);
     }
     CHECK(crom_mesh_region_spec(&m, "top=y>0.9") == 0);
-    const crom_region *r = crom_mesh_region(&m, "top");
+    const crom_mesh_region *r = crom_mesh_find_region(&m, "top");
     CHECK(r && r->n == 25);
     for (int i = 0; r && i < r->n; i++)
         CHECK_NEAR(m.X[3 * r->idx[i] + 1], 1.0, 0);
     /* a region can copy an existing one by name (imported gmsh groups) */
     CHECK(crom_mesh_region_spec(&m, "lid=top") == 0);
-    CHECK(crom_mesh_region(&m, "lid") && crom_mesh_region(&m, "lid")->n == 25);
+    CHECK(crom_mesh_find_region(&m, "lid") && crom_mesh_find_region(&m, "lid")->n == 25);
     /* errors */
     int *idx, n;
     CHECK(crom_mesh_select(&m, "nosuch", &idx, &n) == CROM_EUSAGE);
@@ -206,7 +206,7 @@ static void test_orient_and_regions(void)
     CHECK(crom_mesh_compact(&c) == 0);
     CHECK(c.nv == 8);
     CHECK_NEAR(crom_mesh_volume(&c), 1.0 / 64, 1e-15);
-    CHECK(crom_mesh_region(&c, "top") && crom_mesh_region(&c, "top")->n == 0);
+    CHECK(crom_mesh_find_region(&c, "top") && crom_mesh_find_region(&c, "top")->n == 0);
     crom_mesh_free(&c);
 
     /* validation catches NaN, bad indices, inverted tets */

@@ -49,7 +49,7 @@ static void all_positive(const crom_mesh *m, const char *what)
     int bad = 0;
     for (int t = 0; t < m->nt; t++) {
         const int *e = m->tets + 4 * t;
-        if (!(crom_tet_volume(m->X + 3 * e[0], m->X + 3 * e[1], m->X + 3 * e[2], m->X + 3 * e[3]) > 0))
+        if (!(crom_mesh_tet_volume(m->X + 3 * e[0], m->X + 3 * e[1], m->X + 3 * e[2], m->X + 3 * e[3]) > 0))
             bad++;
     }
     CHECK_MSG(bad == 0, "%s: %d tets with non-positive volume", what, bad);
@@ -153,7 +153,7 @@ static void test_cut_grid(void)
     CHECK(crom_mesh_region_spec(&m, "mid=x>0.4&x<0.6") == 0);
     cut.stage = cut.stages = 1;
     CHECK(crom_remesh_cut(&m, &cut, &c, &st, NULL, NULL) == 0);
-    const crom_region *r = crom_mesh_region(&c, "mid");
+    const crom_mesh_region *r = crom_mesh_find_region(&c, "mid");
     CHECK(r && r->n == 50);
     for (int i = 0; r && i < r->n; i++)
         CHECK_NEAR(c.X[3 * r->idx[i]], 0.5, 0);
@@ -298,9 +298,9 @@ static void test_punch(void)
         fprintf(stderr, "punch h=%.3f: removed %d of %d tets, volume %.6f vs %.6f, relative error %.3e\n",
                 h[i], nrem, m.nt, removed, exact, err[i]);
         all_positive(&p, "punched box");
-        CHECK(nwarn == 1 && !crom_mesh_region(&p, "core")); /* emptied: dropped with a warning */
+        CHECK(nwarn == 1 && !crom_mesh_find_region(&p, "core")); /* emptied: dropped with a warning */
         /* top keeps exactly the surviving vertices with y > 0.45 */
-        const crom_region *top = crom_mesh_region(&p, "top");
+        const crom_mesh_region *top = crom_mesh_find_region(&p, "top");
         int k = 0, ok = top != NULL;
         for (int v = 0; ok && v < p.nv; v++)
             if (p.X[3 * v + 1] > 0.45)
@@ -366,12 +366,12 @@ static void test_swap(void)
     CHECK_NEAR(lo[1], -0.55, 1e-15);
     CHECK_NEAR(crom_mesh_volume(&out), V, 1e-12);
     all_positive(&out, "rotated");
-    CHECK(crom_mesh_region(&out, "own") != NULL && !crom_mesh_region(&out, "side") &&
-          !crom_mesh_region(&out, "grp"));
+    CHECK(crom_mesh_find_region(&out, "own") != NULL && !crom_mesh_find_region(&out, "side") &&
+          !crom_mesh_find_region(&out, "grp"));
     /* bottom and base select exactly the transformed vertices with y < -0.45 */
     const char *names[2] = {"bottom", "base"};
     for (int q = 0; q < 2; q++) {
-        const crom_region *r = crom_mesh_region(&out, names[q]);
+        const crom_mesh_region *r = crom_mesh_find_region(&out, names[q]);
         int k = 0, ok = r != NULL;
         for (int v = 0; ok && v < out.nv; v++)
             if (out.X[3 * v + 1] < -0.45)
@@ -486,7 +486,7 @@ static void test_refine(void)
             continue;
         found++;
         for (int q = 0; q < 2; q++) {
-            const crom_region *g0 = crom_mesh_region(&m, names[q]), *g1 = crom_mesh_region(&r, names[q]);
+            const crom_mesh_region *g0 = crom_mesh_find_region(&m, names[q]), *g1 = crom_mesh_find_region(&r, names[q]);
             int a_in = 0, b_in = 0, w_in = 0;
             for (int j = 0; j < g0->n; j++) {
                 a_in |= g0->idx[j] == hit->a;
@@ -500,7 +500,7 @@ static void test_refine(void)
     CHECK_MSG(found == r.nv - m.nv, "%d of %d new vertices are exact edge midpoints", found, r.nv - m.nv);
     CHECK_MSG(rule, "midpoint region membership rule");
     for (int q = 0; q < 2; q++) { /* original members are unchanged */
-        const crom_region *g0 = crom_mesh_region(&m, names[q]), *g1 = crom_mesh_region(&r, names[q]);
+        const crom_mesh_region *g0 = crom_mesh_find_region(&m, names[q]), *g1 = crom_mesh_find_region(&r, names[q]);
         CHECK(g1->n >= g0->n && !memcmp(g1->idx, g0->idx, sizeof(int) * g0->n));
     }
     free(e);

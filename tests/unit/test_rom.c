@@ -124,7 +124,7 @@ static void test_derivatives(void)
  * x = X + W q with full assembly: g = Wᵀ∇IP, H = Wᵀ(∇²IP)W, plus the same
  * pin penalty. */
 static void galerkin_step(const crom_fem *fem, const crom_mesh *m, const double *W, const double *grav,
-                          double h, double kappa, const crom_region *pin, double *q, double *qd)
+                          double h, double kappa, const crom_mesh_region *pin, double *q, double *qd)
 {
     int n = 3 * m->nv;
     double *x = malloc(sizeof(double) * n), *gf = malloc(sizeof(double) * n), *Hv = malloc(sizeof(double) * fem->nnz);
@@ -222,7 +222,7 @@ static void test_galerkin(void)
     crom_fem fem;
     CHECK(crom_fem_init(&fem, &m, &mat) == 0);
     double q[R] = {0}, qd[R] = {0}, worst = 0, qmax = 0;
-    const crom_region *pin = crom_mesh_region(&m, "left");
+    const crom_mesh_region *pin = crom_mesh_find_region(&m, "left");
     for (int k = 0; k < 12; k++) {
         crom_rstep_stats st;
         int rc = crom_rsim_step(&s, &st);

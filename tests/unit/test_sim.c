@@ -187,7 +187,7 @@ static double cantilever_error(double size)
     crom_step_stats st;
     int rc = crom_sim_step(&s, &st);
     CHECK_MSG(rc == 0, "cantilever: %s", crom_errmsg());
-    const crom_region *tip = crom_mesh_region(&m, "tip");
+    const crom_mesh_region *tip = crom_mesh_find_region(&m, "tip");
     double d = 0;
     for (int k = 0; k < tip->n; k++)
         d += s.x[3 * tip->idx[k] + 1] - m.X[3 * tip->idx[k] + 1];
@@ -229,7 +229,7 @@ static void test_prescribed_and_contact(void)
     crom_step_stats st;
     for (int k = 0; k < 8; k++)
         CHECK(crom_sim_step(&s, &st) == 0);
-    const crom_region *top = crom_mesh_region(&m, "top"), *bot = crom_mesh_region(&m, "bottom");
+    const crom_mesh_region *top = crom_mesh_find_region(&m, "top"), *bot = crom_mesh_find_region(&m, "bottom");
     double etop = 0, ebot = 0;
     for (int k = 0; k < top->n; k++) /* moved 2 m/s for 0.05 s, then held: -0.1 m */
         etop = fmax(etop, fabs(s.x[3 * top->idx[k] + 1] - m.X[3 * top->idx[k] + 1] + 0.1));

@@ -743,7 +743,7 @@ static void test_cloud(void)
     double vmax = 0, cmax = 0;
     for (int i = 0; i < c.n; i++) {
         const double *x = vm.X + 12 * (size_t)i;
-        vmax = fmax(vmax, fabs(crom_tet_volume(x, x + 3, x + 6, x + 9) - c.vol[i]) / c.vol[i]);
+        vmax = fmax(vmax, fabs(crom_mesh_tet_volume(x, x + 3, x + 6, x + 9) - c.vol[i]) / c.vol[i]);
         for (int k = 0; k < 3; k++)
             cmax = fmax(cmax, fabs((x[k] + x[3 + k] + x[6 + k] + x[9 + k]) / 4 - c.X[3 * i + k]));
     }
