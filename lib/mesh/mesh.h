@@ -10,6 +10,8 @@
 
 #include <stddef.h>
 
+#include "mesh/pred.h"
+
 typedef struct {
     char *name;   /* region name: [A-Za-z0-9_.-]+ */
     char *source; /* how it was made: the predicate text, or "gmsh:GROUP" */
@@ -82,31 +84,7 @@ int crom_mesh_copy(const crom_mesh *src, crom_mesh *dst);
 void crom_mesh_free(crom_mesh *m);
 
 /* ------------------------------------------------------------ regions
- * A predicate selects vertices by rest position:
- *   x<V  x>V  x<=V  x>=V (also y, z)      half-spaces
- *   box:X0,Y0,Z0,X1,Y1,Z1                  closed axis-aligned box
- *   sphere:CX,CY,CZ,R                      closed ball
- *   plane:NX,NY,NZ,D                       n·X >= D
- *   all                                    every vertex
- * joined by '&' for intersection ("y>0.4&x<0"). */
-
-#define CROM_PRED_MAX 8
-typedef struct {
-    int nterms;
-    struct {
-        int kind;
-        double a[6];
-    } term[CROM_PRED_MAX];
-} crom_pred;
-
-/* Parse a predicate; returns 0 or CROM_EUSAGE naming what is wrong. */
-int crom_pred_parse(const char *s, crom_pred *p);
-
-/* 1 if X satisfies the predicate. */
-int crom_pred_eval(const crom_pred *p, const double X[3]);
-
-/* 1 if s looks like a predicate rather than a region name. */
-int crom_pred_is(const char *s);
+ * Regions are made from predicates (mesh/pred.h) or gmsh physical groups. */
 
 /* The region named `name`, or NULL. */
 const crom_mesh_region *crom_mesh_find_region(const crom_mesh *m, const char *name);
