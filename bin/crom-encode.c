@@ -230,7 +230,7 @@ static int run(crom_cli *cli, args *a)
         goto out;
     if (nout && cli->verbose)
         crom_cli_info(cli, "%zu of %d vertices lie outside the model's mesh: W is extended there", nout, m.nv);
-    double vol = crom_vertex_volumes(&m, w);
+    double vol = crom_mesh_vertex_volumes(&m, w);
     for (int v = 0; v < m.nv; v++)
         w[v] /= vol;
     P.nv = m.nv;

@@ -10,7 +10,6 @@
 #include "mesh/mesh.h"
 #include "phys/scenario.h"
 #include "phys/sim.h"
-#include "rom/result.h"
 
 enum { O_STREAM = 300, O_HDF5, O_STATS };
 

@@ -10,12 +10,12 @@
 #include "cli/cli.h"
 #include "datafree/datafree.h"
 #include "io/io.h"
+#include "mesh/mesh.h"
 #include "phys/fem.h"
 #include "phys/scenario.h"
 #include "rom/map.h"
 #include "rom/metrics.h"
 #include "rom/model.h"
-#include "rom/result.h"
 
 enum { O_MESH = 300, O_COMPARE, O_SAMPLES, O_SPHERE, O_BOX, O_NORMAL, O_SIGMA, O_PAIRS, O_THRESH };
 

@@ -14,7 +14,6 @@
 #include "phys/modes.h"
 #include "phys/scenario.h"
 #include "rom/model.h"
-#include "rom/result.h"
 
 enum { O_COUNT = 300, O_KEEP, O_SHIFT, O_TOL, O_RIGID_TOL };
 

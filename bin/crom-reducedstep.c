@@ -10,12 +10,12 @@
 #include "base/err.h"
 #include "cli/cli.h"
 #include "io/io.h"
+#include "mesh/mesh.h"
 #include "phys/scenario.h"
 #include "rom/cubature.h"
 #include "rom/map.h"
 #include "rom/model.h"
 #include "rom/nlrom.h"
-#include "rom/result.h"
 #include "rom/rom.h"
 
 enum { O_CUB = 300, O_INIT, O_SCHED, O_SOLVER, O_KAPPA, O_STATS, O_STREAM, O_HDF5, O_INITFRAME, O_BCTHR,

@@ -89,6 +89,21 @@ void crom_mesh_bbox(const crom_mesh *m, double lo[3], double hi[3])
         }
 }
 
+double crom_mesh_vertex_volumes(const crom_mesh *m, double *w)
+{
+    double total = 0;
+    memset(w, 0, sizeof(double) * (size_t)m->nv);
+    for (int t = 0; t < m->nt; t++) {
+        const int *v = m->tets + 4 * (size_t)t;
+        double V = crom_mesh_tet_volume(m->X + 3 * (size_t)v[0], m->X + 3 * (size_t)v[1],
+                                        m->X + 3 * (size_t)v[2], m->X + 3 * (size_t)v[3]);
+        total += V;
+        for (int k = 0; k < 4; k++)
+            w[v[k]] += V / 4;
+    }
+    return total;
+}
+
 static double degenerate_tol(const crom_mesh *m)
 {
     double lo[3], hi[3];
@@ -561,5 +576,35 @@ int crom_mesh_read(hid_t loc, crom_mesh *m)
         rc = crom_mesh_validate(m);
     if (rc)
         crom_mesh_free(m);
+    return rc;
+}
+
+int crom_mesh_load(const char *path, int carriers, crom_mesh *m, char **history)
+{
+    crom_in in;
+    int rc = crom_in_open(&in, path);
+    if (rc)
+        return rc;
+    const char *group = "/";
+    if (!carriers || !strcmp(in.schema, "crom/mesh"))
+        rc = crom_in_expect(&in, CROM_MESH_SCHEMA, CROM_MESH_VERSION);
+    else if (!strcmp(in.schema, "crom/trajectory") || !strcmp(in.schema, "crom/cubature"))
+        rc = crom_in_expect(&in, in.schema, 1), group = "mesh";
+    else
+        rc = crom_err(CROM_EDATA, "%s is %s v%d, expected a crom/mesh (or a file carrying one)", in.name,
+                      in.schema, in.version);
+    if (!rc) {
+        hid_t g = H5Gopen2(in.h5, group, H5P_DEFAULT);
+        rc = g < 0 ? crom_err(CROM_EDATA, "%s has no mesh", in.name) : crom_mesh_read(g, m);
+        if (g >= 0)
+            H5Gclose(g);
+        if (rc && g >= 0)
+            crom_err_ctx("%s", in.name);
+    }
+    if (!rc && history) {
+        *history = in.history;
+        in.history = NULL;
+    }
+    crom_in_close(&in);
     return rc;
 }

@@ -1293,7 +1293,7 @@ int crom_fit_pod(const crom_samples *S, int rank, crom_model *out, double *captu
         rc = CROM_EINTERNAL;
         goto done;
     }
-    double vol = crom_vertex_volumes(m, w);
+    double vol = crom_mesh_vertex_volumes(m, w);
     if ((rc = pod_snapshots(S, w, vol, seen, U, Y)))
         goto done;
     /* Gram matrix of the weighted snapshots and its eigenvectors */

@@ -200,7 +200,7 @@ static void test_analytic_fits(void)
     /* POD modes are orthonormal in the volume-mean inner product */
     {
         double *w = malloc(sizeof(double) * pod.mesh.nv), G[16] = {0};
-        double V = crom_vertex_volumes(&pod.mesh, w);
+        double V = crom_mesh_vertex_volumes(&pod.mesh, w);
         for (int v = 0; v < pod.mesh.nv; v++)
             for (int c = 0; c < 3; c++)
                 for (int a = 0; a < 4; a++)

@@ -141,7 +141,7 @@ static void test_vertex_volumes(void)
     double lo[3] = {0, 0, 0};
     fx_box_mesh(&m, 3, 3, 3, lo, 1.0 / 3, 0.2, &rng, NULL);
     double *w = malloc(sizeof(double) * (size_t)m.nv), s = 0;
-    double V = crom_vertex_volumes(&m, w);
+    double V = crom_mesh_vertex_volumes(&m, w);
     for (int v = 0; v < m.nv; v++)
         s += w[v];
     CHECK_NEAR(V, 1.0, 1e-13);

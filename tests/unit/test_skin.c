@@ -65,7 +65,7 @@ static unsigned char *clamp_mask(const crom_mesh *m)
 static void test_frame(const crom_mesh *m)
 {
     double *vv = malloc(sizeof(double) * m->nv), F[12];
-    crom_vertex_volumes(m, vv);
+    crom_mesh_vertex_volumes(m, vv);
     CHECK(crom_skin_frame((size_t)m->nv, m->X, vv, F) == 0);
     double mt = 0, mean[3] = {0}, cov[9] = {0};
     for (int v = 0; v < m->nv; v++) {
@@ -173,7 +173,7 @@ static double gram_error(const crom_model *m, const crom_mesh *mesh)
 {
     int r = m->rank, nv = mesh->nv;
     double *W = malloc(sizeof(double) * nv * 3 * r), *vv = malloc(sizeof(double) * nv), *G = calloc(r * r, 8), mt = 0;
-    crom_vertex_volumes(mesh, vv);
+    crom_mesh_vertex_volumes(mesh, vv);
     CHECK(crom_model_eval(m, (size_t)nv, mesh->X, W, NULL) == 0);
     for (int v = 0; v < nv; v++) {
         mt += vv[v];
@@ -417,7 +417,7 @@ static void test_eigen(const crom_mesh *m, const crom_mesh *other, const crom_ma
     }
     check_map(&free_m, n, X, "eigen skinning map, handle coordinates");
     double *vv = malloc(sizeof(double) * nv);
-    crom_vertex_volumes(m, vv);
+    crom_mesh_vertex_volumes(m, vv);
     char id0[17];
     memcpy(id0, free_m.model_id, 17);
     CHECK(crom_skin_orthonormalize(&free_m, (size_t)nv, m->X, vv, 1e-6) == 0);
@@ -632,7 +632,7 @@ static void test_trained(const crom_mesh *m, const crom_mesh *other, const crom_
     CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
     CHECK(tm.skin_constant == 1 && tm.rank == 48 && log.steps == 60);
     double *vv = malloc(sizeof(double) * m->nv);
-    crom_vertex_volumes(m, vv);
+    crom_mesh_vertex_volumes(m, vv);
     CHECK(crom_skin_orthonormalize(&tm, (size_t)m->nv, m->X, vv, 1e-6) == 0);
     check_rigid(&tm, m, mat, "trained skinning, free body");
     check_rigid(&tm, other, mat, "trained skinning laid on another mesh");
