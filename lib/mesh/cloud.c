@@ -9,7 +9,7 @@
 #include "base/err.h"
 #include "base/rng.h"
 #include "mesh/cloud.h"
-#include "mesh/meshgen.h"
+#include "mesh/surface.h"
 
 void crom_cloud_free(crom_cloud *c)
 {
@@ -55,13 +55,18 @@ int crom_cloud_from_surface(const char *path, int n, uint64_t seed, crom_cloud *
     memset(out, 0, sizeof *out);
     if (n < 1)
         return crom_err(CROM_EUSAGE, "%d sample points: at least one is needed", n);
-    int rc = crom_surface_read(path, &out->nsv, &out->SV, &out->nst, &out->ST);
+    crom_surface s;
+    int rc = crom_surface_read(path, &s);
     if (rc)
         return rc;
-    if ((rc = crom_surface_check_closed(out->nsv, out->nst, out->ST, path))) {
-        crom_cloud_free(out);
+    if ((rc = crom_surface_check_closed(&s, path))) {
+        crom_surface_free(&s);
         return rc;
     }
+    out->nsv = s.nv;
+    out->SV = s.V;
+    out->nst = s.nt;
+    out->ST = s.T;
     double vol = 0, lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (int t = 0; t < out->nst; t++) {
         const double *a = out->SV + 3 * (size_t)out->ST[3 * t], *b = out->SV + 3 * (size_t)out->ST[3 * t + 1];

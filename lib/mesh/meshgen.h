@@ -53,7 +53,7 @@ typedef struct {
  * surface, measure it into *info, and when o->remesh is CROM_REMESH_AUTO set
  * it to 1 if the surface is much finer than o->size, else 0. Other shapes
  * and files: only CROM_REMESH_AUTO becomes 0, *info is zeroed. Returns 0 or
- * the errors of crom_surface_read. */
+ * the errors of crom_surface_read (mesh/surface.h). */
 int crom_meshgen_plan(crom_meshgen_opts *o, crom_meshgen_plan_info *info);
 
 /* Defaults for a shape (dims, radius, size). */
@@ -67,14 +67,5 @@ int crom_meshgen_shape(const char *name);
  * bad parameters, CROM_ENOINPUT for a missing file, CROM_EDATA for a surface
  * that is open or a file gmsh cannot mesh. */
 int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m);
-
-/* Read a triangle surface (.stl ASCII/binary or .obj): [nv][3] and [nt][3].
- * Exposed for tests. */
-int crom_surface_read(const char *path, int *nv, double **V, int *nt, int **T);
-
-/* 0 if every edge of the surface is shared by exactly two triangles with
- * opposite orientation (closed, oriented, manifold); else CROM_EDATA naming
- * the problem. */
-int crom_surface_check_closed(int nv, int nt, const int *T, const char *name);
 
 #endif

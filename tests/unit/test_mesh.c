@@ -11,6 +11,7 @@
 #include "base/err.h"
 #include "mesh/mesh.h"
 #include "mesh/meshgen.h"
+#include "mesh/surface.h"
 
 static double mesh_of(int shape, double size, double p, crom_mesh *m)
 {
@@ -241,16 +242,15 @@ static void test_surfaces(void)
     /* a closed tetrahedron surface as OBJ: 4 faces, outward */
     snprintf(path, sizeof path, "%s/tet.obj", dir);
     write_file(path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
-    int nv, nt, *T;
-    double *V;
-    CHECK(crom_surface_read(path, &nv, &V, &nt, &T) == 0);
-    CHECK(nv == 4 && nt == 4);
-    CHECK(crom_surface_check_closed(nv, nt, T, path) == 0);
+    crom_surface S;
+    CHECK(crom_surface_read(path, &S) == 0);
+    CHECK(S.nv == 4 && S.nt == 4);
+    CHECK(crom_surface_check_closed(&S, path) == 0);
     /* drop a face: open */
-    CHECK(crom_surface_check_closed(nv, nt - 1, T, path) == CROM_EDATA);
+    S.nt--;
+    CHECK(crom_surface_check_closed(&S, path) == CROM_EDATA);
     CHECK(strstr(crom_errmsg(), "close") != NULL);
-    free(V);
-    free(T);
+    crom_surface_free(&S);
     /* ASCII STL of the same closed surface, meshed inside with gmsh */
     snprintf(path, sizeof path, "%s/tet.stl", dir);
     write_file(path,
