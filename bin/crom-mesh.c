@@ -108,14 +108,14 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
 {
     memset(a, 0, sizeof *a);
     a->timeout = 600;
-    a->remesh = CROM_REMESH_AUTO;
+    a->remesh = CROM_MESHGEN_REMESH_AUTO;
     crom_cli_parse(cli, &doc, argc, argv, on_opt, a);
     int shape = a->shape ? crom_meshgen_shape(a->shape) : -1;
     if (!a->shape)
         crom_err(CROM_EUSAGE, "no shape given (box, plate, sphere, cylinder, superquadric, import FILE)");
     else if (shape < 0)
         crom_err(CROM_EUSAGE, "unknown shape '%s' (box, plate, sphere, cylinder, superquadric, import)", a->shape);
-    else if (shape == CROM_SHAPE_IMPORT && !a->file)
+    else if (shape == CROM_MESHGEN_IMPORT && !a->file)
         crom_err(CROM_EUSAGE, "import needs a FILE operand");
     else
         shape = shape + 1000;
@@ -200,7 +200,7 @@ static int run(crom_cli *cli, args *a)
         if (!rc)
             rc = crom_h5_set_str(o.h5, ".", "generator", shape_names[a->gen.shape]);
         /* a .msh volume is read as it is: no target size applies */
-        int kept = a->gen.shape == CROM_SHAPE_IMPORT && strlen(a->file) > 4 &&
+        int kept = a->gen.shape == CROM_MESHGEN_IMPORT && strlen(a->file) > 4 &&
                    !strcmp(a->file + strlen(a->file) - 4, ".msh");
         if (!rc && !kept)
             rc = crom_h5_set_f64(o.h5, ".", "target_size", &a->gen.size, 1);

@@ -18,7 +18,7 @@ void crom_meshgen_defaults(crom_meshgen_opts *o, int shape)
     memset(o, 0, sizeof *o);
     o->shape = shape;
     o->dims[0] = o->dims[1] = o->dims[2] = 1.0;
-    if (shape == CROM_SHAPE_PLATE) {
+    if (shape == CROM_MESHGEN_PLATE) {
         /* a plate lies in the xz-plane, thin along y (gravity is -y) */
         o->dims[1] = 0.05;
     }
@@ -28,7 +28,7 @@ void crom_meshgen_defaults(crom_meshgen_opts *o, int shape)
     o->size = 0.1;
     o->algorithm = 1;
     o->optimize = 1;
-    o->remesh = CROM_REMESH_AUTO;
+    o->remesh = CROM_MESHGEN_REMESH_AUTO;
 }
 
 int crom_meshgen_shape(const char *s)
@@ -300,23 +300,23 @@ static int check_opts(const crom_meshgen_opts *o)
     if (!(o->size > 0) || !isfinite(o->size))
         return crom_err(CROM_EUSAGE, "--size must be a positive edge length, got %g", o->size);
     switch (o->shape) {
-    case CROM_SHAPE_BOX:
-    case CROM_SHAPE_PLATE:
-    case CROM_SHAPE_SUPERQUADRIC:
+    case CROM_MESHGEN_BOX:
+    case CROM_MESHGEN_PLATE:
+    case CROM_MESHGEN_SUPERQUADRIC:
         for (int k = 0; k < 3; k++)
             if (!(o->dims[k] > 0) || !isfinite(o->dims[k]))
                 return crom_err(CROM_EUSAGE, "--dims must be three positive extents");
-        if (o->shape == CROM_SHAPE_SUPERQUADRIC && (!(o->exponent >= 1) || o->exponent > 200))
+        if (o->shape == CROM_MESHGEN_SUPERQUADRIC && (!(o->exponent >= 1) || o->exponent > 200))
             return crom_err(CROM_EUSAGE, "--exponent must be in [1, 200], got %g", o->exponent);
         break;
-    case CROM_SHAPE_SPHERE:
-    case CROM_SHAPE_CYLINDER:
+    case CROM_MESHGEN_SPHERE:
+    case CROM_MESHGEN_CYLINDER:
         if (!(o->radius > 0) || !isfinite(o->radius))
             return crom_err(CROM_EUSAGE, "--radius must be positive");
-        if (o->shape == CROM_SHAPE_CYLINDER && (!(o->height > 0) || !isfinite(o->height)))
+        if (o->shape == CROM_MESHGEN_CYLINDER && (!(o->height > 0) || !isfinite(o->height)))
             return crom_err(CROM_EUSAGE, "--height must be positive");
         break;
-    case CROM_SHAPE_IMPORT:
+    case CROM_MESHGEN_IMPORT:
         if (!o->file)
             return crom_err(CROM_EUSAGE, "import needs a file");
         break;
@@ -324,25 +324,25 @@ static int check_opts(const crom_meshgen_opts *o)
         return crom_err(CROM_EUSAGE, "unknown shape");
     }
     /* guard against accidental giant meshes: estimate the tet count */
-    double L = o->shape == CROM_SHAPE_SPHERE || o->shape == CROM_SHAPE_CYLINDER
+    double L = o->shape == CROM_MESHGEN_SPHERE || o->shape == CROM_MESHGEN_CYLINDER
                    ? 2 * o->radius
                    : fmax(o->dims[0], fmax(o->dims[1], o->dims[2]));
-    if (o->shape != CROM_SHAPE_IMPORT && L / o->size > 400)
+    if (o->shape != CROM_MESHGEN_IMPORT && L / o->size > 400)
         return crom_err(CROM_EUSAGE, "--size %g is too small for a %g m shape (more than 400 edges across)",
                         o->size, L);
     return 0;
 }
 
-/* The rule of CROM_REMESH_AUTO: remesh a surface much finer than size. */
-static int much_finer(double med, double size) { return med < size / CROM_REMESH_FINER; }
+/* The rule of CROM_MESHGEN_REMESH_AUTO: remesh a surface much finer than size. */
+static int much_finer(double med, double size) { return med < size / CROM_MESHGEN_REMESH_FINER; }
 
 int crom_meshgen_plan(crom_meshgen_opts *o, crom_meshgen_plan_info *info)
 {
     memset(info, 0, sizeof *info);
-    int surface = o->shape == CROM_SHAPE_IMPORT && o->file &&
+    int surface = o->shape == CROM_MESHGEN_IMPORT && o->file &&
                   (ends_with(o->file, ".stl") || ends_with(o->file, ".obj"));
     if (!surface) {
-        if (o->remesh == CROM_REMESH_AUTO)
+        if (o->remesh == CROM_MESHGEN_REMESH_AUTO)
             o->remesh = 0;
         return 0;
     }
@@ -357,7 +357,7 @@ int crom_meshgen_plan(crom_meshgen_opts *o, crom_meshgen_plan_info *info)
         return crom_err(CROM_EINTERNAL, "out of memory");
     info->median_edge = med;
     info->finer = much_finer(med, o->size);
-    if (o->remesh == CROM_REMESH_AUTO) {
+    if (o->remesh == CROM_MESHGEN_REMESH_AUTO) {
         info->automatic = 1;
         o->remesh = info->finer;
     }
@@ -371,7 +371,7 @@ static int shape_input(const crom_meshgen_opts *o, crom_surface *s, int *import_
 {
     int rc;
     *import_groups = 0;
-    if (o->shape == CROM_SHAPE_IMPORT) {
+    if (o->shape == CROM_MESHGEN_IMPORT) {
         struct stat st;
         if (stat(o->file, &st) != 0) /* gmshOpen is silent on missing files */
             return crom_err(CROM_ENOINPUT, "%s: %s", o->file, strerror(errno));
@@ -386,7 +386,7 @@ static int shape_input(const crom_meshgen_opts *o, crom_surface *s, int *import_
         }
         return crom_err(CROM_EUSAGE, "%s: unknown format (expected .stl, .obj, .msh or .geo)", o->file);
     }
-    if (o->shape == CROM_SHAPE_SUPERQUADRIC) {
+    if (o->shape == CROM_MESHGEN_SUPERQUADRIC) {
         double half[3] = {o->dims[0] / 2, o->dims[1] / 2, o->dims[2] / 2};
         return superquadric_skin(half, o->exponent, o->size, s);
     }
@@ -400,27 +400,27 @@ static int make_geometry(const crom_meshgen_opts *o, crom_surface *s, int import
     int ierr = 0, rc = 0;
     const double *d = o->dims;
     switch (o->shape) {
-    case CROM_SHAPE_BOX:
-    case CROM_SHAPE_PLATE:
+    case CROM_MESHGEN_BOX:
+    case CROM_MESHGEN_PLATE:
         G(gmshModelOccAddBox(-d[0] / 2, -d[1] / 2, -d[2] / 2, d[0], d[1], d[2], -1, &ierr),
           "make the box");
         G(gmshModelOccSynchronize(&ierr), "synchronize");
         break;
-    case CROM_SHAPE_SPHERE:
+    case CROM_MESHGEN_SPHERE:
         G(gmshModelOccAddSphere(0, 0, 0, o->radius, -1, -M_PI / 2, M_PI / 2, 2 * M_PI, &ierr),
           "make the sphere");
         G(gmshModelOccSynchronize(&ierr), "synchronize");
         break;
-    case CROM_SHAPE_CYLINDER:
+    case CROM_MESHGEN_CYLINDER:
         G(gmshModelOccAddCylinder(0, -o->height / 2, 0, 0, o->height, 0, o->radius, -1, 2 * M_PI,
                                   &ierr),
           "make the cylinder");
         G(gmshModelOccSynchronize(&ierr), "synchronize");
         break;
-    case CROM_SHAPE_SUPERQUADRIC:
+    case CROM_MESHGEN_SUPERQUADRIC:
         rc = gmsh_volume_from_surface(s, 0);
         break;
-    case CROM_SHAPE_IMPORT:
+    case CROM_MESHGEN_IMPORT:
         if (import_groups) {
             G(gmshOpen(o->file, &ierr), "read the file");
         } else {
@@ -430,7 +430,7 @@ static int make_geometry(const crom_meshgen_opts *o, crom_surface *s, int import
              * --timeout); automatically: remesh a surface much finer than
              * the target, whose kept triangles would make a far finer mesh */
             int remesh = o->remesh;
-            if (remesh == CROM_REMESH_AUTO) {
+            if (remesh == CROM_MESHGEN_REMESH_AUTO) {
                 double med = crom_surface_median_edge(s);
                 if (med < 0)
                     return crom_err(CROM_EINTERNAL, "out of memory");

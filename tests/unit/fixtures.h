@@ -85,7 +85,7 @@ static inline void fx_unit_grid(crom_mesh *m, int n, int orient)
     fx_grid(m, n, n, n, NULL, h, 0, NULL, NULL, orient);
 }
 
-/* A gmsh mesh of shape (CROM_SHAPE_*) with extents dims (NULL: the
+/* A gmsh mesh of shape (CROM_MESHGEN_BOX ...) with extents dims (NULL: the
  * shape's default) at edge length size. Returns crom_meshgen's code, after
  * a CHECK that it is 0. */
 static inline int fx_gen(int shape, const double dims[3], double size, crom_mesh *m)

@@ -45,7 +45,7 @@
 static void make_bar(crom_mesh *m, double size)
 {
     const double dims[3] = {1, 0.2, 0.2};
-    fx_gen(CROM_SHAPE_BOX, dims, size, m);
+    fx_gen(CROM_MESHGEN_BOX, dims, size, m);
     CHECK(crom_mesh_region_spec(m, "clamp=x<-0.49") == 0);
 }
 

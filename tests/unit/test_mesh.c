@@ -59,7 +59,7 @@ static double boundary_volume(const crom_mesh *m, double *area_vec_norm)
 static void test_box(void)
 {
     crom_mesh m;
-    double V = mesh_of(CROM_SHAPE_BOX, 0.2, 0, &m);
+    double V = mesh_of(CROM_MESHGEN_BOX, 0.2, 0, &m);
     CHECK_NEAR(V, 1.0, 1e-12); /* unit box: exact to round-off */
     all_positive(&m, "box");
     double an = NAN, Vb = boundary_volume(&m, &an);
@@ -78,7 +78,7 @@ static void test_box(void)
     crom_mesh_free(&m);
 
     crom_meshgen_opts o;
-    crom_meshgen_defaults(&o, CROM_SHAPE_BOX);
+    crom_meshgen_defaults(&o, CROM_MESHGEN_BOX);
     o.dims[0] = 2;
     o.dims[1] = 0.5;
     o.dims[2] = 0.25;
@@ -94,7 +94,7 @@ static void test_sphere_convergence(void)
     double h[3] = {0.2, 0.1, 0.05}, err[3];
     for (int i = 0; i < 3; i++) {
         crom_mesh m;
-        err[i] = fabs(mesh_of(CROM_SHAPE_SPHERE, h[i], 0, &m) - exact) / exact;
+        err[i] = fabs(mesh_of(CROM_MESHGEN_SPHERE, h[i], 0, &m) - exact) / exact;
         all_positive(&m, "sphere");
         crom_mesh_free(&m);
         fprintf(stderr, "sphere h=%.3f  relative volume error %.3e\n", h[i], err[i]);
@@ -115,10 +115,10 @@ static void test_superquadric(void)
         double p = ps[i], exact = 8 * 0.125 * pow(tgamma(1 + 1 / p), 3) / tgamma(1 + 3 / p);
         double e0 = 0, e1 = 0;
         crom_mesh m;
-        e0 = fabs(mesh_of(CROM_SHAPE_SUPERQUADRIC, 0.1, p, &m) - exact) / exact;
+        e0 = fabs(mesh_of(CROM_MESHGEN_SUPERQUADRIC, 0.1, p, &m) - exact) / exact;
         all_positive(&m, "superquadric");
         crom_mesh_free(&m);
-        e1 = fabs(mesh_of(CROM_SHAPE_SUPERQUADRIC, 0.05, p, &m) - exact) / exact;
+        e1 = fabs(mesh_of(CROM_MESHGEN_SUPERQUADRIC, 0.05, p, &m) - exact) / exact;
         crom_mesh_free(&m);
         fprintf(stderr, "superquadric p=%g  volume error %.3e (h=0.1)  %.3e (h=0.05)\n", p, e0, e1);
         if (p == 1) /* the octahedron is exactly representable */
@@ -261,7 +261,7 @@ static void test_surfaces(void)
                "facet normal 1 1 1\n outer loop\n vertex 1 0 0\n vertex 0 1 0\n vertex 0 0 1\n endloop\nendfacet\n"
                "endsolid t\n");
     crom_meshgen_opts o;
-    crom_meshgen_defaults(&o, CROM_SHAPE_IMPORT);
+    crom_meshgen_defaults(&o, CROM_MESHGEN_IMPORT);
     o.file = path;
     o.size = 0.2;
     crom_mesh m;
@@ -284,7 +284,7 @@ static void test_surfaces(void)
     /* missing file and bad parameters */
     o.file = "/nonexistent/x.stl";
     CHECK(crom_meshgen(&o, &m) == CROM_ENOINPUT);
-    crom_meshgen_defaults(&o, CROM_SHAPE_BOX);
+    crom_meshgen_defaults(&o, CROM_MESHGEN_BOX);
     o.size = 0;
     CHECK(crom_meshgen(&o, &m) == CROM_EUSAGE);
     o.size = -1;

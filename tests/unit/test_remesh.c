@@ -191,7 +191,7 @@ static void test_cut_plate(void)
     const double xc = 0.0123, L = 1.0, thick = 0.05;
     crom_mesh m, c;
     double dims[3] = {1, thick, 1};
-    fx_gen(CROM_SHAPE_PLATE, dims, 0.05, &m);
+    fx_gen(CROM_MESHGEN_PLATE, dims, 0.05, &m);
     double A0 = boundary_area(&m), V0 = crom_mesh_volume(&m);
 
     /* a straight through-cut */
@@ -287,7 +287,7 @@ static void test_punch(void)
     crom_punch_shape ball = {CROM_PUNCH_SPHERE, {0.013, -0.021, 0.017, R}};
     for (int i = 0; i < 3; i++) {
         crom_mesh m, p;
-        fx_gen(CROM_SHAPE_BOX, NULL, h[i], &m);
+        fx_gen(CROM_MESHGEN_BOX, NULL, h[i], &m);
         CHECK(crom_mesh_region_spec(&m, "top=y>0.45") == 0);
         CHECK(crom_mesh_region_spec(&m, "core=sphere:0,0,0,0.1") == 0);
         int nrem = 0;
@@ -338,14 +338,14 @@ static void test_punch(void)
 static void test_swap(void)
 {
     crom_mesh in, other, out;
-    fx_gen(CROM_SHAPE_BOX, NULL, 0.25, &in);
+    fx_gen(CROM_MESHGEN_BOX, NULL, 0.25, &in);
     CHECK(crom_mesh_region_spec(&in, "bottom=y<-0.45") == 0);
     CHECK(crom_mesh_region_spec(&in, "base=bottom") == 0);       /* a name: followed */
     CHECK(crom_mesh_region_spec(&in, "side=x>0.45") == 0);       /* empty on OTHER */
     int one = 0;
     CHECK(crom_mesh_add_region(&in, "grp", "gmsh:grp", &one, 1) == 0); /* not transferable */
     double dims[3] = {2, 0.5, 0.25};
-    fx_gen(CROM_SHAPE_BOX, dims, 0.1, &other);
+    fx_gen(CROM_MESHGEN_BOX, dims, 0.1, &other);
     CHECK(crom_mesh_region_spec(&other, "own=x>0.9") == 0);
     double V = crom_mesh_volume(&other);
 
@@ -437,7 +437,7 @@ static int mid_cmp(const void *x, const void *y)
 static void test_refine(void)
 {
     crom_mesh m, r;
-    fx_gen(CROM_SHAPE_SPHERE, NULL, 0.2, &m);
+    fx_gen(CROM_MESHGEN_SPHERE, NULL, 0.2, &m);
     CHECK(crom_mesh_region_spec(&m, "cap=y>0.2") == 0);
     CHECK(crom_mesh_region_spec(&m, "slab=box:-1,-0.1,-1,1,0.1,1") == 0);
     double V = crom_mesh_volume(&m), w0, w1, mean;

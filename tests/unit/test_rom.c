@@ -45,7 +45,7 @@ static void analytic_basis(const crom_mesh *m, double *W)
 
 static void make(crom_mesh *m, double size, const double dims[3])
 {
-    fx_gen(CROM_SHAPE_BOX, dims, size, m);
+    fx_gen(CROM_MESHGEN_BOX, dims, size, m);
     CHECK(crom_mesh_region_spec(m, "left=x<-0.49") == 0);
     CHECK(crom_mesh_region_spec(m, "right=x>0.49") == 0);
 }

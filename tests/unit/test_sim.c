@@ -88,7 +88,7 @@ static void test_momentum_and_energy(void)
 {
     crom_mesh m;
     double dims[3] = {1, 0.3, 0.2};
-    fx_gen(CROM_SHAPE_BOX, dims, 0.1, &m);
+    fx_gen(CROM_MESHGEN_BOX, dims, 0.1, &m);
     crom_scenario sc;
     crom_scenario_defaults(&sc);
     sc.gravity[1] = 0;
@@ -135,7 +135,7 @@ static void test_momentum_and_energy(void)
 static void test_free_fall(void)
 {
     crom_mesh m;
-    fx_gen(CROM_SHAPE_SPHERE, NULL, 0.2, &m);
+    fx_gen(CROM_MESHGEN_SPHERE, NULL, 0.2, &m);
     crom_scenario sc;
     crom_scenario_defaults(&sc);
     sc.dt = 0.02;
@@ -168,7 +168,7 @@ static double cantilever_error(double size)
 {
     double L = 1, b = 0.1, dims[3] = {L, b, b};
     crom_mesh m;
-    fx_gen(CROM_SHAPE_BOX, dims, size, &m);
+    fx_gen(CROM_MESHGEN_BOX, dims, size, &m);
     for (int i = 0; i < m.nv; i++)
         m.X[3 * i] += L / 2; /* x in [0, L] */
     CHECK(crom_mesh_region_spec(&m, "clamp=x<1e-9") == 0);
@@ -215,7 +215,7 @@ static void test_cantilever(void)
 static void test_prescribed_and_contact(void)
 {
     crom_mesh m;
-    fx_gen(CROM_SHAPE_BOX, NULL, 0.15, &m);
+    fx_gen(CROM_MESHGEN_BOX, NULL, 0.15, &m);
     CHECK(crom_mesh_region_spec(&m, "top=y>0.45") == 0);
     CHECK(crom_mesh_region_spec(&m, "bottom=y<-0.45") == 0);
     crom_scenario sc;
@@ -280,7 +280,7 @@ static void test_prescribed_and_contact(void)
 static void test_tolerance(void)
 {
     crom_mesh m;
-    fx_gen(CROM_SHAPE_BOX, NULL, 0.08, &m);
+    fx_gen(CROM_MESHGEN_BOX, NULL, 0.08, &m);
     CHECK(crom_mesh_region_spec(&m, "top=y>0.45") == 0);
     CHECK(crom_mesh_region_spec(&m, "bottom=y<-0.45") == 0);
     crom_scenario loose, tight;
@@ -320,7 +320,7 @@ static void test_tolerance(void)
 static void test_bad_scenarios(void)
 {
     crom_mesh m;
-    fx_gen(CROM_SHAPE_BOX, NULL, 0.3, &m);
+    fx_gen(CROM_MESHGEN_BOX, NULL, 0.3, &m);
     crom_scenario sc;
     crom_sim s;
     struct {

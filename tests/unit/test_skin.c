@@ -42,7 +42,7 @@
 static void make_bar(crom_mesh *m, double size)
 {
     crom_meshgen_opts o;
-    crom_meshgen_defaults(&o, CROM_SHAPE_BOX);
+    crom_meshgen_defaults(&o, CROM_MESHGEN_BOX);
     o.size = size;
     o.dims[0] = 1;
     o.dims[1] = 0.2;
