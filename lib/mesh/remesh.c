@@ -198,7 +198,7 @@ static int finish(crom_mesh *out)
 
 /* ------------------------------------------------------------------- cut */
 
-static int check_cut(const crom_cut *c)
+static int check_cut(const crom_remesh_cut_opts *c)
 {
     if (c->axis < 0 || c->axis > 2)
         return crom_err(CROM_EUSAGE, "cut axis must be x, y or z");
@@ -244,7 +244,7 @@ static int crosses(const double p[2], const double q[2], const double a[2], cons
     return e1 * e2 <= 0;
 }
 
-int crom_remesh_cut_faces(const crom_mesh *m, const crom_cut *c, unsigned char **cut_out,
+int crom_remesh_cut_faces(const crom_mesh *m, const crom_remesh_cut_opts *c, unsigned char **cut_out,
                           int *nfaces)
 {
     int rc = check_cut(c);
@@ -460,8 +460,8 @@ int crom_remesh_split(const crom_mesh *m, const unsigned char *cut, crom_mesh *o
     return rc;
 }
 
-int crom_remesh_cut(const crom_mesh *m, const crom_cut *c, crom_mesh *out, crom_cut_stats *st,
-                    crom_remesh_warn_fn warn, void *ctx)
+int crom_remesh_cut(const crom_mesh *m, const crom_remesh_cut_opts *c, crom_mesh *out,
+                    crom_remesh_cut_stats *st, crom_remesh_warn_fn warn, void *ctx)
 {
     unsigned char *cut = NULL;
     int nf = 0, nd = 0, rc = crom_remesh_cut_faces(m, c, &cut, &nf);
@@ -484,17 +484,17 @@ int crom_remesh_cut(const crom_mesh *m, const crom_cut *c, crom_mesh *out, crom_
 
 /* ----------------------------------------------------------------- punch */
 
-static int check_shape(const crom_punch_shape *s, int i)
+static int check_shape(const crom_remesh_punch_shape *s, int i)
 {
-    int n = s->kind == CROM_PUNCH_SPHERE ? 4 : s->kind == CROM_PUNCH_BOX ? 6 : 0;
+    int n = s->kind == CROM_REMESH_PUNCH_SPHERE ? 4 : s->kind == CROM_REMESH_PUNCH_BOX ? 6 : 0;
     if (!n)
         return crom_err(CROM_EUSAGE, "punch shape %d: unknown kind", i + 1);
     for (int k = 0; k < n; k++)
         if (!isfinite(s->a[k]))
             return crom_err(CROM_EUSAGE, "punch shape %d has a non-finite number", i + 1);
-    if (s->kind == CROM_PUNCH_SPHERE && !(s->a[3] > 0))
+    if (s->kind == CROM_REMESH_PUNCH_SPHERE && !(s->a[3] > 0))
         return crom_err(CROM_EUSAGE, "--sphere radius must be positive, got %g", s->a[3]);
-    if (s->kind == CROM_PUNCH_BOX)
+    if (s->kind == CROM_REMESH_PUNCH_BOX)
         for (int k = 0; k < 3; k++)
             if (!(s->a[k] < s->a[k + 3]))
                 return crom_err(CROM_EUSAGE, "--box needs X0<X1, Y0<Y1, Z0<Z1, got %g,%g,%g,%g,%g,%g",
@@ -502,9 +502,9 @@ static int check_shape(const crom_punch_shape *s, int i)
     return 0;
 }
 
-static int inside(const crom_punch_shape *s, const double x[3])
+static int inside(const crom_remesh_punch_shape *s, const double x[3])
 {
-    if (s->kind == CROM_PUNCH_SPHERE) {
+    if (s->kind == CROM_REMESH_PUNCH_SPHERE) {
         double d2 = 0;
         for (int k = 0; k < 3; k++)
             d2 += (x[k] - s->a[k]) * (x[k] - s->a[k]);
@@ -516,7 +516,7 @@ static int inside(const crom_punch_shape *s, const double x[3])
     return 1;
 }
 
-int crom_remesh_punch(const crom_mesh *m, const crom_punch_shape *s, int ns, crom_mesh *out,
+int crom_remesh_punch(const crom_mesh *m, const crom_remesh_punch_shape *s, int ns, crom_mesh *out,
                       int *nremoved, crom_remesh_warn_fn warn, void *ctx)
 {
     if (ns < 1)
@@ -571,7 +571,7 @@ int crom_remesh_punch(const crom_mesh *m, const crom_punch_shape *s, int ns, cro
 
 /* ------------------------------------------------------------------ swap */
 
-void crom_xform_init(crom_xform *x)
+void crom_remesh_xform_init(crom_remesh_xform *x)
 {
     memset(x, 0, sizeof *x);
     x->scale = 1;
@@ -608,7 +608,7 @@ static void rotation(const double n[3], double deg, double R[3][3])
     R[2][2] = c + z * z * C;
 }
 
-int crom_remesh_transform(crom_mesh *m, const crom_xform *x, const crom_mesh *ref)
+int crom_remesh_transform(crom_mesh *m, const crom_remesh_xform *x, const crom_mesh *ref)
 {
     if (!x->fit && (!(x->scale > 0) || !isfinite(x->scale)))
         return crom_err(CROM_EUSAGE, "--scale must be a positive number, got %g", x->scale);
@@ -658,7 +658,7 @@ int crom_remesh_transform(crom_mesh *m, const crom_xform *x, const crom_mesh *re
     return crom_mesh_orient(m, NULL);
 }
 
-int crom_remesh_swap(const crom_mesh *in, const crom_mesh *other, const crom_xform *x,
+int crom_remesh_swap(const crom_mesh *in, const crom_mesh *other, const crom_remesh_xform *x,
                      crom_mesh *out, crom_remesh_warn_fn warn, void *ctx)
 {
     crom_mesh r;

@@ -424,9 +424,9 @@ static void test_crack_opens(void)
                 }
     CHECK(crom_mesh_orient(&m, NULL) == 0);
     static const double seg[4] = {0.5, -1, 0.5, 2};
-    crom_cut cut = {2, 1, seg, 1, 1}; /* a wall at x = 0.5, extruded along z */
+    crom_remesh_cut_opts cut = {2, 1, seg, 1, 1}; /* a wall at x = 0.5, extruded along z */
     crom_mesh cm;
-    crom_cut_stats st;
+    crom_remesh_cut_stats st;
     CHECK(crom_remesh_cut(&m, &cut, &cm, &st, NULL, NULL) == 0);
     CHECK(cm.nv == m.nv + 25);
     int ns = 0;
