@@ -77,7 +77,7 @@ static int on_opt(void *ctx, int key, const char *v)
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
 
-static int put_frame(crom_out *o, crom_sim *s, const crom_step_stats *st, double *u)
+static int put_frame(crom_out *o, crom_sim *s, const crom_sim_stats *st, double *u)
 {
     double K, E, W;
     int rc = crom_sim_energies(s, &K, &E, &W);
@@ -124,7 +124,7 @@ static int run(crom_cli *cli, args *a)
     if (!rc)
         rc = crom_out_begin(&o);
     double *u = crom_malloc(sizeof(double) * 3 * (size_t)m.nv);
-    crom_step_stats st = {0}, sum = {0};
+    crom_sim_stats st = {0}, sum = {0};
     if (!u)
         rc = CROM_EINTERNAL;
     if (!rc)

@@ -144,7 +144,7 @@ int crom_scenario_option(crom_scenario *s, int key, const char *v)
         double nn = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
         if (!(nn > 0))
             return crom_err(CROM_EUSAGE, "--plane '%s': the normal is zero", v);
-        crom_plane *p = &s->plane[s->nplanes++];
+        crom_contact_plane *p = &s->plane[s->nplanes++];
         if (fabs(nn - 1) < 8 * DBL_EPSILON)
             nn = 1; /* already unit: keep the bits, so the text round-trips */
         for (int i = 0; i < 3; i++)

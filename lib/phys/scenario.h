@@ -36,7 +36,7 @@ typedef struct {
     int nforce;
     crom_bc force[CROM_SC_MAX];      /* total forces, spread over the region by mass */
     int nplanes;
-    crom_plane plane[CROM_SC_MAX];
+    crom_contact_plane plane[CROM_SC_MAX];
     double damping;                  /* mass-proportional damping rate (1/s) */
     double contact_stiffness;        /* penalty rate k (1/s²): force k·m_v·depth */
     double friction_eps;             /* velocity below which friction is smoothed (m/s) */

@@ -343,7 +343,7 @@ static double correction(const crom_sim *s, const double *d)
  * z = -P⁻¹g; the test asks it to be below tol with a margin of 2, for the
  * factor is of an older Hessian. When it passes, x takes it and
  * *converged is set. */
-static int simplified_step(crom_sim *s, newton *nw, crom_step_stats *st, int *converged)
+static int simplified_step(crom_sim *s, newton *nw, crom_sim_stats *st, int *converged)
 {
     size_t n = (size_t)s->n;
     double t0 = crom_clock_now();
@@ -373,7 +373,7 @@ static int simplified_step(crom_sim *s, newton *nw, crom_step_stats *st, int *co
  * factor while it serves (nw->cg its iterations), else from a fresh
  * factorization (nw->cg = -1). *retry when H proved indefinite: the
  * Hessians are projected from now on, and the iteration assembles again. */
-static int newton_direction(crom_sim *s, newton *nw, crom_step_stats *st, int *retry)
+static int newton_direction(crom_sim *s, newton *nw, crom_sim_stats *st, int *retry)
 {
     size_t n = (size_t)s->n;
     *retry = 0;
@@ -447,7 +447,7 @@ static double descent_slope(crom_sim *s, newton *nw, int *retry)
  * its terms), without which no step could be accepted near convergence.
  * Without progress the Hessians are projected, or once they are, the
  * factor is renewed. */
-static int line_search(crom_sim *s, newton *nw, double slope, crom_step_stats *st)
+static int line_search(crom_sim *s, newton *nw, double slope, crom_sim_stats *st)
 {
     double t0 = crom_clock_now(), ip, noise;
     int rc = potential(s, s->x, nw->E, &ip, &noise);
@@ -478,7 +478,7 @@ static int line_search(crom_sim *s, newton *nw, double slope, crom_step_stats *s
  * the step uses per-element SPD-projected Hessians instead. Converged
  * when the Newton correction is below tol of the body size: x takes it
  * without a line search. CROM_EDATA when not converged in max_iter. */
-static int newton_solve(crom_sim *s, crom_step_stats *st)
+static int newton_solve(crom_sim *s, crom_sim_stats *st)
 {
     const crom_scenario *sc = s->sc;
     double h = sc->dt;
@@ -542,7 +542,7 @@ static int newton_solve(crom_sim *s, crom_step_stats *st)
     return rc;
 }
 
-int crom_sim_step(crom_sim *s, crom_step_stats *st)
+int crom_sim_step(crom_sim *s, crom_sim_stats *st)
 {
     /* the time at the end of the step is step * dt, not a running sum of dt */
     double h = s->sc->dt, t1 = (double)(s->step + 1) * h, tstart = crom_clock_now();

@@ -20,7 +20,7 @@
 /* ----------------------------------------------------------- contact */
 
 typedef struct {
-    crom_plane p;
+    crom_contact_plane p;
     double k, m, xprev[3], lam, eps;
 } cctx;
 
@@ -106,7 +106,7 @@ static void test_momentum_and_energy(void)
     double Pn = sqrt(P0[0] * P0[0] + P0[1] * P0[1] + P0[2] * P0[2]);
     double worst = 0;
     for (int k = 0; k < 40; k++) {
-        crom_step_stats st;
+        crom_sim_stats st;
         int rc = crom_sim_step(&s, &st);
         CHECK_MSG(rc == 0, "step %d: %s", k, crom_errmsg());
         if (rc)
@@ -143,7 +143,7 @@ static void test_free_fall(void)
     CHECK(crom_sim_init(&s, &m, &sc) == 0);
     double worst = 0, g = sc.gravity[1];
     for (int n = 1; n <= 25; n++) {
-        crom_step_stats st;
+        crom_sim_stats st;
         CHECK(crom_sim_step(&s, &st) == 0);
         /* implicit Euler: v_n = n h g, x_n = X + h² g n(n+1)/2 = ½ g t (t + h) */
         double t = n * sc.dt, uy = 0.5 * g * t * (t + sc.dt);
@@ -184,7 +184,7 @@ static double cantilever_error(double size)
     strcpy(sc.pins[sc.npins++], "clamp");
     crom_sim s;
     CHECK(crom_sim_init(&s, &m, &sc) == 0);
-    crom_step_stats st;
+    crom_sim_stats st;
     int rc = crom_sim_step(&s, &st);
     CHECK_MSG(rc == 0, "cantilever: %s", crom_errmsg());
     const crom_mesh_region *tip = crom_mesh_find_region(&m, "tip");
@@ -226,7 +226,7 @@ static void test_prescribed_and_contact(void)
     strcpy(sc.pins[sc.npins++], "bottom");
     crom_sim s;
     CHECK(crom_sim_init(&s, &m, &sc) == 0);
-    crom_step_stats st;
+    crom_sim_stats st;
     for (int k = 0; k < 8; k++)
         CHECK(crom_sim_step(&s, &st) == 0);
     const crom_mesh_region *top = crom_mesh_find_region(&m, "top"), *bot = crom_mesh_find_region(&m, "bottom");
@@ -245,7 +245,7 @@ static void test_prescribed_and_contact(void)
     sc.dt = 0.01;
     sc.damping = 20;
     sc.nplanes = 1;
-    sc.plane[0] = (crom_plane){{0, 1, 0}, -0.5, 0.5};
+    sc.plane[0] = (crom_contact_plane){{0, 1, 0}, -0.5, 0.5};
     CHECK(crom_sim_init(&s, &m, &sc) == 0);
     for (int k = 0; k < 60; k++)
         CHECK(crom_sim_step(&s, &st) == 0);
@@ -297,7 +297,7 @@ static void test_tolerance(void)
     double worst = 0;
     int newton = 0, solves = 0;
     for (int k = 0; k < 12; k++) {
-        crom_step_stats sa, sb;
+        crom_sim_stats sa, sb;
         memcpy(a.x, b.x, sizeof(double) * (size_t)a.n);
         memcpy(a.v, b.v, sizeof(double) * (size_t)a.n);
         CHECK(crom_sim_step(&a, &sa) == 0);
