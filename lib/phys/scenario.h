@@ -12,17 +12,10 @@
 
 #include "base/opt.h"
 #include "mesh/mesh.h"
+#include "phys/bc.h"
 #include "phys/contact.h"
 
 #define CROM_SC_MAX 32
-
-/* A boundary condition on a region: a prescribed velocity or a total force,
- * active during [t0, t1] (t1 = +inf when open). */
-typedef struct {
-    char ref[128];   /* region name or predicate */
-    double v[3];     /* velocity (m/s) or force (N) */
-    double t0, t1;
-} crom_bc;
 
 typedef struct {
     double youngs, poisson, density; /* Pa, 1, kg/m³ */
@@ -78,14 +71,6 @@ int crom_scenario_parse_text(const char *text, crom_scenario *s);
 /* Initial velocity of the material point at X: the uniform velocity plus
  * the spin about the centroid c, v = v0 + ω × (X − c). */
 void crom_scenario_initial_velocity(const crom_scenario *s, const double c[3], const double X[3], double v[3]);
-
-/* Velocity of prescribed-velocity BC b at time t (zero outside its window),
- * and the displacement it has accumulated by time t. */
-void crom_bc_velocity(const crom_bc *b, double t, double v[3]);
-void crom_bc_displacement(const crom_bc *b, double t, double u[3]);
-
-/* Force of force BC b at time t (zero outside its window). */
-void crom_bc_force(const crom_bc *b, double t, double f[3]);
 
 /* Write the scenario as root attributes (scenario text, dt, every, steps,
  * youngs, poisson, density, gravity, tolerance) of an output. */
