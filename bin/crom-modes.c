@@ -247,7 +247,7 @@ static int run(crom_cli *cli, args *a)
         return rc;
     unsigned char *fixed = NULL;
     int npinned = 0;
-    const char *refs[CROM_SC_MAX];
+    const char *refs[CROM_SCENARIO_MAX];
     for (int i = 0; i < a->sc.npins; i++)
         refs[i] = a->sc.pins[i];
     crom_modes r;

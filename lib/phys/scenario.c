@@ -85,29 +85,29 @@ int crom_scenario_option(crom_scenario *s, int key, const char *v)
         return 0;
     case SC_GRAVITY: return crom_parse_doubles(v, "--gravity", 3, s->gravity);
     case SC_PIN:
-        if (s->npins == CROM_SC_MAX)
-            return crom_err(CROM_EUSAGE, "--pin: at most %d", CROM_SC_MAX);
+        if (s->npins == CROM_SCENARIO_MAX)
+            return crom_err(CROM_EUSAGE, "--pin: at most %d", CROM_SCENARIO_MAX);
         if (!*v || strlen(v) >= sizeof s->pins[0])
             return crom_err(CROM_EUSAGE, "--pin: empty or too long region '%s'", v);
         snprintf(s->pins[s->npins++], sizeof s->pins[0], "%s", v);
         return 0;
     case SC_VELOCITY:
-        if (s->nvel == CROM_SC_MAX)
-            return crom_err(CROM_EUSAGE, "--velocity: at most %d", CROM_SC_MAX);
+        if (s->nvel == CROM_SCENARIO_MAX)
+            return crom_err(CROM_EUSAGE, "--velocity: at most %d", CROM_SCENARIO_MAX);
         if (crom_bc_parse("--velocity", v, &s->vel[s->nvel]))
             return CROM_EUSAGE;
         s->nvel++;
         return 0;
     case SC_FORCE:
-        if (s->nforce == CROM_SC_MAX)
-            return crom_err(CROM_EUSAGE, "--force: at most %d", CROM_SC_MAX);
+        if (s->nforce == CROM_SCENARIO_MAX)
+            return crom_err(CROM_EUSAGE, "--force: at most %d", CROM_SCENARIO_MAX);
         if (crom_bc_parse("--force", v, &s->force[s->nforce]))
             return CROM_EUSAGE;
         s->nforce++;
         return 0;
     case SC_PLANE: {
-        if (s->nplanes == CROM_SC_MAX)
-            return crom_err(CROM_EUSAGE, "--plane: at most %d", CROM_SC_MAX);
+        if (s->nplanes == CROM_SCENARIO_MAX)
+            return crom_err(CROM_EUSAGE, "--plane: at most %d", CROM_SCENARIO_MAX);
         if (crom_parse_doubles_var(v, "--plane", 4, 5, d, &k))
             return CROM_EUSAGE;
         double nn = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);

@@ -91,7 +91,7 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
     }
     crom_fem_mass_diag(&s->fem, s->m3);
     /* boundary conditions */
-    const char *refs[CROM_SC_MAX];
+    const char *refs[CROM_SCENARIO_MAX];
     int *pin_ptr = NULL;
     for (int i = 0; i < sc->npins; i++)
         refs[i] = sc->pins[i];
