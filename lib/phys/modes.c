@@ -16,7 +16,7 @@
 #include "base/err.h"
 #include "base/rng.h"
 #include "phys/modes.h"
-#include "phys/solve.h"
+#include "phys/chol.h"
 
 void crom_modes_defaults(crom_modes_opts *o)
 {

@@ -383,7 +383,7 @@ static int newton_direction(crom_sim *s, newton *nw, crom_sim_stats *st, int *re
     double t0 = crom_clock_now();
     if (s->have_factor && !s->refactor) {
         memset(s->d, 0, sizeof(double) * n);
-        cg = crom_pcg(&nw->A, s->chol, s->xt, s->d, nw->rtol, CG_MAX, s->work);
+        cg = crom_chol_pcg(&nw->A, s->chol, s->xt, s->d, nw->rtol, CG_MAX, s->work);
         if (cg < -1)
             return -cg;
         if (cg >= 0)

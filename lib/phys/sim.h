@@ -17,7 +17,7 @@
 
 #include "phys/fem.h"
 #include "phys/scenario.h"
-#include "phys/solve.h"
+#include "phys/chol.h"
 
 typedef struct {
     int newton;           /* Newton iterations of the step */

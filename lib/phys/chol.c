@@ -1,5 +1,5 @@
-/* solve.c — CHOLMOD factorization with a METIS block ordering, symmetric
- * matvec and factor-preconditioned CG (see solve.h). */
+/* chol.c — CHOLMOD factorization with a METIS block ordering, and
+ * factor-preconditioned CG (see chol.h). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,7 +9,7 @@
 
 #include "base/clock.h"
 #include "base/err.h"
-#include "phys/solve.h"
+#include "phys/chol.h"
 
 struct crom_chol {
     cholmod_common cc;
@@ -20,23 +20,6 @@ struct crom_chol {
     long nfactor, nsolve;
     cholmod_dense *X, *Y, *E, B; /* workspaces for cholmod_solve2 */
 };
-
-void crom_sym_matvec(const crom_sym *A, const double *x, double *y)
-{
-    int n = A->n;
-    memset(y, 0, sizeof(double) * (size_t)n);
-    for (int j = 0; j < n; j++) {
-        double xj = x[j], yj = 0;
-        for (int k = A->colptr[j]; k < A->colptr[j + 1]; k++) {
-            int i = A->rowind[k];
-            double a = A->val[k];
-            y[i] += a * xj;
-            if (i != j)
-                yj += a * x[i];
-        }
-        y[j] += yj;
-    }
-}
 
 /* METIS nested dissection of the vertex graph (the pattern's 3×3 blocks),
  * expanded to DOFs. perm[k] = DOF placed k-th. */
@@ -229,7 +212,7 @@ static double dot(const double *a, const double *b, int n)
     return s;
 }
 
-int crom_pcg(const crom_sym *A, crom_chol *c, const double *b, double *x, double rtol,
+int crom_chol_pcg(const crom_sym *A, crom_chol *c, const double *b, double *x, double rtol,
              int maxit, double *work)
 {
     int n = A->n;
