@@ -62,7 +62,7 @@ static const crom_cli_doc doc = {
 typedef struct {
     const char *model, *poses[64], *input, *out;
     int nposes;
-    crom_cub_opts o;
+    crom_cubature_opts o;
     int count_given, maxpose, maxpose_given, material_given;
     double crack_offset;
 } args;
@@ -85,7 +85,7 @@ static int on_opt(void *ctx, int key, const char *v)
         a->poses[a->nposes++] = v;
         return 0;
     case O_SCHEME:
-        if ((a->o.scheme = crom_cub_scheme(v)) < 0)
+        if ((a->o.scheme = crom_cubature_scheme(v)) < 0)
             return crom_err(CROM_EUSAGE, "--scheme: '%s' is not random, metis, optimized or all", v);
         return 0;
     case O_COUNT:
@@ -304,7 +304,7 @@ static int run(crom_cli *cli, args *a)
             goto out;
         tW = crom_clock_now() - t0;
     } else {
-        if (a->o.scheme == CROM_CUB_OPTIMIZED && !poses) {
+        if (a->o.scheme == CROM_CUBATURE_OPTIMIZED && !poses) {
             rc = crom_err(CROM_EUSAGE, "--scheme optimized needs --poses LATENT (training poses of the model)");
             goto out;
         }
@@ -335,9 +335,9 @@ static int run(crom_cli *cli, args *a)
     int rb = is_map ? map.p : r; /* the basis cached: W, or the map's feature basis */
     crom_rng rng;
     crom_rng_seed(&rng, cli->seed);
-    crom_cub c;
+    crom_cubature c;
     t0 = crom_clock_now();
-    if ((rc = crom_cub_build(&c, &m, is_map ? map.B : W, rb, model.model_id, &a->o, &rng)))
+    if ((rc = crom_cubature_build(&c, &m, is_map ? map.B : W, rb, model.model_id, &a->o, &rng)))
         goto out;
     c.map_rank = is_map ? r : 0;
     double tsel = crom_clock_now() - t0;
@@ -347,13 +347,14 @@ static int run(crom_cli *cli, args *a)
         crom_material mat;
         double eE, eF;
         if (!(rc = crom_material_init(&mat, a->o.youngs, a->o.poisson, 1000)) &&
-            !(rc = crom_cub_error(&c, &mat, poses, np, proj, r, &eE, &eF)))
+            !(rc = crom_cubature_error(&c, &mat, poses, np, proj, r, &eE, &eF)))
             crom_cli_info(cli, "relative error on %d poses: elastic energy %.4f, reduced force %.4f", np, eE, eF);
     }
     crom_out o;
-    if (!rc && !(rc = crom_out_create(&o, a->out, CROM_CUB_SCHEMA, CROM_CUB_VERSION, cli->cmdline, hist, CROM_OUT_PLAIN))) {
+    if (!rc && !(rc = crom_out_create(&o, a->out, CROM_CUBATURE_SCHEMA, CROM_CUBATURE_VERSION, cli->cmdline,
+                                      hist, CROM_OUT_PLAIN))) {
         double wsec = crom_clock_wall(tW), ssec = crom_clock_wall(tsel);
-        rc = crom_cub_write(o.h5, &c);
+        rc = crom_cubature_write(o.h5, &c);
         if (!rc)
             rc = crom_h5_set_f64(o.h5, ".", "w_seconds", &wsec, 1);
         if (!rc)
@@ -363,7 +364,7 @@ static int run(crom_cli *cli, args *a)
         else
             crom_out_fail(&o);
     }
-    crom_cub_free(&c);
+    crom_cubature_free(&c);
 out:
     free(W);
     free(poses);
@@ -380,7 +381,7 @@ int main(int argc, char **argv)
     crom_cli cli;
     args a;
     memset(&a, 0, sizeof a);
-    a.o.scheme = CROM_CUB_RANDOM;
+    a.o.scheme = CROM_CUBATURE_RANDOM;
     a.o.tol = 0.01;
     a.o.candidates = 256;
     a.o.youngs = 2.5e6;
@@ -391,6 +392,6 @@ int main(int argc, char **argv)
     if (!a.model)
         return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--model MODEL is required (see crom-cubature --help)"));
     if (!a.count_given)
-        a.o.count = a.o.scheme == CROM_CUB_METIS ? 300 : a.o.scheme == CROM_CUB_OPTIMIZED ? 200 : 400;
+        a.o.count = a.o.scheme == CROM_CUBATURE_METIS ? 300 : a.o.scheme == CROM_CUBATURE_OPTIMIZED ? 200 : 400;
     return crom_cli_exit(&cli, run(&cli, &a));
 }

@@ -128,17 +128,17 @@ static int on_opt(void *ctx, int key, const char *v)
 typedef struct {
     long step;
     char *path;
-    crom_cub cub;
+    crom_cubature cub;
     char *history;
 } sched_entry;
 
-static int load_cub(const char *path, crom_cub *c, char **hist)
+static int load_cub(const char *path, crom_cubature *c, char **hist)
 {
     crom_in in;
     int rc = crom_in_open(&in, path);
     if (rc)
         return rc;
-    rc = crom_cub_read(&in, c);
+    rc = crom_cubature_read(&in, c);
     if (!rc && hist) {
         *hist = in.history;
         in.history = NULL;
@@ -216,7 +216,7 @@ static int load_schedule(const args *a, sched_entry **out, int *n)
 static void free_schedule(sched_entry *e, int n)
 {
     for (int i = 0; i < n; i++) {
-        crom_cub_free(&e[i].cub);
+        crom_cubature_free(&e[i].cub);
         free(e[i].path);
         free(e[i].history);
     }
@@ -354,7 +354,7 @@ static int run_map(crom_cli *cli, args *a)
     if ((rc = crom_nlsim_init(&s, &map, &a->sc, a->kappa, a->init ? q0 : NULL, a->init ? qd0 : NULL, a->threads)))
         goto out;
     if (a->cub) {
-        crom_cub cub;
+        crom_cubature cub;
         if ((rc = load_cub(a->cub, &cub, NULL)))
             goto out;
         if (strcmp(cub.model_id, model.model_id) || cub.map_rank != r || cub.r != map.p ||
@@ -364,7 +364,7 @@ static int run_map(crom_cli *cli, args *a)
                           a->model);
         else
             rc = crom_nlsim_use_cubature(&s, cub.k, cub.elem, cub.weight);
-        crom_cub_free(&cub);
+        crom_cubature_free(&cub);
         if (rc)
             goto out;
     }

@@ -11,7 +11,7 @@
 #include "base/err.h"
 #include "rom/cubature.h"
 
-int crom_cub_scheme(const char *name)
+int crom_cubature_scheme(const char *name)
 {
     static const char *n[] = {"all", "random", "metis", "optimized"};
     for (int i = 0; i < 4; i++)
@@ -62,9 +62,9 @@ static int component_blocks(const double *W4, int r, int lo[3], int hi[3])
     return 1;
 }
 
-double crom_cub_tet(const crom_material *mat, const double Xe[12], const double *W4, int r,
-                    const double Dminv[9], double V, double w, const double *q, int project,
-                    double *g_r, double *H_r, double *work)
+double crom_cubature_tet(const crom_material *mat, const double Xe[12], const double *W4, int r,
+                         const double Dminv[9], double V, double w, const double *q, int project,
+                         double *g_r, double *H_r, double *work)
 {
     double *xe = work, *ge = work + 12, *He = work + 24, *HW = work + 168;
     /* x = X + W q at the four vertices: xe = Xe + W4 q (W4 is 12 × r) */
@@ -93,7 +93,7 @@ double crom_cub_tet(const crom_material *mat, const double Xe[12], const double 
 }
 
 /* gather the [4][3][r] W block and rest positions of tet t */
-static void gather(const crom_cub *c, int t, double *Xe, double *W4)
+static void gather(const crom_cubature *c, int t, double *Xe, double *W4)
 {
     const int *e = c->mesh.tets + 4 * (size_t)t;
     size_t blk = 3 * (size_t)c->r;
@@ -103,7 +103,7 @@ static void gather(const crom_cub *c, int t, double *Xe, double *W4)
     }
 }
 
-void crom_cub_gather(const crom_cub *c, int k, double Xe[12], double *W4, double Dminv[9])
+void crom_cubature_gather(const crom_cubature *c, int k, double Xe[12], double *W4, double Dminv[9])
 {
     gather(c, c->elem[k], Xe, W4);
     memcpy(Dminv, c->Dminv + 9 * (size_t)k, 9 * sizeof(double));
@@ -111,7 +111,7 @@ void crom_cub_gather(const crom_cub *c, int k, double Xe[12], double *W4, double
 
 /* ------------------------------------------------------------- schemes */
 
-static int scheme_all(crom_cub *c)
+static int scheme_all(crom_cubature *c)
 {
     c->k = c->mesh.nt;
     c->elem = crom_malloc(sizeof(int) * (size_t)c->k);
@@ -126,7 +126,7 @@ static int scheme_all(crom_cub *c)
 }
 
 /* LiCROM §5: m random vertices plus all their incident tets, equal weights */
-static int scheme_random(crom_cub *c, const double *tetvol, int m, crom_rng *rng)
+static int scheme_random(crom_cubature *c, const double *tetvol, int m, crom_rng *rng)
 {
     int nv = c->mesh.nv, nt = c->mesh.nt;
     int *perm = crom_malloc(sizeof(int) * (size_t)nv);
@@ -169,7 +169,7 @@ static int scheme_random(crom_cub *c, const double *tetvol, int m, crom_rng *rng
 }
 
 /* METIS partition of the dual graph, one representative tet per part */
-static int scheme_metis(crom_cub *c, const double *tetvol, int parts)
+static int scheme_metis(crom_cubature *c, const double *tetvol, int parts)
 {
     int nt = c->mesh.nt, nv = c->mesh.nv;
     if (parts > nt)
@@ -335,7 +335,7 @@ static int nnls_normal(int s, const double *G, const double *h, double *w, doubl
 /* One column of the fitting matrix for tet t: per pose its reduced force
  * (ro rows: r, or rout projected by the pose's T) and its energy (1 row),
  * each scaled by the pose's row scale. */
-static int tet_column(const crom_cub *c, const crom_cub_opts *o, const crom_material *mat, int t,
+static int tet_column(const crom_cubature *c, const crom_cubature_opts *o, const crom_material *mat, int t,
                       const double *fscale, const double *escale, double *col, double *work)
 {
     int r = c->r, ro = o->proj ? o->rout : r;
@@ -346,7 +346,7 @@ static int tet_column(const crom_cub *c, const crom_cub_opts *o, const crom_mate
     for (int j = 0; j < o->npose; j++) {
         double *g = col + (size_t)j * (ro + 1);
         memset(gf, 0, sizeof(double) * (size_t)r);
-        double E = crom_cub_tet(mat, Xe, W4, r, Dm, V, 1.0, o->poses + (size_t)j * r, 0, gf, NULL, kw);
+        double E = crom_cubature_tet(mat, Xe, W4, r, Dm, V, 1.0, o->poses + (size_t)j * r, 0, gf, NULL, kw);
         if (!isfinite(E))
             return CROM_EDATA;
         if (o->proj)
@@ -359,7 +359,7 @@ static int tet_column(const crom_cub *c, const crom_cub_opts *o, const crom_mate
     return 0;
 }
 
-static int scheme_optimized(crom_cub *c, const crom_cub_opts *o, crom_rng *rng)
+static int scheme_optimized(crom_cubature *c, const crom_cubature_opts *o, crom_rng *rng)
 {
     int r = c->r, nt = c->mesh.nt, P = o->npose, ro = o->proj ? o->rout : r, m = P * (ro + 1), K = o->count;
     crom_material mat;
@@ -518,8 +518,8 @@ static int cmp_int(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-int crom_cub_build(crom_cub *c, const crom_mesh *mesh, const double *W, int r,
-                   const char *model_id, const crom_cub_opts *o, crom_rng *rng)
+int crom_cubature_build(crom_cubature *c, const crom_mesh *mesh, const double *W, int r,
+                        const char *model_id, const crom_cubature_opts *o, crom_rng *rng)
 {
     memset(c, 0, sizeof *c);
     int rc = crom_mesh_copy(mesh, &c->mesh);
@@ -584,14 +584,14 @@ int crom_cub_build(crom_cub *c, const crom_mesh *mesh, const double *W, int r,
     free(tri);
     /* the scheme */
     switch (o->scheme) {
-    case CROM_CUB_ALL: rc = scheme_all(c); break;
-    case CROM_CUB_RANDOM:
+    case CROM_CUBATURE_ALL: rc = scheme_all(c); break;
+    case CROM_CUBATURE_RANDOM:
         rc = o->count < 1 ? crom_err(CROM_EUSAGE, "--count must be at least 1") : scheme_random(c, tetvol, o->count, rng);
         break;
-    case CROM_CUB_METIS:
+    case CROM_CUBATURE_METIS:
         rc = o->count < 1 ? crom_err(CROM_EUSAGE, "--count must be at least 1") : scheme_metis(c, tetvol, o->count);
         break;
-    case CROM_CUB_OPTIMIZED:
+    case CROM_CUBATURE_OPTIMIZED:
         rc = o->count < 1 ? crom_err(CROM_EUSAGE, "--count must be at least 1") : scheme_optimized(c, o, rng);
         break;
     default: rc = crom_err(CROM_EUSAGE, "unknown cubature scheme");
@@ -618,12 +618,12 @@ int crom_cub_build(crom_cub *c, const crom_mesh *mesh, const double *W, int r,
 fail:
     free(tetvol);
     free(B);
-    crom_cub_free(c);
+    crom_cubature_free(c);
     return rc;
 }
 
-int crom_cub_error(const crom_cub *c, const crom_material *mat, const double *poses, int npose,
-                   const double *proj, int rout, double *energy_err, double *force_err)
+int crom_cubature_error(const crom_cubature *c, const crom_material *mat, const double *poses, int npose,
+                        const double *proj, int rout, double *energy_err, double *force_err)
 {
     int r = c->r, nt = c->mesh.nt, ro = proj ? rout : r;
     double *fe = crom_calloc((size_t)r, sizeof(double)), *fc = crom_calloc((size_t)r, sizeof(double));
@@ -639,15 +639,15 @@ int crom_cub_error(const crom_cub *c, const crom_material *mat, const double *po
         for (int t = 0; t < nt && !rc; t++) {
             gather(c, t, Xe, W4);
             crom_fem_tet_rest(Xe, Dm, &V);
-            double E = crom_cub_tet(mat, Xe, W4, r, Dm, V, 1.0, q, 0, fe, NULL, work);
+            double E = crom_cubature_tet(mat, Xe, W4, r, Dm, V, 1.0, q, 0, fe, NULL, work);
             if (!isfinite(E))
                 rc = CROM_EDATA;
             Ee += E;
         }
         for (int k = 0; k < c->k && !rc; k++) {
             double Dk[9];
-            crom_cub_gather(c, k, Xe, W4, Dk);
-            double E = crom_cub_tet(mat, Xe, W4, r, Dk, c->vol[k], c->weight[k], q, 0, fc, NULL, work);
+            crom_cubature_gather(c, k, Xe, W4, Dk);
+            double E = crom_cubature_tet(mat, Xe, W4, r, Dk, c->vol[k], c->weight[k], q, 0, fc, NULL, work);
             if (!isfinite(E))
                 rc = CROM_EDATA;
             Ec += c->weight[k] * E;
@@ -681,7 +681,7 @@ int crom_cub_error(const crom_cub *c, const crom_material *mat, const double *po
 
 /* -------------------------------------------------------------- file I/O */
 
-int crom_cub_write(hid_t loc, const crom_cub *c)
+int crom_cubature_write(hid_t loc, const crom_cubature *c)
 {
     int rc = crom_h5_set_str(loc, ".", "model_id", c->model_id);
     if (!rc)
@@ -722,10 +722,10 @@ int crom_cub_write(hid_t loc, const crom_cub *c)
     return rc;
 }
 
-int crom_cub_read(crom_in *in, crom_cub *c)
+int crom_cubature_read(crom_in *in, crom_cubature *c)
 {
     memset(c, 0, sizeof *c);
-    int rc = crom_in_expect(in, CROM_CUB_SCHEMA, CROM_CUB_VERSION);
+    int rc = crom_in_expect(in, CROM_CUBATURE_SCHEMA, CROM_CUBATURE_VERSION);
     if (rc)
         return rc;
     char *s = NULL;
@@ -823,11 +823,11 @@ int crom_cub_read(crom_in *in, crom_cub *c)
     return 0;
 fail:
     crom_err_ctx("%s", in->name);
-    crom_cub_free(c);
+    crom_cubature_free(c);
     return rc ? rc : CROM_EDATA;
 }
 
-void crom_cub_free(crom_cub *c)
+void crom_cubature_free(crom_cubature *c)
 {
     crom_mesh_free(&c->mesh);
     free(c->W);

@@ -50,7 +50,7 @@ static void free_cub_data(crom_rsim *s)
 }
 
 /* mass-weighted sums over a vertex set: P = Σ m W_vᵀW_v, S = Σ m W_vᵀ */
-static int region_sums(const crom_cub *c, double rho, const char *ref, crom_rbc *b)
+static int region_sums(const crom_cubature *c, double rho, const char *ref, crom_rbc *b)
 {
     int r = c->r, rc = crom_mesh_select(&c->mesh, ref, &b->idx, &b->n);
     if (rc)
@@ -146,7 +146,7 @@ out:
 
 static int build(crom_rsim *s)
 {
-    const crom_cub *c = s->cub;
+    const crom_cubature *c = s->cub;
     const crom_scenario *sc = s->sc;
     int r = c->r, rc = 0;
     double rho = sc->density;
@@ -239,7 +239,7 @@ static int build(crom_rsim *s)
 static int initial_velocity(crom_rsim *s)
 {
     const crom_scenario *sc = s->sc;
-    const crom_cub *c = s->cub;
+    const crom_cubature *c = s->cub;
     if (!sc->v0[0] && !sc->v0[1] && !sc->v0[2] && !sc->spin[0] && !sc->spin[1] && !sc->spin[2])
         return 0;
     int r = s->r, nv = c->mesh.nv;
@@ -269,7 +269,7 @@ static int initial_velocity(crom_rsim *s)
     return 0;
 }
 
-int crom_rsim_init(crom_rsim *s, const crom_cub *cub, const crom_scenario *sc, int solver,
+int crom_rsim_init(crom_rsim *s, const crom_cubature *cub, const crom_scenario *sc, int solver,
                    double kappa, const double *q0, const double *qd0)
 {
     memset(s, 0, sizeof *s);
@@ -302,7 +302,7 @@ int crom_rsim_init(crom_rsim *s, const crom_cub *cub, const crom_scenario *sc, i
     return 0;
 }
 
-int crom_rsim_set_cubature(crom_rsim *s, const crom_cub *cub)
+int crom_rsim_set_cubature(crom_rsim *s, const crom_cubature *cub)
 {
     if (cub->r != s->r || strcmp(cub->model_id, s->cub->model_id))
         return crom_err(CROM_EDATA, "the cubature belongs to model %s (rank %d), the run uses model %s (rank %d)",
@@ -340,7 +340,7 @@ static void loads(const crom_rsim *s, double t, double *f)
 void crom_rsim_begin_step(crom_rsim *s)
 {
     const crom_scenario *sc = s->sc;
-    const crom_cub *c = s->cub;
+    const crom_cubature *c = s->cub;
     int r = s->r;
     double h = sc->dt;
     memcpy(s->qn, s->q, sizeof(double) * (size_t)r);
@@ -362,7 +362,7 @@ void crom_rsim_begin_step(crom_rsim *s)
 int crom_rsim_objective(crom_rsim *s, const double *q, double *Eout, double *g, double *H, int project)
 {
     const crom_scenario *sc = s->sc;
-    const crom_cub *c = s->cub;
+    const crom_cubature *c = s->cub;
     int r = s->r;
     size_t rr = (size_t)r * r;
     double h = sc->dt, *fext = FEXT(s);
@@ -423,8 +423,8 @@ int crom_rsim_objective(crom_rsim *s, const double *q, double *Eout, double *g, 
     /* elastic energy by cubature */
     for (int k = 0; k < c->k; k++) {
         double Xe[12], Dk[9];
-        crom_cub_gather(c, k, Xe, W4, Dk);
-        double Ee = crom_cub_tet(&s->mat, Xe, W4, r, Dk, c->vol[k], c->weight[k], q, project, g, H, kw);
+        crom_cubature_gather(c, k, Xe, W4, Dk);
+        double Ee = crom_cubature_tet(&s->mat, Xe, W4, r, Dk, c->vol[k], c->weight[k], q, project, g, H, kw);
         if (!isfinite(Ee))
             return crom_err(CROM_EDATA, "cubature tet %d: non-finite elastic energy", k);
         E += c->weight[k] * Ee;
@@ -557,7 +557,7 @@ int crom_rsim_step(crom_rsim *s, crom_rstep_stats *st)
 
 double crom_rsim_constraint_residual(const crom_rsim *s)
 {
-    const crom_cub *c = s->cub;
+    const crom_cubature *c = s->cub;
     int r = s->r;
     double worst = 0;
     for (int k = 0; k < s->nbc; k++) {
@@ -576,7 +576,7 @@ double crom_rsim_constraint_residual(const crom_rsim *s)
 
 int crom_rsim_energies(crom_rsim *s, double *kinetic, double *elastic, double *external)
 {
-    const crom_cub *c = s->cub;
+    const crom_cubature *c = s->cub;
     int r = s->r;
     double K = 0, Ee = 0, W = 0, *f = s->gt;
     for (int i = 0; i < r; i++)
@@ -588,8 +588,8 @@ int crom_rsim_energies(crom_rsim *s, double *kinetic, double *elastic, double *e
     double *W4 = s->work, *kw = s->work + 12 * (size_t)r;
     for (int k = 0; k < c->k; k++) {
         double Xe[12], Dk[9];
-        crom_cub_gather(c, k, Xe, W4, Dk);
-        double E = crom_cub_tet(&s->mat, Xe, W4, r, Dk, c->vol[k], 1.0, s->q, 0, NULL, NULL, kw);
+        crom_cubature_gather(c, k, Xe, W4, Dk);
+        double E = crom_cubature_tet(&s->mat, Xe, W4, r, Dk, c->vol[k], 1.0, s->q, 0, NULL, NULL, kw);
         if (!isfinite(E))
             return crom_err(CROM_EDATA, "non-finite elastic energy");
         Ee += c->weight[k] * E;

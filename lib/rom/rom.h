@@ -48,7 +48,7 @@ typedef struct {
 
 typedef struct {
     const crom_scenario *sc;
-    const crom_cub *cub;
+    const crom_cubature *cub;
     crom_material mat;
     int r, solver;
     double kappa;       /* BC penalty rate (1/s²) */
@@ -77,12 +77,12 @@ typedef struct {
  * acts only on the latent directions that move the BC vertices (see
  * rom.c, constrain_directions: threshold 0.1 of the BC mass fraction);
  * set s->bc_threshold and call crom_rsim_set_cubature to change it. */
-int crom_rsim_init(crom_rsim *s, const crom_cub *cub, const crom_scenario *sc, int solver,
+int crom_rsim_init(crom_rsim *s, const crom_cubature *cub, const crom_scenario *sc, int solver,
                    double kappa, const double *q0, const double *qd0);
 
 /* Switch to another cubature (a remeshed body, LiCROM §4): the state q, q̇
  * carries over unchanged. CROM_EDATA if its model_id or rank differs. */
-int crom_rsim_set_cubature(crom_rsim *s, const crom_cub *cub);
+int crom_rsim_set_cubature(crom_rsim *s, const crom_cubature *cub);
 
 /* Advance one step. CROM_EDATA when Newton does not converge in max_iter
  * iterations (gd never fails that way: its count is fixed). */

@@ -940,12 +940,13 @@ static void test_map_cubature(bar_case *b)
         double q[2] = {crom_rng_normal(&rng), crom_rng_normal(&rng)};
         CHECK(crom_map_features(&map, q, poses + (size_t)j * p, T + (size_t)j * p * r) == 0);
     }
-    crom_cub_opts co = {CROM_CUB_OPTIMIZED, 120, 0.002, 0, poses, P, 1e6, 0.3, T, r};
-    crom_cub cub;
-    CHECK(crom_cub_build(&cub, &map.mesh, map.B, p, "map", &co, &rng) == 0);
+    crom_cubature_opts co = {CROM_CUBATURE_OPTIMIZED, 120, 0.002, 0, poses, P, 1e6, 0.3, T, r};
+    crom_cubature cub;
+    CHECK(crom_cubature_build(&cub, &map.mesh, map.B, p, "map", &co, &rng) == 0);
     double eE[2], eF[2];
-    CHECK(crom_cub_error(&cub, &b->mat, poses, P, T, r, &eE[0], &eF[0]) == 0);
-    CHECK(crom_cub_error(&cub, &b->mat, poses + (size_t)P * p, P, T + (size_t)P * p * r, r, &eE[1], &eF[1]) == 0);
+    CHECK(crom_cubature_error(&cub, &b->mat, poses, P, T, r, &eE[0], &eF[0]) == 0);
+    CHECK(crom_cubature_error(&cub, &b->mat, poses + (size_t)P * p, P, T + (size_t)P * p * r, r, &eE[1],
+                              &eF[1]) == 0);
     fprintf(stderr, "energy map cubature: %d of %d tets; latent force error %.4f on the fitted samples, %.4f on "
                     "others (energy %.4f, %.4f)\n", cub.k, map.mesh.nt, eF[0], eF[1], eE[0], eE[1]);
     CHECK(cub.k < map.mesh.nt / 2);
@@ -982,7 +983,7 @@ static void test_map_cubature(bar_case *b)
     free(xc);
     crom_nlsim_free(&all);
     crom_nlsim_free(&cs);
-    crom_cub_free(&cub);
+    crom_cubature_free(&cub);
     free(poses);
     free(T);
     crom_map_free(&map);
@@ -1015,11 +1016,11 @@ static void test_linear_equivalence(bar_case *b)
     check_fd_jacobian(nl_grad, NULL, q, r, r, 1e-7, Hfd);
     double eh = check_relerr(H, Hfd, r * r, 1e-9);
     CHECK_LT(eh, 1e-5);
-    crom_cub cub;
-    crom_cub_opts co = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, sc.youngs, sc.poisson, NULL, 0};
+    crom_cubature cub;
+    crom_cubature_opts co = {CROM_CUBATURE_ALL, 0, 0, 0, NULL, 0, sc.youngs, sc.poisson, NULL, 0};
     crom_rng rng;
     crom_rng_seed(&rng, 1);
-    CHECK(crom_cub_build(&cub, &b->mesh, b->modes, r, "lin", &co, &rng) == 0);
+    CHECK(crom_cubature_build(&cub, &b->mesh, b->modes, r, "lin", &co, &rng) == 0);
     crom_rsim rs;
     CHECK(crom_rsim_init(&rs, &cub, &sc, CROM_SOLVER_NEWTON, 0, NULL, NULL) == 0);
     crom_nlsim_free(&s);
@@ -1039,7 +1040,7 @@ static void test_linear_equivalence(bar_case *b)
     CHECK(qmax > 1e-3);
     CHECK_LT(worst, 1e-8 * qmax);
     crom_rsim_free(&rs);
-    crom_cub_free(&cub);
+    crom_cubature_free(&cub);
     crom_nlsim_free(&s);
     crom_map_free(&map);
     crom_model_free(&lm);

@@ -73,11 +73,11 @@ static void test_derivatives(void)
     make(&m, 0.12, dims);
     double *W = malloc(sizeof(double) * 3 * R * m.nv);
     analytic_basis(&m, W);
-    crom_cub c;
-    crom_cub_opts o = {CROM_CUB_RANDOM, 20, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
+    crom_cubature c;
+    crom_cubature_opts o = {CROM_CUBATURE_RANDOM, 20, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
     crom_rng rng;
     crom_rng_seed(&rng, 3);
-    CHECK(crom_cub_build(&c, &m, W, R, "test", &o, &rng) == 0);
+    CHECK(crom_cubature_build(&c, &m, W, R, "test", &o, &rng) == 0);
     crom_scenario sc;
     crom_scenario_defaults(&sc);
     sc.damping = 3;
@@ -115,7 +115,7 @@ static void test_derivatives(void)
         CHECK_LT(asym, 1e-9 * fabs(H[0]));
     }
     crom_rsim_free(&s);
-    crom_cub_free(&c);
+    crom_cubature_free(&c);
     free(W);
     crom_mesh_free(&m);
 }
@@ -202,11 +202,11 @@ static void test_galerkin(void)
     make(&m, 0.1, dims);
     double *W = malloc(sizeof(double) * 3 * R * m.nv);
     analytic_basis(&m, W);
-    crom_cub c;
-    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
+    crom_cubature c;
+    crom_cubature_opts o = {CROM_CUBATURE_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
     crom_rng rng;
     crom_rng_seed(&rng, 1);
-    CHECK(crom_cub_build(&c, &m, W, R, "test", &o, &rng) == 0);
+    CHECK(crom_cubature_build(&c, &m, W, R, "test", &o, &rng) == 0);
     CHECK(c.k == m.nt);
     crom_scenario sc;
     crom_scenario_defaults(&sc);
@@ -250,7 +250,7 @@ static void test_galerkin(void)
     CHECK_LT(dm, 1e-12 * mm);
     crom_fem_free(&fem);
     crom_rsim_free(&s);
-    crom_cub_free(&c);
+    crom_cubature_free(&c);
     free(W);
     crom_mesh_free(&m);
 }
@@ -270,22 +270,22 @@ static void test_schemes_and_switch(void)
     double poses[8 * R];
     for (int i = 0; i < 8 * R; i++)
         poses[i] = (i % R < 3 ? 0 : 0.02) * crom_rng_normal(&rng);
-    crom_cub all, rnd, met, opt;
-    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
-    CHECK(crom_cub_build(&all, &m, W, R, "id", &o, &rng) == 0);
-    o.scheme = CROM_CUB_RANDOM;
+    crom_cubature all, rnd, met, opt;
+    crom_cubature_opts o = {CROM_CUBATURE_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
+    CHECK(crom_cubature_build(&all, &m, W, R, "id", &o, &rng) == 0);
+    o.scheme = CROM_CUBATURE_RANDOM;
     o.count = 60;
-    CHECK(crom_cub_build(&rnd, &m, W, R, "id", &o, &rng) == 0);
-    o.scheme = CROM_CUB_METIS;
+    CHECK(crom_cubature_build(&rnd, &m, W, R, "id", &o, &rng) == 0);
+    o.scheme = CROM_CUBATURE_METIS;
     o.count = 40;
-    CHECK(crom_cub_build(&met, &m, W, R, "id", &o, &rng) == 0);
+    CHECK(crom_cubature_build(&met, &m, W, R, "id", &o, &rng) == 0);
     CHECK(met.k == 40);
-    o.scheme = CROM_CUB_OPTIMIZED;
+    o.scheme = CROM_CUBATURE_OPTIMIZED;
     o.count = 60;
     o.tol = 1e-3;
     o.poses = poses;
     o.npose = 8;
-    CHECK(crom_cub_build(&opt, &m, W, R, "id", &o, &rng) == 0);
+    CHECK(crom_cubature_build(&opt, &m, W, R, "id", &o, &rng) == 0);
     /* weighted volumes integrate the mesh volume (random, metis exactly) */
     double vr = 0, vm = 0;
     for (int k = 0; k < rnd.k; k++)
@@ -295,9 +295,9 @@ static void test_schemes_and_switch(void)
     CHECK_NEAR(vr, all.mesh_volume, 1e-12);
     CHECK_NEAR(vm, all.mesh_volume, 1e-12);
     double eE[4], eF[4];
-    const crom_cub *cs[4] = {&all, &rnd, &met, &opt};
+    const crom_cubature *cs[4] = {&all, &rnd, &met, &opt};
     for (int i = 0; i < 4; i++)
-        CHECK(crom_cub_error(cs[i], &mat, poses, 8, NULL, 0, &eE[i], &eF[i]) == 0);
+        CHECK(crom_cubature_error(cs[i], &mat, poses, 8, NULL, 0, &eE[i], &eF[i]) == 0);
     fprintf(stderr, "cubature errors (energy, force): all %.1e %.1e, random(%d tets) %.3f %.3f, metis(%d) %.3f %.3f, optimized(%d) %.4f %.4f\n",
             eE[0], eF[0], rnd.k, eE[1], eF[1], met.k, eE[2], eF[2], opt.k, eE[3], eF[3]);
     CHECK_LT(eE[0], 1e-12);
@@ -355,7 +355,7 @@ static void test_schemes_and_switch(void)
     CHECK(crom_rsim_set_cubature(&s, &met) == CROM_EDATA);
     crom_rsim_free(&s);
     for (int i = 0; i < 4; i++)
-        crom_cub_free((crom_cub *)cs[i]);
+        crom_cubature_free((crom_cubature *)cs[i]);
     free(W);
     crom_mesh_free(&m);
 }
@@ -373,11 +373,11 @@ static double jump_energy(const crom_mesh *m, double offset, double q)
         W[3 * v] = W[3 * v + 2] = 0;
         W[3 * v + 1] = 0.5 * (1 + tanh((P[3 * v] - 0.5) / 1e-4));
     }
-    crom_cub c;
-    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 1e5, 0.25, NULL, 0};
+    crom_cubature c;
+    crom_cubature_opts o = {CROM_CUBATURE_ALL, 0, 0, 0, NULL, 0, 1e5, 0.25, NULL, 0};
     crom_rng rng;
     crom_rng_seed(&rng, 1);
-    CHECK(crom_cub_build(&c, m, W, 1, "jump", &o, &rng) == 0);
+    CHECK(crom_cubature_build(&c, m, W, 1, "jump", &o, &rng) == 0);
     crom_scenario sc;
     crom_scenario_defaults(&sc);
     sc.youngs = 1e5;
@@ -386,7 +386,7 @@ static double jump_energy(const crom_mesh *m, double offset, double q)
     double K, E, X;
     CHECK(crom_rsim_energies(&s, &K, &E, &X) == 0);
     crom_rsim_free(&s);
-    crom_cub_free(&c);
+    crom_cubature_free(&c);
     free(P);
     free(W);
     return E;
@@ -456,9 +456,9 @@ static void test_initial_velocity(void)
     make(&m, 0.12, dims);
     double *W = malloc(sizeof(double) * 3 * R * m.nv);
     analytic_basis(&m, W);
-    crom_cub c;
-    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
-    CHECK(crom_cub_build(&c, &m, W, R, "test", &o, NULL) == 0);
+    crom_cubature c;
+    crom_cubature_opts o = {CROM_CUBATURE_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
+    CHECK(crom_cubature_build(&c, &m, W, R, "test", &o, NULL) == 0);
     crom_scenario sc;
     crom_scenario_defaults(&sc);
     double v0[3] = {1, -2, 0.5}, w[3] = {0.3, 0.7, -1.1};
@@ -493,7 +493,7 @@ static void test_initial_velocity(void)
     CHECK_NEAR(P[1], M * -2, 1e-9 * M);
     CHECK_NEAR(P[2], M * 0.5, 1e-9 * M);
     crom_rsim_free(&s);
-    crom_cub_free(&c);
+    crom_cubature_free(&c);
     free(W);
     crom_mesh_free(&m);
 }

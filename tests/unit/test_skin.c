@@ -283,7 +283,7 @@ static void check_rigid(const crom_model *m, const crom_mesh *mesh, const crom_m
 }
 
 /* The reduced gradient and Hessian of one tet with a skinning basis in
- * orthonormal coordinates (crom_cub_tet takes them by component blocks)
+ * orthonormal coordinates (crom_cubature_tet takes them by component blocks)
  * against W4ᵀ g and W4ᵀ He W4 summed entry by entry. */
 static void check_tet_blocks(const crom_model *m, const crom_mesh *mesh, const crom_material *mat)
 {
@@ -299,7 +299,7 @@ static void check_tet_blocks(const crom_model *m, const crom_mesh *mesh, const c
     crom_rng_seed(&rng, 8);
     for (int i = 0; i < r; i++)
         q[i] = 0.02 * crom_rng_normal(&rng);
-    double E = crom_cub_tet(mat, Xe, W4, r, Dm, V, 0.7, q, 0, g, H, work);
+    double E = crom_cubature_tet(mat, Xe, W4, r, Dm, V, 0.7, q, 0, g, H, work);
     double xe[12], ge[12], He[144], Ee;
     for (int i = 0; i < 12; i++) {
         xe[i] = Xe[i];
