@@ -259,7 +259,7 @@ static int run(crom_cli *cli, args *a)
     int rc = crom_model_load(a->model, &model);
     if (rc)
         return rc;
-    int is_map = crom_model_is_nonlinear(&model), own_mesh = model.field == CROM_FIELD_MAP;
+    int is_map = crom_model_is_nonlinear(&model), own_mesh = model.field == CROM_MODEL_FIELD_MAP;
     if (a->input || !own_mesh)
         rc = read_mesh(a->input, &m, &hist);
     else

@@ -162,7 +162,7 @@ static int run(crom_cli *cli, args *a)
     int rc = crom_model_load(a->model, &M);
     if (rc)
         return rc;
-    if (a->pointnet && M.encoder != CROM_ENC_POINTNET) {
+    if (a->pointnet && M.encoder != CROM_MODEL_ENC_POINTNET) {
         rc = crom_err(CROM_EUSAGE, "%s has no PointNet encoder (its encoder is %s): use --encoder lsq",
                       a->model, crom_model_encoder_name(M.encoder));
         crom_model_free(&M);

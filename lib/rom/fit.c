@@ -349,7 +349,7 @@ void crom_fit_defaults(crom_fit_opts *o)
 {
     memset(o, 0, sizeof *o);
     o->rank = 20;
-    o->encoder = CROM_ENC_LSQ;
+    o->encoder = CROM_MODEL_ENC_LSQ;
     o->depth = 5;
     o->width = 60;
     o->act = CROM_NN_ELU;
@@ -577,7 +577,7 @@ static int trainer_init(trainer *t, const crom_samples *S, const crom_fit_opts *
     t->o = *o;
     t->r = o->rank;
     t->B = o->batch < S->F ? o->batch : S->F;
-    int pn = o->encoder == CROM_ENC_POINTNET;
+    int pn = o->encoder == CROM_MODEL_ENC_POINTNET;
     int P = o->points_per_step > 0 ? o->points_per_step : pn ? S->N : 128;
     t->P = P < S->N ? P : S->N;
     t->Pe = pn ? (o->enc_points < S->N ? o->enc_points : S->N) : 0;
@@ -1190,7 +1190,7 @@ int crom_fit_mlp(const crom_samples *S, const crom_fit_opts *opts, crom_model *o
     memset(&R, 0, sizeof R);
     crom_fit_opts *o = &R.o;
     *o = *opts;
-    R.pn = o->encoder == CROM_ENC_POINTNET;
+    R.pn = o->encoder == CROM_MODEL_ENC_POINTNET;
     if (o->epochs <= 0)
         o->epochs = R.pn ? CROM_FIT_EPOCHS_POINTNET : CROM_FIT_EPOCHS_LSQ;
     if (o->lr <= 0)
@@ -1358,7 +1358,7 @@ int crom_fit_error(const crom_model *m, const crom_samples *S, double tik, int u
 {
     int r = m->rank, N = S->N, rc = 0;
     size_t rr = (size_t)r * r;
-    int enc = use_encoder && m->encoder == CROM_ENC_POINTNET;
+    int enc = use_encoder && m->encoder == CROM_MODEL_ENC_POINTNET;
     double **cache = crom_calloc((size_t)(S->nsources ? S->nsources : 1), sizeof(double *));
     double *Wf = crom_malloc(sizeof(double) * (size_t)N * 3 * r);
     double *Xd = crom_malloc(sizeof(double) * (size_t)N * 3);

@@ -650,7 +650,8 @@ static void test_field_subspace(bar_case *b)
     CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
     if (rc)
         return;
-    CHECK(!strcmp(fm.basis, "energy-field") && fm.field == CROM_FIELD_CMAP && fm.rank == 2 && log.steps == 600);
+    CHECK(!strcmp(fm.basis, "energy-field") && fm.field == CROM_MODEL_FIELD_CMAP && fm.rank == 2 &&
+          log.steps == 600);
     CHECK(log.objective[log.nblocks - 1] < log.objective[0]);
     crom_mesh fine;
     make_bar(&fine, 0.07);
