@@ -15,8 +15,8 @@
 #include "rom/cubature.h"
 #include "rom/map.h"
 #include "rom/model.h"
-#include "rom/nlrom.h"
-#include "rom/rom.h"
+#include "rom/nlsim.h"
+#include "rom/rsim.h"
 
 enum { O_CUB = 300, O_INIT, O_SCHED, O_SOLVER, O_KAPPA, O_STATS, O_STREAM, O_HDF5, O_INITFRAME, O_BCTHR,
        O_MODEL, O_MESH };

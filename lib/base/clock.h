@@ -22,7 +22,7 @@ double crom_clock_wall(double seconds);
 void crom_clock_utc(char *buf, size_t n);
 
 /* Old names (issue 13), kept only for files being edited on another branch
- * (lib/datafree/, bin/crom-fitfield.c, lib/rom/nlrom.c) until they use the
+ * (lib/datafree/, bin/crom-fitfield.c, lib/rom/nlsim.c) until they use the
  * names above; tests/prog/layers.sh keeps all other code off them. */
 #define crom_now crom_clock_now
 #define crom_wall crom_clock_wall

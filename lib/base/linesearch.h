@@ -1,6 +1,6 @@
 /* linesearch.h — the backtracking (Armijo) line search shared by the time
- * steppers: full space (sim.c), cubature subspace (rom.c) and nonlinear
- * latent map (nlrom.c). One rule for accepting a step everywhere.
+ * steppers: full space (sim.c), cubature subspace (rsim.c) and nonlinear
+ * latent map (nlsim.c). One rule for accepting a step everywhere.
  */
 #ifndef CROM_LINESEARCH_H
 #define CROM_LINESEARCH_H

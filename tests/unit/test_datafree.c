@@ -1,4 +1,4 @@
-/* test_datafree.c — lib/datafree, lib/map, lib/nlrom, lib/metrics: the
+/* test_datafree.c — lib/datafree, rom/map, rom/nlsim, rom/metrics: the
  * data-free subspaces of Sharp et al. 2023 (energy + isometry) and Wang et
  * al. 2024 (Neural Modes) and the latent dynamics on them.
  *
@@ -25,19 +25,19 @@
 
 #include "check.h"
 #include "fixtures.h"
-#include "rom/cubature.h"
-#include "datafree/datafree.h"
 #include "base/err.h"
-#include "phys/fem.h"
-#include "rom/map.h"
+#include "base/rng.h"
+#include "datafree/datafree.h"
 #include "mesh/meshgen.h"
+#include "nn/nn.h"
+#include "phys/fem.h"
+#include "phys/modes.h"
+#include "rom/cubature.h"
+#include "rom/map.h"
 #include "rom/metrics.h"
 #include "rom/model.h"
-#include "phys/modes.h"
-#include "rom/nlrom.h"
-#include "nn/nn.h"
-#include "base/rng.h"
-#include "rom/rom.h"
+#include "rom/nlsim.h"
+#include "rom/rsim.h"
 
 #define FD_H 1e-3
 #define FD_TOL 2e-3

@@ -12,12 +12,12 @@
 
 #include "check.h"
 #include "fixtures.h"
-#include "rom/cubature.h"
 #include "base/err.h"
-#include "phys/fem.h"
 #include "mesh/meshgen.h"
 #include "mesh/remesh.h"
-#include "rom/rom.h"
+#include "phys/fem.h"
+#include "rom/cubature.h"
+#include "rom/rsim.h"
 
 /* An analytic basis: translations, linear fields and a few quadratic
  * bending fields, W [nv][3][r]. */

@@ -1,6 +1,6 @@
-/* nlrom.h — implicit Euler in the latent space of a one-mesh subspace map
+/* nlsim.h — implicit Euler in the latent space of a one-mesh subspace map
  * x(q) (lib/rom/map.h: data-free maps, or any linear basis laid on its mesh),
- * the nonlinear counterpart of rom.h with the same scenario.
+ * the nonlinear counterpart of rsim.h with the same scenario.
  *
  * Each step minimizes over q (Sharp et al. 2023 eq. 6, Fulton et al. 2019)
  *
@@ -39,9 +39,9 @@
  * map in double precision) the gradient is Jᵀ ∇_xΦ and the matrix
  * H = Jᵀ (M (1/h² + A/h) + κ M_bc + K + C) J, with K the element Hessians
  * (true ones first, projected to SPD when H is not positive definite or
- * gives no descent, as rom.c does) and C the contact Hessians; it omits the
+ * gives no descent, as rsim.c does) and C the contact Hessians; it omits the
  * curvature of the map, Σ_i (∇_xΦ)_i ∇²x_i, which vanishes for a linear
- * basis (then this is rom.c's Newton on the same energy). Gauss–Newton
+ * basis (then this is rsim.c's Newton on the same energy). Gauss–Newton
  * converges only linearly where that term matters (large forces along
  * curved or nearly collapsed latent directions), so from the third
  * iteration of a step on, a nonlinear map gets Newton steps with the
@@ -52,13 +52,13 @@
  * the bounding-box diagonal. Afterwards v = (x_{n+1} − x_n)/h and
  * q̇ = (q_{n+1} − q_n)/h.
  */
-#ifndef CROM_NLROM_H
-#define CROM_NLROM_H
+#ifndef CROM_NLSIM_H
+#define CROM_NLSIM_H
 
 #include "phys/fem.h"
 #include "phys/scenario.h"
 #include "rom/map.h"
-#include "rom/rom.h"
+#include "rom/rsim.h"
 
 typedef struct {
     int *idx;          /* vertices */

@@ -1,4 +1,4 @@
-/* rom.c — reduced implicit Euler on a cubature (see rom.h). */
+/* rsim.c — reduced implicit Euler on a cubature (see rsim.h). */
 #include <float.h>
 #include <math.h>
 #include <stdlib.h>
@@ -11,7 +11,7 @@
 #include "base/err.h"
 #include "phys/contact.h"
 #include "rom/newton.h"
-#include "rom/rom.h"
+#include "rom/rsim.h"
 
 static void free_bcs(crom_rbc *b, int n)
 {

@@ -1,4 +1,4 @@
-/* rom.h — implicit Euler in a linear subspace u(X) = W(X) q (LiCROM §4–5,
+/* rsim.h — implicit Euler in a linear subspace u(X) = W(X) q (LiCROM §4–5,
  * eq. 5–8), the reduced counterpart of sim.h with the same scenario.
  *
  * Each step minimizes over q
@@ -21,8 +21,8 @@
  *           with the boundary penalty's κP added so that constraints hold;
  *           line search; the paper runs a fixed number of iterations:
  *           max_iter is that count. Slow where stiffness dominates inertia. */
-#ifndef CROM_ROM_H
-#define CROM_ROM_H
+#ifndef CROM_RSIM_H
+#define CROM_RSIM_H
 
 #include "phys/scenario.h"
 #include "rom/cubature.h"
@@ -64,7 +64,7 @@ typedef struct {
     double *lam;        /* [nplanes][nsurf] lagged normal forces */
     double *work, *qn, *qhat, *g, *H, *d, *qt, *gt, *fext;
     /* the factored reduced Hessian reused across iterations and steps (see
-     * rom.c, step_direction) */
+     * rsim.c, step_direction) */
     int lagged;         /* 1: reuse it (the default); 0: a fresh Hessian every iteration */
     double *Hfac;       /* [r][r] its Cholesky factor */
     int fac_ok;         /* Hfac holds a factor */
@@ -75,7 +75,7 @@ typedef struct {
  * q̇ = qd0 (NULL: rest). Regions resolve against the cubature's mesh: an
  * unknown or empty one is CROM_EUSAGE. kappa <= 0 picks 1e4/h². The penalty
  * acts only on the latent directions that move the BC vertices (see
- * rom.c, constrain_directions: threshold 0.1 of the BC mass fraction);
+ * rsim.c, constrain_directions: threshold 0.1 of the BC mass fraction);
  * set s->bc_threshold and call crom_rsim_set_cubature to change it. */
 int crom_rsim_init(crom_rsim *s, const crom_cubature *cub, const crom_scenario *sc, int solver,
                    double kappa, const double *q0, const double *qd0);
