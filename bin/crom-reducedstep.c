@@ -106,9 +106,9 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_SCHED: a->sched = v; return 0;
     case O_SOLVER:
         if (!strcmp(v, "newton"))
-            a->solver = CROM_SOLVER_NEWTON;
+            a->solver = CROM_RSIM_NEWTON;
         else if (!strcmp(v, "gd"))
-            a->solver = CROM_SOLVER_GD;
+            a->solver = CROM_RSIM_GD;
         else
             return crom_err(CROM_EUSAGE, "--solver: '%s' is not newton or gd", v);
         return 0;
@@ -267,7 +267,7 @@ out:
 }
 
 static int put_values(crom_out *o, double t, long nstep, const double *q, const double *qd, double K, double E,
-                      double W, const crom_rstep_stats *st, int entry)
+                      double W, const crom_rsim_stats *st, int entry)
 {
     double step = (double)nstep, tot = K + E + W, it = st->iterations, res = st->residual,
            cres = st->constraint_residual, cub = entry, secs = crom_clock_wall(st->seconds);
@@ -275,7 +275,7 @@ static int put_values(crom_out *o, double t, long nstep, const double *q, const 
     return crom_out_frame(o, vals);
 }
 
-static int put_frame(crom_out *o, crom_rsim *s, const crom_rstep_stats *st, int entry)
+static int put_frame(crom_out *o, crom_rsim *s, const crom_rsim_stats *st, int entry)
 {
     double K, E, W;
     int rc = crom_rsim_energies(s, &K, &E, &W);
@@ -373,7 +373,7 @@ static int run_map(crom_cli *cli, args *a)
     have_out = 1;
     if ((rc = start_output(&o, a, model.model_id, r, "gauss-newton", model.basis)))
         goto out;
-    crom_rstep_stats st = {0, 0, crom_nlsim_constraint_residual(&s), 0, 1};
+    crom_rsim_stats st = {0, 0, crom_nlsim_constraint_residual(&s), 0, 1};
     double K, E, W;
     if (!(rc = crom_nlsim_energies(&s, &K, &E, &W)))
         rc = put_values(&o, s.t, s.step, s.q, s.qd, K, E, W, &st, 0);
@@ -463,8 +463,8 @@ static int run(crom_cli *cli, args *a)
         free(list);
     }
     if (!rc)
-        rc = start_output(&o, a, sch[0].cub.model_id, r, a->solver == CROM_SOLVER_GD ? "gd" : "newton", NULL);
-    crom_rstep_stats st = {0, 0, crom_rsim_constraint_residual(&s), 0, 1};
+        rc = start_output(&o, a, sch[0].cub.model_id, r, a->solver == CROM_RSIM_GD ? "gd" : "newton", NULL);
+    crom_rsim_stats st = {0, 0, crom_rsim_constraint_residual(&s), 0, 1};
     if (!rc)
         rc = put_frame(&o, &s, &st, 0);
     if (!rc && a->stats && !(rc = crom_fileout_open(&csv, a->stats, 0)))
@@ -524,7 +524,7 @@ int main(int argc, char **argv)
         const char *bad = a.sched ? "--schedule" : a.bcthr_given ? "--bc-threshold" : NULL;
         if (bad)
             return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--model runs on the model's mesh: %s does not apply", bad));
-        if (a.solver == CROM_SOLVER_GD)
+        if (a.solver == CROM_RSIM_GD)
             return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--solver gd needs a cubature; --model uses Gauss-Newton"));
         return crom_cli_exit(&cli, run_map(&cli, &a));
     }

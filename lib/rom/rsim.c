@@ -13,7 +13,7 @@
 #include "rom/newton.h"
 #include "rom/rsim.h"
 
-static void free_bcs(crom_rbc *b, int n)
+static void free_bcs(crom_rsim_bc *b, int n)
 {
     for (int i = 0; b && i < n; i++) {
         free(b[i].idx);
@@ -50,7 +50,7 @@ static void free_cub_data(crom_rsim *s)
 }
 
 /* mass-weighted sums over a vertex set: P = Σ m W_vᵀW_v, S = Σ m W_vᵀ */
-static int region_sums(const crom_cubature *c, double rho, const char *ref, crom_rbc *b)
+static int region_sums(const crom_cubature *c, double rho, const char *ref, crom_rsim_bc *b)
 {
     int r = c->r, rc = crom_mesh_select(&c->mesh, ref, &b->idx, &b->n);
     if (rc)
@@ -168,8 +168,8 @@ static int build(crom_rsim *s)
     s->fext = crom_calloc((size_t)r, sizeof(double));
     s->Hfac = crom_malloc(sizeof(double) * rr);
     s->fac_ok = 0;
-    s->bc = crom_calloc((size_t)(sc->npins + sc->nvel + 1), sizeof(crom_rbc));
-    s->force = crom_calloc((size_t)(sc->nforce + 1), sizeof(crom_rbc));
+    s->bc = crom_calloc((size_t)(sc->npins + sc->nvel + 1), sizeof(crom_rsim_bc));
+    s->force = crom_calloc((size_t)(sc->nforce + 1), sizeof(crom_rsim_bc));
     if (!s->Mr || !s->fg || !s->G || !s->Gfac || !s->lam || !s->work || !s->qn || !s->qhat || !s->g ||
         !s->H || !s->d || !s->qt || !s->gt || !s->fext || !s->Hfac || !s->bc || !s->force)
         return CROM_EINTERNAL;
@@ -401,7 +401,7 @@ int crom_rsim_objective(crom_rsim *s, const double *q, double *Eout, double *g, 
     /* boundary-condition penalty κ/2 Σ m ‖W q − ū‖² = κ/2 (qᵀPq − 2qᵀSū + Σm|ū|²) */
     double t1 = (double)(s->step + 1) * h; /* step * dt, not a running sum */
     for (int k = 0; k < s->nbc; k++) {
-        const crom_rbc *bc = &s->bc[k];
+        const crom_rsim_bc *bc = &s->bc[k];
         double u[3] = {0, 0, 0};
         if (bc->bc)
             crom_bc_displacement(bc->bc, t1, u);
@@ -509,7 +509,7 @@ static int step_direction(void *ctx, int it, int project, const double *q, const
     int r = s->r;
     for (int i = 0; i < r; i++)
         d[i] = -g[i];
-    if (s->solver == CROM_SOLVER_GD) { /* descent: the gradient in the metric of the reduced mass */
+    if (s->solver == CROM_RSIM_GD) { /* descent: the gradient in the metric of the reduced mass */
         LAPACKE_dpotrs(LAPACK_ROW_MAJOR, 'U', r, 1, s->Gfac, r, d, 1);
         return 0;
     }
@@ -526,7 +526,7 @@ static int step_direction(void *ctx, int it, int project, const double *q, const
 
 static double step_size(void *ctx, const double *d) { return rms_disp(ctx, d); }
 
-int crom_rsim_step(crom_rsim *s, crom_rstep_stats *st)
+int crom_rsim_step(crom_rsim *s, crom_rsim_stats *st)
 {
     const crom_scenario *sc = s->sc;
     int r = s->r;
@@ -534,13 +534,13 @@ int crom_rsim_step(crom_rsim *s, crom_rstep_stats *st)
     memset(st, 0, sizeof *st);
     crom_rsim_begin_step(s);
     memcpy(s->q, s->qhat, sizeof(double) * (size_t)r);
-    int lag = s->lagged && s->solver != CROM_SOLVER_GD;
+    int lag = s->lagged && s->solver != CROM_RSIM_GD;
     if (!lag)
         s->fac_ok = 0;
     s->fac_iters = 0; /* a reused factor gets LAG_ITERS iterations in each step */
     const crom_newton_problem prob = {r, step_objective, step_direction, step_size,
                                       lag ? step_wants_hessian : NULL, lag ? step_stale : NULL,
-                                      s->solver == CROM_SOLVER_GD, "Newton", "the reduced Hessian is singular"};
+                                      s->solver == CROM_RSIM_GD, "Newton", "the reduced Hessian is singular"};
     const crom_newton_work w = {s->g, s->H, s->d, s->qt};
     int rc = crom_newton_solve(&prob, s, &w, s->q, sc->tol, sc->max_iter, s->step, &st->iterations,
                                &st->residual, &st->converged);

@@ -27,7 +27,7 @@
 #include "phys/scenario.h"
 #include "rom/cubature.h"
 
-enum { CROM_SOLVER_NEWTON = 0, CROM_SOLVER_GD = 1 };
+enum { CROM_RSIM_NEWTON = 0, CROM_RSIM_GD = 1 };
 
 typedef struct {
     int iterations;
@@ -35,7 +35,7 @@ typedef struct {
     double constraint_residual; /* largest ‖W_v q − ū_v‖ over BC vertices (m) */
     double seconds;
     int converged;
-} crom_rstep_stats;
+} crom_rsim_stats;
 
 typedef struct {
     int *idx;           /* vertices of the cubature mesh */
@@ -44,7 +44,7 @@ typedef struct {
     double *P;          /* [r][r] Σ m_v W_vᵀ W_v */
     double *S;          /* [r][3] Σ m_v W_vᵀ */
     const crom_bc *bc;  /* NULL for a pin */
-} crom_rbc;
+} crom_rsim_bc;
 
 typedef struct {
     const crom_scenario *sc;
@@ -60,7 +60,7 @@ typedef struct {
     /* private, rebuilt per cubature */
     double *Mr, *fg, *G, *Gfac, L;
     int nbc, nforce;
-    crom_rbc *bc, *force;
+    crom_rsim_bc *bc, *force;
     double *lam;        /* [nplanes][nsurf] lagged normal forces */
     double *work, *qn, *qhat, *g, *H, *d, *qt, *gt, *fext;
     /* the factored reduced Hessian reused across iterations and steps (see
@@ -86,7 +86,7 @@ int crom_rsim_set_cubature(crom_rsim *s, const crom_cubature *cub);
 
 /* Advance one step. CROM_EDATA when Newton does not converge in max_iter
  * iterations (gd never fails that way: its count is fixed). */
-int crom_rsim_step(crom_rsim *s, crom_rstep_stats *st);
+int crom_rsim_step(crom_rsim *s, crom_rsim_stats *st);
 
 /* Reduced energy E(q) of the current step and its gradient (for tests). */
 int crom_rsim_objective(crom_rsim *s, const double *q, double *E, double *g, double *H, int project);
@@ -101,5 +101,10 @@ int crom_rsim_energies(crom_rsim *s, double *kinetic, double *elastic, double *e
 double crom_rsim_constraint_residual(const crom_rsim *s);
 
 void crom_rsim_free(crom_rsim *s);
+
+/* Old name (issue 13), kept only for lib/rom/nlsim.c, which another branch
+ * is editing, until it uses the name above; tests/prog/layers.sh keeps all
+ * other code off it. */
+#define crom_rstep_stats crom_rsim_stats
 
 #endif

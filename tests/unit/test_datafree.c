@@ -602,7 +602,7 @@ static run_budget run_steps(crom_nlsim *s, int steps)
     double Eprev = NAN;
     int fin = 1;
     for (int k = 0; k <= steps; k++) {
-        crom_rstep_stats st;
+        crom_rsim_stats st;
         if (k > 0 && crom_nlsim_step(s, &st)) {
             CHECK_MSG(0, "step %d: %s", k, crom_errmsg());
             break;
@@ -963,7 +963,7 @@ static void test_map_cubature(bar_case *b)
     CHECK(crom_nlsim_use_cubature(&cs, cub.k, cub.elem, cub.weight) == 0);
     double num = 0, den = 0, *xa = malloc(sizeof(double) * (size_t)map.n), *xc = malloc(sizeof(double) * (size_t)map.n);
     for (int k = 0; k < 40; k++) {
-        crom_rstep_stats s1, s2;
+        crom_rsim_stats s1, s2;
         int rc1 = crom_nlsim_step(&all, &s1), rc2 = crom_nlsim_step(&cs, &s2);
         CHECK_MSG(rc1 == 0 && rc2 == 0, "step %d: %s", k, crom_errmsg());
         if (rc1 || rc2)
@@ -1023,12 +1023,12 @@ static void test_linear_equivalence(bar_case *b)
     crom_rng_seed(&rng, 1);
     CHECK(crom_cubature_build(&cub, &b->mesh, b->modes, r, "lin", &co, &rng) == 0);
     crom_rsim rs;
-    CHECK(crom_rsim_init(&rs, &cub, &sc, CROM_SOLVER_NEWTON, 0, NULL, NULL) == 0);
+    CHECK(crom_rsim_init(&rs, &cub, &sc, CROM_RSIM_NEWTON, 0, NULL, NULL) == 0);
     crom_nlsim_free(&s);
     CHECK(crom_nlsim_init(&s, &map, &sc, 0, NULL, NULL, 1) == 0);
     double worst = 0, qmax = 0;
     for (int k = 0; k < 25; k++) {
-        crom_rstep_stats a, c;
+        crom_rsim_stats a, c;
         int rc1 = crom_rsim_step(&rs, &a), rc2 = crom_nlsim_step(&s, &c);
         CHECK_MSG(rc1 == 0 && rc2 == 0, "step %d: %s", k, crom_errmsg());
         for (int i = 0; i < r; i++) {

@@ -92,7 +92,7 @@ static void test_derivatives(void)
         q0[i] = 0.02 * crom_rng_normal(&rng);
         qd0[i] = 0.3 * crom_rng_normal(&rng);
     }
-    CHECK(crom_rsim_init(&s, &c, &sc, CROM_SOLVER_NEWTON, 1e5, q0, qd0) == 0);
+    CHECK(crom_rsim_init(&s, &c, &sc, CROM_RSIM_NEWTON, 1e5, q0, qd0) == 0);
     crom_rsim_begin_step(&s);
     g_sim = &s;
     for (g_project = 0; g_project <= 1; g_project++) {
@@ -216,7 +216,7 @@ static void test_galerkin(void)
     strcpy(sc.pins[sc.npins++], "left");
     double kappa = 1e6;
     crom_rsim s;
-    CHECK(crom_rsim_init(&s, &c, &sc, CROM_SOLVER_NEWTON, kappa, NULL, NULL) == 0);
+    CHECK(crom_rsim_init(&s, &c, &sc, CROM_RSIM_NEWTON, kappa, NULL, NULL) == 0);
     crom_material mat;
     crom_material_init(&mat, sc.youngs, sc.poisson, sc.density);
     crom_fem fem;
@@ -224,7 +224,7 @@ static void test_galerkin(void)
     double q[R] = {0}, qd[R] = {0}, worst = 0, qmax = 0;
     const crom_mesh_region *pin = crom_mesh_find_region(&m, "left");
     for (int k = 0; k < 12; k++) {
-        crom_rstep_stats st;
+        crom_rsim_stats st;
         int rc = crom_rsim_step(&s, &st);
         CHECK_MSG(rc == 0, "reduced step %d: %s", k, crom_errmsg());
         galerkin_step(&fem, &m, W, sc.gravity, sc.dt, kappa, pin, q, qd);
@@ -310,8 +310,8 @@ static void test_schemes_and_switch(void)
     crom_scenario_defaults(&sc);
     strcpy(sc.pins[sc.npins++], "left");
     crom_rsim s;
-    CHECK(crom_rsim_init(&s, &met, &sc, CROM_SOLVER_NEWTON, 0, NULL, NULL) == 0);
-    crom_rstep_stats st;
+    CHECK(crom_rsim_init(&s, &met, &sc, CROM_RSIM_NEWTON, 0, NULL, NULL) == 0);
+    crom_rsim_stats st;
     for (int k = 0; k < 5; k++)
         CHECK(crom_rsim_step(&s, &st) == 0);
     double qb[R], qdb[R];
@@ -334,9 +334,9 @@ static void test_schemes_and_switch(void)
     sc.youngs = 2e3;
     sc.max_iter = 2000;
     sc.tol = 1e-10;
-    CHECK(crom_rsim_init(&g, &met, &sc, CROM_SOLVER_GD, 0, NULL, NULL) == 0);
+    CHECK(crom_rsim_init(&g, &met, &sc, CROM_RSIM_GD, 0, NULL, NULL) == 0);
     crom_rsim nw;
-    CHECK(crom_rsim_init(&nw, &met, &sc, CROM_SOLVER_NEWTON, 0, NULL, NULL) == 0);
+    CHECK(crom_rsim_init(&nw, &met, &sc, CROM_RSIM_NEWTON, 0, NULL, NULL) == 0);
     for (int k = 0; k < 3; k++) {
         CHECK(crom_rsim_step(&g, &st) == 0);
         CHECK(crom_rsim_step(&nw, &st) == 0);
@@ -382,7 +382,7 @@ static double jump_energy(const crom_mesh *m, double offset, double q)
     crom_scenario_defaults(&sc);
     sc.youngs = 1e5;
     crom_rsim s;
-    CHECK(crom_rsim_init(&s, &c, &sc, CROM_SOLVER_NEWTON, 0, &q, NULL) == 0);
+    CHECK(crom_rsim_init(&s, &c, &sc, CROM_RSIM_NEWTON, 0, &q, NULL) == 0);
     double K, E, X;
     CHECK(crom_rsim_energies(&s, &K, &E, &X) == 0);
     crom_rsim_free(&s);
@@ -465,7 +465,7 @@ static void test_initial_velocity(void)
     memcpy(sc.v0, v0, sizeof v0);
     memcpy(sc.spin, w, sizeof w);
     crom_rsim s;
-    CHECK(crom_rsim_init(&s, &c, &sc, CROM_SOLVER_NEWTON, 0, NULL, NULL) == 0);
+    CHECK(crom_rsim_init(&s, &c, &sc, CROM_RSIM_NEWTON, 0, NULL, NULL) == 0);
     double cen[3] = {0, 0, 0}, vol = 0, P[3] = {0, 0, 0}, err = 0, vmax = 0;
     for (int v = 0; v < m.nv; v++) {
         vol += c.vvol[v];
