@@ -121,7 +121,7 @@ int crom_picture_write(const crom_follow_frames *r, int all, long frame, const c
     else if (!all)
         first = last = k;
     else
-        rc = crom_export_series_open(&s, out, name, "png", CROM_SERIES_FILES);
+        rc = crom_export_series_open(&s, out, name, "png", CROM_EXPORT_SERIES_FILES);
     for (long f = first; f <= last && !rc; f++) {
         crom_image_free(&im);
         if (!(rc = crom_picture_frame(&im, &cam, r, (int)f, pw, ph, umax)))
