@@ -13,6 +13,7 @@
 #include <omp.h>
 #endif
 
+#include "base/array.h"
 #include "base/err.h"
 #include "cli/cli.h"
 
@@ -299,19 +300,15 @@ void crom_cli_print_doc(const crom_cli_doc *d, FILE *f, int man)
 
 typedef struct {
     char **v;
-    int n, cap;
+    int n;
+    size_t cap;
 } strvec;
 
 static int sv_push(strvec *sv, const char *s, size_t len)
 {
-    if (sv->n == sv->cap) {
-        int cap = sv->cap ? 2 * sv->cap : 32;
-        char **v = realloc(sv->v, sizeof(char *) * (size_t)cap);
-        if (!v)
-            return crom_err(CROM_EINTERNAL, "out of memory");
-        sv->v = v;
-        sv->cap = cap;
-    }
+    int rc = crom_array_reserve((void **)&sv->v, &sv->cap, (size_t)sv->n + 1, sizeof *sv->v);
+    if (rc)
+        return rc;
     char *c = malloc(len + 1);
     if (!c)
         return crom_err(CROM_EINTERNAL, "out of memory");
@@ -336,15 +333,11 @@ static int expand_file(strvec *sv, const char *path, int depth)
     size_t len = 0, cap = 0;
     int c;
     while ((c = fgetc(f)) != EOF) {
-        if (len + 2 > cap) {
-            cap = cap ? 2 * cap : 4096;
-            char *nb = realloc(buf, cap);
-            if (!nb) {
-                free(buf);
-                fclose(f);
-                return crom_err(CROM_EINTERNAL, "out of memory");
-            }
-            buf = nb;
+        int rc = crom_array_reserve((void **)&buf, &cap, len + 2, 1);
+        if (rc) {
+            free(buf);
+            fclose(f);
+            return rc;
         }
         buf[len++] = (char)c;
     }

@@ -11,6 +11,7 @@
 
 #include <hdf5_hl.h>
 
+#include "base/array.h"
 #include "base/clock.h"
 #include "base/err.h"
 #include "io/io.h"
@@ -601,20 +602,16 @@ int crom_h5_read_i32(hid_t loc, const char *name, int rank, hsize_t *dims, int *
 /* Read the rest of f into a buffer that starts with `head` (n0 bytes). */
 static int slurp(FILE *f, const unsigned char *head, size_t n0, void **buf, size_t *len)
 {
-    size_t cap = 1 << 20, n = n0;
-    unsigned char *b = malloc(cap);
-    if (!b)
-        return crom_err(CROM_EINTERNAL, "out of memory");
+    size_t cap = 0, n = n0;
+    unsigned char *b = NULL;
+    int rc = crom_array_reserve((void **)&b, &cap, n0 > 1 << 20 ? n0 : 1 << 20, 1);
+    if (rc)
+        return rc;
     memcpy(b, head, n0);
     for (;;) {
-        if (n == cap) {
-            cap *= 2;
-            unsigned char *nb = realloc(b, cap);
-            if (!nb) {
-                free(b);
-                return crom_err(CROM_EINTERNAL, "out of memory reading input");
-            }
-            b = nb;
+        if ((rc = crom_array_reserve((void **)&b, &cap, n + 1, 1))) {
+            free(b);
+            return crom_err_ctx("reading input");
         }
         size_t k = fread(b + n, 1, cap - n, f);
         if (k == 0)
@@ -939,20 +936,15 @@ int crom_in_seek(crom_in *in, long k)
 
 int crom_in_read_all(crom_in *in, double **frames, long *nframes)
 {
-    size_t cap = 16, n = 0, fl = in->frame_len ? in->frame_len : 1;
-    double *all = crom_malloc(cap * fl * sizeof(double));
-    if (!all)
-        return CROM_EINTERNAL;
-    int rc;
+    size_t cap = 0, n = 0, fl = in->frame_len ? in->frame_len : 1;
+    double *all = NULL;
+    int rc = crom_array_reserve((void **)&all, &cap, 16, fl * sizeof(double));
+    if (rc)
+        return rc;
     while ((rc = crom_in_next(in)) == 1) {
-        if (n == cap) {
-            cap *= 2;
-            double *na = crom_realloc(all, cap * fl * sizeof(double));
-            if (!na) {
-                free(all);
-                return CROM_EINTERNAL;
-            }
-            all = na;
+        if ((rc = crom_array_reserve((void **)&all, &cap, n + 1, fl * sizeof(double)))) {
+            free(all);
+            return rc;
         }
         memcpy(all + n * fl, in->frame, in->frame_len * sizeof(double));
         n++;

@@ -7,6 +7,7 @@
 #include <string.h>
 
 
+#include "base/array.h"
 #include "base/err.h"
 #include "mesh/remesh.h"
 
@@ -308,7 +309,8 @@ typedef struct {
     int maxdeg;        /* the largest star */
     int *newidx;       /* [4 nt] per star entry: the vertex it gets */
     int *orig;         /* [nnew − nv] the vertex each copy copies */
-    int nnew, cap;     /* vertices after the split; orig's capacity */
+    int nnew;          /* vertices after the split */
+    size_t cap;        /* orig's capacity */
 } splitting;
 
 static void splitting_free(splitting *sp)
@@ -381,14 +383,11 @@ static int group_stars(const crom_mesh *m, const unsigned char *cut, const int *
             } else if (i == 0) {
                 newidx[b + i] = v;
             } else {
-                if (sp->nnew - m->nv == sp->cap) {
-                    sp->cap = sp->cap ? 2 * sp->cap : 256;
-                    int *no = crom_realloc(sp->orig, sizeof(int) * (size_t)sp->cap);
-                    if (!no) {
-                        free(parent);
-                        return CROM_EINTERNAL;
-                    }
-                    sp->orig = no;
+                int rc = crom_array_reserve((void **)&sp->orig, &sp->cap, (size_t)(sp->nnew - m->nv) + 1,
+                                            sizeof *sp->orig);
+                if (rc) {
+                    free(parent);
+                    return rc;
                 }
                 sp->orig[sp->nnew - m->nv] = v;
                 newidx[b + i] = sp->nnew++;

@@ -9,18 +9,15 @@
 #include <strings.h>
 #include <sys/stat.h>
 
+#include "base/array.h"
 #include "base/err.h"
 #include "mesh/surface.h"
 
 int crom_surface_add_vertex(crom_surface *s, const double p[3])
 {
-    if (s->nv == s->capv) {
-        s->capv = s->capv ? 2 * s->capv : 1024;
-        double *nv = crom_realloc(s->V, sizeof(double) * 3 * (size_t)s->capv);
-        if (!nv)
-            return CROM_EINTERNAL;
-        s->V = nv;
-    }
+    int rc = crom_array_reserve((void **)&s->V, &s->capv, (size_t)s->nv + 1, 3 * sizeof *s->V);
+    if (rc)
+        return rc;
     memcpy(s->V + 3 * (size_t)s->nv, p, 3 * sizeof(double));
     s->nv++;
     return 0;
@@ -28,13 +25,9 @@ int crom_surface_add_vertex(crom_surface *s, const double p[3])
 
 int crom_surface_add_tri(crom_surface *s, int a, int b, int c)
 {
-    if (s->nt == s->capt) {
-        s->capt = s->capt ? 2 * s->capt : 1024;
-        int *nt = crom_realloc(s->T, sizeof(int) * 3 * (size_t)s->capt);
-        if (!nt)
-            return CROM_EINTERNAL;
-        s->T = nt;
-    }
+    int rc = crom_array_reserve((void **)&s->T, &s->capt, (size_t)s->nt + 1, 3 * sizeof *s->T);
+    if (rc)
+        return rc;
     s->T[3 * (size_t)s->nt] = a;
     s->T[3 * (size_t)s->nt + 1] = b;
     s->T[3 * (size_t)s->nt + 2] = c;

@@ -6,11 +6,13 @@
 #ifndef CROM_SURFACE_H
 #define CROM_SURFACE_H
 
+#include <stddef.h>
+
 typedef struct {
     double *V;       /* [nv][3] */
     int *T;          /* [nt][3] */
     int nv, nt;
-    int capv, capt;  /* allocated vertices and triangles */
+    size_t capv, capt; /* room for vertices and triangles (base/array.h) */
 } crom_surface;
 
 /* Append a vertex or a triangle (the arrays grow as needed). Return 0 or

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/array.h"
 #include "base/err.h"
 #include "base/parse.h"
 #include "io/io.h"
@@ -171,12 +172,8 @@ static void appendf(char **buf, size_t *len, size_t *cap, const char *fmt, ...)
             *len += (size_t)n;
             return;
         }
-        size_t nc = (*cap ? *cap * 2 : 1024) + (size_t)n;
-        char *nb = realloc(*buf, nc);
-        if (!nb)
+        if (crom_array_reserve((void **)buf, cap, *len + (size_t)n + 1, 1))
             return;
-        *buf = nb;
-        *cap = nc;
     }
 }
 

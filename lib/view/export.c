@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 
+#include "base/array.h"
 #include "base/err.h"
 #include "io/io.h"
 #include "mesh/gmsh.h"
@@ -655,18 +656,9 @@ int crom_export_xdmf_series_frame(crom_export_xdmf_series *x, int mi, const crom
         ((rc = crom_export_xdmf_write_frame(x->o.h5, "energy_density", x->n, m->nt, 1, c->psi, "J/m^3")) ||
          (rc = crom_export_xdmf_write_frame(x->o.h5, "von_mises_stress", x->n, m->nt, 1, c->mises, "Pa"))))
         return rc;
-    if (x->n == x->cap) {
-        int cap = x->cap ? 2 * x->cap : 64;
-        double *nt = crom_realloc(x->time, sizeof(double) * (size_t)cap);
-        if (!nt)
-            return CROM_EINTERNAL;
-        x->time = nt;
-        int *nm = crom_realloc(x->mesh_of, sizeof(int) * (size_t)cap);
-        if (!nm)
-            return CROM_EINTERNAL;
-        x->mesh_of = nm;
-        x->cap = cap;
-    }
+    if ((rc = crom_array_reserve((void **)&x->time, &x->tcap, (size_t)x->n + 1, sizeof *x->time)) ||
+        (rc = crom_array_reserve((void **)&x->mesh_of, &x->mcap, (size_t)x->n + 1, sizeof *x->mesh_of)))
+        return rc;
     x->time[x->n] = fr->time;
     x->mesh_of[x->n++] = mi;
     return 0;

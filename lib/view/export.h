@@ -212,7 +212,8 @@ typedef struct {
     char **groups;             /* [nmesh] their groups ("mesh", "mesh_1", ...) */
     double *time;              /* [n] */
     int *mesh_of;              /* [n] */
-    int n, cap;
+    int n;
+    size_t tcap, mcap;         /* room in time and mesh_of (base/array.h) */
     int ncells;                /* per-frame cell fields written: 0, 1 (J) or 3 */
 } crom_export_xdmf_series;
 
