@@ -2,7 +2,6 @@
  * with cubature (LiCROM §4–5), the same scenario as crom-fullsim, on any mesh,
  * switching meshes mid-run without touching the state; or over the latent z
  * of a nonlinear one-mesh map (data-free subspaces) with Gauss–Newton. */
-#include <errno.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -17,6 +16,7 @@
 #include "rom/model.h"
 #include "rom/nlsim.h"
 #include "rom/rsim.h"
+#include "rom/schedule.h"
 
 enum { O_CUB = 300, O_INIT, O_SCHED, O_SOLVER, O_KAPPA, O_STATS, O_STREAM, O_HDF5, O_INITFRAME, O_BCTHR,
        O_MODEL, O_MESH };
@@ -123,104 +123,6 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_HDF5: a->kind = CROM_OUT_SERIES_H5; return 0;
     }
     return crom_err(CROM_EINTERNAL, "unhandled option");
-}
-
-typedef struct {
-    long step;
-    char *path;
-    crom_cubature cub;
-    char *history;
-} sched_entry;
-
-static int load_cub(const char *path, crom_cubature *c, char **hist)
-{
-    crom_in in;
-    int rc = crom_in_open(&in, path);
-    if (rc)
-        return rc;
-    rc = crom_cubature_read(&in, c);
-    if (!rc && hist) {
-        *hist = in.history;
-        in.history = NULL;
-    }
-    crom_in_close(&in);
-    return rc;
-}
-
-/* Parse and load the schedule: entry 0 is --cubature at step 0. */
-static int load_schedule(const args *a, sched_entry **out, int *n)
-{
-    sched_entry *e = crom_calloc(1, sizeof *e);
-    if (!e)
-        return CROM_EINTERNAL;
-    int ne = 1, rc = load_cub(a->cub, &e[0].cub, &e[0].history);
-    if (!rc && e[0].cub.map_rank)
-        rc = crom_err(CROM_EDATA, "%s is a cubature of a nonlinear map (model %s): run it with --model MODEL "
-                      "--cubature %s", a->cub, e[0].cub.model_id, a->cub);
-    e[0].path = crom_strdup(a->cub);
-    if (!rc && a->sched) {
-        FILE *f = fopen(a->sched, "r");
-        if (!f)
-            rc = crom_err(CROM_ENOINPUT, "--schedule %s: %s", a->sched, strerror(errno));
-        char line[2048];
-        int lineno = 0;
-        while (!rc && f && fgets(line, sizeof line, f)) {
-            lineno++;
-            char *hash = strchr(line, '#');
-            if (hash)
-                *hash = 0;
-            char path[1500];
-            long step;
-            int k = sscanf(line, "%ld %1499s", &step, path);
-            if (k <= 0)
-                continue;
-            if (k != 2) {
-                rc = crom_err(CROM_EUSAGE, "%s:%d: expected 'STEP CUBATURE'", a->sched, lineno);
-                break;
-            }
-            if (step <= e[ne - 1].step || step < 1) {
-                rc = crom_err(CROM_EUSAGE, "%s:%d: step %ld is out of order (steps must increase, after %ld)",
-                              a->sched, lineno, step, e[ne - 1].step);
-                break;
-            }
-            if (step > a->sc.steps) {
-                rc = crom_err(CROM_EUSAGE, "%s:%d: step %ld is beyond --steps %d", a->sched, lineno, step, a->sc.steps);
-                break;
-            }
-            sched_entry *ne2 = crom_realloc(e, sizeof *e * (size_t)(ne + 1));
-            if (!ne2) {
-                rc = CROM_EINTERNAL;
-                break;
-            }
-            e = ne2;
-            memset(&e[ne], 0, sizeof e[ne]);
-            e[ne].step = step;
-            e[ne].path = crom_strdup(path);
-            ne++;
-            if ((rc = load_cub(path, &e[ne - 1].cub, NULL))) {
-                crom_err_ctx("%s:%d", a->sched, lineno);
-                break;
-            }
-            if (strcmp(e[ne - 1].cub.model_id, e[0].cub.model_id) || e[ne - 1].cub.r != e[0].cub.r)
-                rc = crom_err(CROM_EDATA, "%s:%d: %s is a cubature of model %s, %s is of model %s", a->sched, lineno,
-                              path, e[ne - 1].cub.model_id, a->cub, e[0].cub.model_id);
-        }
-        if (f)
-            fclose(f);
-    }
-    *out = e;
-    *n = ne;
-    return rc;
-}
-
-static void free_schedule(sched_entry *e, int n)
-{
-    for (int i = 0; i < n; i++) {
-        crom_cubature_free(&e[i].cub);
-        free(e[i].path);
-        free(e[i].history);
-    }
-    free(e);
 }
 
 static int read_init(const args *a, const char *model_id, int r, double *q, double *qd)
@@ -355,7 +257,7 @@ static int run_map(crom_cli *cli, args *a)
         goto out;
     if (a->cub) {
         crom_cubature cub;
-        if ((rc = load_cub(a->cub, &cub, NULL)))
+        if ((rc = crom_cubature_load(a->cub, &cub, NULL)))
             goto out;
         if (strcmp(cub.model_id, model.model_id) || cub.map_rank != r || cub.r != map.p ||
             crom_map_same_mesh(&cub.mesh, &map.mesh))
@@ -420,13 +322,14 @@ out:
 
 static int run(crom_cli *cli, args *a)
 {
-    sched_entry *sch = NULL;
-    int nsch = 0, rc = load_schedule(a, &sch, &nsch);
+    crom_schedule sch;
+    int rc = crom_schedule_load(&sch, a->cub, a->sched, a->sc.steps);
     if (rc) {
-        free_schedule(sch, nsch);
+        crom_schedule_free(&sch);
         return rc;
     }
-    int r = sch[0].cub.r;
+    const crom_schedule_entry *e = sch.e;
+    int nsch = sch.n, r = e[0].cub.r;
     double *q0 = crom_calloc((size_t)r, sizeof(double)), *qd0 = crom_calloc((size_t)r, sizeof(double));
     crom_rsim s;
     memset(&s, 0, sizeof s);
@@ -437,33 +340,26 @@ static int run(crom_cli *cli, args *a)
         rc = CROM_EINTERNAL;
         goto out;
     }
-    if (a->init && (rc = read_init(a, sch[0].cub.model_id, r, q0, qd0)))
+    if (a->init && (rc = read_init(a, e[0].cub.model_id, r, q0, qd0)))
         goto out;
-    if ((rc = crom_rsim_init(&s, &sch[0].cub, &a->sc, a->solver, a->kappa, q0, a->init ? qd0 : NULL)))
+    if ((rc = crom_rsim_init(&s, &e[0].cub, &a->sc, a->solver, a->kappa, q0, a->init ? qd0 : NULL)))
         goto out;
     if (a->bc_threshold != 0.1) { /* rebuild with the asked threshold */
         s.bc_threshold = a->bc_threshold;
-        if ((rc = crom_rsim_set_cubature(&s, &sch[0].cub)))
+        if ((rc = crom_rsim_set_cubature(&s, &e[0].cub)))
             goto out;
     }
     if (cli->verbose && s.nbc)
         crom_cli_info(cli, "boundary conditions constrain %d of %d latent directions (penalty rate %.3g 1/s^2)",
                       s.nconstrained, r, s.kappa);
-    if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli->cmdline, sch[0].history, a->kind)))
+    if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli->cmdline, e[0].history, a->kind)))
         goto out;
     have_out = 1;
-    {
-        size_t len = 1;
-        for (int i = 0; i < nsch; i++)
-            len += strlen(sch[i].path) + 32;
-        char *list = crom_calloc(len, 1);
-        for (int i = 0; list && i < nsch; i++)
-            snprintf(list + strlen(list), len - strlen(list), "%s%ld %s", i ? "\n" : "", sch[i].step, sch[i].path);
-        rc = list ? crom_h5_set_str(o.h5, ".", "cubatures", list) : CROM_EINTERNAL;
-        free(list);
-    }
+    char *list = crom_schedule_text(&sch);
+    rc = list ? crom_h5_set_str(o.h5, ".", "cubatures", list) : CROM_EINTERNAL;
+    free(list);
     if (!rc)
-        rc = start_output(&o, a, sch[0].cub.model_id, r, a->solver == CROM_RSIM_GD ? "gd" : "newton", NULL);
+        rc = start_output(&o, a, e[0].cub.model_id, r, a->solver == CROM_RSIM_GD ? "gd" : "newton", NULL);
     crom_rsim_stats st = {0, 0, crom_rsim_constraint_residual(&s), 0, 1};
     if (!rc)
         rc = put_frame(&o, &s, &st, 0);
@@ -474,19 +370,19 @@ static int run(crom_cli *cli, args *a)
     int cur = 0;
     double tsum = 0;
     for (int k = 1; k <= a->sc.steps && !rc; k++) {
-        if (cur + 1 < nsch && sch[cur + 1].step == k) { /* switch mesh: the state carries over */
+        if (cur + 1 < nsch && e[cur + 1].step == k) { /* switch mesh: the state carries over */
             cur++;
-            if ((rc = crom_rsim_set_cubature(&s, &sch[cur].cub)))
+            if ((rc = crom_rsim_set_cubature(&s, &e[cur].cub)))
                 break;
             if (cli->verbose)
-                crom_cli_info(cli, "step %d: switched to %s (%d tets)", k, sch[cur].path, sch[cur].cub.k);
+                crom_cli_info(cli, "step %d: switched to %s (%d tets)", k, e[cur].path, e[cur].cub.k);
         }
         if ((rc = crom_rsim_step(&s, &st)))
             break;
         tsum += st.seconds;
         if (csv.f)
             fprintf(csv.f, "%d,%d,%.3e,%.3e,%.6e,%d\n", k, st.iterations, st.residual, st.constraint_residual,
-                    st.seconds, sch[cur].cub.k);
+                    st.seconds, e[cur].cub.k);
         if (k % a->sc.every == 0)
             rc = put_frame(&o, &s, &st, cur);
         crom_cli_progress_update(&prog, k, NULL);
@@ -497,7 +393,7 @@ static int run(crom_cli *cli, args *a)
     if (rc)
         goto out;
     if (!rc && cli->verbose && a->sc.steps > 0)
-        crom_cli_info(cli, "%d steps, rank %d, %d cubature tets: %.3f ms/step", a->sc.steps, r, sch[cur].cub.k,
+        crom_cli_info(cli, "%d steps, rank %d, %d cubature tets: %.3f ms/step", a->sc.steps, r, e[cur].cub.k,
                       1e3 * tsum / a->sc.steps);
 out:
     if (have_out)
@@ -505,7 +401,7 @@ out:
     crom_rsim_free(&s);
     free(q0);
     free(qd0);
-    free_schedule(sch, nsch);
+    crom_schedule_free(&sch);
     return rc;
 }
 

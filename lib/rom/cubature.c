@@ -827,6 +827,22 @@ fail:
     return rc ? rc : CROM_EDATA;
 }
 
+int crom_cubature_load(const char *path, crom_cubature *c, char **history)
+{
+    memset(c, 0, sizeof *c);
+    crom_in in;
+    int rc = crom_in_open(&in, path);
+    if (rc)
+        return rc;
+    rc = crom_cubature_read(&in, c);
+    if (!rc && history) {
+        *history = in.history;
+        in.history = NULL;
+    }
+    crom_in_close(&in);
+    return rc;
+}
+
 void crom_cubature_free(crom_cubature *c)
 {
     crom_mesh_free(&c->mesh);

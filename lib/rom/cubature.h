@@ -90,6 +90,10 @@ int crom_cubature_error(const crom_cubature *c, const crom_material *mat, const 
 int crom_cubature_write(hid_t loc, const crom_cubature *c);
 /* Read and check (shapes, indices, finite values) a crom/cubature input. */
 int crom_cubature_read(crom_in *in, crom_cubature *c);
+
+/* The same from path (NULL or "-": stdin); when history is not NULL it
+ * takes over the file's history attribute (malloc'ed; NULL if none). */
+int crom_cubature_load(const char *path, crom_cubature *c, char **history);
 void crom_cubature_free(crom_cubature *c);
 
 /* Element gradient of V·Ψ at positions X + W q projected to the basis:

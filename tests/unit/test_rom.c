@@ -1,11 +1,12 @@
 /* test_rom.c — reduced dynamics on a cubature: gradient and Hessian against
  * finite differences, the Galerkin projection of the full equations
  * (independent evaluation through the full FEM assembly), cubature schemes,
- * cubature switches, boundary conditions. */
+ * cubature switches and their schedules, boundary conditions. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include <cblas.h>
 #include <lapacke.h>
@@ -17,7 +18,9 @@
 #include "mesh/remesh.h"
 #include "phys/fem.h"
 #include "rom/cubature.h"
+#include "io/io.h"
 #include "rom/rsim.h"
+#include "rom/schedule.h"
 
 /* An analytic basis: translations, linear fields and a few quadratic
  * bending fields, W [nv][3][r]. */
@@ -498,6 +501,97 @@ static void test_initial_velocity(void)
     crom_mesh_free(&m);
 }
 
+/* A cubature of every tet of an analytic basis on a small grid, written to
+ * path with model_id id. */
+static void write_cubature(const char *path, const char *id, int nx)
+{
+    crom_mesh m;
+    double lo[3] = {-0.5, -0.15, -0.15};
+    fx_box_mesh(&m, nx, 2, 2, lo, 1.0 / nx, 0, NULL, NULL);
+    double *W = malloc(sizeof(double) * 3 * R * m.nv);
+    analytic_basis(&m, W);
+    crom_cubature c;
+    crom_cubature_opts o = {CROM_CUBATURE_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
+    CHECK(crom_cubature_build(&c, &m, W, R, id, &o, NULL) == 0);
+    crom_out out;
+    CHECK(crom_out_create(&out, path, CROM_CUBATURE_SCHEMA, CROM_CUBATURE_VERSION, "test_rom", NULL,
+                          CROM_OUT_PLAIN) == 0);
+    CHECK(crom_cubature_write(out.h5, &c) == 0 && crom_out_commit(&out) == 0);
+    crom_cubature_free(&c);
+    crom_mesh_free(&m);
+    free(W);
+}
+
+static void write_text(const char *path, const char *text)
+{
+    FILE *f = fopen(path, "w");
+    fputs(text, f);
+    fclose(f);
+}
+
+/* A schedule: the initial cubature and the switches of a file, in order,
+ * as the run records them; and the errors of a bad schedule, with the file
+ * and line named. */
+static void test_schedule(void)
+{
+    char dir[] = "/tmp/crom-sched-XXXXXX", a[64], b[64], other[64], f[64], cmd[96];
+    CHECK(mkdtemp(dir) != NULL);
+    snprintf(a, sizeof a, "%s/a.h5", dir);
+    snprintf(b, sizeof b, "%s/b.h5", dir);
+    snprintf(other, sizeof other, "%s/other.h5", dir);
+    snprintf(f, sizeof f, "%s/sched.txt", dir);
+    write_cubature(a, "0123456789abcdef", 4);
+    write_cubature(b, "0123456789abcdef", 6);
+    write_cubature(other, "fedcba9876543210", 4);
+    char text[512];
+    snprintf(text, sizeof text, "# switches\n3 %s\n\n5 %s   # back\n9 %s\n", b, a, b);
+    write_text(f, text);
+    crom_schedule s;
+    CHECK(crom_schedule_load(&s, a, f, 10) == 0);
+    CHECK(s.n == 4 && s.e[0].step == 0 && s.e[1].step == 3 && s.e[2].step == 5 && s.e[3].step == 9);
+    CHECK(s.e[0].cub.k == 4 * 2 * 2 * 6 && s.e[1].cub.k == 6 * 2 * 2 * 6 && s.e[2].cub.k == s.e[0].cub.k);
+    CHECK(!strcmp(s.e[3].path, b) && s.e[0].history != NULL && s.e[1].history == NULL);
+    char *t = crom_schedule_text(&s), want[512];
+    snprintf(want, sizeof want, "0 %s\n3 %s\n5 %s\n9 %s", a, b, a, b);
+    CHECK(t && !strcmp(t, want));
+    free(t);
+    crom_schedule_free(&s);
+    /* no schedule file: the initial cubature alone */
+    CHECK(crom_schedule_load(&s, a, NULL, 10) == 0 && s.n == 1);
+    crom_schedule_free(&s);
+    /* errors */
+    static const struct {
+        const char *text;
+        int code;
+        const char *msg;
+    } bad[] = {{"3 B\n3 A\n", CROM_EUSAGE, ":2: step 3 is out of order"},
+               {"0 B\n", CROM_EUSAGE, ":1: step 0 is out of order"},
+               {"\n11 B\n", CROM_EUSAGE, ":2: step 11 is beyond --steps 10"},
+               {"2\n", CROM_EUSAGE, ":1: expected 'STEP CUBATURE'"},
+               {"2 O\n", CROM_EDATA, "is a cubature of model fedcba9876543210"},
+               {"2 B\n4 nonexistent.h5\n", CROM_ENOINPUT, ":2: nonexistent.h5"}};
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        char txt[256] = "";
+        for (const char *p = bad[i].text; *p; p++) {
+            size_t n = strlen(txt);
+            if (*p == 'B' || *p == 'O')
+                snprintf(txt + n, sizeof txt - n, "%s", *p == 'B' ? b : other);
+            else
+                snprintf(txt + n, sizeof txt - n, "%c", *p);
+        }
+        write_text(f, txt);
+        int rc = crom_schedule_load(&s, a, f, 10);
+        CHECK_MSG(rc == bad[i].code && strstr(crom_errmsg(), bad[i].msg), "schedule '%s': %d %s", bad[i].text,
+                  rc, crom_errmsg());
+        crom_schedule_free(&s);
+    }
+    snprintf(cmd, sizeof cmd, "%s/none.txt", dir);
+    CHECK(crom_schedule_load(&s, a, cmd, 10) == CROM_ENOINPUT && strstr(crom_errmsg(), "--schedule"));
+    crom_schedule_free(&s);
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    CHECK(system(cmd) == 0);
+}
+
 int main(void)
 {
     check_begin("test_rom");
@@ -506,5 +600,6 @@ int main(void)
     test_galerkin();
     test_schemes_and_switch();
     test_initial_velocity();
+    test_schedule();
     return check_done();
 }
