@@ -689,6 +689,96 @@ static int read_fields(crom_in *in)
     return in->frame ? 0 : CROM_EINTERNAL;
 }
 
+/* in->fp: the file at path, or stdin (not a terminal). */
+static int open_source(crom_in *in, const char *path, int from_stdin)
+{
+    if (from_stdin) {
+        if (isatty(0))
+            return crom_err(CROM_EUSAGE, "refusing to read binary input from a terminal: "
+                                         "give a file name or pipe a crom file in");
+        in->fp = stdin;
+        return 0;
+    }
+    struct stat st;
+    if (stat(path, &st) != 0)
+        return crom_err(CROM_ENOINPUT, "%s: %s", path, strerror(errno));
+    if (S_ISDIR(st.st_mode))
+        return crom_err(CROM_ENOINPUT, "%s: is a directory", path);
+    in->fp = fopen(path, "rb");
+    if (!in->fp)
+        return crom_err(CROM_ENOINPUT, "%s: %s", path, strerror(errno));
+    in->own_fp = 1;
+    return 0;
+}
+
+/* An HDF5 input whose first 8 bytes, head, were read: a file is reopened
+ * by HDF5, stdin read whole into a file image. */
+static int open_h5(crom_in *in, const char *path, const unsigned char head[8], int from_stdin)
+{
+    in->form = CROM_IO_H5;
+    if (from_stdin) {
+        int rc = slurp(in->fp, head, 8, &in->image, &in->image_size);
+        if (rc)
+            return rc;
+        in->h5 = open_image(in->image, in->image_size);
+    } else {
+        fclose(in->fp);
+        in->fp = NULL;
+        in->own_fp = 0;
+        in->h5 = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+    }
+    if (in->h5 < 0)
+        return crom_err(CROM_EDATA, "%s: HDF5 file is truncated or corrupt", in->name);
+    return 0;
+}
+
+/* A frame stream after its magic: version and flags, the header length,
+ * then the header, an HDF5 image of everything but the frames
+ * (schemas/stream.md). */
+static int open_stream(crom_in *in)
+{
+    in->form = CROM_IO_STREAM;
+    uint32_t ver_flags[2];
+    uint64_t hlen;
+    if (read_all(in->fp, ver_flags, 8) != 8 || read_all(in->fp, &hlen, 8) != 8)
+        return crom_err(CROM_EDATA, "%s: crom stream header is truncated", in->name);
+    if (ver_flags[0] > STREAM_VERSION)
+        return crom_err(CROM_EDATA, "%s: crom stream format v%u is newer than this crom understands (v%u)",
+                        in->name, ver_flags[0], STREAM_VERSION);
+    if (hlen < 8 || hlen > ((uint64_t)1 << 36))
+        return crom_err(CROM_EDATA, "%s: crom stream header has an impossible length %llu", in->name,
+                        (unsigned long long)hlen);
+    in->image = malloc(hlen);
+    if (!in->image)
+        return crom_err(CROM_EINTERNAL, "out of memory");
+    in->image_size = hlen;
+    if (read_all(in->fp, in->image, hlen) != hlen)
+        return crom_err(CROM_EDATA, "%s: crom stream header is truncated", in->name);
+    in->h5 = open_image(in->image, in->image_size);
+    if (in->h5 < 0)
+        return crom_err(CROM_EDATA, "%s: crom stream header is corrupt", in->name);
+    in->complete = -1;
+    return 0;
+}
+
+/* The root attributes schema and schema_version (required) and history. */
+static int read_identity(crom_in *in)
+{
+    char *schema = NULL;
+    if (crom_h5_get_str(in->h5, ".", "schema", &schema))
+        return crom_err(CROM_EDATA, "%s is an HDF5 file but not a crom file (no 'schema' attribute)", in->name);
+    snprintf(in->schema, sizeof in->schema, "%s", schema);
+    free(schema);
+    long long v;
+    if (crom_h5_get_i64(in->h5, ".", "schema_version", &v))
+        return crom_err(CROM_EDATA, "%s: %s file without a 'schema_version' attribute", in->name, in->schema);
+    in->version = (int)v;
+    if (crom_h5_has_attr(in->h5, ".", "history"))
+        crom_h5_get_str(in->h5, ".", "history", &in->history);
+    crom_err_clear();
+    return 0;
+}
+
 int crom_in_open(crom_in *in, const char *path)
 {
     memset(in, 0, sizeof *in);
@@ -697,105 +787,27 @@ int crom_in_open(crom_in *in, const char *path)
     crom_h5_quiet();
     int from_stdin = !path || !strcmp(path, "-");
     snprintf(in->name, sizeof in->name, "%s", from_stdin ? "stdin" : path);
-    if (from_stdin) {
-        if (isatty(0))
-            return crom_err(CROM_EUSAGE, "refusing to read binary input from a terminal: "
-                                         "give a file name or pipe a crom file in");
-        in->fp = stdin;
-    } else {
-        struct stat st;
-        if (stat(path, &st) != 0)
-            return crom_err(CROM_ENOINPUT, "%s: %s", path, strerror(errno));
-        if (S_ISDIR(st.st_mode))
-            return crom_err(CROM_ENOINPUT, "%s: is a directory", path);
-        in->fp = fopen(path, "rb");
-        if (!in->fp)
-            return crom_err(CROM_ENOINPUT, "%s: %s", path, strerror(errno));
-        in->own_fp = 1;
-    }
+    int rc = open_source(in, path, from_stdin);
+    if (rc)
+        return rc;
     unsigned char head[8];
     size_t n = read_all(in->fp, head, 8);
-    int rc = 0;
-    if (n == 0) {
+    if (n == 0)
         rc = crom_err(CROM_EDATA, "%s is empty (no crom file in it)", in->name);
-        goto fail;
+    else if (n == 8 && !memcmp(head, hdf5_sig, 8))
+        rc = open_h5(in, path, head, from_stdin);
+    else if (n == 8 && !memcmp(head, STREAM_MAGIC, 8))
+        rc = open_stream(in);
+    else
+        rc = crom_err(CROM_EDATA, "%s is not a crom file (neither HDF5 nor a crom stream)", in->name);
+    if (!rc)
+        rc = read_identity(in);
+    if (!rc)
+        rc = read_fields(in);
+    if (rc) {
+        crom_in_close(in);
+        return rc;
     }
-    if (n == 8 && !memcmp(head, hdf5_sig, 8)) {
-        in->form = CROM_IO_H5;
-        if (from_stdin) {
-            if ((rc = slurp(in->fp, head, 8, &in->image, &in->image_size)))
-                goto fail;
-            in->h5 = open_image(in->image, in->image_size);
-        } else {
-            fclose(in->fp);
-            in->fp = NULL;
-            in->own_fp = 0;
-            in->h5 = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
-        }
-        if (in->h5 < 0) {
-            rc = crom_err(CROM_EDATA, "%s: HDF5 file is truncated or corrupt", in->name);
-            goto fail;
-        }
-    } else if (n == 8 && !memcmp(head, STREAM_MAGIC, 8)) {
-        in->form = CROM_IO_STREAM;
-        uint32_t ver_flags[2];
-        uint64_t hlen;
-        if (read_all(in->fp, ver_flags, 8) != 8 || read_all(in->fp, &hlen, 8) != 8) {
-            rc = crom_err(CROM_EDATA, "%s: crom stream header is truncated", in->name);
-            goto fail;
-        }
-        if (ver_flags[0] > STREAM_VERSION) {
-            rc = crom_err(CROM_EDATA, "%s: crom stream format v%u is newer than this crom understands (v%u)",
-                          in->name, ver_flags[0], STREAM_VERSION);
-            goto fail;
-        }
-        if (hlen < 8 || hlen > ((uint64_t)1 << 36)) {
-            rc = crom_err(CROM_EDATA, "%s: crom stream header has an impossible length %llu",
-                          in->name, (unsigned long long)hlen);
-            goto fail;
-        }
-        in->image = malloc(hlen);
-        if (!in->image) {
-            rc = crom_err(CROM_EINTERNAL, "out of memory");
-            goto fail;
-        }
-        in->image_size = hlen;
-        if (read_all(in->fp, in->image, hlen) != hlen) {
-            rc = crom_err(CROM_EDATA, "%s: crom stream header is truncated", in->name);
-            goto fail;
-        }
-        in->h5 = open_image(in->image, in->image_size);
-        if (in->h5 < 0) {
-            rc = crom_err(CROM_EDATA, "%s: crom stream header is corrupt", in->name);
-            goto fail;
-        }
-        in->complete = -1;
-    } else {
-        rc = crom_err(CROM_EDATA, "%s is not a crom file (neither HDF5 nor a crom stream)",
-                      in->name);
-        goto fail;
-    }
-    /* identity */
-    char *schema = NULL;
-    if (crom_h5_get_str(in->h5, ".", "schema", &schema)) {
-        rc = crom_err(CROM_EDATA, "%s is an HDF5 file but not a crom file (no 'schema' attribute)",
-                      in->name);
-        goto fail;
-    }
-    snprintf(in->schema, sizeof in->schema, "%s", schema);
-    free(schema);
-    long long v;
-    if (crom_h5_get_i64(in->h5, ".", "schema_version", &v)) {
-        rc = crom_err(CROM_EDATA, "%s: %s file without a 'schema_version' attribute", in->name,
-                      in->schema);
-        goto fail;
-    }
-    in->version = (int)v;
-    if (crom_h5_has_attr(in->h5, ".", "history"))
-        crom_h5_get_str(in->h5, ".", "history", &in->history);
-    crom_err_clear();
-    if ((rc = read_fields(in)))
-        goto fail;
     if (in->form == CROM_IO_STREAM) {
         in->nframes = 0;
     } else if (crom_h5_has_attr(in->h5, ".", "complete")) {
@@ -804,9 +816,6 @@ int crom_in_open(crom_in *in, const char *path)
         in->complete = c != 0;
     }
     return 0;
-fail:
-    crom_in_close(in);
-    return rc;
 }
 
 int crom_in_expect(const crom_in *in, const char *schema, int max_version)
