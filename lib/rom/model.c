@@ -320,9 +320,10 @@ static int write_widths(hid_t loc, const char *name, const crom_nn_spec *s)
     return crom_h5_put_i32(loc, name, 1, &d, w);
 }
 
-int crom_model_write(hid_t loc, crom_model *m)
+/* The root attributes: what the model is, and the record of its training
+ * and material when known. */
+static int write_attrs(hid_t loc, const crom_model *m)
 {
-    crom_model_id(m, m->model_id);
     int rc = crom_h5_set_str(loc, ".", "basis", m->basis);
     if (!rc)
         rc = crom_h5_set_i64(loc, ".", "rank", m->rank);
@@ -342,90 +343,126 @@ int crom_model_write(hid_t loc, crom_model *m)
         rc = crom_h5_set_f64(loc, ".", "poisson", &m->poisson, 1);
     if (!rc && isfinite(m->density))
         rc = crom_h5_set_f64(loc, ".", "density", &m->density, 1);
+    return rc;
+}
+
+/* CROM_MODEL_FIELD_MAP: the network r -> 3nv, its mesh (with regions), the
+ * linear modes and their frequencies when present. */
+static int write_map(hid_t loc, const crom_model *m)
+{
+    hsize_t np = m->mlp.nparams, dr = (hsize_t)m->rank;
+    int rc = crom_h5_set_str(loc, ".", "activation", crom_nn_act_name(m->mlp.spec.act));
+    if (!rc)
+        rc = write_widths(loc, "field/widths", &m->mlp.spec);
+    if (!rc)
+        rc = crom_h5_put_f32(loc, "field/params", 1, &np, m->mlp.params);
+    if (!rc) {
+        hid_t g = crom_h5_group(loc, "field/mesh");
+        rc = g < 0 ? CROM_EINTERNAL : crom_mesh_write(g, &m->mesh);
+        if (g >= 0)
+            H5Gclose(g);
+    }
+    if (!rc && m->basis_v) {
+        hsize_t db[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)m->rank};
+        rc = crom_h5_put_f64(loc, "field/basis", 3, db, m->basis_v);
+    }
+    if (!rc && m->frequencies)
+        rc = crom_h5_put_f64(loc, "frequencies", 1, &dr, m->frequencies);
+    return rc;
+}
+
+/* CROM_MODEL_FIELD_MLP and _CMAP: the neural field with its input
+ * normalization; for CMAP also the latent network and the pin mask. */
+static int write_mlp(hid_t loc, const crom_model *m)
+{
+    const crom_nn_mlp *W = &m->mlp;
+    double sh[3], sc[3];
+    for (int i = 0; i < 3; i++) {
+        sh[i] = W->shift[i];
+        sc[i] = W->scale[i];
+    }
+    hsize_t np = W->nparams, d3 = 3;
+    int rc = crom_h5_set_str(loc, ".", "activation", crom_nn_act_name(W->spec.act));
+    if (!rc)
+        rc = write_widths(loc, "field/widths", &W->spec);
+    if (!rc)
+        rc = crom_h5_put_f32(loc, "field/params", 1, &np, W->params);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "field/input_shift", 1, &d3, sh);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "field/input_scale", 1, &d3, sc);
+    if (rc || m->field != CROM_MODEL_FIELD_CMAP)
+        return rc;
+    hsize_t nl = m->latent.nparams;
+    rc = write_widths(loc, "latent/widths", &m->latent.spec);
+    if (!rc)
+        rc = crom_h5_put_f32(loc, "latent/params", 1, &nl, m->latent.params);
+    hsize_t dp[2] = {(hsize_t)m->npin_points, 3}, d1 = 1;
+    if (!rc && m->npin_points)
+        rc = crom_h5_put_f64(loc, "latent/pin_points", 2, dp, m->pin_points);
+    hsize_t dt[3] = {(hsize_t)m->npin_triangles, 3, 3};
+    if (!rc && m->npin_triangles)
+        rc = crom_h5_put_f64(loc, "latent/pin_triangles", 3, dt, m->pin_triangles);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "latent/pin_length", 1, &d1, &m->pin_length);
+    return rc;
+}
+
+/* CROM_MODEL_FIELD_MESH: the mesh (vertices and tets) and W at its
+ * vertices, with the frequencies of modes. */
+static int write_mesh_field(hid_t loc, const crom_model *m)
+{
+    hsize_t dv[2] = {(hsize_t)m->mesh.nv, 3}, dt[2] = {(hsize_t)m->mesh.nt, 4};
+    hsize_t db[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)m->rank}, dr = (hsize_t)m->rank;
+    int rc = crom_h5_put_f64(loc, "field/mesh/vertices", 2, dv, m->mesh.X);
+    if (!rc)
+        rc = crom_h5_put_i32(loc, "field/mesh/tets", 2, dt, m->mesh.tets);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "field/basis", 3, db, m->basis_v);
+    if (!rc && m->frequencies)
+        rc = crom_h5_put_f64(loc, "frequencies", 1, &dr, m->frequencies);
+    return rc;
+}
+
+/* The PointNet encoder: both networks' widths, the parameters and the
+ * input normalization. */
+static int write_encoder(hid_t loc, const crom_nn_pointnet *P)
+{
+    double sh[6], sc[6];
+    for (int i = 0; i < 6; i++) {
+        sh[i] = P->point.shift[i];
+        sc[i] = P->point.scale[i];
+    }
+    hsize_t np = P->nparams, d6 = 6;
+    int rc = write_widths(loc, "encoder/point_widths", &P->point.spec);
+    if (!rc)
+        rc = write_widths(loc, "encoder/head_widths", &P->head.spec);
+    if (!rc)
+        rc = crom_h5_put_f32(loc, "encoder/params", 1, &np, P->params);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "encoder/input_shift", 1, &d6, sh);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "encoder/input_scale", 1, &d6, sc);
+    return rc;
+}
+
+int crom_model_write(hid_t loc, crom_model *m)
+{
+    crom_model_id(m, m->model_id);
+    int rc = write_attrs(loc, m);
     if (rc)
         return rc;
-    if (m->field == CROM_MODEL_FIELD_SKIN) {
+    if (m->field == CROM_MODEL_FIELD_SKIN)
         rc = crom_skin_write(loc, m);
-    } else if (m->field == CROM_MODEL_FIELD_MAP) {
-        hsize_t np = m->mlp.nparams, dr = (hsize_t)m->rank;
-        rc = crom_h5_set_str(loc, ".", "activation", crom_nn_act_name(m->mlp.spec.act));
-        if (!rc)
-            rc = write_widths(loc, "field/widths", &m->mlp.spec);
-        if (!rc)
-            rc = crom_h5_put_f32(loc, "field/params", 1, &np, m->mlp.params);
-        if (!rc) {
-            hid_t g = crom_h5_group(loc, "field/mesh");
-            rc = g < 0 ? CROM_EINTERNAL : crom_mesh_write(g, &m->mesh);
-            if (g >= 0)
-                H5Gclose(g);
-        }
-        if (!rc && m->basis_v) {
-            hsize_t db[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)m->rank};
-            rc = crom_h5_put_f64(loc, "field/basis", 3, db, m->basis_v);
-        }
-        if (!rc && m->frequencies)
-            rc = crom_h5_put_f64(loc, "frequencies", 1, &dr, m->frequencies);
-    } else if (m->field == CROM_MODEL_FIELD_MLP || m->field == CROM_MODEL_FIELD_CMAP) {
-        const crom_nn_mlp *W = &m->mlp;
-        double sh[3], sc[3];
-        for (int i = 0; i < 3; i++) {
-            sh[i] = W->shift[i];
-            sc[i] = W->scale[i];
-        }
-        hsize_t np = W->nparams, d3 = 3;
-        rc = crom_h5_set_str(loc, ".", "activation", crom_nn_act_name(W->spec.act));
-        if (!rc)
-            rc = write_widths(loc, "field/widths", &W->spec);
-        if (!rc)
-            rc = crom_h5_put_f32(loc, "field/params", 1, &np, W->params);
-        if (!rc)
-            rc = crom_h5_put_f64(loc, "field/input_shift", 1, &d3, sh);
-        if (!rc)
-            rc = crom_h5_put_f64(loc, "field/input_scale", 1, &d3, sc);
-        if (!rc && m->field == CROM_MODEL_FIELD_CMAP) {
-            hsize_t nl = m->latent.nparams;
-            rc = write_widths(loc, "latent/widths", &m->latent.spec);
-            if (!rc)
-                rc = crom_h5_put_f32(loc, "latent/params", 1, &nl, m->latent.params);
-            hsize_t dp[2] = {(hsize_t)m->npin_points, 3}, d1 = 1;
-            if (!rc && m->npin_points)
-                rc = crom_h5_put_f64(loc, "latent/pin_points", 2, dp, m->pin_points);
-            hsize_t dt[3] = {(hsize_t)m->npin_triangles, 3, 3};
-            if (!rc && m->npin_triangles)
-                rc = crom_h5_put_f64(loc, "latent/pin_triangles", 3, dt, m->pin_triangles);
-            if (!rc)
-                rc = crom_h5_put_f64(loc, "latent/pin_length", 1, &d1, &m->pin_length);
-        }
-    } else {
-        hsize_t dv[2] = {(hsize_t)m->mesh.nv, 3}, dt[2] = {(hsize_t)m->mesh.nt, 4};
-        hsize_t db[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)m->rank}, dr = (hsize_t)m->rank;
-        rc = crom_h5_put_f64(loc, "field/mesh/vertices", 2, dv, m->mesh.X);
-        if (!rc)
-            rc = crom_h5_put_i32(loc, "field/mesh/tets", 2, dt, m->mesh.tets);
-        if (!rc)
-            rc = crom_h5_put_f64(loc, "field/basis", 3, db, m->basis_v);
-        if (!rc && m->frequencies)
-            rc = crom_h5_put_f64(loc, "frequencies", 1, &dr, m->frequencies);
-    }
-    if (!rc && m->encoder == CROM_MODEL_ENC_POINTNET) {
-        const crom_nn_pointnet *P = &m->enc;
-        double sh[6], sc[6];
-        for (int i = 0; i < 6; i++) {
-            sh[i] = P->point.shift[i];
-            sc[i] = P->point.scale[i];
-        }
-        hsize_t np = P->nparams, d6 = 6;
-        rc = write_widths(loc, "encoder/point_widths", &P->point.spec);
-        if (!rc)
-            rc = write_widths(loc, "encoder/head_widths", &P->head.spec);
-        if (!rc)
-            rc = crom_h5_put_f32(loc, "encoder/params", 1, &np, P->params);
-        if (!rc)
-            rc = crom_h5_put_f64(loc, "encoder/input_shift", 1, &d6, sh);
-        if (!rc)
-            rc = crom_h5_put_f64(loc, "encoder/input_scale", 1, &d6, sc);
-    }
-    if (!rc && m->nepochs > 0) {
+    else if (m->field == CROM_MODEL_FIELD_MAP)
+        rc = write_map(loc, m);
+    else if (m->field == CROM_MODEL_FIELD_MLP || m->field == CROM_MODEL_FIELD_CMAP)
+        rc = write_mlp(loc, m);
+    else
+        rc = write_mesh_field(loc, m);
+    if (!rc && m->encoder == CROM_MODEL_ENC_POINTNET)
+        rc = write_encoder(loc, &m->enc);
+    if (!rc && m->nepochs > 0) { /* the training record */
         hsize_t de = (hsize_t)m->nepochs;
         rc = crom_h5_put_f64(loc, "training/loss", 1, &de, m->loss);
         if (!rc)
