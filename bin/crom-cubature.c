@@ -28,9 +28,9 @@ static const crom_opt cub_opts[] = {
     {"output", 'o', "OUT", "Write the cubature to OUT (default stdout)."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", cub_opts}, {NULL, NULL}};
+static const crom_cli_optgroup groups[] = {{"Options", cub_opts}, {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-cubature",
     "pick and weight cubature tets for reduced simulation, caching W on the mesh",
     "crom-cubature --model MODEL [--scheme random|metis|optimized|all] [--count K]\n"
@@ -62,7 +62,7 @@ static const crom_doc doc = {
 typedef struct {
     const char *model, *poses[64], *input, *out;
     int nposes;
-    crom_cub_opts o;
+    crom_cubature_opts o;
     int count_given, maxpose, maxpose_given, material_given;
     double crack_offset;
 } args;
@@ -85,7 +85,7 @@ static int on_opt(void *ctx, int key, const char *v)
         a->poses[a->nposes++] = v;
         return 0;
     case O_SCHEME:
-        if ((a->o.scheme = crom_cub_scheme(v)) < 0)
+        if ((a->o.scheme = crom_cubature_scheme(v)) < 0)
             return crom_err(CROM_EUSAGE, "--scheme: '%s' is not random, metis, optimized or all", v);
         return 0;
     case O_COUNT:
@@ -259,7 +259,7 @@ static int run(crom_cli *cli, args *a)
     int rc = crom_model_load(a->model, &model);
     if (rc)
         return rc;
-    int is_map = crom_model_is_nonlinear(&model), own_mesh = model.field == CROM_FIELD_MAP;
+    int is_map = crom_model_is_nonlinear(&model), own_mesh = model.field == CROM_MODEL_FIELD_MAP;
     if (a->input || !own_mesh)
         rc = read_mesh(a->input, &m, &hist);
     else
@@ -297,14 +297,14 @@ static int run(crom_cli *cli, args *a)
         }
         np = a->maxpose;
     }
-    double t0 = crom_now(), tW;
+    double t0 = crom_clock_now(), tW;
     if (is_map) {
         if ((rc = crom_map_init(&map, &model, &m)) ||
             (rc = map_poses(cli, a, &model, &map, &poses, &np, &proj)))
             goto out;
-        tW = crom_now() - t0;
+        tW = crom_clock_now() - t0;
     } else {
-        if (a->o.scheme == CROM_CUB_OPTIMIZED && !poses) {
+        if (a->o.scheme == CROM_CUBATURE_OPTIMIZED && !poses) {
             rc = crom_err(CROM_EUSAGE, "--scheme optimized needs --poses LATENT (training poses of the model)");
             goto out;
         }
@@ -324,7 +324,7 @@ static int run(crom_cli *cli, args *a)
         if (nshift)
             crom_cli_info(cli, "%d vertices along cracks sample W on their own side (--crack-offset %g)", nshift,
                           a->crack_offset);
-        tW = crom_now() - t0;
+        tW = crom_clock_now() - t0;
         if (outside)
             crom_cli_warn(cli, "%zu of %d vertices lie outside the model's mesh: W is extended there", outside, m.nv);
     }
@@ -335,25 +335,26 @@ static int run(crom_cli *cli, args *a)
     int rb = is_map ? map.p : r; /* the basis cached: W, or the map's feature basis */
     crom_rng rng;
     crom_rng_seed(&rng, cli->seed);
-    crom_cub c;
-    t0 = crom_now();
-    if ((rc = crom_cub_build(&c, &m, is_map ? map.B : W, rb, model.model_id, &a->o, &rng)))
+    crom_cubature c;
+    t0 = crom_clock_now();
+    if ((rc = crom_cubature_build(&c, &m, is_map ? map.B : W, rb, model.model_id, &a->o, &rng)))
         goto out;
     c.map_rank = is_map ? r : 0;
-    double tsel = crom_now() - t0;
+    double tsel = crom_clock_now() - t0;
     crom_cli_info(cli, "%s: %d of %d tets (%.1f%%), W on %d vertices in %.1f ms, selection in %.1f ms",
                   c.scheme, c.k, m.nt, 100.0 * c.k / m.nt, m.nv, 1e3 * tW, 1e3 * tsel);
     if (poses) {
         crom_material mat;
         double eE, eF;
         if (!(rc = crom_material_init(&mat, a->o.youngs, a->o.poisson, 1000)) &&
-            !(rc = crom_cub_error(&c, &mat, poses, np, proj, r, &eE, &eF)))
+            !(rc = crom_cubature_error(&c, &mat, poses, np, proj, r, &eE, &eF)))
             crom_cli_info(cli, "relative error on %d poses: elastic energy %.4f, reduced force %.4f", np, eE, eF);
     }
     crom_out o;
-    if (!rc && !(rc = crom_out_create(&o, a->out, CROM_CUB_SCHEMA, CROM_CUB_VERSION, cli->cmdline, hist, CROM_OUT_PLAIN))) {
-        double wsec = crom_wall(tW), ssec = crom_wall(tsel);
-        rc = crom_cub_write(o.h5, &c);
+    if (!rc && !(rc = crom_out_create(&o, a->out, CROM_CUBATURE_SCHEMA, CROM_CUBATURE_VERSION, cli->cmdline,
+                                      hist, CROM_OUT_PLAIN))) {
+        double wsec = crom_clock_wall(tW), ssec = crom_clock_wall(tsel);
+        rc = crom_cubature_write(o.h5, &c);
         if (!rc)
             rc = crom_h5_set_f64(o.h5, ".", "w_seconds", &wsec, 1);
         if (!rc)
@@ -363,7 +364,7 @@ static int run(crom_cli *cli, args *a)
         else
             crom_out_fail(&o);
     }
-    crom_cub_free(&c);
+    crom_cubature_free(&c);
 out:
     free(W);
     free(poses);
@@ -380,17 +381,17 @@ int main(int argc, char **argv)
     crom_cli cli;
     args a;
     memset(&a, 0, sizeof a);
-    a.o.scheme = CROM_CUB_RANDOM;
+    a.o.scheme = CROM_CUBATURE_RANDOM;
     a.o.tol = 0.01;
     a.o.candidates = 256;
     a.o.youngs = 2.5e6;
     a.o.poisson = 0.25;
     a.maxpose = 40;
-    a.crack_offset = CROM_CRACK_OFFSET;
+    a.crack_offset = CROM_MESH_CRACK_OFFSET;
     crom_cli_parse(&cli, &doc, argc, argv, on_opt, &a);
     if (!a.model)
         return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--model MODEL is required (see crom-cubature --help)"));
     if (!a.count_given)
-        a.o.count = a.o.scheme == CROM_CUB_METIS ? 300 : a.o.scheme == CROM_CUB_OPTIMIZED ? 200 : 400;
+        a.o.count = a.o.scheme == CROM_CUBATURE_METIS ? 300 : a.o.scheme == CROM_CUBATURE_OPTIMIZED ? 200 : 400;
     return crom_cli_exit(&cli, run(&cli, &a));
 }

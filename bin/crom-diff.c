@@ -20,9 +20,9 @@ static const crom_opt diff_opts[] = {
     {"max-error", O_MAX, "E", "Exit with status 1 when the relative error over the run exceeds E (like diff(1) for differing files)."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", diff_opts}, {NULL, NULL}};
+static const crom_cli_optgroup groups[] = {{"Options", diff_opts}, {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-diff",
     "relative displacement error between two simulation results",
     "crom-diff A B [--mesh MESH] [--model MODEL] [--csv FILE] [--max-error E]",
@@ -116,8 +116,8 @@ static int run(crom_cli *cli, args *a)
     }
     for (int t = 0; t < A.mesh.nt; t++) { /* lumped volumes: the M-norm per unit density */
         const int *e = A.mesh.tets + 4 * (size_t)t;
-        double V = crom_tet_volume(A.mesh.X + 3 * (size_t)e[0], A.mesh.X + 3 * (size_t)e[1],
-                                   A.mesh.X + 3 * (size_t)e[2], A.mesh.X + 3 * (size_t)e[3]);
+        double V = crom_mesh_tet_volume(A.mesh.X + 3 * (size_t)e[0], A.mesh.X + 3 * (size_t)e[1],
+                                        A.mesh.X + 3 * (size_t)e[2], A.mesh.X + 3 * (size_t)e[3]);
         for (int k = 0; k < 4; k++)
             m[e[k]] += V / 4;
     }

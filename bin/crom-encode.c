@@ -1,19 +1,16 @@
 /* crom-encode — latent coordinates q of every frame of a trajectory, on any
  * mesh, in a model's subspace (crom/latent). */
-#include <lapacke.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include <cblas.h>
-
 #include "base/err.h"
 #include "cli/cli.h"
 #include "io/io.h"
-#include "mesh/locate.h"
 #include "mesh/mesh.h"
 #include "rom/model.h"
+#include "rom/project.h"
 
 enum { O_MODEL = 300, O_ENCODER, O_LSQ };
 
@@ -24,9 +21,9 @@ static const crom_opt encode_opts[] = {
     {"lsq", O_LSQ, NULL, "Same as --encoder lsq."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", encode_opts}, {NULL, NULL}};
+static const crom_cli_optgroup groups[] = {{"Options", encode_opts}, {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-encode",
     "encode the frames of a trajectory on any mesh as latent coordinates q",
     "crom-encode --model M [--encoder lsq|pointnet] [-o OUT] [TRAJ]",
@@ -87,82 +84,13 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     }
 }
 
-/* The weighted projection: G = sum_v w_v W_v^T W_v (Cholesky factor), and
- * q = G^{-1} sum_v w_v W_v^T f_v. */
-typedef struct {
-    int nv, r;
-    const double *Wv; /* [nv][3][r] */
-    const double *w;  /* [nv] weights */
-    double *L;        /* [r][r] Cholesky factor (column-major lower) */
-    double *wf;       /* [3nv] scratch */
-} projector;
-
-static int proj_init(projector *p)
-{
-    int r = p->r;
-    size_t n3 = 3 * (size_t)p->nv;
-    p->L = crom_calloc((size_t)r * r, sizeof(double));
-    p->wf = crom_malloc(sizeof(double) * n3);
-    double *sW = crom_malloc(sizeof(double) * n3 * r);
-    if (!p->L || !p->wf || !sW) {
-        free(sW);
-        return CROM_EINTERNAL;
-    }
-    for (size_t i = 0; i < n3; i++) {
-        double s = sqrt(p->w[i / 3]);
-        for (int j = 0; j < r; j++)
-            sW[i * r + j] = s * p->Wv[i * r + j];
-    }
-    cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, r, (int)n3, 1.0, sW, r, 0.0, p->L, r);
-    free(sW);
-    double tr = 0, dmin = INFINITY;
-    for (int a = 0; a < r; a++) {
-        tr += p->L[a * r + a];
-        dmin = fmin(dmin, p->L[a * r + a]);
-    }
-    if (!(tr > 0) || !(dmin > 1e-10 * tr / r))
-        return crom_err(CROM_EDATA, "the basis is (nearly) zero on part of its span at this mesh's "
-                                    "vertices: cannot project onto it");
-    for (int a = 0; a < r; a++)
-        p->L[a * r + a] += 1e-13 * tr / r;
-    if (LAPACKE_dpotrf_work(LAPACK_COL_MAJOR, 'L', r, p->L, r) != 0)
-        return crom_err(CROM_EDATA, "the basis is rank-deficient at this mesh's vertices: cannot "
-                                    "project onto it");
-    return 0;
-}
-
-static void proj_apply(projector *p, const double *f, double *q)
-{
-    size_t n3 = 3 * (size_t)p->nv;
-    for (size_t i = 0; i < n3; i++)
-        p->wf[i] = p->w[i / 3] * f[i];
-    cblas_dgemv(CblasRowMajor, CblasTrans, (int)n3, p->r, 1.0, p->Wv, p->r, p->wf, 1, 0.0, q, 1);
-    LAPACKE_dpotrs_work(LAPACK_COL_MAJOR, 'L', p->r, 1, p->L, p->r, q, p->r);
-}
-
-/* Weighted squared norms of W q - f and of f. */
-static void residual(const projector *p, const double *f, const double *q, double *e2, double *f2)
-{
-    double e = 0, n = 0;
-    for (size_t i = 0; i < 3 * (size_t)p->nv; i++) {
-        double s = -f[i];
-        const double *W = p->Wv + i * p->r;
-        for (int j = 0; j < p->r; j++)
-            s += W[j] * q[j];
-        e += p->w[i / 3] * s * s;
-        n += p->w[i / 3] * f[i] * f[i];
-    }
-    *e2 = e;
-    *f2 = n;
-}
-
 static int run(crom_cli *cli, args *a)
 {
     crom_model M;
     int rc = crom_model_load(a->model, &M);
     if (rc)
         return rc;
-    if (a->pointnet && M.encoder != CROM_ENC_POINTNET) {
+    if (a->pointnet && M.encoder != CROM_MODEL_ENC_POINTNET) {
         rc = crom_err(CROM_EUSAGE, "%s has no PointNet encoder (its encoder is %s): use --encoder lsq",
                       a->model, crom_model_encoder_name(M.encoder));
         crom_model_free(&M);
@@ -175,9 +103,9 @@ static int run(crom_cli *cli, args *a)
     }
     crom_mesh m;
     memset(&m, 0, sizeof m);
-    projector P;
+    crom_project P;
     memset(&P, 0, sizeof P);
-    double *Wv = NULL, *w = NULL, *pts = NULL, *q = NULL, *qd = NULL;
+    double *pts = NULL, *q = NULL, *qd = NULL;
     crom_out o;
     int out_open = 0;
     if ((rc = crom_in_expect(&in, "crom/trajectory", 1)))
@@ -212,33 +140,19 @@ static int run(crom_cli *cli, args *a)
     }
     int r = M.rank;
     size_t n3 = 3 * (size_t)m.nv;
-    Wv = crom_malloc(sizeof(double) * n3 * r);
-    w = crom_malloc(sizeof(double) * (size_t)m.nv);
     q = crom_malloc(sizeof(double) * r);
     qd = crom_calloc((size_t)r, sizeof(double));
     if (a->pointnet)
         pts = crom_malloc(sizeof(double) * 2 * n3);
-    if (!Wv || !w || !q || !qd || (a->pointnet && !pts)) {
+    if (!q || !qd || (a->pointnet && !pts)) {
         rc = CROM_EINTERNAL;
         goto out;
     }
     size_t nout = 0;
-    double *fp = crom_mesh_field_points(&m, CROM_CRACK_OFFSET, NULL); /* see mesh.h */
-    rc = fp ? crom_model_eval(&M, (size_t)m.nv, fp, Wv, &nout) : CROM_EINTERNAL;
-    free(fp);
-    if (rc)
+    if ((rc = crom_project_init(&P, &M, &m, &nout)))
         goto out;
     if (nout && cli->verbose)
         crom_cli_info(cli, "%zu of %d vertices lie outside the model's mesh: W is extended there", nout, m.nv);
-    double vol = crom_vertex_volumes(&m, w);
-    for (int v = 0; v < m.nv; v++)
-        w[v] /= vol;
-    P.nv = m.nv;
-    P.r = r;
-    P.Wv = Wv;
-    P.w = w;
-    if ((rc = proj_init(&P)))
-        goto out;
     /* the output series */
     if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli->cmdline, in.history, CROM_OUT_SERIES)))
         goto out;
@@ -253,8 +167,8 @@ static int run(crom_cli *cli, args *a)
         (rc = crom_out_field(&o, "reconstruction_error", 0, NULL, M.basis)) ||
         (rc = crom_out_begin(&o)))
         goto out;
-    crom_progress prog;
-    crom_progress_start(&prog, cli, "encode", in.form == CROM_FORM_H5 ? in.nframes : 0);
+    crom_cli_progress prog;
+    crom_cli_progress_start(&prog, cli, "encode", in.form == CROM_IO_H5 ? in.nframes : 0);
     double E2 = 0, U2 = 0;
     long nf = 0;
     while ((rc = crom_in_next(&in)) == 1) {
@@ -277,12 +191,12 @@ static int run(crom_cli *cli, args *a)
             if ((rc = crom_model_encode_pointnet(&M, (size_t)m.nv, pts, q)))
                 break;
         } else {
-            proj_apply(&P, u, q);
+            crom_project_apply(&P, u, q);
         }
         if (fv >= 0)
-            proj_apply(&P, crom_in_get(&in, fv), qd);
+            crom_project_apply(&P, crom_in_get(&in, fv), qd);
         double e2, u2;
-        residual(&P, u, q, &e2, &u2);
+        crom_project_residual(&P, u, q, &e2, &u2);
         E2 += e2;
         U2 += u2;
         double fe = u2 > 0 ? sqrt(e2 / u2) : sqrt(e2);
@@ -298,9 +212,9 @@ static int run(crom_cli *cli, args *a)
         if ((rc = crom_out_frame(&o, vals)))
             break;
         nf++;
-        crom_progress_update(&prog, nf, NULL);
+        crom_cli_progress_update(&prog, nf, NULL);
     }
-    crom_progress_end(&prog);
+    crom_cli_progress_end(&prog);
     if (rc < 0)
         rc = -rc;
     if (rc)
@@ -325,10 +239,7 @@ static int run(crom_cli *cli, args *a)
 out:
     if (out_open)
         crom_out_fail(&o);
-    free(P.L);
-    free(P.wf);
-    free(Wv);
-    free(w);
+    crom_project_free(&P);
     free(pts);
     free(q);
     free(qd);

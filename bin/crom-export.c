@@ -33,9 +33,9 @@ static const crom_opt export_opts[] = {
     {"poisson", O_POISSON, "NU", "vtu, pvd, xdmf: Poisson ratio of the same (default: the input's 'poisson' attribute). When the input records no material and none is given, those two fields are left out (with a note)."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", export_opts}, {NULL, NULL}};
+static const crom_cli_optgroup groups[] = {{"Options", export_opts}, {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-export",
     "write crom meshes, trajectories and decoded latent runs as VTU/PVD, XDMF, MSH, OBJ, PLY, STL or PNG",
     "crom-export --format vtu|pvd|xdmf|msh|obj|ply|stl|png|strip [options] -o OUT [MESH|TRAJ|-]\n"
@@ -221,10 +221,10 @@ static const char *base_name(const char *p)
 static int series_kind(const args *a)
 {
     if (!strcmp(a->format, "xdmf") || !strcmp(a->format, "msh"))
-        return a->format[0] == 'x' ? CROM_SERIES_XDMF : CROM_SERIES_MSH;
+        return a->format[0] == 'x' ? CROM_EXPORT_SERIES_XDMF : CROM_EXPORT_SERIES_MSH;
     if (strcmp(a->format, "pvd"))
-        return CROM_SERIES_FILES;
-    return !a->dir && ends_with(a->out, ".pvd") ? CROM_SERIES_PVD_FILE : CROM_SERIES_PVD_DIR;
+        return CROM_EXPORT_SERIES_FILES;
+    return !a->dir && ends_with(a->out, ".pvd") ? CROM_EXPORT_SERIES_PVD_FILE : CROM_EXPORT_SERIES_PVD_DIR;
 }
 
 /* The frame on mesh mi with displacement u, velocity v at time t, and its
@@ -297,8 +297,8 @@ static int export_series(crom_cli *cli, args *a, crom_follow *s, crom_export_cel
                                    s->res[0].in.history);
     if (rc)
         return rc;
-    crom_progress prog;
-    crom_progress_start(&prog, cli, "export", s->res[0].in.form == CROM_FORM_H5 ? s->res[0].in.nframes : 0);
+    crom_cli_progress prog;
+    crom_cli_progress_start(&prog, cli, "export", s->res[0].in.form == CROM_IO_H5 ? s->res[0].in.nframes : 0);
     long i = 0;
     double t;
     crom_export_frame fr;
@@ -308,10 +308,10 @@ static int export_series(crom_cli *cli, args *a, crom_follow *s, crom_export_cel
         if ((rc = frame_at(s, s->cur, s->u[s->cur], s->v[s->cur], t, cells, &fr)) ||
             (rc = crom_export_sink_frame(&k, s->cur, &fr)))
             break;
-        crom_progress_update(&prog, i, NULL);
+        crom_cli_progress_update(&prog, i, NULL);
     }
-    crom_progress_end(&prog);
-    if (!rc && k.n == 0 && kind >= CROM_SERIES_XDMF)
+    crom_cli_progress_end(&prog);
+    if (!rc && k.n == 0 && kind >= CROM_EXPORT_SERIES_XDMF)
         rc = crom_err(CROM_EDATA, "%s has no frames", s->res[0].in.name);
     if (rc) {
         crom_export_sink_abort(&k);
@@ -324,12 +324,12 @@ static int export_series(crom_cli *cli, args *a, crom_follow *s, crom_export_cel
                       cells->degenerate);
     int n = k.n;
     char where[2600];
-    if (kind == CROM_SERIES_XDMF)
+    if (kind == CROM_EXPORT_SERIES_XDMF)
         snprintf(where, sizeof where, "%s (heavy data %s)", k.xdmf.xml, k.xdmf.h5);
-    else if (kind == CROM_SERIES_PVD_FILE)
+    else if (kind == CROM_EXPORT_SERIES_PVD_FILE)
         snprintf(where, sizeof where, "%s (frames in %s/)", k.files.pvd, k.files.dir);
     else
-        snprintf(where, sizeof where, kind == CROM_SERIES_MSH ? "%s" : "%s/", a->out ? a->out : "stdout");
+        snprintf(where, sizeof where, kind == CROM_EXPORT_SERIES_MSH ? "%s" : "%s/", a->out ? a->out : "stdout");
     if (!(rc = crom_export_sink_finish(&k)))
         crom_cli_info(cli, "wrote %d frames to %s", n, where);
     return rc;
@@ -397,7 +397,7 @@ static int run(crom_cli *cli, args *a)
             crom_cli_info(cli, "%s records no material: cell data without energy_density and von_mises_stress "
                           "(give --youngs and --poisson)", s.res[0].in.name);
     }
-    if (!rc && (series_kind(a) != CROM_SERIES_FILES || a->all))
+    if (!rc && (series_kind(a) != CROM_EXPORT_SERIES_FILES || a->all))
         rc = export_series(cli, a, &s, cp);
     else if (!rc)
         rc = export_one_frame(a, &s, cp);

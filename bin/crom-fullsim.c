@@ -10,7 +10,6 @@
 #include "mesh/mesh.h"
 #include "phys/scenario.h"
 #include "phys/sim.h"
-#include "rom/result.h"
 
 enum { O_STREAM = 300, O_HDF5, O_STATS };
 
@@ -21,12 +20,12 @@ static const crom_opt out_opts[] = {
     {"stats", O_STATS, "CSV", "Write one line per step to CSV: Newton and CG iterations, factorizations, residual, and the wall-time split (total, assembly, factorization, solves, line search) in seconds."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {
+static const crom_cli_optgroup groups[] = {
     {"Scenario options (the same in crom-reducedstep)", crom_scenario_opts},
     {"Output options", out_opts},
     {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-fullsim",
     "implicit FEM of a stable neo-Hookean solid (crom/mesh to crom/trajectory)",
     "crom-fullsim [scenario options] [-o OUT] [MESH|-]",
@@ -78,7 +77,7 @@ static int on_opt(void *ctx, int key, const char *v)
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
 
-static int put_frame(crom_out *o, crom_sim *s, const crom_step_stats *st, double *u)
+static int put_frame(crom_out *o, crom_sim *s, const crom_sim_stats *st, double *u)
 {
     double K, E, W;
     int rc = crom_sim_energies(s, &K, &E, &W);
@@ -86,7 +85,7 @@ static int put_frame(crom_out *o, crom_sim *s, const crom_step_stats *st, double
         return rc;
     crom_sim_displacement(s, u);
     double step = (double)s->step, tot = K + E + W, it = st->newton, res = st->residual,
-           secs = crom_wall(st->t_total);
+           secs = crom_clock_wall(st->t_total);
     const double *vals[] = {&s->t, &step, u, s->v, &K, &E, &W, &tot, &it, &res, &secs};
     return crom_out_frame(o, vals);
 }
@@ -125,7 +124,7 @@ static int run(crom_cli *cli, args *a)
     if (!rc)
         rc = crom_out_begin(&o);
     double *u = crom_malloc(sizeof(double) * 3 * (size_t)m.nv);
-    crom_step_stats st = {0}, sum = {0};
+    crom_sim_stats st = {0}, sum = {0};
     if (!u)
         rc = CROM_EINTERNAL;
     if (!rc)
@@ -133,8 +132,8 @@ static int run(crom_cli *cli, args *a)
     crom_fileout csv = {0};
     if (!rc && a->stats && !(rc = crom_fileout_open(&csv, a->stats, 0)))
         fprintf(csv.f, "step,newton,cg,factorizations,residual,seconds,assembly,factorization,solves,line_search\n");
-    crom_progress prog;
-    crom_progress_start(&prog, cli, "fullsim", a->sc.steps);
+    crom_cli_progress prog;
+    crom_cli_progress_start(&prog, cli, "fullsim", a->sc.steps);
     for (int k = 1; k <= a->sc.steps && !rc; k++) {
         if ((rc = crom_sim_step(&s, &st)))
             break;
@@ -159,9 +158,9 @@ static int run(crom_cli *cli, args *a)
             rc = put_frame(&o, &s, &st, u);
         char extra[64];
         snprintf(extra, sizeof extra, "%d Newton, res %.1e", st.newton, st.residual);
-        crom_progress_update(&prog, k, extra);
+        crom_cli_progress_update(&prog, k, extra);
     }
-    crom_progress_end(&prog);
+    crom_cli_progress_end(&prog);
     free(u);
     if ((rc = crom_out_finish_run(&o, &csv, rc)))
         goto out_sim;

@@ -19,9 +19,9 @@ static const crom_opt info_opts[] = {
     {"history", O_HISTORY, NULL, "Print the whole history (default: the last 3 lines)."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", info_opts}, {NULL, NULL}};
+static const crom_cli_optgroup groups[] = {{"Options", info_opts}, {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-info",
     "summarize or validate crom files",
     "crom-info [--check] [--frames] FILE|- ...",
@@ -124,7 +124,7 @@ static herr_t visit_cb(hid_t root, const char *name, const H5O_info_t *info, voi
     if (info->type != H5O_TYPE_DATASET)
         return 0;
     int rank;
-    hsize_t dims[CROM_MAX_RANK];
+    hsize_t dims[CROM_IO_MAX_RANK];
     if (crom_h5_shape(root, name, &rank, dims)) {
         crom_err_clear();
         return 0;
@@ -207,7 +207,7 @@ static int summarize(const args *a, const char *path)
         return rc;
     const crom_schema *s = crom_schema_find(in.schema);
     printf("%s: %s v%d (%s)%s%s\n", in.name, in.schema, in.version,
-           in.form == CROM_FORM_STREAM ? "crom frame stream" : "HDF5", s ? " — " : "",
+           in.form == CROM_IO_STREAM ? "crom frame stream" : "HDF5", s ? " — " : "",
            s ? s->summary : "");
     if (in.history) {
         int lines = 1;

@@ -28,9 +28,9 @@ static const crom_opt mesh_opts[] = {
     {"timeout", O_TIMEOUT, "S", "Give up meshing after S seconds (default 600): bad surfaces can make gmsh spin."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", mesh_opts}, {NULL, NULL}};
+static const crom_cli_optgroup groups[] = {{"Options", mesh_opts}, {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-mesh",
     "make a tetrahedral mesh of a shape or a surface/volume file",
     "crom-mesh box|plate|sphere|cylinder|superquadric [options] [-o OUT]\n"
@@ -108,14 +108,14 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
 {
     memset(a, 0, sizeof *a);
     a->timeout = 600;
-    a->remesh = CROM_REMESH_AUTO;
+    a->remesh = CROM_MESHGEN_REMESH_AUTO;
     crom_cli_parse(cli, &doc, argc, argv, on_opt, a);
     int shape = a->shape ? crom_meshgen_shape(a->shape) : -1;
     if (!a->shape)
         crom_err(CROM_EUSAGE, "no shape given (box, plate, sphere, cylinder, superquadric, import FILE)");
     else if (shape < 0)
         crom_err(CROM_EUSAGE, "unknown shape '%s' (box, plate, sphere, cylinder, superquadric, import)", a->shape);
-    else if (shape == CROM_SHAPE_IMPORT && !a->file)
+    else if (shape == CROM_MESHGEN_IMPORT && !a->file)
         crom_err(CROM_EUSAGE, "import needs a FILE operand");
     else
         shape = shape + 1000;
@@ -157,7 +157,7 @@ static int run(crom_cli *cli, args *a)
     crom_mesh m;
     signal(SIGALRM, on_alarm);
     alarm((unsigned)(a->timeout + 0.999));
-    double t0 = crom_now();
+    double t0 = crom_clock_now();
     crom_meshgen_plan_info plan;
     int rc = crom_meshgen_plan(&a->gen, &plan);
     if (rc)
@@ -187,7 +187,7 @@ static int run(crom_cli *cli, args *a)
         int wt;
         crom_mesh_quality(&m, &worst, &mean, &wt);
         crom_cli_info(cli, "%d vertices, %d tets, volume %.6g m^3, quality worst %.3f (tet %d) mean %.3f, %.2f s",
-                      m.nv, m.nt, crom_mesh_volume(&m), worst, wt, mean, crom_now() - t0);
+                      m.nv, m.nt, crom_mesh_volume(&m), worst, wt, mean, crom_clock_now() - t0);
         for (int r = 0; r < m.nregions; r++)
             crom_cli_info(cli, "region %s: %d vertices (%s)", m.regions[r].name, m.regions[r].n,
                           m.regions[r].source);
@@ -200,7 +200,7 @@ static int run(crom_cli *cli, args *a)
         if (!rc)
             rc = crom_h5_set_str(o.h5, ".", "generator", shape_names[a->gen.shape]);
         /* a .msh volume is read as it is: no target size applies */
-        int kept = a->gen.shape == CROM_SHAPE_IMPORT && strlen(a->file) > 4 &&
+        int kept = a->gen.shape == CROM_MESHGEN_IMPORT && strlen(a->file) > 4 &&
                    !strcmp(a->file + strlen(a->file) - 4, ".msh");
         if (!rc && !kept)
             rc = crom_h5_set_f64(o.h5, ".", "target_size", &a->gen.size, 1);

@@ -10,12 +10,12 @@
 #include "cli/cli.h"
 #include "datafree/datafree.h"
 #include "io/io.h"
+#include "mesh/mesh.h"
 #include "phys/fem.h"
 #include "phys/scenario.h"
 #include "rom/map.h"
 #include "rom/metrics.h"
 #include "rom/model.h"
-#include "rom/result.h"
 
 enum { O_MESH = 300, O_COMPARE, O_SAMPLES, O_SPHERE, O_BOX, O_NORMAL, O_SIGMA, O_PAIRS, O_THRESH };
 
@@ -31,12 +31,12 @@ static const crom_opt met_opts[] = {
     {"collapse-threshold", O_THRESH, "T", "A normalized Gram eigenvalue below T counts as a collapsed dimension (default 0.01)."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {
+static const crom_cli_optgroup groups[] = {
     {"Options", met_opts},
     {"Scenario options (material and gravity are used; default: what the model records)", crom_scenario_opts},
     {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-metrics",
     "energy, isometry and mode-collapse measures of a subspace",
     "crom-metrics [--samples N] [--sphere R | --box A | --normal S] [--compare MODEL] [--mesh MESH]\n"

@@ -14,7 +14,6 @@
 #include "phys/modes.h"
 #include "phys/scenario.h"
 #include "rom/model.h"
-#include "rom/result.h"
 
 enum { O_COUNT = 300, O_KEEP, O_SHIFT, O_TOL, O_RIGID_TOL };
 
@@ -31,13 +30,13 @@ static const crom_opt modes_opts[] = {
  * uses, and the rest (accepted, so one @FILE serves every stage). */
 static crom_opt used_opts[8], ignored_opts[40];
 
-static crom_optgroup groups[] = {
+static crom_cli_optgroup groups[] = {
     {"Material and boundary conditions (the scenario options of crom-fullsim)", used_opts},
     {"Options", modes_opts},
     {"Other scenario options (accepted and ignored: modes are computed at rest)", ignored_opts},
     {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-modes",
     "linear vibration modes of a mesh with its pins (crom/mesh to crom/model)",
     "crom-modes [--youngs E] [--poisson NU] [--density RHO] [--pin REGION ...] [--count K]\n"
@@ -248,7 +247,7 @@ static int run(crom_cli *cli, args *a)
         return rc;
     unsigned char *fixed = NULL;
     int npinned = 0;
-    const char *refs[CROM_SC_MAX];
+    const char *refs[CROM_SCENARIO_MAX];
     for (int i = 0; i < a->sc.npins; i++)
         refs[i] = a->sc.pins[i];
     crom_modes r;

@@ -2,7 +2,6 @@
  * with cubature (LiCROM §4–5), the same scenario as crom-fullsim, on any mesh,
  * switching meshes mid-run without touching the state; or over the latent z
  * of a nonlinear one-mesh map (data-free subspaces) with Gauss–Newton. */
-#include <errno.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -10,13 +9,14 @@
 #include "base/err.h"
 #include "cli/cli.h"
 #include "io/io.h"
+#include "mesh/mesh.h"
 #include "phys/scenario.h"
 #include "rom/cubature.h"
 #include "rom/map.h"
 #include "rom/model.h"
-#include "rom/nlrom.h"
-#include "rom/result.h"
-#include "rom/rom.h"
+#include "rom/nlsim.h"
+#include "rom/rsim.h"
+#include "rom/schedule.h"
 
 enum { O_CUB = 300, O_INIT, O_SCHED, O_SOLVER, O_KAPPA, O_STATS, O_STREAM, O_HDF5, O_INITFRAME, O_BCTHR,
        O_MODEL, O_MESH };
@@ -37,12 +37,12 @@ static const crom_opt red_opts[] = {
     {"hdf5", O_HDF5, NULL, "Write HDF5 even into a pipe."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {
+static const crom_cli_optgroup groups[] = {
     {"Scenario options (the same in crom-fullsim)", crom_scenario_opts},
     {"Reduced simulation options", red_opts},
     {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-reducedstep",
     "implicit Euler in a model's latent space, on any mesh, across mesh changes",
     "crom-reducedstep --cubature CUB [scenario options] [--init LATENT] [--schedule FILE]\n"
@@ -106,9 +106,9 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_SCHED: a->sched = v; return 0;
     case O_SOLVER:
         if (!strcmp(v, "newton"))
-            a->solver = CROM_SOLVER_NEWTON;
+            a->solver = CROM_RSIM_NEWTON;
         else if (!strcmp(v, "gd"))
-            a->solver = CROM_SOLVER_GD;
+            a->solver = CROM_RSIM_GD;
         else
             return crom_err(CROM_EUSAGE, "--solver: '%s' is not newton or gd", v);
         return 0;
@@ -123,104 +123,6 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_HDF5: a->kind = CROM_OUT_SERIES_H5; return 0;
     }
     return crom_err(CROM_EINTERNAL, "unhandled option");
-}
-
-typedef struct {
-    long step;
-    char *path;
-    crom_cub cub;
-    char *history;
-} sched_entry;
-
-static int load_cub(const char *path, crom_cub *c, char **hist)
-{
-    crom_in in;
-    int rc = crom_in_open(&in, path);
-    if (rc)
-        return rc;
-    rc = crom_cub_read(&in, c);
-    if (!rc && hist) {
-        *hist = in.history;
-        in.history = NULL;
-    }
-    crom_in_close(&in);
-    return rc;
-}
-
-/* Parse and load the schedule: entry 0 is --cubature at step 0. */
-static int load_schedule(const args *a, sched_entry **out, int *n)
-{
-    sched_entry *e = crom_calloc(1, sizeof *e);
-    if (!e)
-        return CROM_EINTERNAL;
-    int ne = 1, rc = load_cub(a->cub, &e[0].cub, &e[0].history);
-    if (!rc && e[0].cub.map_rank)
-        rc = crom_err(CROM_EDATA, "%s is a cubature of a nonlinear map (model %s): run it with --model MODEL "
-                      "--cubature %s", a->cub, e[0].cub.model_id, a->cub);
-    e[0].path = crom_strdup(a->cub);
-    if (!rc && a->sched) {
-        FILE *f = fopen(a->sched, "r");
-        if (!f)
-            rc = crom_err(CROM_ENOINPUT, "--schedule %s: %s", a->sched, strerror(errno));
-        char line[2048];
-        int lineno = 0;
-        while (!rc && f && fgets(line, sizeof line, f)) {
-            lineno++;
-            char *hash = strchr(line, '#');
-            if (hash)
-                *hash = 0;
-            char path[1500];
-            long step;
-            int k = sscanf(line, "%ld %1499s", &step, path);
-            if (k <= 0)
-                continue;
-            if (k != 2) {
-                rc = crom_err(CROM_EUSAGE, "%s:%d: expected 'STEP CUBATURE'", a->sched, lineno);
-                break;
-            }
-            if (step <= e[ne - 1].step || step < 1) {
-                rc = crom_err(CROM_EUSAGE, "%s:%d: step %ld is out of order (steps must increase, after %ld)",
-                              a->sched, lineno, step, e[ne - 1].step);
-                break;
-            }
-            if (step > a->sc.steps) {
-                rc = crom_err(CROM_EUSAGE, "%s:%d: step %ld is beyond --steps %d", a->sched, lineno, step, a->sc.steps);
-                break;
-            }
-            sched_entry *ne2 = crom_realloc(e, sizeof *e * (size_t)(ne + 1));
-            if (!ne2) {
-                rc = CROM_EINTERNAL;
-                break;
-            }
-            e = ne2;
-            memset(&e[ne], 0, sizeof e[ne]);
-            e[ne].step = step;
-            e[ne].path = crom_strdup(path);
-            ne++;
-            if ((rc = load_cub(path, &e[ne - 1].cub, NULL))) {
-                crom_err_ctx("%s:%d", a->sched, lineno);
-                break;
-            }
-            if (strcmp(e[ne - 1].cub.model_id, e[0].cub.model_id) || e[ne - 1].cub.r != e[0].cub.r)
-                rc = crom_err(CROM_EDATA, "%s:%d: %s is a cubature of model %s, %s is of model %s", a->sched, lineno,
-                              path, e[ne - 1].cub.model_id, a->cub, e[0].cub.model_id);
-        }
-        if (f)
-            fclose(f);
-    }
-    *out = e;
-    *n = ne;
-    return rc;
-}
-
-static void free_schedule(sched_entry *e, int n)
-{
-    for (int i = 0; i < n; i++) {
-        crom_cub_free(&e[i].cub);
-        free(e[i].path);
-        free(e[i].history);
-    }
-    free(e);
 }
 
 static int read_init(const args *a, const char *model_id, int r, double *q, double *qd)
@@ -267,15 +169,15 @@ out:
 }
 
 static int put_values(crom_out *o, double t, long nstep, const double *q, const double *qd, double K, double E,
-                      double W, const crom_rstep_stats *st, int entry)
+                      double W, const crom_rsim_stats *st, int entry)
 {
     double step = (double)nstep, tot = K + E + W, it = st->iterations, res = st->residual,
-           cres = st->constraint_residual, cub = entry, secs = crom_wall(st->seconds);
+           cres = st->constraint_residual, cub = entry, secs = crom_clock_wall(st->seconds);
     const double *vals[] = {&t, &step, q, qd, &K, &E, &W, &tot, &it, &res, &cres, &cub, &secs};
     return crom_out_frame(o, vals);
 }
 
-static int put_frame(crom_out *o, crom_rsim *s, const crom_rstep_stats *st, int entry)
+static int put_frame(crom_out *o, crom_rsim *s, const crom_rsim_stats *st, int entry)
 {
     double K, E, W;
     int rc = crom_rsim_energies(s, &K, &E, &W);
@@ -354,8 +256,8 @@ static int run_map(crom_cli *cli, args *a)
     if ((rc = crom_nlsim_init(&s, &map, &a->sc, a->kappa, a->init ? q0 : NULL, a->init ? qd0 : NULL, a->threads)))
         goto out;
     if (a->cub) {
-        crom_cub cub;
-        if ((rc = load_cub(a->cub, &cub, NULL)))
+        crom_cubature cub;
+        if ((rc = crom_cubature_load(a->cub, &cub, NULL)))
             goto out;
         if (strcmp(cub.model_id, model.model_id) || cub.map_rank != r || cub.r != map.p ||
             crom_map_same_mesh(&cub.mesh, &map.mesh))
@@ -364,7 +266,7 @@ static int run_map(crom_cli *cli, args *a)
                           a->model);
         else
             rc = crom_nlsim_use_cubature(&s, cub.k, cub.elem, cub.weight);
-        crom_cub_free(&cub);
+        crom_cubature_free(&cub);
         if (rc)
             goto out;
     }
@@ -373,14 +275,14 @@ static int run_map(crom_cli *cli, args *a)
     have_out = 1;
     if ((rc = start_output(&o, a, model.model_id, r, "gauss-newton", model.basis)))
         goto out;
-    crom_rstep_stats st = {0, 0, crom_nlsim_constraint_residual(&s), 0, 1};
+    crom_rsim_stats st = {0, 0, crom_nlsim_constraint_residual(&s), 0, 1};
     double K, E, W;
     if (!(rc = crom_nlsim_energies(&s, &K, &E, &W)))
         rc = put_values(&o, s.t, s.step, s.q, s.qd, K, E, W, &st, 0);
     if (!rc && a->stats && !(rc = crom_fileout_open(&csv, a->stats, 0)))
         fprintf(csv.f, "step,iterations,residual,constraint_residual,seconds,cubature_tets\n");
-    crom_progress prog;
-    crom_progress_start(&prog, cli, "reducedstep", a->sc.steps);
+    crom_cli_progress prog;
+    crom_cli_progress_start(&prog, cli, "reducedstep", a->sc.steps);
     double tsum = 0;
     long iters = 0;
     for (int k = 1; k <= a->sc.steps && !rc; k++) {
@@ -393,9 +295,9 @@ static int run_map(crom_cli *cli, args *a)
                     st.seconds, s.ne);
         if (k % a->sc.every == 0 && !(rc = crom_nlsim_energies(&s, &K, &E, &W)))
             rc = put_values(&o, s.t, s.step, s.q, s.qd, K, E, W, &st, 0);
-        crom_progress_update(&prog, k, NULL);
+        crom_cli_progress_update(&prog, k, NULL);
     }
-    crom_progress_end(&prog);
+    crom_cli_progress_end(&prog);
     rc = crom_out_finish_run(&o, &csv, rc);
     have_out = 0;
     if (rc)
@@ -420,13 +322,14 @@ out:
 
 static int run(crom_cli *cli, args *a)
 {
-    sched_entry *sch = NULL;
-    int nsch = 0, rc = load_schedule(a, &sch, &nsch);
+    crom_schedule sch;
+    int rc = crom_schedule_load(&sch, a->cub, a->sched, a->sc.steps);
     if (rc) {
-        free_schedule(sch, nsch);
+        crom_schedule_free(&sch);
         return rc;
     }
-    int r = sch[0].cub.r;
+    const crom_schedule_entry *e = sch.e;
+    int nsch = sch.n, r = e[0].cub.r;
     double *q0 = crom_calloc((size_t)r, sizeof(double)), *qd0 = crom_calloc((size_t)r, sizeof(double));
     crom_rsim s;
     memset(&s, 0, sizeof s);
@@ -437,67 +340,60 @@ static int run(crom_cli *cli, args *a)
         rc = CROM_EINTERNAL;
         goto out;
     }
-    if (a->init && (rc = read_init(a, sch[0].cub.model_id, r, q0, qd0)))
+    if (a->init && (rc = read_init(a, e[0].cub.model_id, r, q0, qd0)))
         goto out;
-    if ((rc = crom_rsim_init(&s, &sch[0].cub, &a->sc, a->solver, a->kappa, q0, a->init ? qd0 : NULL)))
+    if ((rc = crom_rsim_init(&s, &e[0].cub, &a->sc, a->solver, a->kappa, q0, a->init ? qd0 : NULL)))
         goto out;
     if (a->bc_threshold != 0.1) { /* rebuild with the asked threshold */
         s.bc_threshold = a->bc_threshold;
-        if ((rc = crom_rsim_set_cubature(&s, &sch[0].cub)))
+        if ((rc = crom_rsim_set_cubature(&s, &e[0].cub)))
             goto out;
     }
     if (cli->verbose && s.nbc)
         crom_cli_info(cli, "boundary conditions constrain %d of %d latent directions (penalty rate %.3g 1/s^2)",
                       s.nconstrained, r, s.kappa);
-    if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli->cmdline, sch[0].history, a->kind)))
+    if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli->cmdline, e[0].history, a->kind)))
         goto out;
     have_out = 1;
-    {
-        size_t len = 1;
-        for (int i = 0; i < nsch; i++)
-            len += strlen(sch[i].path) + 32;
-        char *list = crom_calloc(len, 1);
-        for (int i = 0; list && i < nsch; i++)
-            snprintf(list + strlen(list), len - strlen(list), "%s%ld %s", i ? "\n" : "", sch[i].step, sch[i].path);
-        rc = list ? crom_h5_set_str(o.h5, ".", "cubatures", list) : CROM_EINTERNAL;
-        free(list);
-    }
+    char *list = crom_schedule_text(&sch);
+    rc = list ? crom_h5_set_str(o.h5, ".", "cubatures", list) : CROM_EINTERNAL;
+    free(list);
     if (!rc)
-        rc = start_output(&o, a, sch[0].cub.model_id, r, a->solver == CROM_SOLVER_GD ? "gd" : "newton", NULL);
-    crom_rstep_stats st = {0, 0, crom_rsim_constraint_residual(&s), 0, 1};
+        rc = start_output(&o, a, e[0].cub.model_id, r, a->solver == CROM_RSIM_GD ? "gd" : "newton", NULL);
+    crom_rsim_stats st = {0, 0, crom_rsim_constraint_residual(&s), 0, 1};
     if (!rc)
         rc = put_frame(&o, &s, &st, 0);
     if (!rc && a->stats && !(rc = crom_fileout_open(&csv, a->stats, 0)))
         fprintf(csv.f, "step,iterations,residual,constraint_residual,seconds,cubature_tets\n");
-    crom_progress prog;
-    crom_progress_start(&prog, cli, "reducedstep", a->sc.steps);
+    crom_cli_progress prog;
+    crom_cli_progress_start(&prog, cli, "reducedstep", a->sc.steps);
     int cur = 0;
     double tsum = 0;
     for (int k = 1; k <= a->sc.steps && !rc; k++) {
-        if (cur + 1 < nsch && sch[cur + 1].step == k) { /* switch mesh: the state carries over */
+        if (cur + 1 < nsch && e[cur + 1].step == k) { /* switch mesh: the state carries over */
             cur++;
-            if ((rc = crom_rsim_set_cubature(&s, &sch[cur].cub)))
+            if ((rc = crom_rsim_set_cubature(&s, &e[cur].cub)))
                 break;
             if (cli->verbose)
-                crom_cli_info(cli, "step %d: switched to %s (%d tets)", k, sch[cur].path, sch[cur].cub.k);
+                crom_cli_info(cli, "step %d: switched to %s (%d tets)", k, e[cur].path, e[cur].cub.k);
         }
         if ((rc = crom_rsim_step(&s, &st)))
             break;
         tsum += st.seconds;
         if (csv.f)
             fprintf(csv.f, "%d,%d,%.3e,%.3e,%.6e,%d\n", k, st.iterations, st.residual, st.constraint_residual,
-                    st.seconds, sch[cur].cub.k);
+                    st.seconds, e[cur].cub.k);
         if (k % a->sc.every == 0)
             rc = put_frame(&o, &s, &st, cur);
-        crom_progress_update(&prog, k, NULL);
+        crom_cli_progress_update(&prog, k, NULL);
     }
-    crom_progress_end(&prog);
+    crom_cli_progress_end(&prog);
     rc = crom_out_finish_run(&o, &csv, rc);
     have_out = 0;
     if (rc)
         goto out;
     if (!rc && cli->verbose && a->sc.steps > 0)
-        crom_cli_info(cli, "%d steps, rank %d, %d cubature tets: %.3f ms/step", a->sc.steps, r, sch[cur].cub.k,
+        crom_cli_info(cli, "%d steps, rank %d, %d cubature tets: %.3f ms/step", a->sc.steps, r, e[cur].cub.k,
                       1e3 * tsum / a->sc.steps);
 out:
     if (have_out)
@@ -505,7 +401,7 @@ out:
     crom_rsim_free(&s);
     free(q0);
     free(qd0);
-    free_schedule(sch, nsch);
+    crom_schedule_free(&sch);
     return rc;
 }
 
@@ -524,7 +420,7 @@ int main(int argc, char **argv)
         const char *bad = a.sched ? "--schedule" : a.bcthr_given ? "--bc-threshold" : NULL;
         if (bad)
             return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--model runs on the model's mesh: %s does not apply", bad));
-        if (a.solver == CROM_SOLVER_GD)
+        if (a.solver == CROM_RSIM_GD)
             return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--solver gd needs a cubature; --model uses Gauss-Newton"));
         return crom_cli_exit(&cli, run_map(&cli, &a));
     }

@@ -47,14 +47,14 @@ static const crom_opt refine_opts[] = {
     {"times", O_TIMES, "N", "Number of uniform refinements, 1..6 (default 1): each splits every tet into 8."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", common},
+static const crom_cli_optgroup groups[] = {{"Options", common},
                                        {"cut options", cut_opts},
                                        {"punch options", punch_opts},
                                        {"swap options", swap_opts},
                                        {"refine options", refine_opts},
                                        {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-remesh",
     "cut, punch, swap or refine a mesh for run-time topology changes",
     "crom-remesh cut --segment AU,AV,BU,BV... [--axis y] [--stages N --stage K | --all-stages DIR] [-o OUT] [MESH|-]\n"
@@ -110,9 +110,9 @@ typedef struct {
     int nseg, axis;
     long stages, stage;
     int stage_given;
-    crom_punch_shape shapes[MAX_ITEMS];
+    crom_remesh_punch_shape shapes[MAX_ITEMS];
     int nshapes;
-    crom_xform xf;
+    crom_remesh_xform xf;
     long times;
 } args;
 
@@ -176,8 +176,8 @@ static int on_opt(void *ctx, int key, const char *v)
             return crom_err(CROM_EUSAGE, "too many --sphere/--box (at most %d)", MAX_ITEMS);
         if (crom_parse_doubles(v, key == O_SPHERE ? "--sphere" : "--box", n, d))
             return CROM_EUSAGE;
-        crom_punch_shape *s = &a->shapes[a->nshapes++];
-        s->kind = key == O_SPHERE ? CROM_PUNCH_SPHERE : CROM_PUNCH_BOX;
+        crom_remesh_punch_shape *s = &a->shapes[a->nshapes++];
+        s->kind = key == O_SPHERE ? CROM_REMESH_PUNCH_SPHERE : CROM_REMESH_PUNCH_BOX;
         memcpy(s->a, d, sizeof(double) * (size_t)n);
         if (key == O_SPHERE && !(d[3] > 0))
             return crom_err(CROM_EUSAGE, "--sphere: the radius must be positive, got %g", d[3]);
@@ -216,7 +216,7 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     a->axis = 1;
     a->stages = 1;
     a->times = 1;
-    crom_xform_init(&a->xf);
+    crom_remesh_xform_init(&a->xf);
     crom_cli_parse(cli, &doc, argc, argv, on_opt, a);
     if (!a->sub)
         usage(cli, "no subcommand given (cut, punch, swap or refine)%s%s", "", "");
@@ -349,13 +349,13 @@ static void summary(const crom_cli *cli, const char *what, const crom_mesh *m)
 
 static int run_cut(crom_cli *cli, args *a, const crom_mesh *m, const char *hist, double size)
 {
-    crom_cut c = {a->axis, a->nseg, &a->seg[0][0], (int)a->stages, (int)a->stage};
+    crom_remesh_cut_opts c = {a->axis, a->nseg, &a->seg[0][0], (int)a->stages, (int)a->stage};
     int k0 = a->alldir ? 1 : (int)a->stage, k1 = a->alldir ? (int)a->stages : (int)a->stage, rc = 0;
     if (a->alldir && (rc = make_dir(a->alldir)))
         return rc;
     for (int k = k0; k <= k1 && !rc; k++) {
         crom_mesh out;
-        crom_cut_stats st;
+        crom_remesh_cut_stats st;
         char gen[96], path[1200];
         c.stage = k;
         if ((rc = crom_remesh_cut(m, &c, &out, &st, on_warn, (void *)cli)))

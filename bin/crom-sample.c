@@ -11,7 +11,6 @@
 #include "base/rng.h"
 #include "cli/cli.h"
 #include "io/io.h"
-#include "mesh/locate.h"
 #include "mesh/mesh.h"
 #include "rom/samples.h"
 
@@ -25,9 +24,9 @@ static const crom_opt sample_opts[] = {
     {"skip-rest", O_SKIPREST, NULL, "Drop frames whose displacement is zero everywhere (such as frame 0 at rest). By default they are kept: they are legitimate data."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", sample_opts}, {NULL, NULL}};
+static const crom_cli_optgroup groups[] = {{"Options", sample_opts}, {NULL, NULL}};
 
-static const crom_doc doc = {
+static const crom_cli_doc doc = {
     "crom-sample",
     "sample (X, u) point pairs from the frames of trajectories, for training",
     "crom-sample [--points N|all] [--mode vertices|interior] [--every K] [--seed S] [-o OUT] TRAJ...",
@@ -116,39 +115,6 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     }
 }
 
-/* The growing sample set. */
-typedef struct {
-    crom_samples s;
-    size_t cap; /* frames allocated */
-} acc;
-
-static int acc_grow(acc *A)
-{
-    crom_samples *s = &A->s;
-    if ((size_t)s->F < A->cap)
-        return 0;
-    size_t cap = A->cap ? 2 * A->cap : 64, n = (size_t)s->N;
-    float *X = realloc(s->X, sizeof(float) * cap * n * 3);
-    if (X)
-        s->X = X;
-    float *U = realloc(s->U, sizeof(float) * cap * n * 3);
-    if (U)
-        s->U = U;
-    int *vx = realloc(s->vertex, sizeof(int) * cap * n);
-    if (vx)
-        s->vertex = vx;
-    int *src = realloc(s->source, sizeof(int) * cap);
-    if (src)
-        s->source = src;
-    double *t = realloc(s->time, sizeof(double) * cap);
-    if (t)
-        s->time = t;
-    if (!X || !U || !vx || !src || !t)
-        return crom_err(CROM_EINTERNAL, "out of memory for %zu frames of %zu samples", cap, n);
-    A->cap = cap;
-    return 0;
-}
-
 /* Append the lines of history h that *all does not hold yet (inputs made
  * by the same earlier stages share their first lines). */
 static int has_line(const char *all, const char *p, size_t len)
@@ -183,7 +149,7 @@ static void merge_history(char **all, const char *h)
     }
 }
 
-static int sample_source(crom_cli *cli, args *a, acc *A, const char *path, int k, crom_rng *rng,
+static int sample_source(crom_cli *cli, args *a, crom_samples *s, const char *path, int k, crom_rng *rng,
                          char **history)
 {
     crom_in in;
@@ -205,10 +171,8 @@ static int sample_source(crom_cli *cli, args *a, acc *A, const char *path, int k
         crom_in_close(&in);
         return rc;
     }
-    crom_samples *s = &A->s;
-    int *perm = NULL;
-    double *fp = NULL; /* where W is sampled at each vertex: crom_mesh_field_points */
-    double *cum = NULL;
+    crom_samples_picker pk;
+    memset(&pk, 0, sizeof pk);
     int fd = crom_in_field(&in, "displacement"), ft = crom_in_field(&in, "time");
     if (fd < 0 || ft < 0) {
         rc = CROM_EDATA;
@@ -234,26 +198,12 @@ static int sample_source(crom_cli *cli, args *a, acc *A, const char *path, int k
                       s->N, m.nv, in.name);
         goto out;
     }
-    perm = crom_malloc(sizeof(int) * (size_t)m.nv);
-    cum = crom_malloc(sizeof(double) * (size_t)m.nt);
-    fp = crom_mesh_field_points(&m, CROM_CRACK_OFFSET, NULL);
-    if (!perm || !cum || !fp) {
-        rc = CROM_EINTERNAL;
+    int how = a->interior ? CROM_SAMPLES_INTERIOR : a->points ? CROM_SAMPLES_VERTICES : CROM_SAMPLES_ALL;
+    if ((rc = crom_samples_picker_init(&pk, &m, how)))
         goto out;
-    }
-    for (int i = 0; i < m.nv; i++)
-        perm[i] = i;
-    double tot = 0;
-    for (int t = 0; t < m.nt; t++) {
-        const int *v = m.tets + 4 * (size_t)t;
-        tot += crom_tet_volume(m.X + 3 * (size_t)v[0], m.X + 3 * (size_t)v[1],
-                               m.X + 3 * (size_t)v[2], m.X + 3 * (size_t)v[3]);
-        cum[t] = tot;
-    }
-    crom_progress prog;
-    crom_progress_start(&prog, cli, "sample", in.form == CROM_FORM_H5 ? in.nframes : 0);
+    crom_cli_progress prog;
+    crom_cli_progress_start(&prog, cli, "sample", in.form == CROM_IO_H5 ? in.nframes : 0);
     long idx = 0, kept = 0;
-    int N = s->N;
     while ((rc = crom_in_next(&in)) == 1) {
         long fi = idx++;
         if (fi % a->every)
@@ -270,73 +220,13 @@ static int sample_source(crom_cli *cli, args *a, acc *A, const char *path, int k
         }
         if (zero && a->skip_rest)
             continue;
-        if ((rc = acc_grow(A)))
+        if ((rc = crom_samples_add_frame(s, &pk, u, rng, k, crom_in_get(&in, ft)[0])))
             break;
-        size_t base = (size_t)s->F * N;
-        float *X = s->X + 3 * base, *U = s->U + 3 * base;
-        int *vx = s->vertex + base;
-        if (!a->interior) {
-            if (a->points) {
-                for (int i = 0; i < N; i++) {
-                    int j = i + (int)crom_rng_below(rng, (uint64_t)(m.nv - i));
-                    int tmp = perm[i];
-                    perm[i] = perm[j];
-                    perm[j] = tmp;
-                }
-            } else {
-                for (int i = 0; i < N; i++)
-                    perm[i] = i;
-            }
-            for (int i = 0; i < N; i++) {
-                int v = perm[i];
-                vx[i] = v;
-                for (int d = 0; d < 3; d++) {
-                    X[3 * i + d] = (float)fp[3 * (size_t)v + d]; /* see crom_mesh_field_points */
-                    U[3 * i + d] = (float)u[3 * (size_t)v + d];
-                }
-            }
-        } else {
-            for (int i = 0; i < N; i++) {
-                /* a tet with probability proportional to its volume */
-                double target = crom_rng_uniform(rng) * tot;
-                int lo = 0, hi = m.nt - 1;
-                while (lo < hi) {
-                    int mid = (lo + hi) / 2;
-                    if (cum[mid] > target)
-                        hi = mid;
-                    else
-                        lo = mid + 1;
-                }
-                /* uniform in the tet: Dirichlet(1,1,1,1) barycentric weights */
-                double b[4], sb = 0;
-                for (int j = 0; j < 4; j++) {
-                    b[j] = -log(1.0 - crom_rng_uniform(rng));
-                    sb += b[j];
-                }
-                const int *tv = m.tets + 4 * (size_t)lo;
-                double x[3] = {0, 0, 0}, uu[3] = {0, 0, 0};
-                for (int j = 0; j < 4; j++) {
-                    double w = b[j] / sb;
-                    for (int d = 0; d < 3; d++) {
-                        x[d] += w * m.X[3 * (size_t)tv[j] + d];
-                        uu[d] += w * u[3 * (size_t)tv[j] + d];
-                    }
-                }
-                vx[i] = -1;
-                for (int d = 0; d < 3; d++) {
-                    X[3 * i + d] = (float)x[d];
-                    U[3 * i + d] = (float)uu[d];
-                }
-            }
-        }
-        s->source[s->F] = k;
-        s->time[s->F] = crom_in_get(&in, ft)[0];
-        s->F++;
         kept++;
-        crom_progress_update(&prog, idx, NULL);
+        crom_cli_progress_update(&prog, idx, NULL);
     }
 endloop:
-    crom_progress_end(&prog);
+    crom_cli_progress_end(&prog);
     if (rc < 0)
         rc = -rc;
     if (rc)
@@ -358,9 +248,7 @@ endloop:
     s->nsources = k + 1;
     merge_history(history, in.history);
 out:
-    free(fp);
-    free(perm);
-    free(cum);
+    crom_samples_picker_free(&pk);
     crom_mesh_free(&m);
     crom_in_close(&in);
     return rc;
@@ -371,9 +259,9 @@ static int run(crom_cli *cli, args *a)
     static const char *stdin_only[] = {"-"};
     const char **inputs = a->ninputs ? a->inputs : stdin_only;
     int n = a->ninputs ? a->ninputs : 1;
-    acc A;
-    memset(&A, 0, sizeof A);
-    crom_samples *s = &A.s;
+    crom_samples S;
+    memset(&S, 0, sizeof S);
+    crom_samples *s = &S;
     snprintf(s->mode, sizeof s->mode, "%s", a->interior ? "interior" : "vertices");
     s->seed = (long long)cli->seed;
     s->src = crom_calloc((size_t)n, sizeof(crom_mesh));
@@ -389,7 +277,7 @@ static int run(crom_cli *cli, args *a)
         if (strcmp(inputs[k], "-") && access(inputs[k], R_OK) != 0)
             rc = crom_err(CROM_ENOINPUT, "%s: %s", inputs[k], strerror(errno));
     for (int k = 0; k < n && !rc; k++)
-        rc = sample_source(cli, a, &A, inputs[k], k, &rng, &history);
+        rc = sample_source(cli, a, s, inputs[k], k, &rng, &history);
     if (!rc && s->F == 0)
         rc = crom_err(CROM_EDATA, "no frames to sample (the inputs have none%s)",
                       a->skip_rest ? ", or all are at rest and --skip-rest dropped them" : "");

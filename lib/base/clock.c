@@ -5,14 +5,14 @@
 
 #include "base/clock.h"
 
-double crom_now(void)
+double crom_clock_now(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-void crom_utc_now(char *buf, size_t n)
+void crom_clock_utc(char *buf, size_t n)
 {
     time_t t = time(NULL);
     const char *sde = getenv("SOURCE_DATE_EPOCH");
@@ -23,10 +23,10 @@ void crom_utc_now(char *buf, size_t n)
     strftime(buf, n, "%Y-%m-%dT%H:%M:%SZ", &tm);
 }
 
-int crom_reproducible(void)
+int crom_clock_reproducible(void)
 {
     const char *sde = getenv("SOURCE_DATE_EPOCH");
     return sde && *sde;
 }
 
-double crom_wall(double seconds) { return crom_reproducible() ? 0.0 : seconds; }
+double crom_clock_wall(double seconds) { return crom_clock_reproducible() ? 0.0 : seconds; }

@@ -4,7 +4,7 @@
 #include "base/err.h"
 #include "base/linesearch.h"
 
-double crom_linesearch(crom_ls_eval f, void *ctx, size_t n, const double *x, const double *d, double f0,
+double crom_linesearch(crom_linesearch_fn f, void *ctx, size_t n, const double *x, const double *d, double f0,
                        double slope, double noise, int tiny, double *xt, double *g, int *cuts)
 {
     double alpha = 1;

@@ -1,6 +1,6 @@
 /* linesearch.h — the backtracking (Armijo) line search shared by the time
- * steppers: full space (sim.c), cubature subspace (rom.c) and nonlinear
- * latent map (nlrom.c). One rule for accepting a step everywhere.
+ * steppers: full space (sim.c), cubature subspace (rsim.c) and nonlinear
+ * latent map (nlsim.c). One rule for accepting a step everywhere.
  */
 #ifndef CROM_LINESEARCH_H
 #define CROM_LINESEARCH_H
@@ -10,7 +10,7 @@
 /* The objective at x: its value in *f and, when g is not NULL, its gradient.
  * Returns 0, or non-zero where it is not defined (an inverted element): the
  * search then shortens the step. */
-typedef int (*crom_ls_eval)(void *ctx, const double *x, double *f, double *g);
+typedef int (*crom_linesearch_fn)(void *ctx, const double *x, double *f, double *g);
 
 /* Search along the descent direction d from x, where f0 = f(x) and slope =
  * ∇f(x)·d < 0: halve α from 1 until the Armijo condition
@@ -23,7 +23,7 @@ typedef int (*crom_ls_eval)(void *ctx, const double *x, double *f, double *g);
  * On return xt = x + αd. Returns α, or 0 when α fell below 1e-12 (no
  * acceptable step along d); *cuts (if not NULL) is increased by the number of
  * halvings. Errors of failed evaluations are cleared. */
-double crom_linesearch(crom_ls_eval f, void *ctx, size_t n, const double *x, const double *d, double f0,
+double crom_linesearch(crom_linesearch_fn f, void *ctx, size_t n, const double *x, const double *d, double f0,
                        double slope, double noise, int tiny, double *xt, double *g, int *cuts);
 
 #endif

@@ -13,21 +13,22 @@
 #include <omp.h>
 #endif
 
+#include "base/array.h"
 #include "base/err.h"
 #include "cli/cli.h"
 
 extern void openblas_set_num_threads(int);
 
 static const crom_opt common_opts[] = {
-    {"help", CROM_OPT_HELP, NULL, "Print this help and exit."},
-    {"version", CROM_OPT_VERSION, NULL, "Print the crom version and exit."},
+    {"help", CROM_CLI_HELP, NULL, "Print this help and exit."},
+    {"version", CROM_CLI_VERSION, NULL, "Print the crom version and exit."},
     {"quiet", 'q', NULL, "Print nothing but errors; no progress bar."},
     {"verbose", 'v', NULL, "Print more about what is done (repeatable)."},
-    {"seed", CROM_OPT_SEED, "S",
+    {"seed", CROM_CLI_SEED, "S",
      "Seed of the pseudo-random numbers (default 1); the same seed and inputs give the same output bytes."},
-    {"threads", CROM_OPT_THREADS, "N",
+    {"threads", CROM_CLI_THREADS, "N",
      "Threads for the parallel loops (default 1; 0 = all cores). This machine kind gains little from a second core."},
-    {"help-man", CROM_OPT_HELP_MAN, NULL, "Print the manual page as troff and exit."},
+    {"help-man", CROM_CLI_HELP_MAN, NULL, "Print the manual page as troff and exit."},
     {NULL, 0, NULL, NULL}};
 
 /* ---------------------------------------------------------------- messages */
@@ -169,7 +170,7 @@ static void print_paragraphs_man(FILE *f, const char *s)
     }
 }
 
-static void print_man(const crom_doc *d, FILE *f)
+static void print_man(const crom_cli_doc *d, FILE *f)
 {
     char up[64];
     size_t i;
@@ -188,7 +189,7 @@ static void print_man(const crom_doc *d, FILE *f)
     fputs(".SH OPTIONS\n", f);
     /* one Options heading: a group headed "Options" sits directly under
      * .SH OPTIONS, every other group gets its own .SS */
-    for (const crom_optgroup *g = d->groups; g && g->opts; g++) {
+    for (const crom_cli_optgroup *g = d->groups; g && g->opts; g++) {
         if (strcasecmp(g->heading, "Options") != 0) {
             fputs(".SS ", f);
             troff(f, g->heading);
@@ -240,7 +241,7 @@ static void print_man(const crom_doc *d, FILE *f)
     }
 }
 
-void crom_cli_print_doc(const crom_doc *d, FILE *f, int man)
+void crom_cli_print_doc(const crom_cli_doc *d, FILE *f, int man)
 {
     if (man) {
         print_man(d, f);
@@ -266,7 +267,7 @@ void crom_cli_print_doc(const crom_doc *d, FILE *f, int man)
         wrap(f, para, 0, 0, 79);
         fputc('\n', f);
     }
-    for (const crom_optgroup *g = d->groups; g && g->opts; g++) {
+    for (const crom_cli_optgroup *g = d->groups; g && g->opts; g++) {
         fprintf(f, "%s:\n", g->heading);
         for (const crom_opt *o = g->opts; o->name; o++)
             print_opt_text(f, o);
@@ -274,7 +275,7 @@ void crom_cli_print_doc(const crom_doc *d, FILE *f, int man)
     }
     fputs("Common options:\n", f);
     for (const crom_opt *o = common_opts; o->name; o++)
-        if (o->key != CROM_OPT_HELP_MAN)
+        if (o->key != CROM_CLI_HELP_MAN)
             print_opt_text(f, o);
     if (d->examples) {
         fputs("\nExamples:\n", f);
@@ -299,19 +300,15 @@ void crom_cli_print_doc(const crom_doc *d, FILE *f, int man)
 
 typedef struct {
     char **v;
-    int n, cap;
+    int n;
+    size_t cap;
 } strvec;
 
 static int sv_push(strvec *sv, const char *s, size_t len)
 {
-    if (sv->n == sv->cap) {
-        int cap = sv->cap ? 2 * sv->cap : 32;
-        char **v = realloc(sv->v, sizeof(char *) * (size_t)cap);
-        if (!v)
-            return crom_err(CROM_EINTERNAL, "out of memory");
-        sv->v = v;
-        sv->cap = cap;
-    }
+    int rc = crom_array_reserve((void **)&sv->v, &sv->cap, (size_t)sv->n + 1, sizeof *sv->v);
+    if (rc)
+        return rc;
     char *c = malloc(len + 1);
     if (!c)
         return crom_err(CROM_EINTERNAL, "out of memory");
@@ -336,15 +333,11 @@ static int expand_file(strvec *sv, const char *path, int depth)
     size_t len = 0, cap = 0;
     int c;
     while ((c = fgetc(f)) != EOF) {
-        if (len + 2 > cap) {
-            cap = cap ? 2 * cap : 4096;
-            char *nb = realloc(buf, cap);
-            if (!nb) {
-                free(buf);
-                fclose(f);
-                return crom_err(CROM_EINTERNAL, "out of memory");
-            }
-            buf = nb;
+        int rc = crom_array_reserve((void **)&buf, &cap, len + 2, 1);
+        if (rc) {
+            free(buf);
+            fclose(f);
+            return rc;
         }
         buf[len++] = (char)c;
     }
@@ -436,9 +429,9 @@ static char *shell_join(int argc, char **argv)
     return s;
 }
 
-static const crom_opt *find_long(const crom_doc *d, const char *name, size_t len)
+static const crom_opt *find_long(const crom_cli_doc *d, const char *name, size_t len)
 {
-    for (const crom_optgroup *g = d->groups; g && g->opts; g++)
+    for (const crom_cli_optgroup *g = d->groups; g && g->opts; g++)
         for (const crom_opt *o = g->opts; o->name; o++)
             if (strlen(o->name) == len && !strncmp(o->name, name, len))
                 return o;
@@ -448,9 +441,9 @@ static const crom_opt *find_long(const crom_doc *d, const char *name, size_t len
     return NULL;
 }
 
-static const crom_opt *find_short(const crom_doc *d, char c)
+static const crom_opt *find_short(const crom_cli_doc *d, char c)
 {
-    for (const crom_optgroup *g = d->groups; g && g->opts; g++)
+    for (const crom_cli_optgroup *g = d->groups; g && g->opts; g++)
         for (const crom_opt *o = g->opts; o->name; o++)
             if (o->key == c)
                 return o;
@@ -475,13 +468,13 @@ static int common_option(crom_cli *cli, const crom_opt *o, const char *val)
     long n;
     int rc;
     switch (o->key) {
-    case CROM_OPT_HELP:
+    case CROM_CLI_HELP:
         crom_cli_print_doc(cli->doc, stdout, 0);
         exit(0);
-    case CROM_OPT_HELP_MAN:
+    case CROM_CLI_HELP_MAN:
         crom_cli_print_doc(cli->doc, stdout, 1);
         exit(0);
-    case CROM_OPT_VERSION:
+    case CROM_CLI_VERSION:
         printf("%s (crom) %s\n", cli->prog, CROM_VERSION);
         exit(0);
     case 'q':
@@ -490,7 +483,7 @@ static int common_option(crom_cli *cli, const crom_opt *o, const char *val)
     case 'v':
         cli->verbose++;
         return 0;
-    case CROM_OPT_SEED: {
+    case CROM_CLI_SEED: {
         char *end;
         errno = 0;
         unsigned long long s = strtoull(val, &end, 0);
@@ -500,7 +493,7 @@ static int common_option(crom_cli *cli, const crom_opt *o, const char *val)
         cli->seed_given = 1;
         return 0;
     }
-    case CROM_OPT_THREADS:
+    case CROM_CLI_THREADS:
         if ((rc = crom_parse_int(val, "--threads", 0, 4096, &n)))
             return rc;
         cli->threads = (int)n;
@@ -514,8 +507,8 @@ static int is_common(const crom_opt *o)
     return o >= common_opts && o < common_opts + sizeof common_opts / sizeof *common_opts;
 }
 
-void crom_cli_parse(crom_cli *cli, const crom_doc *doc, int argc, char **argv,
-                    crom_opt_fn fn, void *ctx)
+void crom_cli_parse(crom_cli *cli, const crom_cli_doc *doc, int argc, char **argv,
+                    crom_cli_opt_fn fn, void *ctx)
 {
     memset(cli, 0, sizeof *cli);
     cli->prog = doc->name;
@@ -623,21 +616,21 @@ int crom_cli_exit(crom_cli *cli, int rc)
 
 /* ----------------------------------------------------------------- progress */
 
-void crom_progress_start(crom_progress *p, const crom_cli *cli,
-                         const char *label, long total)
+void crom_cli_progress_start(crom_cli_progress *p, const crom_cli *cli,
+                             const char *label, long total)
 {
     p->active = !cli->quiet && isatty(2);
     p->label = label;
     p->total = total;
-    p->t0 = crom_now();
+    p->t0 = crom_clock_now();
     p->last = 0;
 }
 
-void crom_progress_update(crom_progress *p, long done, const char *extra)
+void crom_cli_progress_update(crom_cli_progress *p, long done, const char *extra)
 {
     if (!p->active)
         return;
-    double t = crom_now();
+    double t = crom_clock_now();
     if (t - p->last < 0.2 && done < p->total)
         return;
     p->last = t;
@@ -655,7 +648,7 @@ void crom_progress_update(crom_progress *p, long done, const char *extra)
     fflush(stderr);
 }
 
-void crom_progress_end(crom_progress *p)
+void crom_cli_progress_end(crom_cli_progress *p)
 {
     if (!p->active)
         return;

@@ -11,6 +11,7 @@
 
 #include <hdf5_hl.h>
 
+#include "base/array.h"
 #include "base/clock.h"
 #include "base/err.h"
 #include "io/io.h"
@@ -529,7 +530,7 @@ int crom_h5_shape(hid_t loc, const char *name, int *rank, hsize_t *dims)
     hid_t s = H5Dget_space(d);
     int r = H5Sget_simple_extent_ndims(s);
     int rc = 0;
-    if (r < 0 || r > CROM_MAX_RANK)
+    if (r < 0 || r > CROM_IO_MAX_RANK)
         rc = crom_err(CROM_EDATA, "dataset '%s' has unsupported rank %d", name, r);
     else {
         H5Sget_simple_extent_dims(s, dims, NULL);
@@ -558,7 +559,7 @@ int crom_h5_read(hid_t loc, const char *name, hid_t memtype, int rank,
         rc = crom_err(CROM_EDATA, "dataset '%s' has the wrong type (%s, expected %s)", name,
                       have == H5T_FLOAT ? "float" : have == H5T_INTEGER ? "integer" : "other",
                       want == H5T_FLOAT ? "float" : "integer");
-    else if ((rank >= 0 && r != rank) || r > CROM_MAX_RANK || r < 0)
+    else if ((rank >= 0 && r != rank) || r > CROM_IO_MAX_RANK || r < 0)
         rc = crom_err(CROM_EDATA, "dataset '%s' has rank %d, expected %d", name, r, rank);
     if (!rc) {
         H5Sget_simple_extent_dims(s, dims, NULL);
@@ -601,20 +602,16 @@ int crom_h5_read_i32(hid_t loc, const char *name, int rank, hsize_t *dims, int *
 /* Read the rest of f into a buffer that starts with `head` (n0 bytes). */
 static int slurp(FILE *f, const unsigned char *head, size_t n0, void **buf, size_t *len)
 {
-    size_t cap = 1 << 20, n = n0;
-    unsigned char *b = malloc(cap);
-    if (!b)
-        return crom_err(CROM_EINTERNAL, "out of memory");
+    size_t cap = 0, n = n0;
+    unsigned char *b = NULL;
+    int rc = crom_array_reserve((void **)&b, &cap, n0 > 1 << 20 ? n0 : 1 << 20, 1);
+    if (rc)
+        return rc;
     memcpy(b, head, n0);
     for (;;) {
-        if (n == cap) {
-            cap *= 2;
-            unsigned char *nb = realloc(b, cap);
-            if (!nb) {
-                free(b);
-                return crom_err(CROM_EINTERNAL, "out of memory reading input");
-            }
-            b = nb;
+        if ((rc = crom_array_reserve((void **)&b, &cap, n + 1, 1))) {
+            free(b);
+            return crom_err_ctx("reading input");
         }
         size_t k = fread(b + n, 1, cap - n, f);
         if (k == 0)
@@ -648,15 +645,15 @@ static int read_fields(crom_in *in)
     long nframes = -1;
     char *save = NULL;
     for (char *tok = strtok_r(list, ",", &save); tok && !rc; tok = strtok_r(NULL, ",", &save)) {
-        if (in->nfields == CROM_MAX_FIELDS) {
+        if (in->nfields == CROM_IO_MAX_FIELDS) {
             rc = crom_err(CROM_EDATA, "%s: too many frame fields", in->name);
             break;
         }
-        crom_field *f = &in->fields[in->nfields];
+        crom_io_field *f = &in->fields[in->nfields];
         snprintf(f->name, sizeof f->name, "%s", tok);
         char path[80];
         snprintf(path, sizeof path, "frames/%s", tok);
-        hsize_t dims[CROM_MAX_RANK];
+        hsize_t dims[CROM_IO_MAX_RANK];
         int rank;
         if ((rc = crom_h5_shape(in->h5, path, &rank, dims))) {
             crom_err_ctx("%s", in->name);
@@ -692,6 +689,96 @@ static int read_fields(crom_in *in)
     return in->frame ? 0 : CROM_EINTERNAL;
 }
 
+/* in->fp: the file at path, or stdin (not a terminal). */
+static int open_source(crom_in *in, const char *path, int from_stdin)
+{
+    if (from_stdin) {
+        if (isatty(0))
+            return crom_err(CROM_EUSAGE, "refusing to read binary input from a terminal: "
+                                         "give a file name or pipe a crom file in");
+        in->fp = stdin;
+        return 0;
+    }
+    struct stat st;
+    if (stat(path, &st) != 0)
+        return crom_err(CROM_ENOINPUT, "%s: %s", path, strerror(errno));
+    if (S_ISDIR(st.st_mode))
+        return crom_err(CROM_ENOINPUT, "%s: is a directory", path);
+    in->fp = fopen(path, "rb");
+    if (!in->fp)
+        return crom_err(CROM_ENOINPUT, "%s: %s", path, strerror(errno));
+    in->own_fp = 1;
+    return 0;
+}
+
+/* An HDF5 input whose first 8 bytes, head, were read: a file is reopened
+ * by HDF5, stdin read whole into a file image. */
+static int open_h5(crom_in *in, const char *path, const unsigned char head[8], int from_stdin)
+{
+    in->form = CROM_IO_H5;
+    if (from_stdin) {
+        int rc = slurp(in->fp, head, 8, &in->image, &in->image_size);
+        if (rc)
+            return rc;
+        in->h5 = open_image(in->image, in->image_size);
+    } else {
+        fclose(in->fp);
+        in->fp = NULL;
+        in->own_fp = 0;
+        in->h5 = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+    }
+    if (in->h5 < 0)
+        return crom_err(CROM_EDATA, "%s: HDF5 file is truncated or corrupt", in->name);
+    return 0;
+}
+
+/* A frame stream after its magic: version and flags, the header length,
+ * then the header, an HDF5 image of everything but the frames
+ * (schemas/stream.md). */
+static int open_stream(crom_in *in)
+{
+    in->form = CROM_IO_STREAM;
+    uint32_t ver_flags[2];
+    uint64_t hlen;
+    if (read_all(in->fp, ver_flags, 8) != 8 || read_all(in->fp, &hlen, 8) != 8)
+        return crom_err(CROM_EDATA, "%s: crom stream header is truncated", in->name);
+    if (ver_flags[0] > STREAM_VERSION)
+        return crom_err(CROM_EDATA, "%s: crom stream format v%u is newer than this crom understands (v%u)",
+                        in->name, ver_flags[0], STREAM_VERSION);
+    if (hlen < 8 || hlen > ((uint64_t)1 << 36))
+        return crom_err(CROM_EDATA, "%s: crom stream header has an impossible length %llu", in->name,
+                        (unsigned long long)hlen);
+    in->image = malloc(hlen);
+    if (!in->image)
+        return crom_err(CROM_EINTERNAL, "out of memory");
+    in->image_size = hlen;
+    if (read_all(in->fp, in->image, hlen) != hlen)
+        return crom_err(CROM_EDATA, "%s: crom stream header is truncated", in->name);
+    in->h5 = open_image(in->image, in->image_size);
+    if (in->h5 < 0)
+        return crom_err(CROM_EDATA, "%s: crom stream header is corrupt", in->name);
+    in->complete = -1;
+    return 0;
+}
+
+/* The root attributes schema and schema_version (required) and history. */
+static int read_identity(crom_in *in)
+{
+    char *schema = NULL;
+    if (crom_h5_get_str(in->h5, ".", "schema", &schema))
+        return crom_err(CROM_EDATA, "%s is an HDF5 file but not a crom file (no 'schema' attribute)", in->name);
+    snprintf(in->schema, sizeof in->schema, "%s", schema);
+    free(schema);
+    long long v;
+    if (crom_h5_get_i64(in->h5, ".", "schema_version", &v))
+        return crom_err(CROM_EDATA, "%s: %s file without a 'schema_version' attribute", in->name, in->schema);
+    in->version = (int)v;
+    if (crom_h5_has_attr(in->h5, ".", "history"))
+        crom_h5_get_str(in->h5, ".", "history", &in->history);
+    crom_err_clear();
+    return 0;
+}
+
 int crom_in_open(crom_in *in, const char *path)
 {
     memset(in, 0, sizeof *in);
@@ -700,106 +787,28 @@ int crom_in_open(crom_in *in, const char *path)
     crom_h5_quiet();
     int from_stdin = !path || !strcmp(path, "-");
     snprintf(in->name, sizeof in->name, "%s", from_stdin ? "stdin" : path);
-    if (from_stdin) {
-        if (isatty(0))
-            return crom_err(CROM_EUSAGE, "refusing to read binary input from a terminal: "
-                                         "give a file name or pipe a crom file in");
-        in->fp = stdin;
-    } else {
-        struct stat st;
-        if (stat(path, &st) != 0)
-            return crom_err(CROM_ENOINPUT, "%s: %s", path, strerror(errno));
-        if (S_ISDIR(st.st_mode))
-            return crom_err(CROM_ENOINPUT, "%s: is a directory", path);
-        in->fp = fopen(path, "rb");
-        if (!in->fp)
-            return crom_err(CROM_ENOINPUT, "%s: %s", path, strerror(errno));
-        in->own_fp = 1;
-    }
+    int rc = open_source(in, path, from_stdin);
+    if (rc)
+        return rc;
     unsigned char head[8];
     size_t n = read_all(in->fp, head, 8);
-    int rc = 0;
-    if (n == 0) {
+    if (n == 0)
         rc = crom_err(CROM_EDATA, "%s is empty (no crom file in it)", in->name);
-        goto fail;
+    else if (n == 8 && !memcmp(head, hdf5_sig, 8))
+        rc = open_h5(in, path, head, from_stdin);
+    else if (n == 8 && !memcmp(head, STREAM_MAGIC, 8))
+        rc = open_stream(in);
+    else
+        rc = crom_err(CROM_EDATA, "%s is not a crom file (neither HDF5 nor a crom stream)", in->name);
+    if (!rc)
+        rc = read_identity(in);
+    if (!rc)
+        rc = read_fields(in);
+    if (rc) {
+        crom_in_close(in);
+        return rc;
     }
-    if (n == 8 && !memcmp(head, hdf5_sig, 8)) {
-        in->form = CROM_FORM_H5;
-        if (from_stdin) {
-            if ((rc = slurp(in->fp, head, 8, &in->image, &in->image_size)))
-                goto fail;
-            in->h5 = open_image(in->image, in->image_size);
-        } else {
-            fclose(in->fp);
-            in->fp = NULL;
-            in->own_fp = 0;
-            in->h5 = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
-        }
-        if (in->h5 < 0) {
-            rc = crom_err(CROM_EDATA, "%s: HDF5 file is truncated or corrupt", in->name);
-            goto fail;
-        }
-    } else if (n == 8 && !memcmp(head, STREAM_MAGIC, 8)) {
-        in->form = CROM_FORM_STREAM;
-        uint32_t ver_flags[2];
-        uint64_t hlen;
-        if (read_all(in->fp, ver_flags, 8) != 8 || read_all(in->fp, &hlen, 8) != 8) {
-            rc = crom_err(CROM_EDATA, "%s: crom stream header is truncated", in->name);
-            goto fail;
-        }
-        if (ver_flags[0] > STREAM_VERSION) {
-            rc = crom_err(CROM_EDATA, "%s: crom stream format v%u is newer than this crom understands (v%u)",
-                          in->name, ver_flags[0], STREAM_VERSION);
-            goto fail;
-        }
-        if (hlen < 8 || hlen > ((uint64_t)1 << 36)) {
-            rc = crom_err(CROM_EDATA, "%s: crom stream header has an impossible length %llu",
-                          in->name, (unsigned long long)hlen);
-            goto fail;
-        }
-        in->image = malloc(hlen);
-        if (!in->image) {
-            rc = crom_err(CROM_EINTERNAL, "out of memory");
-            goto fail;
-        }
-        in->image_size = hlen;
-        if (read_all(in->fp, in->image, hlen) != hlen) {
-            rc = crom_err(CROM_EDATA, "%s: crom stream header is truncated", in->name);
-            goto fail;
-        }
-        in->h5 = open_image(in->image, in->image_size);
-        if (in->h5 < 0) {
-            rc = crom_err(CROM_EDATA, "%s: crom stream header is corrupt", in->name);
-            goto fail;
-        }
-        in->complete = -1;
-    } else {
-        rc = crom_err(CROM_EDATA, "%s is not a crom file (neither HDF5 nor a crom stream)",
-                      in->name);
-        goto fail;
-    }
-    /* identity */
-    char *schema = NULL;
-    if (crom_h5_get_str(in->h5, ".", "schema", &schema)) {
-        rc = crom_err(CROM_EDATA, "%s is an HDF5 file but not a crom file (no 'schema' attribute)",
-                      in->name);
-        goto fail;
-    }
-    snprintf(in->schema, sizeof in->schema, "%s", schema);
-    free(schema);
-    long long v;
-    if (crom_h5_get_i64(in->h5, ".", "schema_version", &v)) {
-        rc = crom_err(CROM_EDATA, "%s: %s file without a 'schema_version' attribute", in->name,
-                      in->schema);
-        goto fail;
-    }
-    in->version = (int)v;
-    if (crom_h5_has_attr(in->h5, ".", "history"))
-        crom_h5_get_str(in->h5, ".", "history", &in->history);
-    crom_err_clear();
-    if ((rc = read_fields(in)))
-        goto fail;
-    if (in->form == CROM_FORM_STREAM) {
+    if (in->form == CROM_IO_STREAM) {
         in->nframes = 0;
     } else if (crom_h5_has_attr(in->h5, ".", "complete")) {
         long long c = 1;
@@ -807,9 +816,6 @@ int crom_in_open(crom_in *in, const char *path)
         in->complete = c != 0;
     }
     return 0;
-fail:
-    crom_in_close(in);
-    return rc;
 }
 
 int crom_in_expect(const crom_in *in, const char *schema, int max_version)
@@ -843,8 +849,8 @@ const double *crom_in_get(const crom_in *in, int field)
 static int read_h5_frame(crom_in *in, long k)
 {
     for (int i = 0; i < in->nfields; i++) {
-        crom_field *f = &in->fields[i];
-        hsize_t start[CROM_MAX_RANK + 1] = {0}, count[CROM_MAX_RANK + 1];
+        crom_io_field *f = &in->fields[i];
+        hsize_t start[CROM_IO_MAX_RANK + 1] = {0}, count[CROM_IO_MAX_RANK + 1];
         start[0] = (hsize_t)k;
         count[0] = 1;
         for (int j = 0; j < f->rank; j++)
@@ -866,7 +872,7 @@ static int read_h5_frame(crom_in *in, long k)
 
 int crom_in_next(crom_in *in)
 {
-    if (in->form == CROM_FORM_H5) {
+    if (in->form == CROM_IO_H5) {
         if (in->cursor >= in->nframes)
             return 0;
         int rc = read_h5_frame(in, in->cursor);
@@ -923,7 +929,7 @@ int crom_in_next(crom_in *in)
 
 int crom_in_seek(crom_in *in, long k)
 {
-    if (in->form == CROM_FORM_STREAM) {
+    if (in->form == CROM_IO_STREAM) {
         if (k != in->cursor)
             return crom_err(CROM_EUSAGE, "%s: a stream can only be read forward", in->name);
         int rc = crom_in_next(in);
@@ -939,20 +945,15 @@ int crom_in_seek(crom_in *in, long k)
 
 int crom_in_read_all(crom_in *in, double **frames, long *nframes)
 {
-    size_t cap = 16, n = 0, fl = in->frame_len ? in->frame_len : 1;
-    double *all = crom_malloc(cap * fl * sizeof(double));
-    if (!all)
-        return CROM_EINTERNAL;
-    int rc;
+    size_t cap = 0, n = 0, fl = in->frame_len ? in->frame_len : 1;
+    double *all = NULL;
+    int rc = crom_array_reserve((void **)&all, &cap, 16, fl * sizeof(double));
+    if (rc)
+        return rc;
     while ((rc = crom_in_next(in)) == 1) {
-        if (n == cap) {
-            cap *= 2;
-            double *na = crom_realloc(all, cap * fl * sizeof(double));
-            if (!na) {
-                free(all);
-                return CROM_EINTERNAL;
-            }
-            all = na;
+        if ((rc = crom_array_reserve((void **)&all, &cap, n + 1, fl * sizeof(double)))) {
+            free(all);
+            return rc;
         }
         memcpy(all + n * fl, in->frame, in->frame_len * sizeof(double));
         n++;
@@ -1131,7 +1132,7 @@ static int write_identity(crom_out *o, const char *schema, int version,
                           const char *cmdline, const char *parent_history)
 {
     char when[32];
-    crom_utc_now(when, sizeof when);
+    crom_clock_utc(when, sizeof when);
     const char *cmd = cmdline ? cmdline : "(library)";
     size_t n = (parent_history ? strlen(parent_history) : 0) + strlen(cmd) + 128;
     char *hist = crom_malloc(n);
@@ -1174,13 +1175,13 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
             return crom_err(CROM_ECANTCREAT, "cannot open %s: %s", path, strerror(errno));
         o->to_stdout = 1;
     }
-    o->form = CROM_FORM_H5;
+    o->form = CROM_IO_H5;
     if (kind == CROM_OUT_SERIES_STREAM)
-        o->form = CROM_FORM_STREAM;
+        o->form = CROM_IO_STREAM;
     else if (kind == CROM_OUT_SERIES && o->to_stdout) {
         struct stat st;
         if (fstat(1, &st) != 0 || !S_ISREG(st.st_mode))
-            o->form = CROM_FORM_STREAM;
+            o->form = CROM_IO_STREAM;
     }
     int rc = 0;
     if (!o->to_stdout) {
@@ -1191,7 +1192,7 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
             return rc ? rc : CROM_EINTERNAL;
         }
     }
-    if (o->form == CROM_FORM_H5 && !o->to_stdout)
+    if (o->form == CROM_IO_H5 && !o->to_stdout)
         o->h5 = H5Fcreate(o->tmp, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     else
         o->h5 = create_core(o);
@@ -1200,7 +1201,7 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
         drop_tmp(o);
         return rc;
     }
-    if (o->form == CROM_FORM_STREAM) {
+    if (o->form == CROM_IO_STREAM) {
         if (o->to_stdout)
             o->fp = o->out ? o->out : stdout;
         else if (!(o->fp = fopen(o->tmp, "wb"))) {
@@ -1222,7 +1223,7 @@ int crom_out_field(crom_out *o, const char *name, int rank, const hsize_t *dims,
 {
     if (!o->series || o->begun)
         return crom_err(CROM_EINTERNAL, "crom_out_field('%s') on a non-series or begun output", name);
-    if (o->nfields == CROM_MAX_FIELDS || rank > CROM_MAX_RANK - 1 ||
+    if (o->nfields == CROM_IO_MAX_FIELDS || rank > CROM_IO_MAX_RANK - 1 ||
         strlen(name) >= sizeof o->fields[0].name)
         return crom_err(CROM_EINTERNAL, "too many or too large frame fields");
     const crom_schema_dset *row;
@@ -1231,7 +1232,7 @@ int crom_out_field(crom_out *o, const char *name, int rank, const hsize_t *dims,
     int rc = table_row(o->h5, rel, "f64", rank + 1, kind, &row, path, sizeof path);
     if (rc)
         return rc;
-    crom_field *f = &o->fields[o->nfields];
+    crom_io_field *f = &o->fields[o->nfields];
     snprintf(f->name, sizeof f->name, "%s", name);
     f->rank = rank;
     f->count = 1;
@@ -1241,7 +1242,7 @@ int crom_out_field(crom_out *o, const char *name, int rank, const hsize_t *dims,
     }
     f->offset = o->frame_len;
     /* dataset /frames/<name> with an unlimited frame dimension */
-    hsize_t d[CROM_MAX_RANK + 1], maxd[CROM_MAX_RANK + 1], chunk[CROM_MAX_RANK + 1];
+    hsize_t d[CROM_IO_MAX_RANK + 1], maxd[CROM_IO_MAX_RANK + 1], chunk[CROM_IO_MAX_RANK + 1];
     d[0] = 0;
     maxd[0] = H5S_UNLIMITED;
     chunk[0] = f->count >= 4096 ? 1 : 4096 / f->count;
@@ -1314,7 +1315,7 @@ int crom_out_begin(crom_out *o)
     }
     if (!rc && o->series)
         rc = crom_h5_set_i64(o->h5, ".", "complete", 0);
-    if (!rc && o->form == CROM_FORM_STREAM) {
+    if (!rc && o->form == CROM_IO_STREAM) {
         void *img;
         size_t len;
         if ((rc = get_image(o->h5, &img, &len, o->name)))
@@ -1347,7 +1348,7 @@ int crom_out_frame(crom_out *o, const double *const *vals)
     int rc = 0;
     if (!o->begun && (rc = crom_out_begin(o)))
         return rc;
-    if (o->form == CROM_FORM_STREAM) {
+    if (o->form == CROM_IO_STREAM) {
         for (int i = 0; i < o->nfields; i++)
             memcpy(o->pack + o->fields[i].offset, vals[i], o->fields[i].count * sizeof(double));
         uint32_t reserved = 0;
@@ -1368,9 +1369,9 @@ int crom_out_frame(crom_out *o, const double *const *vals)
         return rc;
     }
     for (int i = 0; i < o->nfields && !rc; i++) {
-        crom_field *f = &o->fields[i];
-        hsize_t size[CROM_MAX_RANK + 1], start[CROM_MAX_RANK + 1] = {0},
-                count[CROM_MAX_RANK + 1];
+        crom_io_field *f = &o->fields[i];
+        hsize_t size[CROM_IO_MAX_RANK + 1], start[CROM_IO_MAX_RANK + 1] = {0},
+                count[CROM_IO_MAX_RANK + 1];
         size[0] = (hsize_t)o->nframes + 1;
         start[0] = (hsize_t)o->nframes;
         count[0] = 1;
@@ -1500,7 +1501,7 @@ int crom_out_commit(crom_out *o)
             return rc;
         }
     }
-    int rc = o->form == CROM_FORM_STREAM ? finish_stream(o, 1) : finish_h5(o, 1);
+    int rc = o->form == CROM_IO_STREAM ? finish_stream(o, 1) : finish_h5(o, 1);
     release(o);
     return rc;
 }
@@ -1515,10 +1516,10 @@ int crom_out_fail(crom_out *o)
         char saved[1024];
         int code = crom_errcode();
         snprintf(saved, sizeof saved, "%s", crom_errmsg());
-        int rc = o->form == CROM_FORM_STREAM ? finish_stream(o, 0) : finish_h5(o, 0);
+        int rc = o->form == CROM_IO_STREAM ? finish_stream(o, 0) : finish_h5(o, 0);
         kept = rc == 0;
         crom_err(code ? code : CROM_EINTERNAL, "%s", saved);
-    } else if (o->form == CROM_FORM_STREAM && o->begun) {
+    } else if (o->form == CROM_IO_STREAM && o->begun) {
         uint32_t status = 1;
         uint64_t count = 0;
         /* a stream already started: end it as incomplete so readers know */

@@ -24,32 +24,32 @@
 
 #include "base/clock.h"
 
-#define CROM_MAX_FIELDS 24
-#define CROM_MAX_RANK 4
+#define CROM_IO_MAX_FIELDS 24
+#define CROM_IO_MAX_RANK 4
 
 typedef struct {
     char name[48];
     int rank;                      /* per-frame rank (0 = scalar) */
-    hsize_t dims[CROM_MAX_RANK];   /* per-frame shape */
+    hsize_t dims[CROM_IO_MAX_RANK];   /* per-frame shape */
     size_t count;                  /* per-frame element count */
     size_t offset;                 /* offset in the packed frame (doubles) */
     hid_t dset;                    /* open /frames/<name> (HDF5 form) */
-} crom_field;
+} crom_io_field;
 
-enum { CROM_FORM_H5 = 1, CROM_FORM_STREAM = 2 };
+enum { CROM_IO_H5 = 1, CROM_IO_STREAM = 2 };
 
 /* ------------------------------------------------------------------ inputs */
 
 typedef struct {
     hid_t h5;             /* the HDF5 content (for a stream: its header) */
     char name[512];       /* path, or "stdin" */
-    int form;             /* CROM_FORM_H5 or CROM_FORM_STREAM */
+    int form;             /* CROM_IO_H5 or CROM_IO_STREAM */
     char schema[64];
     int version;
     char *history;        /* root `history` (owned) */
     /* time series */
     int nfields;
-    crom_field fields[CROM_MAX_FIELDS];
+    crom_io_field fields[CROM_IO_MAX_FIELDS];
     size_t frame_len;     /* doubles per packed frame */
     double *frame;        /* the current frame, packed in field order */
     long nframes;         /* HDF5: number stored; stream: read so far */
@@ -100,12 +100,12 @@ void crom_in_close(crom_in *in);
 typedef struct {
     hid_t h5;             /* write static content here (root group) */
     char name[512];       /* path or "stdout" */
-    int form;             /* CROM_FORM_H5 or CROM_FORM_STREAM */
+    int form;             /* CROM_IO_H5 or CROM_IO_STREAM */
     int series;           /* has frame fields */
     int to_stdout;
     int begun;
     int nfields;
-    crom_field fields[CROM_MAX_FIELDS];
+    crom_io_field fields[CROM_IO_MAX_FIELDS];
     size_t frame_len;
     double *pack;
     long nframes;
@@ -210,7 +210,7 @@ int crom_h5_write_i32(hid_t loc, const char *name, int rank, const hsize_t *dims
                       const int *data, const char *units, const char *desc);
 
 /* Read a whole dataset of the given rank (dims filled in, data allocated with
- * malloc). rank < 0 accepts any rank up to CROM_MAX_RANK and stores it in
+ * malloc). rank < 0 accepts any rank up to CROM_IO_MAX_RANK and stores it in
  * *rank_out. */
 int crom_h5_read(hid_t loc, const char *name, hid_t memtype, int rank,
                  hsize_t *dims, void **data);

@@ -6,10 +6,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/array.h"
 #include "base/err.h"
 #include "base/rng.h"
 #include "mesh/cloud.h"
-#include "mesh/meshgen.h"
+#include "mesh/surface.h"
 
 void crom_cloud_free(crom_cloud *c)
 {
@@ -55,13 +56,18 @@ int crom_cloud_from_surface(const char *path, int n, uint64_t seed, crom_cloud *
     memset(out, 0, sizeof *out);
     if (n < 1)
         return crom_err(CROM_EUSAGE, "%d sample points: at least one is needed", n);
-    int rc = crom_surface_read(path, &out->nsv, &out->SV, &out->nst, &out->ST);
+    crom_surface s;
+    int rc = crom_surface_read(path, &s);
     if (rc)
         return rc;
-    if ((rc = crom_surface_check_closed(out->nsv, out->nst, out->ST, path))) {
-        crom_cloud_free(out);
+    if ((rc = crom_surface_check_closed(&s, path))) {
+        crom_surface_free(&s);
         return rc;
     }
+    out->nsv = s.nv;
+    out->SV = s.V;
+    out->nst = s.nt;
+    out->ST = s.T;
     double vol = 0, lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (int t = 0; t < out->nst; t++) {
         const double *a = out->SV + 3 * (size_t)out->ST[3 * t], *b = out->SV + 3 * (size_t)out->ST[3 * t + 1];
@@ -90,11 +96,10 @@ int crom_cloud_from_surface(const char *path, int n, uint64_t seed, crom_cloud *
             nc[k] = 1;
         cell[k] = L / nc[k];
     }
-    size_t ncell = (size_t)nc[0] * nc[1] * nc[2], cap = (size_t)n + n / 2 + 16;
-    out->X = crom_malloc(sizeof(double) * 3 * cap);
-    if (!out->X) {
+    size_t ncell = (size_t)nc[0] * nc[1] * nc[2], cap = 0;
+    if ((rc = crom_array_reserve((void **)&out->X, &cap, (size_t)n + n / 2 + 16, 3 * sizeof *out->X))) {
         crom_cloud_free(out);
-        return CROM_EINTERNAL;
+        return rc;
     }
     crom_rng rng;
     crom_rng_seed(&rng, seed);
@@ -104,14 +109,9 @@ int crom_cloud_from_surface(const char *path, int n, uint64_t seed, crom_cloud *
                        lo[2] + (k + crom_rng_uniform(&rng)) * cell[2]};
         if (!crom_cloud_inside(out->nsv, out->SV, out->nst, out->ST, p))
             continue;
-        if ((size_t)out->n == cap) {
-            cap *= 2;
-            double *nx = crom_realloc(out->X, sizeof(double) * 3 * cap);
-            if (!nx) {
-                crom_cloud_free(out);
-                return CROM_EINTERNAL;
-            }
-            out->X = nx;
+        if ((rc = crom_array_reserve((void **)&out->X, &cap, (size_t)out->n + 1, 3 * sizeof *out->X))) {
+            crom_cloud_free(out);
+            return rc;
         }
         memcpy(out->X + 3 * (size_t)out->n++, p, sizeof p);
     }
@@ -138,7 +138,7 @@ int crom_cloud_read(const char *path, crom_cloud *out)
         return crom_err(CROM_ENOINPUT, "%s: %s", path, strerror(errno));
     char line[1024];
     int lineno = 0, rc = 0;
-    size_t cap = 0;
+    size_t cap = 0, vcap = 0;
     while (fgets(line, sizeof line, f)) {
         lineno++;
         if (!strchr(line, '\n') && !feof(f)) {
@@ -185,18 +185,9 @@ int crom_cloud_read(const char *path, crom_cloud *out)
             rc = crom_err(CROM_EDATA, "%s:%d: coordinates must be finite and the volume positive", path, lineno);
             break;
         }
-        if ((size_t)out->n == cap) {
-            cap = cap ? 2 * cap : 1024;
-            double *nx = crom_realloc(out->X, sizeof(double) * 3 * cap), *nv = nx ? crom_realloc(out->vol, sizeof(double) * cap) : NULL;
-            if (nx)
-                out->X = nx;
-            if (nv)
-                out->vol = nv;
-            if (!nx || !nv) {
-                rc = CROM_EINTERNAL;
-                break;
-            }
-        }
+        if ((rc = crom_array_reserve((void **)&out->X, &cap, (size_t)out->n + 1, 3 * sizeof *out->X)) ||
+            (rc = crom_array_reserve((void **)&out->vol, &vcap, (size_t)out->n + 1, sizeof *out->vol)))
+            break;
         memcpy(out->X + 3 * (size_t)out->n, v, sizeof(double) * 3);
         out->vol[out->n++] = v[3];
         out->volume += v[3];

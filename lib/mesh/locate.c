@@ -343,18 +343,3 @@ void crom_locate_interp(const crom_locator *L, size_t n, const double *P, int di
     if (noutside)
         *noutside = nout;
 }
-
-double crom_vertex_volumes(const crom_mesh *m, double *w)
-{
-    double total = 0;
-    memset(w, 0, sizeof(double) * (size_t)m->nv);
-    for (int t = 0; t < m->nt; t++) {
-        const int *v = m->tets + 4 * (size_t)t;
-        double V = crom_tet_volume(m->X + 3 * (size_t)v[0], m->X + 3 * (size_t)v[1],
-                                   m->X + 3 * (size_t)v[2], m->X + 3 * (size_t)v[3]);
-        total += V;
-        for (int k = 0; k < 4; k++)
-            w[v[k]] += V / 4;
-    }
-    return total;
-}

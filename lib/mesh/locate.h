@@ -58,10 +58,6 @@ void crom_locate_bary(const crom_locator *L, int t, const double p[3], double ba
 void crom_locate_interp(const crom_locator *L, size_t n, const double *P,
                         int dim, const double *f, double *out, size_t *noutside);
 
-/* Lumped vertex volumes: w[v] = sum over the tets t using v of V_t / 4 (m^3),
- * so the lumped mass is rho w. Returns the total volume. */
-double crom_vertex_volumes(const crom_mesh *m, double *w);
-
 /* Squared distance from p to the triangle (a, b, c). */
 double crom_locate_tri_dist2(const double a[3], const double b[3], const double c[3], const double p[3]);
 

@@ -1,5 +1,5 @@
 /* mesh.c — tetrahedral meshes: geometry, orientation, quality, boundary,
- * named regions and predicates, and the crom/mesh layout in HDF5. */
+ * named regions, and the crom/mesh layout in HDF5. */
 #include <ctype.h>
 #include <float.h>
 #include <math.h>
@@ -8,13 +8,12 @@
 #include <string.h>
 
 #include "base/err.h"
-#include "base/parse.h"
 #include "io/io.h"
 #include "mesh/mesh.h"
 
 /* ---------------------------------------------------------------- geometry */
 
-double crom_tet_volume(const double *a, const double *b, const double *c, const double *d)
+double crom_mesh_tet_volume(const double *a, const double *b, const double *c, const double *d)
 {
     double u[3], v[3], w[3];
     for (int i = 0; i < 3; i++) {
@@ -26,7 +25,7 @@ double crom_tet_volume(const double *a, const double *b, const double *c, const 
             u[2] * (v[0] * w[1] - v[1] * w[0])) / 6.0;
 }
 
-double crom_tet_quality(const double *a, const double *b, const double *c, const double *d)
+double crom_mesh_tet_quality(const double *a, const double *b, const double *c, const double *d)
 {
     const double *p[4] = {a, b, c, d};
     double l2 = 0;
@@ -34,7 +33,7 @@ double crom_tet_quality(const double *a, const double *b, const double *c, const
         for (int j = i + 1; j < 4; j++)
             for (int k = 0; k < 3; k++)
                 l2 += (p[i][k] - p[j][k]) * (p[i][k] - p[j][k]);
-    double V = crom_tet_volume(a, b, c, d);
+    double V = crom_mesh_tet_volume(a, b, c, d);
     if (l2 <= 0)
         return 0;
     double q = 12.0 * pow(3.0 * fabs(V), 2.0 / 3.0) / l2;
@@ -48,7 +47,7 @@ double crom_mesh_volume(const crom_mesh *m)
     double V = 0;
     for (int t = 0; t < m->nt; t++) {
         const int *e = m->tets + 4 * (size_t)t;
-        V += crom_tet_volume(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
+        V += crom_mesh_tet_volume(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
     }
     return V;
 }
@@ -59,7 +58,7 @@ void crom_mesh_quality(const crom_mesh *m, double *worst, double *mean, int *wor
     int wt = -1;
     for (int t = 0; t < m->nt; t++) {
         const int *e = m->tets + 4 * (size_t)t;
-        double q = crom_tet_quality(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
+        double q = crom_mesh_tet_quality(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
         s += q;
         if (q < w) {
             w = q;
@@ -90,6 +89,21 @@ void crom_mesh_bbox(const crom_mesh *m, double lo[3], double hi[3])
         }
 }
 
+double crom_mesh_vertex_volumes(const crom_mesh *m, double *w)
+{
+    double total = 0;
+    memset(w, 0, sizeof(double) * (size_t)m->nv);
+    for (int t = 0; t < m->nt; t++) {
+        const int *v = m->tets + 4 * (size_t)t;
+        double V = crom_mesh_tet_volume(m->X + 3 * (size_t)v[0], m->X + 3 * (size_t)v[1],
+                                        m->X + 3 * (size_t)v[2], m->X + 3 * (size_t)v[3]);
+        total += V;
+        for (int k = 0; k < 4; k++)
+            w[v[k]] += V / 4;
+    }
+    return total;
+}
+
 static double degenerate_tol(const crom_mesh *m)
 {
     double lo[3], hi[3];
@@ -104,7 +118,7 @@ int crom_mesh_orient(crom_mesh *m, int *nflipped)
     int nf = 0;
     for (int t = 0; t < m->nt; t++) {
         int *e = m->tets + 4 * (size_t)t;
-        double V = crom_tet_volume(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
+        double V = crom_mesh_tet_volume(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
         if (fabs(V) <= tol)
             return crom_err(CROM_EDATA, "tet %d is degenerate (volume %.3g m^3)", t, V);
         if (V < 0) {
@@ -138,7 +152,7 @@ int crom_mesh_compact(crom_mesh *m)
     for (size_t k = 0; k < 4 * (size_t)m->nt; k++)
         m->tets[k] = map[m->tets[k]];
     for (int r = 0; r < m->nregions; r++) {
-        crom_region *g = &m->regions[r];
+        crom_mesh_region *g = &m->regions[r];
         int k = 0;
         for (int j = 0; j < g->n; j++)
             if (map[g->idx[j]] >= 0)
@@ -165,7 +179,7 @@ int crom_mesh_validate(const crom_mesh *m)
     double tol = degenerate_tol(m);
     for (int t = 0; t < m->nt; t++) {
         const int *e = m->tets + 4 * (size_t)t;
-        double V = crom_tet_volume(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
+        double V = crom_mesh_tet_volume(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
         if (!(V > tol))
             return crom_err(CROM_EDATA, "tet %d has non-positive volume %.3g m^3 (tets must be positively oriented)",
                             t, V);
@@ -320,7 +334,7 @@ out:
 
 /* ------------------------------------------------------------ copy & free */
 
-static void free_regions(crom_region *r, int n)
+static void free_regions(crom_mesh_region *r, int n)
 {
     for (int i = 0; i < n; i++) {
         free(r[i].name);
@@ -362,123 +376,9 @@ int crom_mesh_copy(const crom_mesh *s, crom_mesh *d)
     return 0;
 }
 
-/* ------------------------------------------------------------ predicates */
-
-enum { P_LT, P_GT, P_LE, P_GE, P_BOX, P_SPHERE, P_PLANE, P_ALL };
-
-static int parse_term(const char *s, size_t len, crom_pred *p)
-{
-    char buf[256];
-    if (len >= sizeof buf)
-        return crom_err(CROM_EUSAGE, "predicate term too long");
-    memcpy(buf, s, len);
-    buf[len] = 0;
-    if (p->nterms == CROM_PRED_MAX)
-        return crom_err(CROM_EUSAGE, "predicate has more than %d terms", CROM_PRED_MAX);
-    int i = p->nterms;
-    char what[300];
-    if (!strcmp(buf, "all")) {
-        p->term[i].kind = P_ALL;
-    } else if (!strncmp(buf, "box:", 4)) {
-        p->term[i].kind = P_BOX;
-        snprintf(what, sizeof what, "predicate '%s'", buf);
-        if (crom_parse_doubles(buf + 4, what, 6, p->term[i].a))
-            return CROM_EUSAGE;
-        for (int k = 0; k < 3; k++)
-            if (p->term[i].a[k] > p->term[i].a[k + 3])
-                return crom_err(CROM_EUSAGE, "predicate '%s': box corner 1 must not exceed corner 2", buf);
-    } else if (!strncmp(buf, "sphere:", 7)) {
-        p->term[i].kind = P_SPHERE;
-        snprintf(what, sizeof what, "predicate '%s'", buf);
-        if (crom_parse_doubles(buf + 7, what, 4, p->term[i].a))
-            return CROM_EUSAGE;
-        if (!(p->term[i].a[3] > 0))
-            return crom_err(CROM_EUSAGE, "predicate '%s': radius must be positive", buf);
-    } else if (!strncmp(buf, "plane:", 6)) {
-        p->term[i].kind = P_PLANE;
-        snprintf(what, sizeof what, "predicate '%s'", buf);
-        if (crom_parse_doubles(buf + 6, what, 4, p->term[i].a))
-            return CROM_EUSAGE;
-        double n = sqrt(p->term[i].a[0] * p->term[i].a[0] + p->term[i].a[1] * p->term[i].a[1] +
-                        p->term[i].a[2] * p->term[i].a[2]);
-        if (!(n > 0))
-            return crom_err(CROM_EUSAGE, "predicate '%s': plane normal is zero", buf);
-    } else if ((buf[0] == 'x' || buf[0] == 'y' || buf[0] == 'z') &&
-               (buf[1] == '<' || buf[1] == '>')) {
-        int axis = buf[0] - 'x';
-        int ge = buf[1] == '>', eq = buf[2] == '=';
-        p->term[i].kind = ge ? (eq ? P_GE : P_GT) : (eq ? P_LE : P_LT);
-        p->term[i].a[0] = axis;
-        snprintf(what, sizeof what, "predicate '%s'", buf);
-        if (crom_parse_double(buf + 2 + eq, what, &p->term[i].a[1]))
-            return CROM_EUSAGE;
-    } else {
-        return crom_err(CROM_EUSAGE,
-                        "'%s' is not a predicate (x<V, y>=V, box:X0,Y0,Z0,X1,Y1,Z1, sphere:CX,CY,CZ,R, plane:NX,NY,NZ,D, all)",
-                        buf);
-    }
-    p->nterms++;
-    return 0;
-}
-
-int crom_pred_parse(const char *s, crom_pred *p)
-{
-    memset(p, 0, sizeof *p);
-    if (!s || !*s)
-        return crom_err(CROM_EUSAGE, "empty predicate");
-    for (;;) {
-        const char *e = strchr(s, '&');
-        size_t len = e ? (size_t)(e - s) : strlen(s);
-        int rc = parse_term(s, len, p);
-        if (rc)
-            return rc;
-        if (!e)
-            return 0;
-        s = e + 1;
-    }
-}
-
-int crom_pred_eval(const crom_pred *p, const double X[3])
-{
-    for (int i = 0; i < p->nterms; i++) {
-        const double *a = p->term[i].a;
-        int ok = 1;
-        switch (p->term[i].kind) {
-        case P_LT: ok = X[(int)a[0]] < a[1]; break;
-        case P_GT: ok = X[(int)a[0]] > a[1]; break;
-        case P_LE: ok = X[(int)a[0]] <= a[1]; break;
-        case P_GE: ok = X[(int)a[0]] >= a[1]; break;
-        case P_BOX:
-            ok = X[0] >= a[0] && X[1] >= a[1] && X[2] >= a[2] && X[0] <= a[3] && X[1] <= a[4] &&
-                 X[2] <= a[5];
-            break;
-        case P_SPHERE: {
-            double dx = X[0] - a[0], dy = X[1] - a[1], dz = X[2] - a[2];
-            ok = dx * dx + dy * dy + dz * dz <= a[3] * a[3];
-            break;
-        }
-        case P_PLANE: ok = a[0] * X[0] + a[1] * X[1] + a[2] * X[2] >= a[3]; break;
-        case P_ALL: ok = 1; break;
-        }
-        if (!ok)
-            return 0;
-    }
-    return 1;
-}
-
-int crom_pred_is(const char *s)
-{
-    if (!strcmp(s, "all") || !strncmp(s, "box:", 4) || !strncmp(s, "sphere:", 7) ||
-        !strncmp(s, "plane:", 6))
-        return 1;
-    if ((s[0] == 'x' || s[0] == 'y' || s[0] == 'z') && (s[1] == '<' || s[1] == '>'))
-        return 1;
-    return strchr(s, '&') != NULL;
-}
-
 /* ---------------------------------------------------------------- regions */
 
-const crom_region *crom_mesh_region(const crom_mesh *m, const char *name)
+const crom_mesh_region *crom_mesh_find_region(const crom_mesh *m, const char *name)
 {
     for (int r = 0; r < m->nregions; r++)
         if (!strcmp(m->regions[r].name, name))
@@ -517,9 +417,9 @@ int crom_mesh_add_region(crom_mesh *m, const char *name, const char *source,
     for (int i = 0; i < n; i++)
         if (i == 0 || v[i] != v[i - 1])
             v[k++] = v[i];
-    crom_region *slot = (crom_region *)crom_mesh_region(m, name);
+    crom_mesh_region *slot = (crom_mesh_region *)crom_mesh_find_region(m, name);
     if (!slot) {
-        crom_region *nr = crom_realloc(m->regions, sizeof(crom_region) * (size_t)(m->nregions + 1));
+        crom_mesh_region *nr = crom_realloc(m->regions, sizeof(crom_mesh_region) * (size_t)(m->nregions + 1));
         if (!nr) {
             free(v);
             return CROM_EINTERNAL;
@@ -578,7 +478,7 @@ int crom_mesh_region_spec(crom_mesh *m, const char *spec)
 
 int crom_mesh_select(const crom_mesh *m, const char *ref, int **idx, int *n)
 {
-    const crom_region *r = crom_mesh_region(m, ref);
+    const crom_mesh_region *r = crom_mesh_find_region(m, ref);
     if (r) {
         if (r->n == 0)
             return crom_err(CROM_EUSAGE, "region '%s' is empty", ref);
@@ -676,5 +576,35 @@ int crom_mesh_read(hid_t loc, crom_mesh *m)
         rc = crom_mesh_validate(m);
     if (rc)
         crom_mesh_free(m);
+    return rc;
+}
+
+int crom_mesh_load(const char *path, int carriers, crom_mesh *m, char **history)
+{
+    crom_in in;
+    int rc = crom_in_open(&in, path);
+    if (rc)
+        return rc;
+    const char *group = "/";
+    if (!carriers || !strcmp(in.schema, "crom/mesh"))
+        rc = crom_in_expect(&in, CROM_MESH_SCHEMA, CROM_MESH_VERSION);
+    else if (!strcmp(in.schema, "crom/trajectory") || !strcmp(in.schema, "crom/cubature"))
+        rc = crom_in_expect(&in, in.schema, 1), group = "mesh";
+    else
+        rc = crom_err(CROM_EDATA, "%s is %s v%d, expected a crom/mesh (or a file carrying one)", in.name,
+                      in.schema, in.version);
+    if (!rc) {
+        hid_t g = H5Gopen2(in.h5, group, H5P_DEFAULT);
+        rc = g < 0 ? crom_err(CROM_EDATA, "%s has no mesh", in.name) : crom_mesh_read(g, m);
+        if (g >= 0)
+            H5Gclose(g);
+        if (rc && g >= 0)
+            crom_err_ctx("%s", in.name);
+    }
+    if (!rc && history) {
+        *history = in.history;
+        in.history = NULL;
+    }
+    crom_in_close(&in);
     return rc;
 }

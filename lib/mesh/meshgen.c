@@ -11,13 +11,14 @@
 #include "base/err.h"
 #include "mesh/gmsh.h"
 #include "mesh/meshgen.h"
+#include "mesh/surface.h"
 
 void crom_meshgen_defaults(crom_meshgen_opts *o, int shape)
 {
     memset(o, 0, sizeof *o);
     o->shape = shape;
     o->dims[0] = o->dims[1] = o->dims[2] = 1.0;
-    if (shape == CROM_SHAPE_PLATE) {
+    if (shape == CROM_MESHGEN_PLATE) {
         /* a plate lies in the xz-plane, thin along y (gravity is -y) */
         o->dims[1] = 0.05;
     }
@@ -27,7 +28,7 @@ void crom_meshgen_defaults(crom_meshgen_opts *o, int shape)
     o->size = 0.1;
     o->algorithm = 1;
     o->optimize = 1;
-    o->remesh = CROM_REMESH_AUTO;
+    o->remesh = CROM_MESHGEN_REMESH_AUTO;
 }
 
 int crom_meshgen_shape(const char *s)
@@ -39,374 +40,10 @@ int crom_meshgen_shape(const char *s)
     return -1;
 }
 
-/* ---------------------------------------------------------- surface files */
-
-typedef struct {
-    double *V;
-    int nv, capv;
-    int *T;
-    int nt, capt;
-} surf;
-
-static int surf_addv(surf *s, const double p[3])
-{
-    if (s->nv == s->capv) {
-        s->capv = s->capv ? 2 * s->capv : 1024;
-        double *nv = crom_realloc(s->V, sizeof(double) * 3 * (size_t)s->capv);
-        if (!nv)
-            return CROM_EINTERNAL;
-        s->V = nv;
-    }
-    memcpy(s->V + 3 * (size_t)s->nv, p, 3 * sizeof(double));
-    s->nv++;
-    return 0;
-}
-
-static int surf_addt(surf *s, int a, int b, int c)
-{
-    if (s->nt == s->capt) {
-        s->capt = s->capt ? 2 * s->capt : 1024;
-        int *nt = crom_realloc(s->T, sizeof(int) * 3 * (size_t)s->capt);
-        if (!nt)
-            return CROM_EINTERNAL;
-        s->T = nt;
-    }
-    s->T[3 * (size_t)s->nt] = a;
-    s->T[3 * (size_t)s->nt + 1] = b;
-    s->T[3 * (size_t)s->nt + 2] = c;
-    s->nt++;
-    return 0;
-}
-
-typedef struct {
-    double p[3];
-    int i;
-} vkey;
-
-static int vkey_cmp(const void *a, const void *b)
-{
-    const vkey *x = a, *y = b;
-    for (int k = 0; k < 3; k++)
-        if (x->p[k] != y->p[k])
-            return x->p[k] < y->p[k] ? -1 : 1;
-    return (x->i > y->i) - (x->i < y->i);
-}
-
-/* Merge exactly coincident vertices (STL repeats them per triangle). */
-static int surf_weld(surf *s)
-{
-    vkey *k = crom_malloc(sizeof(vkey) * (size_t)(s->nv ? s->nv : 1));
-    int *map = crom_malloc(sizeof(int) * (size_t)(s->nv ? s->nv : 1));
-    if (!k || !map) {
-        free(k);
-        free(map);
-        return CROM_EINTERNAL;
-    }
-    for (int i = 0; i < s->nv; i++) {
-        memcpy(k[i].p, s->V + 3 * (size_t)i, 3 * sizeof(double));
-        k[i].i = i;
-    }
-    qsort(k, (size_t)s->nv, sizeof *k, vkey_cmp);
-    int n = 0;
-    for (int i = 0; i < s->nv; i++) {
-        if (i == 0 || memcmp(k[i].p, k[i - 1].p, 3 * sizeof(double)) != 0) {
-            memcpy(s->V + 3 * (size_t)n, k[i].p, 3 * sizeof(double));
-            n++;
-        }
-        map[k[i].i] = n - 1;
-    }
-    for (size_t j = 0; j < 3 * (size_t)s->nt; j++)
-        s->T[j] = map[s->T[j]];
-    s->nv = n;
-    free(k);
-    free(map);
-    return 0;
-}
-
-static int read_stl(FILE *f, const char *path, surf *s)
-{
-    struct stat st;
-    fstat(fileno(f), &st);
-    unsigned char hdr[84];
-    size_t got = fread(hdr, 1, 84, f);
-    int binary = 0;
-    if (got == 84) {
-        unsigned n = (unsigned)hdr[80] | (unsigned)hdr[81] << 8 | (unsigned)hdr[82] << 16 |
-                     (unsigned)hdr[83] << 24;
-        binary = (off_t)84 + (off_t)50 * n == st.st_size;
-        if (!binary && strncmp((char *)hdr, "solid", 5))
-            return crom_err(CROM_EDATA, "%s: not an STL file (bad size for binary, no 'solid' for ASCII)",
-                            path);
-        if (binary) {
-            for (unsigned t = 0; t < n; t++) {
-                unsigned char rec[50];
-                if (fread(rec, 1, 50, f) != 50)
-                    return crom_err(CROM_EDATA, "%s: truncated binary STL", path);
-                for (int c = 0; c < 3; c++) {
-                    float xyz[3];
-                    memcpy(xyz, rec + 12 + 12 * c, 12);
-                    double p[3] = {xyz[0], xyz[1], xyz[2]};
-                    if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
-                        return crom_err(CROM_EDATA, "%s: triangle %u has a non-finite vertex", path, t);
-                    if (surf_addv(s, p))
-                        return CROM_EINTERNAL;
-                }
-                if (surf_addt(s, s->nv - 3, s->nv - 2, s->nv - 1))
-                    return CROM_EINTERNAL;
-            }
-            return surf_weld(s);
-        }
-    } else if (got < 5 || strncmp((char *)hdr, "solid", 5)) {
-        return crom_err(CROM_EDATA, "%s: not an STL file", path);
-    }
-    rewind(f);
-    char word[64];
-    int nvert = 0;
-    while (fscanf(f, "%63s", word) == 1) {
-        if (!strcmp(word, "vertex")) {
-            double p[3];
-            if (fscanf(f, "%lf %lf %lf", &p[0], &p[1], &p[2]) != 3)
-                return crom_err(CROM_EDATA, "%s: bad 'vertex' line in ASCII STL", path);
-            if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
-                return crom_err(CROM_EDATA, "%s: non-finite vertex in ASCII STL", path);
-            if (surf_addv(s, p))
-                return CROM_EINTERNAL;
-            nvert++;
-        } else if (!strcmp(word, "endloop")) {
-            if (nvert != 3)
-                return crom_err(CROM_EDATA, "%s: a facet with %d vertices (STL needs 3)", path, nvert);
-            if (surf_addt(s, s->nv - 3, s->nv - 2, s->nv - 1))
-                return CROM_EINTERNAL;
-            nvert = 0;
-        }
-    }
-    if (s->nt == 0)
-        return crom_err(CROM_EDATA, "%s: no triangles in ASCII STL", path);
-    return surf_weld(s);
-}
-
-static int read_obj(FILE *f, const char *path, surf *s)
-{
-    char line[4096];
-    int lineno = 0;
-    while (fgets(line, sizeof line, f)) {
-        lineno++;
-        char *p = line;
-        while (isspace((unsigned char)*p))
-            p++;
-        if (p[0] == 'v' && isspace((unsigned char)p[1])) {
-            double q[3];
-            if (sscanf(p + 1, "%lf %lf %lf", &q[0], &q[1], &q[2]) != 3 || !isfinite(q[0]) ||
-                !isfinite(q[1]) || !isfinite(q[2]))
-                return crom_err(CROM_EDATA, "%s:%d: bad vertex line", path, lineno);
-            if (surf_addv(s, q))
-                return CROM_EINTERNAL;
-        } else if (p[0] == 'f' && isspace((unsigned char)p[1])) {
-            int idx[64], n = 0;
-            char *tok = p + 1, *end;
-            for (;;) {
-                while (isspace((unsigned char)*tok))
-                    tok++;
-                if (!*tok)
-                    break;
-                long v = strtol(tok, &end, 10);
-                if (end == tok)
-                    return crom_err(CROM_EDATA, "%s:%d: bad face line", path, lineno);
-                if (v < 0)
-                    v = s->nv + v + 1;
-                if (v < 1 || v > s->nv)
-                    return crom_err(CROM_EDATA, "%s:%d: face refers to vertex %ld of %d", path,
-                                    lineno, v, s->nv);
-                if (n == 64)
-                    return crom_err(CROM_EDATA, "%s:%d: face with too many vertices", path, lineno);
-                idx[n++] = (int)v - 1;
-                tok = end;
-                while (*tok && !isspace((unsigned char)*tok))
-                    tok++; /* skip /vt/vn */
-            }
-            if (n < 3)
-                return crom_err(CROM_EDATA, "%s:%d: face with %d vertices", path, lineno, n);
-            for (int k = 1; k + 1 < n; k++)
-                if (surf_addt(s, idx[0], idx[k], idx[k + 1]))
-                    return CROM_EINTERNAL;
-        }
-    }
-    if (s->nt == 0)
-        return crom_err(CROM_EDATA, "%s: no faces in OBJ file", path);
-    return 0;
-}
-
 static int ends_with(const char *s, const char *suf)
 {
     size_t n = strlen(s), m = strlen(suf);
     return n >= m && !strcasecmp(s + n - m, suf);
-}
-
-int crom_surface_read(const char *path, int *nv, double **V, int *nt, int **T)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return crom_err(CROM_ENOINPUT, "%s: %s", path, strerror(errno));
-    surf s = {0};
-    int rc;
-    if (ends_with(path, ".stl"))
-        rc = read_stl(f, path, &s);
-    else if (ends_with(path, ".obj"))
-        rc = read_obj(f, path, &s);
-    else
-        rc = crom_err(CROM_EUSAGE, "%s: unknown surface format (expected .stl or .obj)", path);
-    fclose(f);
-    if (rc) {
-        free(s.V);
-        free(s.T);
-        return rc;
-    }
-    *nv = s.nv;
-    *V = s.V;
-    *nt = s.nt;
-    *T = s.T;
-    return 0;
-}
-
-typedef struct {
-    int a, b; /* a < b */
-    int dir;  /* +1 if the triangle had a->b, -1 if b->a */
-} hedge;
-
-static int hedge_cmp(const void *x, const void *y)
-{
-    const hedge *p = x, *q = y;
-    if (p->a != q->a)
-        return p->a < q->a ? -1 : 1;
-    return (p->b > q->b) - (p->b < q->b);
-}
-
-int crom_surface_check_closed(int nv, int nt, const int *T, const char *name)
-{
-    (void)nv;
-    if (nt < 4)
-        return crom_err(CROM_EDATA, "%s: %d triangles cannot close a volume", name, nt);
-    size_t ne = 3 * (size_t)nt;
-    hedge *e = crom_malloc(sizeof(hedge) * ne);
-    if (!e)
-        return CROM_EINTERNAL;
-    for (int t = 0; t < nt; t++)
-        for (int k = 0; k < 3; k++) {
-            int a = T[3 * t + k], b = T[3 * t + (k + 1) % 3];
-            hedge *h = &e[3 * (size_t)t + k];
-            if (a == b) {
-                free(e);
-                return crom_err(CROM_EDATA, "%s: triangle %d is degenerate (repeated vertex)", name, t);
-            }
-            h->a = a < b ? a : b;
-            h->b = a < b ? b : a;
-            h->dir = a < b ? 1 : -1;
-        }
-    qsort(e, ne, sizeof *e, hedge_cmp);
-    int rc = 0, open = 0, nonmanifold = 0, flipped = 0;
-    for (size_t i = 0; i < ne;) {
-        size_t j = i + 1;
-        while (j < ne && e[j].a == e[i].a && e[j].b == e[i].b)
-            j++;
-        if (j - i == 1)
-            open++;
-        else if (j - i > 2)
-            nonmanifold++;
-        else if (e[i].dir == e[i + 1].dir)
-            flipped++;
-        i = j;
-    }
-    if (open)
-        rc = crom_err(CROM_EDATA, "%s: surface is not closed (%d boundary edges); crom meshes the inside of a closed surface",
-                      name, open);
-    else if (nonmanifold)
-        rc = crom_err(CROM_EDATA, "%s: surface is non-manifold (%d edges shared by more than two triangles)",
-                      name, nonmanifold);
-    else if (flipped)
-        rc = crom_err(CROM_EDATA, "%s: surface is not consistently oriented (%d edges)", name, flipped);
-    free(e);
-    return rc;
-}
-
-/* ------------------------------------------------- surface subdivision */
-
-typedef struct {
-    int a, b, tri;
-} ekey;
-
-static int ekey_cmp(const void *x, const void *y)
-{
-    const ekey *p = x, *q = y;
-    if (p->a != q->a)
-        return p->a < q->a ? -1 : 1;
-    return (p->b > q->b) - (p->b < q->b);
-}
-
-static double max_edge(const surf *s)
-{
-    double m = 0;
-    for (int t = 0; t < s->nt; t++)
-        for (int k = 0; k < 3; k++) {
-            const double *p = s->V + 3 * (size_t)s->T[3 * t + k], *q = s->V + 3 * (size_t)s->T[3 * t + (k + 1) % 3];
-            double d = sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) +
-                            (p[2] - q[2]) * (p[2] - q[2]));
-            if (d > m)
-                m = d;
-        }
-    return m;
-}
-
-/* One conforming 1-to-4 midpoint subdivision of every triangle. */
-static int subdivide(surf *s)
-{
-    size_t ne = 3 * (size_t)s->nt;
-    ekey *e = crom_malloc(sizeof(ekey) * ne);
-    int *mid = crom_malloc(sizeof(int) * ne);
-    int *T = s->T, nt = s->nt, rc = 0;
-    if (!e || !mid) {
-        free(e);
-        free(mid);
-        return CROM_EINTERNAL;
-    }
-    for (int t = 0; t < nt; t++)
-        for (int k = 0; k < 3; k++) {
-            int a = T[3 * t + k], b = T[3 * t + (k + 1) % 3];
-            e[3 * (size_t)t + k] = (ekey){a < b ? a : b, a < b ? b : a, 3 * t + k};
-        }
-    qsort(e, ne, sizeof *e, ekey_cmp);
-    for (size_t i = 0; i < ne && !rc; i++) {
-        if (i == 0 || ekey_cmp(&e[i], &e[i - 1])) {
-            const double *p = s->V + 3 * (size_t)e[i].a, *q = s->V + 3 * (size_t)e[i].b;
-            double m[3] = {(p[0] + q[0]) / 2, (p[1] + q[1]) / 2, (p[2] + q[2]) / 2};
-            rc = surf_addv(s, m);
-        }
-        mid[e[i].tri] = s->nv - 1;
-    }
-    s->T = NULL;
-    s->nt = s->capt = 0;
-    for (int t = 0; t < nt && !rc; t++) {
-        int a = T[3 * t], b = T[3 * t + 1], c = T[3 * t + 2];
-        int ab = mid[3 * t], bc = mid[3 * t + 1], ca = mid[3 * t + 2];
-        rc = surf_addt(s, a, ab, ca) || surf_addt(s, ab, b, bc) || surf_addt(s, ca, bc, c) ||
-             surf_addt(s, ab, bc, ca);
-    }
-    free(T);
-    free(e);
-    free(mid);
-    return rc ? CROM_EINTERNAL : 0;
-}
-
-/* Subdivide until no edge is longer than h (at most 8 levels and 4M triangles). */
-static int refine_to(surf *s, double h)
-{
-    for (int level = 0; level < 8 && max_edge(s) > h; level++) {
-        if ((size_t)s->nt * 4 > 4000000)
-            return crom_err(CROM_EUSAGE, "the surface would need more than 4M triangles to reach --size %g", h);
-        int rc = subdivide(s);
-        if (rc)
-            return rc;
-    }
-    return 0;
 }
 
 /* ------------------------------------------------------- superquadric skin */
@@ -432,7 +69,7 @@ static void sq_point(const double half[3], double p, double wa, int axis, int si
 /* A closed triangulated superquadric at edge length about h: the six faces
  * of a cube, each a grid, pushed onto the surface. The cell count along cube
  * axis k is shared by all faces, so neighbouring faces meet exactly. */
-static int superquadric_skin(const double half[3], double p, double h, surf *s)
+static int superquadric_skin(const double half[3], double p, double h, crom_surface *s)
 {
     double wa = p <= 2 ? 1.0 : fmax(0.0, 1.0 - (p - 2) / 6.0);
     int n[3] = {1, 1, 1};
@@ -466,7 +103,7 @@ static int superquadric_skin(const double half[3], double p, double h, surf *s)
                 for (int i = 0; i <= nu; i++) {
                     double q[3];
                     sq_point(half, p, wa, axis, side, -1 + 2.0 * i / nu, -1 + 2.0 * j / nv, q);
-                    if (surf_addv(s, q))
+                    if (crom_surface_add_vertex(s, q))
                         return CROM_EINTERNAL;
                 }
             for (int j = 0; j < nv; j++)
@@ -476,19 +113,19 @@ static int superquadric_skin(const double half[3], double p, double h, surf *s)
                      * the + side; alternate the diagonal to avoid a directional bias */
                     int flip = (i + j) & 1, rc;
                     if (side > 0)
-                        rc = flip ? (surf_addt(s, a00, a10, a01) || surf_addt(s, a10, a11, a01))
-                                  : (surf_addt(s, a00, a10, a11) || surf_addt(s, a00, a11, a01));
+                        rc = flip ? (crom_surface_add_tri(s, a00, a10, a01) || crom_surface_add_tri(s, a10, a11, a01))
+                                  : (crom_surface_add_tri(s, a00, a10, a11) || crom_surface_add_tri(s, a00, a11, a01));
                     else
-                        rc = flip ? (surf_addt(s, a00, a01, a10) || surf_addt(s, a10, a01, a11))
-                                  : (surf_addt(s, a00, a11, a10) || surf_addt(s, a00, a01, a11));
+                        rc = flip ? (crom_surface_add_tri(s, a00, a01, a10) || crom_surface_add_tri(s, a10, a01, a11))
+                                  : (crom_surface_add_tri(s, a00, a11, a10) || crom_surface_add_tri(s, a00, a01, a11));
                     if (rc)
                         return CROM_EINTERNAL;
                 }
         }
     /* points on shared cube edges were computed from identical cube points,
      * so they are bit-identical: weld them, and make sure the skin closed */
-    int rc = surf_weld(s);
-    return rc ? rc : crom_surface_check_closed(s->nv, s->nt, s->T, "superquadric");
+    int rc = crom_surface_weld(s);
+    return rc ? rc : crom_surface_check_closed(s, "superquadric");
 }
 
 /* ------------------------------------------------------------------ gmsh */
@@ -497,7 +134,7 @@ static int superquadric_skin(const double half[3], double p, double h, surf *s)
 
 /* Put a closed triangle surface into gmsh as a discrete surface, make it a
  * geometry gmsh can remesh, and bound a volume by it. */
-static int gmsh_volume_from_surface(const surf *s, int remesh)
+static int gmsh_volume_from_surface(const crom_surface *s, int remesh)
 {
     int ierr = 0, rc = 0;
     size_t *ntags = NULL, *etags = NULL, *enodes = NULL;
@@ -663,23 +300,23 @@ static int check_opts(const crom_meshgen_opts *o)
     if (!(o->size > 0) || !isfinite(o->size))
         return crom_err(CROM_EUSAGE, "--size must be a positive edge length, got %g", o->size);
     switch (o->shape) {
-    case CROM_SHAPE_BOX:
-    case CROM_SHAPE_PLATE:
-    case CROM_SHAPE_SUPERQUADRIC:
+    case CROM_MESHGEN_BOX:
+    case CROM_MESHGEN_PLATE:
+    case CROM_MESHGEN_SUPERQUADRIC:
         for (int k = 0; k < 3; k++)
             if (!(o->dims[k] > 0) || !isfinite(o->dims[k]))
                 return crom_err(CROM_EUSAGE, "--dims must be three positive extents");
-        if (o->shape == CROM_SHAPE_SUPERQUADRIC && (!(o->exponent >= 1) || o->exponent > 200))
+        if (o->shape == CROM_MESHGEN_SUPERQUADRIC && (!(o->exponent >= 1) || o->exponent > 200))
             return crom_err(CROM_EUSAGE, "--exponent must be in [1, 200], got %g", o->exponent);
         break;
-    case CROM_SHAPE_SPHERE:
-    case CROM_SHAPE_CYLINDER:
+    case CROM_MESHGEN_SPHERE:
+    case CROM_MESHGEN_CYLINDER:
         if (!(o->radius > 0) || !isfinite(o->radius))
             return crom_err(CROM_EUSAGE, "--radius must be positive");
-        if (o->shape == CROM_SHAPE_CYLINDER && (!(o->height > 0) || !isfinite(o->height)))
+        if (o->shape == CROM_MESHGEN_CYLINDER && (!(o->height > 0) || !isfinite(o->height)))
             return crom_err(CROM_EUSAGE, "--height must be positive");
         break;
-    case CROM_SHAPE_IMPORT:
+    case CROM_MESHGEN_IMPORT:
         if (!o->file)
             return crom_err(CROM_EUSAGE, "import needs a file");
         break;
@@ -687,69 +324,40 @@ static int check_opts(const crom_meshgen_opts *o)
         return crom_err(CROM_EUSAGE, "unknown shape");
     }
     /* guard against accidental giant meshes: estimate the tet count */
-    double L = o->shape == CROM_SHAPE_SPHERE || o->shape == CROM_SHAPE_CYLINDER
+    double L = o->shape == CROM_MESHGEN_SPHERE || o->shape == CROM_MESHGEN_CYLINDER
                    ? 2 * o->radius
                    : fmax(o->dims[0], fmax(o->dims[1], o->dims[2]));
-    if (o->shape != CROM_SHAPE_IMPORT && L / o->size > 400)
+    if (o->shape != CROM_MESHGEN_IMPORT && L / o->size > 400)
         return crom_err(CROM_EUSAGE, "--size %g is too small for a %g m shape (more than 400 edges across)",
                         o->size, L);
     return 0;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-/* Median edge length of a surface (m): over its 3 nt half-edges, which is
- * the median over edges of a closed surface (each edge counted twice).
- * Returns 0 on an empty surface, -1 when out of memory. */
-static double median_edge(const surf *s)
-{
-    if (s->nt <= 0)
-        return 0;
-    double *len = malloc(sizeof(double) * 3 * (size_t)s->nt);
-    if (!len)
-        return -1;
-    for (int t = 0; t < s->nt; t++)
-        for (int e = 0; e < 3; e++) {
-            const double *a = s->V + 3 * (size_t)s->T[3 * t + e], *b = s->V + 3 * (size_t)s->T[3 * t + (e + 1) % 3];
-            len[3 * t + e] = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
-                                  (a[2] - b[2]) * (a[2] - b[2]));
-        }
-    qsort(len, 3 * (size_t)s->nt, sizeof *len, cmp_double);
-    double med = len[3 * (size_t)s->nt / 2];
-    free(len);
-    return med;
-}
-
-/* The rule of CROM_REMESH_AUTO: remesh a surface much finer than size. */
-static int much_finer(double med, double size) { return med < size / CROM_REMESH_FINER; }
+/* The rule of CROM_MESHGEN_REMESH_AUTO: remesh a surface much finer than size. */
+static int much_finer(double med, double size) { return med < size / CROM_MESHGEN_REMESH_FINER; }
 
 int crom_meshgen_plan(crom_meshgen_opts *o, crom_meshgen_plan_info *info)
 {
     memset(info, 0, sizeof *info);
-    int surface = o->shape == CROM_SHAPE_IMPORT && o->file &&
+    int surface = o->shape == CROM_MESHGEN_IMPORT && o->file &&
                   (ends_with(o->file, ".stl") || ends_with(o->file, ".obj"));
     if (!surface) {
-        if (o->remesh == CROM_REMESH_AUTO)
+        if (o->remesh == CROM_MESHGEN_REMESH_AUTO)
             o->remesh = 0;
         return 0;
     }
-    surf s = {0};
-    int rc = crom_surface_read(o->file, &s.nv, &s.V, &s.nt, &s.T);
+    crom_surface s = {0};
+    int rc = crom_surface_read(o->file, &s);
     if (rc)
         return rc;
-    double med = median_edge(&s);
-    free(s.V);
-    free(s.T);
+    double med = crom_surface_median_edge(&s);
+    info->triangles = s.nt;
+    crom_surface_free(&s);
     if (med < 0)
         return crom_err(CROM_EINTERNAL, "out of memory");
-    info->triangles = s.nt;
     info->median_edge = med;
     info->finer = much_finer(med, o->size);
-    if (o->remesh == CROM_REMESH_AUTO) {
+    if (o->remesh == CROM_MESHGEN_REMESH_AUTO) {
         info->automatic = 1;
         o->remesh = info->finer;
     }
@@ -759,20 +367,18 @@ int crom_meshgen_plan(crom_meshgen_opts *o, crom_meshgen_plan_info *info)
 /* What a shape starts from before gmsh: an imported .stl/.obj surface
  * (closed) or a superquadric's skin into s; *import_groups for a .msh or
  * .geo file gmsh reads itself. */
-static int shape_input(const crom_meshgen_opts *o, surf *s, int *import_groups)
+static int shape_input(const crom_meshgen_opts *o, crom_surface *s, int *import_groups)
 {
     int rc;
     *import_groups = 0;
-    if (o->shape == CROM_SHAPE_IMPORT) {
+    if (o->shape == CROM_MESHGEN_IMPORT) {
         struct stat st;
         if (stat(o->file, &st) != 0) /* gmshOpen is silent on missing files */
             return crom_err(CROM_ENOINPUT, "%s: %s", o->file, strerror(errno));
         if (ends_with(o->file, ".stl") || ends_with(o->file, ".obj")) {
-            if ((rc = crom_surface_read(o->file, &s->nv, &s->V, &s->nt, &s->T)))
+            if ((rc = crom_surface_read(o->file, s)))
                 return rc;
-            s->capv = s->nv;
-            s->capt = s->nt;
-            return crom_surface_check_closed(s->nv, s->nt, s->T, o->file);
+            return crom_surface_check_closed(s, o->file);
         }
         if (ends_with(o->file, ".msh") || ends_with(o->file, ".geo")) {
             *import_groups = 1;
@@ -780,7 +386,7 @@ static int shape_input(const crom_meshgen_opts *o, surf *s, int *import_groups)
         }
         return crom_err(CROM_EUSAGE, "%s: unknown format (expected .stl, .obj, .msh or .geo)", o->file);
     }
-    if (o->shape == CROM_SHAPE_SUPERQUADRIC) {
+    if (o->shape == CROM_MESHGEN_SUPERQUADRIC) {
         double half[3] = {o->dims[0] / 2, o->dims[1] / 2, o->dims[2] / 2};
         return superquadric_skin(half, o->exponent, o->size, s);
     }
@@ -789,32 +395,32 @@ static int shape_input(const crom_meshgen_opts *o, surf *s, int *import_groups)
 
 /* The geometry of the shape in the current gmsh model: an OpenCASCADE
  * solid, a volume bounded by the surface s, or the file gmsh reads. */
-static int make_geometry(const crom_meshgen_opts *o, surf *s, int import_groups)
+static int make_geometry(const crom_meshgen_opts *o, crom_surface *s, int import_groups)
 {
     int ierr = 0, rc = 0;
     const double *d = o->dims;
     switch (o->shape) {
-    case CROM_SHAPE_BOX:
-    case CROM_SHAPE_PLATE:
+    case CROM_MESHGEN_BOX:
+    case CROM_MESHGEN_PLATE:
         G(gmshModelOccAddBox(-d[0] / 2, -d[1] / 2, -d[2] / 2, d[0], d[1], d[2], -1, &ierr),
           "make the box");
         G(gmshModelOccSynchronize(&ierr), "synchronize");
         break;
-    case CROM_SHAPE_SPHERE:
+    case CROM_MESHGEN_SPHERE:
         G(gmshModelOccAddSphere(0, 0, 0, o->radius, -1, -M_PI / 2, M_PI / 2, 2 * M_PI, &ierr),
           "make the sphere");
         G(gmshModelOccSynchronize(&ierr), "synchronize");
         break;
-    case CROM_SHAPE_CYLINDER:
+    case CROM_MESHGEN_CYLINDER:
         G(gmshModelOccAddCylinder(0, -o->height / 2, 0, 0, o->height, 0, o->radius, -1, 2 * M_PI,
                                   &ierr),
           "make the cylinder");
         G(gmshModelOccSynchronize(&ierr), "synchronize");
         break;
-    case CROM_SHAPE_SUPERQUADRIC:
+    case CROM_MESHGEN_SUPERQUADRIC:
         rc = gmsh_volume_from_surface(s, 0);
         break;
-    case CROM_SHAPE_IMPORT:
+    case CROM_MESHGEN_IMPORT:
         if (import_groups) {
             G(gmshOpen(o->file, &ierr), "read the file");
         } else {
@@ -824,13 +430,13 @@ static int make_geometry(const crom_meshgen_opts *o, surf *s, int import_groups)
              * --timeout); automatically: remesh a surface much finer than
              * the target, whose kept triangles would make a far finer mesh */
             int remesh = o->remesh;
-            if (remesh == CROM_REMESH_AUTO) {
-                double med = median_edge(s);
+            if (remesh == CROM_MESHGEN_REMESH_AUTO) {
+                double med = crom_surface_median_edge(s);
                 if (med < 0)
                     return crom_err(CROM_EINTERNAL, "out of memory");
                 remesh = much_finer(med, o->size);
             }
-            if (!remesh && (rc = refine_to(s, o->size)))
+            if (!remesh && (rc = crom_surface_refine(s, o->size)))
                 return rc;
             rc = gmsh_volume_from_surface(s, remesh);
         }
@@ -868,11 +474,10 @@ int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m)
     int rc = check_opts(o), ierr = 0;
     if (rc)
         return rc;
-    surf s = {0};
+    crom_surface s = {0};
     int import_groups;
     if ((rc = shape_input(o, &s, &import_groups)) || (rc = crom_gmsh_begin(o->log))) {
-        free(s.V);
-        free(s.T);
+        crom_surface_free(&s);
         return rc;
     }
     gmshModelAdd("crom", &ierr);
@@ -893,8 +498,7 @@ int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m)
         goto out;
 out:
     crom_gmsh_end(o->log, o->log_ctx);
-    free(s.V);
-    free(s.T);
+    crom_surface_free(&s);
     if (rc)
         crom_mesh_free(m);
     return rc;

@@ -13,8 +13,8 @@
 #include "mesh/gmsh.h"
 #include "mesh/mesh.h"
 
-enum { CROM_SHAPE_BOX, CROM_SHAPE_PLATE, CROM_SHAPE_SPHERE, CROM_SHAPE_CYLINDER,
-       CROM_SHAPE_SUPERQUADRIC, CROM_SHAPE_IMPORT };
+enum { CROM_MESHGEN_BOX, CROM_MESHGEN_PLATE, CROM_MESHGEN_SPHERE, CROM_MESHGEN_CYLINDER,
+       CROM_MESHGEN_SUPERQUADRIC, CROM_MESHGEN_IMPORT };
 
 typedef struct {
     int shape;
@@ -27,39 +27,40 @@ typedef struct {
     int algorithm;       /* gmsh Mesh.Algorithm3D: 1 Delaunay (default, repeatable), 10 HXT */
     int optimize;        /* run gmsh's tet optimizer (default 1) */
     int remesh;          /* .stl/.obj: let gmsh remesh the surface at size (1), or keep its
-                            triangles, subdivided to at most size (0); CROM_REMESH_AUTO
+                            triangles, subdivided to at most size (0); CROM_MESHGEN_REMESH_AUTO
                             (the default): crom_meshgen_plan decides */
     crom_gmsh_log_fn log; /* receives gmsh's messages (NULL: dropped) */
     void *log_ctx;
 } crom_meshgen_opts;
 
 /* opts.remesh: decide from the surface (crom_meshgen_plan) */
-#define CROM_REMESH_AUTO (-1)
+#define CROM_MESHGEN_REMESH_AUTO (-1)
 
-/* A surface whose median edge is below size / CROM_REMESH_FINER is "much
- * finer" than the target: keeping its triangles would give a mesh far finer
- * (more vertices) than asked, so an automatic import remeshes it. */
-#define CROM_REMESH_FINER 2.0
+/* A surface whose median edge is below size / CROM_MESHGEN_REMESH_FINER is
+ * "much finer" than the target: keeping its triangles would give a mesh far
+ * finer (more vertices) than asked, so an automatic import remeshes it. */
+#define CROM_MESHGEN_REMESH_FINER 2.0
 
 /* What crom_meshgen_plan found about an imported .stl/.obj surface. */
 typedef struct {
     int triangles;       /* triangles of the file's surface */
     double median_edge;  /* its median edge length (m) */
-    int finer;           /* 1 if median_edge < size / CROM_REMESH_FINER */
-    int automatic;       /* 1 if remesh was CROM_REMESH_AUTO and was decided here */
+    int finer;           /* 1 if median_edge < size / CROM_MESHGEN_REMESH_FINER */
+    int automatic;       /* 1 if remesh was CROM_MESHGEN_REMESH_AUTO and was decided here */
 } crom_meshgen_plan_info;
 
 /* Resolve o->remesh before crom_meshgen for an .stl/.obj import: read the
- * surface, measure it into *info, and when o->remesh is CROM_REMESH_AUTO set
- * it to 1 if the surface is much finer than o->size, else 0. Other shapes
- * and files: only CROM_REMESH_AUTO becomes 0, *info is zeroed. Returns 0 or
- * the errors of crom_surface_read. */
+ * surface, measure it into *info, and when o->remesh is
+ * CROM_MESHGEN_REMESH_AUTO set it to 1 if the surface is much finer than
+ * o->size, else 0. Other shapes and files: only CROM_MESHGEN_REMESH_AUTO
+ * becomes 0, *info is zeroed. Returns 0 or the errors of crom_surface_read
+ * (mesh/surface.h). */
 int crom_meshgen_plan(crom_meshgen_opts *o, crom_meshgen_plan_info *info);
 
 /* Defaults for a shape (dims, radius, size). */
 void crom_meshgen_defaults(crom_meshgen_opts *o, int shape);
 
-/* Shape name ("box") to CROM_SHAPE_*, or -1. */
+/* Shape name ("box") to CROM_MESHGEN_BOX ..., or -1. */
 int crom_meshgen_shape(const char *name);
 
 /* Mesh the shape or file. Tets come out positively oriented and compacted;
@@ -67,14 +68,5 @@ int crom_meshgen_shape(const char *name);
  * bad parameters, CROM_ENOINPUT for a missing file, CROM_EDATA for a surface
  * that is open or a file gmsh cannot mesh. */
 int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m);
-
-/* Read a triangle surface (.stl ASCII/binary or .obj): [nv][3] and [nt][3].
- * Exposed for tests. */
-int crom_surface_read(const char *path, int *nv, double **V, int *nt, int **T);
-
-/* 0 if every edge of the surface is shared by exactly two triangles with
- * opposite orientation (closed, oriented, manifold); else CROM_EDATA naming
- * the problem. */
-int crom_surface_check_closed(int nv, int nt, const int *T, const char *name);
 
 #endif

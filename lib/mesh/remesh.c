@@ -7,6 +7,7 @@
 #include <string.h>
 
 
+#include "base/array.h"
 #include "base/err.h"
 #include "mesh/remesh.h"
 
@@ -178,7 +179,7 @@ int crom_remesh_remove_region(crom_mesh *m, const char *name)
             free(m->regions[r].source);
             free(m->regions[r].idx);
             memmove(&m->regions[r], &m->regions[r + 1],
-                    sizeof(crom_region) * (size_t)(m->nregions - r - 1));
+                    sizeof(crom_mesh_region) * (size_t)(m->nregions - r - 1));
             m->nregions--;
             return 1;
         }
@@ -198,7 +199,7 @@ static int finish(crom_mesh *out)
 
 /* ------------------------------------------------------------------- cut */
 
-static int check_cut(const crom_cut *c)
+static int check_cut(const crom_remesh_cut_opts *c)
 {
     if (c->axis < 0 || c->axis > 2)
         return crom_err(CROM_EUSAGE, "cut axis must be x, y or z");
@@ -244,7 +245,7 @@ static int crosses(const double p[2], const double q[2], const double a[2], cons
     return e1 * e2 <= 0;
 }
 
-int crom_remesh_cut_faces(const crom_mesh *m, const crom_cut *c, unsigned char **cut_out,
+int crom_remesh_cut_faces(const crom_mesh *m, const crom_remesh_cut_opts *c, unsigned char **cut_out,
                           int *nfaces)
 {
     int rc = check_cut(c);
@@ -308,7 +309,8 @@ typedef struct {
     int maxdeg;        /* the largest star */
     int *newidx;       /* [4 nt] per star entry: the vertex it gets */
     int *orig;         /* [nnew − nv] the vertex each copy copies */
-    int nnew, cap;     /* vertices after the split; orig's capacity */
+    int nnew;          /* vertices after the split */
+    size_t cap;        /* orig's capacity */
 } splitting;
 
 static void splitting_free(splitting *sp)
@@ -381,14 +383,11 @@ static int group_stars(const crom_mesh *m, const unsigned char *cut, const int *
             } else if (i == 0) {
                 newidx[b + i] = v;
             } else {
-                if (sp->nnew - m->nv == sp->cap) {
-                    sp->cap = sp->cap ? 2 * sp->cap : 256;
-                    int *no = crom_realloc(sp->orig, sizeof(int) * (size_t)sp->cap);
-                    if (!no) {
-                        free(parent);
-                        return CROM_EINTERNAL;
-                    }
-                    sp->orig = no;
+                int rc = crom_array_reserve((void **)&sp->orig, &sp->cap, (size_t)(sp->nnew - m->nv) + 1,
+                                            sizeof *sp->orig);
+                if (rc) {
+                    free(parent);
+                    return rc;
                 }
                 sp->orig[sp->nnew - m->nv] = v;
                 newidx[b + i] = sp->nnew++;
@@ -421,7 +420,7 @@ static int split_mesh(const crom_mesh *m, const splitting *sp, crom_mesh *out)
         for (int i = sp->start[v]; i < sp->start[v + 1]; i++)
             out->tets[sp->star[i]] = sp->newidx[i];
     for (int r = 0; r < m->nregions && !rc; r++) {
-        const crom_region *g = &m->regions[r];
+        const crom_mesh_region *g = &m->regions[r];
         unsigned char *in = crom_calloc((size_t)(m->nv ? m->nv : 1), 1);
         int *idx = crom_malloc(sizeof(int) * (size_t)(g->n + nd + 1)), k = 0;
         if (!in || !idx)
@@ -460,8 +459,8 @@ int crom_remesh_split(const crom_mesh *m, const unsigned char *cut, crom_mesh *o
     return rc;
 }
 
-int crom_remesh_cut(const crom_mesh *m, const crom_cut *c, crom_mesh *out, crom_cut_stats *st,
-                    crom_remesh_warn_fn warn, void *ctx)
+int crom_remesh_cut(const crom_mesh *m, const crom_remesh_cut_opts *c, crom_mesh *out,
+                    crom_remesh_cut_stats *st, crom_remesh_warn_fn warn, void *ctx)
 {
     unsigned char *cut = NULL;
     int nf = 0, nd = 0, rc = crom_remesh_cut_faces(m, c, &cut, &nf);
@@ -484,17 +483,17 @@ int crom_remesh_cut(const crom_mesh *m, const crom_cut *c, crom_mesh *out, crom_
 
 /* ----------------------------------------------------------------- punch */
 
-static int check_shape(const crom_punch_shape *s, int i)
+static int check_shape(const crom_remesh_punch_shape *s, int i)
 {
-    int n = s->kind == CROM_PUNCH_SPHERE ? 4 : s->kind == CROM_PUNCH_BOX ? 6 : 0;
+    int n = s->kind == CROM_REMESH_PUNCH_SPHERE ? 4 : s->kind == CROM_REMESH_PUNCH_BOX ? 6 : 0;
     if (!n)
         return crom_err(CROM_EUSAGE, "punch shape %d: unknown kind", i + 1);
     for (int k = 0; k < n; k++)
         if (!isfinite(s->a[k]))
             return crom_err(CROM_EUSAGE, "punch shape %d has a non-finite number", i + 1);
-    if (s->kind == CROM_PUNCH_SPHERE && !(s->a[3] > 0))
+    if (s->kind == CROM_REMESH_PUNCH_SPHERE && !(s->a[3] > 0))
         return crom_err(CROM_EUSAGE, "--sphere radius must be positive, got %g", s->a[3]);
-    if (s->kind == CROM_PUNCH_BOX)
+    if (s->kind == CROM_REMESH_PUNCH_BOX)
         for (int k = 0; k < 3; k++)
             if (!(s->a[k] < s->a[k + 3]))
                 return crom_err(CROM_EUSAGE, "--box needs X0<X1, Y0<Y1, Z0<Z1, got %g,%g,%g,%g,%g,%g",
@@ -502,9 +501,9 @@ static int check_shape(const crom_punch_shape *s, int i)
     return 0;
 }
 
-static int inside(const crom_punch_shape *s, const double x[3])
+static int inside(const crom_remesh_punch_shape *s, const double x[3])
 {
-    if (s->kind == CROM_PUNCH_SPHERE) {
+    if (s->kind == CROM_REMESH_PUNCH_SPHERE) {
         double d2 = 0;
         for (int k = 0; k < 3; k++)
             d2 += (x[k] - s->a[k]) * (x[k] - s->a[k]);
@@ -516,7 +515,7 @@ static int inside(const crom_punch_shape *s, const double x[3])
     return 1;
 }
 
-int crom_remesh_punch(const crom_mesh *m, const crom_punch_shape *s, int ns, crom_mesh *out,
+int crom_remesh_punch(const crom_mesh *m, const crom_remesh_punch_shape *s, int ns, crom_mesh *out,
                       int *nremoved, crom_remesh_warn_fn warn, void *ctx)
 {
     if (ns < 1)
@@ -571,7 +570,7 @@ int crom_remesh_punch(const crom_mesh *m, const crom_punch_shape *s, int ns, cro
 
 /* ------------------------------------------------------------------ swap */
 
-void crom_xform_init(crom_xform *x)
+void crom_remesh_xform_init(crom_remesh_xform *x)
 {
     memset(x, 0, sizeof *x);
     x->scale = 1;
@@ -608,7 +607,7 @@ static void rotation(const double n[3], double deg, double R[3][3])
     R[2][2] = c + z * z * C;
 }
 
-int crom_remesh_transform(crom_mesh *m, const crom_xform *x, const crom_mesh *ref)
+int crom_remesh_transform(crom_mesh *m, const crom_remesh_xform *x, const crom_mesh *ref)
 {
     if (!x->fit && (!(x->scale > 0) || !isfinite(x->scale)))
         return crom_err(CROM_EUSAGE, "--scale must be a positive number, got %g", x->scale);
@@ -658,7 +657,7 @@ int crom_remesh_transform(crom_mesh *m, const crom_xform *x, const crom_mesh *re
     return crom_mesh_orient(m, NULL);
 }
 
-int crom_remesh_swap(const crom_mesh *in, const crom_mesh *other, const crom_xform *x,
+int crom_remesh_swap(const crom_mesh *in, const crom_mesh *other, const crom_remesh_xform *x,
                      crom_mesh *out, crom_remesh_warn_fn warn, void *ctx)
 {
     crom_mesh r;
@@ -675,11 +674,11 @@ int crom_remesh_swap(const crom_mesh *in, const crom_mesh *other, const crom_xfo
         return CROM_EINTERNAL;
     }
     for (int g = 0; g < in->nregions && !rc; g++) {
-        const crom_region *reg = &in->regions[g];
+        const crom_mesh_region *reg = &in->regions[g];
         /* follow a region defined as another region of `in` to its predicate */
         const char *src = reg->source ? reg->source : "";
         for (int depth = 0; depth < 8 && !crom_pred_is(src); depth++) {
-            const crom_region *up = crom_mesh_region(in, src);
+            const crom_mesh_region *up = crom_mesh_find_region(in, src);
             if (!up || up == reg)
                 break;
             src = up->source ? up->source : "";
@@ -705,7 +704,7 @@ int crom_remesh_swap(const crom_mesh *in, const crom_mesh *other, const crom_xfo
                   src);
             continue;
         }
-        if (crom_mesh_region(&r, reg->name))
+        if (crom_mesh_find_region(&r, reg->name))
             warnf(warn, ctx, "region '%s' of the swapped mesh is replaced by the input's (%s)", reg->name,
                   src);
         rc = crom_mesh_add_region(&r, reg->name, src, idx, n);
@@ -893,7 +892,7 @@ static int refine_regions(const crom_mesh *m, crom_mesh *r)
     if (!in)
         rc = rc ? rc : CROM_EINTERNAL;
     for (int g = 0; g < m->nregions && !rc; g++) {
-        const crom_region *reg = &m->regions[g];
+        const crom_mesh_region *reg = &m->regions[g];
         memset(in, 0, (size_t)nv);
         idx = crom_malloc(sizeof(int) * (size_t)(reg->n + nw + 1));
         if (!idx) {

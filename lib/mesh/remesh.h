@@ -41,19 +41,19 @@ typedef struct {
     int nseg;
     const double *seg;  /* [nseg][4]: A_u, A_v, B_u, B_v (m) */
     int stages, stage;  /* 0 <= stage <= stages, stages >= 1 */
-} crom_cut;
+} crom_remesh_cut_opts;
 
 typedef struct {
     int faces_cut;      /* interior faces cut */
     int verts_dup;      /* vertex copies added */
     int components;     /* connected components of the result */
-} crom_cut_stats;
+} crom_remesh_cut_stats;
 
 /* Mark cut faces: (*cut)[4t + l] = 1 when face l of tet t (the face opposite
  * its vertex l) is interior and cut; *nfaces counts each cut face once.
  * *cut is malloc'ed [4 nt]. CROM_EUSAGE for bad options (axis, stage > stages,
  * zero-length or non-finite segment), CROM_EDATA for a non-manifold mesh. */
-int crom_remesh_cut_faces(const crom_mesh *m, const crom_cut *c, unsigned char **cut,
+int crom_remesh_cut_faces(const crom_mesh *m, const crom_remesh_cut_opts *c, unsigned char **cut,
                           int *nfaces);
 
 /* Duplicate vertices across the marked faces (cut as from
@@ -62,23 +62,23 @@ int crom_remesh_split(const crom_mesh *m, const unsigned char *cut, crom_mesh *o
 
 /* cut_faces + split + validation. Nothing cut (stage 0, a ribbon missing the
  * mesh): out is a copy of m and warn says so. st may be NULL. */
-int crom_remesh_cut(const crom_mesh *m, const crom_cut *c, crom_mesh *out, crom_cut_stats *st,
-                    crom_remesh_warn_fn warn, void *ctx);
+int crom_remesh_cut(const crom_mesh *m, const crom_remesh_cut_opts *c, crom_mesh *out,
+                    crom_remesh_cut_stats *st, crom_remesh_warn_fn warn, void *ctx);
 
 /* ---------------------------------------------------------------- punch */
 
-enum { CROM_PUNCH_SPHERE = 1, CROM_PUNCH_BOX = 2 };
+enum { CROM_REMESH_PUNCH_SPHERE = 1, CROM_REMESH_PUNCH_BOX = 2 };
 typedef struct {
-    int kind;     /* CROM_PUNCH_SPHERE: a = CX,CY,CZ,R; CROM_PUNCH_BOX: X0,Y0,Z0,X1,Y1,Z1 */
-    double a[6];
-} crom_punch_shape;
+    int kind;     /* CROM_REMESH_PUNCH_SPHERE or CROM_REMESH_PUNCH_BOX */
+    double a[6];  /* sphere: CX,CY,CZ,R; box: X0,Y0,Z0,X1,Y1,Z1 */
+} crom_remesh_punch_shape;
 
 /* Remove the tets whose centroid lies in any shape (closed sphere or box),
  * drop unused vertices and renumber regions; a region left empty is removed
  * with a warning. *nremoved (may be NULL) gets the number of tets removed.
  * CROM_EUSAGE for a bad shape (R <= 0, X0 >= X1, non-finite), CROM_EDATA if
  * nothing would remain. */
-int crom_remesh_punch(const crom_mesh *m, const crom_punch_shape *s, int ns, crom_mesh *out,
+int crom_remesh_punch(const crom_mesh *m, const crom_remesh_punch_shape *s, int ns, crom_mesh *out,
                       int *nremoved, crom_remesh_warn_fn warn, void *ctx);
 
 /* ---------------------------------------------------------------- swap */
@@ -89,24 +89,24 @@ typedef struct {
     double deg;          /* rotation angle in degrees, right-handed about axis */
     double translate[3]; /* m */
     int fit;             /* scale and centre onto the reference bounding box */
-} crom_xform;
+} crom_remesh_xform;
 
 /* Identity transform. */
-void crom_xform_init(crom_xform *x);
+void crom_remesh_xform_init(crom_remesh_xform *x);
 
 /* Transform m in place: X <- R(s X) + t (scale, rotate about the origin,
  * translate). With fit, s is replaced by (largest extent of ref) / (largest
  * extent of R m) and t by ref's box centre minus the centre of s R m, plus
  * x->translate. Re-orients the tets. CROM_EUSAGE for a bad transform, ref
  * NULL with fit, or a degenerate result. */
-int crom_remesh_transform(crom_mesh *m, const crom_xform *x, const crom_mesh *ref);
+int crom_remesh_transform(crom_mesh *m, const crom_remesh_xform *x, const crom_mesh *ref);
 
 /* out = other transformed into the frame of in. other keeps its regions;
  * each region of in whose source is a predicate (or names such a region of
  * in) is re-evaluated on out under the same name, replacing one of other's
  * own of that name (warned). Regions from gmsh groups, and re-evaluated
  * regions that select nothing, are not transferred (warned). */
-int crom_remesh_swap(const crom_mesh *in, const crom_mesh *other, const crom_xform *x,
+int crom_remesh_swap(const crom_mesh *in, const crom_mesh *other, const crom_remesh_xform *x,
                      crom_mesh *out, crom_remesh_warn_fn warn, void *ctx);
 
 /* ---------------------------------------------------------------- refine */

@@ -3,13 +3,13 @@
 
 #include "phys/contact.h"
 
-double crom_contact_depth(const crom_plane *p, const double x[3])
+double crom_contact_depth(const crom_contact_plane *p, const double x[3])
 {
     double phi = p->d - (p->n[0] * x[0] + p->n[1] * x[1] + p->n[2] * x[2]);
     return phi > 0 ? phi : 0;
 }
 
-double crom_contact_eval(const crom_plane *p, double k, double m, const double x[3],
+double crom_contact_eval(const crom_contact_plane *p, double k, double m, const double x[3],
                          const double xprev[3], double lam, double eps, double g[3], double H[9])
 {
     const double *n = p->n;

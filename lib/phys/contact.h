@@ -18,15 +18,15 @@
 /* A collision half-space n·x >= d (n unit), friction coefficient mu. */
 typedef struct {
     double n[3], d, mu;
-} crom_plane;
+} crom_contact_plane;
 
 /* Penetration depth φ = max(0, d − n·x) of point x. */
-double crom_contact_depth(const crom_plane *p, const double x[3]);
+double crom_contact_depth(const crom_contact_plane *p, const double x[3]);
 
 /* Energy of one vertex (mass m) at x against plane p, with penalty rate k,
  * lagged normal force lam (N) and smoothing length eps (m; ε_v h). Adds the
  * gradient to g[3] and the Hessian to H[9] when they are non-NULL. */
-double crom_contact_eval(const crom_plane *p, double k, double m, const double x[3],
+double crom_contact_eval(const crom_contact_plane *p, double k, double m, const double x[3],
                          const double xprev[3], double lam, double eps, double g[3],
                          double H[9]);
 

@@ -16,7 +16,7 @@
 #include "base/err.h"
 #include "base/rng.h"
 #include "phys/modes.h"
-#include "phys/solve.h"
+#include "phys/chol.h"
 
 void crom_modes_defaults(crom_modes_opts *o)
 {
@@ -996,25 +996,25 @@ int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const un
     if (!isfinite(o->shift) || o->shift > 0)
         return crom_err(CROM_EUSAGE, "the shift must be negative, got %g", o->shift);
 
-    double t0 = crom_now();
+    double t0 = crom_clock_now();
     int rc = crom_fem_init(&M.fem, mesh, mat);
     if (rc)
         return rc;
     if ((rc = free_system(&M, mesh, fixed, out)))
         goto out;
-    out->t_assemble = crom_now() - t0;
+    out->t_assemble = crom_clock_now() - t0;
     if ((rc = factor_shifted(&M, mesh, mat)))
         goto out;
     out->sigma = M.sigma;
     crom_chol_stats(M.chol, &out->t_analyze, &out->t_factor, NULL, NULL, NULL);
-    double tl = crom_now();
+    double tl = crom_clock_now();
     if ((rc = lowest_pairs(&M, mesh, fixed, out)))
         goto out;
     crom_chol_stats(M.chol, NULL, NULL, &out->t_solve, NULL, NULL);
     if ((rc = order_result(&M, out)) || (rc = finish_modes(&M, out)))
         goto out;
     out->k = o->count;
-    out->t_lanczos = crom_now() - tl;
+    out->t_lanczos = crom_clock_now() - tl;
 out:
     if (rc) {
         crom_modes_free(out);

@@ -14,7 +14,7 @@
  * its largest eigenvalues θ are the λ = ω² nearest above the shift,
  * λ = σ + 1/θ. σ < 0, so K − σM is symmetric positive definite even for a
  * free body (K singular) and one sparse Cholesky factor (CHOLMOD, METIS
- * block ordering; lib/phys/solve.h) serves every solve. A dense LAPACK solve
+ * block ordering; lib/phys/chol.h) serves every solve. A dense LAPACK solve
  * stands in when every deformation mode is asked for (ARPACK gives fewer).
  *
  * Rigid modes are built, not searched for: a single-vector Krylov space
@@ -46,7 +46,7 @@
 
 #include "mesh/mesh.h"
 #include "phys/fem.h"
-#include "phys/solve.h"
+#include "phys/chol.h"
 
 typedef struct {
     int count;         /* modes wanted in the result (>= 1); see keep_rigid */

@@ -6,9 +6,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/array.h"
 #include "base/err.h"
 #include "base/parse.h"
 #include "io/io.h"
+#include "phys/bc.h"
 #include "phys/scenario.h"
 
 enum {
@@ -54,38 +56,6 @@ void crom_scenario_defaults(crom_scenario *s)
     s->max_iter = 50;
 }
 
-/* "REGION=X,Y,Z[@T0:T1]" */
-static int parse_bc(const char *flag, const char *v, crom_bc *b)
-{
-    const char *eq = strrchr(v, '=');
-    if (!eq || eq == v)
-        return crom_err(CROM_EUSAGE, "%s '%s': expected REGION=X,Y,Z[@T0:T1]", flag, v);
-    size_t len = (size_t)(eq - v);
-    if (len >= sizeof b->ref)
-        return crom_err(CROM_EUSAGE, "%s: region too long", flag);
-    memcpy(b->ref, v, len);
-    b->ref[len] = 0;
-    char vec[256];
-    snprintf(vec, sizeof vec, "%s", eq + 1);
-    b->t0 = 0;
-    b->t1 = INFINITY;
-    char *at = strchr(vec, '@');
-    if (at) {
-        *at = 0;
-        char *colon = strchr(at + 1, ':');
-        if (!colon)
-            return crom_err(CROM_EUSAGE, "%s '%s': time window must be @T0:T1", flag, v);
-        *colon = 0;
-        if (crom_parse_double(at + 1, flag, &b->t0))
-            return CROM_EUSAGE;
-        if (*(colon + 1) && crom_parse_double(colon + 1, flag, &b->t1))
-            return CROM_EUSAGE;
-        if (!(b->t1 > b->t0))
-            return crom_err(CROM_EUSAGE, "%s '%s': the window must have T1 > T0", flag, v);
-    }
-    return crom_parse_doubles(vec, flag, 3, b->v);
-}
-
 const char *crom_scenario_opt_name(int key)
 {
     for (const crom_opt *o = crom_scenario_opts; o->name; o++)
@@ -116,35 +86,35 @@ int crom_scenario_option(crom_scenario *s, int key, const char *v)
         return 0;
     case SC_GRAVITY: return crom_parse_doubles(v, "--gravity", 3, s->gravity);
     case SC_PIN:
-        if (s->npins == CROM_SC_MAX)
-            return crom_err(CROM_EUSAGE, "--pin: at most %d", CROM_SC_MAX);
+        if (s->npins == CROM_SCENARIO_MAX)
+            return crom_err(CROM_EUSAGE, "--pin: at most %d", CROM_SCENARIO_MAX);
         if (!*v || strlen(v) >= sizeof s->pins[0])
             return crom_err(CROM_EUSAGE, "--pin: empty or too long region '%s'", v);
         snprintf(s->pins[s->npins++], sizeof s->pins[0], "%s", v);
         return 0;
     case SC_VELOCITY:
-        if (s->nvel == CROM_SC_MAX)
-            return crom_err(CROM_EUSAGE, "--velocity: at most %d", CROM_SC_MAX);
-        if (parse_bc("--velocity", v, &s->vel[s->nvel]))
+        if (s->nvel == CROM_SCENARIO_MAX)
+            return crom_err(CROM_EUSAGE, "--velocity: at most %d", CROM_SCENARIO_MAX);
+        if (crom_bc_parse("--velocity", v, &s->vel[s->nvel]))
             return CROM_EUSAGE;
         s->nvel++;
         return 0;
     case SC_FORCE:
-        if (s->nforce == CROM_SC_MAX)
-            return crom_err(CROM_EUSAGE, "--force: at most %d", CROM_SC_MAX);
-        if (parse_bc("--force", v, &s->force[s->nforce]))
+        if (s->nforce == CROM_SCENARIO_MAX)
+            return crom_err(CROM_EUSAGE, "--force: at most %d", CROM_SCENARIO_MAX);
+        if (crom_bc_parse("--force", v, &s->force[s->nforce]))
             return CROM_EUSAGE;
         s->nforce++;
         return 0;
     case SC_PLANE: {
-        if (s->nplanes == CROM_SC_MAX)
-            return crom_err(CROM_EUSAGE, "--plane: at most %d", CROM_SC_MAX);
+        if (s->nplanes == CROM_SCENARIO_MAX)
+            return crom_err(CROM_EUSAGE, "--plane: at most %d", CROM_SCENARIO_MAX);
         if (crom_parse_doubles_var(v, "--plane", 4, 5, d, &k))
             return CROM_EUSAGE;
         double nn = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
         if (!(nn > 0))
             return crom_err(CROM_EUSAGE, "--plane '%s': the normal is zero", v);
-        crom_plane *p = &s->plane[s->nplanes++];
+        crom_contact_plane *p = &s->plane[s->nplanes++];
         if (fabs(nn - 1) < 8 * DBL_EPSILON)
             nn = 1; /* already unit: keep the bits, so the text round-trips */
         for (int i = 0; i < 3; i++)
@@ -202,12 +172,8 @@ static void appendf(char **buf, size_t *len, size_t *cap, const char *fmt, ...)
             *len += (size_t)n;
             return;
         }
-        size_t nc = (*cap ? *cap * 2 : 1024) + (size_t)n;
-        char *nb = realloc(*buf, nc);
-        if (!nb)
+        if (crom_array_reserve((void **)buf, cap, *len + (size_t)n + 1, 1))
             return;
-        *buf = nb;
-        *cap = nc;
     }
 }
 
@@ -250,13 +216,6 @@ char *crom_scenario_text(const crom_scenario *s)
     return b;
 }
 
-/* Time spent inside the window [t0, t1] up to time t. */
-static double window(const crom_bc *b, double t)
-{
-    double e = t < b->t1 ? t : b->t1;
-    return e > b->t0 ? e - b->t0 : 0;
-}
-
 void crom_scenario_initial_velocity(const crom_scenario *s, const double c[3], const double X[3], double v[3])
 {
     const double *w = s->spin;
@@ -264,25 +223,6 @@ void crom_scenario_initial_velocity(const crom_scenario *s, const double c[3], c
     v[0] = s->v0[0] + w[1] * r[2] - w[2] * r[1];
     v[1] = s->v0[1] + w[2] * r[0] - w[0] * r[2];
     v[2] = s->v0[2] + w[0] * r[1] - w[1] * r[0];
-}
-
-void crom_bc_velocity(const crom_bc *b, double t, double v[3])
-{
-    int on = t >= b->t0 && t <= b->t1;
-    for (int i = 0; i < 3; i++)
-        v[i] = on ? b->v[i] : 0;
-}
-
-void crom_bc_displacement(const crom_bc *b, double t, double u[3])
-{
-    double w = window(b, t);
-    for (int i = 0; i < 3; i++)
-        u[i] = b->v[i] * w;
-}
-
-void crom_bc_force(const crom_bc *b, double t, double f[3])
-{
-    crom_bc_velocity(b, t, f);
 }
 
 int crom_scenario_parse_text(const char *text, crom_scenario *s)

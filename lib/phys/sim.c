@@ -91,7 +91,7 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
     }
     crom_fem_mass_diag(&s->fem, s->m3);
     /* boundary conditions */
-    const char *refs[CROM_SC_MAX];
+    const char *refs[CROM_SCENARIO_MAX];
     int *pin_ptr = NULL;
     for (int i = 0; i < sc->npins; i++)
         refs[i] = sc->pins[i];
@@ -343,20 +343,20 @@ static double correction(const crom_sim *s, const double *d)
  * z = -P⁻¹g; the test asks it to be below tol with a margin of 2, for the
  * factor is of an older Hessian. When it passes, x takes it and
  * *converged is set. */
-static int simplified_step(crom_sim *s, newton *nw, crom_step_stats *st, int *converged)
+static int simplified_step(crom_sim *s, newton *nw, crom_sim_stats *st, int *converged)
 {
     size_t n = (size_t)s->n;
-    double t0 = crom_now();
+    double t0 = crom_clock_now();
     int rc = ip_gradient(s, s->x, &nw->fo, &nw->E, s->g, NULL);
     if (rc)
         return rc;
-    st->t_assemble += crom_now() - t0;
+    st->t_assemble += crom_clock_now() - t0;
     for (size_t i = 0; i < n; i++)
         s->xt[i] = -s->g[i];
-    t0 = crom_now();
+    t0 = crom_clock_now();
     if ((rc = crom_chol_solve(s->chol, s->xt, s->d)))
         return rc;
-    st->t_solve += crom_now() - t0;
+    st->t_solve += crom_clock_now() - t0;
     st->cg++;
     double res = correction(s, s->d);
     if (res <= 0.5 * s->sc->tol) {
@@ -373,30 +373,30 @@ static int simplified_step(crom_sim *s, newton *nw, crom_step_stats *st, int *co
  * factor while it serves (nw->cg its iterations), else from a fresh
  * factorization (nw->cg = -1). *retry when H proved indefinite: the
  * Hessians are projected from now on, and the iteration assembles again. */
-static int newton_direction(crom_sim *s, newton *nw, crom_step_stats *st, int *retry)
+static int newton_direction(crom_sim *s, newton *nw, crom_sim_stats *st, int *retry)
 {
     size_t n = (size_t)s->n;
     *retry = 0;
     for (size_t i = 0; i < n; i++)
         s->xt[i] = -s->g[i];
     int cg = -1, rc;
-    double t0 = crom_now();
+    double t0 = crom_clock_now();
     if (s->have_factor && !s->refactor) {
         memset(s->d, 0, sizeof(double) * n);
-        cg = crom_pcg(&nw->A, s->chol, s->xt, s->d, nw->rtol, CG_MAX, s->work);
+        cg = crom_chol_pcg(&nw->A, s->chol, s->xt, s->d, nw->rtol, CG_MAX, s->work);
         if (cg < -1)
             return -cg;
         if (cg >= 0)
             st->cg += cg;
         s->refactor = cg < 0 || cg > CG_SLOW;
     }
-    st->t_solve += crom_now() - t0;
+    st->t_solve += crom_clock_now() - t0;
     nw->cg = cg;
     if (cg >= 0)
         return 0;
-    t0 = crom_now();
+    t0 = crom_clock_now();
     rc = crom_chol_factor(s->chol, s->H);
-    st->t_factor += crom_now() - t0;
+    st->t_factor += crom_clock_now() - t0;
     st->factorizations++;
     s->have_factor = rc == 0;
     if (rc == CROM_EDATA && !nw->fo.project) {
@@ -410,10 +410,10 @@ static int newton_direction(crom_sim *s, newton *nw, crom_step_stats *st, int *r
         return rc;
     }
     s->refactor = 0;
-    t0 = crom_now();
+    t0 = crom_clock_now();
     if ((rc = crom_chol_solve(s->chol, s->xt, s->d)))
         return rc;
-    st->t_solve += crom_now() - t0;
+    st->t_solve += crom_clock_now() - t0;
     return 0;
 }
 
@@ -447,9 +447,9 @@ static double descent_slope(crom_sim *s, newton *nw, int *retry)
  * its terms), without which no step could be accepted near convergence.
  * Without progress the Hessians are projected, or once they are, the
  * factor is renewed. */
-static int line_search(crom_sim *s, newton *nw, double slope, crom_step_stats *st)
+static int line_search(crom_sim *s, newton *nw, double slope, crom_sim_stats *st)
 {
-    double t0 = crom_now(), ip, noise;
+    double t0 = crom_clock_now(), ip, noise;
     int rc = potential(s, s->x, nw->E, &ip, &noise);
     if (rc)
         return rc;
@@ -468,7 +468,7 @@ static int line_search(crom_sim *s, newton *nw, double slope, crom_step_stats *s
         nw->fo.project = 1; /* no progress along this direction: project */
     else
         s->refactor = 1;
-    st->t_linesearch += crom_now() - t0;
+    st->t_linesearch += crom_clock_now() - t0;
     return 0;
 }
 
@@ -478,7 +478,7 @@ static int line_search(crom_sim *s, newton *nw, double slope, crom_step_stats *s
  * the step uses per-element SPD-projected Hessians instead. Converged
  * when the Newton correction is below tol of the body size: x takes it
  * without a line search. CROM_EDATA when not converged in max_iter. */
-static int newton_solve(crom_sim *s, crom_step_stats *st)
+static int newton_solve(crom_sim *s, crom_sim_stats *st)
 {
     const crom_scenario *sc = s->sc;
     double h = sc->dt;
@@ -489,16 +489,16 @@ static int newton_solve(crom_sim *s, crom_step_stats *st)
     st->residual = INFINITY;
     int rc = 0, converged = 0, retry;
     while (!rc) {
-        double t0 = crom_now();
+        double t0 = crom_clock_now();
         if (nw.check && s->have_factor && !s->refactor) {
             nw.check = 0;
             if ((rc = simplified_step(s, &nw, st, &converged)) || converged)
                 break;
-            t0 = crom_now();
+            t0 = crom_clock_now();
         }
         if ((rc = ip_gradient(s, s->x, &nw.fo, &nw.E, s->g, s->H)))
             break;
-        st->t_assemble += crom_now() - t0;
+        st->t_assemble += crom_clock_now() - t0;
         if (nw.it == sc->max_iter)
             break;
         if ((rc = newton_direction(s, &nw, st, &retry)) || retry)
@@ -542,22 +542,22 @@ static int newton_solve(crom_sim *s, crom_step_stats *st)
     return rc;
 }
 
-int crom_sim_step(crom_sim *s, crom_step_stats *st)
+int crom_sim_step(crom_sim *s, crom_sim_stats *st)
 {
     /* the time at the end of the step is step * dt, not a running sum of dt */
-    double h = s->sc->dt, t1 = (double)(s->step + 1) * h, tstart = crom_now();
+    double h = s->sc->dt, t1 = (double)(s->step + 1) * h, tstart = crom_clock_now();
     memset(st, 0, sizeof *st);
     step_begin(s, t1);
     int rc = newton_solve(s, st);
     if (rc) {
-        st->t_total = crom_now() - tstart;
+        st->t_total = crom_clock_now() - tstart;
         return rc;
     }
     for (size_t i = 0; i < (size_t)s->n; i++)
         s->v[i] = (s->x[i] - s->xn[i]) / h;
     s->t = t1;
     s->step++;
-    st->t_total = crom_now() - tstart;
+    st->t_total = crom_clock_now() - tstart;
     return 0;
 }
 

@@ -17,7 +17,7 @@
 
 #include "phys/fem.h"
 #include "phys/scenario.h"
-#include "phys/solve.h"
+#include "phys/chol.h"
 
 typedef struct {
     int newton;           /* Newton iterations of the step */
@@ -26,7 +26,7 @@ typedef struct {
     int cuts;             /* line-search halvings, summed */
     double residual;      /* last Newton correction ‖Δx‖∞ / L */
     double t_assemble, t_factor, t_solve, t_linesearch, t_total; /* s */
-} crom_step_stats;
+} crom_sim_stats;
 
 typedef struct {
     const crom_scenario *sc;
@@ -56,7 +56,7 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc);
 /* Advance one time step. Returns 0, or CROM_EDATA when Newton does not
  * converge within max_iter (message with the residual) or the state goes
  * non-finite. */
-int crom_sim_step(crom_sim *s, crom_step_stats *st);
+int crom_sim_step(crom_sim *s, crom_sim_stats *st);
 
 /* Kinetic ½vᵀMv, elastic E(x) and external −f_ext(t)·(x − X) energies. */
 int crom_sim_energies(crom_sim *s, double *kinetic, double *elastic, double *external);

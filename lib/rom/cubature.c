@@ -11,7 +11,7 @@
 #include "base/err.h"
 #include "rom/cubature.h"
 
-int crom_cub_scheme(const char *name)
+int crom_cubature_scheme(const char *name)
 {
     static const char *n[] = {"all", "random", "metis", "optimized"};
     for (int i = 0; i < 4; i++)
@@ -62,9 +62,9 @@ static int component_blocks(const double *W4, int r, int lo[3], int hi[3])
     return 1;
 }
 
-double crom_cub_tet(const crom_material *mat, const double Xe[12], const double *W4, int r,
-                    const double Dminv[9], double V, double w, const double *q, int project,
-                    double *g_r, double *H_r, double *work)
+double crom_cubature_tet(const crom_material *mat, const double Xe[12], const double *W4, int r,
+                         const double Dminv[9], double V, double w, const double *q, int project,
+                         double *g_r, double *H_r, double *work)
 {
     double *xe = work, *ge = work + 12, *He = work + 24, *HW = work + 168;
     /* x = X + W q at the four vertices: xe = Xe + W4 q (W4 is 12 × r) */
@@ -93,7 +93,7 @@ double crom_cub_tet(const crom_material *mat, const double Xe[12], const double 
 }
 
 /* gather the [4][3][r] W block and rest positions of tet t */
-static void gather(const crom_cub *c, int t, double *Xe, double *W4)
+static void gather(const crom_cubature *c, int t, double *Xe, double *W4)
 {
     const int *e = c->mesh.tets + 4 * (size_t)t;
     size_t blk = 3 * (size_t)c->r;
@@ -103,7 +103,7 @@ static void gather(const crom_cub *c, int t, double *Xe, double *W4)
     }
 }
 
-void crom_cub_gather(const crom_cub *c, int k, double Xe[12], double *W4, double Dminv[9])
+void crom_cubature_gather(const crom_cubature *c, int k, double Xe[12], double *W4, double Dminv[9])
 {
     gather(c, c->elem[k], Xe, W4);
     memcpy(Dminv, c->Dminv + 9 * (size_t)k, 9 * sizeof(double));
@@ -111,7 +111,7 @@ void crom_cub_gather(const crom_cub *c, int k, double Xe[12], double *W4, double
 
 /* ------------------------------------------------------------- schemes */
 
-static int scheme_all(crom_cub *c)
+static int scheme_all(crom_cubature *c)
 {
     c->k = c->mesh.nt;
     c->elem = crom_malloc(sizeof(int) * (size_t)c->k);
@@ -126,7 +126,7 @@ static int scheme_all(crom_cub *c)
 }
 
 /* LiCROM §5: m random vertices plus all their incident tets, equal weights */
-static int scheme_random(crom_cub *c, const double *tetvol, int m, crom_rng *rng)
+static int scheme_random(crom_cubature *c, const double *tetvol, int m, crom_rng *rng)
 {
     int nv = c->mesh.nv, nt = c->mesh.nt;
     int *perm = crom_malloc(sizeof(int) * (size_t)nv);
@@ -169,7 +169,7 @@ static int scheme_random(crom_cub *c, const double *tetvol, int m, crom_rng *rng
 }
 
 /* METIS partition of the dual graph, one representative tet per part */
-static int scheme_metis(crom_cub *c, const double *tetvol, int parts)
+static int scheme_metis(crom_cubature *c, const double *tetvol, int parts)
 {
     int nt = c->mesh.nt, nv = c->mesh.nv;
     if (parts > nt)
@@ -335,7 +335,7 @@ static int nnls_normal(int s, const double *G, const double *h, double *w, doubl
 /* One column of the fitting matrix for tet t: per pose its reduced force
  * (ro rows: r, or rout projected by the pose's T) and its energy (1 row),
  * each scaled by the pose's row scale. */
-static int tet_column(const crom_cub *c, const crom_cub_opts *o, const crom_material *mat, int t,
+static int tet_column(const crom_cubature *c, const crom_cubature_opts *o, const crom_material *mat, int t,
                       const double *fscale, const double *escale, double *col, double *work)
 {
     int r = c->r, ro = o->proj ? o->rout : r;
@@ -346,7 +346,7 @@ static int tet_column(const crom_cub *c, const crom_cub_opts *o, const crom_mate
     for (int j = 0; j < o->npose; j++) {
         double *g = col + (size_t)j * (ro + 1);
         memset(gf, 0, sizeof(double) * (size_t)r);
-        double E = crom_cub_tet(mat, Xe, W4, r, Dm, V, 1.0, o->poses + (size_t)j * r, 0, gf, NULL, kw);
+        double E = crom_cubature_tet(mat, Xe, W4, r, Dm, V, 1.0, o->poses + (size_t)j * r, 0, gf, NULL, kw);
         if (!isfinite(E))
             return CROM_EDATA;
         if (o->proj)
@@ -359,154 +359,210 @@ static int tet_column(const crom_cub *c, const crom_cub_opts *o, const crom_mate
     return 0;
 }
 
-static int scheme_optimized(crom_cub *c, const crom_cub_opts *o, crom_rng *rng)
-{
-    int r = c->r, nt = c->mesh.nt, P = o->npose, ro = o->proj ? o->rout : r, m = P * (ro + 1), K = o->count;
+/* The greedy selection of the optimized scheme (An, Kim, James 2008): the
+ * fitting matrix has one row per pose and reduced force component (ro) plus
+ * one for the pose's energy (m rows in all), one column per tet; tets are
+ * added one at a time, each time refitting non-negative weights. */
+typedef struct {
+    const crom_cubature *c;
+    const crom_cubature_opts *o;
     crom_material mat;
-    int rc = crom_material_init(&mat, o->youngs, o->poisson, 1000);
+    int nt, ro, m, K;   /* tets, rows per pose but one, rows, tet budget */
+    double *b;          /* [m] targets: the exact forces and energies, per pose normalized */
+    double *fscale, *escale; /* [P] the poses' row scales */
+    double *col, *work; /* [m] one column; tet_column's scratch */
+    double *A;          /* [K][m] the selected columns */
+    double *G, *hv;     /* [K][K] AᵀA and [K] Aᵀb of the selected columns */
+    double *w, *res;    /* [K] weights; [m] residual b − A w */
+    int *sel, *P_idx;   /* [K] selected tets; NNLS's passive set */
+    unsigned char *taken; /* [nt] */
+    int *cand;          /* [nt] candidate order */
+    double bnorm;       /* |b| */
+} greedy;
+
+static void greedy_free(greedy *g)
+{
+    free(g->b);
+    free(g->col);
+    free(g->fscale);
+    free(g->escale);
+    free(g->work);
+    free(g->A);
+    free(g->G);
+    free(g->hv);
+    free(g->w);
+    free(g->res);
+    free(g->sel);
+    free(g->P_idx);
+    free(g->taken);
+    free(g->cand);
+}
+
+static int greedy_init(greedy *g, const crom_cubature *c, const crom_cubature_opts *o)
+{
+    memset(g, 0, sizeof *g);
+    g->c = c;
+    g->o = o;
+    int r = c->r, P = o->npose, rc = crom_material_init(&g->mat, o->youngs, o->poisson, 1000);
     if (rc)
         return rc;
     if (!o->poses || P < 1)
         return crom_err(CROM_EUSAGE, "the optimized scheme needs training poses (--poses LATENT)");
-    if (K > nt)
-        K = nt;
-    double *b = crom_calloc((size_t)m, sizeof(double)), *col = crom_malloc(sizeof(double) * (size_t)m);
-    double *fscale = crom_malloc(sizeof(double) * (size_t)P), *escale = crom_malloc(sizeof(double) * (size_t)P);
-    double *work = crom_malloc(sizeof(double) * (size_t)(12 * r + r + 168 + 12 * r));
-    double *A = crom_malloc(sizeof(double) * (size_t)m * (size_t)K); /* selected columns */
-    double *G = crom_calloc((size_t)K * K, sizeof(double)), *hv = crom_calloc((size_t)K, sizeof(double));
-    double *w = crom_calloc((size_t)K, sizeof(double)), *res = crom_malloc(sizeof(double) * (size_t)m);
-    double *nwork = crom_malloc(sizeof(double) * ((size_t)K * K + 2 * (size_t)K + 1));
-    int *sel = crom_malloc(sizeof(int) * (size_t)K), *P_idx = crom_malloc(sizeof(int) * (size_t)K);
-    unsigned char *taken = crom_calloc((size_t)nt, 1);
-    int *cand = crom_malloc(sizeof(int) * (size_t)nt);
-    if (!b || !col || !fscale || !escale || !work || !A || !G || !hv || !w || !res || !nwork || !sel ||
-        !P_idx || !taken || !cand) {
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
-    /* targets: the exact reduced forces and energies over all tets, each
-     * pose normalized so every pose counts equally */
+    g->nt = c->mesh.nt;
+    g->ro = o->proj ? o->rout : r;
+    g->m = P * (g->ro + 1);
+    g->K = o->count > g->nt ? g->nt : o->count;
+    size_t m = (size_t)g->m, K = (size_t)g->K, nt = (size_t)g->nt;
+    g->b = crom_calloc(m, sizeof(double));
+    g->col = crom_malloc(sizeof(double) * m);
+    g->fscale = crom_malloc(sizeof(double) * (size_t)P);
+    g->escale = crom_malloc(sizeof(double) * (size_t)P);
+    g->work = crom_malloc(sizeof(double) * (size_t)(12 * r + r + 168 + 12 * r));
+    g->A = crom_malloc(sizeof(double) * m * K);
+    g->G = crom_calloc(K * K, sizeof(double));
+    g->hv = crom_calloc(K, sizeof(double));
+    g->w = crom_calloc(K, sizeof(double));
+    g->res = crom_malloc(sizeof(double) * m);
+    g->sel = crom_malloc(sizeof(int) * K);
+    g->P_idx = crom_malloc(sizeof(int) * K);
+    g->taken = crom_calloc(nt, 1);
+    g->cand = crom_malloc(sizeof(int) * nt);
+    if (!g->b || !g->col || !g->fscale || !g->escale || !g->work || !g->A || !g->G || !g->hv || !g->w ||
+        !g->res || !g->sel || !g->P_idx || !g->taken || !g->cand)
+        return CROM_EINTERNAL;
+    for (int i = 0; i < g->nt; i++)
+        g->cand[i] = i;
+    return 0;
+}
+
+/* The targets: the exact reduced forces and energies over all tets, each
+ * pose's rows scaled to unit force and energy so every pose counts
+ * equally; the residual starts at them. */
+static int greedy_targets(greedy *g)
+{
+    int P = g->o->npose, ro = g->ro, rc = 0;
     for (int j = 0; j < P; j++)
-        fscale[j] = escale[j] = 1;
-    for (int t = 0; t < nt && !rc; t++) {
-        rc = tet_column(c, o, &mat, t, fscale, escale, col, work);
-        for (int i = 0; !rc && i < m; i++)
-            b[i] += col[i];
+        g->fscale[j] = g->escale[j] = 1;
+    for (int t = 0; t < g->nt && !rc; t++) {
+        rc = tet_column(g->c, g->o, &g->mat, t, g->fscale, g->escale, g->col, g->work);
+        for (int i = 0; !rc && i < g->m; i++)
+            g->b[i] += g->col[i];
     }
-    if (rc) {
-        crom_err(CROM_EDATA, "optimized cubature: a training pose gives a non-finite elastic force");
-        goto out;
-    }
+    if (rc)
+        return crom_err(CROM_EDATA, "optimized cubature: a training pose gives a non-finite elastic force");
     for (int j = 0; j < P; j++) {
-        double *bj = b + (size_t)j * (ro + 1), n2 = 0;
+        double *bj = g->b + (size_t)j * (ro + 1), n2 = 0;
         for (int i = 0; i < ro; i++)
             n2 += bj[i] * bj[i];
-        fscale[j] = n2 > 0 ? 1 / sqrt(n2) : 0;
-        escale[j] = fabs(bj[ro]) > 0 ? 1 / fabs(bj[ro]) : 0;
+        g->fscale[j] = n2 > 0 ? 1 / sqrt(n2) : 0;
+        g->escale[j] = fabs(bj[ro]) > 0 ? 1 / fabs(bj[ro]) : 0;
         for (int i = 0; i < ro; i++)
-            bj[i] *= fscale[j];
-        bj[ro] *= escale[j];
+            bj[i] *= g->fscale[j];
+        bj[ro] *= g->escale[j];
     }
-    double bnorm = cblas_dnrm2(m, b, 1);
-    if (!(bnorm > 0)) {
-        rc = crom_err(CROM_EDATA, "optimized cubature: the training poses have no elastic force (all at rest?)");
-        goto out;
+    g->bnorm = cblas_dnrm2(g->m, g->b, 1);
+    if (!(g->bnorm > 0))
+        return crom_err(CROM_EDATA, "optimized cubature: the training poses have no elastic force (all at rest?)");
+    memcpy(g->res, g->b, sizeof(double) * (size_t)g->m);
+    return 0;
+}
+
+/* Score a random sample of ncand unselected tets by their correlation with
+ * the residual: the best, or -1 when nothing correlates with what is left. */
+static int greedy_pick(greedy *g, crom_rng *rng, int ncand)
+{
+    crom_rng_shuffle(rng, g->cand, g->nt);
+    int bestt = -1, tried = 0;
+    double bests = 0;
+    for (int i = 0; i < g->nt && tried < ncand; i++) {
+        int t = g->cand[i];
+        if (g->taken[t])
+            continue;
+        tried++;
+        if (tet_column(g->c, g->o, &g->mat, t, g->fscale, g->escale, g->col, g->work))
+            continue;
+        double dot = cblas_ddot(g->m, g->col, 1, g->res, 1), nrm = cblas_dnrm2(g->m, g->col, 1);
+        if (nrm > 0 && dot / nrm > bests) {
+            bests = dot / nrm;
+            bestt = t;
+        }
     }
-    memcpy(res, b, sizeof(double) * (size_t)m);
-    for (int i = 0; i < nt; i++)
-        cand[i] = i;
-    int s = 0, ncand = o->candidates > 0 ? o->candidates : 256;
-    double err = 1;
-    while (s < K && err > o->tol) {
-        /* score a random sample of unselected tets by their correlation with
-         * the residual; the best joins */
-        crom_rng_shuffle(rng, cand, nt);
-        int bestt = -1, tried = 0;
-        double bests = 0;
-        for (int i = 0; i < nt && tried < ncand; i++) {
-            int t = cand[i];
-            if (taken[t])
-                continue;
-            tried++;
-            if (tet_column(c, o, &mat, t, fscale, escale, col, work))
-                continue;
-            double dot = cblas_ddot(m, col, 1, res, 1), nrm = cblas_dnrm2(m, col, 1);
-            if (nrm > 0 && dot / nrm > bests) {
-                bests = dot / nrm;
-                bestt = t;
-            }
-        }
-        if (bestt < 0)
-            break; /* nothing correlates with what is left */
-        taken[bestt] = 1;
-        tet_column(c, o, &mat, bestt, fscale, escale, A + (size_t)s * m, work);
-        sel[s] = bestt;
-        /* grow G = AᵀA and h = Aᵀb (stored with leading dimension K) */
-        double *Gs = nwork; /* repack to s+1 square for the solver */
-        for (int i = 0; i <= s; i++) {
-            double v = cblas_ddot(m, A + (size_t)i * m, 1, A + (size_t)s * m, 1);
-            G[(size_t)i * K + s] = G[(size_t)s * K + i] = v;
-        }
-        hv[s] = cblas_ddot(m, A + (size_t)s * m, 1, b, 1);
-        s++;
-        double *Gc = crom_malloc(sizeof(double) * (size_t)s * s), *nw = crom_malloc(sizeof(double) * ((size_t)s * s + 2 * (size_t)s + 1));
-        if (!Gc || !nw) {
-            free(Gc);
-            free(nw);
-            rc = CROM_EINTERNAL;
-            goto out;
-        }
-        for (int i = 0; i < s; i++)
-            for (int j = 0; j < s; j++)
-                Gc[i * s + j] = G[(size_t)i * K + j];
-        (void)Gs;
-        rc = nnls_normal(s, Gc, hv, w, nw, P_idx);
-        free(Gc);
-        free(nw);
-        if (rc)
-            goto out;
-        memcpy(res, b, sizeof(double) * (size_t)m);
-        for (int i = 0; i < s; i++)
-            if (w[i] > 0)
-                cblas_daxpy(m, -w[i], A + (size_t)i * m, 1, res, 1);
-        err = cblas_dnrm2(m, res, 1) / bnorm;
+    return bestt;
+}
+
+/* Add tet t as the s-th column: grow G = AᵀA and h = Aᵀb (leading
+ * dimension K), refit the s + 1 weights by NNLS and update the residual
+ * b − A w; *err gets its norm relative to |b|. */
+static int greedy_add(greedy *g, int s, int t, double *err)
+{
+    int m = g->m, K = g->K;
+    g->taken[t] = 1;
+    tet_column(g->c, g->o, &g->mat, t, g->fscale, g->escale, g->A + (size_t)s * m, g->work);
+    g->sel[s] = t;
+    for (int i = 0; i <= s; i++) {
+        double v = cblas_ddot(m, g->A + (size_t)i * m, 1, g->A + (size_t)s * m, 1);
+        g->G[(size_t)i * K + s] = g->G[(size_t)s * K + i] = v;
     }
-    /* keep the tets with positive weight */
+    g->hv[s] = cblas_ddot(m, g->A + (size_t)s * m, 1, g->b, 1);
+    s++;
+    double *Gc = crom_malloc(sizeof(double) * (size_t)s * s);
+    double *nw = crom_malloc(sizeof(double) * ((size_t)s * s + 2 * (size_t)s + 1));
+    int rc = Gc && nw ? 0 : CROM_EINTERNAL;
+    for (int i = 0; !rc && i < s; i++) /* repacked to s × s for the solver */
+        for (int j = 0; j < s; j++)
+            Gc[i * s + j] = g->G[(size_t)i * K + j];
+    if (!rc)
+        rc = nnls_normal(s, Gc, g->hv, g->w, nw, g->P_idx);
+    free(Gc);
+    free(nw);
+    if (rc)
+        return rc;
+    memcpy(g->res, g->b, sizeof(double) * (size_t)m);
+    for (int i = 0; i < s; i++)
+        if (g->w[i] > 0)
+            cblas_daxpy(m, -g->w[i], g->A + (size_t)i * m, 1, g->res, 1);
+    *err = cblas_dnrm2(m, g->res, 1) / g->bnorm;
+    return 0;
+}
+
+/* The cubature: the s selected tets with positive weight. */
+static int greedy_keep(const greedy *g, int s, crom_cubature *c)
+{
     c->k = 0;
     for (int i = 0; i < s; i++)
-        c->k += w[i] > 0;
-    if (c->k == 0) {
-        rc = crom_err(CROM_EDATA, "optimized cubature selected no tet");
-        goto out;
-    }
+        c->k += g->w[i] > 0;
+    if (c->k == 0)
+        return crom_err(CROM_EDATA, "optimized cubature selected no tet");
     c->elem = crom_malloc(sizeof(int) * (size_t)c->k);
     c->weight = crom_malloc(sizeof(double) * (size_t)c->k);
-    if (!c->elem || !c->weight) {
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
+    if (!c->elem || !c->weight)
+        return CROM_EINTERNAL;
     for (int i = 0, j = 0; i < s; i++)
-        if (w[i] > 0) {
-            c->elem[j] = sel[i];
-            c->weight[j++] = w[i];
+        if (g->w[i] > 0) {
+            c->elem[j] = g->sel[i];
+            c->weight[j++] = g->w[i];
         }
-out:
-    free(b);
-    free(col);
-    free(fscale);
-    free(escale);
-    free(work);
-    free(A);
-    free(G);
-    free(hv);
-    free(w);
-    free(res);
-    free(nwork);
-    free(sel);
-    free(P_idx);
-    free(taken);
-    free(cand);
+    return 0;
+}
+
+static int scheme_optimized(crom_cubature *c, const crom_cubature_opts *o, crom_rng *rng)
+{
+    greedy g;
+    int rc = greedy_init(&g, c, o);
+    if (!rc)
+        rc = greedy_targets(&g);
+    int s = 0, ncand = o->candidates > 0 ? o->candidates : 256;
+    double err = 1;
+    while (!rc && s < g.K && err > o->tol) {
+        int t = greedy_pick(&g, rng, ncand);
+        if (t < 0)
+            break;
+        if (!(rc = greedy_add(&g, s, t, &err)))
+            s++;
+    }
+    if (!rc)
+        rc = greedy_keep(&g, s, c);
+    greedy_free(&g);
     return rc;
 }
 
@@ -518,8 +574,8 @@ static int cmp_int(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-int crom_cub_build(crom_cub *c, const crom_mesh *mesh, const double *W, int r,
-                   const char *model_id, const crom_cub_opts *o, crom_rng *rng)
+int crom_cubature_build(crom_cubature *c, const crom_mesh *mesh, const double *W, int r,
+                        const char *model_id, const crom_cubature_opts *o, crom_rng *rng)
 {
     memset(c, 0, sizeof *c);
     int rc = crom_mesh_copy(mesh, &c->mesh);
@@ -547,8 +603,8 @@ int crom_cub_build(crom_cub *c, const crom_mesh *mesh, const double *W, int r,
         }
     for (int t = 0; t < nt; t++) {
         const int *e = mesh->tets + 4 * (size_t)t;
-        double V = crom_tet_volume(mesh->X + 3 * (size_t)e[0], mesh->X + 3 * (size_t)e[1],
-                                   mesh->X + 3 * (size_t)e[2], mesh->X + 3 * (size_t)e[3]);
+        double V = crom_mesh_tet_volume(mesh->X + 3 * (size_t)e[0], mesh->X + 3 * (size_t)e[1],
+                                        mesh->X + 3 * (size_t)e[2], mesh->X + 3 * (size_t)e[3]);
         tetvol[t] = V;
         c->mesh_volume += V;
         for (int a = 0; a < 4; a++)
@@ -584,14 +640,14 @@ int crom_cub_build(crom_cub *c, const crom_mesh *mesh, const double *W, int r,
     free(tri);
     /* the scheme */
     switch (o->scheme) {
-    case CROM_CUB_ALL: rc = scheme_all(c); break;
-    case CROM_CUB_RANDOM:
+    case CROM_CUBATURE_ALL: rc = scheme_all(c); break;
+    case CROM_CUBATURE_RANDOM:
         rc = o->count < 1 ? crom_err(CROM_EUSAGE, "--count must be at least 1") : scheme_random(c, tetvol, o->count, rng);
         break;
-    case CROM_CUB_METIS:
+    case CROM_CUBATURE_METIS:
         rc = o->count < 1 ? crom_err(CROM_EUSAGE, "--count must be at least 1") : scheme_metis(c, tetvol, o->count);
         break;
-    case CROM_CUB_OPTIMIZED:
+    case CROM_CUBATURE_OPTIMIZED:
         rc = o->count < 1 ? crom_err(CROM_EUSAGE, "--count must be at least 1") : scheme_optimized(c, o, rng);
         break;
     default: rc = crom_err(CROM_EUSAGE, "unknown cubature scheme");
@@ -618,12 +674,12 @@ int crom_cub_build(crom_cub *c, const crom_mesh *mesh, const double *W, int r,
 fail:
     free(tetvol);
     free(B);
-    crom_cub_free(c);
+    crom_cubature_free(c);
     return rc;
 }
 
-int crom_cub_error(const crom_cub *c, const crom_material *mat, const double *poses, int npose,
-                   const double *proj, int rout, double *energy_err, double *force_err)
+int crom_cubature_error(const crom_cubature *c, const crom_material *mat, const double *poses, int npose,
+                        const double *proj, int rout, double *energy_err, double *force_err)
 {
     int r = c->r, nt = c->mesh.nt, ro = proj ? rout : r;
     double *fe = crom_calloc((size_t)r, sizeof(double)), *fc = crom_calloc((size_t)r, sizeof(double));
@@ -639,15 +695,15 @@ int crom_cub_error(const crom_cub *c, const crom_material *mat, const double *po
         for (int t = 0; t < nt && !rc; t++) {
             gather(c, t, Xe, W4);
             crom_fem_tet_rest(Xe, Dm, &V);
-            double E = crom_cub_tet(mat, Xe, W4, r, Dm, V, 1.0, q, 0, fe, NULL, work);
+            double E = crom_cubature_tet(mat, Xe, W4, r, Dm, V, 1.0, q, 0, fe, NULL, work);
             if (!isfinite(E))
                 rc = CROM_EDATA;
             Ee += E;
         }
         for (int k = 0; k < c->k && !rc; k++) {
             double Dk[9];
-            crom_cub_gather(c, k, Xe, W4, Dk);
-            double E = crom_cub_tet(mat, Xe, W4, r, Dk, c->vol[k], c->weight[k], q, 0, fc, NULL, work);
+            crom_cubature_gather(c, k, Xe, W4, Dk);
+            double E = crom_cubature_tet(mat, Xe, W4, r, Dk, c->vol[k], c->weight[k], q, 0, fc, NULL, work);
             if (!isfinite(E))
                 rc = CROM_EDATA;
             Ec += c->weight[k] * E;
@@ -681,7 +737,7 @@ int crom_cub_error(const crom_cub *c, const crom_material *mat, const double *po
 
 /* -------------------------------------------------------------- file I/O */
 
-int crom_cub_write(hid_t loc, const crom_cub *c)
+int crom_cubature_write(hid_t loc, const crom_cubature *c)
 {
     int rc = crom_h5_set_str(loc, ".", "model_id", c->model_id);
     if (!rc)
@@ -722,10 +778,10 @@ int crom_cub_write(hid_t loc, const crom_cub *c)
     return rc;
 }
 
-int crom_cub_read(crom_in *in, crom_cub *c)
+int crom_cubature_read(crom_in *in, crom_cubature *c)
 {
     memset(c, 0, sizeof *c);
-    int rc = crom_in_expect(in, CROM_CUB_SCHEMA, CROM_CUB_VERSION);
+    int rc = crom_in_expect(in, CROM_CUBATURE_SCHEMA, CROM_CUBATURE_VERSION);
     if (rc)
         return rc;
     char *s = NULL;
@@ -823,11 +879,27 @@ int crom_cub_read(crom_in *in, crom_cub *c)
     return 0;
 fail:
     crom_err_ctx("%s", in->name);
-    crom_cub_free(c);
+    crom_cubature_free(c);
     return rc ? rc : CROM_EDATA;
 }
 
-void crom_cub_free(crom_cub *c)
+int crom_cubature_load(const char *path, crom_cubature *c, char **history)
+{
+    memset(c, 0, sizeof *c);
+    crom_in in;
+    int rc = crom_in_open(&in, path);
+    if (rc)
+        return rc;
+    rc = crom_cubature_read(&in, c);
+    if (!rc && history) {
+        *history = in.history;
+        in.history = NULL;
+    }
+    crom_in_close(&in);
+    return rc;
+}
+
+void crom_cubature_free(crom_cubature *c)
 {
     crom_mesh_free(&c->mesh);
     free(c->W);

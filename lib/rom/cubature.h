@@ -23,8 +23,8 @@
 #include "mesh/mesh.h"
 #include "phys/fem.h"
 
-#define CROM_CUB_SCHEMA "crom/cubature"
-#define CROM_CUB_VERSION 1
+#define CROM_CUBATURE_SCHEMA "crom/cubature"
+#define CROM_CUBATURE_VERSION 1
 
 typedef struct {
     char model_id[17];
@@ -46,9 +46,9 @@ typedef struct {
     int map_rank;          /* > 0: W is the feature basis B of a nonlinear map
                             * of this latent rank (crom-reducedstep --model
                             * --cubature); 0: a linear basis */
-} crom_cub;
+} crom_cubature;
 
-enum { CROM_CUB_ALL, CROM_CUB_RANDOM, CROM_CUB_METIS, CROM_CUB_OPTIMIZED };
+enum { CROM_CUBATURE_ALL, CROM_CUBATURE_RANDOM, CROM_CUBATURE_METIS, CROM_CUBATURE_OPTIMIZED };
 
 typedef struct {
     int scheme;
@@ -64,33 +64,37 @@ typedef struct {
      * than the r feature forces; NULL: fit the r forces */
     const double *proj;
     int rout;
-} crom_cub_opts;
+} crom_cubature_opts;
 
-/* Scheme name to CROM_CUB_*, or -1. */
-int crom_cub_scheme(const char *name);
+/* Scheme name to CROM_CUBATURE_ALL ..., or -1. */
+int crom_cubature_scheme(const char *name);
 
 /* Build a cubature for mesh (copied) with W [nv][3][r] at its vertices
  * (copied). Returns 0, CROM_EUSAGE (bad count, optimized without poses),
  * CROM_EDATA (degenerate mesh, non-finite W) or CROM_EINTERNAL. */
-int crom_cub_build(crom_cub *c, const crom_mesh *mesh, const double *W, int r,
-                   const char *model_id, const crom_cub_opts *o, crom_rng *rng);
+int crom_cubature_build(crom_cubature *c, const crom_mesh *mesh, const double *W, int r,
+                        const char *model_id, const crom_cubature_opts *o, crom_rng *rng);
 
-/* The data of cubature tet k for crom_cub_tet: rest positions Xe[12] of its
+/* The data of cubature tet k for crom_cubature_tet: rest positions Xe[12] of its
  * corners, the [4][3][r] block of W at them, and its Dm⁻¹. */
-void crom_cub_gather(const crom_cub *c, int k, double Xe[12], double *W4, double Dminv[9]);
+void crom_cubature_gather(const crom_cubature *c, int k, double Xe[12], double *W4, double Dminv[9]);
 
 
 /* Relative errors of the cubature against the exact integral over all tets
  * at poses [npose][r]: elastic energy (|Σ_pose ΔE| / Σ|E|) and reduced force
  * (‖Δf‖/‖f‖ over all poses stacked; with proj non-NULL the forces Tᵀ f of
- * crom_cub_opts.proj, rout per pose). */
-int crom_cub_error(const crom_cub *c, const crom_material *mat, const double *poses,
-                   int npose, const double *proj, int rout, double *energy_err, double *force_err);
+ * crom_cubature_opts.proj, rout per pose). */
+int crom_cubature_error(const crom_cubature *c, const crom_material *mat, const double *poses,
+                        int npose, const double *proj, int rout, double *energy_err, double *force_err);
 
-int crom_cub_write(hid_t loc, const crom_cub *c);
+int crom_cubature_write(hid_t loc, const crom_cubature *c);
 /* Read and check (shapes, indices, finite values) a crom/cubature input. */
-int crom_cub_read(crom_in *in, crom_cub *c);
-void crom_cub_free(crom_cub *c);
+int crom_cubature_read(crom_in *in, crom_cubature *c);
+
+/* The same from path (NULL or "-": stdin); when history is not NULL it
+ * takes over the file's history attribute (malloc'ed; NULL if none). */
+int crom_cubature_load(const char *path, crom_cubature *c, char **history);
+void crom_cubature_free(crom_cubature *c);
 
 /* Element gradient of V·Ψ at positions X + W q projected to the basis:
  * g_r[r] += w Σ_a W_aᵀ ∂(VΨ)/∂x_a, and (when H_r is non-NULL) the reduced
@@ -98,8 +102,13 @@ void crom_cub_free(crom_cub *c);
  * tet's rest positions, W4 the [4][3][r] block of its vertices, work holds
  * 168 + 12r doubles. Returns V·Ψ (unweighted), or NaN with CROM_EDATA
  * recorded when the element is not finite. */
-double crom_cub_tet(const crom_material *mat, const double Xe[12], const double *W4, int r,
-                    const double Dminv[9], double V, double w, const double *q, int project,
-                    double *g_r, double *H_r, double *work);
+double crom_cubature_tet(const crom_material *mat, const double Xe[12], const double *W4, int r,
+                         const double Dminv[9], double V, double w, const double *q, int project,
+                         double *g_r, double *H_r, double *work);
+
+/* Old name (issue 13), kept only for lib/rom/nlsim.c, which another branch
+ * is editing, until it uses the name above; tests/prog/layers.sh keeps all
+ * other code off it. */
+#define crom_cub_tet crom_cubature_tet
 
 #endif

@@ -35,7 +35,7 @@ static void shape_gradients(const double Dminv[9], double dN[4][3])
 
 /* 1 if W_v = I₃ ⊗ ψ_vᵀ (r = 3S) at every corner of every cubature tet:
  * row c of W_v is ψ_v in columns [cS, (c+1)S) and zero elsewhere */
-static int component_block(const crom_cub *c)
+static int component_block(const crom_cubature *c)
 {
     int r = c->r;
     if (r % 3 || r < 3)
@@ -56,7 +56,7 @@ static int component_block(const crom_cub *c)
     return 1;
 }
 
-int crom_elastic_init(crom_elastic *e, const crom_cub *c)
+int crom_elastic_init(crom_elastic *e, const crom_cubature *c)
 {
     memset(e, 0, sizeof *e);
     e->r = c->r;

@@ -44,7 +44,7 @@ typedef struct {
 
 /* Precompute G_k, F0_k and w_k V_k of every tet of cubature c (borrowed
  * only during the call). Returns 0 or CROM_EINTERNAL. */
-int crom_elastic_init(crom_elastic *e, const crom_cub *c);
+int crom_elastic_init(crom_elastic *e, const crom_cubature *c);
 
 /* Release what init allocated (safe on a zeroed struct). */
 void crom_elastic_free(crom_elastic *e);

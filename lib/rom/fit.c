@@ -349,7 +349,7 @@ void crom_fit_defaults(crom_fit_opts *o)
 {
     memset(o, 0, sizeof *o);
     o->rank = 20;
-    o->encoder = CROM_ENC_LSQ;
+    o->encoder = CROM_MODEL_ENC_LSQ;
     o->depth = 5;
     o->width = 60;
     o->act = CROM_NN_ELU;
@@ -577,7 +577,7 @@ static int trainer_init(trainer *t, const crom_samples *S, const crom_fit_opts *
     t->o = *o;
     t->r = o->rank;
     t->B = o->batch < S->F ? o->batch : S->F;
-    int pn = o->encoder == CROM_ENC_POINTNET;
+    int pn = o->encoder == CROM_MODEL_ENC_POINTNET;
     int P = o->points_per_step > 0 ? o->points_per_step : pn ? S->N : 128;
     t->P = P < S->N ? P : S->N;
     t->Pe = pn ? (o->enc_points < S->N ? o->enc_points : S->N) : 0;
@@ -1077,7 +1077,7 @@ static int train(fitrun *R)
 {
     const crom_fit_opts *o = &R->o;
     trainer *t = &R->t;
-    double budget = o->minutes > 0 ? 60 * o->minutes : 0, tstart = crom_now();
+    double budget = o->minutes > 0 ? 60 * o->minutes : 0, tstart = crom_clock_now();
     int stop = 0, rc;
     for (int e = 0; e < o->epochs && !stop; e++) {
         plan_epoch(t);
@@ -1085,7 +1085,7 @@ static int train(fitrun *R)
         int nsum = 0;
         for (int k = 0; k < t->nbatches; k++) {
             double frac = (e + (double)k / t->nbatches) / o->epochs;
-            double el = crom_now() - tstart;
+            double el = crom_clock_now() - tstart;
             if (budget > 0) {
                 if (el >= budget) {
                     stop = 1;
@@ -1104,16 +1104,16 @@ static int train(fitrun *R)
         if (nsum == 0)
             break;
         R->loss[R->epochs_done] = sum / nsum * t->s * t->s;
-        R->secs[R->epochs_done] = crom_wall(crom_now() - tstart);
+        R->secs[R->epochs_done] = crom_clock_wall(crom_clock_now() - tstart);
         R->epochs_done++;
         if (o->progress) {
             double frac = (double)(e + 1) / o->epochs;
             if (budget > 0)
-                frac = fmax(frac, (crom_now() - tstart) / budget);
+                frac = fmax(frac, (crom_clock_now() - tstart) / budget);
             o->progress(o->progress_ctx, e + 1, fmin(frac, 1.0), R->loss[R->epochs_done - 1]);
         }
     }
-    R->st.seconds = crom_now() - tstart;
+    R->st.seconds = crom_clock_now() - tstart;
     return 0;
 }
 
@@ -1179,7 +1179,7 @@ static int make_model(fitrun *R, const crom_samples *S, double t0, crom_model *o
     out->loss = R->loss;
     out->seconds = R->secs;
     R->loss = R->secs = NULL;
-    out->training_seconds = crom_wall(crom_now() - t0);
+    out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
     return 0;
 }
 
@@ -1190,7 +1190,7 @@ int crom_fit_mlp(const crom_samples *S, const crom_fit_opts *opts, crom_model *o
     memset(&R, 0, sizeof R);
     crom_fit_opts *o = &R.o;
     *o = *opts;
-    R.pn = o->encoder == CROM_ENC_POINTNET;
+    R.pn = o->encoder == CROM_MODEL_ENC_POINTNET;
     if (o->epochs <= 0)
         o->epochs = R.pn ? CROM_FIT_EPOCHS_POINTNET : CROM_FIT_EPOCHS_LSQ;
     if (o->lr <= 0)
@@ -1201,7 +1201,7 @@ int crom_fit_mlp(const crom_samples *S, const crom_fit_opts *opts, crom_model *o
     int rc = crom_fit_check(S, o->rank);
     if (rc)
         return rc;
-    double t0 = crom_now();
+    double t0 = crom_clock_now();
     /* threaded MLP passes call sgemm per thread: OpenBLAS single-threaded
      * meanwhile (nn.h), the caller's setting restored on return */
     int blas_threads = openblas_get_num_threads(), threaded = o->threads > 1;
@@ -1268,7 +1268,7 @@ int crom_fit_pod(const crom_samples *S, int rank, crom_model *out, double *captu
     int rc = crom_fit_check(S, rank);
     if (rc)
         return rc;
-    double t0 = crom_now();
+    double t0 = crom_clock_now();
     if (S->nsources != 1)
         return crom_err(CROM_EDATA,
                         "--basis pod needs samples of one mesh, and this sample set has %d source meshes "
@@ -1293,7 +1293,7 @@ int crom_fit_pod(const crom_samples *S, int rank, crom_model *out, double *captu
         rc = CROM_EINTERNAL;
         goto done;
     }
-    double vol = crom_vertex_volumes(m, w);
+    double vol = crom_mesh_vertex_volumes(m, w);
     if ((rc = pod_snapshots(S, w, vol, seen, U, Y)))
         goto done;
     /* Gram matrix of the weighted snapshots and its eigenvectors */
@@ -1336,7 +1336,7 @@ int crom_fit_pod(const crom_samples *S, int rank, crom_model *out, double *captu
         goto done;
     }
     out->reconstruction_error = err;
-    out->training_seconds = crom_wall(crom_now() - t0);
+    out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
     if (captured)
         *captured = sum > 0 ? top / sum : 1;
 done:
@@ -1358,7 +1358,7 @@ int crom_fit_error(const crom_model *m, const crom_samples *S, double tik, int u
 {
     int r = m->rank, N = S->N, rc = 0;
     size_t rr = (size_t)r * r;
-    int enc = use_encoder && m->encoder == CROM_ENC_POINTNET;
+    int enc = use_encoder && m->encoder == CROM_MODEL_ENC_POINTNET;
     double **cache = crom_calloc((size_t)(S->nsources ? S->nsources : 1), sizeof(double *));
     double *Wf = crom_malloc(sizeof(double) * (size_t)N * 3 * r);
     double *Xd = crom_malloc(sizeof(double) * (size_t)N * 3);
@@ -1385,7 +1385,7 @@ int crom_fit_error(const crom_model *m, const crom_samples *S, double tik, int u
                 rc = CROM_EINTERNAL;
                 goto done;
             }
-            double *fp = crom_mesh_field_points(sm, CROM_CRACK_OFFSET, NULL);
+            double *fp = crom_mesh_field_points(sm, CROM_MESH_CRACK_OFFSET, NULL);
             rc = fp ? crom_model_eval(m, (size_t)sm->nv, fp, cache[k], NULL) : CROM_EINTERNAL;
             free(fp);
             if (rc)

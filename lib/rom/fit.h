@@ -99,7 +99,7 @@ int crom_fit_loss(crom_fit_ctx *c, const crom_fit_batch *b, double *objective, d
 
 typedef struct {
     int rank;               /* r (20) */
-    int encoder;            /* CROM_ENC_LSQ (default) or CROM_ENC_POINTNET */
+    int encoder;            /* CROM_MODEL_ENC_LSQ (default) or CROM_MODEL_ENC_POINTNET */
     int depth, width;       /* field MLP: depth dense layers, hidden width (5, 60) */
     crom_nn_act act;        /* hidden activation (ELU) */
     int epochs;             /* epochs; also the length of the lr schedule (0: default of the encoder) */

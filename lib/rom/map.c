@@ -126,7 +126,7 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
     memset(map, 0, sizeof *map);
     int rc = 0, r = model->rank;
     map->r = r;
-    if (model->field == CROM_FIELD_MAP) {
+    if (model->field == CROM_MODEL_FIELD_MAP) {
         if (mesh && crom_map_same_mesh(mesh, &model->mesh))
             return crom_err(CROM_EDATA, "model %s (basis '%s') is a map of one mesh and decodes only onto its own "
                             "mesh (%d vertices, %d tets); the given mesh has %d vertices, %d tets%s",
@@ -134,12 +134,13 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
                             mesh->nv == model->mesh.nv ? " at other positions" : "");
         /* the same mesh: keep the given one's regions if it has any */
         rc = crom_mesh_copy(mesh && mesh->nregions ? mesh : &model->mesh, &map->mesh);
-    } else if (model->field == CROM_FIELD_MESH || (model->field == CROM_FIELD_SKIN && model->skin_w)) {
+    } else if (model->field == CROM_MODEL_FIELD_MESH || (model->field == CROM_MODEL_FIELD_SKIN && model->skin_w)) {
         rc = crom_mesh_copy(mesh ? mesh : &model->mesh, &map->mesh);
-    } else if (model->field == CROM_FIELD_MLP || model->field == CROM_FIELD_CMAP || model->field == CROM_FIELD_SKIN) {
+    } else if (model->field == CROM_MODEL_FIELD_MLP || model->field == CROM_MODEL_FIELD_CMAP ||
+               model->field == CROM_MODEL_FIELD_SKIN) {
         if (!mesh)
             return crom_err(CROM_EUSAGE, "model %s is a neural field %s: give the mesh to lay it on",
-                            model->model_id, model->field == CROM_FIELD_CMAP ? "x(X, q)" : "W(X)");
+                            model->model_id, model->field == CROM_MODEL_FIELD_CMAP ? "x(X, q)" : "W(X)");
         rc = crom_mesh_copy(mesh, &map->mesh);
     } else {
         return crom_err(CROM_EINTERNAL, "model has no basis");
@@ -150,9 +151,9 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
     }
     map->nv = map->mesh.nv;
     map->n = 3 * map->nv;
-    if (model->field == CROM_FIELD_MAP) {
+    if (model->field == CROM_MODEL_FIELD_MAP) {
         rc = load_net(map, &model->mlp, model->basis_v);
-    } else if (model->field == CROM_FIELD_CMAP) {
+    } else if (model->field == CROM_MODEL_FIELD_CMAP) {
         rc = load_field_map(map, model);
     } else { /* a linear basis: a = q, B = W(X_v) */
         map->p = r;

@@ -13,7 +13,7 @@
  *
  * The network N runs in double precision from the stored float32 weights
  * (converted once), so x(q) is smooth to round-off: Gauss–Newton on it
- * (lib/rom/nlrom.h) and finite-difference checks see no float noise. Output
+ * (lib/rom/nlsim.h) and finite-difference checks see no float noise. Output
  * 3v + c of N is component c of vertex v in metres; there is no input
  * normalization (the latent enters as is).
  *
@@ -36,7 +36,7 @@ typedef struct crom_map_s {
      * a = [q (if W) | the last hidden layer of N | 1 (if N)] and
      * B = [W | W_L | b_L] ([n][p] row-major), so that everything a reduced
      * simulation needs from a few vertices costs p flops per row and
-     * quadratic forms over all vertices are p x p (lib/rom/nlrom.h). A linear
+     * quadratic forms over all vertices are p x p (lib/rom/nlsim.h). A linear
      * basis has a = q, T = I, B = W. */
     int p;
     double *B;           /* [n][p] */

@@ -42,7 +42,7 @@ void crom_model_free(crom_model *m)
 
 const char *crom_model_encoder_name(int enc)
 {
-    return enc == CROM_ENC_POINTNET ? "pointnet" : enc == CROM_ENC_LSQ ? "lsq" : "none";
+    return enc == CROM_MODEL_ENC_POINTNET ? "pointnet" : enc == CROM_MODEL_ENC_LSQ ? "lsq" : "none";
 }
 
 /* ------------------------------------------------------------------ id */
@@ -73,9 +73,9 @@ const char *crom_model_id(const crom_model *m, char id[17])
     fnv s = {0xcbf29ce484222325ULL};
     fnv_bytes(&s, m->basis, strlen(m->basis) + 1);
     fnv_i64(&s, m->rank);
-    if (m->field == CROM_FIELD_SKIN) {
+    if (m->field == CROM_MODEL_FIELD_SKIN) {
         s.h = crom_skin_digest(m, s.h);
-    } else if (m->field == CROM_FIELD_MLP || m->field == CROM_FIELD_CMAP) {
+    } else if (m->field == CROM_MODEL_FIELD_MLP || m->field == CROM_MODEL_FIELD_CMAP) {
         const crom_nn_spec *sp = &m->mlp.spec;
         for (int l = 0; l <= sp->nlayers; l++) {
             int32_t w = sp->width[l];
@@ -92,7 +92,7 @@ const char *crom_model_id(const crom_model *m, char id[17])
             fnv_bytes(&s, &v, 8);
         }
         fnv_bytes(&s, m->mlp.params, sizeof(float) * m->mlp.nparams);
-        if (m->field == CROM_FIELD_CMAP) {
+        if (m->field == CROM_MODEL_FIELD_CMAP) {
             const crom_nn_spec *lp = &m->latent.spec;
             for (int l = 0; l <= lp->nlayers; l++) {
                 int32_t w = lp->width[l];
@@ -107,7 +107,7 @@ const char *crom_model_id(const crom_model *m, char id[17])
                 fnv_bytes(&s, m->pin_triangles, sizeof(double) * 9 * (size_t)m->npin_triangles);
             fnv_bytes(&s, &m->pin_length, 8);
         }
-    } else if (m->field == CROM_FIELD_MAP) {
+    } else if (m->field == CROM_MODEL_FIELD_MAP) {
         const crom_nn_spec *sp = &m->mlp.spec;
         for (int l = 0; l <= sp->nlayers; l++) {
             int32_t w = sp->width[l];
@@ -122,7 +122,7 @@ const char *crom_model_id(const crom_model *m, char id[17])
         fnv_bytes(&s, m->mesh.tets, sizeof(int) * 4 * (size_t)m->mesh.nt);
         if (m->basis_v)
             fnv_bytes(&s, m->basis_v, sizeof(double) * 3 * (size_t)m->rank * m->mesh.nv);
-    } else if (m->field == CROM_FIELD_MESH) {
+    } else if (m->field == CROM_MODEL_FIELD_MESH) {
         fnv_i64(&s, m->mesh.nv);
         fnv_i64(&s, m->mesh.nt);
         fnv_bytes(&s, m->mesh.X, sizeof(double) * 3 * (size_t)m->mesh.nv);
@@ -149,9 +149,9 @@ int crom_model_from_mlp(crom_model *m, const crom_nn_mlp *W, const crom_nn_point
         return crom_err(CROM_EUSAGE, "a field MLP maps 3 inputs to 3r outputs (got %d -> %d)",
                         W->spec.width[0], out);
     snprintf(m->basis, sizeof m->basis, "mlp");
-    m->field = CROM_FIELD_MLP;
+    m->field = CROM_MODEL_FIELD_MLP;
     m->rank = out / 3;
-    m->encoder = enc ? CROM_ENC_POINTNET : CROM_ENC_LSQ;
+    m->encoder = enc ? CROM_MODEL_ENC_POINTNET : CROM_MODEL_ENC_LSQ;
     int rc = crom_nn_mlp_from_params(&m->mlp, &W->spec, W->params, W->nparams, W->shift, W->scale);
     if (!rc && enc) {
         if (enc->head.spec.width[enc->head.spec.nlayers] != m->rank || enc->point.spec.width[0] != 6)
@@ -173,9 +173,9 @@ int crom_model_from_mesh(crom_model *m, const char *basis, const crom_mesh *mesh
     if (rank < 1)
         return crom_err(CROM_EUSAGE, "rank %d must be positive", rank);
     snprintf(m->basis, sizeof m->basis, "%s", basis);
-    m->field = CROM_FIELD_MESH;
+    m->field = CROM_MODEL_FIELD_MESH;
     m->rank = rank;
-    m->encoder = CROM_ENC_LSQ;
+    m->encoder = CROM_MODEL_ENC_LSQ;
     m->mesh.nv = mesh->nv;
     m->mesh.nt = mesh->nt;
     size_t nb = (size_t)mesh->nv * 3 * rank;
@@ -213,9 +213,9 @@ int crom_model_from_map(crom_model *m, const char *basis, const crom_nn_mlp *net
     if (r < 1 || out != 3 * mesh->nv)
         return crom_err(CROM_EUSAGE, "a map network goes r -> 3nv = %d, got %d -> %d", 3 * mesh->nv, r, out);
     snprintf(m->basis, sizeof m->basis, "%s", basis);
-    m->field = CROM_FIELD_MAP;
+    m->field = CROM_MODEL_FIELD_MAP;
     m->rank = r;
-    m->encoder = CROM_ENC_NONE;
+    m->encoder = CROM_MODEL_ENC_NONE;
     int rc = crom_nn_mlp_from_params(&m->mlp, sp, net->params, net->nparams, NULL, NULL);
     if (!rc)
         rc = crom_mesh_copy(mesh, &m->mesh);
@@ -238,7 +238,7 @@ int crom_model_from_map(crom_model *m, const char *basis, const crom_nn_mlp *net
 
 int crom_model_is_nonlinear(const crom_model *m)
 {
-    return m->field == CROM_FIELD_MAP || m->field == CROM_FIELD_CMAP;
+    return m->field == CROM_MODEL_FIELD_MAP || m->field == CROM_MODEL_FIELD_CMAP;
 }
 
 double crom_model_pin_mask(const double X[3], int npin, const double *pinX, int ntri, const double *triX, double len)
@@ -262,7 +262,7 @@ double crom_model_pin_mask(const double X[3], int npin, const double *pinX, int 
 
 double crom_model_mask(const crom_model *m, const double X[3])
 {
-    if (m->field != CROM_FIELD_CMAP)
+    if (m->field != CROM_MODEL_FIELD_CMAP)
         return 1;
     return crom_model_pin_mask(X, m->npin_points, m->pin_points, m->npin_triangles, m->pin_triangles,
                                m->pin_length);
@@ -278,9 +278,9 @@ int crom_model_from_field_map(crom_model *m, const crom_nn_mlp *W, const crom_nn
         return crom_err(CROM_EUSAGE, "the feature field goes %d -> %d, expected 3 -> 3p = %d", ws->width[0],
                         ws->width[ws->nlayers], 3 * p);
     snprintf(m->basis, sizeof m->basis, "energy-field");
-    m->field = CROM_FIELD_CMAP;
+    m->field = CROM_MODEL_FIELD_CMAP;
     m->rank = ps->width[0];
-    m->encoder = CROM_ENC_NONE;
+    m->encoder = CROM_MODEL_ENC_NONE;
     int rc = crom_nn_mlp_from_params(&m->mlp, ws, W->params, W->nparams, W->shift, W->scale);
     if (!rc)
         rc = crom_nn_mlp_from_params(&m->latent, ps, phi->params, phi->nparams, NULL, NULL);
@@ -320,9 +320,10 @@ static int write_widths(hid_t loc, const char *name, const crom_nn_spec *s)
     return crom_h5_put_i32(loc, name, 1, &d, w);
 }
 
-int crom_model_write(hid_t loc, crom_model *m)
+/* The root attributes: what the model is, and the record of its training
+ * and material when known. */
+static int write_attrs(hid_t loc, const crom_model *m)
 {
-    crom_model_id(m, m->model_id);
     int rc = crom_h5_set_str(loc, ".", "basis", m->basis);
     if (!rc)
         rc = crom_h5_set_i64(loc, ".", "rank", m->rank);
@@ -342,90 +343,126 @@ int crom_model_write(hid_t loc, crom_model *m)
         rc = crom_h5_set_f64(loc, ".", "poisson", &m->poisson, 1);
     if (!rc && isfinite(m->density))
         rc = crom_h5_set_f64(loc, ".", "density", &m->density, 1);
+    return rc;
+}
+
+/* CROM_MODEL_FIELD_MAP: the network r -> 3nv, its mesh (with regions), the
+ * linear modes and their frequencies when present. */
+static int write_map(hid_t loc, const crom_model *m)
+{
+    hsize_t np = m->mlp.nparams, dr = (hsize_t)m->rank;
+    int rc = crom_h5_set_str(loc, ".", "activation", crom_nn_act_name(m->mlp.spec.act));
+    if (!rc)
+        rc = write_widths(loc, "field/widths", &m->mlp.spec);
+    if (!rc)
+        rc = crom_h5_put_f32(loc, "field/params", 1, &np, m->mlp.params);
+    if (!rc) {
+        hid_t g = crom_h5_group(loc, "field/mesh");
+        rc = g < 0 ? CROM_EINTERNAL : crom_mesh_write(g, &m->mesh);
+        if (g >= 0)
+            H5Gclose(g);
+    }
+    if (!rc && m->basis_v) {
+        hsize_t db[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)m->rank};
+        rc = crom_h5_put_f64(loc, "field/basis", 3, db, m->basis_v);
+    }
+    if (!rc && m->frequencies)
+        rc = crom_h5_put_f64(loc, "frequencies", 1, &dr, m->frequencies);
+    return rc;
+}
+
+/* CROM_MODEL_FIELD_MLP and _CMAP: the neural field with its input
+ * normalization; for CMAP also the latent network and the pin mask. */
+static int write_mlp(hid_t loc, const crom_model *m)
+{
+    const crom_nn_mlp *W = &m->mlp;
+    double sh[3], sc[3];
+    for (int i = 0; i < 3; i++) {
+        sh[i] = W->shift[i];
+        sc[i] = W->scale[i];
+    }
+    hsize_t np = W->nparams, d3 = 3;
+    int rc = crom_h5_set_str(loc, ".", "activation", crom_nn_act_name(W->spec.act));
+    if (!rc)
+        rc = write_widths(loc, "field/widths", &W->spec);
+    if (!rc)
+        rc = crom_h5_put_f32(loc, "field/params", 1, &np, W->params);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "field/input_shift", 1, &d3, sh);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "field/input_scale", 1, &d3, sc);
+    if (rc || m->field != CROM_MODEL_FIELD_CMAP)
+        return rc;
+    hsize_t nl = m->latent.nparams;
+    rc = write_widths(loc, "latent/widths", &m->latent.spec);
+    if (!rc)
+        rc = crom_h5_put_f32(loc, "latent/params", 1, &nl, m->latent.params);
+    hsize_t dp[2] = {(hsize_t)m->npin_points, 3}, d1 = 1;
+    if (!rc && m->npin_points)
+        rc = crom_h5_put_f64(loc, "latent/pin_points", 2, dp, m->pin_points);
+    hsize_t dt[3] = {(hsize_t)m->npin_triangles, 3, 3};
+    if (!rc && m->npin_triangles)
+        rc = crom_h5_put_f64(loc, "latent/pin_triangles", 3, dt, m->pin_triangles);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "latent/pin_length", 1, &d1, &m->pin_length);
+    return rc;
+}
+
+/* CROM_MODEL_FIELD_MESH: the mesh (vertices and tets) and W at its
+ * vertices, with the frequencies of modes. */
+static int write_mesh_field(hid_t loc, const crom_model *m)
+{
+    hsize_t dv[2] = {(hsize_t)m->mesh.nv, 3}, dt[2] = {(hsize_t)m->mesh.nt, 4};
+    hsize_t db[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)m->rank}, dr = (hsize_t)m->rank;
+    int rc = crom_h5_put_f64(loc, "field/mesh/vertices", 2, dv, m->mesh.X);
+    if (!rc)
+        rc = crom_h5_put_i32(loc, "field/mesh/tets", 2, dt, m->mesh.tets);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "field/basis", 3, db, m->basis_v);
+    if (!rc && m->frequencies)
+        rc = crom_h5_put_f64(loc, "frequencies", 1, &dr, m->frequencies);
+    return rc;
+}
+
+/* The PointNet encoder: both networks' widths, the parameters and the
+ * input normalization. */
+static int write_encoder(hid_t loc, const crom_nn_pointnet *P)
+{
+    double sh[6], sc[6];
+    for (int i = 0; i < 6; i++) {
+        sh[i] = P->point.shift[i];
+        sc[i] = P->point.scale[i];
+    }
+    hsize_t np = P->nparams, d6 = 6;
+    int rc = write_widths(loc, "encoder/point_widths", &P->point.spec);
+    if (!rc)
+        rc = write_widths(loc, "encoder/head_widths", &P->head.spec);
+    if (!rc)
+        rc = crom_h5_put_f32(loc, "encoder/params", 1, &np, P->params);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "encoder/input_shift", 1, &d6, sh);
+    if (!rc)
+        rc = crom_h5_put_f64(loc, "encoder/input_scale", 1, &d6, sc);
+    return rc;
+}
+
+int crom_model_write(hid_t loc, crom_model *m)
+{
+    crom_model_id(m, m->model_id);
+    int rc = write_attrs(loc, m);
     if (rc)
         return rc;
-    if (m->field == CROM_FIELD_SKIN) {
+    if (m->field == CROM_MODEL_FIELD_SKIN)
         rc = crom_skin_write(loc, m);
-    } else if (m->field == CROM_FIELD_MAP) {
-        hsize_t np = m->mlp.nparams, dr = (hsize_t)m->rank;
-        rc = crom_h5_set_str(loc, ".", "activation", crom_nn_act_name(m->mlp.spec.act));
-        if (!rc)
-            rc = write_widths(loc, "field/widths", &m->mlp.spec);
-        if (!rc)
-            rc = crom_h5_put_f32(loc, "field/params", 1, &np, m->mlp.params);
-        if (!rc) {
-            hid_t g = crom_h5_group(loc, "field/mesh");
-            rc = g < 0 ? CROM_EINTERNAL : crom_mesh_write(g, &m->mesh);
-            if (g >= 0)
-                H5Gclose(g);
-        }
-        if (!rc && m->basis_v) {
-            hsize_t db[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)m->rank};
-            rc = crom_h5_put_f64(loc, "field/basis", 3, db, m->basis_v);
-        }
-        if (!rc && m->frequencies)
-            rc = crom_h5_put_f64(loc, "frequencies", 1, &dr, m->frequencies);
-    } else if (m->field == CROM_FIELD_MLP || m->field == CROM_FIELD_CMAP) {
-        const crom_nn_mlp *W = &m->mlp;
-        double sh[3], sc[3];
-        for (int i = 0; i < 3; i++) {
-            sh[i] = W->shift[i];
-            sc[i] = W->scale[i];
-        }
-        hsize_t np = W->nparams, d3 = 3;
-        rc = crom_h5_set_str(loc, ".", "activation", crom_nn_act_name(W->spec.act));
-        if (!rc)
-            rc = write_widths(loc, "field/widths", &W->spec);
-        if (!rc)
-            rc = crom_h5_put_f32(loc, "field/params", 1, &np, W->params);
-        if (!rc)
-            rc = crom_h5_put_f64(loc, "field/input_shift", 1, &d3, sh);
-        if (!rc)
-            rc = crom_h5_put_f64(loc, "field/input_scale", 1, &d3, sc);
-        if (!rc && m->field == CROM_FIELD_CMAP) {
-            hsize_t nl = m->latent.nparams;
-            rc = write_widths(loc, "latent/widths", &m->latent.spec);
-            if (!rc)
-                rc = crom_h5_put_f32(loc, "latent/params", 1, &nl, m->latent.params);
-            hsize_t dp[2] = {(hsize_t)m->npin_points, 3}, d1 = 1;
-            if (!rc && m->npin_points)
-                rc = crom_h5_put_f64(loc, "latent/pin_points", 2, dp, m->pin_points);
-            hsize_t dt[3] = {(hsize_t)m->npin_triangles, 3, 3};
-            if (!rc && m->npin_triangles)
-                rc = crom_h5_put_f64(loc, "latent/pin_triangles", 3, dt, m->pin_triangles);
-            if (!rc)
-                rc = crom_h5_put_f64(loc, "latent/pin_length", 1, &d1, &m->pin_length);
-        }
-    } else {
-        hsize_t dv[2] = {(hsize_t)m->mesh.nv, 3}, dt[2] = {(hsize_t)m->mesh.nt, 4};
-        hsize_t db[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)m->rank}, dr = (hsize_t)m->rank;
-        rc = crom_h5_put_f64(loc, "field/mesh/vertices", 2, dv, m->mesh.X);
-        if (!rc)
-            rc = crom_h5_put_i32(loc, "field/mesh/tets", 2, dt, m->mesh.tets);
-        if (!rc)
-            rc = crom_h5_put_f64(loc, "field/basis", 3, db, m->basis_v);
-        if (!rc && m->frequencies)
-            rc = crom_h5_put_f64(loc, "frequencies", 1, &dr, m->frequencies);
-    }
-    if (!rc && m->encoder == CROM_ENC_POINTNET) {
-        const crom_nn_pointnet *P = &m->enc;
-        double sh[6], sc[6];
-        for (int i = 0; i < 6; i++) {
-            sh[i] = P->point.shift[i];
-            sc[i] = P->point.scale[i];
-        }
-        hsize_t np = P->nparams, d6 = 6;
-        rc = write_widths(loc, "encoder/point_widths", &P->point.spec);
-        if (!rc)
-            rc = write_widths(loc, "encoder/head_widths", &P->head.spec);
-        if (!rc)
-            rc = crom_h5_put_f32(loc, "encoder/params", 1, &np, P->params);
-        if (!rc)
-            rc = crom_h5_put_f64(loc, "encoder/input_shift", 1, &d6, sh);
-        if (!rc)
-            rc = crom_h5_put_f64(loc, "encoder/input_scale", 1, &d6, sc);
-    }
-    if (!rc && m->nepochs > 0) {
+    else if (m->field == CROM_MODEL_FIELD_MAP)
+        rc = write_map(loc, m);
+    else if (m->field == CROM_MODEL_FIELD_MLP || m->field == CROM_MODEL_FIELD_CMAP)
+        rc = write_mlp(loc, m);
+    else
+        rc = write_mesh_field(loc, m);
+    if (!rc && m->encoder == CROM_MODEL_ENC_POINTNET)
+        rc = write_encoder(loc, &m->enc);
+    if (!rc && m->nepochs > 0) { /* the training record */
         hsize_t de = (hsize_t)m->nepochs;
         rc = crom_h5_put_f64(loc, "training/loss", 1, &de, m->loss);
         if (!rc)
@@ -501,7 +538,7 @@ static int read_mlp(hid_t h, crom_model *m, char *act)
     if (crom_nn_spec_set(&spec, nw, w, a))
         return crom_err(CROM_EDATA, "field/widths: %s", crom_errmsg());
     int p = m->rank;
-    if (m->field == CROM_FIELD_CMAP) { /* the latent network φ: r -> p first */
+    if (m->field == CROM_MODEL_FIELD_CMAP) { /* the latent network φ: r -> p first */
         int lw[CROM_NN_MAX_LAYERS + 1], nl;
         crom_nn_spec ls;
         hsize_t nlp;
@@ -720,48 +757,48 @@ int crom_model_read(crom_in *in, crom_model *m)
     }
     m->rank = (int)rank;
     if (!strcmp(enc, "pointnet"))
-        m->encoder = CROM_ENC_POINTNET;
+        m->encoder = CROM_MODEL_ENC_POINTNET;
     else if (!strcmp(enc, "lsq"))
-        m->encoder = CROM_ENC_LSQ;
+        m->encoder = CROM_MODEL_ENC_LSQ;
     else if (!strcmp(enc, "none"))
-        m->encoder = CROM_ENC_NONE;
+        m->encoder = CROM_MODEL_ENC_NONE;
     else {
         rc = crom_err(CROM_EDATA, "%s: unknown encoder '%s' (pointnet, lsq or none)", in->name, enc);
         goto out;
     }
     /* representation: by kind, or by the datasets present for later kinds */
     if (crom_model_is_map_kind(basis))
-        m->field = CROM_FIELD_MAP;
+        m->field = CROM_MODEL_FIELD_MAP;
     else if (!strcmp(basis, "energy-field"))
-        m->field = CROM_FIELD_CMAP;
+        m->field = CROM_MODEL_FIELD_CMAP;
     else if (!strcmp(basis, "skinning"))
-        m->field = CROM_FIELD_SKIN;
+        m->field = CROM_MODEL_FIELD_SKIN;
     else if (!strcmp(basis, "mlp") || (strcmp(basis, "pod") && strcmp(basis, "modes") &&
                                        crom_h5_has(h, "field/params")))
-        m->field = CROM_FIELD_MLP;
+        m->field = CROM_MODEL_FIELD_MLP;
     else if (!strcmp(basis, "pod") || !strcmp(basis, "modes") || crom_h5_has(h, "field/basis"))
-        m->field = CROM_FIELD_MESH;
+        m->field = CROM_MODEL_FIELD_MESH;
     else {
         rc = crom_err(CROM_EDATA, "%s: basis '%s' has neither field/params nor field/basis",
                       in->name, basis);
         goto out;
     }
-    if (m->field == CROM_FIELD_SKIN) {
+    if (m->field == CROM_MODEL_FIELD_SKIN) {
         if (crom_h5_has_attr(h, ".", "activation"))
             crom_h5_get_str(h, ".", "activation", &act);
         rc = crom_skin_read(h, m, act);
-    } else if (m->field == CROM_FIELD_MAP) {
+    } else if (m->field == CROM_MODEL_FIELD_MAP) {
         if (crom_h5_has_attr(h, ".", "activation"))
             crom_h5_get_str(h, ".", "activation", &act);
         rc = read_map(h, m, act ? act : "elu");
-    } else if (m->field == CROM_FIELD_MLP || m->field == CROM_FIELD_CMAP) {
+    } else if (m->field == CROM_MODEL_FIELD_MLP || m->field == CROM_MODEL_FIELD_CMAP) {
         if (crom_h5_has_attr(h, ".", "activation"))
             crom_h5_get_str(h, ".", "activation", &act);
         rc = read_mlp(h, m, act ? act : "elu");
     } else {
         rc = read_mesh_field(h, m);
     }
-    if (!rc && m->encoder == CROM_ENC_POINTNET)
+    if (!rc && m->encoder == CROM_MODEL_ENC_POINTNET)
         rc = read_encoder(h, m);
     if (rc) {
         rc = crom_err(CROM_EDATA, "%s: %s", in->name, crom_errmsg());
@@ -823,21 +860,21 @@ int crom_model_eval(const crom_model *m, size_t n, const double *X, double *W,
         *noutside = 0;
     if (n == 0)
         return 0;
-    if (m->field == CROM_FIELD_MESH) {
+    if (m->field == CROM_MODEL_FIELD_MESH) {
         crom_locate_interp(&m->loc, n, X, 3 * m->rank, m->basis_v, W, noutside);
         return 0;
     }
-    if (m->field == CROM_FIELD_SKIN)
+    if (m->field == CROM_MODEL_FIELD_SKIN)
         return crom_skin_eval(m, n, X, W, noutside);
-    if (m->field == CROM_FIELD_MAP)
+    if (m->field == CROM_MODEL_FIELD_MAP)
         return crom_err(CROM_EDATA, "model %s is a nonlinear map of one mesh (basis '%s'), not a basis field "
                         "W(X): it has no encoding; simulate it with crom-reducedstep --model",
                         m->model_id, m->basis);
-    if (m->field == CROM_FIELD_CMAP)
+    if (m->field == CROM_MODEL_FIELD_CMAP)
         return crom_err(CROM_EDATA, "model %s is a continuous nonlinear map x(X, q) (basis '%s'), not a basis "
                         "field W(X): it has no encoding; simulate it with crom-reducedstep --model --mesh",
                         m->model_id, m->basis);
-    if (m->field != CROM_FIELD_MLP)
+    if (m->field != CROM_MODEL_FIELD_MLP)
         return crom_err(CROM_EINTERNAL, "model has no basis");
     crom_nn_ws ws;
     int rc = crom_nn_ws_init(&ws, &m->mlp, n < 4096 ? (int)n : 4096, 1);
@@ -850,7 +887,7 @@ int crom_model_eval(const crom_model *m, size_t n, const double *X, double *W,
 
 int crom_model_encode_pointnet(const crom_model *m, size_t n, const double *pts, double *q)
 {
-    if (m->encoder != CROM_ENC_POINTNET || !m->enc.params)
+    if (m->encoder != CROM_MODEL_ENC_POINTNET || !m->enc.params)
         return crom_err(CROM_EUSAGE, "the model has no PointNet encoder (its encoder is %s)",
                         crom_model_encoder_name(m->encoder));
     crom_nn_pointnet_ws ws;

@@ -1,6 +1,6 @@
 /* newton.h — the one minimizer of a latent step's incremental potential
  * (LiCROM eq. 5 restricted to the subspace: eq. 6-8), shared by the linear
- * subspace stepper (rom.c) and the nonlinear map stepper (nlrom.c).
+ * subspace stepper (rsim.c) and the nonlinear map stepper (nlsim.c).
  *
  * It runs damped Newton iterations on E(q), q in R^r: a direction d from the
  * problem (usually H d = -g), a check that d descends, a stop when the

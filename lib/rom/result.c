@@ -10,36 +10,6 @@
 #include "rom/model.h"
 #include "rom/result.h"
 
-int crom_mesh_load(const char *path, int carriers, crom_mesh *m, char **history)
-{
-    crom_in in;
-    int rc = crom_in_open(&in, path);
-    if (rc)
-        return rc;
-    const char *group = "/";
-    if (!carriers || !strcmp(in.schema, "crom/mesh"))
-        rc = crom_in_expect(&in, CROM_MESH_SCHEMA, CROM_MESH_VERSION);
-    else if (!strcmp(in.schema, "crom/trajectory") || !strcmp(in.schema, "crom/cubature"))
-        rc = crom_in_expect(&in, in.schema, 1), group = "mesh";
-    else
-        rc = crom_err(CROM_EDATA, "%s is %s v%d, expected a crom/mesh (or a file carrying one)", in.name,
-                      in.schema, in.version);
-    if (!rc) {
-        hid_t g = H5Gopen2(in.h5, group, H5P_DEFAULT);
-        rc = g < 0 ? crom_err(CROM_EDATA, "%s has no mesh", in.name) : crom_mesh_read(g, m);
-        if (g >= 0)
-            H5Gclose(g);
-        if (rc && g >= 0)
-            crom_err_ctx("%s", in.name);
-    }
-    if (!rc && history) {
-        *history = in.history;
-        in.history = NULL;
-    }
-    crom_in_close(&in);
-    return rc;
-}
-
 int crom_result_open(crom_result *res, const char *path, const char *mesh_path, const char *model_path)
 {
     crom_in in;
@@ -87,7 +57,7 @@ static int latent_basis(crom_result *res, const crom_model *model, const char *m
     if (rc)
         return rc;
     res->W = crom_malloc(sizeof(double) * 3 * (size_t)res->r * (size_t)res->mesh.nv);
-    double *P = crom_mesh_field_points(&res->mesh, CROM_CRACK_OFFSET, NULL);
+    double *P = crom_mesh_field_points(&res->mesh, CROM_MESH_CRACK_OFFSET, NULL);
     rc = res->W && P ? crom_model_eval(model, (size_t)res->mesh.nv, P, res->W, &res->outside) : CROM_EINTERNAL;
     free(P);
     return rc;

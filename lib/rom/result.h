@@ -45,10 +45,4 @@ int crom_result_next(crom_result *res, double *t, double *u, double *v);
 
 void crom_result_close(crom_result *res);
 
-/* Read the crom/mesh at path (NULL or "-": stdin) or, when carriers is set,
- * also the /mesh of a crom/trajectory or crom/cubature. When history is not
- * NULL it takes over the input's history attribute (malloc'ed; NULL if it
- * had none), for the output's provenance. */
-int crom_mesh_load(const char *path, int carriers, crom_mesh *m, char **history);
-
 #endif

@@ -1,9 +1,11 @@
-/* samples.c — crom/samples read and write (see samples.h). */
+/* samples.c — crom/samples read and write, and picking the samples of a
+ * frame (see samples.h). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/array.h"
 #include "base/err.h"
 #include "rom/samples.h"
 
@@ -235,7 +237,7 @@ static int check_frames(const crom_in *in, const crom_samples *s)
             break;
         }
         const crom_mesh *m = &s->src[k];
-        if (!fps[k] && !(fps[k] = crom_mesh_field_points(m, CROM_CRACK_OFFSET, NULL))) {
+        if (!fps[k] && !(fps[k] = crom_mesh_field_points(m, CROM_MESH_CRACK_OFFSET, NULL))) {
             rc = CROM_EINTERNAL;
             break;
         }
@@ -285,5 +287,135 @@ int crom_samples_read(crom_in *in, crom_samples *s)
     }
     if (in->history)
         s->history = crom_strdup(in->history);
+    return 0;
+}
+
+/* ------------------------------------------------------------ picking */
+
+int crom_samples_picker_init(crom_samples_picker *p, const crom_mesh *m, int how)
+{
+    memset(p, 0, sizeof *p);
+    p->mesh = m;
+    p->how = how;
+    p->perm = crom_malloc(sizeof(int) * (size_t)m->nv);
+    p->cum = crom_malloc(sizeof(double) * (size_t)m->nt);
+    p->fp = crom_mesh_field_points(m, CROM_MESH_CRACK_OFFSET, NULL);
+    if (!p->perm || !p->cum || !p->fp) {
+        crom_samples_picker_free(p);
+        return CROM_EINTERNAL;
+    }
+    for (int i = 0; i < m->nv; i++)
+        p->perm[i] = i;
+    double tot = 0;
+    for (int t = 0; t < m->nt; t++) {
+        const int *v = m->tets + 4 * (size_t)t;
+        tot += crom_mesh_tet_volume(m->X + 3 * (size_t)v[0], m->X + 3 * (size_t)v[1], m->X + 3 * (size_t)v[2],
+                                    m->X + 3 * (size_t)v[3]);
+        p->cum[t] = tot;
+    }
+    return 0;
+}
+
+/* N vertices: distinct random ones, or all in order */
+static void pick_vertices(crom_samples_picker *p, int N, const double *u, crom_rng *rng, float *X, float *U,
+                          int *vx)
+{
+    int nv = p->mesh->nv, *perm = p->perm;
+    if (p->how == CROM_SAMPLES_ALL) {
+        for (int i = 0; i < N; i++)
+            perm[i] = i;
+    } else {
+        for (int i = 0; i < N; i++) {
+            int j = i + (int)crom_rng_below(rng, (uint64_t)(nv - i));
+            int tmp = perm[i];
+            perm[i] = perm[j];
+            perm[j] = tmp;
+        }
+    }
+    for (int i = 0; i < N; i++) {
+        int v = perm[i];
+        vx[i] = v;
+        for (int d = 0; d < 3; d++) {
+            X[3 * i + d] = (float)p->fp[3 * (size_t)v + d]; /* see crom_mesh_field_points */
+            U[3 * i + d] = (float)u[3 * (size_t)v + d];
+        }
+    }
+}
+
+/* N points uniform by volume */
+static void pick_interior(crom_samples_picker *p, int N, const double *u, crom_rng *rng, float *X, float *U,
+                          int *vx)
+{
+    const crom_mesh *m = p->mesh;
+    double tot = m->nt ? p->cum[m->nt - 1] : 0;
+    for (int i = 0; i < N; i++) {
+        /* a tet with probability proportional to its volume */
+        double target = crom_rng_uniform(rng) * tot;
+        int lo = 0, hi = m->nt - 1;
+        while (lo < hi) {
+            int mid = (lo + hi) / 2;
+            if (p->cum[mid] > target)
+                hi = mid;
+            else
+                lo = mid + 1;
+        }
+        /* uniform in the tet: Dirichlet(1,1,1,1) barycentric weights */
+        double b[4], sb = 0;
+        for (int j = 0; j < 4; j++) {
+            b[j] = -log(1.0 - crom_rng_uniform(rng));
+            sb += b[j];
+        }
+        const int *tv = m->tets + 4 * (size_t)lo;
+        double x[3] = {0, 0, 0}, uu[3] = {0, 0, 0};
+        for (int j = 0; j < 4; j++) {
+            double w = b[j] / sb;
+            for (int d = 0; d < 3; d++) {
+                x[d] += w * m->X[3 * (size_t)tv[j] + d];
+                uu[d] += w * u[3 * (size_t)tv[j] + d];
+            }
+        }
+        vx[i] = -1;
+        for (int d = 0; d < 3; d++) {
+            X[3 * i + d] = (float)x[d];
+            U[3 * i + d] = (float)uu[d];
+        }
+    }
+}
+
+void crom_samples_pick(crom_samples_picker *p, int N, const double *u, crom_rng *rng, float *X, float *U,
+                       int *vertex)
+{
+    if (p->how == CROM_SAMPLES_INTERIOR)
+        pick_interior(p, N, u, rng, X, U, vertex);
+    else
+        pick_vertices(p, N, u, rng, X, U, vertex);
+}
+
+void crom_samples_picker_free(crom_samples_picker *p)
+{
+    free(p->fp);
+    free(p->perm);
+    free(p->cum);
+    memset(p, 0, sizeof *p);
+}
+
+int crom_samples_add_frame(crom_samples *s, crom_samples_picker *p, const double *u, crom_rng *rng,
+                           int source, double t)
+{
+    size_t need = (size_t)s->F + 1, n = (size_t)s->N;
+    size_t cap[5] = {s->cap, s->cap, s->cap, s->cap, s->cap};
+    int rc;
+    if ((rc = crom_array_reserve((void **)&s->X, &cap[0], need, 3 * n * sizeof *s->X)) ||
+        (rc = crom_array_reserve((void **)&s->U, &cap[1], need, 3 * n * sizeof *s->U)) ||
+        (rc = crom_array_reserve((void **)&s->vertex, &cap[2], need, n * sizeof *s->vertex)) ||
+        (rc = crom_array_reserve((void **)&s->source, &cap[3], need, sizeof *s->source)) ||
+        (rc = crom_array_reserve((void **)&s->time, &cap[4], need, sizeof *s->time)))
+        return crom_err_ctx("%zu frames of %zu samples", need, n);
+    s->cap = cap[0]; /* the same for all five */
+    size_t base = (size_t)s->F * n;
+    crom_samples_pick(p, s->N, u, rng, s->X + 3 * base, s->U + 3 * base, s->vertex + base);
+    s->source[s->F] = source;
+    s->time[s->F] = t;
+    s->F++;
     return 0;
 }

@@ -14,6 +14,7 @@
 
 #include <hdf5.h>
 
+#include "base/rng.h"
 #include "io/io.h"
 #include "mesh/mesh.h"
 
@@ -33,6 +34,7 @@ typedef struct {
     char mode[16];     /* "vertices" or "interior" */
     long long seed;
     char *history;     /* root history of the file read (owned), or NULL */
+    size_t cap;        /* frames the arrays have room for (crom_samples_add_frame) */
 } crom_samples;
 
 /* Read and validate a crom/samples input (already opened and checked with
@@ -51,5 +53,42 @@ void crom_samples_free(crom_samples *s);
 
 /* Number of frames whose displacement is not identically zero. */
 int crom_samples_nonzero_frames(const crom_samples *s);
+
+/* ------------------------------------------------------------ picking
+ * Where the samples of a frame sit on its mesh (crom-sample):
+ *   vertices (LiCROM): N distinct random vertices, drawn by a partial
+ *            Fisher–Yates shuffle of a permutation that carries over from
+ *            frame to frame; X is the vertex's field point
+ *            (crom_mesh_field_points, so the sides of a cut differ) and U
+ *            its displacement;
+ *   all:     every vertex in order (N = nv);
+ *   interior: N points uniform by volume: a tet drawn with probability
+ *            proportional to its volume, then Dirichlet(1,1,1,1)
+ *            barycentric weights; X and U interpolated, vertex -1. */
+enum { CROM_SAMPLES_VERTICES = 0, CROM_SAMPLES_ALL = 1, CROM_SAMPLES_INTERIOR = 2 };
+
+typedef struct {
+    const crom_mesh *mesh; /* borrowed */
+    int how;               /* CROM_SAMPLES_VERTICES, _ALL or _INTERIOR */
+    double *fp;            /* [nv][3] field points */
+    int *perm;             /* [nv] the vertex permutation */
+    double *cum;           /* [nt] cumulative tet volumes */
+} crom_samples_picker;
+
+/* A picker on mesh m (borrowed: keep it alive). Returns 0 or
+ * CROM_EINTERNAL. */
+int crom_samples_picker_init(crom_samples_picker *p, const crom_mesh *m, int how);
+
+/* N samples of the displacement field u [nv][3] into X, U [N][3] and
+ * vertex [N], with random numbers from rng. N <= nv unless interior. */
+void crom_samples_pick(crom_samples_picker *p, int N, const double *u, crom_rng *rng, float *X, float *U,
+                       int *vertex);
+
+void crom_samples_picker_free(crom_samples_picker *p);
+
+/* Append a frame of s->N samples that p picks from u, from source `source`
+ * at time t, growing s's arrays (s->cap). Returns 0 or CROM_EINTERNAL. */
+int crom_samples_add_frame(crom_samples *s, crom_samples_picker *p, const double *u, crom_rng *rng,
+                           int source, double t);
 
 #endif

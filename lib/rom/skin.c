@@ -224,7 +224,7 @@ int crom_skin_weights(const crom_model *m, size_t n, const double *X, double *w,
 {
     if (noutside)
         *noutside = 0;
-    if (m->field != CROM_FIELD_SKIN)
+    if (m->field != CROM_MODEL_FIELD_SKIN)
         return crom_err(CROM_EUSAGE, "model %s is not a skinning model (basis '%s')", m->model_id, m->basis);
     int H = m->handles, k = m->skin_constant;
     if (n == 0)
@@ -328,11 +328,11 @@ static int copy_pins(crom_model *m, int npin, const double *pinX, int ntri, cons
 static void set_kind(crom_model *m, int H, int constant, const double F[12])
 {
     snprintf(m->basis, sizeof m->basis, "skinning");
-    m->field = CROM_FIELD_SKIN;
+    m->field = CROM_MODEL_FIELD_SKIN;
     m->handles = H;
     m->rank = 12 * H;
     m->skin_constant = constant ? 1 : 0;
-    m->encoder = CROM_ENC_LSQ;
+    m->encoder = CROM_MODEL_ENC_LSQ;
     memcpy(m->skin_frame, F, sizeof m->skin_frame);
 }
 

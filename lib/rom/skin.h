@@ -36,7 +36,7 @@
  * component-major (the x displacements' S coordinates, then y's, then z's),
  * so WᵀMW = m I on the training geometry, q is in metres of RMS
  * displacement, and the rows of W of one component are nonzero in one
- * contiguous block of columns (crom_cub_tet assembles W_eᵀ H_e W_e by blocks,
+ * contiguous block of columns (crom_cubature_tet assembles W_eᵀ H_e W_e by blocks,
  * a third of the dense work). On a free body ψ_0..3 = X̂_0, X̂_1, X̂_2, 1
  * (the constant handle's functions, orthonormal by the choice of frame), so
  * the affine motions are q[cS + 0..3], c = 0, 1, 2, exactly; the other ψ span the rest of the φ's, made

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 
+#include "base/array.h"
 #include "base/err.h"
 #include "io/io.h"
 #include "mesh/gmsh.h"
@@ -244,7 +245,7 @@ int crom_export_ply(FILE *f, const crom_mesh *m, const double *disp)
 
 /* ------------------------------------------------------------------ XDMF */
 
-int crom_xdmf_write_mesh(hid_t loc, const char *group, const crom_mesh *m)
+int crom_export_xdmf_write_mesh(hid_t loc, const char *group, const crom_mesh *m)
 {
     char name[160];
     hsize_t d[2] = {(hsize_t)m->nv, 3};
@@ -282,8 +283,8 @@ int crom_xdmf_write_mesh(hid_t loc, const char *group, const crom_mesh *m)
     return rc;
 }
 
-int crom_xdmf_write_frame(hid_t loc, const char *name, int k, int n, int ncomp, const double *data,
-                          const char *units)
+int crom_export_xdmf_write_frame(hid_t loc, const char *name, int k, int n, int ncomp, const double *data,
+                                 const char *units)
 {
     char path[96];
     snprintf(path, sizeof path, "%s/%05d", name, k);
@@ -461,10 +462,10 @@ int crom_export_series_open(crom_export_series *s, const char *out, const char *
     if (strlen(out) >= sizeof s->dir || strlen(name) >= sizeof s->stem || strlen(ext) >= sizeof s->ext)
         return crom_err(CROM_EUSAGE, "%s: output name too long", out);
     snprintf(s->ext, sizeof s->ext, "%s", ext);
-    if (kind != CROM_SERIES_PVD_FILE) {
+    if (kind != CROM_EXPORT_SERIES_PVD_FILE) {
         snprintf(s->dir, sizeof s->dir, "%s", out);
         snprintf(s->stem, sizeof s->stem, "%s", name);
-        if (kind == CROM_SERIES_PVD_DIR)
+        if (kind == CROM_EXPORT_SERIES_PVD_DIR)
             snprintf(s->pvd, sizeof s->pvd, "%s/%s.pvd", s->dir, s->stem);
         return crom_export_mkdir(s->dir);
     }
@@ -558,8 +559,8 @@ static int same_file(const char *p, const char *q)
 
 /* The heavy data are OUT.xdmf.h5 (a name no crom file has, so they never
  * replace an input). */
-static int xdmf_paths(crom_xdmf_series *x, const char *out, const char *name, int dir, const char *const *inputs,
-                      int n)
+static int xdmf_paths(crom_export_xdmf_series *x, const char *out, const char *name, int dir,
+                      const char *const *inputs, int n)
 {
     if (!dir && ends_with(out, ".xdmf")) {
         snprintf(x->xml, sizeof x->xml, "%s", out);
@@ -587,7 +588,7 @@ static int xdmf_paths(crom_xdmf_series *x, const char *out, const char *name, in
     return 0;
 }
 
-static void xdmf_free(crom_xdmf_series *x)
+static void xdmf_free(crom_export_xdmf_series *x)
 {
     for (int i = 0; x->groups && i < x->nmesh; i++)
         free(x->groups[i]);
@@ -601,9 +602,9 @@ static void xdmf_free(crom_xdmf_series *x)
     x->mesh_of = NULL;
 }
 
-int crom_xdmf_series_open(crom_xdmf_series *x, const char *out, const char *name, int dir,
-                          const char *const *inputs, int ninputs, int nmesh, const char *cmdline,
-                          const char *history)
+int crom_export_xdmf_series_open(crom_export_xdmf_series *x, const char *out, const char *name, int dir,
+                                 const char *const *inputs, int ninputs, int nmesh, const char *cmdline,
+                                 const char *history)
 {
     memset(x, 0, sizeof *x);
     int rc = xdmf_paths(x, out, name, dir, inputs, ninputs);
@@ -621,7 +622,7 @@ int crom_xdmf_series_open(crom_xdmf_series *x, const char *out, const char *name
     return rc;
 }
 
-int crom_xdmf_series_mesh(crom_xdmf_series *x, int mi, const crom_mesh *m)
+int crom_export_xdmf_series_mesh(crom_export_xdmf_series *x, int mi, const crom_mesh *m)
 {
     if (x->meshes[mi])
         return 0;
@@ -633,51 +634,43 @@ int crom_xdmf_series_mesh(crom_xdmf_series *x, int mi, const crom_mesh *m)
     int rc;
     if (!(x->groups[mi] = crom_strdup(g)))
         return CROM_EINTERNAL;
-    if ((rc = crom_xdmf_write_mesh(x->o.h5, g, m)))
+    if ((rc = crom_export_xdmf_write_mesh(x->o.h5, g, m)))
         return rc;
     x->meshes[mi] = m;
     return 0;
 }
 
-int crom_xdmf_series_frame(crom_xdmf_series *x, int mi, const crom_export_frame *fr)
+int crom_export_xdmf_series_frame(crom_export_xdmf_series *x, int mi, const crom_export_frame *fr)
 {
     const crom_mesh *m = fr->mesh;
     const crom_export_cells *c = fr->cells;
     int rc;
-    if ((rc = crom_xdmf_series_mesh(x, mi, m)) ||
-        (rc = crom_xdmf_write_frame(x->o.h5, "displacement", x->n, m->nv, 3, fr->u, "m")) ||
-        (rc = crom_xdmf_write_frame(x->o.h5, "velocity", x->n, m->nv, 3, fr->v, "m/s")))
+    if ((rc = crom_export_xdmf_series_mesh(x, mi, m)) ||
+        (rc = crom_export_xdmf_write_frame(x->o.h5, "displacement", x->n, m->nv, 3, fr->u, "m")) ||
+        (rc = crom_export_xdmf_write_frame(x->o.h5, "velocity", x->n, m->nv, 3, fr->v, "m/s")))
         return rc;
     x->ncells = c ? (c->mat ? 3 : 1) : 0;
-    if (c && (rc = crom_xdmf_write_frame(x->o.h5, "J", x->n, m->nt, 1, c->J, "1")))
+    if (c && (rc = crom_export_xdmf_write_frame(x->o.h5, "J", x->n, m->nt, 1, c->J, "1")))
         return rc;
-    if (c && c->mat && ((rc = crom_xdmf_write_frame(x->o.h5, "energy_density", x->n, m->nt, 1, c->psi, "J/m^3")) ||
-                        (rc = crom_xdmf_write_frame(x->o.h5, "von_mises_stress", x->n, m->nt, 1, c->mises, "Pa"))))
+    if (c && c->mat &&
+        ((rc = crom_export_xdmf_write_frame(x->o.h5, "energy_density", x->n, m->nt, 1, c->psi, "J/m^3")) ||
+         (rc = crom_export_xdmf_write_frame(x->o.h5, "von_mises_stress", x->n, m->nt, 1, c->mises, "Pa"))))
         return rc;
-    if (x->n == x->cap) {
-        int cap = x->cap ? 2 * x->cap : 64;
-        double *nt = crom_realloc(x->time, sizeof(double) * (size_t)cap);
-        if (!nt)
-            return CROM_EINTERNAL;
-        x->time = nt;
-        int *nm = crom_realloc(x->mesh_of, sizeof(int) * (size_t)cap);
-        if (!nm)
-            return CROM_EINTERNAL;
-        x->mesh_of = nm;
-        x->cap = cap;
-    }
+    if ((rc = crom_array_reserve((void **)&x->time, &x->tcap, (size_t)x->n + 1, sizeof *x->time)) ||
+        (rc = crom_array_reserve((void **)&x->mesh_of, &x->mcap, (size_t)x->n + 1, sizeof *x->mesh_of)))
+        return rc;
     x->time[x->n] = fr->time;
     x->mesh_of[x->n++] = mi;
     return 0;
 }
 
-void crom_xdmf_series_abort(crom_xdmf_series *x)
+void crom_export_xdmf_series_abort(crom_export_xdmf_series *x)
 {
     crom_out_fail(&x->o);
     xdmf_free(x);
 }
 
-int crom_xdmf_series_finish(crom_xdmf_series *x)
+int crom_export_xdmf_series_finish(crom_export_xdmf_series *x)
 {
     static const char *const fields[] = {"displacement", "velocity"};
     static const char *const cfields[] = {"J", "energy_density", "von_mises_stress"};
@@ -687,7 +680,7 @@ int crom_xdmf_series_finish(crom_xdmf_series *x)
         rc = crom_h5_write_f64(x->o.h5, "time", 1, &d, x->time, "s", "time of each frame");
     }
     if (rc) {
-        crom_xdmf_series_abort(x);
+        crom_export_xdmf_series_abort(x);
         return crom_err_ctx("%s", x->h5);
     }
     if ((rc = crom_out_commit(&x->o))) {
@@ -968,19 +961,19 @@ int crom_export_sink_open(crom_export_sink *k, int kind, const char *format, con
     k->kind = kind;
     k->format = format;
     k->out = out ? out : "-";
-    if (kind == CROM_SERIES_XDMF)
-        return crom_xdmf_series_open(&k->xdmf, out, name, dir, inputs, ninputs, nmesh, cmdline, history);
-    if (kind == CROM_SERIES_MSH)
+    if (kind == CROM_EXPORT_SERIES_XDMF)
+        return crom_export_xdmf_series_open(&k->xdmf, out, name, dir, inputs, ninputs, nmesh, cmdline, history);
+    if (kind == CROM_EXPORT_SERIES_MSH)
         return 0;
-    return crom_export_series_open(&k->files, out, name, kind == CROM_SERIES_FILES ? format : "vtu", kind);
+    return crom_export_series_open(&k->files, out, name, kind == CROM_EXPORT_SERIES_FILES ? format : "vtu", kind);
 }
 
 int crom_export_sink_frame(crom_export_sink *k, int mi, const crom_export_frame *fr)
 {
     int rc;
-    if (k->kind == CROM_SERIES_XDMF) {
-        rc = crom_xdmf_series_frame(&k->xdmf, mi, fr);
-    } else if (k->kind == CROM_SERIES_MSH) {
+    if (k->kind == CROM_EXPORT_SERIES_XDMF) {
+        rc = crom_export_xdmf_series_frame(&k->xdmf, mi, fr);
+    } else if (k->kind == CROM_EXPORT_SERIES_MSH) {
         if (mi != 0)
             return crom_err(CROM_EUSAGE, "%s: an MSH file holds one mesh, and this run switches meshes "
                             "(export it as pvd or xdmf)", k->out);
@@ -988,7 +981,7 @@ int crom_export_sink_frame(crom_export_sink *k, int mi, const crom_export_frame 
             return rc;
         rc = crom_export_msh_frame(&k->msh, fr->time, fr->u, fr->v);
     } else {
-        rc = crom_export_series_write(&k->files, k->kind == CROM_SERIES_FILES ? k->format : "vtu", fr);
+        rc = crom_export_series_write(&k->files, k->kind == CROM_EXPORT_SERIES_FILES ? k->format : "vtu", fr);
     }
     k->n += !rc;
     return rc;
@@ -996,9 +989,9 @@ int crom_export_sink_frame(crom_export_sink *k, int mi, const crom_export_frame 
 
 void crom_export_sink_abort(crom_export_sink *k)
 {
-    if (k->kind == CROM_SERIES_XDMF)
-        crom_xdmf_series_abort(&k->xdmf);
-    else if (k->kind == CROM_SERIES_MSH && k->n > 0)
+    if (k->kind == CROM_EXPORT_SERIES_XDMF)
+        crom_export_xdmf_series_abort(&k->xdmf);
+    else if (k->kind == CROM_EXPORT_SERIES_MSH && k->n > 0)
         crom_export_msh_abort(&k->msh);
     crom_export_series_free(&k->files);
 }
@@ -1006,13 +999,13 @@ void crom_export_sink_abort(crom_export_sink *k)
 int crom_export_sink_finish(crom_export_sink *k)
 {
     int rc = 0;
-    if (k->n == 0 && (k->kind == CROM_SERIES_XDMF || k->kind == CROM_SERIES_MSH)) {
+    if (k->n == 0 && (k->kind == CROM_EXPORT_SERIES_XDMF || k->kind == CROM_EXPORT_SERIES_MSH)) {
         crom_export_sink_abort(k);
         return crom_err(CROM_EDATA, "no frames to write");
     }
-    if (k->kind == CROM_SERIES_XDMF)
-        rc = crom_xdmf_series_finish(&k->xdmf);
-    else if (k->kind == CROM_SERIES_MSH)
+    if (k->kind == CROM_EXPORT_SERIES_XDMF)
+        rc = crom_export_xdmf_series_finish(&k->xdmf);
+    else if (k->kind == CROM_EXPORT_SERIES_MSH)
         rc = crom_export_msh_finish(&k->msh, k->out);
     else
         rc = crom_export_series_finish(&k->files);
@@ -1024,20 +1017,20 @@ int crom_export_mesh(const crom_mesh *m, int kind, const char *format, const cha
                      int in_dir, const char *const *inputs, int ninputs, const char *cmdline, const char *history)
 {
     crom_export_cells cells = {0};
-    crom_export_frame fr = {m, NULL, NULL, kind == CROM_SERIES_PVD_FILE ? 0 : NAN, &cells};
+    crom_export_frame fr = {m, NULL, NULL, kind == CROM_EXPORT_SERIES_PVD_FILE ? 0 : NAN, &cells};
     int rc = crom_export_cells_eval(&cells, m, NULL);
     if (rc) {
-    } else if (kind == CROM_SERIES_XDMF) {
-        crom_xdmf_series x;
-        if (!(rc = crom_xdmf_series_open(&x, out, name, dir, inputs, ninputs, 1, cmdline, history))) {
-            if ((rc = crom_xdmf_series_mesh(&x, 0, m))) {
-                crom_xdmf_series_abort(&x);
+    } else if (kind == CROM_EXPORT_SERIES_XDMF) {
+        crom_export_xdmf_series x;
+        if (!(rc = crom_export_xdmf_series_open(&x, out, name, dir, inputs, ninputs, 1, cmdline, history))) {
+            if ((rc = crom_export_xdmf_series_mesh(&x, 0, m))) {
+                crom_export_xdmf_series_abort(&x);
                 crom_err_ctx("%s", x.h5);
             } else {
-                rc = crom_xdmf_series_finish(&x);
+                rc = crom_export_xdmf_series_finish(&x);
             }
         }
-    } else if (kind == CROM_SERIES_PVD_FILE) {
+    } else if (kind == CROM_EXPORT_SERIES_PVD_FILE) {
         crom_export_series s;
         if (!(rc = crom_export_series_open(&s, out, name, "vtu", kind)) && !(rc = crom_export_series_write(&s, "vtu", &fr)))
             rc = crom_export_series_finish(&s);
@@ -1045,8 +1038,8 @@ int crom_export_mesh(const crom_mesh *m, int kind, const char *format, const cha
     } else {
         char path[1400];
         snprintf(path, sizeof path, "%s", out ? out : "-");
-        if ((in_dir || kind == CROM_SERIES_PVD_DIR) && !(rc = crom_export_mkdir(out)))
-            snprintf(path, sizeof path, "%s/%s.%s", out, name, kind == CROM_SERIES_PVD_DIR ? "vtu" : format);
+        if ((in_dir || kind == CROM_EXPORT_SERIES_PVD_DIR) && !(rc = crom_export_mkdir(out)))
+            snprintf(path, sizeof path, "%s/%s.%s", out, name, kind == CROM_EXPORT_SERIES_PVD_DIR ? "vtu" : format);
         if (!rc)
             rc = crom_export_write(path, format, &fr);
     }

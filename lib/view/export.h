@@ -122,12 +122,12 @@ void crom_export_msh_abort(crom_export_msh *w);
 /* Write mesh m as the group `group` ("mesh", "mesh_1") of the heavy-data
  * file: vertices, tets, rest volumes of the tets and one 0/1 int32 mask per
  * region. Returns 0 or an HDF5 error naming the dataset. */
-int crom_xdmf_write_mesh(hid_t loc, const char *group, const crom_mesh *m);
+int crom_export_xdmf_write_mesh(hid_t loc, const char *group, const crom_mesh *m);
 
 /* Write frame k's field `name` ([n][ncomp], per vertex or per tet) as
  * /NAME/%05d with its units. Returns 0 or an HDF5 error. */
-int crom_xdmf_write_frame(hid_t loc, const char *name, int k, int n, int ncomp, const double *data,
-                          const char *units);
+int crom_export_xdmf_write_frame(hid_t loc, const char *name, int k, int n, int ncomp, const double *data,
+                                 const char *units);
 
 /* The XML: with nframes = 0 one Uniform grid of meshes[0] (a bare mesh);
  * otherwise a Temporal collection of nframes Uniform grids, frame k at
@@ -171,9 +171,9 @@ typedef struct {
 } crom_export_series;
 
 enum {
-    CROM_SERIES_FILES,    /* out is a directory of NAME_%05d.EXT */
-    CROM_SERIES_PVD_DIR,  /* the same and the collection out/NAME.pvd */
-    CROM_SERIES_PVD_FILE  /* the collection at out = DIR/STEM.pvd, frames
+    CROM_EXPORT_SERIES_FILES,    /* out is a directory of NAME_%05d.EXT */
+    CROM_EXPORT_SERIES_PVD_DIR,  /* the same and the collection out/NAME.pvd */
+    CROM_EXPORT_SERIES_PVD_FILE  /* the collection at out = DIR/STEM.pvd, frames
                              DIR/STEM/STEM_%05d.EXT beside it (name unused) */
 };
 
@@ -202,7 +202,7 @@ int crom_export_series_finish(crom_export_series *s);
 void crom_export_series_free(crom_export_series *s);
 
 /* An XDMF series being written: the heavy data in an HDF5 crom_out, the
- * XML written last (by crom_xdmf_series_finish). */
+ * XML written last (by crom_export_xdmf_series_finish). */
 typedef struct {
     crom_out o;
     char xml[1200], h5[1204];
@@ -212,9 +212,10 @@ typedef struct {
     char **groups;             /* [nmesh] their groups ("mesh", "mesh_1", ...) */
     double *time;              /* [n] */
     int *mesh_of;              /* [n] */
-    int n, cap;
+    int n;
+    size_t tcap, mcap;         /* room in time and mesh_of (base/array.h) */
     int ncells;                /* per-frame cell fields written: 0, 1 (J) or 3 */
-} crom_xdmf_series;
+} crom_export_xdmf_series;
 
 /* Start an XDMF export to out: OUT.xdmf (heavy data in OUT.xdmf.h5 beside
  * it, directories created as needed) when out ends in ".xdmf" and dir is 0,
@@ -224,32 +225,32 @@ typedef struct {
  * go to the heavy-data file's provenance. Returns 0, CROM_EUSAGE (a name
  * XDMF cannot refer to, or an input would be overwritten), CROM_ECANTCREAT
  * or CROM_EINTERNAL. */
-int crom_xdmf_series_open(crom_xdmf_series *x, const char *out, const char *name, int dir,
-                          const char *const *inputs, int ninputs, int nmesh, const char *cmdline,
-                          const char *history);
+int crom_export_xdmf_series_open(crom_export_xdmf_series *x, const char *out, const char *name, int dir,
+                                 const char *const *inputs, int ninputs, int nmesh, const char *cmdline,
+                                 const char *history);
 
 /* Write mesh number mi (once; later calls do nothing). Returns 0 or an
  * error (HDF5, out of memory). */
-int crom_xdmf_series_mesh(crom_xdmf_series *x, int mi, const crom_mesh *m);
+int crom_export_xdmf_series_mesh(crom_export_xdmf_series *x, int mi, const crom_mesh *m);
 
 /* Append frame fr on mesh number mi (fr->mesh, written if new): its time,
  * displacement and velocity, and its cell fields J, energy density and
  * stress (those fr->cells has; the same for every frame of a series).
  * Returns 0 or an error. */
-int crom_xdmf_series_frame(crom_xdmf_series *x, int mi, const crom_export_frame *fr);
+int crom_export_xdmf_series_frame(crom_export_xdmf_series *x, int mi, const crom_export_frame *fr);
 
 /* Finish: the frame times, the heavy-data file, then the XML (a bare mesh
  * when no frame was added). On failure nothing is left of either file.
  * Frees x either way. Returns 0 or an error naming the file. */
-int crom_xdmf_series_finish(crom_xdmf_series *x);
+int crom_export_xdmf_series_finish(crom_export_xdmf_series *x);
 
 /* Give up: remove the heavy data (nothing is left) and free x. */
-void crom_xdmf_series_abort(crom_xdmf_series *x);
+void crom_export_xdmf_series_abort(crom_export_xdmf_series *x);
 
 /* Write a bare mesh m (cell data: the rest volumes) in format to out, laid
- * out as kind says: CROM_SERIES_XDMF an XDMF grid (crom_xdmf_series_open
- * with name, dir, inputs, cli, history); CROM_SERIES_PVD_FILE a collection
- * of one dataset at t = 0; CROM_SERIES_PVD_DIR, or in_dir != 0, the file
+ * out as kind says: CROM_EXPORT_SERIES_XDMF an XDMF grid (crom_export_xdmf_series_open
+ * with name, dir, inputs, cli, history); CROM_EXPORT_SERIES_PVD_FILE a collection
+ * of one dataset at t = 0; CROM_EXPORT_SERIES_PVD_DIR, or in_dir != 0, the file
  * NAME.EXT (vtu for pvd) in the directory out; else the file out ("-":
  * stdout). Returns 0 or the writer's error. */
 int crom_export_mesh(const crom_mesh *m, int kind, const char *format, const char *out, const char *name, int dir,
@@ -259,21 +260,21 @@ int crom_export_mesh(const crom_mesh *m, int kind, const char *format, const cha
  * Where the frames of a series go, one interface for every series format:
  * numbered files (with or without a .pvd collection), an XDMF pair, or one
  * MSH file. */
-enum { CROM_SERIES_XDMF = 3, CROM_SERIES_MSH = 4 }; /* after the kinds of crom_export_series */
+enum { CROM_EXPORT_SERIES_XDMF = 3, CROM_EXPORT_SERIES_MSH = 4 }; /* after the kinds of crom_export_series */
 
 typedef struct {
-    int kind;            /* CROM_SERIES_* */
+    int kind;            /* CROM_EXPORT_SERIES_* */
     const char *format;  /* of numbered files: vtu, obj, ply, stl */
     const char *out;     /* MSH: the file ("-": stdout) */
     crom_export_series files;
-    crom_xdmf_series xdmf;
+    crom_export_xdmf_series xdmf;
     crom_export_msh msh;
     int n;               /* frames written */
 } crom_export_sink;
 
 /* Start a series of the given kind at out: numbered files of `format`
  * (directory out, stem name; a .pvd as kind says), an XDMF pair
- * (crom_xdmf_series_open with name, dir, inputs, nmesh, cli, history), or
+ * (crom_export_xdmf_series_open with name, dir, inputs, nmesh, cli, history), or
  * an MSH file (written when finished; gmsh starts with the first frame).
  * Returns 0 or the error of the opening. */
 int crom_export_sink_open(crom_export_sink *k, int kind, const char *format, const char *out, const char *name,

@@ -3,6 +3,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/array.h"
 #include "base/err.h"
 #include "view/follow.h"
 
@@ -223,34 +224,16 @@ const crom_mesh *crom_follow_frame_mesh(const crom_follow_frames *r, int f)
     return &r->src.res[r->mi[f]].mesh;
 }
 
-/* room for one more frame of n3 doubles */
-static int grow(crom_follow_frames *r, size_t *cap, size_t *ucap, size_t used, size_t n3)
+/* room for one more frame of n3 doubles (cap: the arrays' capacities) */
+static int grow(crom_follow_frames *r, size_t cap[4], size_t used, size_t n3)
 {
-    if ((size_t)r->nf == *cap) {
-        size_t c = 2 * *cap;
-        double *nt = crom_realloc(r->t, sizeof(double) * c);
-        if (nt)
-            r->t = nt;
-        size_t *no = nt ? crom_realloc(r->off, sizeof(size_t) * c) : NULL;
-        if (no)
-            r->off = no;
-        int *nm = no ? crom_realloc(r->mi, sizeof(int) * c) : NULL;
-        if (!nm)
-            return CROM_EINTERNAL;
-        r->mi = nm;
-        *cap = c;
-    }
-    if (used + n3 > *ucap) {
-        size_t c = *ucap;
-        while (used + n3 > c)
-            c *= 2;
-        double *nu = crom_realloc(r->u, sizeof(double) * c);
-        if (!nu)
-            return CROM_EINTERNAL;
-        r->u = nu;
-        *ucap = c;
-    }
-    return 0;
+    size_t nf = (size_t)r->nf + 1;
+    int rc;
+    if ((rc = crom_array_reserve((void **)&r->t, &cap[0], nf, sizeof *r->t)) ||
+        (rc = crom_array_reserve((void **)&r->off, &cap[1], nf, sizeof *r->off)) ||
+        (rc = crom_array_reserve((void **)&r->mi, &cap[2], nf, sizeof *r->mi)))
+        return rc;
+    return crom_array_reserve((void **)&r->u, &cap[3], used + n3, sizeof *r->u);
 }
 
 int crom_follow_load(crom_follow_frames *r, crom_follow *src, int every)
@@ -258,14 +241,10 @@ int crom_follow_load(crom_follow_frames *r, crom_follow *src, int every)
     memset(r, 0, sizeof *r);
     r->src = *src;
     memset(src, 0, sizeof *src);
-    size_t cap = 16, ucap = 16 * 3 * (size_t)(r->src.maxnv ? r->src.maxnv : 1), used = 0;
-    r->t = crom_malloc(sizeof(double) * cap);
-    r->off = crom_malloc(sizeof(size_t) * cap);
-    r->mi = crom_malloc(sizeof(int) * cap);
-    r->u = crom_malloc(sizeof(double) * ucap);
+    size_t cap[4] = {0}, used = 0;
     r->ntri = crom_calloc((size_t)r->src.n, sizeof(int));
     r->tris = crom_calloc((size_t)r->src.n, sizeof(int *));
-    if (!r->t || !r->off || !r->mi || !r->u || !r->ntri || !r->tris)
+    if (!r->ntri || !r->tris)
         return CROM_EINTERNAL;
     int rc;
     double t;
@@ -274,7 +253,7 @@ int crom_follow_load(crom_follow_frames *r, crom_follow *src, int every)
         if (k++ % every)
             continue;
         size_t n3 = 3 * (size_t)r->src.res[r->src.cur].mesh.nv;
-        if ((rc = grow(r, &cap, &ucap, used, n3)))
+        if ((rc = grow(r, cap, used, n3)))
             return rc;
         memcpy(r->u + used, r->src.u[r->src.cur], sizeof(double) * n3);
         r->t[r->nf] = t;

@@ -10,11 +10,11 @@
 enum { HEAD = 34 }; /* pixels under the panels for the colour bar */
 
 void crom_picture_view(const crom_follow_frames *rows, int nrows, int pw, int ph, double range,
-                       crom_camera *cam, double *umax)
+                       crom_render_camera *cam, double *umax)
 {
     double lo[3], hi[3], m;
     crom_follow_bounds(rows, nrows, lo, hi, &m);
-    crom_camera_fit(cam, lo, hi, pw, ph, 1.12);
+    crom_render_camera_fit(cam, lo, hi, pw, ph, 1.12);
     *umax = range > 0 ? range : (m > 0 ? m : 1);
 }
 
@@ -27,7 +27,7 @@ static double *panel_work(const crom_follow_frames *rows, int nrows)
     return crom_malloc(sizeof(double) * 4 * (size_t)(maxnv ? maxnv : 1));
 }
 
-static void draw(crom_image *im, const crom_camera *cam, int x0, int y0, int pw, int ph, const crom_follow_frames *r,
+static void draw(crom_image *im, const crom_render_camera *cam, int x0, int y0, int pw, int ph, const crom_follow_frames *r,
                  int f, double umax, const char *label, double *work)
 {
     const crom_mesh *m = crom_follow_frame_mesh(r, f);
@@ -35,7 +35,7 @@ static void draw(crom_image *im, const crom_camera *cam, int x0, int y0, int pw,
                       umax, label, work);
 }
 
-int crom_picture_frame(crom_image *im, const crom_camera *cam, const crom_follow_frames *r, int f, int pw, int ph,
+int crom_picture_frame(crom_image *im, const crom_render_camera *cam, const crom_follow_frames *r, int f, int pw, int ph,
                        double umax)
 {
     double *work = panel_work(r, 1);
@@ -46,7 +46,7 @@ int crom_picture_frame(crom_image *im, const crom_camera *cam, const crom_follow
     char label[64];
     snprintf(label, sizeof label, "t=%.3f s", r->t[f]);
     draw(im, cam, 0, 0, pw, ph, r, f, umax, label, work);
-    crom_image_colorbar(im, 10, ph + 2, pw - 20, 10, 0, umax, "m");
+    crom_render_colorbar(im, 10, ph + 2, pw - 20, 10, 0, umax, "m");
     free(work);
     return 0;
 }
@@ -55,7 +55,7 @@ int crom_picture_strip(crom_image *im, const crom_follow_frames *rows, const cha
                        int columns, int pw, int ph, double range, int *ncols)
 {
     int K = columns < rows[0].nf ? columns : rows[0].nf;
-    crom_camera cam;
+    crom_render_camera cam;
     double umax;
     crom_picture_view(rows, nrows, pw, ph, range, &cam, &umax);
     double *work = panel_work(rows, nrows);
@@ -79,7 +79,7 @@ int crom_picture_strip(crom_image *im, const crom_follow_frames *rows, const cha
             draw(im, &cam, c * pw, r * ph, pw, ph, &rows[r], best, umax, label, work);
         }
     }
-    crom_image_colorbar(im, 10, nrows * ph + 2, (K * pw) / 2, 10, 0, umax, "m  |u|");
+    crom_render_colorbar(im, 10, nrows * ph + 2, (K * pw) / 2, 10, 0, umax, "m  |u|");
     free(work);
     *ncols = K;
     return 0;
@@ -87,13 +87,13 @@ int crom_picture_strip(crom_image *im, const crom_follow_frames *rows, const cha
 
 int crom_picture_mesh(crom_image *im, const crom_mesh *m, int pw, int ph)
 {
-    crom_camera cam;
+    crom_render_camera cam;
     double lo[3], hi[3], *work = crom_malloc(sizeof(double) * 4 * (size_t)(m->nv ? m->nv : 1));
     int ntri, *tris = NULL, rc = 0;
     im->rgb = NULL;
     im->z = NULL;
     crom_mesh_bbox(m, lo, hi);
-    crom_camera_fit(&cam, lo, hi, pw, ph, 1.12);
+    crom_render_camera_fit(&cam, lo, hi, pw, ph, 1.12);
     if (!work || (rc = crom_image_init(im, pw, ph)) || (rc = crom_mesh_boundary(m, &ntri, &tris, NULL))) {
         free(work);
         crom_image_free(im);
@@ -108,7 +108,7 @@ int crom_picture_mesh(crom_image *im, const crom_mesh *m, int pw, int ph)
 int crom_picture_write(const crom_follow_frames *r, int all, long frame, const char *out, const char *name, int pw,
                        int ph, double range, long *count)
 {
-    crom_camera cam;
+    crom_render_camera cam;
     double umax;
     crom_picture_view(r, 1, pw, ph, range, &cam, &umax);
     long first = 0, last = r->nf - 1, k = frame < 0 ? r->nf + frame : frame;
@@ -121,7 +121,7 @@ int crom_picture_write(const crom_follow_frames *r, int all, long frame, const c
     else if (!all)
         first = last = k;
     else
-        rc = crom_export_series_open(&s, out, name, "png", CROM_SERIES_FILES);
+        rc = crom_export_series_open(&s, out, name, "png", CROM_EXPORT_SERIES_FILES);
     for (long f = first; f <= last && !rc; f++) {
         crom_image_free(&im);
         if (!(rc = crom_picture_frame(&im, &cam, r, (int)f, pw, ph, umax)))

@@ -12,12 +12,12 @@
  * is range when range > 0, else the largest |u| shown (1 if nothing
  * moves). */
 void crom_picture_view(const crom_follow_frames *rows, int nrows, int pw, int ph, double range,
-                       crom_camera *cam, double *umax);
+                       crom_render_camera *cam, double *umax);
 
 /* The picture of frame f of r: a pw × (ph + 34) image (allocated into im;
  * free it with crom_image_free) holding the panel labelled "t=... s" and a
  * colour bar of [0, umax] m under it. Returns 0 or CROM_EINTERNAL. */
-int crom_picture_frame(crom_image *im, const crom_camera *cam, const crom_follow_frames *r, int f, int pw, int ph,
+int crom_picture_frame(crom_image *im, const crom_render_camera *cam, const crom_follow_frames *r, int f, int pw, int ph,
                        double umax);
 
 /* The pictures of r's frames (crom_picture_frame, on r's own view): with

@@ -267,12 +267,12 @@ int crom_validate_file(crom_in *in, FILE *report)
     if (s->series) {
         if (!in->nfields)
             violation(&c, "a %s must have frame fields under /frames", s->schema);
-        if (in->form == CROM_FORM_H5)
+        if (in->form == CROM_IO_H5)
             in->cursor = 0; /* check every frame, wherever the reader stood */
         if (crom_in_read_all(in, &frames, &nframes))
             violation(&c, "frames cannot be read: %s", crom_errmsg());
         long long dummy;
-        sym(&c, "F", in->form == CROM_FORM_STREAM ? 0 : nframes, &dummy);
+        sym(&c, "F", in->form == CROM_IO_STREAM ? 0 : nframes, &dummy);
         if (in->complete != 1)
             violation(&c, "incomplete: the run that wrote it stopped after %ld frames", nframes);
         for (long f = 0; frames && f < nframes; f++)

@@ -56,8 +56,8 @@ static inline void fx_grid(crom_mesh *m, int nx, int ny, int nz, const double lo
                             c[perms[p][s - 1]]++;
                         t[s] = (c[2] * vy + c[1]) * vx + c[0];
                     }
-                    if (orient && crom_tet_volume(m->X + 3 * t[0], m->X + 3 * t[1], m->X + 3 * t[2],
-                                                  m->X + 3 * t[3]) < 0) {
+                    if (orient && crom_mesh_tet_volume(m->X + 3 * t[0], m->X + 3 * t[1], m->X + 3 * t[2],
+                                                       m->X + 3 * t[3]) < 0) {
                         int tmp = t[2];
                         t[2] = t[3];
                         t[3] = tmp;
@@ -85,7 +85,7 @@ static inline void fx_unit_grid(crom_mesh *m, int n, int orient)
     fx_grid(m, n, n, n, NULL, h, 0, NULL, NULL, orient);
 }
 
-/* A gmsh mesh of shape (CROM_SHAPE_*) with extents dims (NULL: the
+/* A gmsh mesh of shape (CROM_MESHGEN_BOX ...) with extents dims (NULL: the
  * shape's default) at edge length size. Returns crom_meshgen's code, after
  * a CHECK that it is 0. */
 static inline int fx_gen(int shape, const double dims[3], double size, crom_mesh *m)

@@ -1,4 +1,4 @@
-/* test_datafree.c — lib/datafree, lib/map, lib/nlrom, lib/metrics: the
+/* test_datafree.c — lib/datafree, rom/map, rom/nlsim, rom/metrics: the
  * data-free subspaces of Sharp et al. 2023 (energy + isometry) and Wang et
  * al. 2024 (Neural Modes) and the latent dynamics on them.
  *
@@ -25,19 +25,19 @@
 
 #include "check.h"
 #include "fixtures.h"
-#include "rom/cubature.h"
-#include "datafree/datafree.h"
 #include "base/err.h"
-#include "phys/fem.h"
-#include "rom/map.h"
+#include "base/rng.h"
+#include "datafree/datafree.h"
 #include "mesh/meshgen.h"
+#include "nn/nn.h"
+#include "phys/fem.h"
+#include "phys/modes.h"
+#include "rom/cubature.h"
+#include "rom/map.h"
 #include "rom/metrics.h"
 #include "rom/model.h"
-#include "phys/modes.h"
-#include "rom/nlrom.h"
-#include "nn/nn.h"
-#include "base/rng.h"
-#include "rom/rom.h"
+#include "rom/nlsim.h"
+#include "rom/rsim.h"
 
 #define FD_H 1e-3
 #define FD_TOL 2e-3
@@ -45,7 +45,7 @@
 static void make_bar(crom_mesh *m, double size)
 {
     const double dims[3] = {1, 0.2, 0.2};
-    fx_gen(CROM_SHAPE_BOX, dims, size, m);
+    fx_gen(CROM_MESHGEN_BOX, dims, size, m);
     CHECK(crom_mesh_region_spec(m, "clamp=x<-0.49") == 0);
 }
 
@@ -602,7 +602,7 @@ static run_budget run_steps(crom_nlsim *s, int steps)
     double Eprev = NAN;
     int fin = 1;
     for (int k = 0; k <= steps; k++) {
-        crom_rstep_stats st;
+        crom_rsim_stats st;
         if (k > 0 && crom_nlsim_step(s, &st)) {
             CHECK_MSG(0, "step %d: %s", k, crom_errmsg());
             break;
@@ -650,7 +650,8 @@ static void test_field_subspace(bar_case *b)
     CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
     if (rc)
         return;
-    CHECK(!strcmp(fm.basis, "energy-field") && fm.field == CROM_FIELD_CMAP && fm.rank == 2 && log.steps == 600);
+    CHECK(!strcmp(fm.basis, "energy-field") && fm.field == CROM_MODEL_FIELD_CMAP && fm.rank == 2 &&
+          log.steps == 600);
     CHECK(log.objective[log.nblocks - 1] < log.objective[0]);
     crom_mesh fine;
     make_bar(&fine, 0.07);
@@ -940,12 +941,13 @@ static void test_map_cubature(bar_case *b)
         double q[2] = {crom_rng_normal(&rng), crom_rng_normal(&rng)};
         CHECK(crom_map_features(&map, q, poses + (size_t)j * p, T + (size_t)j * p * r) == 0);
     }
-    crom_cub_opts co = {CROM_CUB_OPTIMIZED, 120, 0.002, 0, poses, P, 1e6, 0.3, T, r};
-    crom_cub cub;
-    CHECK(crom_cub_build(&cub, &map.mesh, map.B, p, "map", &co, &rng) == 0);
+    crom_cubature_opts co = {CROM_CUBATURE_OPTIMIZED, 120, 0.002, 0, poses, P, 1e6, 0.3, T, r};
+    crom_cubature cub;
+    CHECK(crom_cubature_build(&cub, &map.mesh, map.B, p, "map", &co, &rng) == 0);
     double eE[2], eF[2];
-    CHECK(crom_cub_error(&cub, &b->mat, poses, P, T, r, &eE[0], &eF[0]) == 0);
-    CHECK(crom_cub_error(&cub, &b->mat, poses + (size_t)P * p, P, T + (size_t)P * p * r, r, &eE[1], &eF[1]) == 0);
+    CHECK(crom_cubature_error(&cub, &b->mat, poses, P, T, r, &eE[0], &eF[0]) == 0);
+    CHECK(crom_cubature_error(&cub, &b->mat, poses + (size_t)P * p, P, T + (size_t)P * p * r, r, &eE[1],
+                              &eF[1]) == 0);
     fprintf(stderr, "energy map cubature: %d of %d tets; latent force error %.4f on the fitted samples, %.4f on "
                     "others (energy %.4f, %.4f)\n", cub.k, map.mesh.nt, eF[0], eF[1], eE[0], eE[1]);
     CHECK(cub.k < map.mesh.nt / 2);
@@ -961,7 +963,7 @@ static void test_map_cubature(bar_case *b)
     CHECK(crom_nlsim_use_cubature(&cs, cub.k, cub.elem, cub.weight) == 0);
     double num = 0, den = 0, *xa = malloc(sizeof(double) * (size_t)map.n), *xc = malloc(sizeof(double) * (size_t)map.n);
     for (int k = 0; k < 40; k++) {
-        crom_rstep_stats s1, s2;
+        crom_rsim_stats s1, s2;
         int rc1 = crom_nlsim_step(&all, &s1), rc2 = crom_nlsim_step(&cs, &s2);
         CHECK_MSG(rc1 == 0 && rc2 == 0, "step %d: %s", k, crom_errmsg());
         if (rc1 || rc2)
@@ -982,7 +984,7 @@ static void test_map_cubature(bar_case *b)
     free(xc);
     crom_nlsim_free(&all);
     crom_nlsim_free(&cs);
-    crom_cub_free(&cub);
+    crom_cubature_free(&cub);
     free(poses);
     free(T);
     crom_map_free(&map);
@@ -1015,18 +1017,18 @@ static void test_linear_equivalence(bar_case *b)
     check_fd_jacobian(nl_grad, NULL, q, r, r, 1e-7, Hfd);
     double eh = check_relerr(H, Hfd, r * r, 1e-9);
     CHECK_LT(eh, 1e-5);
-    crom_cub cub;
-    crom_cub_opts co = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, sc.youngs, sc.poisson, NULL, 0};
+    crom_cubature cub;
+    crom_cubature_opts co = {CROM_CUBATURE_ALL, 0, 0, 0, NULL, 0, sc.youngs, sc.poisson, NULL, 0};
     crom_rng rng;
     crom_rng_seed(&rng, 1);
-    CHECK(crom_cub_build(&cub, &b->mesh, b->modes, r, "lin", &co, &rng) == 0);
+    CHECK(crom_cubature_build(&cub, &b->mesh, b->modes, r, "lin", &co, &rng) == 0);
     crom_rsim rs;
-    CHECK(crom_rsim_init(&rs, &cub, &sc, CROM_SOLVER_NEWTON, 0, NULL, NULL) == 0);
+    CHECK(crom_rsim_init(&rs, &cub, &sc, CROM_RSIM_NEWTON, 0, NULL, NULL) == 0);
     crom_nlsim_free(&s);
     CHECK(crom_nlsim_init(&s, &map, &sc, 0, NULL, NULL, 1) == 0);
     double worst = 0, qmax = 0;
     for (int k = 0; k < 25; k++) {
-        crom_rstep_stats a, c;
+        crom_rsim_stats a, c;
         int rc1 = crom_rsim_step(&rs, &a), rc2 = crom_nlsim_step(&s, &c);
         CHECK_MSG(rc1 == 0 && rc2 == 0, "step %d: %s", k, crom_errmsg());
         for (int i = 0; i < r; i++) {
@@ -1039,7 +1041,7 @@ static void test_linear_equivalence(bar_case *b)
     CHECK(qmax > 1e-3);
     CHECK_LT(worst, 1e-8 * qmax);
     crom_rsim_free(&rs);
-    crom_cub_free(&cub);
+    crom_cubature_free(&cub);
     crom_nlsim_free(&s);
     crom_map_free(&map);
     crom_model_free(&lm);

@@ -1,7 +1,7 @@
 /* test_elastic.c — the elastic energy of a linear subspace over a cubature in
  * the space of deformation gradients (lib/rom/elastic.c): energy, gradient
  * and Hessian against the per-tet corner formulation W_eᵀ H_e W_e
- * (crom_cub_tet, an independent path through fem.c's 12 x 12 element
+ * (crom_cubature_tet, an independent path through fem.c's 12 x 12 element
  * kernel), and against finite differences, for a general basis and for a
  * component-block basis W_v = I₃ ⊗ ψ_vᵀ (the skinning subspace's form). */
 #include <math.h>
@@ -65,8 +65,8 @@ static void general_basis(const crom_mesh *m, double *W, crom_rng *rng)
     }
 }
 
-/* the reference: Σ_k w_k crom_cub_tet over the cubature */
-static double reference(const crom_cub *c, const crom_material *mat, const double *q, int project, double *g,
+/* the reference: Σ_k w_k crom_cubature_tet over the cubature */
+static double reference(const crom_cubature *c, const crom_material *mat, const double *q, int project, double *g,
                         double *H)
 {
     int r = c->r;
@@ -78,8 +78,8 @@ static double reference(const crom_cub *c, const crom_material *mat, const doubl
     double E = 0;
     for (int k = 0; k < c->k; k++) {
         double Xe[12], Dk[9];
-        crom_cub_gather(c, k, Xe, W4, Dk);
-        E += c->weight[k] * crom_cub_tet(mat, Xe, W4, r, Dk, c->vol[k], c->weight[k], q, project, g, H, kw);
+        crom_cubature_gather(c, k, Xe, W4, Dk);
+        E += c->weight[k] * crom_cubature_tet(mat, Xe, W4, r, Dk, c->vol[k], c->weight[k], q, project, g, H, kw);
     }
     free(W4);
     free(kw);
@@ -109,9 +109,9 @@ static void fd_gradient(const double *q, void *p, double *g)
 
 static void check_basis(const crom_mesh *m, const double *W, int r, int want_block, crom_rng *rng)
 {
-    crom_cub cub;
-    crom_cub_opts o = {CROM_CUB_RANDOM, 25, 0, 0, NULL, 0, 1e6, 0.3, NULL, 0};
-    CHECK(crom_cub_build(&cub, m, W, r, "test", &o, rng) == 0);
+    crom_cubature cub;
+    crom_cubature_opts o = {CROM_CUBATURE_RANDOM, 25, 0, 0, NULL, 0, 1e6, 0.3, NULL, 0};
+    CHECK(crom_cubature_build(&cub, m, W, r, "test", &o, rng) == 0);
     crom_elastic e;
     CHECK(crom_elastic_init(&e, &cub) == 0);
     CHECK_MSG(e.block == want_block, "block structure detected %d, expected %d", e.block, want_block);
@@ -198,7 +198,7 @@ static void check_basis(const crom_mesh *m, const double *W, int r, int want_blo
     free(gfd);
     free(Hfd);
     crom_elastic_free(&e);
-    crom_cub_free(&cub);
+    crom_cubature_free(&cub);
 }
 
 int main(void)

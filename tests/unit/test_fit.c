@@ -200,7 +200,7 @@ static void test_analytic_fits(void)
     /* POD modes are orthonormal in the volume-mean inner product */
     {
         double *w = malloc(sizeof(double) * pod.mesh.nv), G[16] = {0};
-        double V = crom_vertex_volumes(&pod.mesh, w);
+        double V = crom_mesh_vertex_volumes(&pod.mesh, w);
         for (int v = 0; v < pod.mesh.nv; v++)
             for (int c = 0; c < 3; c++)
                 for (int a = 0; a < 4; a++)
@@ -229,10 +229,10 @@ static void test_analytic_fits(void)
     o.lr = 1e-2;
     o.width = 40;
     crom_model M;
-    double t0 = crom_now();
+    double t0 = crom_clock_now();
     CHECK(crom_fit_mlp(&S, &o, &M) == 0);
     printf("  lsq mlp r=4: reconstruction error %.4f after %d epochs (%.1f s)\n", M.reconstruction_error,
-           M.nepochs, crom_now() - t0);
+           M.nepochs, crom_clock_now() - t0);
     CHECK_LT(M.reconstruction_error, 0.02);
     CHECK(M.nepochs == 1200 && M.loss[M.nepochs - 1] < M.loss[0]);
     /* the canonical basis: orthonormal over the training points, q variance
@@ -285,10 +285,10 @@ static void test_analytic_fits(void)
     o.batch = 30;
     o.lr = 1e-2;
     o.width = 40;
-    t0 = crom_now();
+    t0 = crom_clock_now();
     CHECK(crom_fit_mlp(&S, &o, &M) == 0);
     printf("  lsq mlp r=4 on 200 random vertices per frame: error %.4f (%.1f s)\n", M.reconstruction_error,
-           crom_now() - t0);
+           crom_clock_now() - t0);
     CHECK_LT(M.reconstruction_error, 0.03);
     crom_model_free(&M);
     /* POD refuses samples that miss vertices */

@@ -11,6 +11,7 @@
 #include "base/err.h"
 #include "mesh/mesh.h"
 #include "mesh/meshgen.h"
+#include "mesh/surface.h"
 
 static double mesh_of(int shape, double size, double p, crom_mesh *m)
 {
@@ -28,7 +29,7 @@ static void all_positive(const crom_mesh *m, const char *what)
     int bad = 0;
     for (int t = 0; t < m->nt; t++) {
         const int *e = m->tets + 4 * t;
-        if (!(crom_tet_volume(m->X + 3 * e[0], m->X + 3 * e[1], m->X + 3 * e[2], m->X + 3 * e[3]) > 0))
+        if (!(crom_mesh_tet_volume(m->X + 3 * e[0], m->X + 3 * e[1], m->X + 3 * e[2], m->X + 3 * e[3]) > 0))
             bad++;
     }
     CHECK_MSG(bad == 0, "%s: %d tets with non-positive volume", what, bad);
@@ -58,7 +59,7 @@ static double boundary_volume(const crom_mesh *m, double *area_vec_norm)
 static void test_box(void)
 {
     crom_mesh m;
-    double V = mesh_of(CROM_SHAPE_BOX, 0.2, 0, &m);
+    double V = mesh_of(CROM_MESHGEN_BOX, 0.2, 0, &m);
     CHECK_NEAR(V, 1.0, 1e-12); /* unit box: exact to round-off */
     all_positive(&m, "box");
     double an = NAN, Vb = boundary_volume(&m, &an);
@@ -77,7 +78,7 @@ static void test_box(void)
     crom_mesh_free(&m);
 
     crom_meshgen_opts o;
-    crom_meshgen_defaults(&o, CROM_SHAPE_BOX);
+    crom_meshgen_defaults(&o, CROM_MESHGEN_BOX);
     o.dims[0] = 2;
     o.dims[1] = 0.5;
     o.dims[2] = 0.25;
@@ -93,7 +94,7 @@ static void test_sphere_convergence(void)
     double h[3] = {0.2, 0.1, 0.05}, err[3];
     for (int i = 0; i < 3; i++) {
         crom_mesh m;
-        err[i] = fabs(mesh_of(CROM_SHAPE_SPHERE, h[i], 0, &m) - exact) / exact;
+        err[i] = fabs(mesh_of(CROM_MESHGEN_SPHERE, h[i], 0, &m) - exact) / exact;
         all_positive(&m, "sphere");
         crom_mesh_free(&m);
         fprintf(stderr, "sphere h=%.3f  relative volume error %.3e\n", h[i], err[i]);
@@ -114,10 +115,10 @@ static void test_superquadric(void)
         double p = ps[i], exact = 8 * 0.125 * pow(tgamma(1 + 1 / p), 3) / tgamma(1 + 3 / p);
         double e0 = 0, e1 = 0;
         crom_mesh m;
-        e0 = fabs(mesh_of(CROM_SHAPE_SUPERQUADRIC, 0.1, p, &m) - exact) / exact;
+        e0 = fabs(mesh_of(CROM_MESHGEN_SUPERQUADRIC, 0.1, p, &m) - exact) / exact;
         all_positive(&m, "superquadric");
         crom_mesh_free(&m);
-        e1 = fabs(mesh_of(CROM_SHAPE_SUPERQUADRIC, 0.05, p, &m) - exact) / exact;
+        e1 = fabs(mesh_of(CROM_MESHGEN_SUPERQUADRIC, 0.05, p, &m) - exact) / exact;
         crom_mesh_free(&m);
         fprintf(stderr, "superquadric p=%g  volume error %.3e (h=0.1)  %.3e (h=0.05)\n", p, e0, e1);
         if (p == 1) /* the octahedron is exactly representable */
@@ -177,13 +178,13 @@ static void test_orient_and_regions(void)
         free(idx);
     }
     CHECK(crom_mesh_region_spec(&m, "top=y>0.9") == 0);
-    const crom_region *r = crom_mesh_region(&m, "top");
+    const crom_mesh_region *r = crom_mesh_find_region(&m, "top");
     CHECK(r && r->n == 25);
     for (int i = 0; r && i < r->n; i++)
         CHECK_NEAR(m.X[3 * r->idx[i] + 1], 1.0, 0);
     /* a region can copy an existing one by name (imported gmsh groups) */
     CHECK(crom_mesh_region_spec(&m, "lid=top") == 0);
-    CHECK(crom_mesh_region(&m, "lid") && crom_mesh_region(&m, "lid")->n == 25);
+    CHECK(crom_mesh_find_region(&m, "lid") && crom_mesh_find_region(&m, "lid")->n == 25);
     /* errors */
     int *idx, n;
     CHECK(crom_mesh_select(&m, "nosuch", &idx, &n) == CROM_EUSAGE);
@@ -206,7 +207,7 @@ static void test_orient_and_regions(void)
     CHECK(crom_mesh_compact(&c) == 0);
     CHECK(c.nv == 8);
     CHECK_NEAR(crom_mesh_volume(&c), 1.0 / 64, 1e-15);
-    CHECK(crom_mesh_region(&c, "top") && crom_mesh_region(&c, "top")->n == 0);
+    CHECK(crom_mesh_find_region(&c, "top") && crom_mesh_find_region(&c, "top")->n == 0);
     crom_mesh_free(&c);
 
     /* validation catches NaN, bad indices, inverted tets */
@@ -241,16 +242,15 @@ static void test_surfaces(void)
     /* a closed tetrahedron surface as OBJ: 4 faces, outward */
     snprintf(path, sizeof path, "%s/tet.obj", dir);
     write_file(path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n");
-    int nv, nt, *T;
-    double *V;
-    CHECK(crom_surface_read(path, &nv, &V, &nt, &T) == 0);
-    CHECK(nv == 4 && nt == 4);
-    CHECK(crom_surface_check_closed(nv, nt, T, path) == 0);
+    crom_surface S;
+    CHECK(crom_surface_read(path, &S) == 0);
+    CHECK(S.nv == 4 && S.nt == 4);
+    CHECK(crom_surface_check_closed(&S, path) == 0);
     /* drop a face: open */
-    CHECK(crom_surface_check_closed(nv, nt - 1, T, path) == CROM_EDATA);
+    S.nt--;
+    CHECK(crom_surface_check_closed(&S, path) == CROM_EDATA);
     CHECK(strstr(crom_errmsg(), "close") != NULL);
-    free(V);
-    free(T);
+    crom_surface_free(&S);
     /* ASCII STL of the same closed surface, meshed inside with gmsh */
     snprintf(path, sizeof path, "%s/tet.stl", dir);
     write_file(path,
@@ -261,7 +261,7 @@ static void test_surfaces(void)
                "facet normal 1 1 1\n outer loop\n vertex 1 0 0\n vertex 0 1 0\n vertex 0 0 1\n endloop\nendfacet\n"
                "endsolid t\n");
     crom_meshgen_opts o;
-    crom_meshgen_defaults(&o, CROM_SHAPE_IMPORT);
+    crom_meshgen_defaults(&o, CROM_MESHGEN_IMPORT);
     o.file = path;
     o.size = 0.2;
     crom_mesh m;
@@ -284,7 +284,7 @@ static void test_surfaces(void)
     /* missing file and bad parameters */
     o.file = "/nonexistent/x.stl";
     CHECK(crom_meshgen(&o, &m) == CROM_ENOINPUT);
-    crom_meshgen_defaults(&o, CROM_SHAPE_BOX);
+    crom_meshgen_defaults(&o, CROM_MESHGEN_BOX);
     o.size = 0;
     CHECK(crom_meshgen(&o, &m) == CROM_EUSAGE);
     o.size = -1;

@@ -141,7 +141,7 @@ static void test_vertex_volumes(void)
     double lo[3] = {0, 0, 0};
     fx_box_mesh(&m, 3, 3, 3, lo, 1.0 / 3, 0.2, &rng, NULL);
     double *w = malloc(sizeof(double) * (size_t)m.nv), s = 0;
-    double V = crom_vertex_volumes(&m, w);
+    double V = crom_mesh_vertex_volumes(&m, w);
     for (int v = 0; v < m.nv; v++)
         s += w[v];
     CHECK_NEAR(V, 1.0, 1e-13);
@@ -202,7 +202,7 @@ static void test_mesh_model(void)
     CHECK(write_model(path, &M) == 0);
     crom_model R;
     CHECK(crom_model_load(path, &R) == 0);
-    CHECK(!strcmp(R.model_id, M.model_id) && R.rank == r && R.field == CROM_FIELD_MESH);
+    CHECK(!strcmp(R.model_id, M.model_id) && R.rank == r && R.field == CROM_MODEL_FIELD_MESH);
     double *W2 = malloc(sizeof(double) * 3 * r * n);
     CHECK(crom_model_eval(&R, (size_t)n, X, W2, NULL) == 0);
     CHECK(memcmp(W, W2, sizeof(double) * 3 * r * n) == 0);
@@ -245,7 +245,7 @@ static void test_mlp_model(void)
     CHECK(crom_nn_mlp_set_norm(&P.point, psh, psc) == 0);
     crom_model M;
     CHECK(crom_model_from_mlp(&M, &W, &P) == 0);
-    CHECK(M.rank == r && M.encoder == CROM_ENC_POINTNET);
+    CHECK(M.rank == r && M.encoder == CROM_MODEL_ENC_POINTNET);
     M.reconstruction_error = 0.125;
     M.nepochs = 2;
     M.loss = malloc(2 * sizeof(double));
@@ -275,7 +275,7 @@ static void test_mlp_model(void)
     crom_model R;
     CHECK(crom_model_load(path, &R) == 0);
     CHECK(!strcmp(R.model_id, M.model_id));
-    CHECK(R.encoder == CROM_ENC_POINTNET && R.rank == r && R.mlp.spec.act == CROM_NN_ELU);
+    CHECK(R.encoder == CROM_MODEL_ENC_POINTNET && R.rank == r && R.mlp.spec.act == CROM_NN_ELU);
     CHECK(R.reconstruction_error == 0.125);
     CHECK(crom_model_eval(&R, (size_t)n, X, Wb, NULL) == 0);
     CHECK(memcmp(Wa, Wb, sizeof Wa) == 0);

@@ -22,7 +22,7 @@
 static int make_box(double size, double dx, double dy, double dz, crom_mesh *m)
 {
     const double dims[3] = {dx, dy, dz};
-    return fx_gen(CROM_SHAPE_BOX, dims, size, m);
+    return fx_gen(CROM_MESHGEN_BOX, dims, size, m);
 }
 
 /* DOF mask of the vertices with x <= xmax */

@@ -49,7 +49,7 @@ static void all_positive(const crom_mesh *m, const char *what)
     int bad = 0;
     for (int t = 0; t < m->nt; t++) {
         const int *e = m->tets + 4 * t;
-        if (!(crom_tet_volume(m->X + 3 * e[0], m->X + 3 * e[1], m->X + 3 * e[2], m->X + 3 * e[3]) > 0))
+        if (!(crom_mesh_tet_volume(m->X + 3 * e[0], m->X + 3 * e[1], m->X + 3 * e[2], m->X + 3 * e[3]) > 0))
             bad++;
     }
     CHECK_MSG(bad == 0, "%s: %d tets with non-positive volume", what, bad);
@@ -96,8 +96,8 @@ static void test_cut_grid(void)
     CHECK_NEAR(A0, 6, 1e-12);
     /* a wall on the grid plane x = 0.5 through the whole cube */
     double seg[4] = {0.5, -0.1, 0.5, 1.1};
-    crom_cut cut = {1, 1, seg, 1, 1};
-    crom_cut_stats st;
+    crom_remesh_cut_opts cut = {1, 1, seg, 1, 1};
+    crom_remesh_cut_stats st;
     CHECK(crom_remesh_cut(&m, &cut, &c, &st, NULL, NULL) == 0);
     CHECK(st.faces_cut == 32);  /* 16 squares, 2 triangles each */
     CHECK(st.verts_dup == 25);  /* the 5 x 5 vertices on the plane */
@@ -119,7 +119,7 @@ static void test_cut_grid(void)
     /* a wall through the middle of a layer of cubes, where some Kuhn tets
      * have their centroid exactly on it: still two pieces */
     double mid[4] = {0.375, -0.1, 0.375, 1.1};
-    crom_cut cm = {1, 1, mid, 1, 1};
+    crom_remesh_cut_opts cm = {1, 1, mid, 1, 1};
     CHECK(crom_remesh_cut(&m, &cm, &c, &st, NULL, NULL) == 0);
     CHECK(st.components == 2);
     CHECK(vertices_one_sided(&c, 0, 0.375) == 0);
@@ -130,7 +130,7 @@ static void test_cut_grid(void)
 
     /* the same wall along axis z: (u, v) = (x, y) */
     double segz[4] = {0.5, -0.1, 0.5, 1.1};
-    crom_cut cz = {2, 1, segz, 1, 1};
+    crom_remesh_cut_opts cz = {2, 1, segz, 1, 1};
     CHECK(crom_remesh_cut(&m, &cz, &c, &st, NULL, NULL) == 0);
     CHECK(st.faces_cut == 32 && st.components == 2);
     CHECK_NEAR(boundary_area(&c), A0 + 2, 1e-12);
@@ -144,7 +144,7 @@ static void test_cut_grid(void)
     CHECK(!memcmp(c.X, m.X, sizeof(double) * 3 * m.nv) && !memcmp(c.tets, m.tets, sizeof(int) * 4 * m.nt));
     crom_mesh_free(&c);
     double away[4] = {3, 0, 3, 1};
-    crom_cut ca = {1, 1, away, 1, 1};
+    crom_remesh_cut_opts ca = {1, 1, away, 1, 1};
     CHECK(crom_remesh_cut(&m, &ca, &c, &st, count_warn, NULL) == 0);
     CHECK(nwarn == 2 && st.faces_cut == 0 && c.nv == m.nv);
     crom_mesh_free(&c);
@@ -153,7 +153,7 @@ static void test_cut_grid(void)
     CHECK(crom_mesh_region_spec(&m, "mid=x>0.4&x<0.6") == 0);
     cut.stage = cut.stages = 1;
     CHECK(crom_remesh_cut(&m, &cut, &c, &st, NULL, NULL) == 0);
-    const crom_region *r = crom_mesh_region(&c, "mid");
+    const crom_mesh_region *r = crom_mesh_find_region(&c, "mid");
     CHECK(r && r->n == 50);
     for (int i = 0; r && i < r->n; i++)
         CHECK_NEAR(c.X[3 * r->idx[i]], 0.5, 0);
@@ -165,15 +165,15 @@ static void test_cut_grid(void)
     CHECK(crom_remesh_cut(&m, &cut, &c, NULL, NULL, NULL) == CROM_EUSAGE);
     cut.stage = cut.stages = 1;
     double zero[4] = {0.5, 0.5, 0.5, 0.5};
-    crom_cut c0 = {1, 1, zero, 1, 1};
+    crom_remesh_cut_opts c0 = {1, 1, zero, 1, 1};
     CHECK(crom_remesh_cut(&m, &c0, &c, NULL, NULL, NULL) == CROM_EUSAGE);
     CHECK(strstr(crom_errmsg(), "zero length") != NULL);
     double bad[4] = {0.5, NAN, 0.5, 1};
-    crom_cut cn = {1, 1, bad, 1, 1};
+    crom_remesh_cut_opts cn = {1, 1, bad, 1, 1};
     CHECK(crom_remesh_cut(&m, &cn, &c, NULL, NULL, NULL) == CROM_EUSAGE);
-    crom_cut cx = {3, 1, seg, 1, 1};
+    crom_remesh_cut_opts cx = {3, 1, seg, 1, 1};
     CHECK(crom_remesh_cut(&m, &cx, &c, NULL, NULL, NULL) == CROM_EUSAGE);
-    crom_cut cs = {1, 1, seg, 0, 0};
+    crom_remesh_cut_opts cs = {1, 1, seg, 0, 0};
     CHECK(crom_remesh_cut(&m, &cs, &c, NULL, NULL, NULL) == CROM_EUSAGE);
     crom_mesh_free(&m);
 }
@@ -191,12 +191,12 @@ static void test_cut_plate(void)
     const double xc = 0.0123, L = 1.0, thick = 0.05;
     crom_mesh m, c;
     double dims[3] = {1, thick, 1};
-    fx_gen(CROM_SHAPE_PLATE, dims, 0.05, &m);
+    fx_gen(CROM_MESHGEN_PLATE, dims, 0.05, &m);
     double A0 = boundary_area(&m), V0 = crom_mesh_volume(&m);
 
     /* a straight through-cut */
     double seg[4] = {xc, -0.6, xc, 0.6};
-    crom_cut cut = {1, 1, seg, 1, 1};
+    crom_remesh_cut_opts cut = {1, 1, seg, 1, 1};
     unsigned char *flags;
     int nf;
     CHECK(crom_remesh_cut_faces(&m, &cut, &flags, &nf) == 0);
@@ -213,7 +213,7 @@ static void test_cut_plate(void)
                 }
             }
     free(flags);
-    crom_cut_stats st;
+    crom_remesh_cut_stats st;
     CHECK(crom_remesh_cut(&m, &cut, &c, &st, NULL, NULL) == 0);
     double gain = boundary_area(&c) - A0, ideal = 2 * L * thick;
     fprintf(stderr, "plate cut: %d faces, %d vertex copies, area gain %.6f = %.3f x 2*L*t, "
@@ -239,7 +239,7 @@ static void test_cut_plate(void)
     unsigned char *prev = NULL;
     int pf = -1, pd = -1, mono = 1, subset = 1;
     for (int k = 0; k <= N; k++) {
-        crom_cut cy = {1, 3, y, N, k};
+        crom_remesh_cut_opts cy = {1, 3, y, N, k};
         unsigned char *fl;
         CHECK(crom_remesh_cut_faces(&m, &cy, &fl, &nf) == 0);
         CHECK(crom_remesh_cut(&m, &cy, &c, &st, NULL, NULL) == 0);
@@ -263,7 +263,7 @@ static void test_cut_plate(void)
     int same = 1, total = 0;
     unsigned char *one[3];
     for (int b = 0; b < 3; b++) {
-        crom_cut cb = {1, 1, y + 4 * b, 1, 1};
+        crom_remesh_cut_opts cb = {1, 1, y + 4 * b, 1, 1};
         CHECK(crom_remesh_cut_faces(&m, &cb, &one[b], &nf) == 0);
         total += nf;
     }
@@ -284,10 +284,10 @@ static void test_punch(void)
     const double R = 0.3, exact = 4.0 / 3.0 * M_PI * R * R * R;
     const double h[3] = {0.2, 0.1, 0.05};
     double err[3];
-    crom_punch_shape ball = {CROM_PUNCH_SPHERE, {0.013, -0.021, 0.017, R}};
+    crom_remesh_punch_shape ball = {CROM_REMESH_PUNCH_SPHERE, {0.013, -0.021, 0.017, R}};
     for (int i = 0; i < 3; i++) {
         crom_mesh m, p;
-        fx_gen(CROM_SHAPE_BOX, NULL, h[i], &m);
+        fx_gen(CROM_MESHGEN_BOX, NULL, h[i], &m);
         CHECK(crom_mesh_region_spec(&m, "top=y>0.45") == 0);
         CHECK(crom_mesh_region_spec(&m, "core=sphere:0,0,0,0.1") == 0);
         int nrem = 0;
@@ -298,9 +298,9 @@ static void test_punch(void)
         fprintf(stderr, "punch h=%.3f: removed %d of %d tets, volume %.6f vs %.6f, relative error %.3e\n",
                 h[i], nrem, m.nt, removed, exact, err[i]);
         all_positive(&p, "punched box");
-        CHECK(nwarn == 1 && !crom_mesh_region(&p, "core")); /* emptied: dropped with a warning */
+        CHECK(nwarn == 1 && !crom_mesh_find_region(&p, "core")); /* emptied: dropped with a warning */
         /* top keeps exactly the surviving vertices with y > 0.45 */
-        const crom_region *top = crom_mesh_region(&p, "top");
+        const crom_mesh_region *top = crom_mesh_find_region(&p, "top");
         int k = 0, ok = top != NULL;
         for (int v = 0; ok && v < p.nv; v++)
             if (p.X[3 * v + 1] > 0.45)
@@ -318,17 +318,17 @@ static void test_punch(void)
     /* a slab through the middle leaves two pieces; punching all is refused */
     crom_mesh m, p;
     fx_unit_grid(&m, 4, 1);
-    crom_punch_shape slab = {CROM_PUNCH_BOX, {0.3, -1, -1, 0.7, 2, 2}};
+    crom_remesh_punch_shape slab = {CROM_REMESH_PUNCH_BOX, {0.3, -1, -1, 0.7, 2, 2}};
     CHECK(crom_remesh_punch(&m, &slab, 1, &p, NULL, NULL, NULL) == 0);
     CHECK(crom_remesh_components(&p, NULL) == 2);
     CHECK_NEAR(crom_mesh_volume(&p), 0.5, 1e-14);
     crom_mesh_free(&p);
-    crom_punch_shape all = {CROM_PUNCH_BOX, {-1, -1, -1, 2, 2, 2}};
+    crom_remesh_punch_shape all = {CROM_REMESH_PUNCH_BOX, {-1, -1, -1, 2, 2, 2}};
     CHECK(crom_remesh_punch(&m, &all, 1, &p, NULL, NULL, NULL) == CROM_EDATA);
     CHECK(strstr(crom_errmsg(), "nothing would remain") != NULL);
-    crom_punch_shape neg = {CROM_PUNCH_SPHERE, {0, 0, 0, 0}};
+    crom_remesh_punch_shape neg = {CROM_REMESH_PUNCH_SPHERE, {0, 0, 0, 0}};
     CHECK(crom_remesh_punch(&m, &neg, 1, &p, NULL, NULL, NULL) == CROM_EUSAGE);
-    crom_punch_shape flat = {CROM_PUNCH_BOX, {0, 0, 0, 1, 0, 1}};
+    crom_remesh_punch_shape flat = {CROM_REMESH_PUNCH_BOX, {0, 0, 0, 1, 0, 1}};
     CHECK(crom_remesh_punch(&m, &flat, 1, &p, NULL, NULL, NULL) == CROM_EUSAGE);
     crom_mesh_free(&m);
 }
@@ -338,20 +338,20 @@ static void test_punch(void)
 static void test_swap(void)
 {
     crom_mesh in, other, out;
-    fx_gen(CROM_SHAPE_BOX, NULL, 0.25, &in);
+    fx_gen(CROM_MESHGEN_BOX, NULL, 0.25, &in);
     CHECK(crom_mesh_region_spec(&in, "bottom=y<-0.45") == 0);
     CHECK(crom_mesh_region_spec(&in, "base=bottom") == 0);       /* a name: followed */
     CHECK(crom_mesh_region_spec(&in, "side=x>0.45") == 0);       /* empty on OTHER */
     int one = 0;
     CHECK(crom_mesh_add_region(&in, "grp", "gmsh:grp", &one, 1) == 0); /* not transferable */
     double dims[3] = {2, 0.5, 0.25};
-    fx_gen(CROM_SHAPE_BOX, dims, 0.1, &other);
+    fx_gen(CROM_MESHGEN_BOX, dims, 0.1, &other);
     CHECK(crom_mesh_region_spec(&other, "own=x>0.9") == 0);
     double V = crom_mesh_volume(&other);
 
     /* 90 degrees about y: the x-extent becomes the z-extent, exactly */
-    crom_xform x;
-    crom_xform_init(&x);
+    crom_remesh_xform x;
+    crom_remesh_xform_init(&x);
     x.axis[1] = 1;
     x.deg = 90;
     x.translate[1] = -0.3;
@@ -366,12 +366,12 @@ static void test_swap(void)
     CHECK_NEAR(lo[1], -0.55, 1e-15);
     CHECK_NEAR(crom_mesh_volume(&out), V, 1e-12);
     all_positive(&out, "rotated");
-    CHECK(crom_mesh_region(&out, "own") != NULL && !crom_mesh_region(&out, "side") &&
-          !crom_mesh_region(&out, "grp"));
+    CHECK(crom_mesh_find_region(&out, "own") != NULL && !crom_mesh_find_region(&out, "side") &&
+          !crom_mesh_find_region(&out, "grp"));
     /* bottom and base select exactly the transformed vertices with y < -0.45 */
     const char *names[2] = {"bottom", "base"};
     for (int q = 0; q < 2; q++) {
-        const crom_region *r = crom_mesh_region(&out, names[q]);
+        const crom_mesh_region *r = crom_mesh_find_region(&out, names[q]);
         int k = 0, ok = r != NULL;
         for (int v = 0; ok && v < out.nv; v++)
             if (out.X[3 * v + 1] < -0.45)
@@ -383,7 +383,7 @@ static void test_swap(void)
 
     /* a general reflection-free transform: volume scales by s^3, tets stay
      * positive */
-    crom_xform_init(&x);
+    crom_remesh_xform_init(&x);
     x.scale = 1.5;
     x.axis[0] = 1;
     x.axis[1] = 1;
@@ -395,7 +395,7 @@ static void test_swap(void)
     crom_mesh_free(&out);
 
     /* --fit: the largest extents match, centred on the input's box */
-    crom_xform_init(&x);
+    crom_remesh_xform_init(&x);
     x.fit = 1;
     CHECK(crom_remesh_swap(&in, &other, &x, &out, NULL, NULL) == 0);
     crom_mesh_bbox(&out, lo, hi);
@@ -408,7 +408,7 @@ static void test_swap(void)
     crom_mesh_free(&out);
 
     /* bad transforms */
-    crom_xform_init(&x);
+    crom_remesh_xform_init(&x);
     x.scale = 0;
     CHECK(crom_remesh_swap(&in, &other, &x, &out, NULL, NULL) == CROM_EUSAGE);
     x.scale = 1;
@@ -437,7 +437,7 @@ static int mid_cmp(const void *x, const void *y)
 static void test_refine(void)
 {
     crom_mesh m, r;
-    fx_gen(CROM_SHAPE_SPHERE, NULL, 0.2, &m);
+    fx_gen(CROM_MESHGEN_SPHERE, NULL, 0.2, &m);
     CHECK(crom_mesh_region_spec(&m, "cap=y>0.2") == 0);
     CHECK(crom_mesh_region_spec(&m, "slab=box:-1,-0.1,-1,1,0.1,1") == 0);
     double V = crom_mesh_volume(&m), w0, w1, mean;
@@ -486,7 +486,7 @@ static void test_refine(void)
             continue;
         found++;
         for (int q = 0; q < 2; q++) {
-            const crom_region *g0 = crom_mesh_region(&m, names[q]), *g1 = crom_mesh_region(&r, names[q]);
+            const crom_mesh_region *g0 = crom_mesh_find_region(&m, names[q]), *g1 = crom_mesh_find_region(&r, names[q]);
             int a_in = 0, b_in = 0, w_in = 0;
             for (int j = 0; j < g0->n; j++) {
                 a_in |= g0->idx[j] == hit->a;
@@ -500,7 +500,7 @@ static void test_refine(void)
     CHECK_MSG(found == r.nv - m.nv, "%d of %d new vertices are exact edge midpoints", found, r.nv - m.nv);
     CHECK_MSG(rule, "midpoint region membership rule");
     for (int q = 0; q < 2; q++) { /* original members are unchanged */
-        const crom_region *g0 = crom_mesh_region(&m, names[q]), *g1 = crom_mesh_region(&r, names[q]);
+        const crom_mesh_region *g0 = crom_mesh_find_region(&m, names[q]), *g1 = crom_mesh_find_region(&r, names[q]);
         CHECK(g1->n >= g0->n && !memcmp(g1->idx, g0->idx, sizeof(int) * g0->n));
     }
     free(e);

@@ -1,23 +1,26 @@
 /* test_rom.c — reduced dynamics on a cubature: gradient and Hessian against
  * finite differences, the Galerkin projection of the full equations
  * (independent evaluation through the full FEM assembly), cubature schemes,
- * cubature switches, boundary conditions. */
+ * cubature switches and their schedules, boundary conditions. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include <cblas.h>
 #include <lapacke.h>
 
 #include "check.h"
 #include "fixtures.h"
-#include "rom/cubature.h"
 #include "base/err.h"
-#include "phys/fem.h"
 #include "mesh/meshgen.h"
 #include "mesh/remesh.h"
-#include "rom/rom.h"
+#include "phys/fem.h"
+#include "rom/cubature.h"
+#include "io/io.h"
+#include "rom/rsim.h"
+#include "rom/schedule.h"
 
 /* An analytic basis: translations, linear fields and a few quadratic
  * bending fields, W [nv][3][r]. */
@@ -45,7 +48,7 @@ static void analytic_basis(const crom_mesh *m, double *W)
 
 static void make(crom_mesh *m, double size, const double dims[3])
 {
-    fx_gen(CROM_SHAPE_BOX, dims, size, m);
+    fx_gen(CROM_MESHGEN_BOX, dims, size, m);
     CHECK(crom_mesh_region_spec(m, "left=x<-0.49") == 0);
     CHECK(crom_mesh_region_spec(m, "right=x>0.49") == 0);
 }
@@ -73,11 +76,11 @@ static void test_derivatives(void)
     make(&m, 0.12, dims);
     double *W = malloc(sizeof(double) * 3 * R * m.nv);
     analytic_basis(&m, W);
-    crom_cub c;
-    crom_cub_opts o = {CROM_CUB_RANDOM, 20, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
+    crom_cubature c;
+    crom_cubature_opts o = {CROM_CUBATURE_RANDOM, 20, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
     crom_rng rng;
     crom_rng_seed(&rng, 3);
-    CHECK(crom_cub_build(&c, &m, W, R, "test", &o, &rng) == 0);
+    CHECK(crom_cubature_build(&c, &m, W, R, "test", &o, &rng) == 0);
     crom_scenario sc;
     crom_scenario_defaults(&sc);
     sc.damping = 3;
@@ -92,7 +95,7 @@ static void test_derivatives(void)
         q0[i] = 0.02 * crom_rng_normal(&rng);
         qd0[i] = 0.3 * crom_rng_normal(&rng);
     }
-    CHECK(crom_rsim_init(&s, &c, &sc, CROM_SOLVER_NEWTON, 1e5, q0, qd0) == 0);
+    CHECK(crom_rsim_init(&s, &c, &sc, CROM_RSIM_NEWTON, 1e5, q0, qd0) == 0);
     crom_rsim_begin_step(&s);
     g_sim = &s;
     for (g_project = 0; g_project <= 1; g_project++) {
@@ -115,7 +118,7 @@ static void test_derivatives(void)
         CHECK_LT(asym, 1e-9 * fabs(H[0]));
     }
     crom_rsim_free(&s);
-    crom_cub_free(&c);
+    crom_cubature_free(&c);
     free(W);
     crom_mesh_free(&m);
 }
@@ -124,7 +127,7 @@ static void test_derivatives(void)
  * x = X + W q with full assembly: g = Wᵀ∇IP, H = Wᵀ(∇²IP)W, plus the same
  * pin penalty. */
 static void galerkin_step(const crom_fem *fem, const crom_mesh *m, const double *W, const double *grav,
-                          double h, double kappa, const crom_region *pin, double *q, double *qd)
+                          double h, double kappa, const crom_mesh_region *pin, double *q, double *qd)
 {
     int n = 3 * m->nv;
     double *x = malloc(sizeof(double) * n), *gf = malloc(sizeof(double) * n), *Hv = malloc(sizeof(double) * fem->nnz);
@@ -202,11 +205,11 @@ static void test_galerkin(void)
     make(&m, 0.1, dims);
     double *W = malloc(sizeof(double) * 3 * R * m.nv);
     analytic_basis(&m, W);
-    crom_cub c;
-    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
+    crom_cubature c;
+    crom_cubature_opts o = {CROM_CUBATURE_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
     crom_rng rng;
     crom_rng_seed(&rng, 1);
-    CHECK(crom_cub_build(&c, &m, W, R, "test", &o, &rng) == 0);
+    CHECK(crom_cubature_build(&c, &m, W, R, "test", &o, &rng) == 0);
     CHECK(c.k == m.nt);
     crom_scenario sc;
     crom_scenario_defaults(&sc);
@@ -216,15 +219,15 @@ static void test_galerkin(void)
     strcpy(sc.pins[sc.npins++], "left");
     double kappa = 1e6;
     crom_rsim s;
-    CHECK(crom_rsim_init(&s, &c, &sc, CROM_SOLVER_NEWTON, kappa, NULL, NULL) == 0);
+    CHECK(crom_rsim_init(&s, &c, &sc, CROM_RSIM_NEWTON, kappa, NULL, NULL) == 0);
     crom_material mat;
     crom_material_init(&mat, sc.youngs, sc.poisson, sc.density);
     crom_fem fem;
     CHECK(crom_fem_init(&fem, &m, &mat) == 0);
     double q[R] = {0}, qd[R] = {0}, worst = 0, qmax = 0;
-    const crom_region *pin = crom_mesh_region(&m, "left");
+    const crom_mesh_region *pin = crom_mesh_find_region(&m, "left");
     for (int k = 0; k < 12; k++) {
-        crom_rstep_stats st;
+        crom_rsim_stats st;
         int rc = crom_rsim_step(&s, &st);
         CHECK_MSG(rc == 0, "reduced step %d: %s", k, crom_errmsg());
         galerkin_step(&fem, &m, W, sc.gravity, sc.dt, kappa, pin, q, qd);
@@ -250,7 +253,7 @@ static void test_galerkin(void)
     CHECK_LT(dm, 1e-12 * mm);
     crom_fem_free(&fem);
     crom_rsim_free(&s);
-    crom_cub_free(&c);
+    crom_cubature_free(&c);
     free(W);
     crom_mesh_free(&m);
 }
@@ -270,22 +273,22 @@ static void test_schemes_and_switch(void)
     double poses[8 * R];
     for (int i = 0; i < 8 * R; i++)
         poses[i] = (i % R < 3 ? 0 : 0.02) * crom_rng_normal(&rng);
-    crom_cub all, rnd, met, opt;
-    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
-    CHECK(crom_cub_build(&all, &m, W, R, "id", &o, &rng) == 0);
-    o.scheme = CROM_CUB_RANDOM;
+    crom_cubature all, rnd, met, opt;
+    crom_cubature_opts o = {CROM_CUBATURE_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
+    CHECK(crom_cubature_build(&all, &m, W, R, "id", &o, &rng) == 0);
+    o.scheme = CROM_CUBATURE_RANDOM;
     o.count = 60;
-    CHECK(crom_cub_build(&rnd, &m, W, R, "id", &o, &rng) == 0);
-    o.scheme = CROM_CUB_METIS;
+    CHECK(crom_cubature_build(&rnd, &m, W, R, "id", &o, &rng) == 0);
+    o.scheme = CROM_CUBATURE_METIS;
     o.count = 40;
-    CHECK(crom_cub_build(&met, &m, W, R, "id", &o, &rng) == 0);
+    CHECK(crom_cubature_build(&met, &m, W, R, "id", &o, &rng) == 0);
     CHECK(met.k == 40);
-    o.scheme = CROM_CUB_OPTIMIZED;
+    o.scheme = CROM_CUBATURE_OPTIMIZED;
     o.count = 60;
     o.tol = 1e-3;
     o.poses = poses;
     o.npose = 8;
-    CHECK(crom_cub_build(&opt, &m, W, R, "id", &o, &rng) == 0);
+    CHECK(crom_cubature_build(&opt, &m, W, R, "id", &o, &rng) == 0);
     /* weighted volumes integrate the mesh volume (random, metis exactly) */
     double vr = 0, vm = 0;
     for (int k = 0; k < rnd.k; k++)
@@ -295,9 +298,9 @@ static void test_schemes_and_switch(void)
     CHECK_NEAR(vr, all.mesh_volume, 1e-12);
     CHECK_NEAR(vm, all.mesh_volume, 1e-12);
     double eE[4], eF[4];
-    const crom_cub *cs[4] = {&all, &rnd, &met, &opt};
+    const crom_cubature *cs[4] = {&all, &rnd, &met, &opt};
     for (int i = 0; i < 4; i++)
-        CHECK(crom_cub_error(cs[i], &mat, poses, 8, NULL, 0, &eE[i], &eF[i]) == 0);
+        CHECK(crom_cubature_error(cs[i], &mat, poses, 8, NULL, 0, &eE[i], &eF[i]) == 0);
     fprintf(stderr, "cubature errors (energy, force): all %.1e %.1e, random(%d tets) %.3f %.3f, metis(%d) %.3f %.3f, optimized(%d) %.4f %.4f\n",
             eE[0], eF[0], rnd.k, eE[1], eF[1], met.k, eE[2], eF[2], opt.k, eE[3], eF[3]);
     CHECK_LT(eE[0], 1e-12);
@@ -310,8 +313,8 @@ static void test_schemes_and_switch(void)
     crom_scenario_defaults(&sc);
     strcpy(sc.pins[sc.npins++], "left");
     crom_rsim s;
-    CHECK(crom_rsim_init(&s, &met, &sc, CROM_SOLVER_NEWTON, 0, NULL, NULL) == 0);
-    crom_rstep_stats st;
+    CHECK(crom_rsim_init(&s, &met, &sc, CROM_RSIM_NEWTON, 0, NULL, NULL) == 0);
+    crom_rsim_stats st;
     for (int k = 0; k < 5; k++)
         CHECK(crom_rsim_step(&s, &st) == 0);
     double qb[R], qdb[R];
@@ -334,9 +337,9 @@ static void test_schemes_and_switch(void)
     sc.youngs = 2e3;
     sc.max_iter = 2000;
     sc.tol = 1e-10;
-    CHECK(crom_rsim_init(&g, &met, &sc, CROM_SOLVER_GD, 0, NULL, NULL) == 0);
+    CHECK(crom_rsim_init(&g, &met, &sc, CROM_RSIM_GD, 0, NULL, NULL) == 0);
     crom_rsim nw;
-    CHECK(crom_rsim_init(&nw, &met, &sc, CROM_SOLVER_NEWTON, 0, NULL, NULL) == 0);
+    CHECK(crom_rsim_init(&nw, &met, &sc, CROM_RSIM_NEWTON, 0, NULL, NULL) == 0);
     for (int k = 0; k < 3; k++) {
         CHECK(crom_rsim_step(&g, &st) == 0);
         CHECK(crom_rsim_step(&nw, &st) == 0);
@@ -355,7 +358,7 @@ static void test_schemes_and_switch(void)
     CHECK(crom_rsim_set_cubature(&s, &met) == CROM_EDATA);
     crom_rsim_free(&s);
     for (int i = 0; i < 4; i++)
-        crom_cub_free((crom_cub *)cs[i]);
+        crom_cubature_free((crom_cubature *)cs[i]);
     free(W);
     crom_mesh_free(&m);
 }
@@ -373,20 +376,20 @@ static double jump_energy(const crom_mesh *m, double offset, double q)
         W[3 * v] = W[3 * v + 2] = 0;
         W[3 * v + 1] = 0.5 * (1 + tanh((P[3 * v] - 0.5) / 1e-4));
     }
-    crom_cub c;
-    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 1e5, 0.25, NULL, 0};
+    crom_cubature c;
+    crom_cubature_opts o = {CROM_CUBATURE_ALL, 0, 0, 0, NULL, 0, 1e5, 0.25, NULL, 0};
     crom_rng rng;
     crom_rng_seed(&rng, 1);
-    CHECK(crom_cub_build(&c, m, W, 1, "jump", &o, &rng) == 0);
+    CHECK(crom_cubature_build(&c, m, W, 1, "jump", &o, &rng) == 0);
     crom_scenario sc;
     crom_scenario_defaults(&sc);
     sc.youngs = 1e5;
     crom_rsim s;
-    CHECK(crom_rsim_init(&s, &c, &sc, CROM_SOLVER_NEWTON, 0, &q, NULL) == 0);
+    CHECK(crom_rsim_init(&s, &c, &sc, CROM_RSIM_NEWTON, 0, &q, NULL) == 0);
     double K, E, X;
     CHECK(crom_rsim_energies(&s, &K, &E, &X) == 0);
     crom_rsim_free(&s);
-    crom_cub_free(&c);
+    crom_cubature_free(&c);
     free(P);
     free(W);
     return E;
@@ -424,9 +427,9 @@ static void test_crack_opens(void)
                 }
     CHECK(crom_mesh_orient(&m, NULL) == 0);
     static const double seg[4] = {0.5, -1, 0.5, 2};
-    crom_cut cut = {2, 1, seg, 1, 1}; /* a wall at x = 0.5, extruded along z */
+    crom_remesh_cut_opts cut = {2, 1, seg, 1, 1}; /* a wall at x = 0.5, extruded along z */
     crom_mesh cm;
-    crom_cut_stats st;
+    crom_remesh_cut_stats st;
     CHECK(crom_remesh_cut(&m, &cut, &cm, &st, NULL, NULL) == 0);
     CHECK(cm.nv == m.nv + 25);
     int ns = 0;
@@ -456,16 +459,16 @@ static void test_initial_velocity(void)
     make(&m, 0.12, dims);
     double *W = malloc(sizeof(double) * 3 * R * m.nv);
     analytic_basis(&m, W);
-    crom_cub c;
-    crom_cub_opts o = {CROM_CUB_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
-    CHECK(crom_cub_build(&c, &m, W, R, "test", &o, NULL) == 0);
+    crom_cubature c;
+    crom_cubature_opts o = {CROM_CUBATURE_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
+    CHECK(crom_cubature_build(&c, &m, W, R, "test", &o, NULL) == 0);
     crom_scenario sc;
     crom_scenario_defaults(&sc);
     double v0[3] = {1, -2, 0.5}, w[3] = {0.3, 0.7, -1.1};
     memcpy(sc.v0, v0, sizeof v0);
     memcpy(sc.spin, w, sizeof w);
     crom_rsim s;
-    CHECK(crom_rsim_init(&s, &c, &sc, CROM_SOLVER_NEWTON, 0, NULL, NULL) == 0);
+    CHECK(crom_rsim_init(&s, &c, &sc, CROM_RSIM_NEWTON, 0, NULL, NULL) == 0);
     double cen[3] = {0, 0, 0}, vol = 0, P[3] = {0, 0, 0}, err = 0, vmax = 0;
     for (int v = 0; v < m.nv; v++) {
         vol += c.vvol[v];
@@ -493,9 +496,100 @@ static void test_initial_velocity(void)
     CHECK_NEAR(P[1], M * -2, 1e-9 * M);
     CHECK_NEAR(P[2], M * 0.5, 1e-9 * M);
     crom_rsim_free(&s);
-    crom_cub_free(&c);
+    crom_cubature_free(&c);
     free(W);
     crom_mesh_free(&m);
+}
+
+/* A cubature of every tet of an analytic basis on a small grid, written to
+ * path with model_id id. */
+static void write_cubature(const char *path, const char *id, int nx)
+{
+    crom_mesh m;
+    double lo[3] = {-0.5, -0.15, -0.15};
+    fx_box_mesh(&m, nx, 2, 2, lo, 1.0 / nx, 0, NULL, NULL);
+    double *W = malloc(sizeof(double) * 3 * R * m.nv);
+    analytic_basis(&m, W);
+    crom_cubature c;
+    crom_cubature_opts o = {CROM_CUBATURE_ALL, 0, 0, 0, NULL, 0, 2.5e6, 0.25, NULL, 0};
+    CHECK(crom_cubature_build(&c, &m, W, R, id, &o, NULL) == 0);
+    crom_out out;
+    CHECK(crom_out_create(&out, path, CROM_CUBATURE_SCHEMA, CROM_CUBATURE_VERSION, "test_rom", NULL,
+                          CROM_OUT_PLAIN) == 0);
+    CHECK(crom_cubature_write(out.h5, &c) == 0 && crom_out_commit(&out) == 0);
+    crom_cubature_free(&c);
+    crom_mesh_free(&m);
+    free(W);
+}
+
+static void write_text(const char *path, const char *text)
+{
+    FILE *f = fopen(path, "w");
+    fputs(text, f);
+    fclose(f);
+}
+
+/* A schedule: the initial cubature and the switches of a file, in order,
+ * as the run records them; and the errors of a bad schedule, with the file
+ * and line named. */
+static void test_schedule(void)
+{
+    char dir[] = "/tmp/crom-sched-XXXXXX", a[64], b[64], other[64], f[64], cmd[96];
+    CHECK(mkdtemp(dir) != NULL);
+    snprintf(a, sizeof a, "%s/a.h5", dir);
+    snprintf(b, sizeof b, "%s/b.h5", dir);
+    snprintf(other, sizeof other, "%s/other.h5", dir);
+    snprintf(f, sizeof f, "%s/sched.txt", dir);
+    write_cubature(a, "0123456789abcdef", 4);
+    write_cubature(b, "0123456789abcdef", 6);
+    write_cubature(other, "fedcba9876543210", 4);
+    char text[512];
+    snprintf(text, sizeof text, "# switches\n3 %s\n\n5 %s   # back\n9 %s\n", b, a, b);
+    write_text(f, text);
+    crom_schedule s;
+    CHECK(crom_schedule_load(&s, a, f, 10) == 0);
+    CHECK(s.n == 4 && s.e[0].step == 0 && s.e[1].step == 3 && s.e[2].step == 5 && s.e[3].step == 9);
+    CHECK(s.e[0].cub.k == 4 * 2 * 2 * 6 && s.e[1].cub.k == 6 * 2 * 2 * 6 && s.e[2].cub.k == s.e[0].cub.k);
+    CHECK(!strcmp(s.e[3].path, b) && s.e[0].history != NULL && s.e[1].history == NULL);
+    char *t = crom_schedule_text(&s), want[512];
+    snprintf(want, sizeof want, "0 %s\n3 %s\n5 %s\n9 %s", a, b, a, b);
+    CHECK(t && !strcmp(t, want));
+    free(t);
+    crom_schedule_free(&s);
+    /* no schedule file: the initial cubature alone */
+    CHECK(crom_schedule_load(&s, a, NULL, 10) == 0 && s.n == 1);
+    crom_schedule_free(&s);
+    /* errors */
+    static const struct {
+        const char *text;
+        int code;
+        const char *msg;
+    } bad[] = {{"3 B\n3 A\n", CROM_EUSAGE, ":2: step 3 is out of order"},
+               {"0 B\n", CROM_EUSAGE, ":1: step 0 is out of order"},
+               {"\n11 B\n", CROM_EUSAGE, ":2: step 11 is beyond --steps 10"},
+               {"2\n", CROM_EUSAGE, ":1: expected 'STEP CUBATURE'"},
+               {"2 O\n", CROM_EDATA, "is a cubature of model fedcba9876543210"},
+               {"2 B\n4 nonexistent.h5\n", CROM_ENOINPUT, ":2: nonexistent.h5"}};
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        char txt[256] = "";
+        for (const char *p = bad[i].text; *p; p++) {
+            size_t n = strlen(txt);
+            if (*p == 'B' || *p == 'O')
+                snprintf(txt + n, sizeof txt - n, "%s", *p == 'B' ? b : other);
+            else
+                snprintf(txt + n, sizeof txt - n, "%c", *p);
+        }
+        write_text(f, txt);
+        int rc = crom_schedule_load(&s, a, f, 10);
+        CHECK_MSG(rc == bad[i].code && strstr(crom_errmsg(), bad[i].msg), "schedule '%s': %d %s", bad[i].text,
+                  rc, crom_errmsg());
+        crom_schedule_free(&s);
+    }
+    snprintf(cmd, sizeof cmd, "%s/none.txt", dir);
+    CHECK(crom_schedule_load(&s, a, cmd, 10) == CROM_ENOINPUT && strstr(crom_errmsg(), "--schedule"));
+    crom_schedule_free(&s);
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    CHECK(system(cmd) == 0);
 }
 
 int main(void)
@@ -506,5 +600,6 @@ int main(void)
     test_galerkin();
     test_schemes_and_switch();
     test_initial_velocity();
+    test_schedule();
     return check_done();
 }

@@ -20,7 +20,7 @@
 /* ----------------------------------------------------------- contact */
 
 typedef struct {
-    crom_plane p;
+    crom_contact_plane p;
     double k, m, xprev[3], lam, eps;
 } cctx;
 
@@ -88,7 +88,7 @@ static void test_momentum_and_energy(void)
 {
     crom_mesh m;
     double dims[3] = {1, 0.3, 0.2};
-    fx_gen(CROM_SHAPE_BOX, dims, 0.1, &m);
+    fx_gen(CROM_MESHGEN_BOX, dims, 0.1, &m);
     crom_scenario sc;
     crom_scenario_defaults(&sc);
     sc.gravity[1] = 0;
@@ -106,7 +106,7 @@ static void test_momentum_and_energy(void)
     double Pn = sqrt(P0[0] * P0[0] + P0[1] * P0[1] + P0[2] * P0[2]);
     double worst = 0;
     for (int k = 0; k < 40; k++) {
-        crom_step_stats st;
+        crom_sim_stats st;
         int rc = crom_sim_step(&s, &st);
         CHECK_MSG(rc == 0, "step %d: %s", k, crom_errmsg());
         if (rc)
@@ -135,7 +135,7 @@ static void test_momentum_and_energy(void)
 static void test_free_fall(void)
 {
     crom_mesh m;
-    fx_gen(CROM_SHAPE_SPHERE, NULL, 0.2, &m);
+    fx_gen(CROM_MESHGEN_SPHERE, NULL, 0.2, &m);
     crom_scenario sc;
     crom_scenario_defaults(&sc);
     sc.dt = 0.02;
@@ -143,7 +143,7 @@ static void test_free_fall(void)
     CHECK(crom_sim_init(&s, &m, &sc) == 0);
     double worst = 0, g = sc.gravity[1];
     for (int n = 1; n <= 25; n++) {
-        crom_step_stats st;
+        crom_sim_stats st;
         CHECK(crom_sim_step(&s, &st) == 0);
         /* implicit Euler: v_n = n h g, x_n = X + h² g n(n+1)/2 = ½ g t (t + h) */
         double t = n * sc.dt, uy = 0.5 * g * t * (t + sc.dt);
@@ -168,7 +168,7 @@ static double cantilever_error(double size)
 {
     double L = 1, b = 0.1, dims[3] = {L, b, b};
     crom_mesh m;
-    fx_gen(CROM_SHAPE_BOX, dims, size, &m);
+    fx_gen(CROM_MESHGEN_BOX, dims, size, &m);
     for (int i = 0; i < m.nv; i++)
         m.X[3 * i] += L / 2; /* x in [0, L] */
     CHECK(crom_mesh_region_spec(&m, "clamp=x<1e-9") == 0);
@@ -184,10 +184,10 @@ static double cantilever_error(double size)
     strcpy(sc.pins[sc.npins++], "clamp");
     crom_sim s;
     CHECK(crom_sim_init(&s, &m, &sc) == 0);
-    crom_step_stats st;
+    crom_sim_stats st;
     int rc = crom_sim_step(&s, &st);
     CHECK_MSG(rc == 0, "cantilever: %s", crom_errmsg());
-    const crom_region *tip = crom_mesh_region(&m, "tip");
+    const crom_mesh_region *tip = crom_mesh_find_region(&m, "tip");
     double d = 0;
     for (int k = 0; k < tip->n; k++)
         d += s.x[3 * tip->idx[k] + 1] - m.X[3 * tip->idx[k] + 1];
@@ -215,7 +215,7 @@ static void test_cantilever(void)
 static void test_prescribed_and_contact(void)
 {
     crom_mesh m;
-    fx_gen(CROM_SHAPE_BOX, NULL, 0.15, &m);
+    fx_gen(CROM_MESHGEN_BOX, NULL, 0.15, &m);
     CHECK(crom_mesh_region_spec(&m, "top=y>0.45") == 0);
     CHECK(crom_mesh_region_spec(&m, "bottom=y<-0.45") == 0);
     crom_scenario sc;
@@ -226,10 +226,10 @@ static void test_prescribed_and_contact(void)
     strcpy(sc.pins[sc.npins++], "bottom");
     crom_sim s;
     CHECK(crom_sim_init(&s, &m, &sc) == 0);
-    crom_step_stats st;
+    crom_sim_stats st;
     for (int k = 0; k < 8; k++)
         CHECK(crom_sim_step(&s, &st) == 0);
-    const crom_region *top = crom_mesh_region(&m, "top"), *bot = crom_mesh_region(&m, "bottom");
+    const crom_mesh_region *top = crom_mesh_find_region(&m, "top"), *bot = crom_mesh_find_region(&m, "bottom");
     double etop = 0, ebot = 0;
     for (int k = 0; k < top->n; k++) /* moved 2 m/s for 0.05 s, then held: -0.1 m */
         etop = fmax(etop, fabs(s.x[3 * top->idx[k] + 1] - m.X[3 * top->idx[k] + 1] + 0.1));
@@ -245,7 +245,7 @@ static void test_prescribed_and_contact(void)
     sc.dt = 0.01;
     sc.damping = 20;
     sc.nplanes = 1;
-    sc.plane[0] = (crom_plane){{0, 1, 0}, -0.5, 0.5};
+    sc.plane[0] = (crom_contact_plane){{0, 1, 0}, -0.5, 0.5};
     CHECK(crom_sim_init(&s, &m, &sc) == 0);
     for (int k = 0; k < 60; k++)
         CHECK(crom_sim_step(&s, &st) == 0);
@@ -280,7 +280,7 @@ static void test_prescribed_and_contact(void)
 static void test_tolerance(void)
 {
     crom_mesh m;
-    fx_gen(CROM_SHAPE_BOX, NULL, 0.08, &m);
+    fx_gen(CROM_MESHGEN_BOX, NULL, 0.08, &m);
     CHECK(crom_mesh_region_spec(&m, "top=y>0.45") == 0);
     CHECK(crom_mesh_region_spec(&m, "bottom=y<-0.45") == 0);
     crom_scenario loose, tight;
@@ -297,7 +297,7 @@ static void test_tolerance(void)
     double worst = 0;
     int newton = 0, solves = 0;
     for (int k = 0; k < 12; k++) {
-        crom_step_stats sa, sb;
+        crom_sim_stats sa, sb;
         memcpy(a.x, b.x, sizeof(double) * (size_t)a.n);
         memcpy(a.v, b.v, sizeof(double) * (size_t)a.n);
         CHECK(crom_sim_step(&a, &sa) == 0);
@@ -320,7 +320,7 @@ static void test_tolerance(void)
 static void test_bad_scenarios(void)
 {
     crom_mesh m;
-    fx_gen(CROM_SHAPE_BOX, NULL, 0.3, &m);
+    fx_gen(CROM_MESHGEN_BOX, NULL, 0.3, &m);
     crom_scenario sc;
     crom_sim s;
     struct {

@@ -42,7 +42,7 @@
 static void make_bar(crom_mesh *m, double size)
 {
     crom_meshgen_opts o;
-    crom_meshgen_defaults(&o, CROM_SHAPE_BOX);
+    crom_meshgen_defaults(&o, CROM_MESHGEN_BOX);
     o.size = size;
     o.dims[0] = 1;
     o.dims[1] = 0.2;
@@ -65,7 +65,7 @@ static unsigned char *clamp_mask(const crom_mesh *m)
 static void test_frame(const crom_mesh *m)
 {
     double *vv = malloc(sizeof(double) * m->nv), F[12];
-    crom_vertex_volumes(m, vv);
+    crom_mesh_vertex_volumes(m, vv);
     CHECK(crom_skin_frame((size_t)m->nv, m->X, vv, F) == 0);
     double mt = 0, mean[3] = {0}, cov[9] = {0};
     for (int v = 0; v < m->nv; v++) {
@@ -173,7 +173,7 @@ static double gram_error(const crom_model *m, const crom_mesh *mesh)
 {
     int r = m->rank, nv = mesh->nv;
     double *W = malloc(sizeof(double) * nv * 3 * r), *vv = malloc(sizeof(double) * nv), *G = calloc(r * r, 8), mt = 0;
-    crom_vertex_volumes(mesh, vv);
+    crom_mesh_vertex_volumes(mesh, vv);
     CHECK(crom_model_eval(m, (size_t)nv, mesh->X, W, NULL) == 0);
     for (int v = 0; v < nv; v++) {
         mt += vv[v];
@@ -283,7 +283,7 @@ static void check_rigid(const crom_model *m, const crom_mesh *mesh, const crom_m
 }
 
 /* The reduced gradient and Hessian of one tet with a skinning basis in
- * orthonormal coordinates (crom_cub_tet takes them by component blocks)
+ * orthonormal coordinates (crom_cubature_tet takes them by component blocks)
  * against W4ᵀ g and W4ᵀ He W4 summed entry by entry. */
 static void check_tet_blocks(const crom_model *m, const crom_mesh *mesh, const crom_material *mat)
 {
@@ -299,7 +299,7 @@ static void check_tet_blocks(const crom_model *m, const crom_mesh *mesh, const c
     crom_rng_seed(&rng, 8);
     for (int i = 0; i < r; i++)
         q[i] = 0.02 * crom_rng_normal(&rng);
-    double E = crom_cub_tet(mat, Xe, W4, r, Dm, V, 0.7, q, 0, g, H, work);
+    double E = crom_cubature_tet(mat, Xe, W4, r, Dm, V, 0.7, q, 0, g, H, work);
     double xe[12], ge[12], He[144], Ee;
     for (int i = 0; i < 12; i++) {
         xe[i] = Xe[i];
@@ -417,7 +417,7 @@ static void test_eigen(const crom_mesh *m, const crom_mesh *other, const crom_ma
     }
     check_map(&free_m, n, X, "eigen skinning map, handle coordinates");
     double *vv = malloc(sizeof(double) * nv);
-    crom_vertex_volumes(m, vv);
+    crom_mesh_vertex_volumes(m, vv);
     char id0[17];
     memcpy(id0, free_m.model_id, 17);
     CHECK(crom_skin_orthonormalize(&free_m, (size_t)nv, m->X, vv, 1e-6) == 0);
@@ -632,7 +632,7 @@ static void test_trained(const crom_mesh *m, const crom_mesh *other, const crom_
     CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
     CHECK(tm.skin_constant == 1 && tm.rank == 48 && log.steps == 60);
     double *vv = malloc(sizeof(double) * m->nv);
-    crom_vertex_volumes(m, vv);
+    crom_mesh_vertex_volumes(m, vv);
     CHECK(crom_skin_orthonormalize(&tm, (size_t)m->nv, m->X, vv, 1e-6) == 0);
     check_rigid(&tm, m, mat, "trained skinning, free body");
     check_rigid(&tm, other, mat, "trained skinning laid on another mesh");
@@ -743,7 +743,7 @@ static void test_cloud(void)
     double vmax = 0, cmax = 0;
     for (int i = 0; i < c.n; i++) {
         const double *x = vm.X + 12 * (size_t)i;
-        vmax = fmax(vmax, fabs(crom_tet_volume(x, x + 3, x + 6, x + 9) - c.vol[i]) / c.vol[i]);
+        vmax = fmax(vmax, fabs(crom_mesh_tet_volume(x, x + 3, x + 6, x + 9) - c.vol[i]) / c.vol[i]);
         for (int k = 0; k < 3; k++)
             cmax = fmax(cmax, fabs((x[k] + x[3 + k] + x[6 + k] + x[9 + k]) / 4 - c.X[3 * i + k]));
     }

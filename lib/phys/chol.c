@@ -1,5 +1,5 @@
-/* solve.c — CHOLMOD factorization with a METIS block ordering, symmetric
- * matvec and factor-preconditioned CG (see solve.h). */
+/* chol.c — CHOLMOD factorization with a METIS block ordering, and
+ * factor-preconditioned CG (see chol.h). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,7 +9,7 @@
 
 #include "base/clock.h"
 #include "base/err.h"
-#include "phys/solve.h"
+#include "phys/chol.h"
 
 struct crom_chol {
     cholmod_common cc;
@@ -20,23 +20,6 @@ struct crom_chol {
     long nfactor, nsolve;
     cholmod_dense *X, *Y, *E, B; /* workspaces for cholmod_solve2 */
 };
-
-void crom_sym_matvec(const crom_sym *A, const double *x, double *y)
-{
-    int n = A->n;
-    memset(y, 0, sizeof(double) * (size_t)n);
-    for (int j = 0; j < n; j++) {
-        double xj = x[j], yj = 0;
-        for (int k = A->colptr[j]; k < A->colptr[j + 1]; k++) {
-            int i = A->rowind[k];
-            double a = A->val[k];
-            y[i] += a * xj;
-            if (i != j)
-                yj += a * x[i];
-        }
-        y[j] += yj;
-    }
-}
 
 /* METIS nested dissection of the vertex graph (the pattern's 3×3 blocks),
  * expanded to DOFs. perm[k] = DOF placed k-th. */
@@ -109,7 +92,7 @@ crom_chol *crom_chol_analyze(int n, const int *colptr, const int *rowind, int bl
         crom_err(CROM_EINTERNAL, "out of memory");
         return NULL;
     }
-    double t0 = crom_now();
+    double t0 = crom_clock_now();
     cholmod_start(&c->cc);
     c->cc.print = 0;
     c->cc.error_handler = NULL;
@@ -154,16 +137,16 @@ crom_chol *crom_chol_analyze(int n, const int *colptr, const int *rowind, int bl
     c->B.d = (size_t)n;
     c->B.xtype = CHOLMOD_REAL;
     c->B.dtype = CHOLMOD_DOUBLE;
-    c->t_analyze = crom_now() - t0;
+    c->t_analyze = crom_clock_now() - t0;
     return c;
 }
 
 int crom_chol_factor(crom_chol *c, const double *val)
 {
-    double t0 = crom_now();
+    double t0 = crom_clock_now();
     c->A.x = (void *)val;
     int ok = cholmod_factorize(&c->A, c->L, &c->cc);
-    c->t_factor += crom_now() - t0;
+    c->t_factor += crom_clock_now() - t0;
     c->nfactor++;
     if (!ok || c->cc.status == CHOLMOD_NOT_POSDEF)
         return crom_err(CROM_EDATA, "matrix is not positive definite (CHOLMOD stopped at column %zu)",
@@ -175,19 +158,19 @@ int crom_chol_factor(crom_chol *c, const double *val)
 
 int crom_chol_solve(crom_chol *c, const double *b, double *x)
 {
-    double t0 = crom_now();
+    double t0 = crom_clock_now();
     c->B.x = (void *)b;
     if (!cholmod_solve2(CHOLMOD_A, c->L, &c->B, NULL, &c->X, NULL, &c->Y, &c->E, &c->cc))
         return crom_err(CROM_EINTERNAL, "CHOLMOD solve failed (status %d)", c->cc.status);
     memcpy(x, c->X->x, sizeof(double) * (size_t)c->n);
-    c->t_solve += crom_now() - t0;
+    c->t_solve += crom_clock_now() - t0;
     c->nsolve++;
     return 0;
 }
 
 int crom_chol_solve_many(crom_chol *c, int nrhs, const double *b, double *x)
 {
-    double t0 = crom_now();
+    double t0 = crom_clock_now();
     cholmod_dense B = c->B;
     B.ncol = (size_t)nrhs;
     B.nzmax = B.d * (size_t)nrhs;
@@ -195,7 +178,7 @@ int crom_chol_solve_many(crom_chol *c, int nrhs, const double *b, double *x)
     if (!cholmod_solve2(CHOLMOD_A, c->L, &B, NULL, &c->X, NULL, &c->Y, &c->E, &c->cc))
         return crom_err(CROM_EINTERNAL, "CHOLMOD solve failed (status %d)", c->cc.status);
     memcpy(x, c->X->x, sizeof(double) * (size_t)c->n * (size_t)nrhs);
-    c->t_solve += crom_now() - t0;
+    c->t_solve += crom_clock_now() - t0;
     c->nsolve += nrhs;
     return 0;
 }
@@ -229,7 +212,7 @@ static double dot(const double *a, const double *b, int n)
     return s;
 }
 
-int crom_pcg(const crom_sym *A, crom_chol *c, const double *b, double *x, double rtol,
+int crom_chol_pcg(const crom_sym *A, crom_chol *c, const double *b, double *x, double rtol,
              int maxit, double *work)
 {
     int n = A->n;

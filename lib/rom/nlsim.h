@@ -1,6 +1,6 @@
-/* nlrom.h — implicit Euler in the latent space of a one-mesh subspace map
+/* nlsim.h — implicit Euler in the latent space of a one-mesh subspace map
  * x(q) (lib/rom/map.h: data-free maps, or any linear basis laid on its mesh),
- * the nonlinear counterpart of rom.h with the same scenario.
+ * the nonlinear counterpart of rsim.h with the same scenario.
  *
  * Each step minimizes over q (Sharp et al. 2023 eq. 6, Fulton et al. 2019)
  *
@@ -39,9 +39,9 @@
  * map in double precision) the gradient is Jᵀ ∇_xΦ and the matrix
  * H = Jᵀ (M (1/h² + A/h) + κ M_bc + K + C) J, with K the element Hessians
  * (true ones first, projected to SPD when H is not positive definite or
- * gives no descent, as rom.c does) and C the contact Hessians; it omits the
+ * gives no descent, as rsim.c does) and C the contact Hessians; it omits the
  * curvature of the map, Σ_i (∇_xΦ)_i ∇²x_i, which vanishes for a linear
- * basis (then this is rom.c's Newton on the same energy). Gauss–Newton
+ * basis (then this is rsim.c's Newton on the same energy). Gauss–Newton
  * converges only linearly where that term matters (large forces along
  * curved or nearly collapsed latent directions), so from the third
  * iteration of a step on, a nonlinear map gets Newton steps with the
@@ -52,20 +52,20 @@
  * the bounding-box diagonal. Afterwards v = (x_{n+1} − x_n)/h and
  * q̇ = (q_{n+1} − q_n)/h.
  */
-#ifndef CROM_NLROM_H
-#define CROM_NLROM_H
+#ifndef CROM_NLSIM_H
+#define CROM_NLSIM_H
 
 #include "phys/fem.h"
 #include "phys/scenario.h"
 #include "rom/map.h"
-#include "rom/rom.h"
+#include "rom/rsim.h"
 
 typedef struct {
     int *idx;          /* vertices */
     int n;
     double mass;       /* Σ m_v */
     const crom_bc *bc; /* NULL for a pin */
-} crom_nlbc;
+} crom_nlsim_bc;
 
 typedef struct {
     const crom_scenario *sc;
@@ -87,7 +87,7 @@ typedef struct {
     double *a, *T, *Tp, *ga, *A0, *Aq, *bq, *AT, *xc, *Jc, *gc, *Bc, *Xc, *Bg, *fa, c0;
     int nbc, nforce, nsurf, *surf;
     double *xs;         /* [nsurf][3] the surface vertices at the step's start */
-    crom_nlbc *bc, *force;
+    crom_nlsim_bc *bc, *force;
 } crom_nlsim;
 
 /* Set up on map (borrowed; its mesh's regions resolve the scenario's) with
@@ -108,7 +108,7 @@ int crom_nlsim_use_cubature(crom_nlsim *s, int k, const int *elem, const double 
 
 /* Advance one step. CROM_EDATA when the iteration does not converge in
  * max_iter iterations or the state goes non-finite. */
-int crom_nlsim_step(crom_nlsim *s, crom_rstep_stats *st);
+int crom_nlsim_step(crom_nlsim *s, crom_rsim_stats *st);
 
 /* Prepare the step's predictor, loads and lagged contact forces (for tests). */
 void crom_nlsim_begin_step(crom_nlsim *s);
@@ -135,5 +135,10 @@ int crom_nlsim_energies(crom_nlsim *s, double *kinetic, double *elastic, double 
 double crom_nlsim_constraint_residual(const crom_nlsim *s);
 
 void crom_nlsim_free(crom_nlsim *s);
+
+/* Old name (issue 13), kept only for lib/rom/nlsim.c, which another branch
+ * is editing, until it uses the name above; tests/prog/layers.sh keeps all
+ * other code off it. */
+#define crom_nlbc crom_nlsim_bc
 
 #endif

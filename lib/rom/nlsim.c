@@ -17,7 +17,7 @@
 #include "phys/contact.h"
 #include "rom/cubature.h"
 #include "rom/newton.h"
-#include "rom/nlrom.h"
+#include "rom/nlsim.h"
 
 #define TW(r) (168 + 24 * (size_t)(r) + 12) /* per-thread tet scratch: crom_cub_tet's, J4, xe */
 

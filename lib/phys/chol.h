@@ -1,25 +1,13 @@
-/* solve.h — linear solvers: sparse Cholesky (CHOLMOD, supernodal, with a
- * METIS nested-dissection ordering of the vertex graph expanded to 3×3 DOF
- * blocks, analyzed once per pattern), a symmetric sparse matrix–vector
- * product, and preconditioned conjugate gradients that reuse a stale
- * factorization as preconditioner. */
-#ifndef CROM_SOLVE_H
-#define CROM_SOLVE_H
+/* chol.h — sparse Cholesky (CHOLMOD, supernodal, with a METIS
+ * nested-dissection ordering of the vertex graph expanded to 3×3 DOF
+ * blocks, analyzed once per pattern), and preconditioned conjugate
+ * gradients that reuse a stale factorization as preconditioner. */
+#ifndef CROM_CHOL_H
+#define CROM_CHOL_H
 
 #include <stddef.h>
 
-/* A symmetric matrix stored as its upper triangle in compressed sparse
- * columns (row <= col), int indices: the layout of crom_fem's Hessian. The
- * arrays are borrowed, not owned. */
-typedef struct {
-    int n;
-    const int *colptr;   /* [n+1] */
-    const int *rowind;   /* [nnz] */
-    const double *val;   /* [nnz] */
-} crom_sym;
-
-/* y = A x for the full symmetric A. */
-void crom_sym_matvec(const crom_sym *A, const double *x, double *y);
+#include "phys/sym.h"
 
 /* Sparse Cholesky factorization A = L Lᵀ of matrices sharing one pattern. */
 typedef struct crom_chol crom_chol;
@@ -53,7 +41,7 @@ void crom_chol_free(crom_chol *c);
  * iterations. Returns the iteration count (>= 0) when converged, -1 when it
  * did not converge within maxit or met non-positive curvature (A not SPD),
  * or -CROM_E* on an error. work holds 4n doubles. */
-int crom_pcg(const crom_sym *A, crom_chol *c, const double *b, double *x,
-             double rtol, int maxit, double *work);
+int crom_chol_pcg(const crom_sym *A, crom_chol *c, const double *b, double *x,
+                  double rtol, int maxit, double *work);
 
 #endif

@@ -1,4 +1,4 @@
-/* rom.c — reduced implicit Euler on a cubature (see rom.h). */
+/* rsim.c — reduced implicit Euler on a cubature (see rsim.h). */
 #include <float.h>
 #include <math.h>
 #include <stdlib.h>
@@ -11,9 +11,9 @@
 #include "base/err.h"
 #include "phys/contact.h"
 #include "rom/newton.h"
-#include "rom/rom.h"
+#include "rom/rsim.h"
 
-static void free_bcs(crom_rbc *b, int n)
+static void free_bcs(crom_rsim_bc *b, int n)
 {
     for (int i = 0; b && i < n; i++) {
         free(b[i].idx);
@@ -50,7 +50,7 @@ static void free_cub_data(crom_rsim *s)
 }
 
 /* mass-weighted sums over a vertex set: P = Σ m W_vᵀW_v, S = Σ m W_vᵀ */
-static int region_sums(const crom_cub *c, double rho, const char *ref, crom_rbc *b)
+static int region_sums(const crom_cubature *c, double rho, const char *ref, crom_rsim_bc *b)
 {
     int r = c->r, rc = crom_mesh_select(&c->mesh, ref, &b->idx, &b->n);
     if (rc)
@@ -146,7 +146,7 @@ out:
 
 static int build(crom_rsim *s)
 {
-    const crom_cub *c = s->cub;
+    const crom_cubature *c = s->cub;
     const crom_scenario *sc = s->sc;
     int r = c->r, rc = 0;
     double rho = sc->density;
@@ -167,8 +167,8 @@ static int build(crom_rsim *s)
     s->fext = crom_calloc((size_t)r, sizeof(double));
     s->Hfac = crom_malloc(sizeof(double) * rr);
     s->fac_ok = 0;
-    s->bc = crom_calloc((size_t)(sc->npins + sc->nvel + 1), sizeof(crom_rbc));
-    s->force = crom_calloc((size_t)(sc->nforce + 1), sizeof(crom_rbc));
+    s->bc = crom_calloc((size_t)(sc->npins + sc->nvel + 1), sizeof(crom_rsim_bc));
+    s->force = crom_calloc((size_t)(sc->nforce + 1), sizeof(crom_rsim_bc));
     if (!s->Mr || !s->fg || !s->G || !s->Gfac || !s->lam || !s->qn || !s->qhat || !s->g ||
         !s->H || !s->d || !s->qt || !s->gt || !s->fext || !s->Hfac || !s->bc || !s->force)
         return CROM_EINTERNAL;
@@ -240,7 +240,7 @@ static int build(crom_rsim *s)
 static int initial_velocity(crom_rsim *s)
 {
     const crom_scenario *sc = s->sc;
-    const crom_cub *c = s->cub;
+    const crom_cubature *c = s->cub;
     if (!sc->v0[0] && !sc->v0[1] && !sc->v0[2] && !sc->spin[0] && !sc->spin[1] && !sc->spin[2])
         return 0;
     int r = s->r, nv = c->mesh.nv;
@@ -270,7 +270,7 @@ static int initial_velocity(crom_rsim *s)
     return 0;
 }
 
-int crom_rsim_init(crom_rsim *s, const crom_cub *cub, const crom_scenario *sc, int solver,
+int crom_rsim_init(crom_rsim *s, const crom_cubature *cub, const crom_scenario *sc, int solver,
                    double kappa, const double *q0, const double *qd0)
 {
     memset(s, 0, sizeof *s);
@@ -303,7 +303,7 @@ int crom_rsim_init(crom_rsim *s, const crom_cub *cub, const crom_scenario *sc, i
     return 0;
 }
 
-int crom_rsim_set_cubature(crom_rsim *s, const crom_cub *cub)
+int crom_rsim_set_cubature(crom_rsim *s, const crom_cubature *cub)
 {
     if (cub->r != s->r || strcmp(cub->model_id, s->cub->model_id))
         return crom_err(CROM_EDATA, "the cubature belongs to model %s (rank %d), the run uses model %s (rank %d)",
@@ -341,7 +341,7 @@ static void loads(const crom_rsim *s, double t, double *f)
 void crom_rsim_begin_step(crom_rsim *s)
 {
     const crom_scenario *sc = s->sc;
-    const crom_cub *c = s->cub;
+    const crom_cubature *c = s->cub;
     int r = s->r;
     double h = sc->dt;
     memcpy(s->qn, s->q, sizeof(double) * (size_t)r);
@@ -363,7 +363,7 @@ void crom_rsim_begin_step(crom_rsim *s)
 int crom_rsim_objective(crom_rsim *s, const double *q, double *Eout, double *g, double *H, int project)
 {
     const crom_scenario *sc = s->sc;
-    const crom_cub *c = s->cub;
+    const crom_cubature *c = s->cub;
     int r = s->r;
     size_t rr = (size_t)r * r;
     double h = sc->dt, *fext = FEXT(s);
@@ -390,7 +390,7 @@ int crom_rsim_objective(crom_rsim *s, const double *q, double *Eout, double *g, 
     /* boundary-condition penalty κ/2 Σ m ‖W q − ū‖² = κ/2 (qᵀPq − 2qᵀSū + Σm|ū|²) */
     double t1 = (double)(s->step + 1) * h; /* step * dt, not a running sum */
     for (int k = 0; k < s->nbc; k++) {
-        const crom_rbc *bc = &s->bc[k];
+        const crom_rsim_bc *bc = &s->bc[k];
         double u[3] = {0, 0, 0};
         if (bc->bc)
             crom_bc_displacement(bc->bc, t1, u);
@@ -491,7 +491,7 @@ static int step_direction(void *ctx, int it, int project, const double *q, const
     int r = s->r;
     for (int i = 0; i < r; i++)
         d[i] = -g[i];
-    if (s->solver == CROM_SOLVER_GD) { /* descent: the gradient in the metric of the reduced mass */
+    if (s->solver == CROM_RSIM_GD) { /* descent: the gradient in the metric of the reduced mass */
         LAPACKE_dpotrs(LAPACK_ROW_MAJOR, 'U', r, 1, s->Gfac, r, d, 1);
         return 0;
     }
@@ -510,21 +510,21 @@ static int step_direction(void *ctx, int it, int project, const double *q, const
 
 static double step_size(void *ctx, const double *d) { return rms_disp(ctx, d); }
 
-int crom_rsim_step(crom_rsim *s, crom_rstep_stats *st)
+int crom_rsim_step(crom_rsim *s, crom_rsim_stats *st)
 {
     const crom_scenario *sc = s->sc;
     int r = s->r;
-    double h = sc->dt, t0 = crom_now();
+    double h = sc->dt, t0 = crom_clock_now();
     memset(st, 0, sizeof *st);
     crom_rsim_begin_step(s);
     memcpy(s->q, s->qhat, sizeof(double) * (size_t)r);
-    int lag = s->lagged && s->solver != CROM_SOLVER_GD;
+    int lag = s->lagged && s->solver != CROM_RSIM_GD;
     if (!lag)
         s->fac_ok = 0;
     s->fac_iters = 0; /* a reused factor gets LAG_ITERS iterations in each step */
     const crom_newton_problem prob = {r, step_objective, step_direction, step_size,
                                       lag ? step_wants_hessian : NULL, lag ? step_stale : NULL,
-                                      s->solver == CROM_SOLVER_GD, "Newton", "the reduced Hessian is singular"};
+                                      s->solver == CROM_RSIM_GD, "Newton", "the reduced Hessian is singular"};
     const crom_newton_work w = {s->g, s->H, s->d, s->qt};
     int rc = crom_newton_solve(&prob, s, &w, s->q, sc->tol, sc->max_iter, s->step, &st->iterations,
                                &st->residual, &st->converged);
@@ -535,13 +535,13 @@ int crom_rsim_step(crom_rsim *s, crom_rstep_stats *st)
     s->step++;
     s->t = (double)s->step * h; /* exact multiples of dt (issue 12) */
     st->constraint_residual = crom_rsim_constraint_residual(s);
-    st->seconds = crom_now() - t0;
+    st->seconds = crom_clock_now() - t0;
     return 0;
 }
 
 double crom_rsim_constraint_residual(const crom_rsim *s)
 {
-    const crom_cub *c = s->cub;
+    const crom_cubature *c = s->cub;
     int r = s->r;
     double worst = 0;
     for (int k = 0; k < s->nbc; k++) {
