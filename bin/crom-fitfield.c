@@ -25,8 +25,8 @@
 #include "scenario.h"
 
 enum { O_RANK = 300, O_ENCODER, O_BASIS, O_EPOCHS, O_MINUTES, O_LR, O_BATCH, O_PPS, O_ENCPTS,
-       O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX,
-       O_ORTHO, O_ORIGIN, O_STEPS, O_FEATURES, O_TETS, O_PINW };
+       O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX, O_BOXSC,
+       O_ORTHO, O_STEPS, O_FEATURES, O_TETS, O_PINW, O_OPTIM, O_RESAMPLE, O_TANW, O_LAST };
 
 static const crom_opt fit_opts[] = {
     {"output", 'o', "OUT", "Write the model to OUT (default: stdout, which must not be a terminal)."},
@@ -43,12 +43,15 @@ static const crom_opt df_opts[] = {
     {"sigma", O_SIGMA, "S", "energy: isometry scale in metres: the subspace should move the body by S (RMS displacement) per unit of latent distance, |f(z) - f(z')|_M / sqrt(m) ~ S |z - z'|, z ~ N(0, I) (default 0.05 times the bounding-box diagonal). Sharp et al.'s sigma divided by sqrt(body mass)."},
     {"lambda", O_LAMBDA, "L", "energy: weight of the isometry term, the squared log-ratio of mass-norm distances to S |z - z'| over all pairs of a batch, against the energy in units of E V (Young's modulus times volume) (default 1)."},
     {"ramp", O_RAMP, "F", "energy: the seed-state blend rho grows linearly from 0 to 1 over the first fraction F of the steps, then stays 1 (default 0.5; Sharp et al. §4.1). The seed state is the rest shape."},
+    {"tangent-weight", O_TANW, "W", "energy, field: weight of the isometry at rest: small samples z ~ N(0, 0.01 I), 8 per step, should move the body by S |z| from rest, so that every latent direction moves the body at the start of a run (default 1; 0: none)."},
     {"box", O_BOX, "A", "neuralmodes: the modal coordinates z are drawn uniformly from [-A, A]^r, in metres of RMS displacement (default 0.1 times the bounding-box diagonal)."},
+    {"box-scaling", O_BOXSC, "KIND", "neuralmodes: uniform: every mode is drawn from [-A, A]; frequency: mode k from [-A f_1/f_k, A f_1/f_k] (the same linear energy at every edge, so the stiff modes do not dominate the energy)."},
+    {"optimizer", O_OPTIM, "KIND", "energy, neuralmodes: adam (default): Adam on a fresh batch every step. lbfgs: L-BFGS with a backtracking line search (Wang et al.), --resample iterations on each batch."},
+    {"resample", O_RESAMPLE, "N", "--optimizer lbfgs: iterations on each batch of samples before a fresh one is drawn (default 10)."},
     {"features", O_FEATURES, "P", "field: the feature fields of W(X), the output width of phi (default 32)."},
     {"tets", O_TETS, "K", "field: tets of the random cubature drawn afresh at every step, each standing for nt/K of them (default 512, at most every tet)."},
     {"pin-length", O_PINW, "L", "field: the field is masked by smoothstep(d / L), d the distance to the nearest pinned vertex of --mesh, so it vanishes there on any mesh (default: twice the mean edge length)."},
     {"ortho-weight", O_ORTHO, "W", "neuralmodes: weight of the penalty |Phi^T M y(z)|^2 keeping the correction M-orthogonal to the linear modes, relative to the linear energy of the highest mode at the box size (default 1e4)."},
-    {"origin-weight", O_ORIGIN, "W", "neuralmodes: weight of the penalty |y(0)|_M^2 (default 1e4)."},
     {NULL, 0, NULL, NULL}};
 
 static const crom_opt train_opts[] = {
@@ -149,6 +152,7 @@ typedef struct {
     crom_scenario sc;
     const char *samples_only;    /* a samples-only option given, for the message */
     int rank_given, act_given, width_given, depth_given, lr_given, batch_given, minutes_given;
+    unsigned char given[O_LAST - O_RANK]; /* which options were given */
     int material_given;
     const char *df_only;         /* a data-free-only option given */
     char df_flag[48];
@@ -169,6 +173,8 @@ static int on_opt(void *ctx, int key, const char *v)
         }
         return crom_scenario_option(&a->sc, key, v);
     }
+    if (key >= O_RANK && key < O_LAST)
+        a->given[key - O_RANK] = 1;
     switch (key) {
     case O_RANK: case O_WIDTH: case O_DEPTH: case O_LR: case O_BATCH: case O_ACT: case O_MINUTES: break;
     case O_EPOCHS: a->samples_only = "--epochs"; break;
@@ -184,11 +190,14 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_LAMBDA: a->df_only = "--lambda"; break;
     case O_RAMP: a->df_only = "--ramp"; break;
     case O_BOX: a->df_only = "--box"; break;
+    case O_BOXSC: a->df_only = "--box-scaling"; break;
     case O_ORTHO: a->df_only = "--ortho-weight"; break;
-    case O_ORIGIN: a->df_only = "--origin-weight"; break;
     case O_FEATURES: a->df_only = "--features"; break;
     case O_TETS: a->df_only = "--tets"; break;
     case O_PINW: a->df_only = "--pin-length"; break;
+    case O_OPTIM: a->df_only = "--optimizer"; break;
+    case O_RESAMPLE: a->df_only = "--resample"; break;
+    case O_TANW: a->df_only = "--tangent-weight"; break;
     }
     switch (key) {
     case O_OBJECTIVE:
@@ -220,6 +229,12 @@ static int on_opt(void *ctx, int key, const char *v)
             return CROM_EUSAGE;
         return a->df.ramp >= 0 && a->df.ramp <= 1 ? 0 : crom_err(CROM_EUSAGE, "--ramp must be in [0, 1], got %s", v);
     case O_BOX: return crom_parse_positive(v, "--box", &a->df.box);
+    case O_BOXSC:
+        if (!strcmp(v, "uniform") || !strcmp(v, "frequency")) {
+            a->df.box_scaled = !strcmp(v, "frequency");
+            return 0;
+        }
+        return crom_err(CROM_EUSAGE, "--box-scaling: '%s' is not uniform or frequency", v);
     case O_FEATURES:
         if (crom_parse_int(v, "--features", 1, 4096, &n))
             return CROM_EUSAGE;
@@ -232,14 +247,25 @@ static int on_opt(void *ctx, int key, const char *v)
         return 0;
     case O_PINW:
         return crom_parse_positive(v, "--pin-length", &a->df.pin_length);
+    case O_OPTIM:
+        if (!strcmp(v, "adam") || !strcmp(v, "lbfgs")) {
+            a->df.optimizer = strcmp(v, "adam") ? CROM_DF_LBFGS : CROM_DF_ADAM;
+            return 0;
+        }
+        return crom_err(CROM_EUSAGE, "--optimizer: '%s' is not adam or lbfgs", v);
+    case O_TANW:
+        if (crom_parse_double(v, "--tangent-weight", &a->df.tangent_weight))
+            return CROM_EUSAGE;
+        return a->df.tangent_weight >= 0 ? 0 : crom_err(CROM_EUSAGE, "--tangent-weight must be >= 0, got %s", v);
+    case O_RESAMPLE:
+        if (crom_parse_int(v, "--resample", 1, 1000000L, &n))
+            return CROM_EUSAGE;
+        a->df.resample = (int)n;
+        return 0;
     case O_ORTHO:
         if (crom_parse_double(v, "--ortho-weight", &a->df.ortho_weight))
             return CROM_EUSAGE;
         return a->df.ortho_weight >= 0 ? 0 : crom_err(CROM_EUSAGE, "--ortho-weight must be >= 0, got %s", v);
-    case O_ORIGIN:
-        if (crom_parse_double(v, "--origin-weight", &a->df.origin_weight))
-            return CROM_EUSAGE;
-        return a->df.origin_weight >= 0 ? 0 : crom_err(CROM_EUSAGE, "--origin-weight must be >= 0, got %s", v);
     case 0:
         if (a->input)
             return crom_err(CROM_EUSAGE, "unexpected operand '%s' (one samples file)", v);
@@ -377,16 +403,22 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
         d.lr = a->lr_given ? a->fit.lr : d.lr;
         d.batch = a->batch_given ? a->fit.batch : d.batch;
         d.minutes = a->minutes_given ? a->fit.minutes : 0;
-        d.steps = a->df.steps;
-        d.sigma = a->df.sigma;
-        d.lambda = a->df.lambda;
-        d.ramp = a->df.ramp;
-        d.box = a->df.box;
-        d.ortho_weight = a->df.ortho_weight;
-        d.origin_weight = a->df.origin_weight;
-        d.features = a->df.features; /* the same defaults for every objective */
-        d.tets = a->df.tets;
-        d.pin_length = a->df.pin_length;
+        /* the data-free options given; the objective's defaults for the others */
+#define DF_GIVEN(key, field) if (a->given[(key) - O_RANK]) d.field = a->df.field
+        DF_GIVEN(O_STEPS, steps);
+        DF_GIVEN(O_SIGMA, sigma);
+        DF_GIVEN(O_LAMBDA, lambda);
+        DF_GIVEN(O_RAMP, ramp);
+        DF_GIVEN(O_BOX, box);
+        DF_GIVEN(O_BOXSC, box_scaled);
+        DF_GIVEN(O_ORTHO, ortho_weight);
+        DF_GIVEN(O_FEATURES, features);
+        DF_GIVEN(O_TETS, tets);
+        DF_GIVEN(O_PINW, pin_length);
+        DF_GIVEN(O_OPTIM, optimizer);
+        DF_GIVEN(O_RESAMPLE, resample);
+        DF_GIVEN(O_TANW, tangent_weight);
+#undef DF_GIVEN
         d.seed = cli->seed;
         a->df = d;
     } else if (a->fit.act == CROM_NN_GELU) {

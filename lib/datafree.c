@@ -13,6 +13,7 @@
 #include "datafree.h"
 #include "err.h"
 #include "io.h"
+#include "lbfgs.h"
 #include "rng.h"
 
 void crom_df_defaults(crom_df_opts *o, int objective)
@@ -29,11 +30,15 @@ void crom_df_defaults(crom_df_opts *o, int objective)
     o->lambda = 1;
     o->ramp = 0.5;
     o->ortho_weight = 1e4;
-    o->origin_weight = 1e4;
     o->features = 32;
     o->field_depth = 4;
     o->field_width = 64;
-    o->tets = 512;
+    o->tets = objective == CROM_DF_FIELD ? 512 : 0;
+    o->optimizer = CROM_DF_ADAM;
+    o->tangent_weight = 1;
+    o->tangent_samples = 8;
+    o->tangent_radius = 0.1;
+    o->resample = 10;
     o->pin_length = 0;
     if (objective == CROM_DF_FIELD) {
         o->rank = 8;
@@ -63,6 +68,7 @@ void crom_df_ctx_free(crom_df_ctx *c)
     free(c->dyf);
     free(c->bad);
     free(c->cb);
+    free(c->half);
     memset(c, 0, sizeof *c);
 }
 
@@ -89,15 +95,18 @@ int crom_df_ctx_init(crom_df_ctx *c, const crom_df_problem *p, const crom_df_opt
     c->r = r;
     c->n = n;
     c->maxbatch = maxbatch;
+    c->B0 = !nm && o->tangent_weight > 0 ? o->tangent_samples : 0;
+    if (c->B0 < 0)
+        return crom_err(CROM_EUSAGE, "%d tangent samples", c->B0);
     c->nthreads = o->threads < 1 ? 1 : o->threads > 256 ? 256 : o->threads;
+    size_t rows = (size_t)maxbatch + c->B0 + 1; /* the batch, the tangent samples, the anchor */
     int rc = crom_fem_init(&c->fem, p->mesh, &p->mat);
     if (!rc)
-        rc = crom_nn_ws_init(&c->ws, net, maxbatch + 1, 1);
+        rc = crom_nn_ws_init(&c->ws, net, (int)rows, 1);
     if (rc) {
         crom_df_ctx_free(c);
         return rc;
     }
-    size_t rows = (size_t)maxbatch + 1;
     c->mw = crom_malloc(sizeof(double) * (size_t)n);
     c->MWm = nm ? crom_malloc(sizeof(double) * (size_t)n * r) : NULL;
     c->Y = crom_malloc(sizeof(double) * rows * n);
@@ -109,7 +118,8 @@ int crom_df_ctx_init(crom_df_ctx *c, const crom_df_problem *p, const crom_df_opt
     c->dyf = crom_malloc(sizeof(float) * rows * n);
     c->bad = crom_malloc(sizeof(int) * (size_t)maxbatch);
     c->cb = crom_malloc(sizeof(double) * (size_t)r);
-    if (!c->cb || !c->mw || (nm && !c->MWm) || !c->Y || !c->G || !c->dY || !c->E || !c->xb || !c->zf || !c->dyf || !c->bad) {
+    c->half = crom_malloc(sizeof(double) * (size_t)r);
+    if (!c->cb || !c->half || !c->mw || (nm && !c->MWm) || !c->Y || !c->G || !c->dY || !c->E || !c->xb || !c->zf || !c->dyf || !c->bad) {
         crom_df_ctx_free(c);
         return CROM_EINTERNAL;
     }
@@ -122,10 +132,18 @@ int crom_df_ctx_init(crom_df_ctx *c, const crom_df_problem *p, const crom_df_opt
         for (int i = 0; i < n; i++)
             for (int k = 0; k < r; k++)
                 c->MWm[(size_t)i * r + k] = c->mw[i] * p->modes[(size_t)i * r + k];
-        double fmax = 0;
-        for (int k = 0; p->freq && k < r; k++)
+        double fmax = 0, fmin = INFINITY;
+        for (int k = 0; p->freq && k < r; k++) {
             fmax = fmax > p->freq[k] ? fmax : p->freq[k];
-        double w = 2 * M_PI * fmax;
+            if (p->freq[k] > 0)
+                fmin = fmin < p->freq[k] ? fmin : p->freq[k];
+        }
+        /* the box: half-width a for every mode, or a f_1 / f_k for mode k
+         * (the same linear energy ½ m ω_k² a_k² at every edge) */
+        int scaled = o->box_scaled && isfinite(fmin);
+        for (int k = 0; k < r; k++)
+            c->half[k] = scaled && p->freq[k] > 0 ? o->box * fmin / p->freq[k] : o->box;
+        double w = 2 * M_PI * (scaled ? fmin : fmax);
         c->Eref = 0.5 * c->mass * w * w * o->box * o->box;
         if (!(c->Eref > 0) || !isfinite(c->Eref))
             c->Eref = EV;
@@ -133,30 +151,40 @@ int crom_df_ctx_init(crom_df_ctx *c, const crom_df_problem *p, const crom_df_opt
     return 0;
 }
 
-int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_terms *t, float *grad)
+int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_df_terms *t,
+                 float *grad)
 {
-    int r = c->r, n = c->n, nm = c->o.objective == CROM_DF_NEURALMODES, rows = B + nm;
+    int r = c->r, n = c->n, nm = c->o.objective == CROM_DF_NEURALMODES, B0 = c->B0, rows = B + B0 + 1;
     const unsigned char *fixed = c->P.fixed;
     const double *X = c->P.mesh->X;
+    const crom_fem *fem = &c->fem;
     if (B < 1 || B > c->maxbatch)
         return crom_err(CROM_EUSAGE, "batch of %d samples (at most %d)", B, c->maxbatch);
+    for (int k = 0; tets && k < K; k++)
+        if (tets[k] < 0 || tets[k] >= fem->nt)
+            return crom_err(CROM_EUSAGE, "tet %d out of range", tets[k]);
+    if (tets && K < 1)
+        return crom_err(CROM_EUSAGE, "a cubature of %d tets", K);
     if (!nm)
         rho = rho < 0 ? 0 : rho > 1 ? 1 : rho;
     else
         rho = 1;
-    for (int b = 0; b < B; b++)
+    /* the batch, the tangent samples, then z = 0: the anchor N(0) that
+     * every sample is taken relative to (lib/map.h), x = X + W z + ρ (N(z)
+     * − N(0)) */
+    for (int b = 0; b < B + B0; b++)
         for (int k = 0; k < r; k++)
             c->zf[(size_t)b * r + k] = (float)z[(size_t)b * r + k];
-    if (nm)
-        memset(c->zf + (size_t)B * r, 0, sizeof(float) * (size_t)r);
+    memset(c->zf + (size_t)(B + B0) * r, 0, sizeof(float) * (size_t)r);
     int rc = crom_nn_mlp_forward(c->net, &c->ws, rows, c->zf, NULL);
     if (rc)
         return rc;
-    const float *Yf = crom_nn_ws_output(&c->ws);
-    for (size_t i = 0; i < (size_t)rows * n; i++)
-        c->Y[i] = Yf[i];
+    const float *Yf = crom_nn_ws_output(&c->ws), *Y0 = Yf + (size_t)(B + B0) * n;
+    for (int b = 0; b < B + B0; b++) /* Y_b = N(z_b) − N(0) */
+        for (int i = 0; i < n; i++)
+            c->Y[(size_t)b * n + i] = (double)Yf[(size_t)b * n + i] - (double)Y0[i];
     if (fixed) /* pinned outputs do not exist: the mask is part of the map */
-        for (int b = 0; b < rows; b++)
+        for (int b = 0; b < B + B0; b++)
             for (int i = 0; i < n; i++)
                 if (fixed[i])
                     c->Y[(size_t)b * n + i] = 0;
@@ -180,7 +208,28 @@ int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_ter
             x[i] = X[i] + u;
         }
         double Eb = 0;
-        c->bad[b] = crom_fem_assemble(&c->fem, x, &fo, &Eb, G, NULL);
+        if (!tets) {
+            c->bad[b] = crom_fem_assemble(fem, x, &fo, &Eb, G, NULL);
+        } else { /* K random tets, each standing for nt/K of them */
+            double wK = (double)fem->nt / K;
+            memset(G, 0, sizeof(double) * (size_t)n);
+            c->bad[b] = 0;
+            for (int k = 0; k < K && !c->bad[b]; k++) {
+                const int *tv = fem->tets + 4 * (size_t)tets[k];
+                double xe[12], ge[12], Ee;
+                for (int a = 0; a < 4; a++)
+                    memcpy(xe + 3 * a, x + 3 * (size_t)tv[a], sizeof(double) * 3);
+                c->bad[b] = crom_fem_tet_eval(&fem->mat, xe, fem->Dminv + 9 * (size_t)tets[k], fem->vol[tets[k]], 0,
+                                              &Ee, ge, NULL);
+                Eb += wK * Ee;
+                for (int a = 0; a < 4; a++)
+                    for (int d = 0; d < 3; d++)
+                        G[3 * (size_t)tv[a] + d] += wK * ge[3 * a + d];
+            }
+            for (int i = 0; fixed && i < n; i++)
+                if (fixed[i])
+                    G[i] = 0;
+        }
         if (!nm) /* gravity: -Σ m_v g·u_v */
             for (int i = 0; i < n; i++) {
                 if (fixed && fixed[i])
@@ -194,7 +243,7 @@ int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_ter
     for (int b = 0; b < B; b++)
         if (c->bad[b] || !isfinite(c->E[b]))
             return crom_err(CROM_EDATA, "sample %d of the batch has a non-finite energy", b);
-    double obj = 0, Em = 0, pen = 0, org = 0;
+    double obj = 0, Em = 0, pen = 0, tan = 0;
     double scale = 1.0 / (B * c->Eref);
     for (int b = 0; b < B; b++) {
         Em += c->E[b] / B;
@@ -205,7 +254,8 @@ int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_ter
             dY[i] = rho * scale * G[i];
     }
     if (!nm && B >= 2) {
-        /* isometry: λ mean_{b<c} ℓ², ℓ = ½ log D² − log(σ |z_b − z_c|) */
+        /* isometry: λ mean_{b<c} ℓ², ℓ = ½ log D² − log(σ |z_b − z_c|)
+         * (the anchor cancels in the differences) */
         double npairs = 0.5 * B * (B - 1), lam = c->o.lambda, ls = log(c->o.sigma);
         for (int b = 0; b < B; b++)
             for (int e = b + 1; e < B; e++) {
@@ -233,9 +283,31 @@ int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_ter
                 }
             }
     }
+    if (B0 > 0) {
+        /* the tangent at rest: λ_0 mean_s ℓ_s², ℓ_s = ½ log D_s² − log(σ |z_s|)
+         * with D_s the RMS displacement of the small sample z_s from rest */
+        double lam0 = c->o.tangent_weight, ls = log(c->o.sigma);
+        for (int b = B; b < B + B0; b++) {
+            const double *Yb = c->Y + (size_t)b * n;
+            double *dYb = c->dY + (size_t)b * n, dz = 0, D2 = 0;
+            for (int k = 0; k < r; k++)
+                dz += z[(size_t)b * r + k] * z[(size_t)b * r + k];
+            for (int i = 0; i < n; i++)
+                D2 += c->mw[i] * Yb[i] * Yb[i];
+            memset(dYb, 0, sizeof(double) * (size_t)n);
+            if (!(D2 > 0) || !(dz > 0))
+                continue;
+            double l = 0.5 * log(D2) - 0.5 * log(dz) - ls;
+            tan += l * l / B0;
+            obj += lam0 * l * l / B0;
+            double coef = lam0 / B0 * 2 * l / D2;
+            for (int i = 0; i < n; i++)
+                dYb[i] = coef * c->mw[i] * Yb[i];
+        }
+    }
     if (nm) {
-        /* M-orthogonality of y to the modes, and y(0) = 0 */
-        double a2 = c->o.box * c->o.box, wo = c->o.ortho_weight, w0 = c->o.origin_weight;
+        /* M-orthogonality of y(z) − y(0) to the modes */
+        double a2 = c->o.box * c->o.box, wo = c->o.ortho_weight;
         double *cp = c->cb;
         for (int b = 0; b < B; b++) {
             const double *Yb = c->Y + (size_t)b * n;
@@ -250,25 +322,25 @@ int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_ter
             cblas_dgemv(CblasRowMajor, CblasNoTrans, n, r, 2 * wo / (B * a2), c->MWm, r, cp, 1, 1.0,
                         c->dY + (size_t)b * n, 1);
         }
-        const double *Y0 = c->Y + (size_t)B * n;
-        double *dY0 = c->dY + (size_t)B * n;
-        for (int i = 0; i < n; i++) {
-            org += c->mw[i] * Y0[i] * Y0[i] / a2;
-            dY0[i] = 2 * w0 * c->mw[i] * Y0[i] / a2;
-        }
-        obj += w0 * org;
     }
     if (t) {
         t->objective = obj;
         t->energy = Em;
         t->penalty = pen;
-        t->origin = org;
+        t->tangent = tan;
     }
     if (!isfinite(obj))
         return crom_err(CROM_EDATA, "the data-free objective is not finite");
     if (grad) {
-        for (size_t i = 0; i < (size_t)rows * n; i++)
-            c->dyf[i] = fixed && fixed[i % n] ? 0.0f : (float)c->dY[i];
+        /* through the anchor: dL/dN(z_b) = dY_b, dL/dN(0) = −Σ_b dY_b */
+        float *d0 = c->dyf + (size_t)(B + B0) * n;
+        memset(d0, 0, sizeof(float) * (size_t)n);
+        for (int b = 0; b < B + B0; b++)
+            for (int i = 0; i < n; i++) {
+                double v = fixed && fixed[i] ? 0.0 : c->dY[(size_t)b * n + i];
+                c->dyf[(size_t)b * n + i] = (float)v;
+                d0[i] -= (float)v;
+            }
         memset(grad, 0, sizeof(float) * c->net->nparams);
         rc = crom_nn_mlp_backward(c->net, &c->ws, rows, c->dyf, grad, NULL);
     }
@@ -366,6 +438,183 @@ double crom_df_lr(double base, double frac)
     return base * ldexp(1.0, -q);
 }
 
+/* What a training step needs: the loss, the options, the sampler, the
+ * parameters and their gradient, the batch z and the random cubature
+ * (tets: K of nt, NULL for every tet). */
+typedef struct {
+    crom_df_ctx *ctx;
+    const crom_df_opts *o;
+    crom_rng *rng;
+    float *params, *grad;
+    double *z;
+    int *tets, K, nt, nm;
+    double rho;
+} tr_ctx;
+
+/* A fresh batch: z ~ N(0, I) (energy) or uniform in the box (neuralmodes),
+ * the tets of a fresh random cubature, and ρ at fraction frac. */
+static void draw(tr_ctx *T, double frac)
+{
+    const crom_df_opts *o = T->o;
+    int r = T->ctx->r;
+    T->rho = T->nm ? 1 : o->ramp > 0 ? fmin(1.0, frac / o->ramp) : 1;
+    for (int i = 0; i < o->batch * r; i++)
+        T->z[i] = T->nm ? T->ctx->half[i % r] * (2 * crom_rng_uniform(T->rng) - 1) : crom_rng_normal(T->rng);
+    for (int i = o->batch * r; i < (o->batch + T->ctx->B0) * r; i++) /* small samples: the tangent at rest */
+        T->z[i] = o->tangent_radius * crom_rng_normal(T->rng);
+    for (int i = 0; T->tets && i < T->K; i++)
+        T->tets[i] = (int)crom_rng_below(T->rng, (uint64_t)T->nt);
+}
+
+static int loss(tr_ctx *T, crom_df_terms *tm, float *grad)
+{
+    return crom_df_loss(T->ctx, T->o->batch, T->z, T->rho, T->K, T->tets, tm, grad);
+}
+
+/* Adam on a fresh batch every step, the learning rate halved after each
+ * quarter of the schedule. */
+static int train_adam(tr_ctx *T, crom_df_run *R, crom_nn_adam *adam, long *kout)
+{
+    long k;
+    int rc = 0;
+    for (k = 0; k < T->o->steps; k++) {
+        double frac;
+        if (!crom_df_run_next(R, k, &frac))
+            break;
+        draw(T, frac);
+        crom_df_terms tm;
+        if ((rc = loss(T, &tm, T->grad))) {
+            if (rc == CROM_EDATA)
+                crom_err_ctx("training diverged at step %ld (try a smaller --lr)", k + 1);
+            break;
+        }
+        crom_nn_adam_step(adam, T->params, T->grad, crom_df_lr(T->o->lr, frac));
+        crom_df_run_record(R, k, &tm);
+    }
+    *kout = k;
+    return rc;
+}
+
+/* The loss and gradient (double) at parameters x, through the float
+ * network. Returns 0, or CROM_EDATA where it is not finite (an inverted
+ * element): the line search then shortens the step. */
+static int lbfgs_eval(tr_ctx *T, size_t np, const double *x, double *f, double *g, crom_df_terms *tm)
+{
+    for (size_t i = 0; i < np; i++)
+        T->params[i] = (float)x[i];
+    int rc = loss(T, tm, T->grad);
+    if (rc)
+        return rc;
+    for (size_t i = 0; i < np; i++)
+        g[i] = T->grad[i];
+    *f = tm->objective;
+    return 0;
+}
+
+/* L-BFGS with a backtracking line search (the Neural Modes paper's
+ * optimizer), o->resample iterations on each batch of samples and tets
+ * before a fresh one is drawn (the objective must stay fixed while the
+ * line search compares values); the pairs are kept across batches. The
+ * first step (no pair yet) moves no parameter by more than o->lr. */
+static int train_lbfgs(tr_ctx *T, crom_df_run *R, size_t np, long *kout)
+{
+    const crom_df_opts *o = T->o;
+    crom_lbfgs L;
+    int rc = crom_lbfgs_init(&L, np, 10);
+    double *x = crom_malloc(sizeof(double) * np), *g = crom_malloc(sizeof(double) * np);
+    double *xt = crom_malloc(sizeof(double) * np), *gt = crom_malloc(sizeof(double) * np);
+    double *d = crom_malloc(sizeof(double) * np);
+    long k = 0;
+    if (!rc && (!x || !g || !xt || !gt || !d))
+        rc = CROM_EINTERNAL;
+    for (size_t i = 0; !rc && i < np; i++)
+        x[i] = T->params[i];
+    int stop = 0;
+    while (!rc && !stop && k < o->steps) {
+        double frac, f;
+        if (!crom_df_run_next(R, k, &frac))
+            break;
+        draw(T, frac);
+        crom_df_terms tm;
+        if ((rc = lbfgs_eval(T, np, x, &f, g, &tm))) {
+            if (rc == CROM_EDATA)
+                crom_err_ctx("training diverged at step %ld", k + 1);
+            break;
+        }
+        for (int it = 0; it < o->resample && k < o->steps; it++) {
+            if (it > 0 && !crom_df_run_next(R, k, &frac)) {
+                stop = 1;
+                break;
+            }
+            crom_lbfgs_direction(&L, g, d);
+            double slope = 0, dmax = 0;
+            for (size_t i = 0; i < np; i++) {
+                slope += g[i] * d[i];
+                dmax = fmax(dmax, fabs(d[i]));
+            }
+            if (!(slope < 0) || L.k == 0) { /* no descent (or no pair yet): steepest descent of size lr */
+                crom_lbfgs_reset(&L);
+                double gmax = 0;
+                for (size_t i = 0; i < np; i++)
+                    gmax = fmax(gmax, fabs(g[i]));
+                if (!(gmax > 0))
+                    break;
+                slope = 0;
+                for (size_t i = 0; i < np; i++) {
+                    d[i] = -o->lr * g[i] / gmax;
+                    slope += g[i] * d[i];
+                }
+            }
+            double alpha = 1, ft = NAN;
+            crom_df_terms tt;
+            int ok = 0;
+            for (int ls = 0; ls < 30 && !ok; ls++, alpha *= 0.5) {
+                for (size_t i = 0; i < np; i++)
+                    xt[i] = x[i] + alpha * d[i];
+                int e = lbfgs_eval(T, np, xt, &ft, gt, &tt);
+                if (e == CROM_EDATA) {
+                    crom_err_clear();
+                    continue;
+                }
+                if (e) {
+                    rc = e;
+                    break;
+                }
+                ok = ft <= f + 1e-4 * alpha * slope + 1e-6 * fabs(f);
+                if (ok)
+                    break;
+            }
+            if (rc)
+                break;
+            if (!ok) { /* no decrease along d: start the memory afresh on the next batch */
+                crom_lbfgs_reset(&L);
+                break;
+            }
+            for (size_t i = 0; i < np; i++) { /* the pair, then the step */
+                d[i] = xt[i] - x[i];
+                xt[i] = gt[i] - g[i];
+            }
+            crom_lbfgs_push(&L, d, xt);
+            for (size_t i = 0; i < np; i++)
+                x[i] += d[i];
+            memcpy(g, gt, sizeof(double) * np);
+            f = ft;
+            crom_df_run_record(R, k, &tt);
+            k++;
+        }
+    }
+    for (size_t i = 0; x && i < np; i++) /* the parameters of the last accepted step */
+        T->params[i] = (float)x[i];
+    crom_lbfgs_free(&L);
+    free(x);
+    free(g);
+    free(xt);
+    free(gt);
+    free(d);
+    *kout = k;
+    return rc;
+}
+
 int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model *out, crom_df_log *log)
 {
     crom_model_clear(out);
@@ -405,7 +654,7 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
     if (!(o.box > 0))
         o.box = 0.1 * diag;
     if (!isfinite(o.sigma) || !isfinite(o.lambda) || o.lambda < 0 || !isfinite(o.box) ||
-        !isfinite(o.ortho_weight) || o.ortho_weight < 0 || !isfinite(o.origin_weight) || o.origin_weight < 0 ||
+        !isfinite(o.ortho_weight) || o.ortho_weight < 0 ||
         !(o.lr > 0) || !isfinite(o.lr) || !(o.ramp >= 0 && o.ramp <= 1))
         return crom_err(CROM_EUSAGE, "non-finite or negative training weight");
     /* the network r -> width x (depth - 1) -> 3nv */
@@ -421,7 +670,9 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
         return rc;
     size_t np = crom_nn_spec_nparams(&spec);
     float *params = crom_calloc(np, sizeof(float)), *grad = crom_calloc(np, sizeof(float));
-    double *z = crom_malloc(sizeof(double) * (size_t)o.batch * r);
+    double *z = crom_malloc(sizeof(double) * (size_t)(o.batch + (o.tangent_samples > 0 ? o.tangent_samples : 0)) * r);
+    int nt = mesh->nt, K = o.tets > 0 && o.tets < nt ? o.tets : nt; /* every tet, or a random cubature */
+    int *tets = K < nt ? crom_malloc(sizeof(int) * (size_t)K) : NULL;
     crom_nn_mlp net;
     memset(&net, 0, sizeof net);
     crom_df_ctx ctx;
@@ -430,7 +681,7 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
     memset(&adam, 0, sizeof adam);
     crom_df_run R;
     int rcr = crom_df_run_begin(&R, log, &o);
-    if (!params || !grad || !z || rcr) {
+    if (!params || !grad || !z || rcr || (K < nt && !tets)) {
         rc = CROM_EINTERNAL;
         goto done;
     }
@@ -451,29 +702,20 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
     }
     if ((rc = crom_df_ctx_init(&ctx, p, &o, &net, o.batch)))
         goto done;
-    if ((rc = crom_nn_adam_init(&adam, np)))
+    if (o.optimizer != CROM_DF_LBFGS && (rc = crom_nn_adam_init(&adam, np)))
         goto done;
     log->sigma = o.sigma;
     log->box = o.box;
     log->Eref = ctx.Eref;
-    long k;
+    tr_ctx T = {&ctx, &o, &srng, params, grad, z, tets, K, nt, nm, 0};
+    long k = 0;
     R.tstart = crom_now(); /* the clock starts after the set-up */
-    for (k = 0; k < o.steps; k++) {
-        double frac;
-        if (!crom_df_run_next(&R, k, &frac))
-            break;
-        double rho = nm ? 1 : o.ramp > 0 ? fmin(1.0, frac / o.ramp) : 1;
-        for (int i = 0; i < o.batch * r; i++)
-            z[i] = nm ? o.box * (2 * crom_rng_uniform(&srng) - 1) : crom_rng_normal(&srng);
-        crom_df_terms tm;
-        if ((rc = crom_df_loss(&ctx, o.batch, z, rho, &tm, grad))) {
-            if (rc == CROM_EDATA)
-                crom_err_ctx("training diverged at step %ld (try a smaller --lr)", k + 1);
-            goto done;
-        }
-        crom_nn_adam_step(&adam, params, grad, crom_df_lr(o.lr, frac));
-        crom_df_run_record(&R, k, &tm);
-    }
+    if (o.optimizer == CROM_DF_LBFGS)
+        rc = train_lbfgs(&T, &R, np, &k);
+    else
+        rc = train_adam(&T, &R, &adam, &k);
+    if (rc)
+        goto done;
     if ((rc = crom_df_run_end(&R, k)))
         goto done;
     if ((rc = crom_model_from_map(out, nm ? "neuralmodes" : "energy", &net, mesh, nm ? p->modes : NULL)))
@@ -496,6 +738,7 @@ done:
     free(params);
     free(grad);
     free(z);
+    free(tets);
     if (rc)
         crom_df_log_free(log);
     return rc;
@@ -527,8 +770,6 @@ int crom_df_write_record(hid_t loc, const crom_df_opts *o, const crom_df_problem
             rc = crom_h5_set_f64(loc, ".", "latent_box", &log->box, 1);
         if (!rc)
             rc = crom_h5_set_f64(loc, ".", "ortho_weight", &o->ortho_weight, 1);
-        if (!rc)
-            rc = crom_h5_set_f64(loc, ".", "origin_weight", &o->origin_weight, 1);
         if (!rc && modes_id)
             rc = crom_h5_set_str(loc, ".", "modes_id", modes_id);
     }

@@ -86,6 +86,7 @@
 #include "scenario.h"
 
 enum { CROM_DF_ENERGY = 1, CROM_DF_NEURALMODES = 2, CROM_DF_FIELD = 3 };
+enum { CROM_DF_ADAM = 0, CROM_DF_LBFGS = 1 };
 
 /* The physical problem (all borrowed). */
 typedef struct {
@@ -104,14 +105,19 @@ typedef struct {
     crom_nn_act act;        /* ELU (energy) or GELU (neuralmodes) */
     int steps;              /* training steps (2000) */
     double minutes;         /* wall-time budget (0: none) */
-    double lr;              /* base learning rate (1e-3) */
+    double lr;              /* base learning rate (1e-3); L-BFGS: the size of its first step */
+    int optimizer;          /* CROM_DF_ADAM or CROM_DF_LBFGS (energy, neuralmodes) */
+    int resample;           /* L-BFGS: iterations on each batch before a fresh one (10) */
+    double tangent_weight;  /* energy, field: λ_0, weight of the isometry at rest (1; 0: none) */
+    int tangent_samples;    /* energy, field: its samples per step (8) */
+    double tangent_radius;  /* energy, field: their scale ε, z ~ N(0, ε² I) (0.1) */
     int batch;              /* samples per step (32) */
     double sigma;           /* energy: isometry scale, RMS metres per unit z */
     double lambda;          /* energy: isometry weight (1) */
     double ramp;            /* energy: fraction of the steps over which ρ grows (0.5) */
     double box;             /* neuralmodes: half-width a of the z box (m) */
+    int box_scaled;         /* neuralmodes: 1: mode k's half-width is a f_1 / f_k */
     double ortho_weight;    /* neuralmodes: w_o (1e4) */
-    double origin_weight;   /* neuralmodes: w_0 (1e4) */
     int features;           /* field: p, the feature fields of W (32) */
     int field_depth, field_width; /* field: dense layers (4) and hidden width (64) of W */
     int tets;               /* field: tets of the random cubature per step (512) */
@@ -133,7 +139,7 @@ typedef struct {
     double objective; /* L (dimensionless) */
     double energy;    /* mean E_pot (energy) or elastic energy (neuralmodes) of the samples (J) */
     double penalty;   /* energy: mean squared log-ratio; neuralmodes: mean ‖WᵀMy/m‖²/a² */
-    double origin;    /* neuralmodes: ‖y(0)‖²_M/(m a²) */
+    double tangent;   /* energy, field: mean squared log-ratio of the tangent samples */
 } crom_df_terms;
 
 typedef struct {
@@ -143,6 +149,7 @@ typedef struct {
     crom_fem fem;            /* rest shapes, volumes, lumped masses */
     crom_nn_ws ws;
     int r, n, maxbatch, nthreads;
+    int B0;                  /* tangent samples after the batch (0: none) */
     double mass, Eref;
     double *mw;              /* [n] m_i / m per DOF */
     double *MWm;             /* neuralmodes: [n][r] M W / m */
@@ -150,6 +157,7 @@ typedef struct {
     float *zf, *dyf;
     int *bad;
     double *cb;              /* [r] scratch */
+    double *half;            /* neuralmodes: [r] half-widths of the box per mode */
 } crom_df_ctx;
 
 /* Set up the loss of options o (objective, sigma, lambda, box, weights,
@@ -164,7 +172,7 @@ void crom_df_ctx_free(crom_df_ctx *c);
  * for neuralmodes, whose origin term is evaluated at an extra z = 0), and
  * if grad != NULL its gradient dL/dparams (overwritten, layout of
  * net->params). Returns 0, or CROM_EDATA for a non-finite energy. */
-int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_terms *t,
+int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_df_terms *t,
                  float *grad);
 
 /* ------------------------------------------- the continuous field's loss */
@@ -176,6 +184,7 @@ typedef struct {
     crom_fem fem;
     crom_nn_ws wsW, wsP;
     int r, p, maxbatch, maxtets, maxrows, nthreads, ns, npins;
+    int B0;                  /* tangent samples after the batch (0: none) */
     double mass, Eref, pin_length;
     int *loc, *vs, *bad;
     float *xf, *zf, *dFf, *dPf;

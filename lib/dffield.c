@@ -50,6 +50,9 @@ int crom_dff_ctx_init(crom_dff_ctx *c, const crom_df_problem *p, const crom_df_o
     c->r = r;
     c->p = pf;
     c->maxbatch = maxbatch;
+    c->B0 = o->tangent_weight > 0 ? o->tangent_samples : 0;
+    if (c->B0 < 0)
+        return crom_err(CROM_EUSAGE, "%d tangent samples", c->B0);
     c->maxtets = maxtets;
     c->nthreads = o->threads < 1 ? 1 : o->threads > 256 ? 256 : o->threads;
     int rc = crom_fem_init(&c->fem, p->mesh, &p->mat);
@@ -110,8 +113,9 @@ int crom_dff_ctx_init(crom_dff_ctx *c, const crom_df_problem *p, const crom_df_o
     for (int v = 0; v < nv; v++)
         c->mask[v] = crom_model_pin_mask(p->mesh->X + 3 * (size_t)v, c->npins, c->pinX, c->ntri, c->triX, c->pin_length);
     c->maxrows = 4 * maxtets;
-    size_t R = (size_t)c->maxrows, B = (size_t)maxbatch, P = (size_t)pf;
-    if ((rc = crom_nn_ws_init(&c->wsW, W, c->maxrows, 1)) || (rc = crom_nn_ws_init(&c->wsP, phi, maxbatch, 1))) {
+    /* rows of φ: the batch, the tangent samples and z = 0 */
+    size_t R = (size_t)c->maxrows, B = (size_t)maxbatch + c->B0 + 1, P = (size_t)pf;
+    if ((rc = crom_nn_ws_init(&c->wsW, W, c->maxrows, 1)) || (rc = crom_nn_ws_init(&c->wsP, phi, (int)B, 1))) {
         crom_dff_ctx_free(c);
         return rc;
     }
@@ -158,7 +162,7 @@ static int local(crom_dff_ctx *c, int v)
 int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_df_terms *t,
                   float *gW, float *gP)
 {
-    int r = c->r, p = c->p, nt = c->fem.nt, rc;
+    int r = c->r, p = c->p, nt = c->fem.nt, B0 = c->B0, rc;
     const double *X = c->P.mesh->X, *g = c->P.gravity;
     const crom_fem *fem = &c->fem;
     if (B < 2 || B > c->maxbatch || K < 1 || K > c->maxtets)
@@ -182,13 +186,16 @@ int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, co
     const float *Ff = crom_nn_ws_output(&c->wsW);
     for (size_t i = 0; i < (size_t)m3 * p; i++) /* masked at the pins */
         c->F[i] = c->mask[c->vs[i / (3 * (size_t)p)]] * Ff[i];
-    for (int i = 0; i < B * r; i++)
+    /* φ of the batch, of the tangent samples and of z = 0, the anchor
+     * (lib/map.h): the samples are taken relative to it, Φ_b = φ(z_b) − φ(0) */
+    for (int i = 0; i < (B + B0) * r; i++)
         c->zf[i] = (float)z[i];
-    if ((rc = crom_nn_mlp_forward(c->phi, &c->wsP, B, c->zf, NULL)))
+    memset(c->zf + (size_t)(B + B0) * r, 0, sizeof(float) * (size_t)r);
+    if ((rc = crom_nn_mlp_forward(c->phi, &c->wsP, B + B0 + 1, c->zf, NULL)))
         goto out;
-    const float *Pf = crom_nn_ws_output(&c->wsP);
-    for (int i = 0; i < B * p; i++)
-        c->Phi[i] = Pf[i];
+    const float *Pf = crom_nn_ws_output(&c->wsP), *P0 = Pf + (size_t)(B + B0) * p;
+    for (int i = 0; i < (B + B0) * p; i++)
+        c->Phi[i] = (double)Pf[i] - (double)P0[i % p];
     /* the cubature: each sampled tet stands for nt/K of them (an unbiased
      * estimate of the integral); lumped masses of the sampled tets */
     double wK = (double)nt / K, rho0 = c->P.mat.rho, mhat = 0;
@@ -240,7 +247,7 @@ int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, co
             rc = crom_err(CROM_EDATA, "sample %d of the batch has a non-finite energy", b);
             goto out;
         }
-    double obj = 0, Em = 0, pen = 0, scale = 1.0 / (B * c->Eref);
+    double obj = 0, Em = 0, pen = 0, tan = 0, scale = 1.0 / (B * c->Eref);
     for (int b = 0; b < B; b++) {
         Em += c->E[b] / B;
         obj += c->E[b] * scale;
@@ -249,6 +256,7 @@ int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, co
     cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, B, p, m3, rho * scale, c->gu, m3, c->F, p, 0.0, c->dPhi,
                 p);
     cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, m3, p, B, rho * scale, c->gu, m3, c->Phi, p, 0.0, c->dF, p);
+    memset(c->dPhi + (size_t)B * p, 0, sizeof(double) * (size_t)B0 * p);
     /* isometry over the pairs: D² = ΔΦᵀ G ΔΦ / m̂, G = Σ_v m_v F_vᵀ F_v */
     if (mhat > 0) {
         for (int i = 0; i < m3; i++) {
@@ -284,6 +292,25 @@ int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, co
                 cblas_daxpy(p, -2 * coef, Gd, 1, c->dPhi + (size_t)e * p, 1);
                 cblas_dsyr(CblasRowMajor, CblasUpper, p, coef / mhat, dphi, 1, c->S, p);
             }
+        /* the tangent at rest: λ_0 mean_s ℓ_s², ℓ_s = ½ log D_s² − log(σ |z_s|),
+         * D_s² = Φ_sᵀ G Φ_s / m̂ the displacement of a small sample from rest */
+        double lam0 = c->o.tangent_weight;
+        for (int b = B; b < B + B0; b++) {
+            const double *ph = c->Phi + (size_t)b * p;
+            double dz = 0;
+            for (int k = 0; k < r; k++)
+                dz += z[(size_t)b * r + k] * z[(size_t)b * r + k];
+            cblas_dsymv(CblasRowMajor, CblasUpper, p, 1.0 / mhat, c->G, p, ph, 1, 0.0, Gd, 1);
+            double D2 = cblas_ddot(p, ph, 1, Gd, 1);
+            if (!(D2 > 0) || !(dz > 0))
+                continue;
+            double l = 0.5 * log(D2) - 0.5 * log(dz) - ls;
+            tan += l * l / B0;
+            obj += lam0 * l * l / B0;
+            double coef = lam0 * l / (B0 * D2);
+            cblas_daxpy(p, 2 * coef, Gd, 1, c->dPhi + (size_t)b * p, 1);
+            cblas_dsyr(CblasRowMajor, CblasUpper, p, coef / mhat, ph, 1, c->S, p);
+        }
         for (int i = 0; i < p; i++)
             for (int j = 0; j < i; j++)
                 c->S[i * p + j] = c->S[j * p + i];
@@ -296,7 +323,7 @@ int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, co
         t->objective = obj;
         t->energy = Em;
         t->penalty = pen;
-        t->origin = 0;
+        t->tangent = tan;
     }
     if (!isfinite(obj)) {
         rc = crom_err(CROM_EDATA, "the data-free objective is not finite");
@@ -309,11 +336,15 @@ int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, co
         if ((rc = crom_nn_mlp_backward(c->W, &c->wsW, ns, c->dFf, gW, NULL)))
             goto out;
     }
-    if (gP) {
-        for (int i = 0; i < B * p; i++)
+    if (gP) { /* through the anchor: dL/dφ(0) = −Σ_b dL/dΦ_b */
+        float *d0 = c->dPf + (size_t)(B + B0) * p;
+        memset(d0, 0, sizeof(float) * (size_t)p);
+        for (int i = 0; i < (B + B0) * p; i++) {
             c->dPf[i] = (float)c->dPhi[i];
+            d0[i % p] -= c->dPf[i];
+        }
         memset(gP, 0, sizeof(float) * c->phi->nparams);
-        rc = crom_nn_mlp_backward(c->phi, &c->wsP, B, c->dPf, gP, NULL);
+        rc = crom_nn_mlp_backward(c->phi, &c->wsP, B + B0 + 1, c->dPf, gP, NULL);
     }
 out:
     for (int i = 0; i < c->ns; i++)
@@ -323,7 +354,7 @@ out:
 
 /* ============================================================ training */
 
-/* Scale the field's last layer so that W(X) φ(z) starts at the isometry
+/* Scale the field's last layer so that W(X) (φ(z) − φ(0)) starts at the isometry
  * scale: RMS displacement σ over random vertices and z ~ N(0, I) (a
  * default-initialized pair of networks moves the body by metres, which
  * training would first have to undo). */
@@ -337,16 +368,17 @@ static int init_scale(crom_dff_ctx *c, crom_nn_mlp *W, crom_nn_mlp *phi, crom_rn
     }
     for (int i = 0; i < B * c->r; i++)
         c->zf[i] = (float)crom_rng_normal(rng);
+    memset(c->zf + (size_t)B * c->r, 0, sizeof(float) * (size_t)c->r); /* the anchor */
     if ((rc = crom_nn_mlp_forward(W, &c->wsW, n, c->xf, NULL)))
         return rc;
     const float *F = crom_nn_ws_output(&c->wsW);
     for (size_t i = 0; i < (size_t)3 * n * p; i++) /* unmasked: the scale of W itself */
         c->F[i] = F[i];
-    if ((rc = crom_nn_mlp_forward(phi, &c->wsP, B, c->zf, NULL)))
+    if ((rc = crom_nn_mlp_forward(phi, &c->wsP, B + 1, c->zf, NULL)))
         return rc;
-    const float *P = crom_nn_ws_output(&c->wsP);
+    const float *P = crom_nn_ws_output(&c->wsP), *P0 = P + (size_t)B * p;
     for (int i = 0; i < B * p; i++)
-        c->Phi[i] = P[i];
+        c->Phi[i] = (double)P[i] - (double)P0[i % p];
     cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasTrans, B, 3 * n, p, 1.0, c->Phi, p, c->F, p, 0.0, c->gu, 3 * n);
     double u2 = 0;
     for (size_t i = 0; i < (size_t)B * 3 * n; i++)
@@ -419,7 +451,7 @@ int crom_df_train_field(const crom_df_problem *p, const crom_df_opts *o_in, crom
     memset(&aw, 0, sizeof aw);
     memset(&ap, 0, sizeof ap);
     float *gW = NULL, *gP = NULL;
-    double *z = crom_malloc(sizeof(double) * (size_t)o.batch * r);
+    double *z = crom_malloc(sizeof(double) * (size_t)(o.batch + (o.tangent_samples > 0 ? o.tangent_samples : 0)) * r);
     int *tets = crom_malloc(sizeof(int) * (size_t)K);
     crom_df_run R;
     int rcr = crom_df_run_begin(&R, log, &o);
@@ -461,6 +493,8 @@ int crom_df_train_field(const crom_df_problem *p, const crom_df_opts *o_in, crom
         double rho = o.ramp > 0 ? fmin(1.0, frac / o.ramp) : 1;
         for (int i = 0; i < o.batch * r; i++)
             z[i] = crom_rng_normal(&srng);
+        for (int i = o.batch * r; i < (o.batch + ctx.B0) * r; i++) /* small samples: the tangent at rest */
+            z[i] = o.tangent_radius * crom_rng_normal(&srng);
         for (int i = 0; i < K; i++) /* a fresh random cubature each step */
             tets[i] = K == nt ? i : (int)crom_rng_below(&srng, (uint64_t)nt);
         crom_df_terms tm;

@@ -69,6 +69,8 @@ const char *crom_model_id(const crom_model *m, char id[17])
     fnv s = {0xcbf29ce484222325ULL};
     fnv_bytes(&s, m->basis, strlen(m->basis) + 1);
     fnv_i64(&s, m->rank);
+    if (crom_model_is_nonlinear(m)) /* a map anchored at rest, x(0) = X (lib/map.h) */
+        fnv_bytes(&s, "anchored", 9);
     if (m->field == CROM_FIELD_MLP || m->field == CROM_FIELD_CMAP) {
         const crom_nn_spec *sp = &m->mlp.spec;
         for (int l = 0; l <= sp->nlayers; l++) {

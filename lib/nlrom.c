@@ -3,7 +3,6 @@
 #ifdef _OPENMP
 #include <omp.h>
 #endif
-#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -15,7 +14,6 @@
 #include "contact.h"
 #include "cubature.h"
 #include "err.h"
-#include "linesearch.h"
 #include "newton.h"
 #include "nlrom.h"
 
@@ -102,66 +100,6 @@ static int initial_velocity(crom_nlsim *s)
     cblas_dgemv(CblasRowMajor, CblasTrans, n, r, 1.0, s->J, r, s->gx, 1, 0.0, s->qd, 1);
     if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, s->H, r, s->qd, 1) != 0)
         return crom_err(CROM_EDATA, "the map's latent directions are degenerate at the initial state");
-    return 0;
-}
-
-/* The fit of x(q) to the rest shape, ½‖x(q) − X‖²_M, and its gradient
- * Jᵀ M (x(q) − X) (J left in s->J), for the line search. */
-static int rest_eval(void *ctx, const double *q, double *f, double *g)
-{
-    crom_nlsim *s = ctx;
-    int rc = crom_map_eval(s->map, q, s->xt, g ? s->J : NULL);
-    if (rc)
-        return rc;
-    const double *X = s->map->mesh.X;
-    double e = 0;
-    for (int i = 0; i < s->n; i++) {
-        double d = s->xt[i] - X[i];
-        s->gx[i] = s->fem.mass[i / 3] * d;
-        e += 0.5 * d * s->gx[i];
-    }
-    *f = e;
-    if (g)
-        cblas_dgemv(CblasRowMajor, CblasTrans, s->n, s->r, 1.0, s->J, s->r, s->gx, 1, 0.0, g, 1);
-    return 0;
-}
-
-/* Start at rest: the latent whose shape is nearest the rest shape in the
- * mass norm, q = argmin ½‖x(q) − X‖²_M, by Gauss–Newton from q = 0. A
- * data-free map's origin need not be the rest state (Sharp et al. §4.1:
- * the seed state is gone once training ends); for linear bases and maps
- * with x(0) = X this leaves q = 0. */
-static int nearest_rest(crom_nlsim *s)
-{
-    int r = s->r, n = s->n;
-    for (int it = 0; it < 100; it++) {
-        double f;
-        int rc = rest_eval(s, s->q, &f, s->g);
-        if (rc)
-            return rc;
-        mass_gram(s);
-        for (int k = 0; k < r; k++)
-            s->d[k] = -s->g[k];
-        if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, s->H, r, s->d, 1) != 0)
-            return crom_err(CROM_EDATA, "the map's latent directions are degenerate near the rest shape");
-        double slope = cblas_ddot(r, s->g, 1, s->d, 1);
-        if (!(slope < 0))
-            break; /* at the minimum (x(0) = X exactly for a linear basis) */
-        /* converged when the step moves no vertex by more than 1e-10 L */
-        cblas_dgemv(CblasRowMajor, CblasNoTrans, n, r, 1.0, s->J, r, s->d, 1, 0.0, s->wd, 1);
-        double move = 0;
-        for (int i = 0; i < n; i++)
-            move = fmax(move, fabs(s->wd[i]));
-        if (move <= 1e-10 * s->L) {
-            cblas_daxpy(r, 1.0, s->d, 1, s->q, 1);
-            break;
-        }
-        double alpha = crom_linesearch(rest_eval, s, (size_t)r, s->q, s->d, f, slope, 64 * DBL_EPSILON * f,
-                                       -slope < 1e-10 * f, s->qt, s->tg, NULL);
-        if (alpha == 0)
-            break; /* no decrease left that f resolves */
-        memcpy(s->q, s->qt, sizeof(double) * (size_t)r);
-    }
     return 0;
 }
 
@@ -387,11 +325,9 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
                 s->surf[s->nsurf++] = v;
         free(on);
     }
-    /* initial state */
+    /* initial state: q0, or rest, which is q = 0 in every map (lib/map.h) */
     if (q0)
         memcpy(s->q, q0, sizeof(double) * (size_t)r);
-    else if ((rc = nearest_rest(s)))
-        goto fail;
     if (qd0)
         memcpy(s->qd, qd0, sizeof(double) * (size_t)r);
     else if ((rc = initial_velocity(s)))

@@ -91,8 +91,8 @@ typedef struct {
 } crom_nlsim;
 
 /* Set up on map (borrowed; its mesh's regions resolve the scenario's) with
- * scenario sc (borrowed); q = q0 (NULL: the latent nearest the rest shape,
- * argmin ‖x(q) − X‖_M, which for a data-free map need not be 0), q̇ = qd0 (NULL: from the
+ * scenario sc (borrowed); q = q0 (NULL: 0, where every map is exactly at
+ * rest, x(0) = X, lib/map.h), q̇ = qd0 (NULL: from the
  * scenario's initial velocity and spin, projected: q̇ minimizes
  * ‖J q̇ − v‖_M). kappa <= 0 picks 1e4/h². nthreads splits the passes over
  * tets (deterministic for a given count). CROM_EUSAGE for an unknown or
