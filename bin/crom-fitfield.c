@@ -39,26 +39,26 @@ static const crom_opt fit_opts[] = {
 static const crom_opt df_opts[] = {
     {"mesh", O_MESH, "MESH", "The crom/mesh the data-free subspace maps (required with --objective energy|neuralmodes|field; '-' for stdin). Its regions resolve --pin. energy and neuralmodes store it: the subspace lives on this mesh; field is trained on it and lays on any mesh."},
     {"modes", O_MODES, "MODEL", "neuralmodes (required): a crom/model of linear modes of the same mesh, from crom-modes. Its lowest --rank modes are the linear part Phi; its pins are kept, its material is the default."},
-    {"steps", O_STEPS, "N", "Training steps of a data-free objective (default 2000), each on --batch samples (default 32). The learning rate is --lr (default 1e-3), halved after each quarter of the steps."},
+    {"steps", O_STEPS, "N", "Training steps of a data-free objective (energy, neuralmodes: default 4000 of --batch 8 samples at --lr 3e-3; field: 2000 of 32 at 1e-3). The learning rate is halved after each quarter of the steps (or of --minutes)."},
     {"sigma", O_SIGMA, "S", "energy: isometry scale in metres: the subspace should move the body by S (RMS displacement) per unit of latent distance, |f(z) - f(z')|_M / sqrt(m) ~ S |z - z'|, z ~ N(0, I) (default 0.05 times the bounding-box diagonal). Sharp et al.'s sigma divided by sqrt(body mass)."},
-    {"lambda", O_LAMBDA, "L", "energy: weight of the isometry term, the squared log-ratio of mass-norm distances to S |z - z'| over all pairs of a batch, against the energy in units of E V (Young's modulus times volume) (default 1)."},
+    {"lambda", O_LAMBDA, "L", "energy: weight of the isometry term, the squared log-ratio of mass-norm distances to S |z - z'| over all pairs of a batch, against the energy in units of E V (Young's modulus times volume) (default 0.03; field: 1). A weaker isometry lets the energy shape the subspace: 1 keeps the map near-isometric but leaves the static sag of a soft body 40-80% off."},
     {"ramp", O_RAMP, "F", "energy: the seed-state blend rho grows linearly from 0 to 1 over the first fraction F of the steps, then stays 1 (default 0.5; Sharp et al. §4.1). The seed state is the rest shape."},
-    {"tangent-weight", O_TANW, "W", "energy, field: weight of the isometry at rest: small samples z ~ N(0, 0.01 I), 8 per step, should move the body by S |z| from rest, so that every latent direction moves the body at the start of a run (default 1; 0: none)."},
-    {"box", O_BOX, "A", "neuralmodes: the modal coordinates z are drawn uniformly from [-A, A]^r, in metres of RMS displacement (default 0.1 times the bounding-box diagonal)."},
-    {"box-scaling", O_BOXSC, "KIND", "neuralmodes: uniform: every mode is drawn from [-A, A]; frequency: mode k from [-A f_1/f_k, A f_1/f_k] (the same linear energy at every edge, so the stiff modes do not dominate the energy)."},
+    {"tangent-weight", O_TANW, "W", "energy, field: weight of the isometry at rest: 8 small samples z ~ N(0, 0.01 I) per step should all move the body alike per unit of |z| (the mean log-ratio of their RMS displacements to |z| is free, its spread is penalized), so that no latent direction collapses at rest, where every run starts (default 0.1; field: 0; 0: none)."},
+    {"box", O_BOX, "A", "neuralmodes: half-width of the box the modal coordinates z are drawn from, in metres of RMS displacement: [-A, A] for the lowest mode (default 0.15 times the bounding-box diagonal; see --box-scaling)."},
+    {"box-scaling", O_BOXSC, "KIND", "neuralmodes: frequency (default): mode k is drawn from [-A f_1/f_k, A f_1/f_k], the same linear energy at every edge, so that the stiff modes do not swamp the energy of the soft ones; uniform: every mode from [-A, A] (Wang et al.)."},
     {"optimizer", O_OPTIM, "KIND", "energy, neuralmodes: adam (default): Adam on a fresh batch every step. lbfgs: L-BFGS with a backtracking line search (Wang et al.), --resample iterations on each batch."},
     {"resample", O_RESAMPLE, "N", "--optimizer lbfgs: iterations on each batch of samples before a fresh one is drawn (default 10)."},
     {"features", O_FEATURES, "P", "field: the feature fields of W(X), the output width of phi (default 32)."},
-    {"tets", O_TETS, "K", "field: tets of the random cubature drawn afresh at every step, each standing for nt/K of them (default 512, at most every tet)."},
+    {"tets", O_TETS, "K", "Tets of the random cubature drawn afresh at every step, each standing for nt/K of them (field: default 512; energy, neuralmodes: default every tet, exactly; at most every tet)."},
     {"pin-length", O_PINW, "L", "field: the field is masked by smoothstep(d / L), d the distance to the nearest pinned vertex of --mesh, so it vanishes there on any mesh (default: twice the mean edge length)."},
-    {"ortho-weight", O_ORTHO, "W", "neuralmodes: weight of the penalty |Phi^T M y(z)|^2 keeping the correction M-orthogonal to the linear modes, relative to the linear energy of the highest mode at the box size (default 1e4)."},
+    {"ortho-weight", O_ORTHO, "W", "neuralmodes: weight of the penalty |Phi^T M y(z)|^2 / (m A^2) keeping the correction M-orthogonal to the linear modes, against the energy in units of the linear energy of a mode at the edge of the box (default 1e4)."},
     {NULL, 0, NULL, NULL}};
 
 static const crom_opt train_opts[] = {
     {"epochs", O_EPOCHS, "N", "Training epochs (default 400 for lsq, 3750 for pointnet as in the paper). An epoch is one pass over the frames in batches of --batch frames. The learning rate is --lr, divided by 5 after a third of the epochs and by 50 after two thirds (LiCROM §3.1)."},
     {"minutes", O_MINUTES, "M", "Stop training after M minutes of wall time. The learning-rate schedule then follows whichever is further along: the fraction of epochs done or the fraction of the time budget used, so a run cut short by the clock still goes through all three rates. Runs limited by the clock are not byte-reproducible."},
-    {"lr", O_LR, "LR", "Base learning rate of Adam (default 5e-3 for lsq, 1e-3 for pointnet as in the paper)."},
-    {"batch", O_BATCH, "B", "Frames per step (default 16)."},
+    {"lr", O_LR, "LR", "Base learning rate of Adam (default 5e-3 for lsq, 1e-3 for pointnet as in the paper; data-free: see --steps). With --optimizer lbfgs: the largest change of a parameter in its first step."},
+    {"batch", O_BATCH, "B", "Frames per step (default 16); data-free: latent samples per step (see --steps)."},
     {"points-per-step", O_PPS, "P", "Samples of each frame used per step (default: 128 for lsq, every sample for pointnet). For vertex samples, a step evaluates W once at a random subset of one mesh's vertices, shared by all frames of the batch; P sets its size (about P x vertices / samples-per-frame). Interior samples are evaluated frame by frame, which costs about --batch times more per step."},
     {"encoder-points", O_ENCPTS, "N", "Points per frame the PointNet encoder sees, a random subsample (default 2500, or all if fewer)."},
     {"activation", O_ACT, "ACT", "Hidden activation of W: elu (default) or sine (SIREN, omega0 = 30). With omega0 = 30 a sine field can interpolate the training points and oscillate between them: check it with crom-encode on another mesh. Data-free maps: elu (energy default), gelu (neuralmodes default) or sine."},
@@ -92,44 +92,42 @@ static const crom_doc doc = {
     "for the whole batch. With --encoder pointnet a PointNet encoder seeing a 2500-point "
     "subsample is trained jointly (LiCROM eq. 4) and kept in the model. Displacements are "
     "scaled by their RMS value during training; the model keeps q in metres. Afterwards the "
-    "fields are re-expressed, exactly, in "
-    "a canonical basis of their span: orthonormal over the training points (each field has RMS "
-    "magnitude 1) and ordered by decreasing variance over the training frames, like POD modes.\n\n"
+    "fields are re-expressed, exactly, in a canonical basis of their span: orthonormal over the "
+    "training points and ordered by decreasing variance over the training frames, like POD.\n\n"
     "--basis pod computes the classic proper orthogonal decomposition of samples of one mesh "
     "with every vertex in every frame (crom-sample --points all): the r leading modes of the "
     "snapshots weighted by the lumped vertex volumes (orthonormal in the volume-mean inner "
     "product; the density cancels), stored as a piecewise-linear field on that mesh so the "
     "whole pipeline can run the classic linear ROM as a baseline.\n\n"
-    "The relative reconstruction error ||Wq - u|| / ||u|| over all samples of all training "
-    "frames (q by least squares, or by the encoder for pointnet) is printed on stderr and "
-    "stored in the model with the training log (loss and wall time per epoch). A progress bar "
-    "shows on a terminal. The same samples, options and --seed give the same bytes (set "
+    "The relative reconstruction error ||Wq - u|| / ||u|| over all training frames is printed "
+    "and stored in the model with the training log (loss and wall time per epoch). The same samples, options and --seed give the same bytes (set "
     "SOURCE_DATE_EPOCH for the stored times; --threads changes the last bits).\n\n"
     "Data-free subspaces need no samples, only a mesh (--mesh), a material, and the pins and "
     "gravity of the scenario flags. They are nonlinear maps from a latent z to the positions of "
     "every vertex of that mesh, stored as models of basis 'energy' or 'neuralmodes' with the "
     "mesh (and its regions): crom-reducedstep --model simulates in them, crom-export and crom-diff "
     "decode them on that mesh, crom-metrics measures them. Pinned vertices are built into the "
-    "map (held exactly at rest).\n\n"
-    "--objective energy (Sharp et al. 2023, eq. 4 and §4.1): x(z) = X + N(z) with N an ELU MLP "
-    "r -> 64 x 5 -> 3nv, trained on batches of z ~ N(0, I) to minimize the mean potential energy "
+    "map (held exactly at rest). Every data-free map is anchored at rest: its network's value at "
+    "z = 0 is subtracted, in training too, so x(0) = X exactly and runs from rest start at z = 0.\n\n"
+    "--objective energy (Sharp et al. 2023, eq. 4 and §4.1): x(z) = X + N(z) - N(0) with N an ELU "
+    "MLP r -> 64 x 5 -> 3nv, trained on batches of z ~ N(0, I) to minimize the mean potential energy "
     "(stable neo-Hookean plus gravity, in units of E V) of the samples plus --lambda times the "
     "mean over all pairs of the batch of (log(|N(z) - N(z')|_M / sqrt(m) / (S |z - z'|)))^2, "
-    "the isometry term that keeps the subspace from collapsing to the lowest-energy state. The "
-    "seed-state blend X + rho N(z) grows rho from 0 to 1 over the first --ramp of the steps. "
-    "A free body under gravity is refused (it has no lowest energy).\n\n"
+    "the isometry term that keeps the subspace from collapsing to the lowest-energy state (and "
+    "--tangent-weight, at rest). The seed-state blend X + rho (N(z) - N(0)) grows rho from 0 to 1 "
+    "over the first --ramp of the steps. A free body under gravity is refused.\n\n"
     "--objective neuralmodes (Wang et al. 2024, eq. 12-13): x(z) = X + W z + y(z) on the lowest "
     "--rank linear modes W of --modes (computed by crom-modes on the same mesh; W^T M W = m I, so z "
-    "is in metres), with a GELU MLP correction y trained from zero on z uniform in [-A, A]^r to "
-    "minimize the elastic energy plus penalties on the projection W^T M y(z) and on y(0). The "
-    "training log (objective, mean energy, penalty per block of steps) is stored in the model.\n\n"
-    "--objective field (beyond both papers): a continuous subspace x(X, z) = X + W(X) phi(z), "
+    "is in metres), with a GELU MLP correction y = N(z) - N(0) trained from zero on z uniform in a "
+    "box (--box, --box-scaling) to minimize the elastic energy plus a penalty on the projection "
+    "W^T M y(z). The training log is stored in the model.\n\n"
+    "--objective field (beyond both papers): a continuous subspace x(X, z) = X + W(X) (phi(z) - phi(0)), "
     "W a neural field 3 -> 3p (--features p), phi an MLP r -> p, trained like energy with the "
     "integrals over the body taken by a random cubature of --tets tets per step; pins are a mask "
     "vanishing on the pinned faces. The model ('energy-field') stores no mesh and lays on "
     "any mesh of the body (with --mesh).\n\n"
-    "A data-free step costs --batch energy evaluations (of the whole mesh, or of --tets tets); "
-    "--threads runs them in parallel (the result does not depend on the thread count).",
+    "A data-free step costs --batch energy evaluations (of the whole mesh, or of --tets tets), "
+    "run in parallel over --threads (the result does not depend on the thread count).",
     groups,
     "crom-sample run*.h5 | crom-fitfield --rank 20 -o model.h5\n"
     "crom-fitfield --encoder pointnet --epochs 3750 -o model.h5 samples.h5\n"

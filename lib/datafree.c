@@ -19,32 +19,31 @@
 void crom_df_defaults(crom_df_opts *o, int objective)
 {
     memset(o, 0, sizeof *o);
+    int field = objective == CROM_DF_FIELD, nm = objective == CROM_DF_NEURALMODES;
     o->objective = objective;
-    o->rank = objective == CROM_DF_ENERGY ? 8 : 0;
-    o->depth = 6;
+    o->rank = nm ? 0 : 8;
+    o->depth = field ? 4 : 6;
     o->width = 64;
-    o->act = objective == CROM_DF_ENERGY ? CROM_NN_ELU : CROM_NN_GELU;
-    o->steps = 2000;
-    o->lr = 1e-3;
-    o->batch = 32;
-    o->lambda = 1;
+    o->act = nm ? CROM_NN_GELU : CROM_NN_ELU;
+    /* the one-mesh maps: many small steps at a larger rate (issue 14's
+     * measurements, datafree.h); the field: as trained before */
+    o->steps = field ? 2000 : 4000;
+    o->lr = field ? 1e-3 : 3e-3;
+    o->batch = field ? 32 : 8;
+    o->lambda = field ? 1 : 0.03;
     o->ramp = 0.5;
     o->ortho_weight = 1e4;
+    o->box_scaled = 1;
     o->features = 32;
     o->field_depth = 4;
     o->field_width = 64;
-    o->tets = objective == CROM_DF_FIELD ? 512 : 0;
+    o->tets = field ? 512 : 0;
     o->optimizer = CROM_DF_ADAM;
-    o->tangent_weight = 1;
+    o->resample = 10;
+    o->tangent_weight = field ? 0 : 0.1;
     o->tangent_samples = 8;
     o->tangent_radius = 0.1;
-    o->resample = 10;
     o->pin_length = 0;
-    if (objective == CROM_DF_FIELD) {
-        o->rank = 8;
-        o->depth = 4;
-        o->act = CROM_NN_ELU;
-    }
     o->threads = 1;
     o->seed = 1;
 }
@@ -117,7 +116,7 @@ int crom_df_ctx_init(crom_df_ctx *c, const crom_df_problem *p, const crom_df_opt
     c->zf = crom_malloc(sizeof(float) * rows * r);
     c->dyf = crom_malloc(sizeof(float) * rows * n);
     c->bad = crom_malloc(sizeof(int) * (size_t)maxbatch);
-    c->cb = crom_malloc(sizeof(double) * (size_t)r);
+    c->cb = crom_malloc(sizeof(double) * (size_t)(r > c->B0 ? r : c->B0));
     c->half = crom_malloc(sizeof(double) * (size_t)r);
     if (!c->cb || !c->half || !c->mw || (nm && !c->MWm) || !c->Y || !c->G || !c->dY || !c->E || !c->xb || !c->zf || !c->dyf || !c->bad) {
         crom_df_ctx_free(c);
@@ -284,20 +283,30 @@ int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, int K, cons
             }
     }
     if (B0 > 0) {
-        /* the tangent at rest: λ_0 mean_s ℓ_s², ℓ_s = ½ log D_s² − log(σ |z_s|)
-         * with D_s the RMS displacement of the small sample z_s from rest */
-        double lam0 = c->o.tangent_weight, ls = log(c->o.sigma);
+        /* the tangent at rest, conformal: λ_0 mean_s (ℓ_s − ℓ̄)², ℓ_s = ½ log
+         * D_s² − log |z_s| with D_s the RMS displacement of the small sample
+         * z_s from rest and ℓ̄ the mean over the samples: every direction
+         * moves the body alike near rest, at a scale the map is free to
+         * choose (the gradient of the mean cancels, Σ_s (ℓ_s − ℓ̄) = 0) */
+        double lam0 = c->o.tangent_weight, *lsb = c->cb, lbar = 0;
+        int ok = 1;
         for (int b = B; b < B + B0; b++) {
             const double *Yb = c->Y + (size_t)b * n;
-            double *dYb = c->dY + (size_t)b * n, dz = 0, D2 = 0;
+            double dz = 0, D2 = 0;
             for (int k = 0; k < r; k++)
                 dz += z[(size_t)b * r + k] * z[(size_t)b * r + k];
             for (int i = 0; i < n; i++)
                 D2 += c->mw[i] * Yb[i] * Yb[i];
-            memset(dYb, 0, sizeof(double) * (size_t)n);
-            if (!(D2 > 0) || !(dz > 0))
-                continue;
-            double l = 0.5 * log(D2) - 0.5 * log(dz) - ls;
+            memset(c->dY + (size_t)b * n, 0, sizeof(double) * (size_t)n);
+            ok &= D2 > 0 && dz > 0;
+            lsb[b - B] = 0.5 * log(D2) - 0.5 * log(dz);
+            lbar += lsb[b - B] / B0;
+        }
+        for (int b = B; ok && b < B + B0; b++) {
+            const double *Yb = c->Y + (size_t)b * n;
+            double *dYb = c->dY + (size_t)b * n, D2 = 0, l = lsb[b - B] - lbar;
+            for (int i = 0; i < n; i++)
+                D2 += c->mw[i] * Yb[i] * Yb[i];
             tan += l * l / B0;
             obj += lam0 * l * l / B0;
             double coef = lam0 / B0 * 2 * l / D2;
@@ -652,7 +661,7 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
     if (!(o.sigma > 0))
         o.sigma = 0.05 * diag;
     if (!(o.box > 0))
-        o.box = 0.1 * diag;
+        o.box = 0.15 * diag;
     if (!isfinite(o.sigma) || !isfinite(o.lambda) || o.lambda < 0 || !isfinite(o.box) ||
         !isfinite(o.ortho_weight) || o.ortho_weight < 0 ||
         !(o.lr > 0) || !isfinite(o.lr) || !(o.ramp >= 0 && o.ramp <= 1))

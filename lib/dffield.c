@@ -292,9 +292,11 @@ int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, co
                 cblas_daxpy(p, -2 * coef, Gd, 1, c->dPhi + (size_t)e * p, 1);
                 cblas_dsyr(CblasRowMajor, CblasUpper, p, coef / mhat, dphi, 1, c->S, p);
             }
-        /* the tangent at rest: λ_0 mean_s ℓ_s², ℓ_s = ½ log D_s² − log(σ |z_s|),
-         * D_s² = Φ_sᵀ G Φ_s / m̂ the displacement of a small sample from rest */
-        double lam0 = c->o.tangent_weight;
+        /* the tangent at rest, conformal: λ_0 mean_s (ℓ_s − ℓ̄)², ℓ_s = ½ log
+         * D_s² − log |z_s|, D_s² = Φ_sᵀ G Φ_s / m̂ the displacement of a small
+         * sample from rest, ℓ̄ their mean (as in datafree.c) */
+        double lam0 = c->o.tangent_weight, lbar = 0, *lsb = c->E + B; /* E has room past the batch */
+        int ok = 1;
         for (int b = B; b < B + B0; b++) {
             const double *ph = c->Phi + (size_t)b * p;
             double dz = 0;
@@ -302,9 +304,14 @@ int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, co
                 dz += z[(size_t)b * r + k] * z[(size_t)b * r + k];
             cblas_dsymv(CblasRowMajor, CblasUpper, p, 1.0 / mhat, c->G, p, ph, 1, 0.0, Gd, 1);
             double D2 = cblas_ddot(p, ph, 1, Gd, 1);
-            if (!(D2 > 0) || !(dz > 0))
-                continue;
-            double l = 0.5 * log(D2) - 0.5 * log(dz) - ls;
+            ok &= D2 > 0 && dz > 0;
+            lsb[b - B] = 0.5 * log(D2) - 0.5 * log(dz);
+            lbar += lsb[b - B] / B0;
+        }
+        for (int b = B; ok && b < B + B0; b++) {
+            const double *ph = c->Phi + (size_t)b * p;
+            cblas_dsymv(CblasRowMajor, CblasUpper, p, 1.0 / mhat, c->G, p, ph, 1, 0.0, Gd, 1);
+            double D2 = cblas_ddot(p, ph, 1, Gd, 1), l = lsb[b - B] - lbar;
             tan += l * l / B0;
             obj += lam0 * l * l / B0;
             double coef = lam0 * l / (B0 * D2);

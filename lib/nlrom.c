@@ -623,6 +623,35 @@ static int step_objective(void *ctx, const double *q, double *E, double *g, doub
  * along strongly curved or nearly degenerate latent directions), Newton
  * with the curvature term, whenever that matrix is positive definite and
  * gives descent. */
+/* Newton on the exact Hessian H + C (in c->C) where it is indefinite:
+ * its eigenvalues taken by absolute value, at least 1e-12 dmax (Dauphin et
+ * al. 2014's saddle-free Newton), d = −V |Λ|⁻¹ Vᵀ g, a descent direction
+ * that keeps the curvature the Gauss–Newton matrix leaves out. Returns 0,
+ * 1 when the eigen-solve fails, CROM_EINTERNAL. */
+static int abs_newton(step_ctx *c, const double *H, const double *g, double dmax, double *d)
+{
+    int r = c->s->r;
+    double *w = crom_malloc(sizeof(double) * 2 * (size_t)r), *vg = w ? w + r : NULL;
+    if (!w)
+        return CROM_EINTERNAL;
+    for (size_t i = 0; i < (size_t)r * r; i++)
+        c->Hs[i] = H[i] + c->C[i];
+    int rc = LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'V', 'U', r, c->Hs, r, w) != 0;
+    for (int k = 0; !rc && k < r; k++) { /* column k of Hs is eigenvector k */
+        vg[k] = 0;
+        for (int i = 0; i < r; i++)
+            vg[k] += c->Hs[i * r + k] * g[i];
+        vg[k] /= fmax(fabs(w[k]), 1e-12 * dmax);
+    }
+    for (int i = 0; !rc && i < r; i++) {
+        d[i] = 0;
+        for (int k = 0; k < r; k++)
+            d[i] -= c->Hs[i * r + k] * vg[k];
+    }
+    free(w);
+    return rc;
+}
+
 static int step_direction(void *ctx, int it, int project, const double *q, const double *g, const double *H,
                           double *d)
 {
@@ -645,8 +674,13 @@ static int step_direction(void *ctx, int it, int project, const double *q, const
             dmax = fmax(dmax, fabs(H[i * r + i]));
         for (int i = 0; i < r; i++)
             c->Hs[i * r + i] += 1e-12 * dmax;
-        if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, c->Hs, r, d, 1) != 0)
+        if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, c->Hs, r, d, 1) != 0) {
+            if (pass == 0 && (rc = abs_newton(c, H, g, dmax, d)) == 0)
+                return 0;
+            if (rc > 1)
+                return rc;
             continue;
+        }
         double sl = 0;
         for (int i = 0; i < r; i++)
             sl += g[i] * d[i];
@@ -666,8 +700,17 @@ int crom_nlsim_step(crom_nlsim *s, crom_rstep_stats *st)
     double h = sc->dt, t0 = crom_now();
     memset(st, 0, sizeof *st);
     crom_nlsim_begin_step(s);
+    /* start at the latent predictor q_n + h q̇_n, or at q_n where the map
+     * curves so much that the predictor is worse (a straight line in q is
+     * no straight line in x) */
+    double Ep = 0, En = 0;
+    int rc0 = crom_nlsim_objective(s, s->qn, &En, NULL, NULL, 0);
     for (int i = 0; i < r; i++)
         s->q[i] = s->qn[i] + h * s->qd[i];
+    if (!rc0 && s->map->nonlinear && (crom_nlsim_objective(s, s->q, &Ep, NULL, NULL, 0) || !(Ep <= En))) {
+        crom_err_clear();
+        memcpy(s->q, s->qn, sizeof(double) * (size_t)r);
+    }
     step_ctx c = {s, crom_malloc(sizeof(double) * rr), crom_malloc(sizeof(double) * rr)};
     if (!c.C || !c.Hs) {
         free(c.C);

@@ -2,11 +2,15 @@
  * data-free subspaces of Sharp et al. 2023 (energy + isometry) and Wang et
  * al. 2024 (Neural Modes) and the latent dynamics on them.
  *
- *  - gradient checks of both training losses against central differences
- *    (float network, double loss, step 1e-3 on the float parameters,
- *    relative error of the whole gradient vector below 2e-3, as in
- *    test_fit.c), with pins, gravity and every term active;
+ *  - gradient checks of the three training losses against central
+ *    differences (float network, double loss, step 1e-3 on the float
+ *    parameters, relative error of the whole gradient vector below 2e-3, as
+ *    in test_fit.c), with pins, gravity, the anchor, the isometry at rest,
+ *    every tet or a random cubature, and every term active;
  *  - the map's double-precision Jacobian against differences of the map;
+ *  - every map is anchored: x(0) = X to the last bit, and a run with no
+ *    load stays within 1e-12 m of rest (energy, neuralmodes, and the
+ *    continuous field on its training mesh and on a finer one);
  *  - a small energy-trained subspace of a clamped bar under gravity has
  *    samples whose mean elastic energy is below that of the linear modes at
  *    the same displacement magnitude;
@@ -150,12 +154,17 @@ static void gradient_check(int objective)
     int n = (int)net.nparams;
     float *g = malloc(sizeof(float) * n);
     double *ga = malloc(sizeof(double) * n), *gf = malloc(sizeof(double) * n), *x = malloc(sizeof(double) * n);
-    /* every tet at rho 0.6 and 0, then the random cubature at rho 0.6 */
-    double rhos[3] = {0.6, 0.0, 0.6};
-    int Ks[3] = {0, 0, K};
-    for (int k = 0; k < 3; k++) {
-        if (objective != CROM_DF_ENERGY && k == 1)
-            continue; /* neuralmodes has no blend */
+    /* every tet at rho 0.6 and 0, then the random cubature at rho 0.6; last
+     * (energy) the isometry at rest alone: rho 0 (no energy), no pairs */
+    double rhos[4] = {0.6, 0.0, 0.6, 0.0};
+    int Ks[4] = {0, 0, K, 0};
+    for (int k = 0; k < 4; k++) {
+        if (objective != CROM_DF_ENERGY && (k == 1 || k == 3))
+            continue; /* neuralmodes has no blend and no tangent term */
+        if (k == 3) {
+            c.o.lambda = 0;
+            c.o.tangent_weight = 10;
+        }
         crom_df_terms tm;
         int rc = crom_df_loss(&c, B, z, rhos[k], Ks[k], Ks[k] ? tets : NULL, &tm, g);
         CHECK_MSG(rc == 0, "loss: %s", crom_errmsg());
@@ -175,6 +184,8 @@ static void gradient_check(int objective)
         CHECK_LT(e, FD_TOL);
         CHECK(tm.penalty > 0);
         CHECK(objective == CROM_DF_ENERGY ? tm.tangent > 0 : tm.tangent == 0);
+        if (k == 3) /* the loss is the tangent term alone */
+            CHECK_REL(tm.objective, 10 * tm.tangent, 1e-12);
         /* pinned outputs get no gradient: the last layer's pinned rows */
         double gp = 0;
         for (int i = 0; i < 3 * m.nv; i++)
@@ -470,14 +481,59 @@ static void modes_model(const bar_case *b, crom_model *out)
     CHECK(crom_model_from_mesh(out, "modes", &b->mesh, b->modes, b->nmodes) == 0);
 }
 
+/* Rest is exact: the run of a map with no load (no gravity, no force,
+ * no initial velocity) starts at q = 0, exactly the rest shape, and stays
+ * there to round-off, every vertex within 1e-12 m of rest over 30 steps
+ * (with the clamp as a pin penalty too). */
+static void check_rest(const char *name, crom_map *map)
+{
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    sc.youngs = 1e6;
+    sc.poisson = 0.3;
+    sc.dt = 0.01;
+    sc.tol = 1e-9;
+    sc.gravity[0] = sc.gravity[1] = sc.gravity[2] = 0;
+    strcpy(sc.pins[sc.npins++], "x<-0.49");
+    crom_nlsim s;
+    int rc = crom_nlsim_init(&s, map, &sc, 0, NULL, NULL, 1);
+    CHECK_MSG(rc == 0, "%s: %s", name, crom_errmsg());
+    if (rc)
+        return;
+    double *x = malloc(sizeof(double) * (size_t)map->n), worst = 0, qmax = 0;
+    crom_nlsim_positions(&s, x, NULL);
+    int same = 1;
+    for (int i = 0; i < map->n; i++)
+        same &= x[i] == map->mesh.X[i];
+    CHECK(same); /* the start, bit for bit */
+    for (int k = 0; k < 30; k++) {
+        crom_rstep_stats st;
+        if (crom_nlsim_step(&s, &st)) {
+            CHECK_MSG(0, "%s, step %d: %s", name, k, crom_errmsg());
+            break;
+        }
+        crom_nlsim_positions(&s, x, NULL);
+        for (int i = 0; i < map->n; i++)
+            worst = fmax(worst, fabs(x[i] - map->mesh.X[i]));
+        for (int i = 0; i < map->r; i++)
+            qmax = fmax(qmax, fabs(s.q[i]));
+    }
+    fprintf(stderr, "%s: no load, 30 steps from rest: largest vertex displacement %.3g m, largest |q| %.3g\n", name,
+            worst, qmax);
+    CHECK_LT(worst, 1e-12);
+    free(x);
+    crom_nlsim_free(&s);
+}
+
 static crom_model g_energy_model; /* trained once, used by the dynamics tests */
 
 /* Sharp et al.: a rank-2 energy map of the clamped bar under gravity, 400
- * steps of 16 samples. Its random samples (z ~ N(0, I)) have less elastic
- * energy than the two lowest linear modes at the same RMS displacements:
- * below half (measured 567 J against 2206 J, ratio 0.26); it is nearly
- * isometric at scale sigma (ratio within [0.7, 1.3] for 90 % of the pairs;
- * measured 0.84 .. 1.12), and pins stay exactly at rest. */
+ * steps of 16 samples (the other options at their defaults). Its random
+ * samples (z ~ N(0, I)) have less elastic energy than the two lowest
+ * linear modes at the same RMS displacements: below half (measured 18 J
+ * against 1922 J, ratio 0.01); it is nearly isometric at scale sigma
+ * (ratio within [0.7, 1.3] for 90 % of the pairs; measured 0.89 .. 1.04),
+ * pins stay exactly at rest, and so does a run with no load. */
 static void test_energy_subspace(bar_case *b)
 {
     crom_df_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL};
@@ -500,6 +556,7 @@ static void test_energy_subspace(bar_case *b)
     modes_model(b, &lm);
     CHECK(crom_map_init(&map, &g_energy_model, NULL) == 0);
     CHECK(crom_map_init(&lin, &lm, NULL) == 0);
+    check_rest("energy map", &map);
     crom_metrics_opts mo;
     crom_metrics_defaults(&mo);
     mo.samples = 64;
@@ -532,11 +589,12 @@ static void test_energy_subspace(bar_case *b)
 
 /* Wang et al.: Neural Modes on the 3 lowest modes, 400 steps of 16 samples
  * in the box [-0.1, 0.1]^3 m. No latent dimension collapses (§4.4: the
- * smallest eigenvalue of r JᵀMJ / tr at 0 is above 0.8; measured 0.92, the
- * paper's collapsed ones are 0.0), y stays M-orthogonal to the modes and
- * near 0 at the origin (within 1 % of the box; measured 4e-4 and 3e-4), and
- * the samples of the box have less energy than the linear modes at the
- * same z (measured 359 J against 5508 J). */
+ * smallest eigenvalue of r JᵀMJ / tr at 0 is above 0.8; measured 0.98, the
+ * paper's collapsed ones are 0.0), y stays M-orthogonal to the modes
+ * (within 1 % of the box; measured 1e-3) and is exactly 0 at the origin
+ * (anchored), the samples of the box have less energy than the linear
+ * modes at the same z (measured 284 J against 5508 J), and a run with no
+ * load stays at rest. */
 static void test_neuralmodes_subspace(bar_case *b)
 {
     crom_df_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq};
@@ -547,6 +605,7 @@ static void test_neuralmodes_subspace(bar_case *b)
     o.batch = 16;
     o.width = 32;
     o.box = 0.1;
+    o.box_scaled = 0; /* Wang et al.'s box: every mode in [-0.1, 0.1] */
     crom_df_log log;
     crom_model nm;
     int rc = crom_df_train(&P, &o, &nm, &log);
@@ -558,6 +617,7 @@ static void test_neuralmodes_subspace(bar_case *b)
     modes_model(b, &lm);
     CHECK(crom_map_init(&map, &nm, NULL) == 0);
     CHECK(crom_map_init(&lin, &lm, NULL) == 0);
+    check_rest("neuralmodes map", &map);
     crom_metrics_opts mo;
     crom_metrics_defaults(&mo);
     mo.samples = 64;
@@ -688,6 +748,8 @@ static void test_field_subspace(bar_case *b)
     CHECK(crom_map_init(&map, &fm, NULL) == CROM_EUSAGE); /* a continuous field needs a mesh */
     CHECK(crom_map_init(&map, &fm, &b->mesh) == 0);
     CHECK(crom_map_init(&fmap, &fm, &fine) == 0);
+    check_rest("continuous field on its training mesh", &map);
+    check_rest("continuous field on a finer mesh", &fmap);
     CHECK(crom_map_init(&lin, &lm, NULL) == 0);
     crom_metrics_opts mo;
     crom_metrics_defaults(&mo);
