@@ -661,7 +661,7 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
     if (!(o.sigma > 0))
         o.sigma = 0.05 * diag;
     if (!(o.box > 0))
-        o.box = 0.15 * diag;
+        o.box = 0.2 * diag;
     if (!isfinite(o.sigma) || !isfinite(o.lambda) || o.lambda < 0 || !isfinite(o.box) ||
         !isfinite(o.ortho_weight) || o.ortho_weight < 0 ||
         !(o.lr > 0) || !isfinite(o.lr) || !(o.ramp >= 0 && o.ramp <= 1))

@@ -91,7 +91,7 @@
  * energy: a weak isometry (λ = 0.03: at λ = 1 the isometry swamps the
  * energy, which is ~1e-3 in units of E V, and the static sag misses by
  * 40-80 %) with the isometry at rest (λ_0 = 0.1); neuralmodes: the
- * frequency-scaled box, half-width 0.15 × the bounding-box diagonal for
+ * frequency-scaled box, half-width 0.2 × the bounding-box diagonal for
  * the lowest mode (a uniform box spends the loss on the stiff modes:
  * static sag 84 % off against 16 % at 4000 steps). The energies of the B
  * samples are computed in parallel over `threads` threads, each sample
