@@ -619,10 +619,6 @@ static int step_objective(void *ctx, const double *q, double *E, double *g, doub
     return crom_nlsim_objective(((step_ctx *)ctx)->s, q, E, g, H, project);
 }
 
-/* Gauss–Newton; when it stalls (the map's curvature matters: large forces
- * along strongly curved or nearly degenerate latent directions), Newton
- * with the curvature term, whenever that matrix is positive definite and
- * gives descent. */
 /* Newton on the exact Hessian H + C (in c->C) where it is indefinite:
  * its eigenvalues taken by absolute value, at least 1e-12 dmax (Dauphin et
  * al. 2014's saddle-free Newton), d = −V |Λ|⁻¹ Vᵀ g, a descent direction
@@ -652,6 +648,10 @@ static int abs_newton(step_ctx *c, const double *H, const double *g, double dmax
     return rc;
 }
 
+/* Gauss–Newton; when it stalls (the map's curvature matters: large forces
+ * along strongly curved or nearly degenerate latent directions), Newton
+ * with the curvature term, on H + C where it is positive definite and
+ * gives descent, else on |H + C| (abs_newton). */
 static int step_direction(void *ctx, int it, int project, const double *q, const double *g, const double *H,
                           double *d)
 {

@@ -47,7 +47,12 @@
  * iteration of a step on, a nonlinear map gets Newton steps with the
  * curvature added (by central differences of Tᵀ∇_aΦ: 2r evaluations of the
  * network's features) whenever that matrix is positive definite and gives
- * descent, and Gauss–Newton steps otherwise. Converged when the
+ * descent, and otherwise Newton on |H + C| (its eigenvalues by absolute
+ * value: the curvature kept, its sign fixed). A step starts at the latent
+ * predictor q_n + h q̇_n, or at q_n where the map curves so much that the
+ * predictor's Φ is higher (a straight line in q is no straight line in x;
+ * on the bench's energy map this took the worst step from 80 iterations
+ * to 44). Converged when the
  * RMS displacement of the correction, ‖J d‖_M / sqrt(m), is below tol times
  * the bounding-box diagonal. Afterwards v = (x_{n+1} − x_n)/h and
  * q̇ = (q_{n+1} − q_n)/h.
