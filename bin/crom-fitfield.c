@@ -29,11 +29,11 @@
 #include "rom/skin.h"
 
 enum { O_RANK = 300, O_ENCODER, O_BASIS, O_EPOCHS, O_MINUTES, O_LR, O_BATCH, O_PPS, O_ENCPTS,
-       O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX,
-       O_ORTHO, O_ORIGIN, O_STEPS, O_FEATURES, O_TETS, O_PINW, O_HANDLES, O_WEIGHTS, O_SURFACE, O_CLOUD,
-       O_SPOINTS, O_COORDS, O_COORDTOL };
+       O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX, O_BOXSC,
+       O_ORTHO, O_STEPS, O_FEATURES, O_TETS, O_PINW, O_OPTIM, O_RESAMPLE, O_TANW, O_HANDLES, O_WEIGHTS,
+       O_SURFACE, O_CLOUD, O_SPOINTS, O_COORDS, O_COORDTOL, O_LAST };
 
-/* --objective skinning (lib/datafree/dfskin.h), next to the CROM_DF_* codes */
+/* --objective skinning (lib/datafree/dfskin.h), next to the CROM_DATAFREE_* codes */
 #define OBJ_SKINNING 100
 
 static const crom_opt fit_opts[] = {
@@ -54,23 +54,26 @@ static const crom_opt df_opts[] = {
     {"coordinate-tol", O_COORDTOL, "T", "skinning: the relative eigenvalue below which a direction of the handle span is dropped (default 1e-6)."},
     {"weights", O_WEIGHTS, "KIND", "skinning: trained (default): an MLP 3 -> H trained data-free on the energy of random handle poses plus the orthogonality of the weights (Simplicits). eigen: no training, the lowest eigenvectors of the scalar stiffness (the elasticity Hessian at rest summed over the three components) against the lumped mass, pinned vertices eliminated (skinning eigenmodes; needs --mesh)."},
     {"modes", O_MODES, "MODEL", "neuralmodes (required): a crom/model of linear modes of the same mesh, from crom-modes. Its lowest --rank modes are the linear part Phi; its pins are kept, its material is the default."},
-    {"steps", O_STEPS, "N", "Training steps of a data-free objective (default 2000), each on --batch samples (default 32). The learning rate is --lr (default 1e-3), halved after each quarter of the steps."},
+    {"steps", O_STEPS, "N", "Training steps of a data-free objective (energy, neuralmodes: default 4000 of --batch 8 samples at --lr 3e-3; field, skinning: 2000 of 32 (skinning: 16) at 1e-3). The learning rate is halved after each quarter of the steps (or of --minutes)."},
     {"sigma", O_SIGMA, "S", "energy: isometry scale in metres: the subspace should move the body by S (RMS displacement) per unit of latent distance, |f(z) - f(z')|_M / sqrt(m) ~ S |z - z'|, z ~ N(0, I) (default 0.05 times the bounding-box diagonal). Sharp et al.'s sigma divided by sqrt(body mass). skinning: the RMS displacement in metres of the random handle poses the weights are trained on (default 0.01 times the diagonal)."},
-    {"lambda", O_LAMBDA, "L", "energy: weight of the isometry term, the squared log-ratio of mass-norm distances to S |z - z'| over all pairs of a batch, against the energy in units of E V (Young's modulus times volume) (default 1)."},
+    {"lambda", O_LAMBDA, "L", "energy: weight of the isometry term, the squared log-ratio of mass-norm distances to S |z - z'| over all pairs of a batch, against the energy in units of E V (Young's modulus times volume) (default 0.03; field: 1). A weaker isometry lets the energy shape the subspace: 1 keeps the map near-isometric but leaves the static sag of a soft body 40-80% off."},
     {"ramp", O_RAMP, "F", "energy: the seed-state blend rho grows linearly from 0 to 1 over the first fraction F of the steps, then stays 1 (default 0.5; Sharp et al. §4.1). The seed state is the rest shape."},
-    {"box", O_BOX, "A", "neuralmodes: the modal coordinates z are drawn uniformly from [-A, A]^r, in metres of RMS displacement (default 0.1 times the bounding-box diagonal)."},
+    {"tangent-weight", O_TANW, "W", "energy, field: weight of the isometry at rest: 8 small samples z ~ N(0, 0.01 I) per step should all move the body alike per unit of |z| (the mean log-ratio of their RMS displacements to |z| is free, its spread is penalized), so that no latent direction collapses at rest, where every run starts (default 0.1; field: 0; 0: none)."},
+    {"box", O_BOX, "A", "neuralmodes: half-width of the box the modal coordinates z are drawn from, in metres of RMS displacement: [-A, A] for the lowest mode (default 0.2 times the bounding-box diagonal; see --box-scaling)."},
+    {"box-scaling", O_BOXSC, "KIND", "neuralmodes: frequency (default): mode k is drawn from [-A f_1/f_k, A f_1/f_k], the same linear energy at every edge, so that the stiff modes do not swamp the energy of the soft ones; uniform: every mode from [-A, A] (Wang et al.)."},
+    {"optimizer", O_OPTIM, "KIND", "energy, neuralmodes: adam (default): Adam on a fresh batch every step. lbfgs: L-BFGS with a backtracking line search (Wang et al.), --resample iterations on each batch."},
+    {"resample", O_RESAMPLE, "N", "--optimizer lbfgs: iterations on each batch of samples before a fresh one is drawn (default 10)."},
     {"features", O_FEATURES, "P", "field: the feature fields of W(X), the output width of phi (default 32)."},
-    {"tets", O_TETS, "K", "field, skinning: tets of the random cubature drawn afresh at every step, each standing for nt/K of them (default 512, at most every tet)."},
+    {"tets", O_TETS, "K", "Tets of the random cubature drawn afresh at every step, each standing for nt/K of them (field, skinning: default 512; energy, neuralmodes: default every tet, exactly; at most every tet)."},
     {"pin-length", O_PINW, "L", "field: the field is masked by smoothstep(d / L), d the distance to the nearest pinned vertex of --mesh, so it vanishes there on any mesh (default: twice the mean edge length). skinning (trained): the weights are masked by s(d / L), s(t) = t (2 - t) below 1 (default 0.05 times the diagonal)."},
-    {"ortho-weight", O_ORTHO, "W", "neuralmodes: weight of the penalty |Phi^T M y(z)|^2 keeping the correction M-orthogonal to the linear modes, relative to the linear energy of the highest mode at the box size (default 1e4). skinning: weight of the orthogonality loss |G - I|^2 of the weights' mass-mean Gram matrix G (default 1)."},
-    {"origin-weight", O_ORIGIN, "W", "neuralmodes: weight of the penalty |y(0)|_M^2 (default 1e4)."},
+    {"ortho-weight", O_ORTHO, "W", "neuralmodes: weight of the penalty |Phi^T M y(z)|^2 / (m A^2) keeping the correction M-orthogonal to the linear modes, against the energy in units of the linear energy of a mode at the edge of the box (default 1e4). skinning: weight of the orthogonality loss |G - I|^2 of the weights' mass-mean Gram matrix G (default 1)."},
     {NULL, 0, NULL, NULL}};
 
 static const crom_opt train_opts[] = {
     {"epochs", O_EPOCHS, "N", "Training epochs (default 400 for lsq, 3750 for pointnet as in the paper). An epoch is one pass over the frames in batches of --batch frames. The learning rate is --lr, divided by 5 after a third of the epochs and by 50 after two thirds (LiCROM §3.1)."},
     {"minutes", O_MINUTES, "M", "Stop training after M minutes of wall time. The learning-rate schedule then follows whichever is further along: the fraction of epochs done or the fraction of the time budget used, so a run cut short by the clock still goes through all three rates. Runs limited by the clock are not byte-reproducible."},
-    {"lr", O_LR, "LR", "Base learning rate of Adam (default 5e-3 for lsq, 1e-3 for pointnet as in the paper)."},
-    {"batch", O_BATCH, "B", "Frames per step (default 16)."},
+    {"lr", O_LR, "LR", "Base learning rate of Adam (default 5e-3 for lsq, 1e-3 for pointnet as in the paper; data-free: see --steps). With --optimizer lbfgs: the largest change of a parameter in its first step."},
+    {"batch", O_BATCH, "B", "Frames per step (default 16); data-free: latent samples per step (see --steps)."},
     {"points-per-step", O_PPS, "P", "Samples of each frame used per step (default: 128 for lsq, every sample for pointnet). For vertex samples, a step evaluates W once at a random subset of one mesh's vertices, shared by all frames of the batch; P sets its size (about P x vertices / samples-per-frame). Interior samples are evaluated frame by frame, which costs about --batch times more per step."},
     {"encoder-points", O_ENCPTS, "N", "Points per frame the PointNet encoder sees, a random subsample (default 2500, or all if fewer)."},
     {"activation", O_ACT, "ACT", "Hidden activation of W: elu (default) or sine (SIREN, omega0 = 30). With omega0 = 30 a sine field can interpolate the training points and oscillate between them: check it with crom-encode on another mesh. Data-free maps: elu (energy default), gelu (neuralmodes default) or sine."},
@@ -79,7 +82,7 @@ static const crom_opt train_opts[] = {
     {"tikhonov", O_TIK, "T", "Relative Tikhonov weight of the lsq fits: lambda = T tr(W^T W) / r (default 1e-6)."},
     {NULL, 0, NULL, NULL}};
 
-static const crom_optgroup groups[] = {{"Options", fit_opts},
+static const crom_cli_optgroup groups[] = {{"Options", fit_opts},
                                        {"Training", train_opts},
                                        {"Data-free subspaces (--objective energy|neuralmodes|field|skinning)", df_opts},
                                        {"Scenario options of data-free training (the flags of crom-fullsim: material, gravity and "
@@ -109,7 +112,7 @@ static const char doc_tail[] =
     "A data-free step costs --batch energy evaluations (of the whole mesh, or of --tets tets); "
     "--threads runs them in parallel (the result does not depend on the thread count).";
 
-static crom_doc doc = {
+static crom_cli_doc doc = {
     "crom-fitfield",
     "learn a displacement basis W(X) from point samples",
     "crom-fitfield [--rank R] [--encoder lsq|pointnet] [--basis mlp|pod] [--epochs N] [--minutes M] [--seed S] [-o OUT] [SAMPLES]\n"
@@ -129,38 +132,36 @@ static crom_doc doc = {
     "for the whole batch. With --encoder pointnet a PointNet encoder seeing a 2500-point "
     "subsample is trained jointly (LiCROM eq. 4) and kept in the model. Displacements are "
     "scaled by their RMS value during training; the model keeps q in metres. Afterwards the "
-    "fields are re-expressed, exactly, in "
-    "a canonical basis of their span: orthonormal over the training points (each field has RMS "
-    "magnitude 1) and ordered by decreasing variance over the training frames, like POD modes.\n\n"
+    "fields are re-expressed, exactly, in a canonical basis of their span: orthonormal over the "
+    "training points and ordered by decreasing variance over the training frames, like POD.\n\n"
     "--basis pod computes the classic proper orthogonal decomposition of samples of one mesh "
     "with every vertex in every frame (crom-sample --points all): the r leading modes of the "
     "snapshots weighted by the lumped vertex volumes (orthonormal in the volume-mean inner "
     "product; the density cancels), stored as a piecewise-linear field on that mesh so the "
     "whole pipeline can run the classic linear ROM as a baseline.\n\n"
-    "The relative reconstruction error ||Wq - u|| / ||u|| over all samples of all training "
-    "frames (q by least squares, or by the encoder for pointnet) is printed on stderr and "
-    "stored in the model with the training log (loss and wall time per epoch). A progress bar "
-    "shows on a terminal. The same samples, options and --seed give the same bytes (set "
+    "The relative reconstruction error ||Wq - u|| / ||u|| over all training frames is printed "
+    "and stored in the model with the training log (loss and wall time per epoch). The same samples, options and --seed give the same bytes (set "
     "SOURCE_DATE_EPOCH for the stored times; --threads changes the last bits).\n\n"
     "Data-free subspaces need no samples, only a mesh (--mesh), a material, and the pins and "
     "gravity of the scenario flags. They are nonlinear maps from a latent z to the positions of "
     "every vertex of that mesh, stored as models of basis 'energy' or 'neuralmodes' with the "
     "mesh (and its regions): crom-reducedstep --model simulates in them, crom-export and crom-diff "
     "decode them on that mesh, crom-metrics measures them. Pinned vertices are built into the "
-    "map (held exactly at rest).\n\n"
-    "--objective energy (Sharp et al. 2023, eq. 4 and §4.1): x(z) = X + N(z) with N an ELU MLP "
-    "r -> 64 x 5 -> 3nv, trained on batches of z ~ N(0, I) to minimize the mean potential energy "
+    "map (held exactly at rest). Every data-free map is anchored at rest: its network's value at "
+    "z = 0 is subtracted, in training too, so x(0) = X exactly and runs from rest start at z = 0.\n\n"
+    "--objective energy (Sharp et al. 2023, eq. 4 and §4.1): x(z) = X + N(z) - N(0) with N an ELU "
+    "MLP r -> 64 x 5 -> 3nv, trained on batches of z ~ N(0, I) to minimize the mean potential energy "
     "(stable neo-Hookean plus gravity, in units of E V) of the samples plus --lambda times the "
     "mean over all pairs of the batch of (log(|N(z) - N(z')|_M / sqrt(m) / (S |z - z'|)))^2, "
-    "the isometry term that keeps the subspace from collapsing to the lowest-energy state. The "
-    "seed-state blend X + rho N(z) grows rho from 0 to 1 over the first --ramp of the steps. "
-    "A free body under gravity is refused (it has no lowest energy).\n\n"
+    "the isometry term that keeps the subspace from collapsing to the lowest-energy state (and "
+    "--tangent-weight, at rest). The seed-state blend X + rho (N(z) - N(0)) grows rho from 0 to 1 "
+    "over the first --ramp of the steps. A free body under gravity is refused.\n\n"
     "--objective neuralmodes (Wang et al. 2024, eq. 12-13): x(z) = X + W z + y(z) on the lowest "
     "--rank linear modes W of --modes (computed by crom-modes on the same mesh; W^T M W = m I, so z "
-    "is in metres), with a GELU MLP correction y trained from zero on z uniform in [-A, A]^r to "
-    "minimize the elastic energy plus penalties on the projection W^T M y(z) and on y(0). The "
-    "training log (objective, mean energy, penalty per block of steps) is stored in the model.\n\n"
-    "--objective field (beyond both papers): a continuous subspace x(X, z) = X + W(X) phi(z), "
+    "is in metres), with a GELU MLP correction y = N(z) - N(0) trained from zero on z uniform in a "
+    "box (--box, --box-scaling) to minimize the elastic energy plus a penalty on the projection "
+    "W^T M y(z). The training log is stored in the model.\n\n"
+    "--objective field (beyond both papers): a continuous subspace x(X, z) = X + W(X) (phi(z) - phi(0)), "
     "W a neural field 3 -> 3p (--features p), phi an MLP r -> p, trained like energy with the "
     "integrals over the body taken by a random cubature of --tets tets per step; pins are a mask "
     "vanishing on the pinned faces. The model ('energy-field') stores no mesh and lays on "
@@ -184,14 +185,15 @@ typedef struct {
     crom_fit_opts fit;
     int encoder_given;
     /* data-free */
-    int objective;               /* 0: samples, else CROM_DF_* */
+    int objective;               /* 0: samples, else CROM_DATAFREE_* */
     const char *mesh, *modes, *surface, *cloud;
     int sample_points, handles, eigen, handles_given, raw_coords;
     double coord_tol;
-    crom_df_opts df;
+    crom_datafree_opts df;
     crom_scenario sc;
     const char *samples_only;    /* a samples-only option given, for the message */
-    int rank_given, act_given, width_given, depth_given, lr_given, batch_given, minutes_given, ortho_given;
+    int rank_given, act_given, width_given, depth_given, lr_given, batch_given, minutes_given;
+    unsigned char given[O_LAST - O_RANK]; /* which options were given */
     int material_given;
     const char *df_only;         /* a data-free-only option given */
     char df_flag[48];
@@ -212,6 +214,8 @@ static int on_opt(void *ctx, int key, const char *v)
         }
         return crom_scenario_option(&a->sc, key, v);
     }
+    if (key >= O_RANK && key < O_LAST)
+        a->given[key - O_RANK] = 1;
     switch (key) {
     case O_RANK: case O_WIDTH: case O_DEPTH: case O_LR: case O_BATCH: case O_ACT: case O_MINUTES: break;
     case O_EPOCHS: a->samples_only = "--epochs"; break;
@@ -227,8 +231,8 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_LAMBDA: a->df_only = "--lambda"; break;
     case O_RAMP: a->df_only = "--ramp"; break;
     case O_BOX: a->df_only = "--box"; break;
+    case O_BOXSC: a->df_only = "--box-scaling"; break;
     case O_ORTHO: a->df_only = "--ortho-weight"; break;
-    case O_ORIGIN: a->df_only = "--origin-weight"; break;
     case O_FEATURES: a->df_only = "--features"; break;
     case O_TETS: a->df_only = "--tets"; break;
     case O_PINW: a->df_only = "--pin-length"; break;
@@ -239,17 +243,20 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_SURFACE: a->df_only = "--surface"; break;
     case O_CLOUD: a->df_only = "--cloud"; break;
     case O_SPOINTS: a->df_only = "--sample-points"; break;
+    case O_OPTIM: a->df_only = "--optimizer"; break;
+    case O_RESAMPLE: a->df_only = "--resample"; break;
+    case O_TANW: a->df_only = "--tangent-weight"; break;
     }
     switch (key) {
     case O_OBJECTIVE:
         if (!strcmp(v, "samples"))
             a->objective = 0;
         else if (!strcmp(v, "energy"))
-            a->objective = CROM_DF_ENERGY;
+            a->objective = CROM_DATAFREE_ENERGY;
         else if (!strcmp(v, "neuralmodes"))
-            a->objective = CROM_DF_NEURALMODES;
+            a->objective = CROM_DATAFREE_NEURALMODES;
         else if (!strcmp(v, "field"))
-            a->objective = CROM_DF_FIELD;
+            a->objective = CROM_DATAFREE_FIELD;
         else if (!strcmp(v, "skinning"))
             a->objective = OBJ_SKINNING;
         else
@@ -306,6 +313,12 @@ static int on_opt(void *ctx, int key, const char *v)
             return CROM_EUSAGE;
         return a->df.ramp >= 0 && a->df.ramp <= 1 ? 0 : crom_err(CROM_EUSAGE, "--ramp must be in [0, 1], got %s", v);
     case O_BOX: return crom_parse_positive(v, "--box", &a->df.box);
+    case O_BOXSC:
+        if (!strcmp(v, "uniform") || !strcmp(v, "frequency")) {
+            a->df.box_scaled = !strcmp(v, "frequency");
+            return 0;
+        }
+        return crom_err(CROM_EUSAGE, "--box-scaling: '%s' is not uniform or frequency", v);
     case O_FEATURES:
         if (crom_parse_int(v, "--features", 1, 4096, &n))
             return CROM_EUSAGE;
@@ -318,15 +331,25 @@ static int on_opt(void *ctx, int key, const char *v)
         return 0;
     case O_PINW:
         return crom_parse_positive(v, "--pin-length", &a->df.pin_length);
+    case O_OPTIM:
+        if (!strcmp(v, "adam") || !strcmp(v, "lbfgs")) {
+            a->df.optimizer = strcmp(v, "adam") ? CROM_DATAFREE_LBFGS : CROM_DATAFREE_ADAM;
+            return 0;
+        }
+        return crom_err(CROM_EUSAGE, "--optimizer: '%s' is not adam or lbfgs", v);
+    case O_TANW:
+        if (crom_parse_double(v, "--tangent-weight", &a->df.tangent_weight))
+            return CROM_EUSAGE;
+        return a->df.tangent_weight >= 0 ? 0 : crom_err(CROM_EUSAGE, "--tangent-weight must be >= 0, got %s", v);
+    case O_RESAMPLE:
+        if (crom_parse_int(v, "--resample", 1, 1000000L, &n))
+            return CROM_EUSAGE;
+        a->df.resample = (int)n;
+        return 0;
     case O_ORTHO:
-        a->ortho_given = 1;
         if (crom_parse_double(v, "--ortho-weight", &a->df.ortho_weight))
             return CROM_EUSAGE;
         return a->df.ortho_weight >= 0 ? 0 : crom_err(CROM_EUSAGE, "--ortho-weight must be >= 0, got %s", v);
-    case O_ORIGIN:
-        if (crom_parse_double(v, "--origin-weight", &a->df.origin_weight))
-            return CROM_EUSAGE;
-        return a->df.origin_weight >= 0 ? 0 : crom_err(CROM_EUSAGE, "--origin-weight must be >= 0, got %s", v);
     case 0:
         if (a->input)
             return crom_err(CROM_EUSAGE, "unexpected operand '%s' (one samples file)", v);
@@ -349,9 +372,9 @@ static int on_opt(void *ctx, int key, const char *v)
         return 0;
     case O_ENCODER:
         if (!strcmp(v, "lsq"))
-            a->fit.encoder = CROM_ENC_LSQ;
+            a->fit.encoder = CROM_MODEL_ENC_LSQ;
         else if (!strcmp(v, "pointnet"))
-            a->fit.encoder = CROM_ENC_POINTNET;
+            a->fit.encoder = CROM_MODEL_ENC_POINTNET;
         else
             return crom_err(CROM_EUSAGE, "--encoder: '%s' is not lsq or pointnet", v);
         a->encoder_given = 1;
@@ -424,10 +447,10 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     }
     memset(a, 0, sizeof *a);
     crom_fit_defaults(&a->fit);
-    crom_df_defaults(&a->df, CROM_DF_ENERGY);
+    crom_datafree_defaults(&a->df, CROM_DATAFREE_ENERGY);
     crom_scenario_defaults(&a->sc);
     crom_cli_parse(cli, &doc, argc, argv, on_opt, a);
-    if (a->pod && a->encoder_given && a->fit.encoder == CROM_ENC_POINTNET) {
+    if (a->pod && a->encoder_given && a->fit.encoder == CROM_MODEL_ENC_POINTNET) {
         crom_err(CROM_EUSAGE, "--basis pod has no neural encoder: its q is the lsq projection (drop --encoder pointnet)");
         exit(crom_cli_exit(cli, CROM_EUSAGE));
     }
@@ -437,8 +460,8 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
         usage_exit(cli);
     }
     if (a->objective) {
-        int skin = a->objective == OBJ_SKINNING, cont = skin || a->objective == CROM_DF_FIELD;
-        const char *name = a->objective == CROM_DF_ENERGY ? "energy" : a->objective == CROM_DF_FIELD ? "field"
+        int skin = a->objective == OBJ_SKINNING, cont = skin || a->objective == CROM_DATAFREE_FIELD;
+        const char *name = a->objective == CROM_DATAFREE_ENERGY ? "energy" : a->objective == CROM_DATAFREE_FIELD ? "field"
                            : skin ? "skinning" : "neuralmodes";
         int ngeom = !!a->mesh + !!a->surface + !!a->cloud;
         const char *bad = !skin && a->handles_given ? "--handles" : !skin && a->eigen ? "--weights"
@@ -476,17 +499,17 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
             crom_err(CROM_EUSAGE, "--objective %s needs the mesh it maps: --mesh MESH", name);
             usage_exit(cli);
         }
-        if (a->objective == CROM_DF_NEURALMODES && !a->modes) {
+        if (a->objective == CROM_DATAFREE_NEURALMODES && !a->modes) {
             crom_err(CROM_EUSAGE, "--objective neuralmodes needs the linear modes it builds on: --modes MODEL "
                                   "(from crom-modes on the same mesh)");
             usage_exit(cli);
         }
-        if (a->objective != CROM_DF_NEURALMODES && a->modes) {
+        if (a->objective != CROM_DATAFREE_NEURALMODES && a->modes) {
             crom_err(CROM_EUSAGE, "--modes applies to --objective neuralmodes");
             usage_exit(cli);
         }
-        crom_df_opts d;
-        crom_df_defaults(&d, skin ? CROM_DF_FIELD : a->objective);
+        crom_datafree_opts d;
+        crom_datafree_defaults(&d, skin ? CROM_DATAFREE_FIELD : a->objective);
         d.rank = a->rank_given ? a->fit.rank : d.rank;
         d.act = a->act_given ? a->fit.act : d.act;
         d.width = a->width_given ? a->fit.width : d.width;
@@ -494,16 +517,22 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
         d.lr = a->lr_given ? a->fit.lr : d.lr;
         d.batch = a->batch_given ? a->fit.batch : d.batch;
         d.minutes = a->minutes_given ? a->fit.minutes : 0;
-        d.steps = a->df.steps;
-        d.sigma = a->df.sigma;
-        d.lambda = a->df.lambda;
-        d.ramp = a->df.ramp;
-        d.box = a->df.box;
-        d.ortho_weight = a->df.ortho_weight;
-        d.origin_weight = a->df.origin_weight;
-        d.features = a->df.features; /* the same defaults for every objective */
-        d.tets = a->df.tets;
-        d.pin_length = a->df.pin_length;
+        /* the data-free options given; the objective's defaults for the others */
+#define DF_GIVEN(key, field) if (a->given[(key) - O_RANK]) d.field = a->df.field
+        DF_GIVEN(O_STEPS, steps);
+        DF_GIVEN(O_SIGMA, sigma);
+        DF_GIVEN(O_LAMBDA, lambda);
+        DF_GIVEN(O_RAMP, ramp);
+        DF_GIVEN(O_BOX, box);
+        DF_GIVEN(O_BOXSC, box_scaled);
+        DF_GIVEN(O_ORTHO, ortho_weight);
+        DF_GIVEN(O_FEATURES, features);
+        DF_GIVEN(O_TETS, tets);
+        DF_GIVEN(O_PINW, pin_length);
+        DF_GIVEN(O_OPTIM, optimizer);
+        DF_GIVEN(O_RESAMPLE, resample);
+        DF_GIVEN(O_TANW, tangent_weight);
+#undef DF_GIVEN
         d.seed = cli->seed;
         a->df = d;
     } else if (a->fit.act == CROM_NN_GELU) {
@@ -523,14 +552,14 @@ static void on_progress(void *ctx, int epoch, double frac, double loss)
 {
     char buf[64];
     snprintf(buf, sizeof buf, "epoch %d, loss %.3g m^2", epoch, loss);
-    crom_progress_update(ctx, (long)(frac * 1000), buf);
+    crom_cli_progress_update(ctx, (long)(frac * 1000), buf);
 }
 
 static void on_df_progress(void *ctx, long step, double frac, double obj)
 {
     char buf[64];
     snprintf(buf, sizeof buf, "step %ld, objective %.4g", step, obj);
-    crom_progress_update(ctx, (long)(frac * 1000), buf);
+    crom_cli_progress_update(ctx, (long)(frac * 1000), buf);
 }
 
 /* The pins recorded in a modes model's scenario text, appended to sc. */
@@ -545,8 +574,8 @@ static int add_model_pins(crom_scenario *sc, const char *text)
             dup |= !strcmp(sc->pins[j], tmp.pins[i]);
         if (dup)
             continue;
-        if (sc->npins == CROM_SC_MAX)
-            return crom_err(CROM_EUSAGE, "too many pins (at most %d)", CROM_SC_MAX);
+        if (sc->npins == CROM_SCENARIO_MAX)
+            return crom_err(CROM_EUSAGE, "too many pins (at most %d)", CROM_SCENARIO_MAX);
         snprintf(sc->pins[sc->npins++], sizeof sc->pins[0], "%s", tmp.pins[i]);
     }
     return rc;
@@ -604,7 +633,7 @@ static int body_pins(const args *a, const crom_mesh *mesh, const crom_cloud *cl,
         rc = crom_material_init(mat, a->sc.youngs, a->sc.poisson, a->sc.density);
     if (rc)
         return rc;
-    const char *refs[CROM_SC_MAX];
+    const char *refs[CROM_SCENARIO_MAX];
     for (int i = 0; i < a->sc.npins; i++)
         refs[i] = a->sc.pins[i];
     *npin = *ntri = 0;
@@ -619,7 +648,7 @@ static int run_skinning(crom_cli *cli, args *a)
     crom_mesh mesh;
     crom_cloud cl;
     crom_model out;
-    crom_df_log log;
+    crom_datafree_log log;
     char *hist = NULL, *text = NULL;
     unsigned char *fixed = NULL;
     double *pinX = NULL, *triX = NULL;
@@ -632,8 +661,8 @@ static int run_skinning(crom_cli *cli, args *a)
     if ((rc = load_body(cli, a, &mesh, &hist, &cl)) ||
         (rc = body_pins(a, &mesh, &cl, &mat, &fixed, &npinned, &npin, &pinX, &ntri, &triX)))
         goto out;
-    crom_dfs_opts o;
-    crom_dfs_defaults(&o);
+    crom_dfskin_opts o;
+    crom_dfskin_defaults(&o);
     o.handles = a->handles_given ? a->handles : o.handles;
     o.depth = a->depth_given ? a->df.depth : o.depth;
     o.width = a->width_given ? a->df.width : o.width;
@@ -643,24 +672,24 @@ static int run_skinning(crom_cli *cli, args *a)
     o.lr = a->df.lr;
     o.batch = a->batch_given ? a->df.batch : o.batch;
     o.sigma = a->df.sigma;
-    o.ortho_weight = a->ortho_given ? a->df.ortho_weight : o.ortho_weight;
+    o.ortho_weight = a->given[O_ORTHO - O_RANK] ? a->df.ortho_weight : o.ortho_weight;
     o.tets = a->df.tets;
     o.pin_length = a->df.pin_length;
     o.threads = a->df.threads;
     o.seed = cli->seed;
-    double t0 = crom_now();
+    double t0 = crom_clock_now();
     if (a->eigen) {
-        rc = crom_dfs_eigen(&mesh, &mat, fixed, o.handles, &out, &solves);
+        rc = crom_dfskin_eigen(&mesh, &mat, fixed, o.handles, &out, &solves);
     } else {
-        if (cl.n && (rc = crom_dfs_check_handles(&mesh, fixed, o.handles)))
+        if (cl.n && (rc = crom_dfskin_check_handles(&mesh, fixed, o.handles)))
             goto out;
-        crom_dfs_problem P = {&mesh, mat, fixed, cl.n > 0, npin, pinX, ntri, triX};
-        crom_progress prog;
-        crom_progress_start(&prog, cli, "fitfield", 1000);
+        crom_dfskin_problem P = {&mesh, mat, fixed, cl.n > 0, npin, pinX, ntri, triX};
+        crom_cli_progress prog;
+        crom_cli_progress_start(&prog, cli, "fitfield", 1000);
         o.progress = on_df_progress;
         o.progress_ctx = &prog;
-        rc = crom_dfs_train(&P, &o, &out, &log);
-        crom_progress_end(&prog);
+        rc = crom_dfskin_train(&P, &o, &out, &log);
+        crom_cli_progress_end(&prog);
     }
     if (rc)
         goto out;
@@ -673,16 +702,16 @@ static int run_skinning(crom_cli *cli, args *a)
             goto out;
         }
         if (vv)
-            crom_vertex_volumes(&mesh, vv);
+            crom_mesh_vertex_volumes(&mesh, vv);
         rc = cl.n ? crom_skin_orthonormalize(&out, (size_t)cl.n, cl.X, cl.vol, a->coord_tol > 0 ? a->coord_tol : 1e-6)
                   : crom_skin_orthonormalize(&out, (size_t)mesh.nv, mesh.X, vv, a->coord_tol > 0 ? a->coord_tol : 1e-6);
         free(vv);
         if (rc)
             goto out;
     }
-    double secs = crom_now() - t0;
+    double secs = crom_clock_now() - t0;
     if (a->eigen)
-        out.training_seconds = crom_wall(secs);
+        out.training_seconds = crom_clock_wall(secs);
     if (!(text = df_scenario_text(&a->sc, 0))) {
         rc = CROM_EINTERNAL;
         goto out;
@@ -743,7 +772,7 @@ static int run_skinning(crom_cli *cli, args *a)
     if (cli->verbose)
         crom_cli_info(cli, "skinning: model_id %s", out.model_id);
 out:
-    crom_df_log_free(&log);
+    crom_datafree_log_free(&log);
     crom_model_free(&out);
     crom_mesh_free(&mesh);
     crom_cloud_free(&cl);
@@ -757,7 +786,7 @@ out:
 
 static int run_datafree(crom_cli *cli, args *a)
 {
-    int nm = a->objective == CROM_DF_NEURALMODES, field = a->objective == CROM_DF_FIELD, rc;
+    int nm = a->objective == CROM_DATAFREE_NEURALMODES, field = a->objective == CROM_DATAFREE_FIELD, rc;
     const char *name = nm ? "neuralmodes" : field ? "field" : "energy";
     crom_mesh mesh;
     char *hist = NULL, *text = NULL;
@@ -766,7 +795,7 @@ static int run_datafree(crom_cli *cli, args *a)
     crom_model modes, out;
     crom_model_clear(&modes);
     crom_model_clear(&out);
-    crom_df_log log;
+    crom_datafree_log log;
     memset(&log, 0, sizeof log);
     memset(&mesh, 0, sizeof mesh);
     crom_cloud cl;
@@ -816,7 +845,7 @@ static int run_datafree(crom_cli *cli, args *a)
     crom_material mat;
     if ((rc = crom_material_init(&mat, a->sc.youngs, a->sc.poisson, a->sc.density)))
         goto out;
-    const char *refs[CROM_SC_MAX];
+    const char *refs[CROM_SCENARIO_MAX];
     int npinned = 0;
     for (int i = 0; i < a->sc.npins; i++)
         refs[i] = a->sc.pins[i];
@@ -844,16 +873,16 @@ static int run_datafree(crom_cli *cli, args *a)
         for (int k = 0; k < r; k++)
             freq[k] = modes.frequencies ? modes.frequencies[k] : 0;
     }
-    crom_df_problem P = {&mesh, mat, {a->sc.gravity[0], a->sc.gravity[1], a->sc.gravity[2]}, fixed, W, freq};
+    crom_datafree_problem P = {&mesh, mat, {a->sc.gravity[0], a->sc.gravity[1], a->sc.gravity[2]}, fixed, W, freq};
     if (nm)
         P.gravity[0] = P.gravity[1] = P.gravity[2] = 0;
-    crom_progress prog;
-    crom_progress_start(&prog, cli, "fitfield", 1000);
+    crom_cli_progress prog;
+    crom_cli_progress_start(&prog, cli, "fitfield", 1000);
     a->df.progress = on_df_progress;
     a->df.progress_ctx = &prog;
-    double t0 = crom_now();
-    rc = crom_df_train(&P, &a->df, &out, &log);
-    crom_progress_end(&prog);
+    double t0 = crom_clock_now();
+    rc = crom_datafree_train(&P, &a->df, &out, &log);
+    crom_cli_progress_end(&prog);
     if (rc)
         goto out;
     text = df_scenario_text(&a->sc, !nm);
@@ -870,7 +899,7 @@ static int run_datafree(crom_cli *cli, args *a)
         goto out;
     rc = crom_model_write(o.h5, &out);
     if (!rc)
-        rc = crom_df_write_record(o.h5, &a->df, &P, &log, mat.rho * body_volume,
+        rc = crom_datafree_write_record(o.h5, &a->df, &P, &log, mat.rho * body_volume,
                                   nm ? modes.model_id : NULL);
     if (!rc)
         rc = crom_out_commit(&o);
@@ -882,22 +911,22 @@ static int run_datafree(crom_cli *cli, args *a)
     if (field)
         crom_cli_info(cli, "continuous field, rank %d with %d features, trained on %d vertices (%d pinned): %ld steps "
                       "in %.1f s; last objective %.4g, mean potential energy %.4g J, mean squared log isometry ratio "
-                      "%.3g (sigma %.4g m)", r, a->df.features, mesh.nv, npinned, log.steps, crom_now() - t0,
+                      "%.3g (sigma %.4g m)", r, a->df.features, mesh.nv, npinned, log.steps, crom_clock_now() - t0,
                       log.objective[j], log.energy[j], log.penalty[j], log.sigma);
     else if (nm)
         crom_cli_info(cli, "neuralmodes map, rank %d on %d vertices (%d pinned): %ld steps in %.1f s; last objective "
                       "%.4g, mean elastic energy %.4g J, orthogonality penalty %.3g (box %.4g m)",
-                      r, mesh.nv, npinned, log.steps, crom_now() - t0, log.objective[j], log.energy[j],
+                      r, mesh.nv, npinned, log.steps, crom_clock_now() - t0, log.objective[j], log.energy[j],
                       log.penalty[j], log.box);
     else
         crom_cli_info(cli, "energy map, rank %d on %d vertices (%d pinned): %ld steps in %.1f s; last objective %.4g, "
                       "mean potential energy %.4g J, mean squared log isometry ratio %.3g (sigma %.4g m)",
-                      r, mesh.nv, npinned, log.steps, crom_now() - t0, log.objective[j], log.energy[j],
+                      r, mesh.nv, npinned, log.steps, crom_clock_now() - t0, log.objective[j], log.energy[j],
                       log.penalty[j], log.sigma);
     if (cli->verbose)
         crom_cli_info(cli, "%s: reference energy %.4g J; model_id %s", name, log.Eref, out.model_id);
 out:
-    crom_df_log_free(&log);
+    crom_datafree_log_free(&log);
     crom_model_free(&out);
     crom_model_free(&modes);
     crom_mesh_free(&mesh);
@@ -928,18 +957,18 @@ static int run(crom_cli *cli, args *a)
     crom_in_close(&in);
     crom_model m;
     crom_model_clear(&m);
-    double captured = NAN, t0 = crom_now();
+    double captured = NAN, t0 = crom_clock_now();
     crom_fit_stats stats = {0, 0, 0, 0};
     if (a->pod) {
         rc = crom_fit_pod(&S, a->fit.rank, &m, &captured);
     } else {
-        crom_progress prog;
-        crom_progress_start(&prog, cli, "fitfield", 1000);
+        crom_cli_progress prog;
+        crom_cli_progress_start(&prog, cli, "fitfield", 1000);
         a->fit.progress = on_progress;
         a->fit.progress_ctx = &prog;
         a->fit.stats = &stats;
         rc = crom_fit_mlp(&S, &a->fit, &m);
-        crom_progress_end(&prog);
+        crom_cli_progress_end(&prog);
     }
     if (!rc) {
         crom_out o;
@@ -955,11 +984,11 @@ static int run(crom_cli *cli, args *a)
     if (!rc) {
         if (a->pod)
             crom_cli_info(cli, "relative reconstruction error %.4g over %d frames (pod, rank %d, %.1f%% of the snapshot energy, %.1f s)",
-                          m.reconstruction_error, S.F, m.rank, 100 * captured, crom_now() - t0);
+                          m.reconstruction_error, S.F, m.rank, 100 * captured, crom_clock_now() - t0);
         else
             crom_cli_info(cli, "relative reconstruction error %.4g over %d frames (mlp/%s, rank %d, %d epochs, %.1f s)",
                           m.reconstruction_error, S.F, crom_model_encoder_name(m.encoder), m.rank,
-                          m.nepochs, crom_now() - t0);
+                          m.nepochs, crom_clock_now() - t0);
         if (cli->verbose && !a->pod && stats.seconds > 0)
             crom_cli_info(cli, "%ld steps in %.1f s: %.3g points/s through W forward+backward, %.3g samples/s in the loss",
                           stats.steps, stats.seconds, stats.rows / stats.seconds, stats.samples / stats.seconds);

@@ -21,10 +21,4 @@ double crom_clock_wall(double seconds);
 /* "2026-11-22T03:00:00Z" for now, or for SOURCE_DATE_EPOCH when set. */
 void crom_clock_utc(char *buf, size_t n);
 
-/* Old names (issue 13), kept only for files being edited on another branch
- * (lib/datafree/, bin/crom-fitfield.c, lib/rom/nlsim.c) until they use the
- * names above; tests/prog/layers.sh keeps all other code off them. */
-#define crom_now crom_clock_now
-#define crom_wall crom_clock_wall
-
 #endif

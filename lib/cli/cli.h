@@ -95,14 +95,4 @@ void crom_cli_progress_start(crom_cli_progress *p, const crom_cli *cli,
 void crom_cli_progress_update(crom_cli_progress *p, long done, const char *extra);
 void crom_cli_progress_end(crom_cli_progress *p);
 
-/* Old names (issue 13), kept only for bin/crom-fitfield.c, which another
- * branch is editing, until it uses the names above; tests/prog/layers.sh
- * keeps all other code off them. */
-#define crom_doc crom_cli_doc
-#define crom_optgroup crom_cli_optgroup
-#define crom_progress crom_cli_progress
-#define crom_progress_start crom_cli_progress_start
-#define crom_progress_update crom_cli_progress_update
-#define crom_progress_end crom_cli_progress_end
-
 #endif

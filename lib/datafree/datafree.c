@@ -11,42 +11,46 @@
 
 #include "base/clock.h"
 #include "base/err.h"
+#include "base/lbfgs.h"
 #include "base/rng.h"
 #include "datafree/datafree.h"
 #include "io/io.h"
 
-void crom_df_defaults(crom_df_opts *o, int objective)
+void crom_datafree_defaults(crom_datafree_opts *o, int objective)
 {
     memset(o, 0, sizeof *o);
+    int field = objective == CROM_DATAFREE_FIELD, nm = objective == CROM_DATAFREE_NEURALMODES;
     o->objective = objective;
-    o->rank = objective == CROM_DF_ENERGY ? 8 : 0;
-    o->depth = 6;
+    o->rank = nm ? 0 : 8;
+    o->depth = field ? 4 : 6;
     o->width = 64;
-    o->act = objective == CROM_DF_ENERGY ? CROM_NN_ELU : CROM_NN_GELU;
-    o->steps = 2000;
-    o->lr = 1e-3;
-    o->batch = 32;
-    o->lambda = 1;
+    o->act = nm ? CROM_NN_GELU : CROM_NN_ELU;
+    /* the one-mesh maps: many small steps at a larger rate (issue 14's
+     * measurements, datafree.h); the field: as trained before */
+    o->steps = field ? 2000 : 4000;
+    o->lr = field ? 1e-3 : 3e-3;
+    o->batch = field ? 32 : 8;
+    o->lambda = field ? 1 : 0.03;
     o->ramp = 0.5;
     o->ortho_weight = 1e4;
-    o->origin_weight = 1e4;
+    o->box_scaled = 1;
     o->features = 32;
     o->field_depth = 4;
     o->field_width = 64;
-    o->tets = 512;
+    o->tets = field ? 512 : 0;
+    o->optimizer = CROM_DATAFREE_ADAM;
+    o->resample = 10;
+    o->tangent_weight = field ? 0 : 0.1;
+    o->tangent_samples = 8;
+    o->tangent_radius = 0.1;
     o->pin_length = 0;
-    if (objective == CROM_DF_FIELD) {
-        o->rank = 8;
-        o->depth = 4;
-        o->act = CROM_NN_ELU;
-    }
     o->threads = 1;
     o->seed = 1;
 }
 
 /* ============================================================ the loss */
 
-void crom_df_ctx_free(crom_df_ctx *c)
+void crom_datafree_ctx_free(crom_datafree_ctx *c)
 {
     if (!c)
         return;
@@ -63,10 +67,11 @@ void crom_df_ctx_free(crom_df_ctx *c)
     free(c->dyf);
     free(c->bad);
     free(c->cb);
+    free(c->half);
     memset(c, 0, sizeof *c);
 }
 
-int crom_df_ctx_init(crom_df_ctx *c, const crom_df_problem *p, const crom_df_opts *o,
+int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p, const crom_datafree_opts *o,
                      const crom_nn_mlp *net, int maxbatch)
 {
     memset(c, 0, sizeof *c);
@@ -74,7 +79,7 @@ int crom_df_ctx_init(crom_df_ctx *c, const crom_df_problem *p, const crom_df_opt
     c->o = *o;
     c->net = net;
     const crom_nn_spec *sp = &net->spec;
-    int r = sp->width[0], n = 3 * p->mesh->nv, nm = o->objective == CROM_DF_NEURALMODES;
+    int r = sp->width[0], n = 3 * p->mesh->nv, nm = o->objective == CROM_DATAFREE_NEURALMODES;
     if (sp->width[sp->nlayers] != n)
         return crom_err(CROM_EUSAGE, "the map's network outputs %d values, the mesh has 3nv = %d",
                         sp->width[sp->nlayers], n);
@@ -89,15 +94,18 @@ int crom_df_ctx_init(crom_df_ctx *c, const crom_df_problem *p, const crom_df_opt
     c->r = r;
     c->n = n;
     c->maxbatch = maxbatch;
+    c->B0 = !nm && o->tangent_weight > 0 ? o->tangent_samples : 0;
+    if (c->B0 < 0)
+        return crom_err(CROM_EUSAGE, "%d tangent samples", c->B0);
     c->nthreads = o->threads < 1 ? 1 : o->threads > 256 ? 256 : o->threads;
+    size_t rows = (size_t)maxbatch + c->B0 + 1; /* the batch, the tangent samples, the anchor */
     int rc = crom_fem_init(&c->fem, p->mesh, &p->mat);
     if (!rc)
-        rc = crom_nn_ws_init(&c->ws, net, maxbatch + 1, 1);
+        rc = crom_nn_ws_init(&c->ws, net, (int)rows, 1);
     if (rc) {
-        crom_df_ctx_free(c);
+        crom_datafree_ctx_free(c);
         return rc;
     }
-    size_t rows = (size_t)maxbatch + 1;
     c->mw = crom_malloc(sizeof(double) * (size_t)n);
     c->MWm = nm ? crom_malloc(sizeof(double) * (size_t)n * r) : NULL;
     c->Y = crom_malloc(sizeof(double) * rows * n);
@@ -108,9 +116,10 @@ int crom_df_ctx_init(crom_df_ctx *c, const crom_df_problem *p, const crom_df_opt
     c->zf = crom_malloc(sizeof(float) * rows * r);
     c->dyf = crom_malloc(sizeof(float) * rows * n);
     c->bad = crom_malloc(sizeof(int) * (size_t)maxbatch);
-    c->cb = crom_malloc(sizeof(double) * (size_t)r);
-    if (!c->cb || !c->mw || (nm && !c->MWm) || !c->Y || !c->G || !c->dY || !c->E || !c->xb || !c->zf || !c->dyf || !c->bad) {
-        crom_df_ctx_free(c);
+    c->cb = crom_malloc(sizeof(double) * (size_t)(r > c->B0 ? r : c->B0));
+    c->half = crom_malloc(sizeof(double) * (size_t)r);
+    if (!c->cb || !c->half || !c->mw || (nm && !c->MWm) || !c->Y || !c->G || !c->dY || !c->E || !c->xb || !c->zf || !c->dyf || !c->bad) {
+        crom_datafree_ctx_free(c);
         return CROM_EINTERNAL;
     }
     c->mass = c->fem.total_mass;
@@ -122,10 +131,18 @@ int crom_df_ctx_init(crom_df_ctx *c, const crom_df_problem *p, const crom_df_opt
         for (int i = 0; i < n; i++)
             for (int k = 0; k < r; k++)
                 c->MWm[(size_t)i * r + k] = c->mw[i] * p->modes[(size_t)i * r + k];
-        double fmax = 0;
-        for (int k = 0; p->freq && k < r; k++)
+        double fmax = 0, fmin = INFINITY;
+        for (int k = 0; p->freq && k < r; k++) {
             fmax = fmax > p->freq[k] ? fmax : p->freq[k];
-        double w = 2 * M_PI * fmax;
+            if (p->freq[k] > 0)
+                fmin = fmin < p->freq[k] ? fmin : p->freq[k];
+        }
+        /* the box: half-width a for every mode, or a f_1 / f_k for mode k
+         * (the same linear energy ½ m ω_k² a_k² at every edge) */
+        int scaled = o->box_scaled && isfinite(fmin);
+        for (int k = 0; k < r; k++)
+            c->half[k] = scaled && p->freq[k] > 0 ? o->box * fmin / p->freq[k] : o->box;
+        double w = 2 * M_PI * (scaled ? fmin : fmax);
         c->Eref = 0.5 * c->mass * w * w * o->box * o->box;
         if (!(c->Eref > 0) || !isfinite(c->Eref))
             c->Eref = EV;
@@ -133,30 +150,40 @@ int crom_df_ctx_init(crom_df_ctx *c, const crom_df_problem *p, const crom_df_opt
     return 0;
 }
 
-int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_terms *t, float *grad)
+int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_datafree_terms *t,
+                 float *grad)
 {
-    int r = c->r, n = c->n, nm = c->o.objective == CROM_DF_NEURALMODES, rows = B + nm;
+    int r = c->r, n = c->n, nm = c->o.objective == CROM_DATAFREE_NEURALMODES, B0 = c->B0, rows = B + B0 + 1;
     const unsigned char *fixed = c->P.fixed;
     const double *X = c->P.mesh->X;
+    const crom_fem *fem = &c->fem;
     if (B < 1 || B > c->maxbatch)
         return crom_err(CROM_EUSAGE, "batch of %d samples (at most %d)", B, c->maxbatch);
+    for (int k = 0; tets && k < K; k++)
+        if (tets[k] < 0 || tets[k] >= fem->nt)
+            return crom_err(CROM_EUSAGE, "tet %d out of range", tets[k]);
+    if (tets && K < 1)
+        return crom_err(CROM_EUSAGE, "a cubature of %d tets", K);
     if (!nm)
         rho = rho < 0 ? 0 : rho > 1 ? 1 : rho;
     else
         rho = 1;
-    for (int b = 0; b < B; b++)
+    /* the batch, the tangent samples, then z = 0: the anchor N(0) that
+     * every sample is taken relative to (lib/map.h), x = X + W z + ρ (N(z)
+     * − N(0)) */
+    for (int b = 0; b < B + B0; b++)
         for (int k = 0; k < r; k++)
             c->zf[(size_t)b * r + k] = (float)z[(size_t)b * r + k];
-    if (nm)
-        memset(c->zf + (size_t)B * r, 0, sizeof(float) * (size_t)r);
+    memset(c->zf + (size_t)(B + B0) * r, 0, sizeof(float) * (size_t)r);
     int rc = crom_nn_mlp_forward(c->net, &c->ws, rows, c->zf, NULL);
     if (rc)
         return rc;
-    const float *Yf = crom_nn_ws_output(&c->ws);
-    for (size_t i = 0; i < (size_t)rows * n; i++)
-        c->Y[i] = Yf[i];
+    const float *Yf = crom_nn_ws_output(&c->ws), *Y0 = Yf + (size_t)(B + B0) * n;
+    for (int b = 0; b < B + B0; b++) /* Y_b = N(z_b) − N(0) */
+        for (int i = 0; i < n; i++)
+            c->Y[(size_t)b * n + i] = (double)Yf[(size_t)b * n + i] - (double)Y0[i];
     if (fixed) /* pinned outputs do not exist: the mask is part of the map */
-        for (int b = 0; b < rows; b++)
+        for (int b = 0; b < B + B0; b++)
             for (int i = 0; i < n; i++)
                 if (fixed[i])
                     c->Y[(size_t)b * n + i] = 0;
@@ -180,7 +207,28 @@ int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_ter
             x[i] = X[i] + u;
         }
         double Eb = 0;
-        c->bad[b] = crom_fem_assemble(&c->fem, x, &fo, &Eb, G, NULL);
+        if (!tets) {
+            c->bad[b] = crom_fem_assemble(fem, x, &fo, &Eb, G, NULL);
+        } else { /* K random tets, each standing for nt/K of them */
+            double wK = (double)fem->nt / K;
+            memset(G, 0, sizeof(double) * (size_t)n);
+            c->bad[b] = 0;
+            for (int k = 0; k < K && !c->bad[b]; k++) {
+                const int *tv = fem->tets + 4 * (size_t)tets[k];
+                double xe[12], ge[12], Ee;
+                for (int a = 0; a < 4; a++)
+                    memcpy(xe + 3 * a, x + 3 * (size_t)tv[a], sizeof(double) * 3);
+                c->bad[b] = crom_fem_tet_eval(&fem->mat, xe, fem->Dminv + 9 * (size_t)tets[k], fem->vol[tets[k]], 0,
+                                              &Ee, ge, NULL);
+                Eb += wK * Ee;
+                for (int a = 0; a < 4; a++)
+                    for (int d = 0; d < 3; d++)
+                        G[3 * (size_t)tv[a] + d] += wK * ge[3 * a + d];
+            }
+            for (int i = 0; fixed && i < n; i++)
+                if (fixed[i])
+                    G[i] = 0;
+        }
         if (!nm) /* gravity: -Σ m_v g·u_v */
             for (int i = 0; i < n; i++) {
                 if (fixed && fixed[i])
@@ -194,7 +242,7 @@ int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_ter
     for (int b = 0; b < B; b++)
         if (c->bad[b] || !isfinite(c->E[b]))
             return crom_err(CROM_EDATA, "sample %d of the batch has a non-finite energy", b);
-    double obj = 0, Em = 0, pen = 0, org = 0;
+    double obj = 0, Em = 0, pen = 0, tan = 0;
     double scale = 1.0 / (B * c->Eref);
     for (int b = 0; b < B; b++) {
         Em += c->E[b] / B;
@@ -205,7 +253,8 @@ int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_ter
             dY[i] = rho * scale * G[i];
     }
     if (!nm && B >= 2) {
-        /* isometry: λ mean_{b<c} ℓ², ℓ = ½ log D² − log(σ |z_b − z_c|) */
+        /* isometry: λ mean_{b<c} ℓ², ℓ = ½ log D² − log(σ |z_b − z_c|)
+         * (the anchor cancels in the differences) */
         double npairs = 0.5 * B * (B - 1), lam = c->o.lambda, ls = log(c->o.sigma);
         for (int b = 0; b < B; b++)
             for (int e = b + 1; e < B; e++) {
@@ -233,9 +282,41 @@ int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_ter
                 }
             }
     }
+    if (B0 > 0) {
+        /* the tangent at rest, conformal: λ_0 mean_s (ℓ_s − ℓ̄)², ℓ_s = ½ log
+         * D_s² − log |z_s| with D_s the RMS displacement of the small sample
+         * z_s from rest and ℓ̄ the mean over the samples: every direction
+         * moves the body alike near rest, at a scale the map is free to
+         * choose (the gradient of the mean cancels, Σ_s (ℓ_s − ℓ̄) = 0) */
+        double lam0 = c->o.tangent_weight, *lsb = c->cb, lbar = 0;
+        int ok = 1;
+        for (int b = B; b < B + B0; b++) {
+            const double *Yb = c->Y + (size_t)b * n;
+            double dz = 0, D2 = 0;
+            for (int k = 0; k < r; k++)
+                dz += z[(size_t)b * r + k] * z[(size_t)b * r + k];
+            for (int i = 0; i < n; i++)
+                D2 += c->mw[i] * Yb[i] * Yb[i];
+            memset(c->dY + (size_t)b * n, 0, sizeof(double) * (size_t)n);
+            ok &= D2 > 0 && dz > 0;
+            lsb[b - B] = 0.5 * log(D2) - 0.5 * log(dz);
+            lbar += lsb[b - B] / B0;
+        }
+        for (int b = B; ok && b < B + B0; b++) {
+            const double *Yb = c->Y + (size_t)b * n;
+            double *dYb = c->dY + (size_t)b * n, D2 = 0, l = lsb[b - B] - lbar;
+            for (int i = 0; i < n; i++)
+                D2 += c->mw[i] * Yb[i] * Yb[i];
+            tan += l * l / B0;
+            obj += lam0 * l * l / B0;
+            double coef = lam0 / B0 * 2 * l / D2;
+            for (int i = 0; i < n; i++)
+                dYb[i] = coef * c->mw[i] * Yb[i];
+        }
+    }
     if (nm) {
-        /* M-orthogonality of y to the modes, and y(0) = 0 */
-        double a2 = c->o.box * c->o.box, wo = c->o.ortho_weight, w0 = c->o.origin_weight;
+        /* M-orthogonality of y(z) − y(0) to the modes */
+        double a2 = c->o.box * c->o.box, wo = c->o.ortho_weight;
         double *cp = c->cb;
         for (int b = 0; b < B; b++) {
             const double *Yb = c->Y + (size_t)b * n;
@@ -250,25 +331,25 @@ int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_ter
             cblas_dgemv(CblasRowMajor, CblasNoTrans, n, r, 2 * wo / (B * a2), c->MWm, r, cp, 1, 1.0,
                         c->dY + (size_t)b * n, 1);
         }
-        const double *Y0 = c->Y + (size_t)B * n;
-        double *dY0 = c->dY + (size_t)B * n;
-        for (int i = 0; i < n; i++) {
-            org += c->mw[i] * Y0[i] * Y0[i] / a2;
-            dY0[i] = 2 * w0 * c->mw[i] * Y0[i] / a2;
-        }
-        obj += w0 * org;
     }
     if (t) {
         t->objective = obj;
         t->energy = Em;
         t->penalty = pen;
-        t->origin = org;
+        t->tangent = tan;
     }
     if (!isfinite(obj))
         return crom_err(CROM_EDATA, "the data-free objective is not finite");
     if (grad) {
-        for (size_t i = 0; i < (size_t)rows * n; i++)
-            c->dyf[i] = fixed && fixed[i % n] ? 0.0f : (float)c->dY[i];
+        /* through the anchor: dL/dN(z_b) = dY_b, dL/dN(0) = −Σ_b dY_b */
+        float *d0 = c->dyf + (size_t)(B + B0) * n;
+        memset(d0, 0, sizeof(float) * (size_t)n);
+        for (int b = 0; b < B + B0; b++)
+            for (int i = 0; i < n; i++) {
+                double v = fixed && fixed[i] ? 0.0 : c->dY[(size_t)b * n + i];
+                c->dyf[(size_t)b * n + i] = (float)v;
+                d0[i] -= (float)v;
+            }
         memset(grad, 0, sizeof(float) * c->net->nparams);
         rc = crom_nn_mlp_backward(c->net, &c->ws, rows, c->dyf, grad, NULL);
     }
@@ -277,7 +358,7 @@ int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_ter
 
 /* ============================================================ training */
 
-void crom_df_log_free(crom_df_log *l)
+void crom_datafree_log_free(crom_datafree_log *l)
 {
     if (!l)
         return;
@@ -288,7 +369,7 @@ void crom_df_log_free(crom_df_log *l)
     memset(l, 0, sizeof *l);
 }
 
-int crom_df_run_begin(crom_df_run *R, crom_df_log *log, const crom_df_opts *o)
+int crom_datafree_run_begin(crom_datafree_run *R, crom_datafree_log *log, const crom_datafree_opts *o)
 {
     memset(R, 0, sizeof *R);
     R->log = log;
@@ -302,13 +383,13 @@ int crom_df_run_begin(crom_df_run *R, crom_df_log *log, const crom_df_opts *o)
     if (!log->objective || !log->energy || !log->penalty || !log->seconds)
         return CROM_EINTERNAL;
     R->budget = o->minutes > 0 ? 60 * o->minutes : 0;
-    R->tstart = crom_now();
+    R->tstart = crom_clock_now();
     return 0;
 }
 
-int crom_df_run_next(crom_df_run *R, long k, double *frac)
+int crom_datafree_run_next(crom_datafree_run *R, long k, double *frac)
 {
-    double f = (double)k / R->o->steps, el = crom_now() - R->tstart;
+    double f = (double)k / R->o->steps, el = crom_clock_now() - R->tstart;
     if (R->budget > 0) {
         if (el >= R->budget)
             return 0;
@@ -318,21 +399,21 @@ int crom_df_run_next(crom_df_run *R, long k, double *frac)
     return 1;
 }
 
-static void close_block(crom_df_run *R)
+static void close_block(crom_datafree_run *R)
 {
-    crom_df_log *log = R->log;
+    crom_datafree_log *log = R->log;
     int j = log->nblocks++;
     log->objective[j] = R->sobj / R->inblock;
     log->energy[j] = R->sen / R->inblock;
     log->penalty[j] = R->spen / R->inblock;
-    log->seconds[j] = crom_wall(crom_now() - R->tstart);
+    log->seconds[j] = crom_clock_wall(crom_clock_now() - R->tstart);
     R->sobj = R->sen = R->spen = 0;
     R->inblock = 0;
 }
 
-void crom_df_run_record(crom_df_run *R, long k, const crom_df_terms *t)
+void crom_datafree_run_record(crom_datafree_run *R, long k, const crom_datafree_terms *t)
 {
-    const crom_df_opts *o = R->o;
+    const crom_datafree_opts *o = R->o;
     R->sobj += t->objective;
     R->sen += t->energy;
     R->spen += t->penalty;
@@ -341,22 +422,22 @@ void crom_df_run_record(crom_df_run *R, long k, const crom_df_terms *t)
         if (o->progress) {
             double f = (double)(k + 1) / o->steps;
             if (R->budget > 0)
-                f = fmax(f, (crom_now() - R->tstart) / R->budget);
+                f = fmax(f, (crom_clock_now() - R->tstart) / R->budget);
             o->progress(o->progress_ctx, k + 1, fmin(f, 1.0), R->log->objective[R->log->nblocks - 1]);
         }
     }
 }
 
-int crom_df_run_end(crom_df_run *R, long k)
+int crom_datafree_run_end(crom_datafree_run *R, long k)
 {
     if (R->inblock > 0) /* stopped by the clock inside a block */
         close_block(R);
     R->log->steps = k;
-    R->log->seconds_total = crom_now() - R->tstart;
+    R->log->seconds_total = crom_clock_now() - R->tstart;
     return k > 0 ? 0 : crom_err(CROM_EUSAGE, "no training step fitted in the time budget");
 }
 
-double crom_df_lr(double base, double frac)
+double crom_datafree_lr(double base, double frac)
 {
     int q = (int)floor(4 * frac);
     if (q > 3)
@@ -366,17 +447,194 @@ double crom_df_lr(double base, double frac)
     return base * ldexp(1.0, -q);
 }
 
-int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model *out, crom_df_log *log)
+/* What a training step needs: the loss, the options, the sampler, the
+ * parameters and their gradient, the batch z and the random cubature
+ * (tets: K of nt, NULL for every tet). */
+typedef struct {
+    crom_datafree_ctx *ctx;
+    const crom_datafree_opts *o;
+    crom_rng *rng;
+    float *params, *grad;
+    double *z;
+    int *tets, K, nt, nm;
+    double rho;
+} tr_ctx;
+
+/* A fresh batch: z ~ N(0, I) (energy) or uniform in the box (neuralmodes),
+ * the tets of a fresh random cubature, and ρ at fraction frac. */
+static void draw(tr_ctx *T, double frac)
+{
+    const crom_datafree_opts *o = T->o;
+    int r = T->ctx->r;
+    T->rho = T->nm ? 1 : o->ramp > 0 ? fmin(1.0, frac / o->ramp) : 1;
+    for (int i = 0; i < o->batch * r; i++)
+        T->z[i] = T->nm ? T->ctx->half[i % r] * (2 * crom_rng_uniform(T->rng) - 1) : crom_rng_normal(T->rng);
+    for (int i = o->batch * r; i < (o->batch + T->ctx->B0) * r; i++) /* small samples: the tangent at rest */
+        T->z[i] = o->tangent_radius * crom_rng_normal(T->rng);
+    for (int i = 0; T->tets && i < T->K; i++)
+        T->tets[i] = (int)crom_rng_below(T->rng, (uint64_t)T->nt);
+}
+
+static int loss(tr_ctx *T, crom_datafree_terms *tm, float *grad)
+{
+    return crom_datafree_loss(T->ctx, T->o->batch, T->z, T->rho, T->K, T->tets, tm, grad);
+}
+
+/* Adam on a fresh batch every step, the learning rate halved after each
+ * quarter of the schedule. */
+static int train_adam(tr_ctx *T, crom_datafree_run *R, crom_nn_adam *adam, long *kout)
+{
+    long k;
+    int rc = 0;
+    for (k = 0; k < T->o->steps; k++) {
+        double frac;
+        if (!crom_datafree_run_next(R, k, &frac))
+            break;
+        draw(T, frac);
+        crom_datafree_terms tm;
+        if ((rc = loss(T, &tm, T->grad))) {
+            if (rc == CROM_EDATA)
+                crom_err_ctx("training diverged at step %ld (try a smaller --lr)", k + 1);
+            break;
+        }
+        crom_nn_adam_step(adam, T->params, T->grad, crom_datafree_lr(T->o->lr, frac));
+        crom_datafree_run_record(R, k, &tm);
+    }
+    *kout = k;
+    return rc;
+}
+
+/* The loss and gradient (double) at parameters x, through the float
+ * network. Returns 0, or CROM_EDATA where it is not finite (an inverted
+ * element): the line search then shortens the step. */
+static int lbfgs_eval(tr_ctx *T, size_t np, const double *x, double *f, double *g, crom_datafree_terms *tm)
+{
+    for (size_t i = 0; i < np; i++)
+        T->params[i] = (float)x[i];
+    int rc = loss(T, tm, T->grad);
+    if (rc)
+        return rc;
+    for (size_t i = 0; i < np; i++)
+        g[i] = T->grad[i];
+    *f = tm->objective;
+    return 0;
+}
+
+/* L-BFGS with a backtracking line search (the Neural Modes paper's
+ * optimizer), o->resample iterations on each batch of samples and tets
+ * before a fresh one is drawn (the objective must stay fixed while the
+ * line search compares values); the pairs are kept across batches. The
+ * first step (no pair yet) moves no parameter by more than o->lr. */
+static int train_lbfgs(tr_ctx *T, crom_datafree_run *R, size_t np, long *kout)
+{
+    const crom_datafree_opts *o = T->o;
+    crom_lbfgs L;
+    int rc = crom_lbfgs_init(&L, np, 10);
+    double *x = crom_malloc(sizeof(double) * np), *g = crom_malloc(sizeof(double) * np);
+    double *xt = crom_malloc(sizeof(double) * np), *gt = crom_malloc(sizeof(double) * np);
+    double *d = crom_malloc(sizeof(double) * np);
+    long k = 0;
+    if (!rc && (!x || !g || !xt || !gt || !d))
+        rc = CROM_EINTERNAL;
+    for (size_t i = 0; !rc && i < np; i++)
+        x[i] = T->params[i];
+    int stop = 0;
+    while (!rc && !stop && k < o->steps) {
+        double frac, f;
+        if (!crom_datafree_run_next(R, k, &frac))
+            break;
+        draw(T, frac);
+        crom_datafree_terms tm;
+        if ((rc = lbfgs_eval(T, np, x, &f, g, &tm))) {
+            if (rc == CROM_EDATA)
+                crom_err_ctx("training diverged at step %ld", k + 1);
+            break;
+        }
+        for (int it = 0; it < o->resample && k < o->steps; it++) {
+            if (it > 0 && !crom_datafree_run_next(R, k, &frac)) {
+                stop = 1;
+                break;
+            }
+            crom_lbfgs_direction(&L, g, d);
+            double slope = 0, dmax = 0;
+            for (size_t i = 0; i < np; i++) {
+                slope += g[i] * d[i];
+                dmax = fmax(dmax, fabs(d[i]));
+            }
+            if (!(slope < 0) || L.k == 0) { /* no descent (or no pair yet): steepest descent of size lr */
+                crom_lbfgs_reset(&L);
+                double gmax = 0;
+                for (size_t i = 0; i < np; i++)
+                    gmax = fmax(gmax, fabs(g[i]));
+                if (!(gmax > 0))
+                    break;
+                slope = 0;
+                for (size_t i = 0; i < np; i++) {
+                    d[i] = -o->lr * g[i] / gmax;
+                    slope += g[i] * d[i];
+                }
+            }
+            double alpha = 1, ft = NAN;
+            crom_datafree_terms tt;
+            int ok = 0;
+            for (int ls = 0; ls < 30 && !ok; ls++, alpha *= 0.5) {
+                for (size_t i = 0; i < np; i++)
+                    xt[i] = x[i] + alpha * d[i];
+                int e = lbfgs_eval(T, np, xt, &ft, gt, &tt);
+                if (e == CROM_EDATA) {
+                    crom_err_clear();
+                    continue;
+                }
+                if (e) {
+                    rc = e;
+                    break;
+                }
+                ok = ft <= f + 1e-4 * alpha * slope + 1e-6 * fabs(f);
+                if (ok)
+                    break;
+            }
+            if (rc)
+                break;
+            if (!ok) { /* no decrease along d: start the memory afresh on the next batch */
+                crom_lbfgs_reset(&L);
+                break;
+            }
+            for (size_t i = 0; i < np; i++) { /* the pair, then the step */
+                d[i] = xt[i] - x[i];
+                xt[i] = gt[i] - g[i];
+            }
+            crom_lbfgs_push(&L, d, xt);
+            for (size_t i = 0; i < np; i++)
+                x[i] += d[i];
+            memcpy(g, gt, sizeof(double) * np);
+            f = ft;
+            crom_datafree_run_record(R, k, &tt);
+            k++;
+        }
+    }
+    for (size_t i = 0; x && i < np; i++) /* the parameters of the last accepted step */
+        T->params[i] = (float)x[i];
+    crom_lbfgs_free(&L);
+    free(x);
+    free(g);
+    free(xt);
+    free(gt);
+    free(d);
+    *kout = k;
+    return rc;
+}
+
+int crom_datafree_train(const crom_datafree_problem *p, const crom_datafree_opts *o_in, crom_model *out, crom_datafree_log *log)
 {
     crom_model_clear(out);
     memset(log, 0, sizeof *log);
-    crom_df_opts o = *o_in;
+    crom_datafree_opts o = *o_in;
     const crom_mesh *mesh = p->mesh;
-    int nv = mesh->nv, n = 3 * nv, nm = o.objective == CROM_DF_NEURALMODES, r = o.rank, rc = 0;
-    double t0 = crom_now();
-    if (o.objective == CROM_DF_FIELD)
-        return crom_df_train_field(p, o_in, out, log);
-    if (o.objective != CROM_DF_ENERGY && !nm)
+    int nv = mesh->nv, n = 3 * nv, nm = o.objective == CROM_DATAFREE_NEURALMODES, r = o.rank, rc = 0;
+    double t0 = crom_clock_now();
+    if (o.objective == CROM_DATAFREE_FIELD)
+        return crom_datafree_train_field(p, o_in, out, log);
+    if (o.objective != CROM_DATAFREE_ENERGY && !nm)
         return crom_err(CROM_EUSAGE, "unknown data-free objective %d", o.objective);
     int nfree = 0;
     for (int i = 0; i < n; i++)
@@ -403,9 +661,9 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
     if (!(o.sigma > 0))
         o.sigma = 0.05 * diag;
     if (!(o.box > 0))
-        o.box = 0.1 * diag;
+        o.box = 0.2 * diag;
     if (!isfinite(o.sigma) || !isfinite(o.lambda) || o.lambda < 0 || !isfinite(o.box) ||
-        !isfinite(o.ortho_weight) || o.ortho_weight < 0 || !isfinite(o.origin_weight) || o.origin_weight < 0 ||
+        !isfinite(o.ortho_weight) || o.ortho_weight < 0 ||
         !(o.lr > 0) || !isfinite(o.lr) || !(o.ramp >= 0 && o.ramp <= 1))
         return crom_err(CROM_EUSAGE, "non-finite or negative training weight");
     /* the network r -> width x (depth - 1) -> 3nv */
@@ -421,16 +679,18 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
         return rc;
     size_t np = crom_nn_spec_nparams(&spec);
     float *params = crom_calloc(np, sizeof(float)), *grad = crom_calloc(np, sizeof(float));
-    double *z = crom_malloc(sizeof(double) * (size_t)o.batch * r);
+    double *z = crom_malloc(sizeof(double) * (size_t)(o.batch + (o.tangent_samples > 0 ? o.tangent_samples : 0)) * r);
+    int nt = mesh->nt, K = o.tets > 0 && o.tets < nt ? o.tets : nt; /* every tet, or a random cubature */
+    int *tets = K < nt ? crom_malloc(sizeof(int) * (size_t)K) : NULL;
     crom_nn_mlp net;
     memset(&net, 0, sizeof net);
-    crom_df_ctx ctx;
+    crom_datafree_ctx ctx;
     memset(&ctx, 0, sizeof ctx);
     crom_nn_adam adam;
     memset(&adam, 0, sizeof adam);
-    crom_df_run R;
-    int rcr = crom_df_run_begin(&R, log, &o);
-    if (!params || !grad || !z || rcr) {
+    crom_datafree_run R;
+    int rcr = crom_datafree_run_begin(&R, log, &o);
+    if (!params || !grad || !z || rcr || (K < nt && !tets)) {
         rc = CROM_EINTERNAL;
         goto done;
     }
@@ -449,32 +709,23 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
                 ly->b[i] = 0;
             }
     }
-    if ((rc = crom_df_ctx_init(&ctx, p, &o, &net, o.batch)))
+    if ((rc = crom_datafree_ctx_init(&ctx, p, &o, &net, o.batch)))
         goto done;
-    if ((rc = crom_nn_adam_init(&adam, np)))
+    if (o.optimizer != CROM_DATAFREE_LBFGS && (rc = crom_nn_adam_init(&adam, np)))
         goto done;
     log->sigma = o.sigma;
     log->box = o.box;
     log->Eref = ctx.Eref;
-    long k;
-    R.tstart = crom_now(); /* the clock starts after the set-up */
-    for (k = 0; k < o.steps; k++) {
-        double frac;
-        if (!crom_df_run_next(&R, k, &frac))
-            break;
-        double rho = nm ? 1 : o.ramp > 0 ? fmin(1.0, frac / o.ramp) : 1;
-        for (int i = 0; i < o.batch * r; i++)
-            z[i] = nm ? o.box * (2 * crom_rng_uniform(&srng) - 1) : crom_rng_normal(&srng);
-        crom_df_terms tm;
-        if ((rc = crom_df_loss(&ctx, o.batch, z, rho, &tm, grad))) {
-            if (rc == CROM_EDATA)
-                crom_err_ctx("training diverged at step %ld (try a smaller --lr)", k + 1);
-            goto done;
-        }
-        crom_nn_adam_step(&adam, params, grad, crom_df_lr(o.lr, frac));
-        crom_df_run_record(&R, k, &tm);
-    }
-    if ((rc = crom_df_run_end(&R, k)))
+    tr_ctx T = {&ctx, &o, &srng, params, grad, z, tets, K, nt, nm, 0};
+    long k = 0;
+    R.tstart = crom_clock_now(); /* the clock starts after the set-up */
+    if (o.optimizer == CROM_DATAFREE_LBFGS)
+        rc = train_lbfgs(&T, &R, np, &k);
+    else
+        rc = train_adam(&T, &R, &adam, &k);
+    if (rc)
+        goto done;
+    if ((rc = crom_datafree_run_end(&R, k)))
         goto done;
     if ((rc = crom_model_from_map(out, nm ? "neuralmodes" : "energy", &net, mesh, nm ? p->modes : NULL)))
         goto done;
@@ -488,36 +739,37 @@ int crom_df_train(const crom_df_problem *p, const crom_df_opts *o_in, crom_model
         memcpy(out->frequencies, p->freq, sizeof(double) * (size_t)r);
         crom_model_id(out, out->model_id);
     }
-    out->training_seconds = crom_wall(crom_now() - t0);
+    out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
 done:
     crom_nn_adam_free(&adam);
-    crom_df_ctx_free(&ctx);
+    crom_datafree_ctx_free(&ctx);
     crom_nn_mlp_free(&net);
     free(params);
     free(grad);
     free(z);
+    free(tets);
     if (rc)
-        crom_df_log_free(log);
+        crom_datafree_log_free(log);
     return rc;
 }
 
 /* ============================================================ record */
 
-int crom_df_write_record(hid_t loc, const crom_df_opts *o, const crom_df_problem *p,
-                         const crom_df_log *log, double mass, const char *modes_id)
+int crom_datafree_write_record(hid_t loc, const crom_datafree_opts *o, const crom_datafree_problem *p,
+                         const crom_datafree_log *log, double mass, const char *modes_id)
 {
     int rc = crom_h5_set_f64(loc, ".", "mass", &mass, 1);
     long long steps = log->steps;
     if (!rc)
         rc = crom_h5_set_i64(loc, ".", "training_steps", steps);
-    if (o->objective == CROM_DF_ENERGY || o->objective == CROM_DF_FIELD) {
+    if (o->objective == CROM_DATAFREE_ENERGY || o->objective == CROM_DATAFREE_FIELD) {
         if (!rc)
             rc = crom_h5_set_f64(loc, ".", "sigma", &log->sigma, 1);
         if (!rc)
             rc = crom_h5_set_f64(loc, ".", "isometry_weight", &o->lambda, 1);
         if (!rc)
             rc = crom_h5_set_f64(loc, ".", "gravity", p->gravity, 3);
-        if (!rc && o->objective == CROM_DF_FIELD) {
+        if (!rc && o->objective == CROM_DATAFREE_FIELD) {
             long long k = o->tets;
             rc = crom_h5_set_i64(loc, ".", "cubature_tets", k);
 
@@ -527,8 +779,6 @@ int crom_df_write_record(hid_t loc, const crom_df_opts *o, const crom_df_problem
             rc = crom_h5_set_f64(loc, ".", "latent_box", &log->box, 1);
         if (!rc)
             rc = crom_h5_set_f64(loc, ".", "ortho_weight", &o->ortho_weight, 1);
-        if (!rc)
-            rc = crom_h5_set_f64(loc, ".", "origin_weight", &o->origin_weight, 1);
         if (!rc && modes_id)
             rc = crom_h5_set_str(loc, ".", "modes_id", modes_id);
     }

@@ -1,60 +1,74 @@
 /* datafree.h — subspaces learned from the energy alone, with no simulation
- * data (crom-fitfield --objective energy|neuralmodes).
+ * data (crom-fitfield --objective energy|neuralmodes|field).
  *
- * Both learn a map of a latent q in R^r to the positions of every vertex of
- * ONE mesh (crom/model basis "energy" or "neuralmodes", lib/rom/map.h):
+ * Every map is ANCHORED at the rest shape (lib/rom/map.h): its network's value
+ * at z = 0 is subtracted, N(z) − N(0), so x(0) = X exactly, and the losses
+ * below are taken on that same anchored map (the network is also run at
+ * z = 0 in every step, and the gradient flows through the anchor: dL/dN(0)
+ * = −Σ_b dL/dN(z_b)). A run from rest then starts at z = 0 (lib/rom/nlsim.h).
+ *
+ * energy and neuralmodes learn a map of a latent q in R^r to the positions
+ * of every vertex of ONE mesh (crom/model basis "energy" or "neuralmodes", lib/rom/map.h):
  *
  * energy (Sharp et al. 2023, "Data-Free Learning of Reduced-Order
- * Kinematics", eq. 4 and §4.1): x(z) = X + N(z), N an ELU MLP r -> 3nv
- * (5 hidden layers), trained on batches of z ~ N(0, I) to minimize
+ * Kinematics", eq. 4 and §4.1): x(z) = X + N(z) − N(0), N an ELU MLP r ->
+ * 3nv (5 hidden layers), trained on batches of z ~ N(0, I) to minimize
  *
- *   L = 1/B Σ_b E_pot(X + ρ N(z_b)) / (E V)
- *     + λ · mean over the pairs b < c of ( log( D_bc / (σ ‖z_b − z_c‖) ) )²,
+ *   L = 1/B Σ_b E_pot(X + ρ Y_b) / (E V)
+ *     + λ · mean over the pairs b < c of ( log( D_bc / (σ ‖z_b − z_c‖) ) )²
+ *     + λ_0 · mean over the tangent samples s of (ℓ_s − ℓ̄)²,
  *
- *   D_bc = sqrt( (N(z_b) − N(z_c))ᵀ M (N(z_b) − N(z_c)) / m ),
+ *   Y_b = N(z_b) − N(0),  D_bc = sqrt( (Y_b − Y_c)ᵀ M (Y_b − Y_c) / m ),
+ *   ℓ_s = log( sqrt(Y_sᵀ M Y_s / m) / ‖z_s‖ ),  ℓ̄ = mean_s ℓ_s,
  *
  * with E_pot the stable neo-Hookean energy plus the potential of gravity
  * −Σ_v m_v g·u_v, M the lumped mass and m the body's mass (so D and σ are
  * RMS displacements in metres: the paper's ‖·‖_M divided by sqrt(m)), E V
  * Young's modulus times the volume (the energy unit that makes L
- * dimensionless), and ρ the seed-state blend of §4.1: the map is
- * ρ N(z) + (1 − ρ) q_seed with the rest state as seed, i.e. X + ρ N(z), and
- * σ is scaled by ρ too, which cancels in the log-ratio (so the isometry term
- * is written with N itself and is defined at ρ = 0). ρ grows linearly from 0
- * to 1 over the first `ramp` fraction of the steps, then stays 1, so the map
- * that is stored (ρ = 1) is the one trained last. Pinned vertices are built
- * in: their outputs are masked in the loss and their rows of the last layer
- * are zero, so the stored map holds them exactly at rest.
+ * dimensionless), and ρ the seed-state blend of §4.1 with the rest state as
+ * seed: X + ρ Y, σ scaled by ρ too, which cancels in the log-ratio. ρ grows
+ * linearly from 0 to 1 over the first `ramp` fraction of the steps, then
+ * stays 1, so the map that is stored (ρ = 1) is the one trained last. The
+ * last term is the isometry AT REST: the tangent samples z_s ~ N(0, ε² I)
+ * (8 per step, ε = 0.1, energy not evaluated) should all move the body
+ * alike per unit of ‖z‖, at a scale the map is free to choose; without it
+ * a weak isometry (small λ) lets some latent directions collapse at rest,
+ * where every run starts, and the first step of a run from rest misses
+ * part of the fall. Pinned vertices are built in: their outputs are masked
+ * in the loss and their rows of the last layer are zero, so the stored map
+ * holds them exactly at rest.
  *
  * neuralmodes (Wang et al. 2024, "Neural Modes", eq. 12–13): x(z) = X + W z
- * + y(z) on the r lowest linear modes W (crom-modes, orthonormal in the mass
- * mean: WᵀMW = m I, q in metres), y a GELU MLP r -> 3nv, trained on z
- * uniform in the box [−a, a]^r to minimize
+ * + y(z), y = N(z) − N(0) (so y(0) = 0 exactly, which Wang et al. ask of
+ * a penalty), on the r lowest linear modes W (crom-modes, orthonormal in
+ * the mass mean: WᵀMW = m I, q in metres), N a GELU MLP r -> 3nv, trained
+ * on z uniform in a box to minimize
  *
- *   L = 1/B Σ_b [ E(X + W z_b + y(z_b)) / E_ref + w_o ‖Wᵀ M y(z_b) / m‖² / a² ]
- *     + w_0 ‖y(0)‖²_M / (m a²),
+ *   L = 1/B Σ_b [ E(X + W z_b + y(z_b)) / E_ref + w_o ‖Wᵀ M y(z_b) / m‖² / a² ],
  *
  * the elastic energy (no gravity: nonlinear modes are equilibria of the
- * elastic energy in the space M-orthogonal to the linear ones), a penalty
- * keeping y M-orthogonal to the linear span, and one on y at the origin;
- * E_ref = ½ m ω_r² a², the linear energy of the highest mode at the box
- * size (E V if that is zero); the default w_o = w_0 = 1e4 holds the
- * projection of y onto the modes and y(0) to about 1 % of the box. The last layer starts at zero: training
- * starts from the linear modes.
+ * elastic energy in the space M-orthogonal to the linear ones) and a
+ * penalty keeping y M-orthogonal to the linear span. The box: z_k in
+ * [−a_k, a_k] with a_k = a f_1 / f_k (box_scaled, the default: the same
+ * linear energy ½ m ω_k² a_k² at every edge) or a_k = a (Wang et al.);
+ * E_ref = ½ m ω² a² with ω the lowest (scaled) or highest (uniform) mode's
+ * (E V if that is zero). The default w_o = 1e4 holds the projection of y
+ * onto the modes to about 1 % of the box. The last layer starts at zero:
+ * training starts from the linear modes.
  *
  * field (beyond both papers: a CONTINUOUS data-free subspace, crom/model
- * basis "energy-field"): x(X, z) = X + W(X) φ(z) with W a neural field
- * 3 -> 3p over the body (LiCROM's representation, laid on any mesh) and φ
- * an ELU MLP r -> p, trained on Sharp et al.'s loss with the integrals
- * over the body replaced by a random cubature drawn afresh each step: K
- * tets, each standing for nt/K of them (an unbiased estimate of E and of
- * the gravity potential, lumped masses of the drawn tets for M), so W is
- * evaluated only at their vertices:
+ * basis "energy-field"): x(X, z) = X + W(X) (φ(z) − φ(0)) with W a neural
+ * field 3 -> 3p over the body (LiCROM's representation, laid on any mesh)
+ * and φ an ELU MLP r -> p, trained on the energy loss above with the
+ * integrals over the body replaced by a random cubature drawn afresh each
+ * step: K tets, each standing for nt/K of them (an unbiased estimate of E
+ * and of the gravity potential, lumped masses of the drawn tets for M), so
+ * W is evaluated only at their vertices:
  *
- *   L = 1/B Σ_b Ê_pot(X + ρ W φ(z_b)) / (E V)
- *     + λ · mean over pairs ( log( D̂_bc / (σ ‖z_b − z_c‖) ) )²,
+ *   L = 1/B Σ_b Ê_pot(X + ρ W Φ_b) / (E V)
+ *     + λ · mean over pairs ( log( D̂_bc / (σ ‖z_b − z_c‖) ) )² + λ_0 · (as above),
  *
- *   D̂²_bc = Δφᵀ Ĝ Δφ / m̂,  Ĝ = Σ_v m̂_v W(X_v)ᵀ W(X_v),  Δφ = φ(z_b) − φ(z_c),
+ *   Φ_b = φ(z_b) − φ(0),  D̂²_bc = ΔΦᵀ Ĝ ΔΦ / m̂,  Ĝ = Σ_v m̂_v W(X_v)ᵀ W(X_v),
  *
  * with z ~ N(0, I) and ρ ramped as above. Pins are built in as a mask
  * over space: W(X) = s(d(X)/ℓ) W̃(X), s the smoothstep 3t² − 2t³ (1 for t
@@ -64,10 +78,22 @@
  * exactly zero on a pinned face of the body on ANY mesh of it, and the
  * reduced simulation's own penalty holds whatever else a region pins. (A
  * penalty on the pins instead competes with the energy, which is weak in
- * units of E V, and the trained map then barely moves under gravity.)
+ * units of E V, and the trained map then barely moves under gravity.) The
+ * one-mesh maps take the same random cubature on request (`tets`).
  *
- * Training: Adam, learning rate halved after each quarter of the steps (the
- * paper's schedule, on a shorter run), batch B. The energies of the B
+ * Training: Adam on a fresh batch every step, learning rate halved after
+ * each quarter of the steps (the paper's schedule, on a shorter run); or
+ * L-BFGS with a backtracking line search (Wang et al.'s optimizer,
+ * lib/lbfgs.h), `resample` iterations on each batch. The defaults come from
+ * issue 14's measurements on a soft clamped bar sagging under gravity (a
+ * third of its length; README, "Benchmarks"): for the one-mesh maps many
+ * small steps (batch 8, rate 3e-3) beat fewer large ones at equal time;
+ * energy: a weak isometry (λ = 0.03: at λ = 1 the isometry swamps the
+ * energy, which is ~1e-3 in units of E V, and the static sag misses by
+ * 40-80 %) with the isometry at rest (λ_0 = 0.1); neuralmodes: the
+ * frequency-scaled box, half-width 0.2 × the bounding-box diagonal for
+ * the lowest mode (a uniform box spends the loss on the stiff modes:
+ * static sag 84 % off against 16 % at 4000 steps). The energies of the B
  * samples are computed in parallel over `threads` threads, each sample
  * serially, so results do not depend on the thread count; the network runs
  * single-threaded (float32), the losses in double.
@@ -85,7 +111,8 @@
 #include "phys/scenario.h"
 #include "rom/model.h"
 
-enum { CROM_DF_ENERGY = 1, CROM_DF_NEURALMODES = 2, CROM_DF_FIELD = 3 };
+enum { CROM_DATAFREE_ENERGY = 1, CROM_DATAFREE_NEURALMODES = 2, CROM_DATAFREE_FIELD = 3 };
+enum { CROM_DATAFREE_ADAM = 0, CROM_DATAFREE_LBFGS = 1 };
 
 /* The physical problem (all borrowed). */
 typedef struct {
@@ -95,36 +122,41 @@ typedef struct {
     const unsigned char *fixed;  /* [3nv] pinned DOFs, or NULL */
     const double *modes;         /* neuralmodes: W [nv][3][r] */
     const double *freq;          /* neuralmodes: [r] frequencies (Hz), or NULL */
-} crom_df_problem;
+} crom_datafree_problem;
 
 typedef struct {
-    int objective;          /* CROM_DF_ENERGY or CROM_DF_NEURALMODES */
+    int objective;          /* CROM_DATAFREE_ENERGY or CROM_DATAFREE_NEURALMODES */
     int rank;               /* r */
     int depth, width;       /* dense layers (6: 5 hidden) and hidden width (64) */
     crom_nn_act act;        /* ELU (energy) or GELU (neuralmodes) */
-    int steps;              /* training steps (2000) */
+    int steps;              /* training steps (4000; field: 2000) */
     double minutes;         /* wall-time budget (0: none) */
-    double lr;              /* base learning rate (1e-3) */
-    int batch;              /* samples per step (32) */
+    double lr;              /* base learning rate (3e-3; field: 1e-3); L-BFGS: the size of its first step */
+    int optimizer;          /* CROM_DATAFREE_ADAM or CROM_DATAFREE_LBFGS (energy, neuralmodes) */
+    int resample;           /* L-BFGS: iterations on each batch before a fresh one (10) */
+    double tangent_weight;  /* energy, field: λ_0, weight of the isometry at rest (0.1; field: 0) */
+    int tangent_samples;    /* energy, field: its samples per step (8) */
+    double tangent_radius;  /* energy, field: their scale ε, z ~ N(0, ε² I) (0.1) */
+    int batch;              /* samples per step (8; field: 32) */
     double sigma;           /* energy: isometry scale, RMS metres per unit z */
-    double lambda;          /* energy: isometry weight (1) */
+    double lambda;          /* energy: isometry weight (0.03; field: 1) */
     double ramp;            /* energy: fraction of the steps over which ρ grows (0.5) */
     double box;             /* neuralmodes: half-width a of the z box (m) */
+    int box_scaled;         /* neuralmodes: 1 (default): mode k's half-width is a f_1 / f_k */
     double ortho_weight;    /* neuralmodes: w_o (1e4) */
-    double origin_weight;   /* neuralmodes: w_0 (1e4) */
     int features;           /* field: p, the feature fields of W (32) */
     int field_depth, field_width; /* field: dense layers (4) and hidden width (64) of W */
-    int tets;               /* field: tets of the random cubature per step (512) */
+    int tets;               /* tets of the random cubature per step (field: 512; maps: 0, every tet) */
     double pin_length;      /* field: width of the mask at the pins (m; 0: twice the mean edge) */
     int threads;            /* energy evaluations in parallel (1) */
     uint64_t seed;
     void (*progress)(void *ctx, long step, double frac, double objective);
     void *progress_ctx;
-} crom_df_opts;
+} crom_datafree_opts;
 
-/* Defaults of an objective (above); sigma and box are 0: crom_df_train
+/* Defaults of an objective (above); sigma and box are 0: crom_datafree_train
  * picks 0.05 and 0.1 times the bounding-box diagonal. */
-void crom_df_defaults(crom_df_opts *o, int objective);
+void crom_datafree_defaults(crom_datafree_opts *o, int objective);
 
 /* ------------------------------------------------------------- the loss */
 
@@ -133,16 +165,17 @@ typedef struct {
     double objective; /* L (dimensionless) */
     double energy;    /* mean E_pot (energy) or elastic energy (neuralmodes) of the samples (J) */
     double penalty;   /* energy: mean squared log-ratio; neuralmodes: mean ‖WᵀMy/m‖²/a² */
-    double origin;    /* neuralmodes: ‖y(0)‖²_M/(m a²) */
-} crom_df_terms;
+    double tangent;   /* energy, field: mean squared log-ratio of the tangent samples */
+} crom_datafree_terms;
 
 typedef struct {
-    crom_df_problem P;
-    crom_df_opts o;
+    crom_datafree_problem P;
+    crom_datafree_opts o;
     const crom_nn_mlp *net;  /* r -> 3nv */
     crom_fem fem;            /* rest shapes, volumes, lumped masses */
     crom_nn_ws ws;
     int r, n, maxbatch, nthreads;
+    int B0;                  /* tangent samples after the batch (0: none) */
     double mass, Eref;
     double *mw;              /* [n] m_i / m per DOF */
     double *MWm;             /* neuralmodes: [n][r] M W / m */
@@ -150,32 +183,37 @@ typedef struct {
     float *zf, *dyf;
     int *bad;
     double *cb;              /* [r] scratch */
-} crom_df_ctx;
+    double *half;            /* neuralmodes: [r] half-widths of the box per mode */
+} crom_datafree_ctx;
 
 /* Set up the loss of options o (objective, sigma, lambda, box, weights,
  * threads) on problem p for network net and batches of up to maxbatch
  * samples. sigma and box must be set (> 0). Returns 0, CROM_EUSAGE (bad
  * sizes), CROM_EDATA (bad mesh), CROM_EINTERNAL (out of memory). */
-int crom_df_ctx_init(crom_df_ctx *c, const crom_df_problem *p, const crom_df_opts *o,
+int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p, const crom_datafree_opts *o,
                      const crom_nn_mlp *net, int maxbatch);
-void crom_df_ctx_free(crom_df_ctx *c);
+void crom_datafree_ctx_free(crom_datafree_ctx *c);
 
-/* The loss L of B samples z [B][r] at blend rho (energy objective; ignored
- * for neuralmodes, whose origin term is evaluated at an extra z = 0), and
- * if grad != NULL its gradient dL/dparams (overwritten, layout of
- * net->params). Returns 0, or CROM_EDATA for a non-finite energy. */
-int crom_df_loss(crom_df_ctx *c, int B, const double *z, double rho, crom_df_terms *t,
+/* The loss L of B samples at blend rho (energy objective; ignored for
+ * neuralmodes): z holds [B + c->B0][r], the batch then the tangent
+ * samples. The energy is integrated over every tet (tets NULL) or over the
+ * K tets tets [K] (repeats allowed), each weighted nt/K. If grad != NULL,
+ * its gradient dL/dparams (overwritten, layout of net->params). Returns 0,
+ * CROM_EUSAGE (sizes, a tet out of range), or CROM_EDATA for a non-finite
+ * energy. */
+int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_datafree_terms *t,
                  float *grad);
 
 /* ------------------------------------------- the continuous field's loss */
 
 typedef struct {
-    crom_df_problem P;
-    crom_df_opts o;
+    crom_datafree_problem P;
+    crom_datafree_opts o;
     const crom_nn_mlp *W, *phi; /* 3 -> 3p and r -> p */
     crom_fem fem;
     crom_nn_ws wsW, wsP;
     int r, p, maxbatch, maxtets, maxrows, nthreads, ns, npins;
+    int B0;                  /* tangent samples after the batch (0: none) */
     double mass, Eref, pin_length;
     int *loc, *vs, *bad;
     float *xf, *zf, *dFf, *dPf;
@@ -184,25 +222,27 @@ typedef struct {
     double *triX;            /* [ntri][3][3] their corners */
     double *mask;            /* [nv] s(d(X_v)/ℓ) */
     double *F, *Phi, *gu, *dF, *dPhi, *mloc, *E, *G, *S, *tmp, *xb;
-} crom_dff_ctx;
+} crom_datafree_field_ctx;
 
 /* Set up the loss of the continuous field (objective field: o->sigma,
  * lambda, pin_length, threads) for networks W (3 -> 3p, unmasked) and phi
  * (r -> p), batches of up to maxbatch samples over up to maxtets tets. */
-int crom_dff_ctx_init(crom_dff_ctx *c, const crom_df_problem *p, const crom_df_opts *o, const crom_nn_mlp *W,
+int crom_datafree_field_ctx_init(crom_datafree_field_ctx *c, const crom_datafree_problem *p, const crom_datafree_opts *o, const crom_nn_mlp *W,
                       const crom_nn_mlp *phi, int maxbatch, int maxtets);
-void crom_dff_ctx_free(crom_dff_ctx *c);
+void crom_datafree_field_ctx_free(crom_datafree_field_ctx *c);
 
-/* The loss L of B samples z [B][r] at blend rho over the K tets tets [K]
- * (repeats allowed), and if gW, gP != NULL its gradients with respect to
- * the parameters of W and phi (overwritten). t->penalty is the isometry
- * term. Returns 0, CROM_EUSAGE (sizes), CROM_EDATA (a non-finite energy). */
-int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_df_terms *t,
+/* The loss L of B samples at blend rho over the K tets tets [K] (repeats
+ * allowed): z holds [B + c->B0][r], the batch then the tangent samples. If
+ * gW, gP != NULL, its gradients with respect to the parameters of W and
+ * phi (overwritten). t->penalty is the isometry term, t->tangent the one
+ * at rest. Returns 0, CROM_EUSAGE (sizes), CROM_EDATA (a non-finite
+ * energy). */
+int crom_datafree_field_loss(crom_datafree_field_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_datafree_terms *t,
                   float *gW, float *gP);
 
 /* The learning rate at fraction frac of the run: base, halved after each
  * quarter (Sharp et al.'s schedule on a shorter run). */
-double crom_df_lr(double base, double frac);
+double crom_datafree_lr(double base, double frac);
 
 /* ------------------------------------------------------------- training */
 
@@ -214,48 +254,48 @@ typedef struct {
     long steps;
     double seconds_total;
     double sigma, box, Eref; /* as used */
-} crom_df_log;
+} crom_datafree_log;
 
-void crom_df_log_free(crom_df_log *l);
+void crom_datafree_log_free(crom_datafree_log *l);
 
 /* The clock and record of a training run, shared by the objectives: the
  * schedule's fraction done (steps or --minutes, whichever is further) and
  * the per-block means of the terms, with progress reports. */
 typedef struct {
-    crom_df_log *log;
-    const crom_df_opts *o;
+    crom_datafree_log *log;
+    const crom_datafree_opts *o;
     int block, inblock;
     double budget, tstart, sobj, sen, spen;
-} crom_df_run;
+} crom_datafree_run;
 
 /* Start: allocate the record for o->steps steps. CROM_EINTERNAL. */
-int crom_df_run_begin(crom_df_run *R, crom_df_log *log, const crom_df_opts *o);
+int crom_datafree_run_begin(crom_datafree_run *R, crom_datafree_log *log, const crom_datafree_opts *o);
 /* Before step k: 0 when the time budget is spent, else 1 with the
  * fraction of the schedule done in *frac. */
-int crom_df_run_next(crom_df_run *R, long k, double *frac);
+int crom_datafree_run_next(crom_datafree_run *R, long k, double *frac);
 /* After step k: record its terms. */
-void crom_df_run_record(crom_df_run *R, long k, const crom_df_terms *t);
+void crom_datafree_run_record(crom_datafree_run *R, long k, const crom_datafree_terms *t);
 /* After the last step (k steps taken): close the record. CROM_EUSAGE if
  * no step was taken (the time budget ran out first). */
-int crom_df_run_end(crom_df_run *R, long k);
+int crom_datafree_run_end(crom_datafree_run *R, long k);
 
-/* Train the continuous field (crom_df_train calls it for CROM_DF_FIELD). */
-int crom_df_train_field(const crom_df_problem *p, const crom_df_opts *o, crom_model *out, crom_df_log *log);
+/* Train the continuous field (crom_datafree_train calls it for CROM_DATAFREE_FIELD). */
+int crom_datafree_train_field(const crom_datafree_problem *p, const crom_datafree_opts *o, crom_model *out, crom_datafree_log *log);
 
 /* Train a map on problem p with options o; out gets a model of kind
  * "energy" or "neuralmodes" (mesh copied with its regions; neuralmodes also
  * keeps W and the frequencies) and log the record. Returns 0, CROM_EUSAGE
  * (rank larger than the free degrees of freedom, a free body under gravity,
  * bad options), CROM_EDATA (training diverged) or CROM_EINTERNAL. */
-int crom_df_train(const crom_df_problem *p, const crom_df_opts *o, crom_model *out, crom_df_log *log);
+int crom_datafree_train(const crom_datafree_problem *p, const crom_datafree_opts *o, crom_model *out, crom_datafree_log *log);
 
 /* Write what a data-free model records beyond its basis (after
  * crom_model_write): the options as attributes (sigma, isometry_weight,
  * gravity; latent_box, ortho_weight, origin_weight, modes_id), the body's
  * mass, and the training record (training/objective, /energy, /penalty,
  * /seconds). modes_id may be NULL. Returns 0 or an HDF5 error. */
-int crom_df_write_record(hid_t loc, const crom_df_opts *o, const crom_df_problem *p,
-                         const crom_df_log *log, double mass, const char *modes_id);
+int crom_datafree_write_record(hid_t loc, const crom_datafree_opts *o, const crom_datafree_problem *p,
+                         const crom_datafree_log *log, double mass, const char *modes_id);
 
 
 #endif

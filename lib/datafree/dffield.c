@@ -16,7 +16,7 @@
 #include "datafree/datafree.h"
 #include "mesh/locate.h"
 
-void crom_dff_ctx_free(crom_dff_ctx *c)
+void crom_datafree_field_ctx_free(crom_datafree_field_ctx *c)
 {
     if (!c)
         return;
@@ -30,7 +30,7 @@ void crom_dff_ctx_free(crom_dff_ctx *c)
     memset(c, 0, sizeof *c);
 }
 
-int crom_dff_ctx_init(crom_dff_ctx *c, const crom_df_problem *p, const crom_df_opts *o, const crom_nn_mlp *W,
+int crom_datafree_field_ctx_init(crom_datafree_field_ctx *c, const crom_datafree_problem *p, const crom_datafree_opts *o, const crom_nn_mlp *W,
                       const crom_nn_mlp *phi, int maxbatch, int maxtets)
 {
     memset(c, 0, sizeof *c);
@@ -50,18 +50,21 @@ int crom_dff_ctx_init(crom_dff_ctx *c, const crom_df_problem *p, const crom_df_o
     c->r = r;
     c->p = pf;
     c->maxbatch = maxbatch;
+    c->B0 = o->tangent_weight > 0 ? o->tangent_samples : 0;
+    if (c->B0 < 0)
+        return crom_err(CROM_EUSAGE, "%d tangent samples", c->B0);
     c->maxtets = maxtets;
     c->nthreads = o->threads < 1 ? 1 : o->threads > 256 ? 256 : o->threads;
     int rc = crom_fem_init(&c->fem, p->mesh, &p->mat);
     if (rc) {
-        crom_dff_ctx_free(c);
+        crom_datafree_field_ctx_free(c);
         return rc;
     }
     /* the pinned vertices (any pinned DOF) and the mask they make */
     c->pinX = crom_malloc(sizeof(double) * 3 * (size_t)(nv ? nv : 1));
     c->mask = crom_malloc(sizeof(double) * (size_t)(nv ? nv : 1));
     if (!c->pinX || !c->mask) {
-        crom_dff_ctx_free(c);
+        crom_datafree_field_ctx_free(c);
         return CROM_EINTERNAL;
     }
     for (int v = 0; v < nv; v++)
@@ -83,13 +86,13 @@ int crom_dff_ctx_init(crom_dff_ctx *c, const crom_df_problem *p, const crom_df_o
     if (c->npins) { /* the boundary triangles with three pinned vertices */
         int nb, *tri = NULL;
         if ((rc = crom_mesh_boundary(p->mesh, &nb, &tri, NULL))) {
-            crom_dff_ctx_free(c);
+            crom_datafree_field_ctx_free(c);
             return rc;
         }
         c->triX = crom_malloc(sizeof(double) * 9 * (size_t)(nb ? nb : 1));
         if (!c->triX) {
             free(tri);
-            crom_dff_ctx_free(c);
+            crom_datafree_field_ctx_free(c);
             return CROM_EINTERNAL;
         }
         for (int k = 0; k < nb; k++) {
@@ -110,9 +113,10 @@ int crom_dff_ctx_init(crom_dff_ctx *c, const crom_df_problem *p, const crom_df_o
     for (int v = 0; v < nv; v++)
         c->mask[v] = crom_model_pin_mask(p->mesh->X + 3 * (size_t)v, c->npins, c->pinX, c->ntri, c->triX, c->pin_length);
     c->maxrows = 4 * maxtets;
-    size_t R = (size_t)c->maxrows, B = (size_t)maxbatch, P = (size_t)pf;
-    if ((rc = crom_nn_ws_init(&c->wsW, W, c->maxrows, 1)) || (rc = crom_nn_ws_init(&c->wsP, phi, maxbatch, 1))) {
-        crom_dff_ctx_free(c);
+    /* rows of φ: the batch, the tangent samples and z = 0 */
+    size_t R = (size_t)c->maxrows, B = (size_t)maxbatch + c->B0 + 1, P = (size_t)pf;
+    if ((rc = crom_nn_ws_init(&c->wsW, W, c->maxrows, 1)) || (rc = crom_nn_ws_init(&c->wsP, phi, (int)B, 1))) {
+        crom_datafree_field_ctx_free(c);
         return rc;
     }
     c->loc = crom_malloc(sizeof(int) * (size_t)nv);
@@ -135,7 +139,7 @@ int crom_dff_ctx_init(crom_dff_ctx *c, const crom_df_problem *p, const crom_df_o
     c->xb = crom_malloc(sizeof(double) * (size_t)c->nthreads * 3 * R);
     if (!c->loc || !c->vs || !c->xf || !c->F || !c->Phi || !c->zf || !c->gu || !c->dF || !c->dPhi || !c->dFf ||
         !c->dPf || !c->mloc || !c->E || !c->bad || !c->G || !c->S || !c->tmp || !c->xb) {
-        crom_dff_ctx_free(c);
+        crom_datafree_field_ctx_free(c);
         return CROM_EINTERNAL;
     }
     for (int v = 0; v < nv; v++)
@@ -146,7 +150,7 @@ int crom_dff_ctx_init(crom_dff_ctx *c, const crom_df_problem *p, const crom_df_o
 }
 
 /* local index of vertex v, adding it to the list */
-static int local(crom_dff_ctx *c, int v)
+static int local(crom_datafree_field_ctx *c, int v)
 {
     if (c->loc[v] < 0) {
         c->loc[v] = c->ns;
@@ -155,10 +159,10 @@ static int local(crom_dff_ctx *c, int v)
     return c->loc[v];
 }
 
-int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_df_terms *t,
+int crom_datafree_field_loss(crom_datafree_field_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_datafree_terms *t,
                   float *gW, float *gP)
 {
-    int r = c->r, p = c->p, nt = c->fem.nt, rc;
+    int r = c->r, p = c->p, nt = c->fem.nt, B0 = c->B0, rc;
     const double *X = c->P.mesh->X, *g = c->P.gravity;
     const crom_fem *fem = &c->fem;
     if (B < 2 || B > c->maxbatch || K < 1 || K > c->maxtets)
@@ -182,13 +186,16 @@ int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, co
     const float *Ff = crom_nn_ws_output(&c->wsW);
     for (size_t i = 0; i < (size_t)m3 * p; i++) /* masked at the pins */
         c->F[i] = c->mask[c->vs[i / (3 * (size_t)p)]] * Ff[i];
-    for (int i = 0; i < B * r; i++)
+    /* φ of the batch, of the tangent samples and of z = 0, the anchor
+     * (lib/map.h): the samples are taken relative to it, Φ_b = φ(z_b) − φ(0) */
+    for (int i = 0; i < (B + B0) * r; i++)
         c->zf[i] = (float)z[i];
-    if ((rc = crom_nn_mlp_forward(c->phi, &c->wsP, B, c->zf, NULL)))
+    memset(c->zf + (size_t)(B + B0) * r, 0, sizeof(float) * (size_t)r);
+    if ((rc = crom_nn_mlp_forward(c->phi, &c->wsP, B + B0 + 1, c->zf, NULL)))
         goto out;
-    const float *Pf = crom_nn_ws_output(&c->wsP);
-    for (int i = 0; i < B * p; i++)
-        c->Phi[i] = Pf[i];
+    const float *Pf = crom_nn_ws_output(&c->wsP), *P0 = Pf + (size_t)(B + B0) * p;
+    for (int i = 0; i < (B + B0) * p; i++)
+        c->Phi[i] = (double)Pf[i] - (double)P0[i % p];
     /* the cubature: each sampled tet stands for nt/K of them (an unbiased
      * estimate of the integral); lumped masses of the sampled tets */
     double wK = (double)nt / K, rho0 = c->P.mat.rho, mhat = 0;
@@ -240,7 +247,7 @@ int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, co
             rc = crom_err(CROM_EDATA, "sample %d of the batch has a non-finite energy", b);
             goto out;
         }
-    double obj = 0, Em = 0, pen = 0, scale = 1.0 / (B * c->Eref);
+    double obj = 0, Em = 0, pen = 0, tan = 0, scale = 1.0 / (B * c->Eref);
     for (int b = 0; b < B; b++) {
         Em += c->E[b] / B;
         obj += c->E[b] * scale;
@@ -249,6 +256,7 @@ int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, co
     cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, B, p, m3, rho * scale, c->gu, m3, c->F, p, 0.0, c->dPhi,
                 p);
     cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, m3, p, B, rho * scale, c->gu, m3, c->Phi, p, 0.0, c->dF, p);
+    memset(c->dPhi + (size_t)B * p, 0, sizeof(double) * (size_t)B0 * p);
     /* isometry over the pairs: D² = ΔΦᵀ G ΔΦ / m̂, G = Σ_v m_v F_vᵀ F_v */
     if (mhat > 0) {
         for (int i = 0; i < m3; i++) {
@@ -284,6 +292,32 @@ int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, co
                 cblas_daxpy(p, -2 * coef, Gd, 1, c->dPhi + (size_t)e * p, 1);
                 cblas_dsyr(CblasRowMajor, CblasUpper, p, coef / mhat, dphi, 1, c->S, p);
             }
+        /* the tangent at rest, conformal: λ_0 mean_s (ℓ_s − ℓ̄)², ℓ_s = ½ log
+         * D_s² − log |z_s|, D_s² = Φ_sᵀ G Φ_s / m̂ the displacement of a small
+         * sample from rest, ℓ̄ their mean (as in datafree.c) */
+        double lam0 = c->o.tangent_weight, lbar = 0, *lsb = c->E + B; /* E has room past the batch */
+        int ok = 1;
+        for (int b = B; b < B + B0; b++) {
+            const double *ph = c->Phi + (size_t)b * p;
+            double dz = 0;
+            for (int k = 0; k < r; k++)
+                dz += z[(size_t)b * r + k] * z[(size_t)b * r + k];
+            cblas_dsymv(CblasRowMajor, CblasUpper, p, 1.0 / mhat, c->G, p, ph, 1, 0.0, Gd, 1);
+            double D2 = cblas_ddot(p, ph, 1, Gd, 1);
+            ok &= D2 > 0 && dz > 0;
+            lsb[b - B] = 0.5 * log(D2) - 0.5 * log(dz);
+            lbar += lsb[b - B] / B0;
+        }
+        for (int b = B; ok && b < B + B0; b++) {
+            const double *ph = c->Phi + (size_t)b * p;
+            cblas_dsymv(CblasRowMajor, CblasUpper, p, 1.0 / mhat, c->G, p, ph, 1, 0.0, Gd, 1);
+            double D2 = cblas_ddot(p, ph, 1, Gd, 1), l = lsb[b - B] - lbar;
+            tan += l * l / B0;
+            obj += lam0 * l * l / B0;
+            double coef = lam0 * l / (B0 * D2);
+            cblas_daxpy(p, 2 * coef, Gd, 1, c->dPhi + (size_t)b * p, 1);
+            cblas_dsyr(CblasRowMajor, CblasUpper, p, coef / mhat, ph, 1, c->S, p);
+        }
         for (int i = 0; i < p; i++)
             for (int j = 0; j < i; j++)
                 c->S[i * p + j] = c->S[j * p + i];
@@ -296,7 +330,7 @@ int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, co
         t->objective = obj;
         t->energy = Em;
         t->penalty = pen;
-        t->origin = 0;
+        t->tangent = tan;
     }
     if (!isfinite(obj)) {
         rc = crom_err(CROM_EDATA, "the data-free objective is not finite");
@@ -309,11 +343,15 @@ int crom_dff_loss(crom_dff_ctx *c, int B, const double *z, double rho, int K, co
         if ((rc = crom_nn_mlp_backward(c->W, &c->wsW, ns, c->dFf, gW, NULL)))
             goto out;
     }
-    if (gP) {
-        for (int i = 0; i < B * p; i++)
+    if (gP) { /* through the anchor: dL/dφ(0) = −Σ_b dL/dΦ_b */
+        float *d0 = c->dPf + (size_t)(B + B0) * p;
+        memset(d0, 0, sizeof(float) * (size_t)p);
+        for (int i = 0; i < (B + B0) * p; i++) {
             c->dPf[i] = (float)c->dPhi[i];
+            d0[i % p] -= c->dPf[i];
+        }
         memset(gP, 0, sizeof(float) * c->phi->nparams);
-        rc = crom_nn_mlp_backward(c->phi, &c->wsP, B, c->dPf, gP, NULL);
+        rc = crom_nn_mlp_backward(c->phi, &c->wsP, B + B0 + 1, c->dPf, gP, NULL);
     }
 out:
     for (int i = 0; i < c->ns; i++)
@@ -323,11 +361,11 @@ out:
 
 /* ============================================================ training */
 
-/* Scale the field's last layer so that W(X) φ(z) starts at the isometry
+/* Scale the field's last layer so that W(X) (φ(z) − φ(0)) starts at the isometry
  * scale: RMS displacement σ over random vertices and z ~ N(0, I) (a
  * default-initialized pair of networks moves the body by metres, which
  * training would first have to undo). */
-static int init_scale(crom_dff_ctx *c, crom_nn_mlp *W, crom_nn_mlp *phi, crom_rng *rng)
+static int init_scale(crom_datafree_field_ctx *c, crom_nn_mlp *W, crom_nn_mlp *phi, crom_rng *rng)
 {
     int nv = c->P.mesh->nv, n = c->maxrows < nv ? c->maxrows : nv, B = c->maxbatch, p = c->p, rc;
     for (int i = 0; i < n; i++) {
@@ -337,16 +375,17 @@ static int init_scale(crom_dff_ctx *c, crom_nn_mlp *W, crom_nn_mlp *phi, crom_rn
     }
     for (int i = 0; i < B * c->r; i++)
         c->zf[i] = (float)crom_rng_normal(rng);
+    memset(c->zf + (size_t)B * c->r, 0, sizeof(float) * (size_t)c->r); /* the anchor */
     if ((rc = crom_nn_mlp_forward(W, &c->wsW, n, c->xf, NULL)))
         return rc;
     const float *F = crom_nn_ws_output(&c->wsW);
     for (size_t i = 0; i < (size_t)3 * n * p; i++) /* unmasked: the scale of W itself */
         c->F[i] = F[i];
-    if ((rc = crom_nn_mlp_forward(phi, &c->wsP, B, c->zf, NULL)))
+    if ((rc = crom_nn_mlp_forward(phi, &c->wsP, B + 1, c->zf, NULL)))
         return rc;
-    const float *P = crom_nn_ws_output(&c->wsP);
+    const float *P = crom_nn_ws_output(&c->wsP), *P0 = P + (size_t)B * p;
     for (int i = 0; i < B * p; i++)
-        c->Phi[i] = P[i];
+        c->Phi[i] = (double)P[i] - (double)P0[i % p];
     cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasTrans, B, 3 * n, p, 1.0, c->Phi, p, c->F, p, 0.0, c->gu, 3 * n);
     double u2 = 0;
     for (size_t i = 0; i < (size_t)B * 3 * n; i++)
@@ -363,14 +402,14 @@ static int init_scale(crom_dff_ctx *c, crom_nn_mlp *W, crom_nn_mlp *phi, crom_rn
     return 0;
 }
 
-int crom_df_train_field(const crom_df_problem *p, const crom_df_opts *o_in, crom_model *out, crom_df_log *log)
+int crom_datafree_train_field(const crom_datafree_problem *p, const crom_datafree_opts *o_in, crom_model *out, crom_datafree_log *log)
 {
     crom_model_clear(out);
     memset(log, 0, sizeof *log);
-    crom_df_opts o = *o_in;
+    crom_datafree_opts o = *o_in;
     const crom_mesh *mesh = p->mesh;
     int nv = mesh->nv, nt = mesh->nt, r = o.rank, pf = o.features, rc = 0;
-    double t0 = crom_now();
+    double t0 = crom_clock_now();
     int pinned = 0;
     for (int i = 0; p->fixed && i < 3 * nv; i++)
         pinned += p->fixed[i] != 0;
@@ -413,16 +452,16 @@ int crom_df_train_field(const crom_df_problem *p, const crom_df_opts *o_in, crom
     crom_nn_mlp W, phi;
     memset(&W, 0, sizeof W);
     memset(&phi, 0, sizeof phi);
-    crom_dff_ctx ctx;
+    crom_datafree_field_ctx ctx;
     memset(&ctx, 0, sizeof ctx);
     crom_nn_adam aw, ap;
     memset(&aw, 0, sizeof aw);
     memset(&ap, 0, sizeof ap);
     float *gW = NULL, *gP = NULL;
-    double *z = crom_malloc(sizeof(double) * (size_t)o.batch * r);
+    double *z = crom_malloc(sizeof(double) * (size_t)(o.batch + (o.tangent_samples > 0 ? o.tangent_samples : 0)) * r);
     int *tets = crom_malloc(sizeof(int) * (size_t)K);
-    crom_df_run R;
-    int rcr = crom_df_run_begin(&R, log, &o);
+    crom_datafree_run R;
+    int rcr = crom_datafree_run_begin(&R, log, &o);
     if (!z || !tets || rcr) {
         rc = CROM_EINTERNAL;
         goto done;
@@ -438,7 +477,7 @@ int crom_df_train_field(const crom_df_problem *p, const crom_df_opts *o_in, crom
         if ((rc = crom_nn_norm_fit(corners, 2, 3, sh, sc)) || (rc = crom_nn_mlp_set_norm(&W, sh, sc)))
             goto done;
     }
-    if ((rc = crom_dff_ctx_init(&ctx, p, &o, &W, &phi, o.batch, K)))
+    if ((rc = crom_datafree_field_ctx_init(&ctx, p, &o, &W, &phi, o.batch, K)))
         goto done;
     if ((rc = init_scale(&ctx, &W, &phi, &srng)))
         goto done;
@@ -453,36 +492,38 @@ int crom_df_train_field(const crom_df_problem *p, const crom_df_opts *o_in, crom
     log->sigma = o.sigma;
     log->Eref = ctx.Eref;
     long k;
-    R.tstart = crom_now(); /* the clock starts after the set-up */
+    R.tstart = crom_clock_now(); /* the clock starts after the set-up */
     for (k = 0; k < o.steps; k++) {
         double frac;
-        if (!crom_df_run_next(&R, k, &frac))
+        if (!crom_datafree_run_next(&R, k, &frac))
             break;
         double rho = o.ramp > 0 ? fmin(1.0, frac / o.ramp) : 1;
         for (int i = 0; i < o.batch * r; i++)
             z[i] = crom_rng_normal(&srng);
+        for (int i = o.batch * r; i < (o.batch + ctx.B0) * r; i++) /* small samples: the tangent at rest */
+            z[i] = o.tangent_radius * crom_rng_normal(&srng);
         for (int i = 0; i < K; i++) /* a fresh random cubature each step */
             tets[i] = K == nt ? i : (int)crom_rng_below(&srng, (uint64_t)nt);
-        crom_df_terms tm;
-        if ((rc = crom_dff_loss(&ctx, o.batch, z, rho, K, tets, &tm, gW, gP))) {
+        crom_datafree_terms tm;
+        if ((rc = crom_datafree_field_loss(&ctx, o.batch, z, rho, K, tets, &tm, gW, gP))) {
             if (rc == CROM_EDATA)
                 crom_err_ctx("training diverged at step %ld (try a smaller --lr)", k + 1);
             goto done;
         }
-        double lr = crom_df_lr(o.lr, frac);
+        double lr = crom_datafree_lr(o.lr, frac);
         crom_nn_adam_step(&aw, W.params, gW, lr);
         crom_nn_adam_step(&ap, phi.params, gP, lr);
-        crom_df_run_record(&R, k, &tm);
+        crom_datafree_run_record(&R, k, &tm);
     }
-    if ((rc = crom_df_run_end(&R, k)))
+    if ((rc = crom_datafree_run_end(&R, k)))
         goto done;
     if ((rc = crom_model_from_field_map(out, &W, &phi, ctx.npins, ctx.pinX, ctx.ntri, ctx.triX, ctx.pin_length)))
         goto done;
-    out->training_seconds = crom_wall(crom_now() - t0);
+    out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
 done:
     crom_nn_adam_free(&aw);
     crom_nn_adam_free(&ap);
-    crom_dff_ctx_free(&ctx);
+    crom_datafree_field_ctx_free(&ctx);
     crom_nn_mlp_free(&W);
     crom_nn_mlp_free(&phi);
     free(gW);
@@ -490,6 +531,6 @@ done:
     free(z);
     free(tets);
     if (rc)
-        crom_df_log_free(log);
+        crom_datafree_log_free(log);
     return rc;
 }

@@ -17,7 +17,7 @@
 #include "phys/modes.h"
 #include "rom/skin.h"
 
-void crom_dfs_defaults(crom_dfs_opts *o)
+void crom_dfskin_defaults(crom_dfskin_opts *o)
 {
     memset(o, 0, sizeof *o);
     o->handles = 8;
@@ -48,7 +48,7 @@ static int count_free(const crom_mesh *mesh, const unsigned char *fixed, int *np
     return nfree;
 }
 
-int crom_dfs_check_handles(const crom_mesh *mesh, const unsigned char *fixed, int H)
+int crom_dfskin_check_handles(const crom_mesh *mesh, const unsigned char *fixed, int H)
 {
     int np, nfree = count_free(mesh, fixed, &np);
     if (H < 1)
@@ -64,7 +64,7 @@ int crom_dfs_check_handles(const crom_mesh *mesh, const unsigned char *fixed, in
 
 /* ============================================================ the loss */
 
-void crom_dfs_ctx_free(crom_dfs_ctx *c)
+void crom_dfskin_ctx_free(crom_dfskin_ctx *c)
 {
     if (!c)
         return;
@@ -88,7 +88,7 @@ static double bbox_diag(const crom_mesh *m)
 /* The pinned part of the training geometry: for a tet mesh its pinned
  * vertices and its boundary triangles with three pinned vertices, then the
  * given points and triangles. */
-static int pinned_part(crom_dfs_ctx *c, const crom_dfs_problem *p)
+static int pinned_part(crom_dfskin_ctx *c, const crom_dfskin_problem *p)
 {
     const crom_mesh *m = p->mesh;
     int nv = m->nv, ntb = 0, *tri = NULL;
@@ -124,7 +124,7 @@ static int pinned_part(crom_dfs_ctx *c, const crom_dfs_problem *p)
     return 0;
 }
 
-int crom_dfs_ctx_init(crom_dfs_ctx *c, const crom_dfs_problem *p, const crom_dfs_opts *o, const crom_nn_mlp *net,
+int crom_dfskin_ctx_init(crom_dfskin_ctx *c, const crom_dfskin_problem *p, const crom_dfskin_opts *o, const crom_nn_mlp *net,
                       int maxbatch, int maxtets)
 {
     memset(c, 0, sizeof *c);
@@ -132,9 +132,9 @@ int crom_dfs_ctx_init(crom_dfs_ctx *c, const crom_dfs_problem *p, const crom_dfs
     c->o = *o;
     c->net = net;
     int nv = p->mesh->nv, H = o->handles, rc;
-    if (maxbatch < 1 || maxtets < 1 || H < 1 || H > CROM_DFS_MAXH)
+    if (maxbatch < 1 || maxtets < 1 || H < 1 || H > CROM_DFSKIN_MAXH)
         return crom_err(CROM_EUSAGE, "batch of %d poses, %d tets, %d handles (at most %d trained)", maxbatch, maxtets,
-                        H, CROM_DFS_MAXH);
+                        H, CROM_DFSKIN_MAXH);
     if (!(o->sigma > 0) || !(o->pin_length > 0) || !(o->ortho_weight >= 0))
         return crom_err(CROM_EUSAGE, "sigma and the pin length must be positive, the orthogonality weight >= 0");
     c->H = H;
@@ -144,7 +144,7 @@ int crom_dfs_ctx_init(crom_dfs_ctx *c, const crom_dfs_problem *p, const crom_dfs
     c->nthreads = o->threads < 1 ? 1 : o->threads > 256 ? 256 : o->threads;
     c->pin_length = o->pin_length;
     if ((rc = crom_fem_init(&c->fem, p->mesh, &p->mat)) || (rc = pinned_part(c, p))) {
-        crom_dfs_ctx_free(c);
+        crom_dfskin_ctx_free(c);
         return rc;
     }
     c->constant = c->npins == 0 && c->ntri == 0 && !(p->fixed && count_free(p->mesh, p->fixed, NULL) < nv);
@@ -153,16 +153,16 @@ int crom_dfs_ctx_init(crom_dfs_ctx *c, const crom_dfs_problem *p, const crom_dfs
     if (sp->width[0] != 3 || sp->width[sp->nlayers] != c->Ht) {
         rc = crom_err(CROM_EUSAGE, "the weight network goes %d -> %d, expected 3 -> %d", sp->width[0],
                       sp->width[sp->nlayers], c->Ht);
-        crom_dfs_ctx_free(c);
+        crom_dfskin_ctx_free(c);
         return rc;
     }
     if ((rc = crom_skin_frame((size_t)nv, p->mesh->X, c->fem.mass, c->F))) {
-        crom_dfs_ctx_free(c);
+        crom_dfskin_ctx_free(c);
         return rc;
     }
     size_t R = (size_t)c->maxrows, B = (size_t)maxbatch, Hs = (size_t)H;
     if ((rc = crom_nn_ws_init(&c->ws, net, c->maxrows, 1))) {
-        crom_dfs_ctx_free(c);
+        crom_dfskin_ctx_free(c);
         return rc;
     }
     c->mask = crom_malloc(sizeof(double) * (size_t)nv);
@@ -185,7 +185,7 @@ int crom_dfs_ctx_init(crom_dfs_ctx *c, const crom_dfs_problem *p, const crom_dfs
     c->xb = crom_malloc(sizeof(double) * Hs);
     if (!c->mask || !c->loc || !c->vs || !c->bad || !c->xf || !c->dwf || !c->w || !c->xh || !c->wh || !c->L || !c->U ||
         !c->gu || !c->dw || !c->mloc || !c->E || !c->R || !c->G || !c->xb) {
-        crom_dfs_ctx_free(c);
+        crom_dfskin_ctx_free(c);
         return CROM_EINTERNAL;
     }
     for (int v = 0; v < nv; v++) {
@@ -200,7 +200,7 @@ int crom_dfs_ctx_init(crom_dfs_ctx *c, const crom_dfs_problem *p, const crom_dfs
 
 /* The weights w [ns][H] of the collected vertices from the network's
  * output (mask and constant handle), and their frame coordinates xh. */
-static int weights_at(crom_dfs_ctx *c, int ns)
+static int weights_at(crom_dfskin_ctx *c, int ns)
 {
     const double *X = c->P.mesh->X;
     int H = c->H, Ht = c->Ht, k = c->constant, rc;
@@ -226,7 +226,7 @@ static int weights_at(crom_dfs_ctx *c, int ns)
     return 0;
 }
 
-static int local(crom_dfs_ctx *c, int v)
+static int local(crom_dfskin_ctx *c, int v)
 {
     if (c->loc[v] < 0) {
         c->loc[v] = c->ns;
@@ -235,7 +235,7 @@ static int local(crom_dfs_ctx *c, int v)
     return c->loc[v];
 }
 
-int crom_dfs_loss(crom_dfs_ctx *c, int B, const double *q, int K, const int *tets, crom_df_terms *t, float *grad)
+int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const int *tets, crom_datafree_terms *t, float *grad)
 {
     const crom_fem *fem = &c->fem;
     const double *X = c->P.mesh->X;
@@ -422,7 +422,7 @@ int crom_dfs_loss(crom_dfs_ctx *c, int B, const double *q, int K, const int *tet
             S[a * H + b] = S[b * H + a] = 0.5 * (T[a * H + b] + T[b * H + a]);
     for (int i = 0; i < ns; i++) {
         const double *wi = c->w + (size_t)i * H;
-        double *g = c->dw + (size_t)i * H, gn[CROM_DFS_MAXH], f = 2 * c->mloc[i] / mhat;
+        double *g = c->dw + (size_t)i * H, gn[CROM_DFSKIN_MAXH], f = 2 * c->mloc[i] / mhat;
         for (int a = 0; a < H; a++) {
             double v = 0;
             for (int k = a; k < H; k++)
@@ -455,7 +455,7 @@ int crom_dfs_loss(crom_dfs_ctx *c, int B, const double *q, int K, const int *tet
         t->objective = obj;
         t->energy = Em;
         t->penalty = pen;
-        t->origin = 0;
+        t->tangent = 0;
     }
     if (!isfinite(obj)) {
         rc = crom_err(CROM_EDATA, "the skinning objective is not finite");
@@ -478,7 +478,7 @@ out:
 
 /* Scale the network's last layer so that its weights start with unit mean
  * square over (up to maxrows random) vertices, mask included. */
-static int init_scale(crom_dfs_ctx *c, crom_nn_mlp *net, crom_rng *rng)
+static int init_scale(crom_dfskin_ctx *c, crom_nn_mlp *net, crom_rng *rng)
 {
     int nv = c->P.mesh->nv, n = c->maxrows < nv ? c->maxrows : nv, Ht = c->Ht, rc;
     if (Ht == 0)
@@ -511,15 +511,15 @@ static int init_scale(crom_dfs_ctx *c, crom_nn_mlp *net, crom_rng *rng)
     return 0;
 }
 
-int crom_dfs_train(const crom_dfs_problem *p, const crom_dfs_opts *o_in, crom_model *out, crom_df_log *log)
+int crom_dfskin_train(const crom_dfskin_problem *p, const crom_dfskin_opts *o_in, crom_model *out, crom_datafree_log *log)
 {
     crom_model_clear(out);
     memset(log, 0, sizeof *log);
-    crom_dfs_opts o = *o_in;
+    crom_dfskin_opts o = *o_in;
     const crom_mesh *mesh = p->mesh;
     int nt = mesh->nt, H = o.handles, rc = 0;
-    double t0 = crom_now();
-    if (!p->virtual_tets && (rc = crom_dfs_check_handles(mesh, p->fixed, H)))
+    double t0 = crom_clock_now();
+    if (!p->virtual_tets && (rc = crom_dfskin_check_handles(mesh, p->fixed, H)))
         return rc;
     if (H < 1)
         return crom_err(CROM_EUSAGE, "--handles %d: a skinning subspace needs at least one handle", H);
@@ -554,7 +554,7 @@ int crom_dfs_train(const crom_dfs_problem *p, const crom_dfs_opts *o_in, crom_mo
         return rc;
     crom_nn_mlp net;
     memset(&net, 0, sizeof net);
-    crom_dfs_ctx ctx;
+    crom_dfskin_ctx ctx;
     memset(&ctx, 0, sizeof ctx);
     crom_nn_adam adam;
     memset(&adam, 0, sizeof adam);
@@ -562,14 +562,14 @@ int crom_dfs_train(const crom_dfs_problem *p, const crom_dfs_opts *o_in, crom_mo
     double *q = crom_malloc(sizeof(double) * (size_t)o.batch * 12 * H);
     int *tets = crom_malloc(sizeof(int) * (size_t)K);
     /* the shared clock and record of the data-free trainers */
-    crom_df_opts ro;
-    crom_df_defaults(&ro, CROM_DF_FIELD);
+    crom_datafree_opts ro;
+    crom_datafree_defaults(&ro, CROM_DATAFREE_FIELD);
     ro.steps = o.steps;
     ro.minutes = o.minutes;
     ro.progress = o.progress;
     ro.progress_ctx = o.progress_ctx;
-    crom_df_run R;
-    int rcr = crom_df_run_begin(&R, log, &ro);
+    crom_datafree_run R;
+    int rcr = crom_datafree_run_begin(&R, log, &ro);
     if (!q || !tets || rcr) {
         rc = CROM_EINTERNAL;
         goto done;
@@ -587,7 +587,7 @@ int crom_dfs_train(const crom_dfs_problem *p, const crom_dfs_opts *o_in, crom_mo
         if ((rc = crom_nn_norm_fit(corners, 2, 3, sh, sc)) || (rc = crom_nn_mlp_set_norm(&net, sh, sc)))
             goto done;
     }
-    if ((rc = crom_dfs_ctx_init(&ctx, p, &o, &net, o.batch, K)))
+    if ((rc = crom_dfskin_ctx_init(&ctx, p, &o, &net, o.batch, K)))
         goto done;
     if (ctx.constant == pinned) {
         rc = crom_err(CROM_EINTERNAL, "pin detection disagrees");
@@ -612,39 +612,39 @@ int crom_dfs_train(const crom_dfs_problem *p, const crom_dfs_opts *o_in, crom_mo
     double tfrac = 0.9;
     double qt = o.sigma * sqrt(tfrac / (3.0 * H)), ql = o.sigma * sqrt((1 - tfrac) / (9.0 * H));
     long k;
-    R.tstart = crom_now(); /* the clock starts after the set-up */
+    R.tstart = crom_clock_now(); /* the clock starts after the set-up */
     for (k = 0; k < o.steps; k++) {
         double frac;
-        if (!crom_df_run_next(&R, k, &frac))
+        if (!crom_datafree_run_next(&R, k, &frac))
             break;
         for (int i = 0; i < o.batch * 12 * H; i++)
             q[i] = (i % 4 == 3 ? qt : ql) * crom_rng_normal(&srng);
         for (int i = 0; i < K; i++) /* a fresh random cubature each step */
             tets[i] = K == nt ? i : (int)crom_rng_below(&srng, (uint64_t)nt);
-        crom_df_terms tm;
-        if ((rc = crom_dfs_loss(&ctx, o.batch, q, K, tets, &tm, grad))) {
+        crom_datafree_terms tm;
+        if ((rc = crom_dfskin_loss(&ctx, o.batch, q, K, tets, &tm, grad))) {
             if (rc == CROM_EDATA)
                 crom_err_ctx("training diverged at step %ld (try a smaller --lr or --sigma)", k + 1);
             goto done;
         }
-        crom_nn_adam_step(&adam, net.params, grad, crom_df_lr(o.lr, frac));
-        crom_df_run_record(&R, k, &tm);
+        crom_nn_adam_step(&adam, net.params, grad, crom_datafree_lr(o.lr, frac));
+        crom_datafree_run_record(&R, k, &tm);
     }
-    if ((rc = crom_df_run_end(&R, k)))
+    if ((rc = crom_datafree_run_end(&R, k)))
         goto done;
     if ((rc = crom_skin_model_mlp(out, &net, H, ctx.constant, ctx.F, ctx.npins, ctx.pinX, ctx.ntri, ctx.triX,
                                   ctx.pin_length)))
         goto done;
-    out->training_seconds = crom_wall(crom_now() - t0);
+    out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
 done:
     crom_nn_adam_free(&adam);
-    crom_dfs_ctx_free(&ctx);
+    crom_dfskin_ctx_free(&ctx);
     crom_nn_mlp_free(&net);
     free(grad);
     free(q);
     free(tets);
     if (rc)
-        crom_df_log_free(log);
+        crom_datafree_log_free(log);
     return rc;
 }
 
@@ -722,13 +722,13 @@ out:
     return rc;
 }
 
-int crom_dfs_eigen(const crom_mesh *mesh, const crom_material *mat, const unsigned char *fixed, int H,
+int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const unsigned char *fixed, int H,
                    crom_model *out, long *solves)
 {
     crom_model_clear(out);
     if (solves)
         *solves = 0;
-    int rc = crom_dfs_check_handles(mesh, fixed, H);
+    int rc = crom_dfskin_check_handles(mesh, fixed, H);
     if (rc)
         return rc;
     crom_fem fem;

@@ -60,7 +60,7 @@
 #include "rom/model.h"
 
 /* Trained weights: at most this many handles. */
-#define CROM_DFS_MAXH 256
+#define CROM_DFSKIN_MAXH 256
 
 /* The training problem (all borrowed). */
 typedef struct {
@@ -74,7 +74,7 @@ typedef struct {
     const double *pinX;
     int ntri;                     /* pinned triangles for the mask (a sampled */
     const double *triX;           /* surface's), [ntri][3][3] */
-} crom_dfs_problem;
+} crom_dfskin_problem;
 
 typedef struct {
     int handles;          /* H */
@@ -92,19 +92,19 @@ typedef struct {
     uint64_t seed;
     void (*progress)(void *ctx, long step, double frac, double objective);
     void *progress_ctx;
-} crom_dfs_opts;
+} crom_dfskin_opts;
 
-void crom_dfs_defaults(crom_dfs_opts *o);
+void crom_dfskin_defaults(crom_dfskin_opts *o);
 
 /* Checks shared by both kinds: H >= 1 and 12H <= the free degrees of
  * freedom of the geometry (3 per free vertex). CROM_EUSAGE naming the count. */
-int crom_dfs_check_handles(const crom_mesh *mesh, const unsigned char *fixed, int H);
+int crom_dfskin_check_handles(const crom_mesh *mesh, const unsigned char *fixed, int H);
 
 /* ------------------------------------------------------------- the loss */
 
 typedef struct {
-    crom_dfs_problem P;
-    crom_dfs_opts o;
+    crom_dfskin_problem P;
+    crom_dfskin_opts o;
     const crom_nn_mlp *net;   /* 3 -> H' */
     crom_fem fem;
     crom_nn_ws ws;
@@ -117,15 +117,15 @@ typedef struct {
     int *loc, *vs, *bad;
     float *xf, *dwf;
     double *w, *wh, *xh, *L, *U, *gu, *dw, *mloc, *E, *R, *G, *xb;
-} crom_dfs_ctx;
+} crom_dfskin_ctx;
 
 /* Set up the trained loss (o: handles, sigma, ortho_weight, pin_length,
  * threads) on problem p for network net (3 -> H'), batches of up to maxbatch
  * poses over up to maxtets tets. sigma and pin_length must be set (> 0).
  * Returns 0, CROM_EUSAGE, CROM_EDATA (bad mesh), CROM_EINTERNAL. */
-int crom_dfs_ctx_init(crom_dfs_ctx *c, const crom_dfs_problem *p, const crom_dfs_opts *o, const crom_nn_mlp *net,
+int crom_dfskin_ctx_init(crom_dfskin_ctx *c, const crom_dfskin_problem *p, const crom_dfskin_opts *o, const crom_nn_mlp *net,
                       int maxbatch, int maxtets);
-void crom_dfs_ctx_free(crom_dfs_ctx *c);
+void crom_dfskin_ctx_free(crom_dfskin_ctx *c);
 
 /* The loss L of B poses q [B][12H] (handle coordinates) over the K tets
  * tets [K] (repeats allowed); grad (may be NULL) gets dL/dparams
@@ -133,20 +133,20 @@ void crom_dfs_ctx_free(crom_dfs_ctx *c);
  * poses (J), t->penalty ‖G − I‖²_F. Returns 0, CROM_EUSAGE (sizes),
  * CROM_EDATA (a non-finite energy, or a pose that does not move the
  * drawn tets). */
-int crom_dfs_loss(crom_dfs_ctx *c, int B, const double *q, int K, const int *tets, crom_df_terms *t, float *grad);
+int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const int *tets, crom_datafree_terms *t, float *grad);
 
 /* ------------------------------------------------------------- building */
 
 /* Train the weights on problem p; out gets a trained "skinning" model and
- * log the record (crom_df_log of datafree.h). CROM_EUSAGE (bad options or
+ * log the record (crom_datafree_log of datafree.h). CROM_EUSAGE (bad options or
  * handle count), CROM_EDATA (training diverged), CROM_EINTERNAL. */
-int crom_dfs_train(const crom_dfs_problem *p, const crom_dfs_opts *o, crom_model *out, crom_df_log *log);
+int crom_dfskin_train(const crom_dfskin_problem *p, const crom_dfskin_opts *o, crom_model *out, crom_datafree_log *log);
 
 /* Skinning eigenmodes of a tet mesh: H handles for material mat with the
  * DOFs fixed [3nv] (NULL: a free body) pinned. out gets an "eigen"
  * skinning model on that mesh; *solves (may be NULL) the factor solves.
  * CROM_EUSAGE (handle count), CROM_EDATA (bad mesh), CROM_EINTERNAL. */
-int crom_dfs_eigen(const crom_mesh *mesh, const crom_material *mat, const unsigned char *fixed, int H,
+int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const unsigned char *fixed, int H,
                    crom_model *out, long *solves);
 
 #endif

@@ -124,9 +124,4 @@ int crom_mesh_load(const char *path, int carriers, crom_mesh *m, char **history)
 #define CROM_MESH_SCHEMA "crom/mesh"
 #define CROM_MESH_VERSION 1
 
-/* Old name (issue 13), kept only for bin/crom-fitfield.c, which another
- * branch is editing, until it uses the name above; tests/prog/layers.sh
- * keeps all other code off it. */
-#define crom_vertex_volumes crom_mesh_vertex_volumes
-
 #endif

@@ -76,9 +76,4 @@ void crom_scenario_initial_velocity(const crom_scenario *s, const double c[3], c
  * youngs, poisson, density, gravity, tolerance) of an output. */
 int crom_scenario_write_attrs(hid_t loc, const crom_scenario *s);
 
-/* Old name (issue 13), kept only for bin/crom-fitfield.c, which another
- * branch is editing, until it uses the name above; tests/prog/layers.sh
- * keeps all other code off it. */
-#define CROM_SC_MAX CROM_SCENARIO_MAX
-
 #endif

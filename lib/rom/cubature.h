@@ -106,9 +106,4 @@ double crom_cubature_tet(const crom_material *mat, const double Xe[12], const do
                          const double Dminv[9], double V, double w, const double *q, int project,
                          double *g_r, double *H_r, double *work);
 
-/* Old name (issue 13), kept only for lib/rom/nlsim.c, which another branch
- * is editing, until it uses the name above; tests/prog/layers.sh keeps all
- * other code off it. */
-#define crom_cub_tet crom_cubature_tet
-
 #endif

@@ -19,6 +19,7 @@ void crom_map_free(crom_map *map)
     free(map->B);
     free(map->fa);
     free(map->fT);
+    free(map->anchor);
     free(map->mem);
     free(map->a0);
     free(map->a1);
@@ -166,6 +167,15 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
         if (!map->fa || !map->fT)
             rc = CROM_EINTERNAL;
     }
+    if (!rc && map->nonlinear) { /* the anchor a(0): x(0) = X exactly */
+        double *zero = crom_calloc((size_t)r, sizeof(double)), *a0 = crom_malloc(sizeof(double) * (size_t)map->p);
+        rc = zero && a0 ? crom_map_features(map, zero, a0, NULL) : CROM_EINTERNAL;
+        free(zero);
+        if (rc)
+            free(a0);
+        else
+            map->anchor = a0;
+    }
     if (rc)
         crom_map_free(map);
     return rc;
@@ -246,9 +256,12 @@ int crom_map_features(crom_map *map, const double *q, double *a, double *T)
         if (a) {
             memcpy(a, map->b[L - 1], sizeof(double) * (size_t)p);
             cblas_dgemv(CblasRowMajor, CblasNoTrans, p, nh, 1.0, map->w[L - 1], nh, h, 1, 1.0, a, 1);
-            for (int i = 0; i < p; i++)
+            for (int i = 0; i < p; i++) {
                 if (!isfinite(a[i]))
                     return crom_err(CROM_EDATA, "the map's network is not finite at this latent");
+                if (map->anchor)
+                    a[i] -= map->anchor[i];
+            }
         }
         if (T)
             cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, p, r, nh, 1.0, map->w[L - 1], nh, t, r, 0.0, T,
@@ -259,9 +272,12 @@ int crom_map_features(crom_map *map, const double *q, double *a, double *T)
         memcpy(a, q, sizeof(double) * (size_t)rl);
         memcpy(a + rl, h, sizeof(double) * (size_t)nh);
         a[p - 1] = 1;
-        for (int i = 0; i < p; i++)
+        for (int i = 0; i < p; i++) {
             if (!isfinite(a[i]))
                 return crom_err(CROM_EDATA, "the map's network is not finite at this latent");
+            if (map->anchor)
+                a[i] -= map->anchor[i];
+        }
     }
     if (T) {
         memset(T, 0, sizeof(double) * (size_t)rl * r);

@@ -11,6 +11,15 @@
  *   - a linear basis (pod, modes, skinning, or an mlp neural field) sampled at the
  *     vertices of a mesh: N = 0 and W = W(X_v).
  *
+ * Every nonlinear map is ANCHORED at the rest shape: its features are
+ * taken relative to their value at q = 0, a(q) − a(0) (below), so that
+ *
+ *     x(q) = X + W q + N(q) − N(0),   x(X, q) = X + W(X) (φ(q) − φ(0)),
+ *
+ * and x(0) = X exactly, to the last bit, whatever the network: a run from
+ * rest starts at q = 0 and a run with no load stays there (lib/nlrom.h).
+ * The data-free trainers (lib/datafree.h) train this same anchored map.
+ *
  * The network N runs in double precision from the stored float32 weights
  * (converted once), so x(q) is smooth to round-off: Gauss–Newton on it
  * (lib/rom/nlsim.h) and finite-difference checks see no float noise. Output
@@ -33,16 +42,17 @@ typedef struct crom_map_s {
     crom_mesh mesh;      /* the mesh (owned copy, with regions) */
     /* The map as a linear basis over features a(q) in R^p:
      *     x(q) = X + B a(q),   J(q) = B T(q),  T = da/dq [p][r],
-     * a = [q (if W) | the last hidden layer of N | 1 (if N)] and
-     * B = [W | W_L | b_L] ([n][p] row-major), so that everything a reduced
+     * a = [q (if W) | the last hidden layer h of N | 1 (if N)] less its
+     * value at 0, i.e. [q | h(q) − h(0) | 0], and B = [W | W_L | b_L]
+     * ([n][p] row-major; a continuous map: a = φ(q) − φ(0)), so that everything a reduced
      * simulation needs from a few vertices costs p flops per row and
      * quadratic forms over all vertices are p x p (lib/rom/nlsim.h). A linear
      * basis has a = q, T = I, B = W. */
     int p;
     double *B;           /* [n][p] */
     int rl;              /* leading features equal to q: r with a linear part, else 0 */
-    int phi;             /* 1: the features are the network's output, a = φ(q)
-                          * (a continuous map, x = X + W(X) φ(q): B = W(X_v)) */
+    int phi;             /* 1: the features are the network's output, a = φ(q) − φ(0)
+                          * (a continuous map, x = X + W(X) (φ(q) − φ(0)): B = W(X_v)) */
     /* the hidden layers of N in double: layer l maps width[l] to width[l+1] */
     int nlayers, width[CROM_NN_MAX_LAYERS + 1];
     crom_nn_act act;     /* hidden activation; the output layer is linear */
@@ -52,6 +62,7 @@ typedef struct crom_map_s {
     /* scratch: activations and tangents of the widest hidden layer */
     double *a0, *a1, *z1, *t0, *t1;
     double *fa, *fT;     /* crom_map_eval's features and their Jacobian */
+    double *anchor;      /* [p] a(0), subtracted from the features of a nonlinear map (NULL: linear) */
 } crom_map;
 
 /* Build the map of a model. A map model (energy, neuralmodes) lives on its
@@ -70,8 +81,9 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
 int crom_map_eval(crom_map *map, const double *q, double *x, double *J);
 
 /* Features a [p] (NULL to skip) and their Jacobian T [p][r] row-major
- * (NULL to skip) at latent q [r] (see above). Returns 0 or CROM_EDATA when a
- * feature is not finite. */
+ * (NULL to skip) at latent q [r] (see above; for a nonlinear map a is
+ * anchored, a(q) − a(0), so a = 0 at q = 0). Returns 0 or CROM_EDATA when
+ * a feature is not finite. */
 int crom_map_features(crom_map *map, const double *q, double *a, double *T);
 
 /* Positions x [nidx][3] = X_v + B_v a of the vertices idx [nidx] (all

@@ -73,6 +73,8 @@ const char *crom_model_id(const crom_model *m, char id[17])
     fnv s = {0xcbf29ce484222325ULL};
     fnv_bytes(&s, m->basis, strlen(m->basis) + 1);
     fnv_i64(&s, m->rank);
+    if (crom_model_is_nonlinear(m)) /* a map anchored at rest, x(0) = X (lib/rom/map.h) */
+        fnv_bytes(&s, "anchored", 9);
     if (m->field == CROM_MODEL_FIELD_SKIN) {
         s.h = crom_skin_digest(m, s.h);
     } else if (m->field == CROM_MODEL_FIELD_MLP || m->field == CROM_MODEL_FIELD_CMAP) {

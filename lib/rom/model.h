@@ -211,10 +211,4 @@ void crom_model_free(crom_model *m);
 /* Name of an encoder code ("none", "lsq", "pointnet"). */
 const char *crom_model_encoder_name(int enc);
 
-/* Old names (issue 13), kept only for bin/crom-fitfield.c, which another
- * branch is editing, until it uses the names above; tests/prog/layers.sh
- * keeps all other code off them. */
-#define CROM_ENC_LSQ CROM_MODEL_ENC_LSQ
-#define CROM_ENC_POINTNET CROM_MODEL_ENC_POINTNET
-
 #endif

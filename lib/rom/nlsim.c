@@ -3,7 +3,6 @@
 #ifdef _OPENMP
 #include <omp.h>
 #endif
-#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,9 +18,9 @@
 #include "rom/newton.h"
 #include "rom/nlsim.h"
 
-#define TW(r) (168 + 24 * (size_t)(r) + 12) /* per-thread tet scratch: crom_cub_tet's, J4, xe */
+#define TW(r) (168 + 24 * (size_t)(r) + 12) /* per-thread tet scratch: crom_cubature_tet's, J4, xe */
 
-static void free_bcs(crom_nlbc *b, int n)
+static void free_bcs(crom_nlsim_bc *b, int n)
 {
     for (int i = 0; b && i < n; i++)
         free(b[i].idx);
@@ -49,7 +48,7 @@ void crom_nlsim_free(crom_nlsim *s)
     memset(s, 0, sizeof *s);
 }
 
-static int region(crom_nlsim *s, const char *ref, const crom_bc *bc, crom_nlbc *b)
+static int region(crom_nlsim *s, const char *ref, const crom_bc *bc, crom_nlsim_bc *b)
 {
     int rc = crom_mesh_select(&s->map->mesh, ref, &b->idx, &b->n);
     if (rc)
@@ -102,66 +101,6 @@ static int initial_velocity(crom_nlsim *s)
     cblas_dgemv(CblasRowMajor, CblasTrans, n, r, 1.0, s->J, r, s->gx, 1, 0.0, s->qd, 1);
     if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, s->H, r, s->qd, 1) != 0)
         return crom_err(CROM_EDATA, "the map's latent directions are degenerate at the initial state");
-    return 0;
-}
-
-/* The fit of x(q) to the rest shape, ½‖x(q) − X‖²_M, and its gradient
- * Jᵀ M (x(q) − X) (J left in s->J), for the line search. */
-static int rest_eval(void *ctx, const double *q, double *f, double *g)
-{
-    crom_nlsim *s = ctx;
-    int rc = crom_map_eval(s->map, q, s->xt, g ? s->J : NULL);
-    if (rc)
-        return rc;
-    const double *X = s->map->mesh.X;
-    double e = 0;
-    for (int i = 0; i < s->n; i++) {
-        double d = s->xt[i] - X[i];
-        s->gx[i] = s->fem.mass[i / 3] * d;
-        e += 0.5 * d * s->gx[i];
-    }
-    *f = e;
-    if (g)
-        cblas_dgemv(CblasRowMajor, CblasTrans, s->n, s->r, 1.0, s->J, s->r, s->gx, 1, 0.0, g, 1);
-    return 0;
-}
-
-/* Start at rest: the latent whose shape is nearest the rest shape in the
- * mass norm, q = argmin ½‖x(q) − X‖²_M, by Gauss–Newton from q = 0. A
- * data-free map's origin need not be the rest state (Sharp et al. §4.1:
- * the seed state is gone once training ends); for linear bases and maps
- * with x(0) = X this leaves q = 0. */
-static int nearest_rest(crom_nlsim *s)
-{
-    int r = s->r, n = s->n;
-    for (int it = 0; it < 100; it++) {
-        double f;
-        int rc = rest_eval(s, s->q, &f, s->g);
-        if (rc)
-            return rc;
-        mass_gram(s);
-        for (int k = 0; k < r; k++)
-            s->d[k] = -s->g[k];
-        if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, s->H, r, s->d, 1) != 0)
-            return crom_err(CROM_EDATA, "the map's latent directions are degenerate near the rest shape");
-        double slope = cblas_ddot(r, s->g, 1, s->d, 1);
-        if (!(slope < 0))
-            break; /* at the minimum (x(0) = X exactly for a linear basis) */
-        /* converged when the step moves no vertex by more than 1e-10 L */
-        cblas_dgemv(CblasRowMajor, CblasNoTrans, n, r, 1.0, s->J, r, s->d, 1, 0.0, s->wd, 1);
-        double move = 0;
-        for (int i = 0; i < n; i++)
-            move = fmax(move, fabs(s->wd[i]));
-        if (move <= 1e-10 * s->L) {
-            cblas_daxpy(r, 1.0, s->d, 1, s->q, 1);
-            break;
-        }
-        double alpha = crom_linesearch(rest_eval, s, (size_t)r, s->q, s->d, f, slope, 64 * DBL_EPSILON * f,
-                                       -slope < 1e-10 * f, s->qt, s->tg, NULL);
-        if (alpha == 0)
-            break; /* no decrease left that f resolves */
-        memcpy(s->q, s->qt, sizeof(double) * (size_t)r);
-    }
     return 0;
 }
 
@@ -276,7 +215,7 @@ static int quadratic_setup(crom_nlsim *s)
     for (size_t i = 0; i < (size_t)p * p; i++)
         s->Aq[i] = cq * s->A0[i];
     for (int k = 0; k < s->nbc; k++) {
-        const crom_nlbc *b = &s->bc[k];
+        const crom_nlsim_bc *b = &s->bc[k];
         for (int j = 0; j < b->n; j++) {
             int v = b->idx[j];
             cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, p, 3, s->kappa * s->fem.mass[v],
@@ -329,8 +268,8 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
     s->tH = crom_malloc(sizeof(double) * rr * T);
     s->tg = crom_malloc(sizeof(double) * (size_t)r * T);
     s->tE = crom_malloc(sizeof(double) * (size_t)T);
-    s->bc = crom_calloc((size_t)(sc->npins + sc->nvel + 1), sizeof(crom_nlbc));
-    s->force = crom_calloc((size_t)(sc->nforce + 1), sizeof(crom_nlbc));
+    s->bc = crom_calloc((size_t)(sc->npins + sc->nvel + 1), sizeof(crom_nlsim_bc));
+    s->force = crom_calloc((size_t)(sc->nforce + 1), sizeof(crom_nlsim_bc));
     int ok = s->J && s->Jt && s->tw && s->tH && s->tg && s->tE && s->bc && s->force;
     for (size_t i = 0; i < sizeof vr / sizeof *vr; i++)
         ok = ok && *vr[i];
@@ -387,11 +326,9 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
                 s->surf[s->nsurf++] = v;
         free(on);
     }
-    /* initial state */
+    /* initial state: q0, or rest, which is q = 0 in every map (lib/map.h) */
     if (q0)
         memcpy(s->q, q0, sizeof(double) * (size_t)r);
-    else if ((rc = nearest_rest(s)))
-        goto fail;
     if (qd0)
         memcpy(s->qd, qd0, sizeof(double) * (size_t)r);
     else if ((rc = initial_velocity(s)))
@@ -414,7 +351,7 @@ static void feature_loads(crom_nlsim *s, double t, double *fa)
     const double *g = s->sc->gravity;
     cblas_dgemv(CblasRowMajor, CblasTrans, 3, p, 1.0, s->Bg, p, g, 1, 0.0, fa, 1);
     for (int b = 0; b < s->nforce; b++) {
-        const crom_nlbc *fb = &s->force[b];
+        const crom_nlsim_bc *fb = &s->force[b];
         double F[3];
         crom_bc_force(fb->bc, t, F);
         for (int k = 0; k < fb->n; k++) {
@@ -440,7 +377,7 @@ void crom_nlsim_begin_step(crom_nlsim *s)
     cblas_dsymv(CblasRowMajor, CblasUpper, p, 1.0, s->A0, p, s->va, 1, 0.0, s->fa, 1);
     double c0 = 0.5 * cblas_ddot(p, s->va, 1, s->fa, 1);
     for (int k = 0; k < s->nbc; k++) {
-        const crom_nlbc *b = &s->bc[k];
+        const crom_nlsim_bc *b = &s->bc[k];
         double u[3] = {0, 0, 0};
         if (b->bc)
             crom_bc_displacement(b->bc, t1, u);
@@ -504,7 +441,7 @@ static int elastic(crom_nlsim *s, double *E, double *g, double *H, int project)
                 if (g || H)
                     memcpy(J4 + (size_t)a * 3 * r, s->Jc + (size_t)e[a] * 3 * r, 3 * (size_t)r * sizeof(double));
             }
-            double Ee = (g || H) ? crom_cub_tet(&f->mat, xe, J4, r, f->Dminv + 9 * (size_t)t, f->vol[t], s->ew[j],
+            double Ee = (g || H) ? crom_cubature_tet(&f->mat, xe, J4, r, f->Dminv + 9 * (size_t)t, f->vol[t], s->ew[j],
                                                 s->zero, project, tg, tH, w)
                                  : crom_fem_tet_energy(&f->mat, xe, f->Dminv + 9 * (size_t)t, f->vol[t]);
             if (!isfinite(Ee))
@@ -683,10 +620,39 @@ static int step_objective(void *ctx, const double *q, double *E, double *g, doub
     return crom_nlsim_objective(((step_ctx *)ctx)->s, q, E, g, H, project);
 }
 
+/* Newton on the exact Hessian H + C (in c->C) where it is indefinite:
+ * its eigenvalues taken by absolute value, at least 1e-12 dmax (Dauphin et
+ * al. 2014's saddle-free Newton), d = −V |Λ|⁻¹ Vᵀ g, a descent direction
+ * that keeps the curvature the Gauss–Newton matrix leaves out. Returns 0,
+ * 1 when the eigen-solve fails, CROM_EINTERNAL. */
+static int abs_newton(step_ctx *c, const double *H, const double *g, double dmax, double *d)
+{
+    int r = c->s->r;
+    double *w = crom_malloc(sizeof(double) * 2 * (size_t)r), *vg = w ? w + r : NULL;
+    if (!w)
+        return CROM_EINTERNAL;
+    for (size_t i = 0; i < (size_t)r * r; i++)
+        c->Hs[i] = H[i] + c->C[i];
+    int rc = LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'V', 'U', r, c->Hs, r, w) != 0;
+    for (int k = 0; !rc && k < r; k++) { /* column k of Hs is eigenvector k */
+        vg[k] = 0;
+        for (int i = 0; i < r; i++)
+            vg[k] += c->Hs[i * r + k] * g[i];
+        vg[k] /= fmax(fabs(w[k]), 1e-12 * dmax);
+    }
+    for (int i = 0; !rc && i < r; i++) {
+        d[i] = 0;
+        for (int k = 0; k < r; k++)
+            d[i] -= c->Hs[i * r + k] * vg[k];
+    }
+    free(w);
+    return rc;
+}
+
 /* Gauss–Newton; when it stalls (the map's curvature matters: large forces
  * along strongly curved or nearly degenerate latent directions), Newton
- * with the curvature term, whenever that matrix is positive definite and
- * gives descent. */
+ * with the curvature term, on H + C where it is positive definite and
+ * gives descent, else on |H + C| (abs_newton). */
 static int step_direction(void *ctx, int it, int project, const double *q, const double *g, const double *H,
                           double *d)
 {
@@ -709,8 +675,13 @@ static int step_direction(void *ctx, int it, int project, const double *q, const
             dmax = fmax(dmax, fabs(H[i * r + i]));
         for (int i = 0; i < r; i++)
             c->Hs[i * r + i] += 1e-12 * dmax;
-        if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, c->Hs, r, d, 1) != 0)
+        if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, c->Hs, r, d, 1) != 0) {
+            if (pass == 0 && (rc = abs_newton(c, H, g, dmax, d)) == 0)
+                return 0;
+            if (rc > 1)
+                return rc;
             continue;
+        }
         double sl = 0;
         for (int i = 0; i < r; i++)
             sl += g[i] * d[i];
@@ -722,16 +693,25 @@ static int step_direction(void *ctx, int it, int project, const double *q, const
 
 static double step_size(void *ctx, const double *d) { return rms_disp(((step_ctx *)ctx)->s, d); }
 
-int crom_nlsim_step(crom_nlsim *s, crom_rstep_stats *st)
+int crom_nlsim_step(crom_nlsim *s, crom_rsim_stats *st)
 {
     const crom_scenario *sc = s->sc;
     int r = s->r;
     size_t rr = (size_t)r * r;
-    double h = sc->dt, t0 = crom_now();
+    double h = sc->dt, t0 = crom_clock_now();
     memset(st, 0, sizeof *st);
     crom_nlsim_begin_step(s);
+    /* start at the latent predictor q_n + h q̇_n, or at q_n where the map
+     * curves so much that the predictor is worse (a straight line in q is
+     * no straight line in x) */
+    double Ep = 0, En = 0;
+    int rc0 = crom_nlsim_objective(s, s->qn, &En, NULL, NULL, 0);
     for (int i = 0; i < r; i++)
         s->q[i] = s->qn[i] + h * s->qd[i];
+    if (!rc0 && s->map->nonlinear && (crom_nlsim_objective(s, s->q, &Ep, NULL, NULL, 0) || !(Ep <= En))) {
+        crom_err_clear();
+        memcpy(s->q, s->qn, sizeof(double) * (size_t)r);
+    }
     step_ctx c = {s, crom_malloc(sizeof(double) * rr), crom_malloc(sizeof(double) * rr)};
     if (!c.C || !c.Hs) {
         free(c.C);
@@ -759,7 +739,7 @@ int crom_nlsim_step(crom_nlsim *s, crom_rstep_stats *st)
     s->step++;
     s->t = (double)s->step * h; /* exact multiples of dt (issue 12) */
     st->constraint_residual = crom_nlsim_constraint_residual(s);
-    st->seconds = crom_now() - t0;
+    st->seconds = crom_clock_now() - t0;
     return 0;
 }
 

@@ -104,9 +104,4 @@ double crom_rsim_constraint_residual(const crom_rsim *s);
 
 void crom_rsim_free(crom_rsim *s);
 
-/* Old name (issue 13), kept only for lib/rom/nlsim.c, which another branch
- * is editing, until it uses the name above; tests/prog/layers.sh keeps all
- * other code off it. */
-#define crom_rstep_stats crom_rsim_stats
-
 #endif

@@ -12,27 +12,27 @@
 cd "$TMP"
 crom-mesh box --dims 1,0.2,0.2 --size 0.1 --region clamp='x<-0.49' --region tip='x>0.49' -o bar.h5
 MAT=(--youngs 1e6 --poisson 0.3 --density 1000)
-TRAIN=(--steps 300 --batch 16 --width 32)
+TRAIN=(--steps 1000 --batch 16 --width 32)
 crom-modes "${MAT[@]}" --pin clamp --count 3 -q -o modes.h5 bar.h5
 
 # 1. an energy map of the clamped bar under gravity (Sharp et al.)
 crom-fitfield --objective energy --mesh bar.h5 "${MAT[@]}" --pin clamp --rank 2 "${TRAIN[@]}" -o df.h5 2>df.log
 cat df.log
 crom-info --check df.h5 >/dev/null || fail "crom-info --check df.h5"; ok
-grep -q "crom-fitfield: energy map, rank 2 on 110 vertices (12 pinned): 300 steps" df.log || fail "summary line"; ok
+grep -q "crom-fitfield: energy map, rank 2 on 110 vertices (12 pinned): 1000 steps" df.log || fail "summary line"; ok
 $PY - df.h5 bar.h5 <<'PYEOF' || fail "energy model"
 import sys, h5py, numpy as np
 f, b = h5py.File(sys.argv[1]), h5py.File(sys.argv[2])
 s = lambda v: v.decode() if isinstance(v, bytes) else v
 if not (s(f.attrs["basis"]) == "energy" and f.attrs["rank"] == 2 and s(f.attrs["encoder"]) == "none"):
     raise SystemExit("check failed: s(f.attrs[\"basis\"]) == \"energy\" and f.attrs[\"rank\"] == 2 and s(f.attrs[\"encoder\"]) == \"none\"")
-if not (s(f.attrs["activation"]) == "elu" and f.attrs["training_steps"] == 300):
-    raise SystemExit("check failed: s(f.attrs[\"activation\"]) == \"elu\" and f.attrs[\"training_steps\"] == 300")
+if not (s(f.attrs["activation"]) == "elu" and f.attrs["training_steps"] == 1000):
+    raise SystemExit("check failed: s(f.attrs[\"activation\"]) == \"elu\" and f.attrs[\"training_steps\"] == 1000")
 sc = s(f.attrs["scenario"])
 if not ("--youngs 1000000" in sc and "--pin clamp" in sc and "--gravity 0,-9.81" in sc):
     raise SystemExit(f"check failed: {sc!s}")
-if not (np.allclose(f.attrs["gravity"], [0, -9.81, 0]) and f.attrs["isometry_weight"] == 1):
-    raise SystemExit("check failed: np.allclose(f.attrs[\"gravity\"], [0, -9.81, 0]) and f.attrs[\"isometry_weight\"] == 1")
+if not (np.allclose(f.attrs["gravity"], [0, -9.81, 0]) and f.attrs["isometry_weight"] == 0.03):
+    raise SystemExit("check failed: np.allclose(f.attrs[\"gravity\"], [0, -9.81, 0]) and f.attrs[\"isometry_weight\"] == 0.03")
 if not (abs(f.attrs["sigma"] - 0.05 * np.sqrt(1 + 0.04 + 0.04)) < 1e-12):  # default: 5% of the diagonal
     raise SystemExit("check failed: abs(f.attrs[\"sigma\"] - 0.05 * np.sqrt(1 + 0.04 + 0.04)) < 1e-12")
 if not (abs(f.attrs["mass"] - 40) < 1e-9):
@@ -107,8 +107,8 @@ if not (f.attrs["youngs"] == 1e6 and f.attrs["poisson"] == 0.3):  # the material
     raise SystemExit("check failed: f.attrs[\"youngs\"] == 1e6 and f.attrs[\"poisson\"] == 0.3")
 if not ("--pin clamp" in s(f.attrs["scenario"]) and "gravity" not in s(f.attrs["scenario"])):
     raise SystemExit("check failed: \"--pin clamp\" in s(f.attrs[\"scenario\"]) and \"gravity\" not in s(f.attrs[\"scenario\"])")
-if not (abs(f.attrs["latent_box"] - 0.1 * np.sqrt(1.08)) < 1e-12):
-    raise SystemExit("check failed: abs(f.attrs[\"latent_box\"] - 0.1 * np.sqrt(1.08)) < 1e-12")
+if not (abs(f.attrs["latent_box"] - 0.2 * np.sqrt(1.08)) < 1e-12):
+    raise SystemExit("check failed: abs(f.attrs[\"latent_box\"] - 0.2 * np.sqrt(1.08)) < 1e-12")
 PYEOF
 ok
 # no collapsed dimension (Wang et al. §4.4): J = W + dy/dz at 0 with y
@@ -265,7 +265,57 @@ crom-diff run_fld.h5 full_fine.h5 --model fld.h5 --mesh fine.h5 -q | tee diff_fl
   || fail "diff of the field run"; ok
 cat diff_fld.txt
 
-# 6. bad input: one line, the right status, no output left
+# 6. rest is exact, and the first step from rest follows crom-fullsim: one
+#    map of each kind at rank 8 (the linear modes need 8 here to follow the
+#    first step within 10%: 45% at rank 4, 16% at 6, 7% at 8). With no load
+#    a run stays at rest to round-off; under gravity the displacement after
+#    the first step is within 10% of the full one (crom-diff, frame 1). The
+#    energy map holds its directions at rest with --tangent-weight 0.3
+#    (measured 6%; at the default 0.1, which keeps the static sag better on
+#    the bench, 14%: README, "Benchmarks")
+crom-modes "${MAT[@]}" --pin clamp --count 8 -q -o modes8.h5 bar.h5
+R8=(--rank 8 --steps 1000 --batch 16 --width 32)
+crom-fitfield --objective energy --mesh bar.h5 "${MAT[@]}" --pin clamp "${R8[@]}" --tangent-weight 0.3 -q -o e8.h5
+crom-fitfield --objective neuralmodes --mesh bar.h5 --modes modes8.h5 "${R8[@]}" -q -o n8.h5
+crom-fitfield --objective field --mesh bar.h5 "${MAT[@]}" --pin clamp "${R8[@]}" --features 16 --tets 127 \
+  --pin-length 0.1 -q -o f8.h5   # the default mask, twice the mean edge (0.2 m on this coarse bar), holds
+                                 # the first 20% of the bar nearly still: 11% off (7% with 0.1 m)
+crom-fullsim "${MAT[@]}" --pin clamp --dt 0.01 --steps 2 -q -o full_first.h5 bar.h5
+crom-fullsim "${MAT[@]}" --pin clamp --dt 0.01 --steps 20 --gravity 0,0,0 -q -o full_rest.h5 bar.h5
+for m in e8 n8 f8; do
+  M=(--model $m.h5 --mesh bar.h5)
+  crom-reducedstep "${M[@]}" "${MAT[@]}" --pin clamp --dt 0.01 --steps 20 --gravity 0,0,0 -q -o rest_$m.h5
+  crom-diff rest_$m.h5 full_rest.h5 "${M[@]}" >rest_$m.txt
+  worst=$(awk 'NR > 1 && $1 ~ /^[0-9]+$/ { if ($4 > w) w = $4 } END { printf "%.3g", w + 0 }' rest_$m.txt)
+  echo "$m: no load, 20 steps: largest vertex displacement $worst m"
+  $PY -c "import sys; sys.exit(0 if $worst < 1e-12 else 1)" || fail "$m moved $worst m with no load"; ok
+  crom-reducedstep "${M[@]}" "${MAT[@]}" --pin clamp --dt 0.01 --steps 2 -q -o first_$m.h5
+  e1=$(crom-diff first_$m.h5 full_first.h5 "${M[@]}" | awk '$1 == 1 { print $3 }')
+  echo "$m: first step under gravity, relative displacement error $e1 against crom-fullsim"
+  $PY -c "import sys; sys.exit(0 if $e1 < 0.1 else 1)" || fail "$m: first step $e1 off"; ok
+done
+
+# the static sag (the same load heavily damped to rest) at rank 4 with the
+# default training (4000 steps): the linear modes miss it by 57% (they
+# cannot rotate); the energy map and the neural modes must come within 25%
+# (measured 14% and 2%; other seeds of the energy map: 19-22%)
+ST=(--pin clamp --gravity 0,-9.81,0 --dt 0.02 --steps 100 --damping 30)
+crom-fullsim "${MAT[@]}" "${ST[@]}" -q -o sfull.h5 bar.h5
+crom-modes "${MAT[@]}" --pin clamp --count 4 -q -o modes4.h5 bar.h5
+crom-fitfield --objective energy --mesh bar.h5 "${MAT[@]}" --pin clamp --rank 4 -q -o se4.h5
+crom-fitfield --objective neuralmodes --mesh bar.h5 --modes modes4.h5 -q -o sn4.h5
+for m in modes4 se4 sn4; do
+  crom-reducedstep --model $m.h5 --mesh bar.h5 "${MAT[@]}" "${ST[@]}" -q -o sag_$m.h5
+  e=$(crom-diff sag_$m.h5 sfull.h5 --model $m.h5 --mesh bar.h5 | awk '$1 == 100 { print $3 }')
+  echo "$m: static sag error $e"
+  if [ $m = modes4 ]; then
+    $PY -c "import sys; sys.exit(0 if $e > 0.4 else 1)" || fail "the linear modes hold the sag ($e): no test"; ok
+  else
+    $PY -c "import sys; sys.exit(0 if $e < 0.25 else 1)" || fail "$m: static sag $e off"; ok
+  fi
+done
+
+# 7. bad input: one line, the right status, no output left
 O=out; mkdir -p $O
 crom-mesh box --dims 1,0.2,0.2 --size 0.15 --region clamp='x<-0.49' -o other.h5
 crom-mesh box --size 0.6 -o tiny.h5

@@ -104,15 +104,7 @@ EXCEPT = {
                 "io.c is one module of four families (checked HDF5 calls, inputs, outputs, plain "
                 "outputs) that share the temporary-file registry and the stream format"),
     "mesh/locate.h": (r"crom_locator", "the object crom_locate_* build and query: a noun, not crom_locate"),
-    "datafree/datafree.h": (r"crom_dff?_\w+|CROM_DF_\w+", "renamed once lib/datafree/ settles (issue 13)"),
-    "datafree/dfskin.h": (r"crom_dfs_\w+|CROM_DFS_\w+", "renamed once lib/datafree/ settles (issue 13)"),
 }
-# Files another branch is editing keep using some old names until they are
-# merged: a header keeps each such name as an alias, `#define OLD NEW` (NEW
-# declared in the same header). Nothing else may use an old name, and an
-# alias that nothing uses any more is to be deleted.
-PENDING = sorted(glob.glob("lib/datafree/*.[ch]")) + ["bin/crom-fitfield.c", "lib/rom/nlsim.c"]
-
 def strip_c(text):
     """text without comments and string/char literals (newlines kept)"""
     out, i, n = [], 0, len(text)
@@ -139,16 +131,13 @@ TOKEN = re.compile(r"[A-Za-z_]\w*|\d[\w.]*|\S")
 
 def public_names(text):
     """[(kind, name)] declared at file scope of a header"""
-    names, aliases = [], {}
+    names = []
     text = re.sub(r"\\\n", " ", strip_c(text))   # macros continued over lines
     body = []
     for line in text.split("\n"):
         m = re.match(r"\s*#\s*define\s+(\w+)(.*)", line)
         if m:
             names.append(("macro", m.group(1)))
-            val = m.group(2).strip()
-            if re.fullmatch(r"[A-Za-z_]\w*", val) and not m.group(2).startswith("("):
-                aliases[m.group(1)] = val
         body.append("" if line.lstrip().startswith("#") else line)
     toks = TOKEN.findall("\n".join(body))
     decl, depth = [], 0
@@ -219,39 +208,20 @@ def public_names(text):
         else:
             decl.append(t)
     finish(decl)
-    return names, aliases
+    return names
 
-used_old = {}
 nnames = 0
 for path in sorted(glob.glob("lib/*/*.h")):
     mod = os.path.relpath(path, "lib")
     name = os.path.basename(path)[:-2]
     ok_rx = re.compile(rf"(crom_{name}|CROM_{name.upper()})(_\w+)?")
     exc = EXCEPT.get(mod)
-    names, aliases = public_names(open(path).read())
-    declared = {n for _, n in names}
+    names = public_names(open(path).read())
     for kind, n in names:
         nnames += 1
         if ok_rx.fullmatch(n) or (exc and re.fullmatch(exc[0], n)):
             continue
-        if kind == "macro" and aliases.get(n) in declared and ok_rx.fullmatch(aliases[n]):
-            used_old[n] = (path, aliases[n])
-            continue
         errors.append(f"{path}: {kind} {n} does not start with crom_{name}_ or CROM_{name.upper()}_")
-for old, (hdr, new) in sorted(used_old.items()):
-    users = []
-    for path in sorted(glob.glob("lib/*/*.[ch]") + glob.glob("bin/*.c") + glob.glob("tests/unit/*.[ch]")):
-        code = strip_c(open(path).read())
-        if path == hdr:
-            code = re.sub(rf"#\s*define\s+{old}\s+{new}\b", "", code)
-        if re.search(rf"\b{old}\b", code):
-            users.append(path)
-    for u in users:
-        if u not in PENDING:
-            errors.append(f"{u}: uses the old name {old}: write {new}")
-    if not users:
-        errors.append(f"{hdr}: the alias {old} of {new} is used by no file any more: delete it")
-
 # Python checks in the program tests exit explicitly
 for path in sorted(glob.glob("tests/prog/*.sh")):
     for n, line in enumerate(open(path), 1):
@@ -264,6 +234,5 @@ if errors:
 nmod = len({m[:-2] for m in modules})
 print(f"layers: {' < '.join(order)}; {nmod} modules, no upward include, no include cycle")
 print(f"prefixes: {nnames} public names in {len(glob.glob('lib/*/*.h'))} headers start with their module's prefix, "
-      f"but for {len(EXCEPT)} headers' exceptions; {len(used_old)} old names kept as aliases for "
-      f"{', '.join(p for p in PENDING if not p.startswith('lib/datafree/'))} and lib/datafree/")
+      f"but for {len(EXCEPT)} headers' exceptions")
 PYEOF

@@ -206,7 +206,7 @@ int main(void)
     check_begin("test_elastic");
     crom_mesh m;
     const double dims[3] = {1, 0.3, 0.3};
-    if (fx_gen(CROM_SHAPE_BOX, dims, 0.15, &m))
+    if (fx_gen(CROM_MESHGEN_BOX, dims, 0.15, &m))
         return check_done();
     crom_rng rng;
     crom_rng_seed(&rng, 11);

@@ -348,7 +348,7 @@ static void test_eigen(const crom_mesh *m, const crom_mesh *other, const crom_ma
     crom_model free_m, pin_m;
     long solves = 0;
     /* a free body: the constant and H - 1 eigenvectors */
-    int rc = crom_dfs_eigen(m, mat, NULL, 5, &free_m, &solves);
+    int rc = crom_dfskin_eigen(m, mat, NULL, 5, &free_m, &solves);
     CHECK_MSG(rc == 0, "eigen: %s", crom_errmsg());
     CHECK(free_m.handles == 5 && free_m.skin_constant == 1 && free_m.rank == 60 && free_m.skin_w);
     int nv = m->nv, H = 5;
@@ -435,7 +435,7 @@ static void test_eigen(const crom_mesh *m, const crom_mesh *other, const crom_ma
     /* a clamped bar: every weight exactly 0 on the clamp, also laid on
      * another mesh (interpolated from the clamped face) */
     unsigned char *fixed = clamp_mask(m);
-    rc = crom_dfs_eigen(m, mat, fixed, 4, &pin_m, NULL);
+    rc = crom_dfskin_eigen(m, mat, fixed, 4, &pin_m, NULL);
     CHECK_MSG(rc == 0, "eigen (clamped): %s", crom_errmsg());
     CHECK(pin_m.skin_constant == 0 && pin_m.rank == 48);
     double wpin = 0, wother = 0, wfar = 0;
@@ -459,11 +459,11 @@ static void test_eigen(const crom_mesh *m, const crom_mesh *other, const crom_ma
     CHECK(wfar > 1);
     /* handle counts: none, and more than the free DOFs allow */
     crom_model bad;
-    CHECK(crom_dfs_eigen(m, mat, fixed, 0, &bad, NULL) == CROM_EUSAGE);
+    CHECK(crom_dfskin_eigen(m, mat, fixed, 0, &bad, NULL) == CROM_EUSAGE);
     int nfree = 0;
     for (int v = 0; v < nv; v++)
         nfree += !fixed[3 * v];
-    CHECK(crom_dfs_eigen(m, mat, fixed, nfree / 4 + 1, &bad, NULL) == CROM_EUSAGE);
+    CHECK(crom_dfskin_eigen(m, mat, fixed, nfree / 4 + 1, &bad, NULL) == CROM_EUSAGE);
     CHECK(strstr(crom_errmsg(), "free degrees of freedom") != NULL);
     free(wo);
     free(fixed);
@@ -474,7 +474,7 @@ static void test_eigen(const crom_mesh *m, const crom_mesh *other, const crom_ma
 /* ------------------------------------------------------- trained loss */
 
 typedef struct {
-    crom_dfs_ctx *c;
+    crom_dfskin_ctx *c;
     float *p;
     int np, B, K;
     const double *q;
@@ -486,8 +486,8 @@ static double loss_at(const double *x, void *v)
     loss_case *t = v;
     for (int i = 0; i < t->np; i++)
         t->p[i] = (float)x[i];
-    crom_df_terms tm;
-    if (crom_dfs_loss(t->c, t->B, t->q, t->K, t->tets, &tm, NULL))
+    crom_datafree_terms tm;
+    if (crom_dfskin_loss(t->c, t->B, t->q, t->K, t->tets, &tm, NULL))
         return NAN;
     return tm.objective;
 }
@@ -495,9 +495,9 @@ static double loss_at(const double *x, void *v)
 static void gradient_check(const crom_mesh *m, const crom_material *mat, int pinned)
 {
     unsigned char *fixed = pinned ? clamp_mask(m) : NULL;
-    crom_dfs_problem P = {m, *mat, fixed, 0, 0, NULL, 0, NULL};
-    crom_dfs_opts o;
-    crom_dfs_defaults(&o);
+    crom_dfskin_problem P = {m, *mat, fixed, 0, 0, NULL, 0, NULL};
+    crom_dfskin_opts o;
+    crom_dfskin_defaults(&o);
     o.handles = 3;
     o.sigma = 0.05;
     o.pin_length = 0.3;     /* a wide mask: many vertices inside it */
@@ -514,8 +514,8 @@ static void gradient_check(const crom_mesh *m, const crom_material *mat, int pin
     for (int k = 0; k < K; k++)
         tets[k] = (int)crom_rng_below(&rng, (uint64_t)m->nt);
     tets[K - 1] = tets[0]; /* a repeat */
-    crom_dfs_ctx c;
-    int rc = crom_dfs_ctx_init(&c, &P, &o, &net, B, K);
+    crom_dfskin_ctx c;
+    int rc = crom_dfskin_ctx_init(&c, &P, &o, &net, B, K);
     CHECK_MSG(rc == 0, "ctx: %s", crom_errmsg());
     CHECK(c.constant == !pinned && c.Ht == Ht);
     double q[3 * 36];
@@ -524,8 +524,8 @@ static void gradient_check(const crom_mesh *m, const crom_material *mat, int pin
     int np = (int)net.nparams;
     float *g = malloc(sizeof(float) * np);
     double *ga = malloc(sizeof(double) * np), *gf = malloc(sizeof(double) * np), *x = malloc(sizeof(double) * np);
-    crom_df_terms tm;
-    rc = crom_dfs_loss(&c, B, q, K, tets, &tm, g);
+    crom_datafree_terms tm;
+    rc = crom_dfskin_loss(&c, B, q, K, tets, &tm, g);
     CHECK_MSG(rc == 0, "loss: %s", crom_errmsg());
     for (int i = 0; i < np; i++) {
         ga[i] = g[i];
@@ -601,10 +601,10 @@ static void gradient_check(const crom_mesh *m, const crom_material *mat, int pin
         }
         CHECK(onpin && inside > 0);
     }
-    CHECK(crom_dfs_loss(&c, B, q, K + 1, tets, &tm, NULL) == CROM_EUSAGE);
+    CHECK(crom_dfskin_loss(&c, B, q, K + 1, tets, &tm, NULL) == CROM_EUSAGE);
     crom_fem_free(&fem);
     crom_model_free(&mod);
-    crom_dfs_ctx_free(&c);
+    crom_dfskin_ctx_free(&c);
     crom_nn_mlp_free(&net);
     free(W);
     free(w);
@@ -620,15 +620,15 @@ static void gradient_check(const crom_mesh *m, const crom_material *mat, int pin
  * exact, whatever the network learned; a clamped one holds its clamp */
 static void test_trained(const crom_mesh *m, const crom_mesh *other, const crom_material *mat)
 {
-    crom_dfs_problem P = {m, *mat, NULL, 0, 0, NULL, 0, NULL};
-    crom_dfs_opts o;
-    crom_dfs_defaults(&o);
+    crom_dfskin_problem P = {m, *mat, NULL, 0, 0, NULL, 0, NULL};
+    crom_dfskin_opts o;
+    crom_dfskin_defaults(&o);
     o.handles = 4;
     o.steps = 60;
     o.tets = 100;
     crom_model tm;
-    crom_df_log log;
-    int rc = crom_dfs_train(&P, &o, &tm, &log);
+    crom_datafree_log log;
+    int rc = crom_dfskin_train(&P, &o, &tm, &log);
     CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
     CHECK(tm.skin_constant == 1 && tm.rank == 48 && log.steps == 60);
     double *vv = malloc(sizeof(double) * m->nv);
@@ -636,12 +636,12 @@ static void test_trained(const crom_mesh *m, const crom_mesh *other, const crom_
     CHECK(crom_skin_orthonormalize(&tm, (size_t)m->nv, m->X, vv, 1e-6) == 0);
     check_rigid(&tm, m, mat, "trained skinning, free body");
     check_rigid(&tm, other, mat, "trained skinning laid on another mesh");
-    crom_df_log_free(&log);
+    crom_datafree_log_free(&log);
     crom_model_free(&tm);
     /* clamped */
     unsigned char *fixed = clamp_mask(m);
     P.fixed = fixed;
-    rc = crom_dfs_train(&P, &o, &tm, &log);
+    rc = crom_dfskin_train(&P, &o, &tm, &log);
     CHECK_MSG(rc == 0, "train (clamped): %s", crom_errmsg());
     CHECK(tm.skin_constant == 0 && tm.npin_triangles > 0);
     double *wo = malloc(sizeof(double) * other->nv * 4), wmax = 0, wfar = 0;
@@ -657,13 +657,13 @@ static void test_trained(const crom_mesh *m, const crom_mesh *other, const crom_
             wfar);
     CHECK_LT(wmax, 1e-14);
     CHECK(wfar > 0.1);
-    crom_df_log_free(&log);
+    crom_datafree_log_free(&log);
     crom_model_free(&tm);
     o.handles = 0;
-    CHECK(crom_dfs_train(&P, &o, &tm, &log) == CROM_EUSAGE);
+    CHECK(crom_dfskin_train(&P, &o, &tm, &log) == CROM_EUSAGE);
     P.fixed = NULL;
     o.handles = 1; /* only the constant */
-    CHECK(crom_dfs_train(&P, &o, &tm, &log) == CROM_EUSAGE);
+    CHECK(crom_dfskin_train(&P, &o, &tm, &log) == CROM_EUSAGE);
     free(wo);
     free(vv);
     free(fixed);
@@ -766,21 +766,21 @@ static void test_cloud(void)
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
     CHECK(crom_cloud_pins(&c, 1, p1, &npin, &pX, &ntri, &tX) == 0);
-    crom_dfs_problem P = {&vm, mat, NULL, 1, npin, pX, ntri, tX};
-    crom_dfs_opts o;
-    crom_dfs_defaults(&o);
+    crom_dfskin_problem P = {&vm, mat, NULL, 1, npin, pX, ntri, tX};
+    crom_dfskin_opts o;
+    crom_dfskin_defaults(&o);
     o.handles = 3;
     o.steps = 20;
     o.tets = 200;
     crom_model tm;
-    crom_df_log log;
-    rc = crom_dfs_train(&P, &o, &tm, &log);
+    crom_datafree_log log;
+    rc = crom_dfskin_train(&P, &o, &tm, &log);
     CHECK_MSG(rc == 0, "train on points: %s", crom_errmsg());
     CHECK(tm.skin_constant == 0 && tm.npin_triangles == 2);
     double face[3] = {-0.5, 0.03, -0.07}, w[3];
     CHECK(crom_skin_weights(&tm, 1, face, w, NULL) == 0);
     CHECK_LT(fabs(w[0]) + fabs(w[1]) + fabs(w[2]), 1e-14);
-    crom_df_log_free(&log);
+    crom_datafree_log_free(&log);
     crom_model_free(&tm);
     free(pX);
     free(tX);
