@@ -14,6 +14,7 @@
 #include "base/lbfgs.h"
 #include "base/rng.h"
 #include "datafree/datafree.h"
+#include "datafree/dffield.h"
 #include "io/io.h"
 
 void crom_datafree_defaults(crom_datafree_opts *o, int objective)
@@ -633,7 +634,7 @@ int crom_datafree_train(const crom_datafree_problem *p, const crom_datafree_opts
     int nv = mesh->nv, n = 3 * nv, nm = o.objective == CROM_DATAFREE_NEURALMODES, r = o.rank, rc = 0;
     double t0 = crom_clock_now();
     if (o.objective == CROM_DATAFREE_FIELD)
-        return crom_datafree_train_field(p, o_in, out, log);
+        return crom_dffield_train(p, o_in, out, log);
     if (o.objective != CROM_DATAFREE_ENERGY && !nm)
         return crom_err(CROM_EUSAGE, "unknown data-free objective %d", o.objective);
     int nfree = 0;

@@ -56,30 +56,10 @@
  * onto the modes to about 1 % of the box. The last layer starts at zero:
  * training starts from the linear modes.
  *
- * field (beyond both papers: a CONTINUOUS data-free subspace, crom/model
- * basis "energy-field"): x(X, z) = X + W(X) (φ(z) − φ(0)) with W a neural
- * field 3 -> 3p over the body (LiCROM's representation, laid on any mesh)
- * and φ an ELU MLP r -> p, trained on the energy loss above with the
- * integrals over the body replaced by a random cubature drawn afresh each
- * step: K tets, each standing for nt/K of them (an unbiased estimate of E
- * and of the gravity potential, lumped masses of the drawn tets for M), so
- * W is evaluated only at their vertices:
- *
- *   L = 1/B Σ_b Ê_pot(X + ρ W Φ_b) / (E V)
- *     + λ · mean over pairs ( log( D̂_bc / (σ ‖z_b − z_c‖) ) )² + λ_0 · (as above),
- *
- *   Φ_b = φ(z_b) − φ(0),  D̂²_bc = ΔΦᵀ Ĝ ΔΦ / m̂,  Ĝ = Σ_v m̂_v W(X_v)ᵀ W(X_v),
- *
- * with z ~ N(0, I) and ρ ramped as above. Pins are built in as a mask
- * over space: W(X) = s(d(X)/ℓ) W̃(X), s the smoothstep 3t² − 2t³ (1 for t
- * >= 1) and d the distance to the pinned part of the training mesh: its
- * boundary triangles with three pinned vertices, and its pinned vertices
- * (for pins off the boundary), stored in the model with ℓ; so the field is
- * exactly zero on a pinned face of the body on ANY mesh of it, and the
- * reduced simulation's own penalty holds whatever else a region pins. (A
- * penalty on the pins instead competes with the energy, which is weak in
- * units of E V, and the trained map then barely moves under gravity.) The
- * one-mesh maps take the same random cubature on request (`tets`).
+ * field (beyond both papers): a CONTINUOUS data-free subspace x(X, z) = X
+ * + W(X) (φ(z) − φ(0)), W a neural field over the body, trained on the
+ * energy loss above integrated by a random cubature of the mesh: dffield.h.
+ * The one-mesh maps take the same random cubature on request (`tets`).
  *
  * Training: Adam on a fresh batch every step, learning rate halved after
  * each quarter of the steps (the paper's schedule, on a shorter run); or
@@ -204,42 +184,6 @@ void crom_datafree_ctx_free(crom_datafree_ctx *c);
 int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_datafree_terms *t,
                  float *grad);
 
-/* ------------------------------------------- the continuous field's loss */
-
-typedef struct {
-    crom_datafree_problem P;
-    crom_datafree_opts o;
-    const crom_nn_mlp *W, *phi; /* 3 -> 3p and r -> p */
-    crom_fem fem;
-    crom_nn_ws wsW, wsP;
-    int r, p, maxbatch, maxtets, maxrows, nthreads, ns, npins;
-    int B0;                  /* tangent samples after the batch (0: none) */
-    double mass, Eref, pin_length;
-    int *loc, *vs, *bad;
-    float *xf, *zf, *dFf, *dPf;
-    double *pinX;            /* [npins][3] pinned vertices' positions */
-    int ntri;                /* pinned boundary triangles */
-    double *triX;            /* [ntri][3][3] their corners */
-    double *mask;            /* [nv] s(d(X_v)/ℓ) */
-    double *F, *Phi, *gu, *dF, *dPhi, *mloc, *E, *G, *S, *tmp, *xb;
-} crom_datafree_field_ctx;
-
-/* Set up the loss of the continuous field (objective field: o->sigma,
- * lambda, pin_length, threads) for networks W (3 -> 3p, unmasked) and phi
- * (r -> p), batches of up to maxbatch samples over up to maxtets tets. */
-int crom_datafree_field_ctx_init(crom_datafree_field_ctx *c, const crom_datafree_problem *p, const crom_datafree_opts *o, const crom_nn_mlp *W,
-                      const crom_nn_mlp *phi, int maxbatch, int maxtets);
-void crom_datafree_field_ctx_free(crom_datafree_field_ctx *c);
-
-/* The loss L of B samples at blend rho over the K tets tets [K] (repeats
- * allowed): z holds [B + c->B0][r], the batch then the tangent samples. If
- * gW, gP != NULL, its gradients with respect to the parameters of W and
- * phi (overwritten). t->penalty is the isometry term, t->tangent the one
- * at rest. Returns 0, CROM_EUSAGE (sizes), CROM_EDATA (a non-finite
- * energy). */
-int crom_datafree_field_loss(crom_datafree_field_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_datafree_terms *t,
-                  float *gW, float *gP);
-
 /* The learning rate at fraction frac of the run: base, halved after each
  * quarter (Sharp et al.'s schedule on a shorter run). */
 double crom_datafree_lr(double base, double frac);
@@ -278,9 +222,6 @@ void crom_datafree_run_record(crom_datafree_run *R, long k, const crom_datafree_
 /* After the last step (k steps taken): close the record. CROM_EUSAGE if
  * no step was taken (the time budget ran out first). */
 int crom_datafree_run_end(crom_datafree_run *R, long k);
-
-/* Train the continuous field (crom_datafree_train calls it for CROM_DATAFREE_FIELD). */
-int crom_datafree_train_field(const crom_datafree_problem *p, const crom_datafree_opts *o, crom_model *out, crom_datafree_log *log);
 
 /* Train a map on problem p with options o; out gets a model of kind
  * "energy" or "neuralmodes" (mesh copied with its regions; neuralmodes also

@@ -1,6 +1,6 @@
 /* dffield.c — a continuous data-free subspace x(X, z) = X + W(X) φ(z),
  * trained from the energy integrated by a random cubature of the mesh
- * (crom-fitfield --objective field; see datafree.h). */
+ * (crom-fitfield --objective field; see dffield.h). */
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -13,10 +13,10 @@
 #include "base/clock.h"
 #include "base/err.h"
 #include "base/rng.h"
-#include "datafree/datafree.h"
+#include "datafree/dffield.h"
 #include "mesh/locate.h"
 
-void crom_datafree_field_ctx_free(crom_datafree_field_ctx *c)
+void crom_dffield_ctx_free(crom_dffield_ctx *c)
 {
     if (!c)
         return;
@@ -30,8 +30,8 @@ void crom_datafree_field_ctx_free(crom_datafree_field_ctx *c)
     memset(c, 0, sizeof *c);
 }
 
-int crom_datafree_field_ctx_init(crom_datafree_field_ctx *c, const crom_datafree_problem *p, const crom_datafree_opts *o, const crom_nn_mlp *W,
-                      const crom_nn_mlp *phi, int maxbatch, int maxtets)
+int crom_dffield_ctx_init(crom_dffield_ctx *c, const crom_datafree_problem *p, const crom_datafree_opts *o,
+                          const crom_nn_mlp *W, const crom_nn_mlp *phi, int maxbatch, int maxtets)
 {
     memset(c, 0, sizeof *c);
     c->P = *p;
@@ -57,14 +57,14 @@ int crom_datafree_field_ctx_init(crom_datafree_field_ctx *c, const crom_datafree
     c->nthreads = o->threads < 1 ? 1 : o->threads > 256 ? 256 : o->threads;
     int rc = crom_fem_init(&c->fem, p->mesh, &p->mat);
     if (rc) {
-        crom_datafree_field_ctx_free(c);
+        crom_dffield_ctx_free(c);
         return rc;
     }
     /* the pinned vertices (any pinned DOF) and the mask they make */
     c->pinX = crom_malloc(sizeof(double) * 3 * (size_t)(nv ? nv : 1));
     c->mask = crom_malloc(sizeof(double) * (size_t)(nv ? nv : 1));
     if (!c->pinX || !c->mask) {
-        crom_datafree_field_ctx_free(c);
+        crom_dffield_ctx_free(c);
         return CROM_EINTERNAL;
     }
     for (int v = 0; v < nv; v++)
@@ -86,13 +86,13 @@ int crom_datafree_field_ctx_init(crom_datafree_field_ctx *c, const crom_datafree
     if (c->npins) { /* the boundary triangles with three pinned vertices */
         int nb, *tri = NULL;
         if ((rc = crom_mesh_boundary(p->mesh, &nb, &tri, NULL))) {
-            crom_datafree_field_ctx_free(c);
+            crom_dffield_ctx_free(c);
             return rc;
         }
         c->triX = crom_malloc(sizeof(double) * 9 * (size_t)(nb ? nb : 1));
         if (!c->triX) {
             free(tri);
-            crom_datafree_field_ctx_free(c);
+            crom_dffield_ctx_free(c);
             return CROM_EINTERNAL;
         }
         for (int k = 0; k < nb; k++) {
@@ -116,7 +116,7 @@ int crom_datafree_field_ctx_init(crom_datafree_field_ctx *c, const crom_datafree
     /* rows of φ: the batch, the tangent samples and z = 0 */
     size_t R = (size_t)c->maxrows, B = (size_t)maxbatch + c->B0 + 1, P = (size_t)pf;
     if ((rc = crom_nn_ws_init(&c->wsW, W, c->maxrows, 1)) || (rc = crom_nn_ws_init(&c->wsP, phi, (int)B, 1))) {
-        crom_datafree_field_ctx_free(c);
+        crom_dffield_ctx_free(c);
         return rc;
     }
     c->loc = crom_malloc(sizeof(int) * (size_t)nv);
@@ -139,7 +139,7 @@ int crom_datafree_field_ctx_init(crom_datafree_field_ctx *c, const crom_datafree
     c->xb = crom_malloc(sizeof(double) * (size_t)c->nthreads * 3 * R);
     if (!c->loc || !c->vs || !c->xf || !c->F || !c->Phi || !c->zf || !c->gu || !c->dF || !c->dPhi || !c->dFf ||
         !c->dPf || !c->mloc || !c->E || !c->bad || !c->G || !c->S || !c->tmp || !c->xb) {
-        crom_datafree_field_ctx_free(c);
+        crom_dffield_ctx_free(c);
         return CROM_EINTERNAL;
     }
     for (int v = 0; v < nv; v++)
@@ -150,7 +150,7 @@ int crom_datafree_field_ctx_init(crom_datafree_field_ctx *c, const crom_datafree
 }
 
 /* local index of vertex v, adding it to the list */
-static int local(crom_datafree_field_ctx *c, int v)
+static int local(crom_dffield_ctx *c, int v)
 {
     if (c->loc[v] < 0) {
         c->loc[v] = c->ns;
@@ -159,8 +159,8 @@ static int local(crom_datafree_field_ctx *c, int v)
     return c->loc[v];
 }
 
-int crom_datafree_field_loss(crom_datafree_field_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_datafree_terms *t,
-                  float *gW, float *gP)
+int crom_dffield_loss(crom_dffield_ctx *c, int B, const double *z, double rho, int K, const int *tets,
+                      crom_datafree_terms *t, float *gW, float *gP)
 {
     int r = c->r, p = c->p, nt = c->fem.nt, B0 = c->B0, rc;
     const double *X = c->P.mesh->X, *g = c->P.gravity;
@@ -365,7 +365,7 @@ out:
  * scale: RMS displacement σ over random vertices and z ~ N(0, I) (a
  * default-initialized pair of networks moves the body by metres, which
  * training would first have to undo). */
-static int init_scale(crom_datafree_field_ctx *c, crom_nn_mlp *W, crom_nn_mlp *phi, crom_rng *rng)
+static int init_scale(crom_dffield_ctx *c, crom_nn_mlp *W, crom_nn_mlp *phi, crom_rng *rng)
 {
     int nv = c->P.mesh->nv, n = c->maxrows < nv ? c->maxrows : nv, B = c->maxbatch, p = c->p, rc;
     for (int i = 0; i < n; i++) {
@@ -402,7 +402,8 @@ static int init_scale(crom_datafree_field_ctx *c, crom_nn_mlp *W, crom_nn_mlp *p
     return 0;
 }
 
-int crom_datafree_train_field(const crom_datafree_problem *p, const crom_datafree_opts *o_in, crom_model *out, crom_datafree_log *log)
+int crom_dffield_train(const crom_datafree_problem *p, const crom_datafree_opts *o_in, crom_model *out,
+                       crom_datafree_log *log)
 {
     crom_model_clear(out);
     memset(log, 0, sizeof *log);
@@ -452,7 +453,7 @@ int crom_datafree_train_field(const crom_datafree_problem *p, const crom_datafre
     crom_nn_mlp W, phi;
     memset(&W, 0, sizeof W);
     memset(&phi, 0, sizeof phi);
-    crom_datafree_field_ctx ctx;
+    crom_dffield_ctx ctx;
     memset(&ctx, 0, sizeof ctx);
     crom_nn_adam aw, ap;
     memset(&aw, 0, sizeof aw);
@@ -477,7 +478,7 @@ int crom_datafree_train_field(const crom_datafree_problem *p, const crom_datafre
         if ((rc = crom_nn_norm_fit(corners, 2, 3, sh, sc)) || (rc = crom_nn_mlp_set_norm(&W, sh, sc)))
             goto done;
     }
-    if ((rc = crom_datafree_field_ctx_init(&ctx, p, &o, &W, &phi, o.batch, K)))
+    if ((rc = crom_dffield_ctx_init(&ctx, p, &o, &W, &phi, o.batch, K)))
         goto done;
     if ((rc = init_scale(&ctx, &W, &phi, &srng)))
         goto done;
@@ -505,7 +506,7 @@ int crom_datafree_train_field(const crom_datafree_problem *p, const crom_datafre
         for (int i = 0; i < K; i++) /* a fresh random cubature each step */
             tets[i] = K == nt ? i : (int)crom_rng_below(&srng, (uint64_t)nt);
         crom_datafree_terms tm;
-        if ((rc = crom_datafree_field_loss(&ctx, o.batch, z, rho, K, tets, &tm, gW, gP))) {
+        if ((rc = crom_dffield_loss(&ctx, o.batch, z, rho, K, tets, &tm, gW, gP))) {
             if (rc == CROM_EDATA)
                 crom_err_ctx("training diverged at step %ld (try a smaller --lr)", k + 1);
             goto done;
@@ -523,7 +524,7 @@ int crom_datafree_train_field(const crom_datafree_problem *p, const crom_datafre
 done:
     crom_nn_adam_free(&aw);
     crom_nn_adam_free(&ap);
-    crom_datafree_field_ctx_free(&ctx);
+    crom_dffield_ctx_free(&ctx);
     crom_nn_mlp_free(&W);
     crom_nn_mlp_free(&phi);
     free(gW);

@@ -33,6 +33,7 @@
 #include "base/lbfgs.h"
 #include "base/rng.h"
 #include "datafree/datafree.h"
+#include "datafree/dffield.h"
 #include "mesh/meshgen.h"
 #include "nn/nn.h"
 #include "phys/fem.h"
@@ -212,7 +213,7 @@ static void gradient_check(int objective)
  * differences over the parameters of both networks, on a tet list with
  * repeats; the mask is zero at the pins and 1 far from them. */
 typedef struct {
-    crom_datafree_field_ctx *c;
+    crom_dffield_ctx *c;
     float *pw, *pp;
     int nw, np, B, K;
     const double *z;
@@ -227,7 +228,7 @@ static double field_loss_at(const double *x, void *v)
     for (int i = 0; i < t->np; i++)
         t->pp[i] = (float)x[t->nw + i];
     crom_datafree_terms tm;
-    if (crom_datafree_field_loss(t->c, t->B, t->z, 0.7, t->K, t->tets, &tm, NULL, NULL))
+    if (crom_dffield_loss(t->c, t->B, t->z, 0.7, t->K, t->tets, &tm, NULL, NULL))
         return NAN;
     return tm.objective;
 }
@@ -264,8 +265,8 @@ static void gradient_check_field(void)
     for (int k = 0; k < K; k++)
         tets[k] = (int)crom_rng_below(&rng, (uint64_t)m.nt);
     tets[K - 1] = tets[0]; /* a repeat */
-    crom_datafree_field_ctx c;
-    CHECK(crom_datafree_field_ctx_init(&c, &P, &o, &W, &phi, B, K) == 0);
+    crom_dffield_ctx c;
+    CHECK(crom_dffield_ctx_init(&c, &P, &o, &W, &phi, B, K) == 0);
     int inside = 0, onpin = 1, far = 1;
     for (int v = 0; v < m.nv; v++) {
         double x = m.X[3 * v];
@@ -286,7 +287,7 @@ static void gradient_check_field(void)
     float *gw = malloc(sizeof(float) * nw), *gp = malloc(sizeof(float) * np);
     double *ga = malloc(sizeof(double) * n), *gf = malloc(sizeof(double) * n), *x = malloc(sizeof(double) * n);
     crom_datafree_terms tm;
-    int rc = crom_datafree_field_loss(&c, B, z, 0.7, K, tets, &tm, gw, gp);
+    int rc = crom_dffield_loss(&c, B, z, 0.7, K, tets, &tm, gw, gp);
     CHECK_MSG(rc == 0, "field loss: %s", crom_errmsg());
     for (int i = 0; i < nw; i++) {
         ga[i] = gw[i];
@@ -310,8 +311,8 @@ static void gradient_check_field(void)
     CHECK_LT(e, FD_TOL);
     CHECK_LT(ep, FD_TOL);
     CHECK(tm.penalty > 0 && tm.tangent > 0 && tm.energy != 0);
-    CHECK(crom_datafree_field_loss(&c, B, z, 0.7, K + 1, tets, &tm, NULL, NULL) == CROM_EUSAGE);
-    crom_datafree_field_ctx_free(&c);
+    CHECK(crom_dffield_loss(&c, B, z, 0.7, K + 1, tets, &tm, NULL, NULL) == CROM_EUSAGE);
+    crom_dffield_ctx_free(&c);
     crom_nn_mlp_free(&W);
     crom_nn_mlp_free(&phi);
     free(tets);
