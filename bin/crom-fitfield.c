@@ -648,7 +648,7 @@ static int run_skinning(crom_cli *cli, args *a)
     crom_mesh mesh;
     crom_cloud cl;
     crom_model out;
-    crom_datafree_log log;
+    crom_dftrain_log log;
     char *hist = NULL, *text = NULL;
     unsigned char *fixed = NULL;
     double *pinX = NULL, *triX = NULL;
@@ -772,7 +772,7 @@ static int run_skinning(crom_cli *cli, args *a)
     if (cli->verbose)
         crom_cli_info(cli, "skinning: model_id %s", out.model_id);
 out:
-    crom_datafree_log_free(&log);
+    crom_dftrain_log_free(&log);
     crom_model_free(&out);
     crom_mesh_free(&mesh);
     crom_cloud_free(&cl);
@@ -795,7 +795,7 @@ static int run_datafree(crom_cli *cli, args *a)
     crom_model modes, out;
     crom_model_clear(&modes);
     crom_model_clear(&out);
-    crom_datafree_log log;
+    crom_dftrain_log log;
     memset(&log, 0, sizeof log);
     memset(&mesh, 0, sizeof mesh);
     crom_cloud cl;
@@ -926,7 +926,7 @@ static int run_datafree(crom_cli *cli, args *a)
     if (cli->verbose)
         crom_cli_info(cli, "%s: reference energy %.4g J; model_id %s", name, log.Eref, out.model_id);
 out:
-    crom_datafree_log_free(&log);
+    crom_dftrain_log_free(&log);
     crom_model_free(&out);
     crom_model_free(&modes);
     crom_mesh_free(&mesh);

@@ -11,7 +11,6 @@
 
 #include "base/clock.h"
 #include "base/err.h"
-#include "base/lbfgs.h"
 #include "base/rng.h"
 #include "datafree/datafree.h"
 #include "datafree/dffield.h"
@@ -151,7 +150,7 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
     return 0;
 }
 
-int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_datafree_terms *t,
+int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_dftrain_terms *t,
                  float *grad)
 {
     int r = c->r, n = c->n, nm = c->o.objective == CROM_DATAFREE_NEURALMODES, B0 = c->B0, rows = B + B0 + 1;
@@ -359,284 +358,14 @@ int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho,
 
 /* ============================================================ training */
 
-void crom_datafree_log_free(crom_datafree_log *l)
+/* Check the problem and the options of a map, and fill in sigma and box
+ * (0.05 and 0.2 times the bounding-box diagonal) where they are unset. */
+static int check_map(const crom_datafree_problem *p, crom_datafree_opts *o)
 {
-    if (!l)
-        return;
-    free(l->objective);
-    free(l->energy);
-    free(l->penalty);
-    free(l->seconds);
-    memset(l, 0, sizeof *l);
-}
-
-int crom_datafree_run_begin(crom_datafree_run *R, crom_datafree_log *log, const crom_datafree_opts *o)
-{
-    memset(R, 0, sizeof *R);
-    R->log = log;
-    R->o = o;
-    R->block = o->steps >= 100 ? (o->steps + 99) / 100 : 1;
-    int maxblocks = o->steps / R->block + 2;
-    log->objective = crom_malloc(sizeof(double) * (size_t)maxblocks);
-    log->energy = crom_malloc(sizeof(double) * (size_t)maxblocks);
-    log->penalty = crom_malloc(sizeof(double) * (size_t)maxblocks);
-    log->seconds = crom_malloc(sizeof(double) * (size_t)maxblocks);
-    if (!log->objective || !log->energy || !log->penalty || !log->seconds)
-        return CROM_EINTERNAL;
-    R->budget = o->minutes > 0 ? 60 * o->minutes : 0;
-    R->tstart = crom_clock_now();
-    return 0;
-}
-
-int crom_datafree_run_next(crom_datafree_run *R, long k, double *frac)
-{
-    double f = (double)k / R->o->steps, el = crom_clock_now() - R->tstart;
-    if (R->budget > 0) {
-        if (el >= R->budget)
-            return 0;
-        f = fmax(f, el / R->budget);
-    }
-    *frac = f;
-    return 1;
-}
-
-static void close_block(crom_datafree_run *R)
-{
-    crom_datafree_log *log = R->log;
-    int j = log->nblocks++;
-    log->objective[j] = R->sobj / R->inblock;
-    log->energy[j] = R->sen / R->inblock;
-    log->penalty[j] = R->spen / R->inblock;
-    log->seconds[j] = crom_clock_wall(crom_clock_now() - R->tstart);
-    R->sobj = R->sen = R->spen = 0;
-    R->inblock = 0;
-}
-
-void crom_datafree_run_record(crom_datafree_run *R, long k, const crom_datafree_terms *t)
-{
-    const crom_datafree_opts *o = R->o;
-    R->sobj += t->objective;
-    R->sen += t->energy;
-    R->spen += t->penalty;
-    if (++R->inblock == R->block || k + 1 == o->steps) {
-        close_block(R);
-        if (o->progress) {
-            double f = (double)(k + 1) / o->steps;
-            if (R->budget > 0)
-                f = fmax(f, (crom_clock_now() - R->tstart) / R->budget);
-            o->progress(o->progress_ctx, k + 1, fmin(f, 1.0), R->log->objective[R->log->nblocks - 1]);
-        }
-    }
-}
-
-int crom_datafree_run_end(crom_datafree_run *R, long k)
-{
-    if (R->inblock > 0) /* stopped by the clock inside a block */
-        close_block(R);
-    R->log->steps = k;
-    R->log->seconds_total = crom_clock_now() - R->tstart;
-    return k > 0 ? 0 : crom_err(CROM_EUSAGE, "no training step fitted in the time budget");
-}
-
-double crom_datafree_lr(double base, double frac)
-{
-    int q = (int)floor(4 * frac);
-    if (q > 3)
-        q = 3;
-    if (q < 0)
-        q = 0;
-    return base * ldexp(1.0, -q);
-}
-
-/* What a training step needs: the loss, the options, the sampler, the
- * parameters and their gradient, the batch z and the random cubature
- * (tets: K of nt, NULL for every tet). */
-typedef struct {
-    crom_datafree_ctx *ctx;
-    const crom_datafree_opts *o;
-    crom_rng *rng;
-    float *params, *grad;
-    double *z;
-    int *tets, K, nt, nm;
-    double rho;
-} tr_ctx;
-
-/* A fresh batch: z ~ N(0, I) (energy) or uniform in the box (neuralmodes),
- * the tets of a fresh random cubature, and ρ at fraction frac. */
-static void draw(tr_ctx *T, double frac)
-{
-    const crom_datafree_opts *o = T->o;
-    int r = T->ctx->r;
-    T->rho = T->nm ? 1 : o->ramp > 0 ? fmin(1.0, frac / o->ramp) : 1;
-    for (int i = 0; i < o->batch * r; i++)
-        T->z[i] = T->nm ? T->ctx->half[i % r] * (2 * crom_rng_uniform(T->rng) - 1) : crom_rng_normal(T->rng);
-    for (int i = o->batch * r; i < (o->batch + T->ctx->B0) * r; i++) /* small samples: the tangent at rest */
-        T->z[i] = o->tangent_radius * crom_rng_normal(T->rng);
-    for (int i = 0; T->tets && i < T->K; i++)
-        T->tets[i] = (int)crom_rng_below(T->rng, (uint64_t)T->nt);
-}
-
-static int loss(tr_ctx *T, crom_datafree_terms *tm, float *grad)
-{
-    return crom_datafree_loss(T->ctx, T->o->batch, T->z, T->rho, T->K, T->tets, tm, grad);
-}
-
-/* Adam on a fresh batch every step, the learning rate halved after each
- * quarter of the schedule. */
-static int train_adam(tr_ctx *T, crom_datafree_run *R, crom_nn_adam *adam, long *kout)
-{
-    long k;
-    int rc = 0;
-    for (k = 0; k < T->o->steps; k++) {
-        double frac;
-        if (!crom_datafree_run_next(R, k, &frac))
-            break;
-        draw(T, frac);
-        crom_datafree_terms tm;
-        if ((rc = loss(T, &tm, T->grad))) {
-            if (rc == CROM_EDATA)
-                crom_err_ctx("training diverged at step %ld (try a smaller --lr)", k + 1);
-            break;
-        }
-        crom_nn_adam_step(adam, T->params, T->grad, crom_datafree_lr(T->o->lr, frac));
-        crom_datafree_run_record(R, k, &tm);
-    }
-    *kout = k;
-    return rc;
-}
-
-/* The loss and gradient (double) at parameters x, through the float
- * network. Returns 0, or CROM_EDATA where it is not finite (an inverted
- * element): the line search then shortens the step. */
-static int lbfgs_eval(tr_ctx *T, size_t np, const double *x, double *f, double *g, crom_datafree_terms *tm)
-{
-    for (size_t i = 0; i < np; i++)
-        T->params[i] = (float)x[i];
-    int rc = loss(T, tm, T->grad);
-    if (rc)
-        return rc;
-    for (size_t i = 0; i < np; i++)
-        g[i] = T->grad[i];
-    *f = tm->objective;
-    return 0;
-}
-
-/* L-BFGS with a backtracking line search (the Neural Modes paper's
- * optimizer), o->resample iterations on each batch of samples and tets
- * before a fresh one is drawn (the objective must stay fixed while the
- * line search compares values); the pairs are kept across batches. The
- * first step (no pair yet) moves no parameter by more than o->lr. */
-static int train_lbfgs(tr_ctx *T, crom_datafree_run *R, size_t np, long *kout)
-{
-    const crom_datafree_opts *o = T->o;
-    crom_lbfgs L;
-    int rc = crom_lbfgs_init(&L, np, 10);
-    double *x = crom_malloc(sizeof(double) * np), *g = crom_malloc(sizeof(double) * np);
-    double *xt = crom_malloc(sizeof(double) * np), *gt = crom_malloc(sizeof(double) * np);
-    double *d = crom_malloc(sizeof(double) * np);
-    long k = 0;
-    if (!rc && (!x || !g || !xt || !gt || !d))
-        rc = CROM_EINTERNAL;
-    for (size_t i = 0; !rc && i < np; i++)
-        x[i] = T->params[i];
-    int stop = 0;
-    while (!rc && !stop && k < o->steps) {
-        double frac, f;
-        if (!crom_datafree_run_next(R, k, &frac))
-            break;
-        draw(T, frac);
-        crom_datafree_terms tm;
-        if ((rc = lbfgs_eval(T, np, x, &f, g, &tm))) {
-            if (rc == CROM_EDATA)
-                crom_err_ctx("training diverged at step %ld", k + 1);
-            break;
-        }
-        for (int it = 0; it < o->resample && k < o->steps; it++) {
-            if (it > 0 && !crom_datafree_run_next(R, k, &frac)) {
-                stop = 1;
-                break;
-            }
-            crom_lbfgs_direction(&L, g, d);
-            double slope = 0, dmax = 0;
-            for (size_t i = 0; i < np; i++) {
-                slope += g[i] * d[i];
-                dmax = fmax(dmax, fabs(d[i]));
-            }
-            if (!(slope < 0) || L.k == 0) { /* no descent (or no pair yet): steepest descent of size lr */
-                crom_lbfgs_reset(&L);
-                double gmax = 0;
-                for (size_t i = 0; i < np; i++)
-                    gmax = fmax(gmax, fabs(g[i]));
-                if (!(gmax > 0))
-                    break;
-                slope = 0;
-                for (size_t i = 0; i < np; i++) {
-                    d[i] = -o->lr * g[i] / gmax;
-                    slope += g[i] * d[i];
-                }
-            }
-            double alpha = 1, ft = NAN;
-            crom_datafree_terms tt;
-            int ok = 0;
-            for (int ls = 0; ls < 30 && !ok; ls++, alpha *= 0.5) {
-                for (size_t i = 0; i < np; i++)
-                    xt[i] = x[i] + alpha * d[i];
-                int e = lbfgs_eval(T, np, xt, &ft, gt, &tt);
-                if (e == CROM_EDATA) {
-                    crom_err_clear();
-                    continue;
-                }
-                if (e) {
-                    rc = e;
-                    break;
-                }
-                ok = ft <= f + 1e-4 * alpha * slope + 1e-6 * fabs(f);
-                if (ok)
-                    break;
-            }
-            if (rc)
-                break;
-            if (!ok) { /* no decrease along d: start the memory afresh on the next batch */
-                crom_lbfgs_reset(&L);
-                break;
-            }
-            for (size_t i = 0; i < np; i++) { /* the pair, then the step */
-                d[i] = xt[i] - x[i];
-                xt[i] = gt[i] - g[i];
-            }
-            crom_lbfgs_push(&L, d, xt);
-            for (size_t i = 0; i < np; i++)
-                x[i] += d[i];
-            memcpy(g, gt, sizeof(double) * np);
-            f = ft;
-            crom_datafree_run_record(R, k, &tt);
-            k++;
-        }
-    }
-    for (size_t i = 0; x && i < np; i++) /* the parameters of the last accepted step */
-        T->params[i] = (float)x[i];
-    crom_lbfgs_free(&L);
-    free(x);
-    free(g);
-    free(xt);
-    free(gt);
-    free(d);
-    *kout = k;
-    return rc;
-}
-
-int crom_datafree_train(const crom_datafree_problem *p, const crom_datafree_opts *o_in, crom_model *out, crom_datafree_log *log)
-{
-    crom_model_clear(out);
-    memset(log, 0, sizeof *log);
-    crom_datafree_opts o = *o_in;
     const crom_mesh *mesh = p->mesh;
-    int nv = mesh->nv, n = 3 * nv, nm = o.objective == CROM_DATAFREE_NEURALMODES, r = o.rank, rc = 0;
-    double t0 = crom_clock_now();
-    if (o.objective == CROM_DATAFREE_FIELD)
-        return crom_dffield_train(p, o_in, out, log);
-    if (o.objective != CROM_DATAFREE_ENERGY && !nm)
-        return crom_err(CROM_EUSAGE, "unknown data-free objective %d", o.objective);
+    int nv = mesh->nv, n = 3 * nv, nm = o->objective == CROM_DATAFREE_NEURALMODES, r = o->rank;
+    if (o->objective != CROM_DATAFREE_ENERGY && !nm)
+        return crom_err(CROM_EUSAGE, "unknown data-free objective %d", o->objective);
     int nfree = 0;
     for (int i = 0; i < n; i++)
         nfree += !(p->fixed && p->fixed[i]);
@@ -651,113 +380,146 @@ int crom_datafree_train(const crom_datafree_problem *p, const crom_datafree_opts
     if (!nm && gn > 0 && nfree == n)
         return crom_err(CROM_EUSAGE, "a free body under gravity has no lowest energy (it falls forever): pin a "
                         "region (--pin) or train with --gravity 0,0,0");
-    if (o.steps < 1 || o.batch < 1 || o.depth < 2 || o.width < 1)
+    if (o->steps < 1 || o->batch < 1 || o->depth < 2 || o->width < 1)
         return crom_err(CROM_EUSAGE, "steps, batch, depth and width must be positive (depth >= 2)");
-    if (!nm && o.batch < 2)
-        return crom_err(CROM_EUSAGE, "--batch %d: the isometry term needs pairs (at least 2 samples)", o.batch);
-    double lo[3], hi[3];
-    crom_mesh_bbox(mesh, lo, hi);
-    double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                       (hi[2] - lo[2]) * (hi[2] - lo[2]));
-    if (!(o.sigma > 0))
-        o.sigma = 0.05 * diag;
-    if (!(o.box > 0))
-        o.box = 0.2 * diag;
-    if (!isfinite(o.sigma) || !isfinite(o.lambda) || o.lambda < 0 || !isfinite(o.box) ||
-        !isfinite(o.ortho_weight) || o.ortho_weight < 0 ||
-        !(o.lr > 0) || !isfinite(o.lr) || !(o.ramp >= 0 && o.ramp <= 1))
+    if (!nm && o->batch < 2)
+        return crom_err(CROM_EUSAGE, "--batch %d: the isometry term needs pairs (at least 2 samples)", o->batch);
+    double diag = crom_dftrain_diag(mesh);
+    if (!(o->sigma > 0))
+        o->sigma = 0.05 * diag;
+    if (!(o->box > 0))
+        o->box = 0.2 * diag;
+    if (!isfinite(o->sigma) || !isfinite(o->lambda) || o->lambda < 0 || !isfinite(o->box) ||
+        !isfinite(o->ortho_weight) || o->ortho_weight < 0 ||
+        !(o->lr > 0) || !isfinite(o->lr) || !(o->ramp >= 0 && o->ramp <= 1))
         return crom_err(CROM_EUSAGE, "non-finite or negative training weight");
-    /* the network r -> width x (depth - 1) -> 3nv */
-    int widths[CROM_NN_MAX_LAYERS + 1];
-    if (o.depth > CROM_NN_MAX_LAYERS)
-        return crom_err(CROM_EUSAGE, "--depth %d: at most %d layers", o.depth, CROM_NN_MAX_LAYERS);
-    widths[0] = r;
-    for (int l = 1; l < o.depth; l++)
-        widths[l] = o.width;
-    widths[o.depth] = n;
-    crom_nn_spec spec;
-    if ((rc = crom_nn_spec_set(&spec, o.depth + 1, widths, o.act)))
-        return rc;
-    size_t np = crom_nn_spec_nparams(&spec);
-    float *params = crom_calloc(np, sizeof(float)), *grad = crom_calloc(np, sizeof(float));
-    double *z = crom_malloc(sizeof(double) * (size_t)(o.batch + (o.tangent_samples > 0 ? o.tangent_samples : 0)) * r);
-    int nt = mesh->nt, K = o.tets > 0 && o.tets < nt ? o.tets : nt; /* every tet, or a random cubature */
-    int *tets = K < nt ? crom_malloc(sizeof(int) * (size_t)K) : NULL;
+    if (o->depth > CROM_NN_MAX_LAYERS)
+        return crom_err(CROM_EUSAGE, "--depth %d: at most %d layers", o->depth, CROM_NN_MAX_LAYERS);
+    return 0;
+}
+
+/* A map in training: the options as used, its network (over params) and
+ * gradient, the loss, and the random streams of the initialization and
+ * of the samples. */
+typedef struct {
+    crom_datafree_opts o;
     crom_nn_mlp net;
-    memset(&net, 0, sizeof net);
+    float *params, *grad;
+    size_t np;
     crom_datafree_ctx ctx;
-    memset(&ctx, 0, sizeof ctx);
-    crom_nn_adam adam;
-    memset(&adam, 0, sizeof adam);
-    crom_datafree_run R;
-    int rcr = crom_datafree_run_begin(&R, log, &o);
-    if (!params || !grad || !z || rcr || (K < nt && !tets)) {
-        rc = CROM_EINTERNAL;
-        goto done;
-    }
     crom_rng irng, srng;
-    crom_rng_seed(&irng, o.seed);
-    crom_rng_seed(&srng, o.seed ^ 0x5eed5a3b1e5ULL);
-    if ((rc = crom_nn_mlp_init(&net, &spec, params, &irng)))
-        goto done;
-    {
-        /* the last layer: pinned outputs stay exactly 0; neuralmodes starts
-         * from the linear modes (y = 0) */
-        crom_nn_layer *ly = &net.layer[net.spec.nlayers - 1];
-        for (int i = 0; i < n; i++)
-            if (nm || (p->fixed && p->fixed[i])) {
-                memset(ly->W + (size_t)i * ly->in, 0, sizeof(float) * (size_t)ly->in);
-                ly->b[i] = 0;
-            }
-    }
-    if ((rc = crom_datafree_ctx_init(&ctx, p, &o, &net, o.batch)))
-        goto done;
-    if (o.optimizer != CROM_DATAFREE_LBFGS && (rc = crom_nn_adam_init(&adam, np)))
-        goto done;
-    log->sigma = o.sigma;
-    log->box = o.box;
-    log->Eref = ctx.Eref;
-    tr_ctx T = {&ctx, &o, &srng, params, grad, z, tets, K, nt, nm, 0};
-    long k = 0;
-    R.tstart = crom_clock_now(); /* the clock starts after the set-up */
-    if (o.optimizer == CROM_DATAFREE_LBFGS)
-        rc = train_lbfgs(&T, &R, np, &k);
-    else
-        rc = train_adam(&T, &R, &adam, &k);
-    if (rc)
-        goto done;
-    if ((rc = crom_datafree_run_end(&R, k)))
-        goto done;
-    if ((rc = crom_model_from_map(out, nm ? "neuralmodes" : "energy", &net, mesh, nm ? p->modes : NULL)))
-        goto done;
-    if (nm && p->freq) {
-        out->frequencies = crom_malloc(sizeof(double) * (size_t)r);
-        if (!out->frequencies) {
-            crom_model_free(out);
-            rc = CROM_EINTERNAL;
-            goto done;
+} map_trainer;
+
+static void map_free(map_trainer *T)
+{
+    crom_datafree_ctx_free(&T->ctx);
+    crom_nn_mlp_free(&T->net);
+    free(T->params);
+    free(T->grad);
+}
+
+/* The network r -> width x (depth - 1) -> 3nv, its initialization and the
+ * loss. */
+static int map_setup(map_trainer *T, const crom_datafree_problem *p)
+{
+    const crom_datafree_opts *o = &T->o;
+    int n = 3 * p->mesh->nv, nm = o->objective == CROM_DATAFREE_NEURALMODES, rc;
+    crom_nn_spec spec;
+    if ((rc = crom_dftrain_spec(&spec, o->rank, o->width, o->depth, n, o->act)))
+        return rc;
+    T->np = crom_nn_spec_nparams(&spec);
+    T->params = crom_calloc(T->np, sizeof(float));
+    T->grad = crom_calloc(T->np, sizeof(float));
+    if (!T->params || !T->grad)
+        return CROM_EINTERNAL;
+    crom_rng_seed(&T->irng, o->seed);
+    crom_rng_seed(&T->srng, o->seed ^ 0x5eed5a3b1e5ULL);
+    if ((rc = crom_nn_mlp_init(&T->net, &spec, T->params, &T->irng)))
+        return rc;
+    /* the last layer: pinned outputs stay exactly 0; neuralmodes starts
+     * from the linear modes (y = 0) */
+    crom_nn_layer *ly = &T->net.layer[T->net.spec.nlayers - 1];
+    for (int i = 0; i < n; i++)
+        if (nm || (p->fixed && p->fixed[i])) {
+            memset(ly->W + (size_t)i * ly->in, 0, sizeof(float) * (size_t)ly->in);
+            ly->b[i] = 0;
         }
-        memcpy(out->frequencies, p->freq, sizeof(double) * (size_t)r);
-        crom_model_id(out, out->model_id);
+    return crom_datafree_ctx_init(&T->ctx, p, o, &T->net, o->batch);
+}
+
+static int map_loss(void *ctx, const double *z, double rho, int K, const int *tets, crom_dftrain_terms *t)
+{
+    map_trainer *T = ctx;
+    return crom_datafree_loss(&T->ctx, T->o.batch, z, rho, K, tets, t, T->grad);
+}
+
+/* Train the map: z ~ N(0, I) (energy, ρ ramped) or uniform in the box
+ * (neuralmodes, ρ = 1), over every tet or a random cubature of o.tets. */
+static int map_train(map_trainer *T, const crom_datafree_problem *p, crom_dftrain_log *log)
+{
+    const crom_datafree_opts *o = &T->o;
+    int nm = o->objective == CROM_DATAFREE_NEURALMODES, nt = p->mesh->nt;
+    int K = o->tets > 0 && o->tets < nt ? o->tets : 0; /* a random cubature, or every tet */
+    log->sigma = o->sigma;
+    log->box = o->box;
+    log->Eref = T->ctx.Eref;
+    crom_dftrain_loop L = {
+        .loss = map_loss, .ctx = T, .nblocks = 1, .params = {T->params}, .grad = {T->grad}, .nparams = {T->np},
+        .rng = &T->srng, .batch = o->batch, .tangent = T->ctx.B0, .r = o->rank, .scale = nm ? T->ctx.half : NULL,
+        .uniform = nm, .tangent_radius = o->tangent_radius, .K = K, .nt = nt, .ramp = nm ? 0 : o->ramp,
+        .steps = o->steps, .minutes = o->minutes, .lr = o->lr, .lbfgs = o->optimizer == CROM_DATAFREE_LBFGS,
+        .resample = o->resample, .hint = " (try a smaller --lr)", .progress = o->progress,
+        .progress_ctx = o->progress_ctx};
+    return crom_dftrain_run(&L, log);
+}
+
+/* The trained map as a model (neuralmodes: with W and the frequencies). */
+static int map_store(const map_trainer *T, const crom_datafree_problem *p, crom_model *out)
+{
+    int nm = T->o.objective == CROM_DATAFREE_NEURALMODES, r = T->o.rank;
+    int rc = crom_model_from_map(out, nm ? "neuralmodes" : "energy", &T->net, p->mesh, nm ? p->modes : NULL);
+    if (rc || !nm || !p->freq)
+        return rc;
+    out->frequencies = crom_malloc(sizeof(double) * (size_t)r);
+    if (!out->frequencies) {
+        crom_model_free(out);
+        return CROM_EINTERNAL;
     }
-    out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
-done:
-    crom_nn_adam_free(&adam);
-    crom_datafree_ctx_free(&ctx);
-    crom_nn_mlp_free(&net);
-    free(params);
-    free(grad);
-    free(z);
-    free(tets);
+    memcpy(out->frequencies, p->freq, sizeof(double) * (size_t)r);
+    crom_model_id(out, out->model_id);
+    return 0;
+}
+
+int crom_datafree_train(const crom_datafree_problem *p, const crom_datafree_opts *o, crom_model *out,
+                        crom_dftrain_log *log)
+{
+    crom_model_clear(out);
+    memset(log, 0, sizeof *log);
+    if (o->objective == CROM_DATAFREE_FIELD)
+        return crom_dffield_train(p, o, out, log);
+    double t0 = crom_clock_now();
+    map_trainer T;
+    memset(&T, 0, sizeof T);
+    T.o = *o;
+    int rc = check_map(p, &T.o);
+    if (!rc)
+        rc = map_setup(&T, p);
+    if (!rc)
+        rc = map_train(&T, p, log);
+    if (!rc)
+        rc = map_store(&T, p, out);
+    if (!rc)
+        out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
+    map_free(&T);
     if (rc)
-        crom_datafree_log_free(log);
+        crom_dftrain_log_free(log);
     return rc;
 }
 
 /* ============================================================ record */
 
 int crom_datafree_write_record(hid_t loc, const crom_datafree_opts *o, const crom_datafree_problem *p,
-                         const crom_datafree_log *log, double mass, const char *modes_id)
+                               const crom_dftrain_log *log, double mass, const char *modes_id)
 {
     int rc = crom_h5_set_f64(loc, ".", "mass", &mass, 1);
     long long steps = log->steps;
@@ -773,7 +535,6 @@ int crom_datafree_write_record(hid_t loc, const crom_datafree_opts *o, const cro
         if (!rc && o->objective == CROM_DATAFREE_FIELD) {
             long long k = o->tets;
             rc = crom_h5_set_i64(loc, ".", "cubature_tets", k);
-
         }
     } else {
         if (!rc)
@@ -783,15 +544,7 @@ int crom_datafree_write_record(hid_t loc, const crom_datafree_opts *o, const cro
         if (!rc && modes_id)
             rc = crom_h5_set_str(loc, ".", "modes_id", modes_id);
     }
-    hsize_t d = (hsize_t)log->nblocks;
-    if (!rc && d > 0) {
-        rc = crom_h5_put_f64(loc, "training/objective", 1, &d, log->objective);
-        if (!rc)
-            rc = crom_h5_put_f64(loc, "training/energy", 1, &d, log->energy);
-        if (!rc)
-            rc = crom_h5_put_f64(loc, "training/penalty", 1, &d, log->penalty);
-        if (!rc)
-            rc = crom_h5_put_f64(loc, "training/seconds", 1, &d, log->seconds);
-    }
+    if (!rc)
+        rc = crom_dftrain_log_write(loc, log);
     return rc;
 }

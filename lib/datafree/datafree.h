@@ -64,7 +64,8 @@
  * Training: Adam on a fresh batch every step, learning rate halved after
  * each quarter of the steps (the paper's schedule, on a shorter run); or
  * L-BFGS with a backtracking line search (Wang et al.'s optimizer,
- * lib/lbfgs.h), `resample` iterations on each batch. The defaults come from
+ * lib/base/lbfgs.h), `resample` iterations on each batch (the loop of
+ * dftrain.h, shared with the field and the skinning weights). The defaults come from
  * issue 14's measurements on a soft clamped bar sagging under gravity (a
  * third of its length; README, "Benchmarks"): for the one-mesh maps many
  * small steps (batch 8, rate 3e-3) beat fewer large ones at equal time;
@@ -85,6 +86,7 @@
 
 #include <hdf5.h>
 
+#include "datafree/dftrain.h"
 #include "mesh/mesh.h"
 #include "nn/nn.h"
 #include "phys/fem.h"
@@ -140,14 +142,6 @@ void crom_datafree_defaults(crom_datafree_opts *o, int objective);
 
 /* ------------------------------------------------------------- the loss */
 
-/* What one evaluation of the loss gives, besides its value. */
-typedef struct {
-    double objective; /* L (dimensionless) */
-    double energy;    /* mean E_pot (energy) or elastic energy (neuralmodes) of the samples (J) */
-    double penalty;   /* energy: mean squared log-ratio; neuralmodes: mean ‖WᵀMy/m‖²/a² */
-    double tangent;   /* energy, field: mean squared log-ratio of the tangent samples */
-} crom_datafree_terms;
-
 typedef struct {
     crom_datafree_problem P;
     crom_datafree_opts o;
@@ -181,54 +175,17 @@ void crom_datafree_ctx_free(crom_datafree_ctx *c);
  * its gradient dL/dparams (overwritten, layout of net->params). Returns 0,
  * CROM_EUSAGE (sizes, a tet out of range), or CROM_EDATA for a non-finite
  * energy. */
-int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_datafree_terms *t,
+int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_dftrain_terms *t,
                  float *grad);
 
-/* The learning rate at fraction frac of the run: base, halved after each
- * quarter (Sharp et al.'s schedule on a shorter run). */
-double crom_datafree_lr(double base, double frac);
-
 /* ------------------------------------------------------------- training */
-
-/* The record of a run: per block of steps (about 100 blocks), the mean
- * terms and the wall time at its end; and totals. */
-typedef struct {
-    int nblocks;
-    double *objective, *energy, *penalty, *seconds;
-    long steps;
-    double seconds_total;
-    double sigma, box, Eref; /* as used */
-} crom_datafree_log;
-
-void crom_datafree_log_free(crom_datafree_log *l);
-
-/* The clock and record of a training run, shared by the objectives: the
- * schedule's fraction done (steps or --minutes, whichever is further) and
- * the per-block means of the terms, with progress reports. */
-typedef struct {
-    crom_datafree_log *log;
-    const crom_datafree_opts *o;
-    int block, inblock;
-    double budget, tstart, sobj, sen, spen;
-} crom_datafree_run;
-
-/* Start: allocate the record for o->steps steps. CROM_EINTERNAL. */
-int crom_datafree_run_begin(crom_datafree_run *R, crom_datafree_log *log, const crom_datafree_opts *o);
-/* Before step k: 0 when the time budget is spent, else 1 with the
- * fraction of the schedule done in *frac. */
-int crom_datafree_run_next(crom_datafree_run *R, long k, double *frac);
-/* After step k: record its terms. */
-void crom_datafree_run_record(crom_datafree_run *R, long k, const crom_datafree_terms *t);
-/* After the last step (k steps taken): close the record. CROM_EUSAGE if
- * no step was taken (the time budget ran out first). */
-int crom_datafree_run_end(crom_datafree_run *R, long k);
 
 /* Train a map on problem p with options o; out gets a model of kind
  * "energy" or "neuralmodes" (mesh copied with its regions; neuralmodes also
  * keeps W and the frequencies) and log the record. Returns 0, CROM_EUSAGE
  * (rank larger than the free degrees of freedom, a free body under gravity,
  * bad options), CROM_EDATA (training diverged) or CROM_EINTERNAL. */
-int crom_datafree_train(const crom_datafree_problem *p, const crom_datafree_opts *o, crom_model *out, crom_datafree_log *log);
+int crom_datafree_train(const crom_datafree_problem *p, const crom_datafree_opts *o, crom_model *out, crom_dftrain_log *log);
 
 /* Write what a data-free model records beyond its basis (after
  * crom_model_write): the options as attributes (sigma, isometry_weight,
@@ -236,7 +193,7 @@ int crom_datafree_train(const crom_datafree_problem *p, const crom_datafree_opts
  * mass, and the training record (training/objective, /energy, /penalty,
  * /seconds). modes_id may be NULL. Returns 0 or an HDF5 error. */
 int crom_datafree_write_record(hid_t loc, const crom_datafree_opts *o, const crom_datafree_problem *p,
-                         const crom_datafree_log *log, double mass, const char *modes_id);
+                         const crom_dftrain_log *log, double mass, const char *modes_id);
 
 
 #endif

@@ -160,7 +160,7 @@ static int local(crom_dffield_ctx *c, int v)
 }
 
 int crom_dffield_loss(crom_dffield_ctx *c, int B, const double *z, double rho, int K, const int *tets,
-                      crom_datafree_terms *t, float *gW, float *gP)
+                      crom_dftrain_terms *t, float *gW, float *gP)
 {
     int r = c->r, p = c->p, nt = c->fem.nt, B0 = c->B0, rc;
     const double *X = c->P.mesh->X, *g = c->P.gravity;
@@ -393,26 +393,16 @@ static int init_scale(crom_dffield_ctx *c, crom_nn_mlp *W, crom_nn_mlp *phi, cro
     double rms = sqrt(u2 / ((double)B * n)); /* per vertex (3 components) */
     if (!(rms > 0) || !isfinite(rms))
         return crom_err(CROM_EDATA, "the initial field is zero or not finite");
-    crom_nn_layer *ly = &W->layer[W->spec.nlayers - 1];
-    float f = (float)(c->o.sigma / rms);
-    for (int i = 0; i < ly->out * ly->in; i++)
-        ly->W[i] *= f;
-    for (int i = 0; i < ly->out; i++)
-        ly->b[i] *= f;
+    crom_dftrain_scale_last(W, (float)(c->o.sigma / rms));
     return 0;
 }
 
-int crom_dffield_train(const crom_datafree_problem *p, const crom_datafree_opts *o_in, crom_model *out,
-                       crom_datafree_log *log)
+/* Check the problem and the options of the field, and fill in sigma (0.05
+ * times the bounding-box diagonal) where it is unset. */
+static int check_field(const crom_datafree_problem *p, crom_datafree_opts *o)
 {
-    crom_model_clear(out);
-    memset(log, 0, sizeof *log);
-    crom_datafree_opts o = *o_in;
-    const crom_mesh *mesh = p->mesh;
-    int nv = mesh->nv, nt = mesh->nt, r = o.rank, pf = o.features, rc = 0;
-    double t0 = crom_clock_now();
-    int pinned = 0;
-    for (int i = 0; p->fixed && i < 3 * nv; i++)
+    int pinned = 0, r = o->rank, pf = o->features;
+    for (int i = 0; p->fixed && i < 3 * p->mesh->nv; i++)
         pinned += p->fixed[i] != 0;
     if (r < 1 || pf < 1)
         return crom_err(CROM_EUSAGE, "--rank %d and --features %d must be positive", r, pf);
@@ -420,118 +410,108 @@ int crom_dffield_train(const crom_datafree_problem *p, const crom_datafree_opts 
     if (gn > 0 && pinned == 0)
         return crom_err(CROM_EUSAGE, "a free body under gravity has no lowest energy (it falls forever): pin a "
                         "region (--pin) or train with --gravity 0,0,0");
-    if (o.steps < 1 || o.batch < 2 || o.depth < 2 || o.width < 1 || o.field_depth < 2 || o.field_width < 1 ||
-        o.tets < 1)
+    if (o->steps < 1 || o->batch < 2 || o->depth < 2 || o->width < 1 || o->field_depth < 2 || o->field_width < 1 ||
+        o->tets < 1)
         return crom_err(CROM_EUSAGE, "steps, batch (>= 2), depth (>= 2), width and tets must be positive");
-    if (o.depth > CROM_NN_MAX_LAYERS || o.field_depth > CROM_NN_MAX_LAYERS)
+    if (o->depth > CROM_NN_MAX_LAYERS || o->field_depth > CROM_NN_MAX_LAYERS)
         return crom_err(CROM_EUSAGE, "at most %d layers per network", CROM_NN_MAX_LAYERS);
-    double lo[3], hi[3];
-    crom_mesh_bbox(mesh, lo, hi);
-    double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                       (hi[2] - lo[2]) * (hi[2] - lo[2]));
-    if (!(o.sigma > 0))
-        o.sigma = 0.05 * diag;
-    if (!isfinite(o.sigma) || !isfinite(o.lambda) || o.lambda < 0 || !(o.lr > 0) || !isfinite(o.lr) ||
-        !(o.ramp >= 0 && o.ramp <= 1) || !isfinite(o.pin_length) || o.pin_length < 0)
+    if (!(o->sigma > 0))
+        o->sigma = 0.05 * crom_dftrain_diag(p->mesh);
+    if (!isfinite(o->sigma) || !isfinite(o->lambda) || o->lambda < 0 || !(o->lr > 0) || !isfinite(o->lr) ||
+        !(o->ramp >= 0 && o->ramp <= 1) || !isfinite(o->pin_length) || o->pin_length < 0)
         return crom_err(CROM_EUSAGE, "non-finite or negative training weight");
-    int K = o.tets < nt ? o.tets : nt;
-    /* the networks: W 3 -> field_width x (field_depth - 1) -> 3p with the
-     * input normalized to the bounding box; φ r -> width x (depth - 1) -> p */
-    int ww[CROM_NN_MAX_LAYERS + 1], pw[CROM_NN_MAX_LAYERS + 1];
-    ww[0] = 3;
-    for (int l = 1; l < o.field_depth; l++)
-        ww[l] = o.field_width;
-    ww[o.field_depth] = 3 * pf;
-    pw[0] = r;
-    for (int l = 1; l < o.depth; l++)
-        pw[l] = o.width;
-    pw[o.depth] = pf;
-    crom_nn_spec wspec, pspec;
-    if ((rc = crom_nn_spec_set(&wspec, o.field_depth + 1, ww, o.act)) ||
-        (rc = crom_nn_spec_set(&pspec, o.depth + 1, pw, o.act)))
-        return rc;
+    return 0;
+}
+
+/* A field in training: the options as used, the networks W and φ with
+ * their gradients, the loss, and the random streams of the initialization
+ * and of the samples. */
+typedef struct {
+    crom_datafree_opts o;
     crom_nn_mlp W, phi;
-    memset(&W, 0, sizeof W);
-    memset(&phi, 0, sizeof phi);
+    float *gW, *gP;
     crom_dffield_ctx ctx;
-    memset(&ctx, 0, sizeof ctx);
-    crom_nn_adam aw, ap;
-    memset(&aw, 0, sizeof aw);
-    memset(&ap, 0, sizeof ap);
-    float *gW = NULL, *gP = NULL;
-    double *z = crom_malloc(sizeof(double) * (size_t)(o.batch + (o.tangent_samples > 0 ? o.tangent_samples : 0)) * r);
-    int *tets = crom_malloc(sizeof(int) * (size_t)K);
-    crom_datafree_run R;
-    int rcr = crom_datafree_run_begin(&R, log, &o);
-    if (!z || !tets || rcr) {
-        rc = CROM_EINTERNAL;
-        goto done;
-    }
+    int K;                   /* tets of the cubature */
     crom_rng irng, srng;
-    crom_rng_seed(&irng, o.seed);
-    crom_rng_seed(&srng, o.seed ^ 0x5eed5a3b1e5ULL);
-    if ((rc = crom_nn_mlp_init(&W, &wspec, NULL, &irng)) || (rc = crom_nn_mlp_init(&phi, &pspec, NULL, &irng)))
-        goto done;
-    {
-        float sh[3], sc[3];
-        double corners[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
-        if ((rc = crom_nn_norm_fit(corners, 2, 3, sh, sc)) || (rc = crom_nn_mlp_set_norm(&W, sh, sc)))
-            goto done;
-    }
-    if ((rc = crom_dffield_ctx_init(&ctx, p, &o, &W, &phi, o.batch, K)))
-        goto done;
-    if ((rc = init_scale(&ctx, &W, &phi, &srng)))
-        goto done;
-    gW = crom_malloc(sizeof(float) * W.nparams);
-    gP = crom_malloc(sizeof(float) * phi.nparams);
-    if (!gW || !gP) {
-        rc = CROM_EINTERNAL;
-        goto done;
-    }
-    if ((rc = crom_nn_adam_init(&aw, W.nparams)) || (rc = crom_nn_adam_init(&ap, phi.nparams)))
-        goto done;
-    log->sigma = o.sigma;
-    log->Eref = ctx.Eref;
-    long k;
-    R.tstart = crom_clock_now(); /* the clock starts after the set-up */
-    for (k = 0; k < o.steps; k++) {
-        double frac;
-        if (!crom_datafree_run_next(&R, k, &frac))
-            break;
-        double rho = o.ramp > 0 ? fmin(1.0, frac / o.ramp) : 1;
-        for (int i = 0; i < o.batch * r; i++)
-            z[i] = crom_rng_normal(&srng);
-        for (int i = o.batch * r; i < (o.batch + ctx.B0) * r; i++) /* small samples: the tangent at rest */
-            z[i] = o.tangent_radius * crom_rng_normal(&srng);
-        for (int i = 0; i < K; i++) /* a fresh random cubature each step */
-            tets[i] = K == nt ? i : (int)crom_rng_below(&srng, (uint64_t)nt);
-        crom_datafree_terms tm;
-        if ((rc = crom_dffield_loss(&ctx, o.batch, z, rho, K, tets, &tm, gW, gP))) {
-            if (rc == CROM_EDATA)
-                crom_err_ctx("training diverged at step %ld (try a smaller --lr)", k + 1);
-            goto done;
-        }
-        double lr = crom_datafree_lr(o.lr, frac);
-        crom_nn_adam_step(&aw, W.params, gW, lr);
-        crom_nn_adam_step(&ap, phi.params, gP, lr);
-        crom_datafree_run_record(&R, k, &tm);
-    }
-    if ((rc = crom_datafree_run_end(&R, k)))
-        goto done;
-    if ((rc = crom_model_from_field_map(out, &W, &phi, ctx.npins, ctx.pinX, ctx.ntri, ctx.triX, ctx.pin_length)))
-        goto done;
-    out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
-done:
-    crom_nn_adam_free(&aw);
-    crom_nn_adam_free(&ap);
-    crom_dffield_ctx_free(&ctx);
-    crom_nn_mlp_free(&W);
-    crom_nn_mlp_free(&phi);
-    free(gW);
-    free(gP);
-    free(z);
-    free(tets);
+} field_trainer;
+
+static void field_free(field_trainer *T)
+{
+    crom_dffield_ctx_free(&T->ctx);
+    crom_nn_mlp_free(&T->W);
+    crom_nn_mlp_free(&T->phi);
+    free(T->gW);
+    free(T->gP);
+}
+
+/* The networks: W 3 -> field_width x (field_depth - 1) -> 3p with the input
+ * normalized to the bounding box, φ r -> width x (depth - 1) -> p; the
+ * loss; W scaled to the isometry. */
+static int field_setup(field_trainer *T, const crom_datafree_problem *p)
+{
+    const crom_datafree_opts *o = &T->o;
+    int nt = p->mesh->nt, pf = o->features, rc;
+    T->K = o->tets < nt ? o->tets : nt;
+    crom_nn_spec wspec, pspec;
+    if ((rc = crom_dftrain_spec(&wspec, 3, o->field_width, o->field_depth, 3 * pf, o->act)) ||
+        (rc = crom_dftrain_spec(&pspec, o->rank, o->width, o->depth, pf, o->act)))
+        return rc;
+    crom_rng_seed(&T->irng, o->seed);
+    crom_rng_seed(&T->srng, o->seed ^ 0x5eed5a3b1e5ULL);
+    if ((rc = crom_nn_mlp_init(&T->W, &wspec, NULL, &T->irng)) ||
+        (rc = crom_nn_mlp_init(&T->phi, &pspec, NULL, &T->irng)) || (rc = crom_dftrain_norm_box(&T->W, p->mesh)))
+        return rc;
+    if ((rc = crom_dffield_ctx_init(&T->ctx, p, o, &T->W, &T->phi, o->batch, T->K)) ||
+        (rc = init_scale(&T->ctx, &T->W, &T->phi, &T->srng)))
+        return rc;
+    T->gW = crom_malloc(sizeof(float) * T->W.nparams);
+    T->gP = crom_malloc(sizeof(float) * T->phi.nparams);
+    return T->gW && T->gP ? 0 : CROM_EINTERNAL;
+}
+
+static int field_loss(void *ctx, const double *z, double rho, int K, const int *tets, crom_dftrain_terms *t)
+{
+    field_trainer *T = ctx;
+    return crom_dffield_loss(&T->ctx, T->o.batch, z, rho, K, tets, t, T->gW, T->gP);
+}
+
+/* Train both networks with Adam: z ~ N(0, I), ρ ramped, a fresh random
+ * cubature each step. */
+static int field_train(field_trainer *T, const crom_datafree_problem *p, crom_dftrain_log *log)
+{
+    const crom_datafree_opts *o = &T->o;
+    log->sigma = o->sigma;
+    log->Eref = T->ctx.Eref;
+    crom_dftrain_loop L = {
+        .loss = field_loss, .ctx = T, .nblocks = 2, .params = {T->W.params, T->phi.params}, .grad = {T->gW, T->gP},
+        .nparams = {T->W.nparams, T->phi.nparams}, .rng = &T->srng, .batch = o->batch, .tangent = T->ctx.B0,
+        .r = o->rank, .tangent_radius = o->tangent_radius, .K = T->K, .nt = p->mesh->nt, .ramp = o->ramp,
+        .steps = o->steps, .minutes = o->minutes, .lr = o->lr, .hint = " (try a smaller --lr)",
+        .progress = o->progress, .progress_ctx = o->progress_ctx};
+    return crom_dftrain_run(&L, log);
+}
+
+int crom_dffield_train(const crom_datafree_problem *p, const crom_datafree_opts *o, crom_model *out,
+                       crom_dftrain_log *log)
+{
+    crom_model_clear(out);
+    memset(log, 0, sizeof *log);
+    double t0 = crom_clock_now();
+    field_trainer T;
+    memset(&T, 0, sizeof T);
+    T.o = *o;
+    int rc = check_field(p, &T.o);
+    if (!rc)
+        rc = field_setup(&T, p);
+    if (!rc)
+        rc = field_train(&T, p, log);
+    if (!rc)
+        rc = crom_model_from_field_map(out, &T.W, &T.phi, T.ctx.npins, T.ctx.pinX, T.ctx.ntri, T.ctx.triX,
+                                       T.ctx.pin_length);
+    if (!rc)
+        out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
+    field_free(&T);
     if (rc)
-        crom_datafree_log_free(log);
+        crom_dftrain_log_free(log);
     return rc;
 }

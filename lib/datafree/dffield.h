@@ -27,7 +27,7 @@
  *
  * The problem and the options are those of datafree.h (crom_datafree_problem,
  * crom_datafree_opts with objective CROM_DATAFREE_FIELD); training is Adam
- * with the schedule of the data-free maps (datafree.h).
+ * on the loop of the data-free trainers (dftrain.h).
  */
 #ifndef CROM_DFFIELD_H
 #define CROM_DFFIELD_H
@@ -71,13 +71,13 @@ void crom_dffield_ctx_free(crom_dffield_ctx *c);
  * at rest. Returns 0, CROM_EUSAGE (sizes), CROM_EDATA (a non-finite
  * energy). */
 int crom_dffield_loss(crom_dffield_ctx *c, int B, const double *z, double rho, int K, const int *tets,
-                      crom_datafree_terms *t, float *gW, float *gP);
+                      crom_dftrain_terms *t, float *gW, float *gP);
 
 /* Train the continuous field on problem p with options o (crom_datafree_train
  * calls it for CROM_DATAFREE_FIELD); out gets a model of kind "energy-field"
  * and log the record. Returns 0, CROM_EUSAGE (bad options, a free body
  * under gravity), CROM_EDATA (training diverged) or CROM_EINTERNAL. */
 int crom_dffield_train(const crom_datafree_problem *p, const crom_datafree_opts *o, crom_model *out,
-                       crom_datafree_log *log);
+                       crom_dftrain_log *log);
 
 #endif

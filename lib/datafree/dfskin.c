@@ -77,14 +77,6 @@ void crom_dfskin_ctx_free(crom_dfskin_ctx *c)
     memset(c, 0, sizeof *c);
 }
 
-static double bbox_diag(const crom_mesh *m)
-{
-    double lo[3], hi[3];
-    crom_mesh_bbox(m, lo, hi);
-    return sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                (hi[2] - lo[2]) * (hi[2] - lo[2]));
-}
-
 /* The pinned part of the training geometry: for a tet mesh its pinned
  * vertices and its boundary triangles with three pinned vertices, then the
  * given points and triangles. */
@@ -193,7 +185,7 @@ int crom_dfskin_ctx_init(crom_dfskin_ctx *c, const crom_dfskin_problem *p, const
         c->mask[v] = crom_skin_mask_at(p->mesh->X + 3 * (size_t)v, c->npins, c->pinX, c->ntri, c->triX, c->pin_length);
     }
     c->mass = c->fem.total_mass;
-    double D = bbox_diag(p->mesh);
+    double D = crom_dftrain_diag(p->mesh);
     c->Eref = p->mat.E * c->fem.volume / (D * D);
     return 0;
 }
@@ -235,7 +227,7 @@ static int local(crom_dfskin_ctx *c, int v)
     return c->loc[v];
 }
 
-int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const int *tets, crom_datafree_terms *t, float *grad)
+int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const int *tets, crom_dftrain_terms *t, float *grad)
 {
     const crom_fem *fem = &c->fem;
     const double *X = c->P.mesh->X;
@@ -502,105 +494,88 @@ static int init_scale(crom_dfskin_ctx *c, crom_nn_mlp *net, crom_rng *rng)
     double rms = sqrt(s2 / (mw * Ht));
     if (!(rms > 0) || !isfinite(rms))
         return crom_err(CROM_EDATA, "the initial weights are zero or not finite");
-    crom_nn_layer *ly = &net->layer[net->spec.nlayers - 1];
-    float f = (float)(1 / rms);
-    for (int i = 0; i < ly->out * ly->in; i++)
-        ly->W[i] *= f;
-    for (int i = 0; i < ly->out; i++)
-        ly->b[i] *= f;
+    crom_dftrain_scale_last(net, (float)(1 / rms));
     return 0;
 }
 
-int crom_dfskin_train(const crom_dfskin_problem *p, const crom_dfskin_opts *o_in, crom_model *out, crom_datafree_log *log)
+/* Check the problem and the options, and fill in sigma and the pin
+ * length (0.01 and 0.05 times the bounding-box diagonal) where they are
+ * unset; *pinned: whether anything is pinned (else handle 0 is the
+ * constant). */
+static int check_skin(const crom_dfskin_problem *p, crom_dfskin_opts *o, int *pinned)
 {
-    crom_model_clear(out);
-    memset(log, 0, sizeof *log);
-    crom_dfskin_opts o = *o_in;
     const crom_mesh *mesh = p->mesh;
-    int nt = mesh->nt, H = o.handles, rc = 0;
-    double t0 = crom_clock_now();
+    int H = o->handles, rc;
     if (!p->virtual_tets && (rc = crom_dfskin_check_handles(mesh, p->fixed, H)))
         return rc;
     if (H < 1)
         return crom_err(CROM_EUSAGE, "--handles %d: a skinning subspace needs at least one handle", H);
-    if (o.steps < 1 || o.batch < 1 || o.depth < 2 || o.width < 1 || o.tets < 1)
+    if (o->steps < 1 || o->batch < 1 || o->depth < 2 || o->width < 1 || o->tets < 1)
         return crom_err(CROM_EUSAGE, "steps, batch, depth (>= 2), width and tets must be positive");
-    if (o.depth > CROM_NN_MAX_LAYERS)
-        return crom_err(CROM_EUSAGE, "--depth %d: at most %d layers", o.depth, CROM_NN_MAX_LAYERS);
-    double D = bbox_diag(mesh);
-    if (!(o.sigma > 0))
-        o.sigma = 0.01 * D;
-    if (!(o.pin_length > 0))
-        o.pin_length = 0.05 * D;
-    if (!isfinite(o.sigma) || !isfinite(o.pin_length) || !(o.ortho_weight >= 0) || !isfinite(o.ortho_weight) ||
-        !(o.lr > 0) || !isfinite(o.lr))
+    if (o->depth > CROM_NN_MAX_LAYERS)
+        return crom_err(CROM_EUSAGE, "--depth %d: at most %d layers", o->depth, CROM_NN_MAX_LAYERS);
+    double D = crom_dftrain_diag(mesh);
+    if (!(o->sigma > 0))
+        o->sigma = 0.01 * D;
+    if (!(o->pin_length > 0))
+        o->pin_length = 0.05 * D;
+    if (!isfinite(o->sigma) || !isfinite(o->pin_length) || !(o->ortho_weight >= 0) || !isfinite(o->ortho_weight) ||
+        !(o->lr > 0) || !isfinite(o->lr))
         return crom_err(CROM_EUSAGE, "non-finite or negative training weight");
-    int K = o.tets < nt ? o.tets : nt;
     /* is there a pin? then every handle is masked, else handle 0 is constant */
-    int pinned = p->npin > 0 || p->ntri > 0;
-    for (int i = 0; !pinned && p->fixed && i < 3 * mesh->nv; i++)
-        pinned = p->fixed[i] != 0;
-    int Ht = H - !pinned;
-    if (Ht < 1)
+    *pinned = p->npin > 0 || p->ntri > 0;
+    for (int i = 0; !*pinned && p->fixed && i < 3 * mesh->nv; i++)
+        *pinned = p->fixed[i] != 0;
+    if (H - !*pinned < 1)
         return crom_err(CROM_EUSAGE, "--handles 1 on a free body is only its constant handle (affine motions): "
                         "train at least 2");
-    int widths[CROM_NN_MAX_LAYERS + 1];
-    widths[0] = 3;
-    for (int l = 1; l < o.depth; l++)
-        widths[l] = o.width;
-    widths[o.depth] = Ht;
-    crom_nn_spec spec;
-    if ((rc = crom_nn_spec_set(&spec, o.depth + 1, widths, o.act)))
-        return rc;
+    return 0;
+}
+
+/* Weights in training: the options as used, the network and its gradient,
+ * the loss, the scales of the pose coordinates, and the random streams of
+ * the initialization and of the poses. */
+typedef struct {
+    crom_dfskin_opts o;
     crom_nn_mlp net;
-    memset(&net, 0, sizeof net);
+    float *grad;
     crom_dfskin_ctx ctx;
-    memset(&ctx, 0, sizeof ctx);
-    crom_nn_adam adam;
-    memset(&adam, 0, sizeof adam);
-    float *grad = NULL;
-    double *q = crom_malloc(sizeof(double) * (size_t)o.batch * 12 * H);
-    int *tets = crom_malloc(sizeof(int) * (size_t)K);
-    /* the shared clock and record of the data-free trainers */
-    crom_datafree_opts ro;
-    crom_datafree_defaults(&ro, CROM_DATAFREE_FIELD);
-    ro.steps = o.steps;
-    ro.minutes = o.minutes;
-    ro.progress = o.progress;
-    ro.progress_ctx = o.progress_ctx;
-    crom_datafree_run R;
-    int rcr = crom_datafree_run_begin(&R, log, &ro);
-    if (!q || !tets || rcr) {
-        rc = CROM_EINTERNAL;
-        goto done;
-    }
+    double *scale;           /* [12H] */
     crom_rng irng, srng;
-    crom_rng_seed(&irng, o.seed);
-    crom_rng_seed(&srng, o.seed ^ 0x5eed5a3b1e5ULL);
-    if ((rc = crom_nn_mlp_init(&net, &spec, NULL, &irng)))
-        goto done;
-    {
-        float sh[3], sc[3];
-        double lo[3], hi[3];
-        crom_mesh_bbox(mesh, lo, hi);
-        double corners[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
-        if ((rc = crom_nn_norm_fit(corners, 2, 3, sh, sc)) || (rc = crom_nn_mlp_set_norm(&net, sh, sc)))
-            goto done;
-    }
-    if ((rc = crom_dfskin_ctx_init(&ctx, p, &o, &net, o.batch, K)))
-        goto done;
-    if (ctx.constant == pinned) {
-        rc = crom_err(CROM_EINTERNAL, "pin detection disagrees");
-        goto done;
-    }
-    if ((rc = init_scale(&ctx, &net, &srng)))
-        goto done;
-    if (!(grad = crom_malloc(sizeof(float) * net.nparams)) || (rc = crom_nn_adam_init(&adam, net.nparams))) {
-        rc = rc ? rc : CROM_EINTERNAL;
-        goto done;
-    }
-    log->sigma = o.sigma;
-    log->Eref = ctx.Eref;
+} skin_trainer;
+
+static void skin_free(skin_trainer *T)
+{
+    crom_dfskin_ctx_free(&T->ctx);
+    crom_nn_mlp_free(&T->net);
+    free(T->grad);
+    free(T->scale);
+}
+
+/* The network 3 -> width x (depth - 1) -> H' with the input normalized to
+ * the bounding box, the loss, the network scaled to unit weights; the
+ * scales of the pose coordinates. */
+static int skin_setup(skin_trainer *T, const crom_dfskin_problem *p, int pinned)
+{
+    const crom_dfskin_opts *o = &T->o;
+    int nt = p->mesh->nt, H = o->handles, K = o->tets < nt ? o->tets : nt, rc;
+    crom_nn_spec spec;
+    if ((rc = crom_dftrain_spec(&spec, 3, o->width, o->depth, H - !pinned, o->act)))
+        return rc;
+    crom_rng_seed(&T->irng, o->seed);
+    crom_rng_seed(&T->srng, o->seed ^ 0x5eed5a3b1e5ULL);
+    if ((rc = crom_nn_mlp_init(&T->net, &spec, NULL, &T->irng)) || (rc = crom_dftrain_norm_box(&T->net, p->mesh)))
+        return rc;
+    if ((rc = crom_dfskin_ctx_init(&T->ctx, p, o, &T->net, o->batch, K)))
+        return rc;
+    if (T->ctx.constant == pinned)
+        return crom_err(CROM_EINTERNAL, "pin detection disagrees");
+    if ((rc = init_scale(&T->ctx, &T->net, &T->srng)))
+        return rc;
+    T->grad = crom_malloc(sizeof(float) * T->net.nparams);
+    T->scale = crom_malloc(sizeof(double) * 12 * (size_t)H);
+    if (!T->grad || !T->scale)
+        return CROM_EINTERNAL;
     /* pose coordinates: the translations Q_h[c][3] carry 90 % of the
      * variance, the linear parts Q_h[c][0..2] (times X̂, unit variance) the
      * rest, for an RMS displacement σ. A linear part weighs a weight's
@@ -610,41 +585,56 @@ int crom_dfskin_train(const crom_dfskin_problem *p, const crom_dfskin_opts *o_in
      * 28 % with every coordinate of equal variance, 13-18 % at 90 %, 21 % with
      * translations alone) */
     double tfrac = 0.9;
-    double qt = o.sigma * sqrt(tfrac / (3.0 * H)), ql = o.sigma * sqrt((1 - tfrac) / (9.0 * H));
-    long k;
-    R.tstart = crom_clock_now(); /* the clock starts after the set-up */
-    for (k = 0; k < o.steps; k++) {
-        double frac;
-        if (!crom_datafree_run_next(&R, k, &frac))
-            break;
-        for (int i = 0; i < o.batch * 12 * H; i++)
-            q[i] = (i % 4 == 3 ? qt : ql) * crom_rng_normal(&srng);
-        for (int i = 0; i < K; i++) /* a fresh random cubature each step */
-            tets[i] = K == nt ? i : (int)crom_rng_below(&srng, (uint64_t)nt);
-        crom_datafree_terms tm;
-        if ((rc = crom_dfskin_loss(&ctx, o.batch, q, K, tets, &tm, grad))) {
-            if (rc == CROM_EDATA)
-                crom_err_ctx("training diverged at step %ld (try a smaller --lr or --sigma)", k + 1);
-            goto done;
-        }
-        crom_nn_adam_step(&adam, net.params, grad, crom_datafree_lr(o.lr, frac));
-        crom_datafree_run_record(&R, k, &tm);
-    }
-    if ((rc = crom_datafree_run_end(&R, k)))
-        goto done;
-    if ((rc = crom_skin_model_mlp(out, &net, H, ctx.constant, ctx.F, ctx.npins, ctx.pinX, ctx.ntri, ctx.triX,
-                                  ctx.pin_length)))
-        goto done;
-    out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
-done:
-    crom_nn_adam_free(&adam);
-    crom_dfskin_ctx_free(&ctx);
-    crom_nn_mlp_free(&net);
-    free(grad);
-    free(q);
-    free(tets);
+    double qt = o->sigma * sqrt(tfrac / (3.0 * H)), ql = o->sigma * sqrt((1 - tfrac) / (9.0 * H));
+    for (int i = 0; i < 12 * H; i++)
+        T->scale[i] = i % 4 == 3 ? qt : ql;
+    return 0;
+}
+
+static int skin_loss(void *ctx, const double *q, double rho, int K, const int *tets, crom_dftrain_terms *t)
+{
+    skin_trainer *T = ctx;
+    return crom_dfskin_loss(&T->ctx, T->o.batch, q, K, tets, t, T->grad);
+}
+
+/* Train the weights with Adam on random poses and a fresh random cubature
+ * each step. */
+static int skin_train(skin_trainer *T, const crom_dfskin_problem *p, crom_dftrain_log *log)
+{
+    const crom_dfskin_opts *o = &T->o;
+    int nt = p->mesh->nt;
+    log->sigma = o->sigma;
+    log->Eref = T->ctx.Eref;
+    crom_dftrain_loop L = {
+        .loss = skin_loss, .ctx = T, .nblocks = 1, .params = {T->net.params}, .grad = {T->grad},
+        .nparams = {T->net.nparams}, .rng = &T->srng, .batch = o->batch, .r = 12 * o->handles, .scale = T->scale,
+        .K = o->tets < nt ? o->tets : nt, .nt = nt, .steps = o->steps, .minutes = o->minutes, .lr = o->lr,
+        .hint = " (try a smaller --lr or --sigma)", .progress = o->progress, .progress_ctx = o->progress_ctx};
+    return crom_dftrain_run(&L, log);
+}
+
+int crom_dfskin_train(const crom_dfskin_problem *p, const crom_dfskin_opts *o, crom_model *out,
+                      crom_dftrain_log *log)
+{
+    crom_model_clear(out);
+    memset(log, 0, sizeof *log);
+    double t0 = crom_clock_now();
+    skin_trainer T;
+    memset(&T, 0, sizeof T);
+    T.o = *o;
+    int pinned, rc = check_skin(p, &T.o, &pinned);
+    if (!rc)
+        rc = skin_setup(&T, p, pinned);
+    if (!rc)
+        rc = skin_train(&T, p, log);
+    if (!rc)
+        rc = crom_skin_model_mlp(out, &T.net, T.o.handles, T.ctx.constant, T.ctx.F, T.ctx.npins, T.ctx.pinX,
+                                 T.ctx.ntri, T.ctx.triX, T.ctx.pin_length);
+    if (!rc)
+        out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
+    skin_free(&T);
     if (rc)
-        crom_datafree_log_free(log);
+        crom_dftrain_log_free(log);
     return rc;
 }
 

@@ -53,7 +53,7 @@
 
 #include <stdint.h>
 
-#include "datafree/datafree.h"
+#include "datafree/dftrain.h"
 #include "mesh/mesh.h"
 #include "nn/nn.h"
 #include "phys/fem.h"
@@ -133,14 +133,14 @@ void crom_dfskin_ctx_free(crom_dfskin_ctx *c);
  * poses (J), t->penalty ‖G − I‖²_F. Returns 0, CROM_EUSAGE (sizes),
  * CROM_EDATA (a non-finite energy, or a pose that does not move the
  * drawn tets). */
-int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const int *tets, crom_datafree_terms *t, float *grad);
+int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const int *tets, crom_dftrain_terms *t, float *grad);
 
 /* ------------------------------------------------------------- building */
 
 /* Train the weights on problem p; out gets a trained "skinning" model and
- * log the record (crom_datafree_log of datafree.h). CROM_EUSAGE (bad options or
+ * log the record (crom_dftrain_log of dftrain.h). CROM_EUSAGE (bad options or
  * handle count), CROM_EDATA (training diverged), CROM_EINTERNAL. */
-int crom_dfskin_train(const crom_dfskin_problem *p, const crom_dfskin_opts *o, crom_model *out, crom_datafree_log *log);
+int crom_dfskin_train(const crom_dfskin_problem *p, const crom_dfskin_opts *o, crom_model *out, crom_dftrain_log *log);
 
 /* Skinning eigenmodes of a tet mesh: H handles for material mat with the
  * DOFs fixed [3nv] (NULL: a free body) pinned. out gets an "eigen"

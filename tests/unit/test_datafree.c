@@ -100,7 +100,7 @@ static double loss_at(const double *x, void *v)
     fd_case *t = v;
     for (int i = 0; i < t->n; i++)
         t->p[i] = (float)x[i];
-    crom_datafree_terms tm;
+    crom_dftrain_terms tm;
     if (crom_datafree_loss(t->c, t->B, t->z, t->rho, t->K, t->tets, &tm, NULL))
         return NAN;
     return tm.objective;
@@ -167,7 +167,7 @@ static void gradient_check(int objective)
             c.o.lambda = 0;
             c.o.tangent_weight = 10;
         }
-        crom_datafree_terms tm;
+        crom_dftrain_terms tm;
         int rc = crom_datafree_loss(&c, B, z, rhos[k], Ks[k], Ks[k] ? tets : NULL, &tm, g);
         CHECK_MSG(rc == 0, "loss: %s", crom_errmsg());
         for (int i = 0; i < n; i++) {
@@ -227,7 +227,7 @@ static double field_loss_at(const double *x, void *v)
         t->pw[i] = (float)x[i];
     for (int i = 0; i < t->np; i++)
         t->pp[i] = (float)x[t->nw + i];
-    crom_datafree_terms tm;
+    crom_dftrain_terms tm;
     if (crom_dffield_loss(t->c, t->B, t->z, 0.7, t->K, t->tets, &tm, NULL, NULL))
         return NAN;
     return tm.objective;
@@ -286,7 +286,7 @@ static void gradient_check_field(void)
     int nw = (int)W.nparams, np = (int)phi.nparams, n = nw + np;
     float *gw = malloc(sizeof(float) * nw), *gp = malloc(sizeof(float) * np);
     double *ga = malloc(sizeof(double) * n), *gf = malloc(sizeof(double) * n), *x = malloc(sizeof(double) * n);
-    crom_datafree_terms tm;
+    crom_dftrain_terms tm;
     int rc = crom_dffield_loss(&c, B, z, 0.7, K, tets, &tm, gw, gp);
     CHECK_MSG(rc == 0, "field loss: %s", crom_errmsg());
     for (int i = 0; i < nw; i++) {
@@ -546,7 +546,7 @@ static void test_energy_subspace(bar_case *b)
     o.batch = 16;
     o.width = 32;
     o.seed = 3;
-    crom_datafree_log log;
+    crom_dftrain_log log;
     int rc = crom_datafree_train(&P, &o, &g_energy_model, &log);
     CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
     if (rc)
@@ -586,7 +586,7 @@ static void test_energy_subspace(bar_case *b)
     crom_map_free(&map);
     crom_map_free(&lin);
     crom_model_free(&lm);
-    crom_datafree_log_free(&log);
+    crom_dftrain_log_free(&log);
 }
 
 /* Wang et al.: Neural Modes on the 3 lowest modes, 400 steps of 16 samples
@@ -608,7 +608,7 @@ static void test_neuralmodes_subspace(bar_case *b)
     o.width = 32;
     o.box = 0.1;
     o.box_scaled = 0; /* Wang et al.'s box: every mode in [-0.1, 0.1] */
-    crom_datafree_log log;
+    crom_dftrain_log log;
     crom_model nm;
     int rc = crom_datafree_train(&P, &o, &nm, &log);
     CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
@@ -673,7 +673,7 @@ static void test_neuralmodes_subspace(bar_case *b)
     crom_map_free(&lin);
     crom_model_free(&lm);
     crom_model_free(&nm);
-    crom_datafree_log_free(&log);
+    crom_dftrain_log_free(&log);
 }
 
 /* Run steps latent steps and measure the energy budget: the largest rise
@@ -733,7 +733,7 @@ static void test_field_subspace(bar_case *b)
     o.tets = b->mesh.nt / 2;
     o.seed = 3;
     crom_model fm;
-    crom_datafree_log log;
+    crom_dftrain_log log;
     int rc = crom_datafree_train(&P, &o, &fm, &log);
     CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
     if (rc)
@@ -805,7 +805,7 @@ static void test_field_subspace(bar_case *b)
     crom_model_free(&fm);
     crom_fem_free(&ffem);
     crom_mesh_free(&fine);
-    crom_datafree_log_free(&log);
+    crom_dftrain_log_free(&log);
 }
 
 /* ------------------------------------------------------ latent dynamics */
@@ -1232,7 +1232,7 @@ static void test_lbfgs(bar_case *bc)
     o.ramp = 0; /* the same objective from the start: comparable values */
     o.tets = bc->mesh.nt / 2;
     crom_model m;
-    crom_datafree_log log;
+    crom_dftrain_log log;
     int rc = crom_datafree_train(&P, &o, &m, &log);
     CHECK_MSG(rc == 0, "lbfgs training: %s", crom_errmsg());
     if (rc)
@@ -1246,7 +1246,7 @@ static void test_lbfgs(bar_case *bc)
                     "steps %.4g, of the last 10 %.4g (%ld steps)\n", o.tets, bc->mesh.nt, first, last, log.steps);
     CHECK(log.steps == 60 && log.nblocks == 60 && last < 0.5 * first);
     crom_model_free(&m);
-    crom_datafree_log_free(&log);
+    crom_dftrain_log_free(&log);
 }
 
 int main(void)
