@@ -13,20 +13,14 @@
 
 #include "base/err.h"
 #include "cli/cli.h"
+#include "datafree/body.h"
 #include "datafree/datafree.h"
 #include "datafree/dfskin.h"
 #include "io/io.h"
-#include "mesh/cloud.h"
-#include "mesh/locate.h"
-#include "mesh/mesh.h"
-#include "phys/modes.h"
 #include "phys/scenario.h"
 #include "rom/fit.h"
-#include "rom/map.h"
 #include "rom/model.h"
-#include "rom/result.h"
 #include "rom/samples.h"
-#include "rom/skin.h"
 
 enum { O_RANK = 300, O_ENCODER, O_BASIS, O_EPOCHS, O_MINUTES, O_LR, O_BATCH, O_PPS, O_ENCPTS,
        O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX, O_BOXSC,
@@ -562,105 +556,22 @@ static void on_df_progress(void *ctx, long step, double frac, double obj)
     crom_cli_progress_update(ctx, (long)(frac * 1000), buf);
 }
 
-/* The pins recorded in a modes model's scenario text, appended to sc. */
-static int add_model_pins(crom_scenario *sc, const char *text)
+/* The body of a data-free objective (lib/datafree/body.h); a sampled one
+ * is announced. */
+static int load_body(crom_cli *cli, const args *a, crom_body *b)
 {
-    crom_scenario tmp;
-    crom_scenario_defaults(&tmp);
-    int rc = crom_scenario_parse_text(text, &tmp);
-    for (int i = 0; !rc && i < tmp.npins; i++) {
-        int dup = 0;
-        for (int j = 0; j < sc->npins; j++)
-            dup |= !strcmp(sc->pins[j], tmp.pins[i]);
-        if (dup)
-            continue;
-        if (sc->npins == CROM_SCENARIO_MAX)
-            return crom_err(CROM_EUSAGE, "too many pins (at most %d)", CROM_SCENARIO_MAX);
-        snprintf(sc->pins[sc->npins++], sizeof sc->pins[0], "%s", tmp.pins[i]);
-    }
+    crom_body_source src = {a->mesh, a->surface, a->cloud, a->sample_points, cli->seed};
+    int rc = crom_body_load(b, &src, &a->sc);
+    if (!rc && b->cloud.n)
+        crom_cli_info(cli, "%s: %d points standing for %.6g m^3, integrated through virtual tets",
+                      a->surface ? a->surface : a->cloud, b->cloud.n, b->cloud.volume);
     return rc;
 }
 
-/* The material, gravity (energy) and pins as flags, one per line. */
-static char *df_scenario_text(const crom_scenario *s, int energy)
+/* The options of the skinning weights: the data-free options given, the
+ * skinning defaults for the others. */
+static crom_dfskin_opts skin_opts(const crom_cli *cli, const args *a)
 {
-    size_t cap = 512 + (size_t)s->npins * 140;
-    char *t = crom_malloc(cap);
-    if (!t)
-        return NULL;
-    size_t l = (size_t)snprintf(t, cap, "--youngs %.17g\n--poisson %.17g\n--density %.17g\n", s->youngs, s->poisson,
-                                s->density);
-    if (energy)
-        l += (size_t)snprintf(t + l, cap - l, "--gravity %.17g,%.17g,%.17g\n", s->gravity[0], s->gravity[1],
-                              s->gravity[2]);
-    for (int i = 0; i < s->npins; i++)
-        l += (size_t)snprintf(t + l, cap - l, "--pin %s\n", s->pins[i]);
-    return t;
-}
-
-/* The body a continuous objective trains on: --mesh, or the virtual tets
- * of a point sampling of --surface or --cloud (lib/mesh/cloud.h), which cl
- * then keeps (its surface makes the pin mask exact). */
-static int load_body(crom_cli *cli, const args *a, crom_mesh *mesh, char **hist, crom_cloud *cl)
-{
-    memset(cl, 0, sizeof *cl);
-    if (a->mesh)
-        return crom_mesh_load(a->mesh, 0, mesh, hist) ? crom_err_ctx("--mesh") : 0;
-    for (int i = 0; i < a->sc.npins; i++) /* before the sampling reports anything */
-        if (!crom_pred_is(a->sc.pins[i]))
-            return crom_err(CROM_EUSAGE, "--pin %s: a surface or point cloud has no named regions; give a predicate "
-                            "such as 'x<-0.49'", a->sc.pins[i]);
-    int rc = a->surface ? crom_cloud_from_surface(a->surface, a->sample_points ? a->sample_points : 8192,
-                                                  cli->seed ^ 0xc10d, cl)
-                        : crom_cloud_read(a->cloud, cl);
-    if (rc)
-        return crom_err_ctx(a->surface ? "--surface" : "--cloud");
-    if ((rc = crom_cloud_stencils(cl, cli->seed ^ 0x57e1, mesh)))
-        return rc;
-    crom_cli_info(cli, "%s: %d points standing for %.6g m^3, integrated through virtual tets", a->surface ? a->surface
-                  : a->cloud, cl->n, cl->volume);
-    return 0;
-}
-
-/* The scenario's material, and the pinned DOFs of mesh (pins by region or
- * predicate; a sampled body's by predicate only, with what they hold in the
- * cloud: its pinned points and triangles). */
-static int body_pins(const args *a, const crom_mesh *mesh, const crom_cloud *cl, crom_material *mat,
-                     unsigned char **fixed, int *npinned, int *npin, double **pinX, int *ntri, double **triX)
-{
-    int rc = crom_scenario_check(&a->sc);
-    if (!rc)
-        rc = crom_material_init(mat, a->sc.youngs, a->sc.poisson, a->sc.density);
-    if (rc)
-        return rc;
-    const char *refs[CROM_SCENARIO_MAX];
-    for (int i = 0; i < a->sc.npins; i++)
-        refs[i] = a->sc.pins[i];
-    *npin = *ntri = 0;
-    *pinX = *triX = NULL;
-    if (cl->n && (rc = crom_cloud_pins(cl, a->sc.npins, refs, npin, pinX, ntri, triX)))
-        return rc;
-    return crom_modes_pins(mesh, a->sc.npins, refs, fixed, npinned);
-}
-
-static int run_skinning(crom_cli *cli, args *a)
-{
-    crom_mesh mesh;
-    crom_cloud cl;
-    crom_model out;
-    crom_dftrain_log log;
-    char *hist = NULL, *text = NULL;
-    unsigned char *fixed = NULL;
-    double *pinX = NULL, *triX = NULL;
-    int npinned = 0, npin = 0, ntri = 0, rc;
-    long solves = 0;
-    memset(&mesh, 0, sizeof mesh);
-    memset(&log, 0, sizeof log);
-    crom_model_clear(&out);
-    crom_material mat;
-    if ((rc = load_body(cli, a, &mesh, &hist, &cl)) ||
-        (rc = body_pins(a, &mesh, &cl, &mat, &fixed, &npinned, &npin, &pinX, &ntri, &triX)))
-        goto out;
     crom_dfskin_opts o;
     crom_dfskin_defaults(&o);
     o.handles = a->handles_given ? a->handles : o.handles;
@@ -677,264 +588,140 @@ static int run_skinning(crom_cli *cli, args *a)
     o.pin_length = a->df.pin_length;
     o.threads = a->df.threads;
     o.seed = cli->seed;
-    double t0 = crom_clock_now();
+    return o;
+}
+
+static void report_skin(crom_cli *cli, const args *a, const crom_body *b, const crom_model *m,
+                        const crom_dftrain_log *log, long solves, double secs)
+{
+    const char *one = m->skin_constant ? ", one constant" : "";
     if (a->eigen) {
-        rc = crom_dfskin_eigen(&mesh, &mat, fixed, o.handles, &out, &solves);
+        crom_cli_info(cli, "skinning eigenmodes, %d handles (rank %d%s) on %d vertices (%d pinned): %ld solves in "
+                      "%.2f s; eigenvalues %.4g .. %.4g 1/s^2", m->handles, m->rank, one, b->mesh.nv, b->npinned,
+                      solves, secs, m->skin_eig[m->skin_constant < m->handles ? m->skin_constant : 0],
+                      m->skin_eig[m->handles - 1]);
     } else {
-        if (cl.n && (rc = crom_dfskin_check_handles(&mesh, fixed, o.handles)))
-            goto out;
-        crom_dfskin_problem P = {&mesh, mat, fixed, cl.n > 0, npin, pinX, ntri, triX};
+        char where[96];
+        int j = log->nblocks - 1;
+        if (b->cloud.n)
+            snprintf(where, sizeof where, "%d points (pinned: %d points, %d surface triangles)", b->cloud.n, b->npin,
+                     b->ntri);
+        else
+            snprintf(where, sizeof where, "%d vertices (%d pinned)", b->mesh.nv, b->npinned);
+        crom_cli_info(cli, "trained skinning weights, %d handles (rank %d%s) on %s: %ld steps in %.1f s; last "
+                      "objective %.4g, mean energy %.4g J, |G - I|^2 %.3g (sigma %.4g m)", m->handles, m->rank, one,
+                      where, log->steps, secs, log->objective[j], log->energy[j], log->penalty[j], log->sigma);
+    }
+    if (cli->verbose)
+        crom_cli_info(cli, "skinning: model_id %s", m->model_id);
+}
+
+static int run_skinning(crom_cli *cli, args *a)
+{
+    crom_body b;
+    crom_model out;
+    crom_dftrain_log log;
+    long solves = 0;
+    crom_model_clear(&out);
+    memset(&log, 0, sizeof log);
+    crom_dfskin_opts o = skin_opts(cli, a);
+    int rc = load_body(cli, a, &b);
+    if (!rc)
+        rc = crom_body_pins(&b, &a->sc, 1);
+    double t0 = crom_clock_now();
+    if (!rc && a->eigen) {
+        rc = crom_dfskin_eigen(&b.mesh, &b.mat, b.fixed, o.handles, &out, &solves);
+    } else if (!rc) {
         crom_cli_progress prog;
         crom_cli_progress_start(&prog, cli, "fitfield", 1000);
         o.progress = on_df_progress;
         o.progress_ctx = &prog;
-        rc = crom_dfskin_train(&P, &o, &out, &log);
+        rc = crom_body_train_skin(&b, &o, &out, &log);
         crom_cli_progress_end(&prog);
     }
-    if (rc)
-        goto out;
-    if (!a->raw_coords) {
-        /* orthonormal coordinates over the training geometry: the mesh's
-         * vertices with their lumped volumes, or the sampled points */
-        double *vv = cl.n ? NULL : crom_malloc(sizeof(double) * (size_t)mesh.nv);
-        if (!cl.n && !vv) {
-            rc = CROM_EINTERNAL;
-            goto out;
-        }
-        if (vv)
-            crom_mesh_vertex_volumes(&mesh, vv);
-        rc = cl.n ? crom_skin_orthonormalize(&out, (size_t)cl.n, cl.X, cl.vol, a->coord_tol > 0 ? a->coord_tol : 1e-6)
-                  : crom_skin_orthonormalize(&out, (size_t)mesh.nv, mesh.X, vv, a->coord_tol > 0 ? a->coord_tol : 1e-6);
-        free(vv);
-        if (rc)
-            goto out;
-    }
+    if (!rc && !a->raw_coords)
+        rc = crom_body_skin_coordinates(&b, &out, a->coord_tol > 0 ? a->coord_tol : 1e-6);
     double secs = crom_clock_now() - t0;
-    if (a->eigen)
+    if (!rc && a->eigen)
         out.training_seconds = crom_clock_wall(secs);
-    if (!(text = df_scenario_text(&a->sc, 0))) {
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
-    out.scenario = crom_strdup(text);
-    out.youngs = a->sc.youngs;
-    out.poisson = a->sc.poisson;
-    out.density = a->sc.density;
-    crom_out o5;
-    if ((rc = crom_out_create(&o5, a->out, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cli->cmdline, hist, CROM_OUT_PLAIN)))
-        goto out;
-    double mass = mat.rho * (cl.n ? cl.volume : crom_mesh_volume(&mesh));
-    rc = crom_model_write(o5.h5, &out);
     if (!rc)
-        rc = crom_h5_set_f64(o5.h5, ".", "mass", &mass, 1);
-    if (!rc && !a->eigen) {
-        long long steps = log.steps, k = o.tets;
-        double sig = log.sigma;
-        hsize_t d = (hsize_t)log.nblocks;
-        rc = crom_h5_set_i64(o5.h5, ".", "training_steps", steps);
-        if (!rc)
-            rc = crom_h5_set_f64(o5.h5, ".", "sigma", &sig, 1);
-        if (!rc)
-            rc = crom_h5_set_f64(o5.h5, ".", "ortho_weight", &o.ortho_weight, 1);
-        if (!rc)
-            rc = crom_h5_set_i64(o5.h5, ".", "cubature_tets", k);
-        if (!rc && d > 0)
-            rc = crom_h5_put_f64(o5.h5, "training/objective", 1, &d, log.objective);
-        if (!rc && d > 0)
-            rc = crom_h5_put_f64(o5.h5, "training/energy", 1, &d, log.energy);
-        if (!rc && d > 0)
-            rc = crom_h5_put_f64(o5.h5, "training/penalty", 1, &d, log.penalty);
-        if (!rc && d > 0)
-            rc = crom_h5_put_f64(o5.h5, "training/seconds", 1, &d, log.seconds);
-    }
+        rc = crom_body_write_skin(&b, &a->sc, &out, &o, a->eigen ? NULL : &log, a->out, cli->cmdline);
     if (!rc)
-        rc = crom_out_commit(&o5);
-    else
-        crom_out_fail(&o5);
-    if (rc)
-        goto out;
-    if (a->eigen)
-        crom_cli_info(cli, "skinning eigenmodes, %d handles (rank %d%s) on %d vertices (%d pinned): %ld solves in "
-                      "%.2f s; eigenvalues %.4g .. %.4g 1/s^2", out.handles, out.rank,
-                      out.skin_constant ? ", one constant" : "", mesh.nv, npinned, solves, secs,
-                      out.skin_eig[out.skin_constant < out.handles ? out.skin_constant : 0], out.skin_eig[out.handles - 1]);
-    else {
-        char where[96];
-        if (cl.n)
-            snprintf(where, sizeof where, "%d points (pinned: %d points, %d surface triangles)", cl.n, npin, ntri);
-        else
-            snprintf(where, sizeof where, "%d vertices (%d pinned)", mesh.nv, npinned);
-        crom_cli_info(cli, "trained skinning weights, %d handles (rank %d%s) on %s: %ld steps in %.1f s; last "
-                      "objective %.4g, mean energy %.4g J, |G - I|^2 %.3g (sigma %.4g m)", out.handles, out.rank,
-                      out.skin_constant ? ", one constant" : "", where, log.steps, secs, log.objective[log.nblocks - 1],
-                      log.energy[log.nblocks - 1], log.penalty[log.nblocks - 1], log.sigma);
-    }
-    if (cli->verbose)
-        crom_cli_info(cli, "skinning: model_id %s", out.model_id);
-out:
+        report_skin(cli, a, &b, &out, &log, solves, secs);
     crom_dftrain_log_free(&log);
     crom_model_free(&out);
-    crom_mesh_free(&mesh);
-    crom_cloud_free(&cl);
-    free(hist);
-    free(text);
-    free(fixed);
-    free(pinX);
-    free(triX);
+    crom_body_free(&b);
     return rc;
+}
+
+/* The linear modes of a neuralmodes map, warning where their material is
+ * not the one trained with. */
+static int load_modes(crom_cli *cli, args *a, crom_body *b)
+{
+    int differs;
+    if (!a->rank_given)
+        a->df.rank = 0; /* every mode */
+    int rc = crom_body_load_modes(b, a->modes, a->mesh, &a->df.rank, &a->sc, a->material_given, &differs);
+    if (differs)
+        crom_cli_warn(cli, "the modes were computed with E = %g, nu = %g, rho = %g; training uses E = %g, nu = %g, "
+                      "rho = %g", b->modes.youngs, b->modes.poisson, b->modes.density, a->sc.youngs, a->sc.poisson,
+                      a->sc.density);
+    return rc;
+}
+
+static void report_map(crom_cli *cli, const args *a, const crom_body *b, const crom_model *m,
+                       const crom_dftrain_log *log, double secs)
+{
+    int j = log->nblocks - 1, r = a->df.rank, nv = b->mesh.nv, np = b->npinned;
+    if (a->objective == CROM_DATAFREE_FIELD)
+        crom_cli_info(cli, "continuous field, rank %d with %d features, trained on %d vertices (%d pinned): %ld steps "
+                      "in %.1f s; last objective %.4g, mean potential energy %.4g J, mean squared log isometry ratio "
+                      "%.3g (sigma %.4g m)", r, a->df.features, nv, np, log->steps, secs, log->objective[j],
+                      log->energy[j], log->penalty[j], log->sigma);
+    else if (a->objective == CROM_DATAFREE_NEURALMODES)
+        crom_cli_info(cli, "neuralmodes map, rank %d on %d vertices (%d pinned): %ld steps in %.1f s; last objective "
+                      "%.4g, mean elastic energy %.4g J, orthogonality penalty %.3g (box %.4g m)", r, nv, np,
+                      log->steps, secs, log->objective[j], log->energy[j], log->penalty[j], log->box);
+    else
+        crom_cli_info(cli, "energy map, rank %d on %d vertices (%d pinned): %ld steps in %.1f s; last objective %.4g, "
+                      "mean potential energy %.4g J, mean squared log isometry ratio %.3g (sigma %.4g m)", r, nv, np,
+                      log->steps, secs, log->objective[j], log->energy[j], log->penalty[j], log->sigma);
+    if (cli->verbose)
+        crom_cli_info(cli, "%s: reference energy %.4g J; model_id %s", a->objective == CROM_DATAFREE_FIELD ? "field"
+                      : a->objective == CROM_DATAFREE_NEURALMODES ? "neuralmodes" : "energy", log->Eref, m->model_id);
 }
 
 static int run_datafree(crom_cli *cli, args *a)
 {
-    int nm = a->objective == CROM_DATAFREE_NEURALMODES, field = a->objective == CROM_DATAFREE_FIELD, rc;
-    const char *name = nm ? "neuralmodes" : field ? "field" : "energy";
-    crom_mesh mesh;
-    char *hist = NULL, *text = NULL;
-    unsigned char *fixed = NULL;
-    double *W = NULL, *freq = NULL;
-    crom_model modes, out;
-    crom_model_clear(&modes);
-    crom_model_clear(&out);
+    crom_body b;
+    crom_model out;
     crom_dftrain_log log;
+    crom_datafree_problem P;
+    crom_model_clear(&out);
     memset(&log, 0, sizeof log);
-    memset(&mesh, 0, sizeof mesh);
-    crom_cloud cl;
-    if ((rc = load_body(cli, a, &mesh, &hist, &cl))) {
-        crom_mesh_free(&mesh);
-        crom_cloud_free(&cl);
-        return rc;
-    }
-    double body_volume = cl.n ? cl.volume : crom_mesh_volume(&mesh);
-    crom_cloud_free(&cl);
-    if (nm) {
-        if ((rc = crom_model_load(a->modes, &modes))) {
-            crom_err_ctx("--modes");
-            goto out;
-        }
-        if (strcmp(modes.basis, "modes")) {
-            rc = crom_err(CROM_EDATA, "--modes %s is a '%s' model; neuralmodes builds on linear vibration modes "
-                          "(basis 'modes', from crom-modes)", a->modes, modes.basis);
-            goto out;
-        }
-        if (crom_map_same_mesh(&modes.mesh, &mesh)) {
-            rc = crom_err(CROM_EDATA, "--modes %s was computed on another mesh (%d vertices, %d tets) than --mesh %s "
-                          "(%d vertices, %d tets)", a->modes, modes.mesh.nv, modes.mesh.nt, a->mesh, mesh.nv, mesh.nt);
-            goto out;
-        }
-        if (!a->rank_given)
-            a->df.rank = modes.rank;
-        else if (a->df.rank > modes.rank) {
-            rc = crom_err(CROM_EUSAGE, "--rank %d: --modes %s has only %d modes", a->df.rank, a->modes, modes.rank);
-            goto out;
-        }
-        if (!a->material_given && isfinite(modes.youngs) && isfinite(modes.poisson) && isfinite(modes.density)) {
-            a->sc.youngs = modes.youngs;
-            a->sc.poisson = modes.poisson;
-            a->sc.density = modes.density;
-        } else if (isfinite(modes.youngs) && (modes.youngs != a->sc.youngs || modes.poisson != a->sc.poisson ||
-                                             modes.density != a->sc.density)) {
-            crom_cli_warn(cli, "the modes were computed with E = %g, nu = %g, rho = %g; training uses E = %g, nu = %g, "
-                          "rho = %g", modes.youngs, modes.poisson, modes.density, a->sc.youngs, a->sc.poisson,
-                          a->sc.density);
-        }
-        if ((rc = add_model_pins(&a->sc, modes.scenario)))
-            goto out;
-    }
-    if ((rc = crom_scenario_check(&a->sc)))
-        goto out;
-    crom_material mat;
-    if ((rc = crom_material_init(&mat, a->sc.youngs, a->sc.poisson, a->sc.density)))
-        goto out;
-    const char *refs[CROM_SCENARIO_MAX];
-    int npinned = 0;
-    for (int i = 0; i < a->sc.npins; i++)
-        refs[i] = a->sc.pins[i];
-    if ((rc = crom_modes_pins(&mesh, a->sc.npins, refs, &fixed, &npinned)))
-        goto out;
-    int r = a->df.rank, n = 3 * mesh.nv;
-    if (nm) {
-        /* the lowest r modes, [nv][3][r]; they must not move a pinned vertex */
-        W = crom_malloc(sizeof(double) * (size_t)n * r);
-        freq = crom_malloc(sizeof(double) * (size_t)r);
-        if (!W || !freq) {
-            rc = CROM_EINTERNAL;
-            goto out;
-        }
-        for (int i = 0; i < n; i++)
-            for (int k = 0; k < r; k++) {
-                double w = modes.basis_v[(size_t)i * modes.rank + k];
-                W[(size_t)i * r + k] = w;
-                if (fixed[i] && w != 0) {
-                    rc = crom_err(CROM_EDATA, "--modes %s moves vertex %d, which is pinned here: compute the modes "
-                                  "with the same --pin", a->modes, i / 3);
-                    goto out;
-                }
-            }
-        for (int k = 0; k < r; k++)
-            freq[k] = modes.frequencies ? modes.frequencies[k] : 0;
-    }
-    crom_datafree_problem P = {&mesh, mat, {a->sc.gravity[0], a->sc.gravity[1], a->sc.gravity[2]}, fixed, W, freq};
-    if (nm)
-        P.gravity[0] = P.gravity[1] = P.gravity[2] = 0;
-    crom_cli_progress prog;
-    crom_cli_progress_start(&prog, cli, "fitfield", 1000);
-    a->df.progress = on_df_progress;
-    a->df.progress_ctx = &prog;
+    int rc = load_body(cli, a, &b);
+    if (!rc && a->objective == CROM_DATAFREE_NEURALMODES)
+        rc = load_modes(cli, a, &b);
+    if (!rc)
+        rc = crom_body_pins(&b, &a->sc, 0);
+    if (!rc)
+        rc = crom_body_map_problem(&b, &a->sc, a->objective, a->df.rank, &P);
     double t0 = crom_clock_now();
-    rc = crom_datafree_train(&P, &a->df, &out, &log);
-    crom_cli_progress_end(&prog);
-    if (rc)
-        goto out;
-    text = df_scenario_text(&a->sc, !nm);
-    if (!text) {
-        rc = CROM_EINTERNAL;
-        goto out;
+    if (!rc) {
+        crom_cli_progress prog;
+        crom_cli_progress_start(&prog, cli, "fitfield", 1000);
+        a->df.progress = on_df_progress;
+        a->df.progress_ctx = &prog;
+        rc = crom_datafree_train(&P, &a->df, &out, &log);
+        crom_cli_progress_end(&prog);
     }
-    out.scenario = crom_strdup(text);
-    out.youngs = a->sc.youngs;
-    out.poisson = a->sc.poisson;
-    out.density = a->sc.density;
-    crom_out o;
-    if ((rc = crom_out_create(&o, a->out, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cli->cmdline, hist, CROM_OUT_PLAIN)))
-        goto out;
-    rc = crom_model_write(o.h5, &out);
     if (!rc)
-        rc = crom_datafree_write_record(o.h5, &a->df, &P, &log, mat.rho * body_volume,
-                                  nm ? modes.model_id : NULL);
+        rc = crom_body_write_map(&b, &a->sc, &out, &a->df, &P, &log, a->out, cli->cmdline);
     if (!rc)
-        rc = crom_out_commit(&o);
-    else
-        crom_out_fail(&o);
-    if (rc)
-        goto out;
-    int j = log.nblocks - 1;
-    if (field)
-        crom_cli_info(cli, "continuous field, rank %d with %d features, trained on %d vertices (%d pinned): %ld steps "
-                      "in %.1f s; last objective %.4g, mean potential energy %.4g J, mean squared log isometry ratio "
-                      "%.3g (sigma %.4g m)", r, a->df.features, mesh.nv, npinned, log.steps, crom_clock_now() - t0,
-                      log.objective[j], log.energy[j], log.penalty[j], log.sigma);
-    else if (nm)
-        crom_cli_info(cli, "neuralmodes map, rank %d on %d vertices (%d pinned): %ld steps in %.1f s; last objective "
-                      "%.4g, mean elastic energy %.4g J, orthogonality penalty %.3g (box %.4g m)",
-                      r, mesh.nv, npinned, log.steps, crom_clock_now() - t0, log.objective[j], log.energy[j],
-                      log.penalty[j], log.box);
-    else
-        crom_cli_info(cli, "energy map, rank %d on %d vertices (%d pinned): %ld steps in %.1f s; last objective %.4g, "
-                      "mean potential energy %.4g J, mean squared log isometry ratio %.3g (sigma %.4g m)",
-                      r, mesh.nv, npinned, log.steps, crom_clock_now() - t0, log.objective[j], log.energy[j],
-                      log.penalty[j], log.sigma);
-    if (cli->verbose)
-        crom_cli_info(cli, "%s: reference energy %.4g J; model_id %s", name, log.Eref, out.model_id);
-out:
+        report_map(cli, a, &b, &out, &log, crom_clock_now() - t0);
     crom_dftrain_log_free(&log);
     crom_model_free(&out);
-    crom_model_free(&modes);
-    crom_mesh_free(&mesh);
-    free(hist);
-    free(text);
-    free(fixed);
-    free(W);
-    free(freq);
+    crom_body_free(&b);
     return rc;
 }
 

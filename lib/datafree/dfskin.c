@@ -14,6 +14,7 @@
 #include "base/err.h"
 #include "base/rng.h"
 #include "datafree/dfskin.h"
+#include "io/io.h"
 #include "phys/modes.h"
 #include "rom/skin.h"
 
@@ -635,6 +636,24 @@ int crom_dfskin_train(const crom_dfskin_problem *p, const crom_dfskin_opts *o, c
     skin_free(&T);
     if (rc)
         crom_dftrain_log_free(log);
+    return rc;
+}
+
+int crom_dfskin_write_record(hid_t loc, const crom_dfskin_opts *o, const crom_dftrain_log *log, double mass)
+{
+    int rc = crom_h5_set_f64(loc, ".", "mass", &mass, 1);
+    if (rc || !log)
+        return rc;
+    long long steps = log->steps, k = o->tets;
+    rc = crom_h5_set_i64(loc, ".", "training_steps", steps);
+    if (!rc)
+        rc = crom_h5_set_f64(loc, ".", "sigma", &log->sigma, 1);
+    if (!rc)
+        rc = crom_h5_set_f64(loc, ".", "ortho_weight", &o->ortho_weight, 1);
+    if (!rc)
+        rc = crom_h5_set_i64(loc, ".", "cubature_tets", k);
+    if (!rc)
+        rc = crom_dftrain_log_write(loc, log);
     return rc;
 }
 

@@ -53,6 +53,8 @@
 
 #include <stdint.h>
 
+#include <hdf5.h>
+
 #include "datafree/dftrain.h"
 #include "mesh/mesh.h"
 #include "nn/nn.h"
@@ -148,5 +150,13 @@ int crom_dfskin_train(const crom_dfskin_problem *p, const crom_dfskin_opts *o, c
  * CROM_EUSAGE (handle count), CROM_EDATA (bad mesh), CROM_EINTERNAL. */
 int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const unsigned char *fixed, int H,
                    crom_model *out, long *solves);
+
+/* Write what a skinning model records beyond its basis (after
+ * crom_model_write): the body's mass and, for trained weights (log not
+ * NULL), the options as attributes (training_steps, sigma as used,
+ * ortho_weight, cubature_tets) and the training record
+ * (training/objective, /energy, /penalty, /seconds). Returns 0 or an HDF5
+ * error. */
+int crom_dfskin_write_record(hid_t loc, const crom_dfskin_opts *o, const crom_dftrain_log *log, double mass);
 
 #endif
