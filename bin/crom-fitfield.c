@@ -177,225 +177,160 @@ typedef struct {
     const char *input, *out;
     int pod;
     crom_fit_opts fit;
-    int encoder_given;
     /* data-free */
-    int objective;               /* 0: samples, else CROM_DATAFREE_* */
+    int objective;               /* 0: samples, else CROM_DATAFREE_* or OBJ_SKINNING */
     const char *mesh, *modes, *surface, *cloud;
-    int sample_points, handles, eigen, handles_given, raw_coords;
+    int sample_points, handles, eigen, raw_coords;
     double coord_tol;
     crom_datafree_opts df;
     crom_scenario sc;
-    const char *samples_only;    /* a samples-only option given, for the message */
-    int rank_given, act_given, width_given, depth_given, lr_given, batch_given, minutes_given;
-    unsigned char given[O_LAST - O_RANK]; /* which options were given */
-    int material_given;
-    const char *df_only;         /* a data-free-only option given */
-    char df_flag[48];
+    unsigned char given[O_LAST - O_RANK]; /* which options were given (GIVEN) */
+    int material_given;          /* --youngs, --poisson or --density */
+    int samples_only;            /* a samples-only option given (its key), for the message */
+    int df_only;                 /* a data-free-only option given (its key) */
 } args;
+
+#define GIVEN(a, key) ((a)->given[(key) - O_RANK])
+
+/* Whether key is an option of the table opts. */
+static int in_opts(const crom_opt *opts, int key)
+{
+    for (; opts->name; opts++)
+        if (opts->key == key)
+            return 1;
+    return 0;
+}
+
+/* The long name of option key, for messages. */
+static const char *opt_name(int key)
+{
+    for (int g = 0; groups[g].opts; g++)
+        for (const crom_opt *o = groups[g].opts; o->name; o++)
+            if (o->key == key)
+                return o->name;
+    return "?";
+}
+
+/* Option key's value v: an integer in [lo, hi]. */
+static int int_opt(int key, const char *v, long lo, long hi, int *out)
+{
+    char flag[64];
+    long n;
+    snprintf(flag, sizeof flag, "--%s", opt_name(key));
+    if (crom_parse_int(v, flag, lo, hi, &n))
+        return CROM_EUSAGE;
+    *out = (int)n;
+    return 0;
+}
+
+/* Option key's value v: a number >= 0. */
+static int nonneg_opt(int key, const char *v, double *out)
+{
+    char flag[64];
+    snprintf(flag, sizeof flag, "--%s", opt_name(key));
+    if (crom_parse_double(v, flag, out))
+        return CROM_EUSAGE;
+    return *out >= 0 ? 0 : crom_err(CROM_EUSAGE, "%s must be >= 0, got %s", flag, v);
+}
+
+/* Option key's value v: one of the words names (NULL-terminated), its
+ * index in *out. */
+static int choice_opt(int key, const char *v, const char *const *names, int *out)
+{
+    char list[160] = "";
+    int n = 0;
+    while (names[n])
+        n++;
+    for (int i = 0; i < n; i++) {
+        if (!strcmp(v, names[i])) {
+            *out = i;
+            return 0;
+        }
+        size_t l = strlen(list);
+        snprintf(list + l, sizeof list - l, "%s%s", i == 0 ? "" : i == n - 1 ? " or " : ", ", names[i]);
+    }
+    return crom_err(CROM_EUSAGE, "--%s: '%s' is not %s", opt_name(key), v, list);
+}
 
 static int on_opt(void *ctx, int key, const char *v)
 {
+    static const char *const objectives[] = {"samples", "energy", "neuralmodes", "field", "skinning", NULL};
+    static const int objective_codes[] = {0, CROM_DATAFREE_ENERGY, CROM_DATAFREE_NEURALMODES, CROM_DATAFREE_FIELD,
+                                          OBJ_SKINNING};
+    static const char *const coords[] = {"orthonormal", "handles", NULL}, *const weights[] = {"trained", "eigen", NULL},
+                             *const boxsc[] = {"uniform", "frequency", NULL}, *const optim[] = {"adam", "lbfgs", NULL},
+                             *const basis[] = {"mlp", "pod", NULL}, *const encoders[] = {"lsq", "pointnet", NULL};
     args *a = ctx;
-    long n;
+    int i, rc;
     double d;
     const char *scn = crom_scenario_opt_name(key);
     if (scn) {
         if (!strcmp(scn, "youngs") || !strcmp(scn, "poisson") || !strcmp(scn, "density"))
             a->material_given = 1;
-        if (!a->df_only) {
-            snprintf(a->df_flag, sizeof a->df_flag, "--%s", scn);
-            a->df_only = a->df_flag;
-        }
+        if (!a->df_only)
+            a->df_only = key;
         return crom_scenario_option(&a->sc, key, v);
     }
     if (key >= O_RANK && key < O_LAST)
-        a->given[key - O_RANK] = 1;
+        GIVEN(a, key) = 1;
+    if (in_opts(df_opts, key))
+        a->df_only = key;
+    else if (key == O_EPOCHS || key == O_BASIS || key == O_ENCODER || key == O_PPS || key == O_ENCPTS || key == O_TIK)
+        a->samples_only = key;
     switch (key) {
-    case O_RANK: case O_WIDTH: case O_DEPTH: case O_LR: case O_BATCH: case O_ACT: case O_MINUTES: break;
-    case O_EPOCHS: a->samples_only = "--epochs"; break;
-    case O_BASIS: a->samples_only = "--basis"; break;
-    case O_ENCODER: a->samples_only = "--encoder"; break;
-    case O_PPS: a->samples_only = "--points-per-step"; break;
-    case O_ENCPTS: a->samples_only = "--encoder-points"; break;
-    case O_TIK: a->samples_only = "--tikhonov"; break;
-    case O_MESH: a->df_only = "--mesh"; break;
-    case O_MODES: a->df_only = "--modes"; break;
-    case O_STEPS: a->df_only = "--steps"; break;
-    case O_SIGMA: a->df_only = "--sigma"; break;
-    case O_LAMBDA: a->df_only = "--lambda"; break;
-    case O_RAMP: a->df_only = "--ramp"; break;
-    case O_BOX: a->df_only = "--box"; break;
-    case O_BOXSC: a->df_only = "--box-scaling"; break;
-    case O_ORTHO: a->df_only = "--ortho-weight"; break;
-    case O_FEATURES: a->df_only = "--features"; break;
-    case O_TETS: a->df_only = "--tets"; break;
-    case O_PINW: a->df_only = "--pin-length"; break;
-    case O_HANDLES: a->df_only = "--handles"; break;
-    case O_WEIGHTS: a->df_only = "--weights"; break;
-    case O_COORDS: a->df_only = "--coordinates"; break;
-    case O_COORDTOL: a->df_only = "--coordinate-tol"; break;
-    case O_SURFACE: a->df_only = "--surface"; break;
-    case O_CLOUD: a->df_only = "--cloud"; break;
-    case O_SPOINTS: a->df_only = "--sample-points"; break;
-    case O_OPTIM: a->df_only = "--optimizer"; break;
-    case O_RESAMPLE: a->df_only = "--resample"; break;
-    case O_TANW: a->df_only = "--tangent-weight"; break;
-    }
-    switch (key) {
-    case O_OBJECTIVE:
-        if (!strcmp(v, "samples"))
-            a->objective = 0;
-        else if (!strcmp(v, "energy"))
-            a->objective = CROM_DATAFREE_ENERGY;
-        else if (!strcmp(v, "neuralmodes"))
-            a->objective = CROM_DATAFREE_NEURALMODES;
-        else if (!strcmp(v, "field"))
-            a->objective = CROM_DATAFREE_FIELD;
-        else if (!strcmp(v, "skinning"))
-            a->objective = OBJ_SKINNING;
-        else
-            return crom_err(CROM_EUSAGE, "--objective: '%s' is not samples, energy, neuralmodes, field or skinning", v);
-        return 0;
-    case O_MESH: a->mesh = v; return 0;
-    case O_SURFACE: a->surface = v; return 0;
-    case O_CLOUD: a->cloud = v; return 0;
-    case O_SPOINTS:
-        if (crom_parse_int(v, "--sample-points", 1, 100000000L, &n))
-            return CROM_EUSAGE;
-        a->sample_points = (int)n;
-        return 0;
-    case O_HANDLES:
-        /* 0 parses, so that the training reports it as a count it cannot use */
-        if (crom_parse_int(v, "--handles", 0, 100000L, &n))
-            return CROM_EUSAGE;
-        a->handles = (int)n;
-        a->handles_given = 1;
-        return 0;
-    case O_COORDS:
-        if (!strcmp(v, "orthonormal"))
-            a->raw_coords = 0;
-        else if (!strcmp(v, "handles"))
-            a->raw_coords = 1;
-        else
-            return crom_err(CROM_EUSAGE, "--coordinates: '%s' is not orthonormal or handles", v);
-        return 0;
-    case O_COORDTOL:
-        if (crom_parse_double(v, "--coordinate-tol", &a->coord_tol) || !(a->coord_tol >= 0 && a->coord_tol < 1))
-            return crom_err(CROM_EUSAGE, "--coordinate-tol must be in [0, 1), got %s", v);
-        return 0;
-    case O_WEIGHTS:
-        if (!strcmp(v, "trained"))
-            a->eigen = 0;
-        else if (!strcmp(v, "eigen"))
-            a->eigen = 1;
-        else
-            return crom_err(CROM_EUSAGE, "--weights: '%s' is not trained or eigen", v);
-        return 0;
-    case O_MODES: a->modes = v; return 0;
-    case O_STEPS:
-        if (crom_parse_int(v, "--steps", 1, 1000000000L, &n))
-            return CROM_EUSAGE;
-        a->df.steps = (int)n;
-        return 0;
-    case O_SIGMA: return crom_parse_positive(v, "--sigma", &a->df.sigma);
-    case O_LAMBDA:
-        if (crom_parse_double(v, "--lambda", &a->df.lambda))
-            return CROM_EUSAGE;
-        return a->df.lambda >= 0 ? 0 : crom_err(CROM_EUSAGE, "--lambda must be >= 0, got %s", v);
-    case O_RAMP:
-        if (crom_parse_double(v, "--ramp", &a->df.ramp))
-            return CROM_EUSAGE;
-        return a->df.ramp >= 0 && a->df.ramp <= 1 ? 0 : crom_err(CROM_EUSAGE, "--ramp must be in [0, 1], got %s", v);
-    case O_BOX: return crom_parse_positive(v, "--box", &a->df.box);
-    case O_BOXSC:
-        if (!strcmp(v, "uniform") || !strcmp(v, "frequency")) {
-            a->df.box_scaled = !strcmp(v, "frequency");
-            return 0;
-        }
-        return crom_err(CROM_EUSAGE, "--box-scaling: '%s' is not uniform or frequency", v);
-    case O_FEATURES:
-        if (crom_parse_int(v, "--features", 1, 4096, &n))
-            return CROM_EUSAGE;
-        a->df.features = (int)n;
-        return 0;
-    case O_TETS:
-        if (crom_parse_int(v, "--tets", 1, 100000000L, &n))
-            return CROM_EUSAGE;
-        a->df.tets = (int)n;
-        return 0;
-    case O_PINW:
-        return crom_parse_positive(v, "--pin-length", &a->df.pin_length);
-    case O_OPTIM:
-        if (!strcmp(v, "adam") || !strcmp(v, "lbfgs")) {
-            a->df.optimizer = strcmp(v, "adam") ? CROM_DATAFREE_LBFGS : CROM_DATAFREE_ADAM;
-            return 0;
-        }
-        return crom_err(CROM_EUSAGE, "--optimizer: '%s' is not adam or lbfgs", v);
-    case O_TANW:
-        if (crom_parse_double(v, "--tangent-weight", &a->df.tangent_weight))
-            return CROM_EUSAGE;
-        return a->df.tangent_weight >= 0 ? 0 : crom_err(CROM_EUSAGE, "--tangent-weight must be >= 0, got %s", v);
-    case O_RESAMPLE:
-        if (crom_parse_int(v, "--resample", 1, 1000000L, &n))
-            return CROM_EUSAGE;
-        a->df.resample = (int)n;
-        return 0;
-    case O_ORTHO:
-        if (crom_parse_double(v, "--ortho-weight", &a->df.ortho_weight))
-            return CROM_EUSAGE;
-        return a->df.ortho_weight >= 0 ? 0 : crom_err(CROM_EUSAGE, "--ortho-weight must be >= 0, got %s", v);
     case 0:
         if (a->input)
             return crom_err(CROM_EUSAGE, "unexpected operand '%s' (one samples file)", v);
         a->input = v;
         return 0;
     case 'o': a->out = v; return 0;
-    case O_RANK:
-        if (crom_parse_int(v, "--rank", 1, 10000, &n))
+    case O_OBJECTIVE:
+        if ((rc = choice_opt(key, v, objectives, &i)))
+            return rc;
+        a->objective = objective_codes[i];
+        return 0;
+    case O_MESH: a->mesh = v; return 0;
+    case O_SURFACE: a->surface = v; return 0;
+    case O_CLOUD: a->cloud = v; return 0;
+    case O_MODES: a->modes = v; return 0;
+    case O_SPOINTS: return int_opt(key, v, 1, 100000000L, &a->sample_points);
+    /* 0 parses, so that the training reports it as a count it cannot use */
+    case O_HANDLES: return int_opt(key, v, 0, 100000L, &a->handles);
+    case O_COORDS: return choice_opt(key, v, coords, &a->raw_coords);
+    case O_COORDTOL:
+        if (crom_parse_double(v, "--coordinate-tol", &a->coord_tol) || !(a->coord_tol >= 0 && a->coord_tol < 1))
+            return crom_err(CROM_EUSAGE, "--coordinate-tol must be in [0, 1), got %s", v);
+        return 0;
+    case O_WEIGHTS: return choice_opt(key, v, weights, &a->eigen);
+    case O_STEPS: return int_opt(key, v, 1, 1000000000L, &a->df.steps);
+    case O_SIGMA: return crom_parse_positive(v, "--sigma", &a->df.sigma);
+    case O_LAMBDA: return nonneg_opt(key, v, &a->df.lambda);
+    case O_RAMP:
+        if (crom_parse_double(v, "--ramp", &a->df.ramp))
             return CROM_EUSAGE;
-        a->fit.rank = (int)n;
-        a->rank_given = 1;
-        return 0;
-    case O_BASIS:
-        if (!strcmp(v, "mlp"))
-            a->pod = 0;
-        else if (!strcmp(v, "pod"))
-            a->pod = 1;
-        else
-            return crom_err(CROM_EUSAGE, "--basis: '%s' is not mlp or pod", v);
-        return 0;
+        return a->df.ramp >= 0 && a->df.ramp <= 1 ? 0 : crom_err(CROM_EUSAGE, "--ramp must be in [0, 1], got %s", v);
+    case O_BOX: return crom_parse_positive(v, "--box", &a->df.box);
+    case O_BOXSC: return choice_opt(key, v, boxsc, &a->df.box_scaled);
+    case O_FEATURES: return int_opt(key, v, 1, 4096, &a->df.features);
+    case O_TETS: return int_opt(key, v, 1, 100000000L, &a->df.tets);
+    case O_PINW: return crom_parse_positive(v, "--pin-length", &a->df.pin_length);
+    case O_OPTIM: return choice_opt(key, v, optim, &a->df.optimizer); /* CROM_DATAFREE_ADAM, _LBFGS */
+    case O_TANW: return nonneg_opt(key, v, &a->df.tangent_weight);
+    case O_RESAMPLE: return int_opt(key, v, 1, 1000000L, &a->df.resample);
+    case O_ORTHO: return nonneg_opt(key, v, &a->df.ortho_weight);
+    case O_RANK: return int_opt(key, v, 1, 10000, &a->fit.rank);
+    case O_BASIS: return choice_opt(key, v, basis, &a->pod);
     case O_ENCODER:
-        if (!strcmp(v, "lsq"))
-            a->fit.encoder = CROM_MODEL_ENC_LSQ;
-        else if (!strcmp(v, "pointnet"))
-            a->fit.encoder = CROM_MODEL_ENC_POINTNET;
-        else
-            return crom_err(CROM_EUSAGE, "--encoder: '%s' is not lsq or pointnet", v);
-        a->encoder_given = 1;
+        if ((rc = choice_opt(key, v, encoders, &i)))
+            return rc;
+        a->fit.encoder = i ? CROM_MODEL_ENC_POINTNET : CROM_MODEL_ENC_LSQ;
         return 0;
-    case O_EPOCHS:
-        if (crom_parse_int(v, "--epochs", 1, 100000000L, &n))
-            return CROM_EUSAGE;
-        a->fit.epochs = (int)n;
-        return 0;
-    case O_MINUTES: a->minutes_given = 1; return crom_parse_positive(v, "--minutes", &a->fit.minutes);
-    case O_LR: a->lr_given = 1; return crom_parse_positive(v, "--lr", &a->fit.lr);
-    case O_BATCH:
-        if (crom_parse_int(v, "--batch", 1, 1000000L, &n))
-            return CROM_EUSAGE;
-        a->fit.batch = (int)n;
-        a->batch_given = 1;
-        return 0;
-    case O_PPS:
-        if (crom_parse_int(v, "--points-per-step", 1, 100000000L, &n))
-            return CROM_EUSAGE;
-        a->fit.points_per_step = (int)n;
-        return 0;
-    case O_ENCPTS:
-        if (crom_parse_int(v, "--encoder-points", 1, 100000000L, &n))
-            return CROM_EUSAGE;
-        a->fit.enc_points = (int)n;
-        return 0;
+    case O_EPOCHS: return int_opt(key, v, 1, 100000000L, &a->fit.epochs);
+    case O_MINUTES: return crom_parse_positive(v, "--minutes", &a->fit.minutes);
+    case O_LR: return crom_parse_positive(v, "--lr", &a->fit.lr);
+    case O_BATCH: return int_opt(key, v, 1, 1000000L, &a->fit.batch);
+    case O_PPS: return int_opt(key, v, 1, 100000000L, &a->fit.points_per_step);
+    case O_ENCPTS: return int_opt(key, v, 1, 100000000L, &a->fit.enc_points);
     case O_ACT:
         if (!strcmp(v, "elu"))
             a->fit.act = CROM_NN_ELU;
@@ -405,20 +340,9 @@ static int on_opt(void *ctx, int key, const char *v)
             a->fit.act = CROM_NN_GELU;
         else
             return crom_err(CROM_EUSAGE, "--activation: '%s' is not elu or sine (or gelu, for data-free maps)", v);
-        a->act_given = 1;
         return 0;
-    case O_WIDTH:
-        if (crom_parse_int(v, "--width", 1, 4096, &n))
-            return CROM_EUSAGE;
-        a->fit.width = (int)n;
-        a->width_given = 1;
-        return 0;
-    case O_DEPTH:
-        if (crom_parse_int(v, "--depth", 2, CROM_NN_MAX_LAYERS, &n))
-            return CROM_EUSAGE;
-        a->fit.depth = (int)n;
-        a->depth_given = 1;
-        return 0;
+    case O_WIDTH: return int_opt(key, v, 1, 4096, &a->fit.width);
+    case O_DEPTH: return int_opt(key, v, 2, CROM_NN_MAX_LAYERS, &a->fit.depth);
     case O_TIK:
         if (crom_parse_double(v, "--tikhonov", &d))
             return CROM_EUSAGE;
@@ -430,7 +354,79 @@ static int on_opt(void *ctx, int key, const char *v)
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
 
-static void usage_exit(crom_cli *cli) { exit(crom_cli_exit(cli, CROM_EUSAGE)); }
+/* Exit with the usage error just recorded (rc, CROM_EUSAGE). */
+static void usage_exit(crom_cli *cli, int rc) { exit(crom_cli_exit(cli, rc)); }
+
+/* The data-free objective's options fit together (else a usage error). */
+static void check_datafree(crom_cli *cli, const args *a)
+{
+    int skin = a->objective == OBJ_SKINNING, cont = skin || a->objective == CROM_DATAFREE_FIELD;
+    const char *name = a->objective == CROM_DATAFREE_ENERGY ? "energy" : a->objective == CROM_DATAFREE_FIELD ? "field"
+                       : skin ? "skinning" : "neuralmodes";
+    int ngeom = !!a->mesh + !!a->surface + !!a->cloud;
+    const char *bad = !skin && GIVEN(a, O_HANDLES) ? "--handles" : !skin && a->eigen ? "--weights"
+                      : !skin && (a->raw_coords || a->coord_tol > 0) ? "--coordinates"
+                      : skin && GIVEN(a, O_RANK) ? "--rank" : !cont && a->surface ? "--surface"
+                      : !cont && a->cloud ? "--cloud" : !a->surface && a->sample_points ? "--sample-points" : NULL;
+    if (bad)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "%s does not apply to --objective %s%s", bad, name,
+                                 !strcmp(bad, "--rank") ? " (its latent has 12 coordinates per handle: --handles H)"
+                                 : !strcmp(bad, "--sample-points") ? " without --surface"
+                                 : !cont ? " (a map of one mesh needs that mesh: --mesh)" : ""));
+    if (cont && ngeom != 1)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--objective %s trains on %s: --mesh MESH, --surface STL or --cloud FILE",
+                                 name, ngeom ? "one body, give only one of" : "a body"));
+    if (skin && a->eigen && !a->mesh)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--weights eigen solves an eigenproblem on a tet mesh: give --mesh MESH "
+                                 "(or train the weights from %s: --weights trained)",
+                                 a->surface ? "the surface" : "the cloud"));
+    if (a->samples_only)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--%s applies to --objective samples, not %s%s",
+                                 opt_name(a->samples_only), name, a->samples_only == O_EPOCHS ? " (use --steps)" : ""));
+    if (a->input)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--objective %s learns from no samples: drop the operand '%s' (the mesh "
+                                 "comes with --mesh)", name, a->input));
+    if (!cont && !a->mesh)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--objective %s needs the mesh it maps: --mesh MESH", name));
+    if (a->objective == CROM_DATAFREE_NEURALMODES && !a->modes)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--objective neuralmodes needs the linear modes it builds on: --modes "
+                                 "MODEL (from crom-modes on the same mesh)"));
+    if (a->objective != CROM_DATAFREE_NEURALMODES && a->modes)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--modes applies to --objective neuralmodes"));
+}
+
+/* The data-free options: those given, the objective's defaults for the
+ * others (skinning: the field's, see skin_opts). */
+static crom_datafree_opts datafree_opts(const crom_cli *cli, const args *a)
+{
+    crom_datafree_opts d;
+    crom_datafree_defaults(&d, a->objective == OBJ_SKINNING ? CROM_DATAFREE_FIELD : a->objective);
+    d.rank = GIVEN(a, O_RANK) ? a->fit.rank : d.rank;
+    d.act = GIVEN(a, O_ACT) ? a->fit.act : d.act;
+    d.width = GIVEN(a, O_WIDTH) ? a->fit.width : d.width;
+    d.depth = GIVEN(a, O_DEPTH) ? a->fit.depth : d.depth;
+    d.lr = GIVEN(a, O_LR) ? a->fit.lr : d.lr;
+    d.batch = GIVEN(a, O_BATCH) ? a->fit.batch : d.batch;
+    d.minutes = GIVEN(a, O_MINUTES) ? a->fit.minutes : 0;
+    /* the data-free options given; the objective's defaults for the others */
+#define DF_GIVEN(key, field) if (GIVEN(a, key)) d.field = a->df.field
+    DF_GIVEN(O_STEPS, steps);
+    DF_GIVEN(O_SIGMA, sigma);
+    DF_GIVEN(O_LAMBDA, lambda);
+    DF_GIVEN(O_RAMP, ramp);
+    DF_GIVEN(O_BOX, box);
+    DF_GIVEN(O_BOXSC, box_scaled);
+    DF_GIVEN(O_ORTHO, ortho_weight);
+    DF_GIVEN(O_FEATURES, features);
+    DF_GIVEN(O_TETS, tets);
+    DF_GIVEN(O_PINW, pin_length);
+    DF_GIVEN(O_OPTIM, optimizer);
+    DF_GIVEN(O_RESAMPLE, resample);
+    DF_GIVEN(O_TANW, tangent_weight);
+#undef DF_GIVEN
+    d.seed = cli->seed;
+    return d;
+}
 
 static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
 {
@@ -444,94 +440,18 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     crom_datafree_defaults(&a->df, CROM_DATAFREE_ENERGY);
     crom_scenario_defaults(&a->sc);
     crom_cli_parse(cli, &doc, argc, argv, on_opt, a);
-    if (a->pod && a->encoder_given && a->fit.encoder == CROM_MODEL_ENC_POINTNET) {
-        crom_err(CROM_EUSAGE, "--basis pod has no neural encoder: its q is the lsq projection (drop --encoder pointnet)");
-        exit(crom_cli_exit(cli, CROM_EUSAGE));
-    }
-    if (!a->objective && a->df_only) {
-        crom_err(CROM_EUSAGE, "%s applies to a data-free subspace (--objective energy|neuralmodes|field|skinning)",
-                 a->df_only);
-        usage_exit(cli);
-    }
+    if (a->pod && GIVEN(a, O_ENCODER) && a->fit.encoder == CROM_MODEL_ENC_POINTNET)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--basis pod has no neural encoder: its q is the lsq projection (drop "
+                                 "--encoder pointnet)"));
+    if (!a->objective && a->df_only)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--%s applies to a data-free subspace (--objective "
+                                 "energy|neuralmodes|field|skinning)", opt_name(a->df_only)));
     if (a->objective) {
-        int skin = a->objective == OBJ_SKINNING, cont = skin || a->objective == CROM_DATAFREE_FIELD;
-        const char *name = a->objective == CROM_DATAFREE_ENERGY ? "energy" : a->objective == CROM_DATAFREE_FIELD ? "field"
-                           : skin ? "skinning" : "neuralmodes";
-        int ngeom = !!a->mesh + !!a->surface + !!a->cloud;
-        const char *bad = !skin && a->handles_given ? "--handles" : !skin && a->eigen ? "--weights"
-                          : !skin && (a->raw_coords || a->coord_tol > 0) ? "--coordinates"
-                          : skin && a->rank_given ? "--rank" : !cont && a->surface ? "--surface"
-                          : !cont && a->cloud ? "--cloud" : !a->surface && a->sample_points ? "--sample-points" : NULL;
-        if (bad) {
-            crom_err(CROM_EUSAGE, "%s does not apply to --objective %s%s", bad, name,
-                     !strcmp(bad, "--rank") ? " (its latent has 12 coordinates per handle: --handles H)"
-                     : !strcmp(bad, "--sample-points") ? " without --surface"
-                     : !cont ? " (a map of one mesh needs that mesh: --mesh)" : "");
-            usage_exit(cli);
-        }
-        if (cont && ngeom != 1) {
-            crom_err(CROM_EUSAGE, "--objective %s trains on %s: --mesh MESH, --surface STL or --cloud FILE", name,
-                     ngeom ? "one body, give only one of" : "a body");
-            usage_exit(cli);
-        }
-        if (skin && a->eigen && !a->mesh) {
-            crom_err(CROM_EUSAGE, "--weights eigen solves an eigenproblem on a tet mesh: give --mesh MESH (or train "
-                                  "the weights from %s: --weights trained)", a->surface ? "the surface" : "the cloud");
-            usage_exit(cli);
-        }
-        if (a->samples_only) {
-            crom_err(CROM_EUSAGE, "%s applies to --objective samples, not %s%s", a->samples_only, name,
-                     !strcmp(a->samples_only, "--epochs") ? " (use --steps)" : "");
-            usage_exit(cli);
-        }
-        if (a->input) {
-            crom_err(CROM_EUSAGE, "--objective %s learns from no samples: drop the operand '%s' (the mesh comes "
-                                  "with --mesh)", name, a->input);
-            usage_exit(cli);
-        }
-        if (!cont && !a->mesh) {
-            crom_err(CROM_EUSAGE, "--objective %s needs the mesh it maps: --mesh MESH", name);
-            usage_exit(cli);
-        }
-        if (a->objective == CROM_DATAFREE_NEURALMODES && !a->modes) {
-            crom_err(CROM_EUSAGE, "--objective neuralmodes needs the linear modes it builds on: --modes MODEL "
-                                  "(from crom-modes on the same mesh)");
-            usage_exit(cli);
-        }
-        if (a->objective != CROM_DATAFREE_NEURALMODES && a->modes) {
-            crom_err(CROM_EUSAGE, "--modes applies to --objective neuralmodes");
-            usage_exit(cli);
-        }
-        crom_datafree_opts d;
-        crom_datafree_defaults(&d, skin ? CROM_DATAFREE_FIELD : a->objective);
-        d.rank = a->rank_given ? a->fit.rank : d.rank;
-        d.act = a->act_given ? a->fit.act : d.act;
-        d.width = a->width_given ? a->fit.width : d.width;
-        d.depth = a->depth_given ? a->fit.depth : d.depth;
-        d.lr = a->lr_given ? a->fit.lr : d.lr;
-        d.batch = a->batch_given ? a->fit.batch : d.batch;
-        d.minutes = a->minutes_given ? a->fit.minutes : 0;
-        /* the data-free options given; the objective's defaults for the others */
-#define DF_GIVEN(key, field) if (a->given[(key) - O_RANK]) d.field = a->df.field
-        DF_GIVEN(O_STEPS, steps);
-        DF_GIVEN(O_SIGMA, sigma);
-        DF_GIVEN(O_LAMBDA, lambda);
-        DF_GIVEN(O_RAMP, ramp);
-        DF_GIVEN(O_BOX, box);
-        DF_GIVEN(O_BOXSC, box_scaled);
-        DF_GIVEN(O_ORTHO, ortho_weight);
-        DF_GIVEN(O_FEATURES, features);
-        DF_GIVEN(O_TETS, tets);
-        DF_GIVEN(O_PINW, pin_length);
-        DF_GIVEN(O_OPTIM, optimizer);
-        DF_GIVEN(O_RESAMPLE, resample);
-        DF_GIVEN(O_TANW, tangent_weight);
-#undef DF_GIVEN
-        d.seed = cli->seed;
-        a->df = d;
+        check_datafree(cli, a);
+        a->df = datafree_opts(cli, a);
     } else if (a->fit.act == CROM_NN_GELU) {
-        crom_err(CROM_EUSAGE, "--activation: gelu is for data-free maps; a neural field is elu or sine");
-        usage_exit(cli);
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--activation: gelu is for data-free maps; a neural field is elu or "
+                                 "sine"));
     }
     a->fit.seed = cli->seed;
 #ifdef _OPENMP
@@ -574,16 +494,16 @@ static crom_dfskin_opts skin_opts(const crom_cli *cli, const args *a)
 {
     crom_dfskin_opts o;
     crom_dfskin_defaults(&o);
-    o.handles = a->handles_given ? a->handles : o.handles;
-    o.depth = a->depth_given ? a->df.depth : o.depth;
-    o.width = a->width_given ? a->df.width : o.width;
-    o.act = a->act_given ? a->df.act : o.act;
+    o.handles = GIVEN(a, O_HANDLES) ? a->handles : o.handles;
+    o.depth = GIVEN(a, O_DEPTH) ? a->df.depth : o.depth;
+    o.width = GIVEN(a, O_WIDTH) ? a->df.width : o.width;
+    o.act = GIVEN(a, O_ACT) ? a->df.act : o.act;
     o.steps = a->df.steps;
     o.minutes = a->df.minutes;
     o.lr = a->df.lr;
-    o.batch = a->batch_given ? a->df.batch : o.batch;
+    o.batch = GIVEN(a, O_BATCH) ? a->df.batch : o.batch;
     o.sigma = a->df.sigma;
-    o.ortho_weight = a->given[O_ORTHO - O_RANK] ? a->df.ortho_weight : o.ortho_weight;
+    o.ortho_weight = GIVEN(a, O_ORTHO) ? a->df.ortho_weight : o.ortho_weight;
     o.tets = a->df.tets;
     o.pin_length = a->df.pin_length;
     o.threads = a->df.threads;
@@ -659,7 +579,7 @@ static int run_skinning(crom_cli *cli, args *a)
 static int load_modes(crom_cli *cli, args *a, crom_body *b)
 {
     int differs;
-    if (!a->rank_given)
+    if (!GIVEN(a, O_RANK))
         a->df.rank = 0; /* every mode */
     int rc = crom_body_load_modes(b, a->modes, a->mesh, &a->df.rank, &a->sc, a->material_given, &differs);
     if (differs)
