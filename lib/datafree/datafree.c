@@ -1,7 +1,4 @@
 /* datafree.c — energy-trained and Neural-Modes subspaces (see datafree.h). */
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -14,6 +11,7 @@
 #include "base/rng.h"
 #include "datafree/datafree.h"
 #include "datafree/dffield.h"
+#include "datafree/dfloss.h"
 #include "io/io.h"
 
 void crom_datafree_defaults(crom_datafree_opts *o, int objective)
@@ -71,8 +69,32 @@ void crom_datafree_ctx_free(crom_datafree_ctx *c)
     memset(c, 0, sizeof *c);
 }
 
+/* neuralmodes: M W / m, the box (half-width a for every mode, or a f_1 /
+ * f_k for mode k: the same linear energy ½ m ω_k² a_k² at every edge) and
+ * the energy unit E_ref = ½ m ω² a² (E V if that is zero). */
+static void modes_box(crom_datafree_ctx *c, const crom_datafree_problem *p, const crom_datafree_opts *o, double EV)
+{
+    int r = c->r, n = c->n;
+    for (int i = 0; i < n; i++)
+        for (int k = 0; k < r; k++)
+            c->MWm[(size_t)i * r + k] = c->mw[i] * p->modes[(size_t)i * r + k];
+    double fmax = 0, fmin = INFINITY;
+    for (int k = 0; p->freq && k < r; k++) {
+        fmax = fmax > p->freq[k] ? fmax : p->freq[k];
+        if (p->freq[k] > 0)
+            fmin = fmin < p->freq[k] ? fmin : p->freq[k];
+    }
+    int scaled = o->box_scaled && isfinite(fmin);
+    for (int k = 0; k < r; k++)
+        c->half[k] = scaled && p->freq[k] > 0 ? o->box * fmin / p->freq[k] : o->box;
+    double w = 2 * M_PI * (scaled ? fmin : fmax);
+    c->Eref = 0.5 * c->mass * w * w * o->box * o->box;
+    if (!(c->Eref > 0) || !isfinite(c->Eref))
+        c->Eref = EV;
+}
+
 int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p, const crom_datafree_opts *o,
-                     const crom_nn_mlp *net, int maxbatch)
+                           const crom_nn_mlp *net, int maxbatch)
 {
     memset(c, 0, sizeof *c);
     c->P = *p;
@@ -97,7 +119,7 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
     c->B0 = !nm && o->tangent_weight > 0 ? o->tangent_samples : 0;
     if (c->B0 < 0)
         return crom_err(CROM_EUSAGE, "%d tangent samples", c->B0);
-    c->nthreads = o->threads < 1 ? 1 : o->threads > 256 ? 256 : o->threads;
+    c->nthreads = crom_dftrain_threads(o->threads);
     size_t rows = (size_t)maxbatch + c->B0 + 1; /* the batch, the tangent samples, the anchor */
     int rc = crom_fem_init(&c->fem, p->mesh, &p->mat);
     if (!rc)
@@ -118,7 +140,8 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
     c->bad = crom_malloc(sizeof(int) * (size_t)maxbatch);
     c->cb = crom_malloc(sizeof(double) * (size_t)(r > c->B0 ? r : c->B0));
     c->half = crom_malloc(sizeof(double) * (size_t)r);
-    if (!c->cb || !c->half || !c->mw || (nm && !c->MWm) || !c->Y || !c->G || !c->dY || !c->E || !c->xb || !c->zf || !c->dyf || !c->bad) {
+    if (!c->cb || !c->half || !c->mw || (nm && !c->MWm) || !c->Y || !c->G || !c->dY || !c->E || !c->xb || !c->zf ||
+        !c->dyf || !c->bad) {
         crom_datafree_ctx_free(c);
         return CROM_EINTERNAL;
     }
@@ -127,233 +150,215 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
         c->mw[i] = c->fem.mass[i / 3] / c->mass;
     double EV = p->mat.E * c->fem.volume;
     c->Eref = EV;
-    if (nm) {
-        for (int i = 0; i < n; i++)
-            for (int k = 0; k < r; k++)
-                c->MWm[(size_t)i * r + k] = c->mw[i] * p->modes[(size_t)i * r + k];
-        double fmax = 0, fmin = INFINITY;
-        for (int k = 0; p->freq && k < r; k++) {
-            fmax = fmax > p->freq[k] ? fmax : p->freq[k];
-            if (p->freq[k] > 0)
-                fmin = fmin < p->freq[k] ? fmin : p->freq[k];
-        }
-        /* the box: half-width a for every mode, or a f_1 / f_k for mode k
-         * (the same linear energy ½ m ω_k² a_k² at every edge) */
-        int scaled = o->box_scaled && isfinite(fmin);
-        for (int k = 0; k < r; k++)
-            c->half[k] = scaled && p->freq[k] > 0 ? o->box * fmin / p->freq[k] : o->box;
-        double w = 2 * M_PI * (scaled ? fmin : fmax);
-        c->Eref = 0.5 * c->mass * w * w * o->box * o->box;
-        if (!(c->Eref > 0) || !isfinite(c->Eref))
-            c->Eref = EV;
-    }
+    if (nm)
+        modes_box(c, p, o, EV);
     return 0;
 }
 
-int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_dftrain_terms *t,
-                 float *grad)
+/* The network at the batch, the tangent samples, then z = 0: the anchor
+ * N(0) that every sample is taken relative to (lib/rom/map.h), Y_b = N(z_b)
+ * − N(0); pinned outputs do not exist (the mask is part of the map). */
+static int map_outputs(crom_datafree_ctx *c, int B, const double *z)
 {
-    int r = c->r, n = c->n, nm = c->o.objective == CROM_DATAFREE_NEURALMODES, B0 = c->B0, rows = B + B0 + 1;
+    int r = c->r, n = c->n, Bt = B + c->B0;
     const unsigned char *fixed = c->P.fixed;
-    const double *X = c->P.mesh->X;
-    const crom_fem *fem = &c->fem;
-    if (B < 1 || B > c->maxbatch)
-        return crom_err(CROM_EUSAGE, "batch of %d samples (at most %d)", B, c->maxbatch);
-    for (int k = 0; tets && k < K; k++)
-        if (tets[k] < 0 || tets[k] >= fem->nt)
-            return crom_err(CROM_EUSAGE, "tet %d out of range", tets[k]);
-    if (tets && K < 1)
-        return crom_err(CROM_EUSAGE, "a cubature of %d tets", K);
-    if (!nm)
-        rho = rho < 0 ? 0 : rho > 1 ? 1 : rho;
-    else
-        rho = 1;
-    /* the batch, the tangent samples, then z = 0: the anchor N(0) that
-     * every sample is taken relative to (lib/map.h), x = X + W z + ρ (N(z)
-     * − N(0)) */
-    for (int b = 0; b < B + B0; b++)
+    for (int b = 0; b < Bt; b++)
         for (int k = 0; k < r; k++)
             c->zf[(size_t)b * r + k] = (float)z[(size_t)b * r + k];
-    memset(c->zf + (size_t)(B + B0) * r, 0, sizeof(float) * (size_t)r);
-    int rc = crom_nn_mlp_forward(c->net, &c->ws, rows, c->zf, NULL);
+    memset(c->zf + (size_t)Bt * r, 0, sizeof(float) * (size_t)r);
+    int rc = crom_nn_mlp_forward(c->net, &c->ws, Bt + 1, c->zf, NULL);
     if (rc)
         return rc;
-    const float *Yf = crom_nn_ws_output(&c->ws), *Y0 = Yf + (size_t)(B + B0) * n;
-    for (int b = 0; b < B + B0; b++) /* Y_b = N(z_b) − N(0) */
+    const float *Yf = crom_nn_ws_output(&c->ws), *Y0 = Yf + (size_t)Bt * n;
+    for (int b = 0; b < Bt; b++)
         for (int i = 0; i < n; i++)
             c->Y[(size_t)b * n + i] = (double)Yf[(size_t)b * n + i] - (double)Y0[i];
-    if (fixed) /* pinned outputs do not exist: the mask is part of the map */
-        for (int b = 0; b < B + B0; b++)
+    if (fixed)
+        for (int b = 0; b < Bt; b++)
             for (int i = 0; i < n; i++)
                 if (fixed[i])
                     c->Y[(size_t)b * n + i] = 0;
-    /* energies and their gradients, sample by sample */
-    const double *g = c->P.gravity;
-    const double *Wm = c->P.modes;
-    crom_fem_opts fo = {0, 0, fixed, 1};
-#pragma omp parallel for num_threads(c->nthreads) schedule(static)
-    for (int b = 0; b < B; b++) {
-        int tid = 0;
-#ifdef _OPENMP
-        tid = omp_get_thread_num();
-#endif
-        double *x = c->xb + (size_t)tid * n, *G = c->G + (size_t)b * n;
-        const double *Y = c->Y + (size_t)b * n, *zb = z + (size_t)b * r;
-        for (int i = 0; i < n; i++) {
-            double u = rho * Y[i];
-            if (nm)
-                for (int k = 0; k < r; k++)
-                    u += Wm[(size_t)i * r + k] * zb[k];
-            x[i] = X[i] + u;
-        }
-        double Eb = 0;
-        if (!tets) {
-            c->bad[b] = crom_fem_assemble(fem, x, &fo, &Eb, G, NULL);
-        } else { /* K random tets, each standing for nt/K of them */
-            double wK = (double)fem->nt / K;
-            memset(G, 0, sizeof(double) * (size_t)n);
-            c->bad[b] = 0;
-            for (int k = 0; k < K && !c->bad[b]; k++) {
-                const int *tv = fem->tets + 4 * (size_t)tets[k];
-                double xe[12], ge[12], Ee;
-                for (int a = 0; a < 4; a++)
-                    memcpy(xe + 3 * a, x + 3 * (size_t)tv[a], sizeof(double) * 3);
-                c->bad[b] = crom_fem_tet_eval(&fem->mat, xe, fem->Dminv + 9 * (size_t)tets[k], fem->vol[tets[k]], 0,
-                                              &Ee, ge, NULL);
-                Eb += wK * Ee;
-                for (int a = 0; a < 4; a++)
-                    for (int d = 0; d < 3; d++)
-                        G[3 * (size_t)tv[a] + d] += wK * ge[3 * a + d];
-            }
-            for (int i = 0; fixed && i < n; i++)
-                if (fixed[i])
-                    G[i] = 0;
-        }
-        if (!nm) /* gravity: -Σ m_v g·u_v */
-            for (int i = 0; i < n; i++) {
-                if (fixed && fixed[i])
-                    continue;
-                double mg = c->fem.mass[i / 3] * g[i % 3];
-                Eb -= mg * (x[i] - X[i]);
-                G[i] -= mg;
-            }
-        c->E[b] = Eb;
+    return 0;
+}
+
+/* Sample b's potential energy E_b and its gradient G_b at x = X + W z_b +
+ * ρ Y_b (x scratch [n]): the elastic energy over every tet (tets NULL) or
+ * the K drawn ones, and (energy objective) gravity, −Σ_v m_v g·u_v.
+ * Returns 1 where it is not defined. */
+static int sample_energy(crom_datafree_ctx *c, int b, const double *zb, double rho, int K, const int *tets, double *x)
+{
+    int r = c->r, n = c->n, nm = c->o.objective == CROM_DATAFREE_NEURALMODES, bad;
+    const unsigned char *fixed = c->P.fixed;
+    const double *X = c->P.mesh->X, *Y = c->Y + (size_t)b * n, *g = c->P.gravity, *Wm = c->P.modes;
+    const crom_fem *fem = &c->fem;
+    double *G = c->G + (size_t)b * n, Eb = 0;
+    for (int i = 0; i < n; i++) {
+        double u = rho * Y[i];
+        if (nm)
+            for (int k = 0; k < r; k++)
+                u += Wm[(size_t)i * r + k] * zb[k];
+        x[i] = X[i] + u;
     }
-    for (int b = 0; b < B; b++)
-        if (c->bad[b] || !isfinite(c->E[b]))
-            return crom_err(CROM_EDATA, "sample %d of the batch has a non-finite energy", b);
-    double obj = 0, Em = 0, pen = 0, tan = 0;
+    if (!tets) {
+        crom_fem_opts fo = {0, 0, fixed, 1};
+        bad = crom_fem_assemble(fem, x, &fo, &Eb, G, NULL);
+    } else { /* K random tets, each standing for nt/K of them */
+        memset(G, 0, sizeof(double) * (size_t)n);
+        bad = crom_dfloss_tets(fem, K, tets, (double)fem->nt / K, NULL, x, NULL, &Eb, G);
+        for (int i = 0; fixed && i < n; i++)
+            if (fixed[i])
+                G[i] = 0;
+    }
+    if (!nm) /* gravity: -Σ m_v g·u_v */
+        for (int i = 0; i < n; i++) {
+            if (fixed && fixed[i])
+                continue;
+            double mg = fem->mass[i / 3] * g[i % 3];
+            Eb -= mg * (x[i] - X[i]);
+            G[i] -= mg;
+        }
+    c->E[b] = Eb;
+    return bad;
+}
+
+/* The energy term 1/B Σ_b E_b / E_ref and its gradient dY_b = ρ s G_b. */
+static void energy_term(crom_datafree_ctx *c, int B, double rho, double *obj, double *Em)
+{
+    int n = c->n;
     double scale = 1.0 / (B * c->Eref);
     for (int b = 0; b < B; b++) {
-        Em += c->E[b] / B;
-        obj += c->E[b] * scale;
+        *Em += c->E[b] / B;
+        *obj += c->E[b] * scale;
         const double *G = c->G + (size_t)b * n;
         double *dY = c->dY + (size_t)b * n;
         for (int i = 0; i < n; i++)
             dY[i] = rho * scale * G[i];
     }
-    if (!nm && B >= 2) {
-        /* isometry: λ mean_{b<c} ℓ², ℓ = ½ log D² − log(σ |z_b − z_c|)
-         * (the anchor cancels in the differences) */
-        double npairs = 0.5 * B * (B - 1), lam = c->o.lambda, ls = log(c->o.sigma);
-        for (int b = 0; b < B; b++)
-            for (int e = b + 1; e < B; e++) {
-                const double *Yb = c->Y + (size_t)b * n, *Ye = c->Y + (size_t)e * n;
-                double dz = 0, D2 = 0;
-                for (int k = 0; k < r; k++) {
-                    double d = z[(size_t)b * r + k] - z[(size_t)e * r + k];
-                    dz += d * d;
-                }
-                for (int i = 0; i < n; i++) {
-                    double d = Yb[i] - Ye[i];
-                    D2 += c->mw[i] * d * d;
-                }
-                if (!(D2 > 0) || !(dz > 0))
-                    continue;
-                double l = 0.5 * log(D2) - 0.5 * log(dz) - ls;
-                pen += l * l / npairs;
-                obj += lam * l * l / npairs;
-                double coef = lam / npairs * 2 * l / D2;
-                double *dYb = c->dY + (size_t)b * n, *dYe = c->dY + (size_t)e * n;
-                for (int i = 0; i < n; i++) {
-                    double v = coef * c->mw[i] * (Yb[i] - Ye[i]);
-                    dYb[i] += v;
-                    dYe[i] -= v;
-                }
-            }
-    }
-    if (B0 > 0) {
-        /* the tangent at rest, conformal: λ_0 mean_s (ℓ_s − ℓ̄)², ℓ_s = ½ log
-         * D_s² − log |z_s| with D_s the RMS displacement of the small sample
-         * z_s from rest and ℓ̄ the mean over the samples: every direction
-         * moves the body alike near rest, at a scale the map is free to
-         * choose (the gradient of the mean cancels, Σ_s (ℓ_s − ℓ̄) = 0) */
-        double lam0 = c->o.tangent_weight, *lsb = c->cb, lbar = 0;
-        int ok = 1;
-        for (int b = B; b < B + B0; b++) {
-            const double *Yb = c->Y + (size_t)b * n;
+}
+
+/* The isometry over the pairs of the batch: λ mean_{b<c} ℓ², ℓ = ½ log D²
+ * − log(σ |z_b − z_c|) (the anchor cancels in the differences). */
+static void isometry_term(crom_datafree_ctx *c, int B, const double *z, double *obj, double *pen)
+{
+    int r = c->r, n = c->n;
+    double npairs = 0.5 * B * (B - 1), lam = c->o.lambda, ls = log(c->o.sigma);
+    for (int b = 0; b < B; b++)
+        for (int e = b + 1; e < B; e++) {
+            const double *Yb = c->Y + (size_t)b * n, *Ye = c->Y + (size_t)e * n;
             double dz = 0, D2 = 0;
-            for (int k = 0; k < r; k++)
-                dz += z[(size_t)b * r + k] * z[(size_t)b * r + k];
-            for (int i = 0; i < n; i++)
-                D2 += c->mw[i] * Yb[i] * Yb[i];
-            memset(c->dY + (size_t)b * n, 0, sizeof(double) * (size_t)n);
-            ok &= D2 > 0 && dz > 0;
-            lsb[b - B] = 0.5 * log(D2) - 0.5 * log(dz);
-            lbar += lsb[b - B] / B0;
-        }
-        for (int b = B; ok && b < B + B0; b++) {
-            const double *Yb = c->Y + (size_t)b * n;
-            double *dYb = c->dY + (size_t)b * n, D2 = 0, l = lsb[b - B] - lbar;
-            for (int i = 0; i < n; i++)
-                D2 += c->mw[i] * Yb[i] * Yb[i];
-            tan += l * l / B0;
-            obj += lam0 * l * l / B0;
-            double coef = lam0 / B0 * 2 * l / D2;
-            for (int i = 0; i < n; i++)
-                dYb[i] = coef * c->mw[i] * Yb[i];
-        }
-    }
-    if (nm) {
-        /* M-orthogonality of y(z) − y(0) to the modes */
-        double a2 = c->o.box * c->o.box, wo = c->o.ortho_weight;
-        double *cp = c->cb;
-        for (int b = 0; b < B; b++) {
-            const double *Yb = c->Y + (size_t)b * n;
-            cblas_dgemv(CblasRowMajor, CblasTrans, n, r, 1.0, c->MWm, r, Yb, 1, 0.0, cp, 1);
-            double o2 = 0;
-            for (int k = 0; k < r; k++)
-                o2 += cp[k] * cp[k];
-            o2 /= a2;
-            pen += o2 / B;
-            obj += wo * o2 / B;
-            /* d/dY_b of wo/B ‖c‖²/a² = 2 wo/(B a²) M W c / m */
-            cblas_dgemv(CblasRowMajor, CblasNoTrans, n, r, 2 * wo / (B * a2), c->MWm, r, cp, 1, 1.0,
-                        c->dY + (size_t)b * n, 1);
-        }
-    }
-    if (t) {
-        t->objective = obj;
-        t->energy = Em;
-        t->penalty = pen;
-        t->tangent = tan;
-    }
-    if (!isfinite(obj))
-        return crom_err(CROM_EDATA, "the data-free objective is not finite");
-    if (grad) {
-        /* through the anchor: dL/dN(z_b) = dY_b, dL/dN(0) = −Σ_b dY_b */
-        float *d0 = c->dyf + (size_t)(B + B0) * n;
-        memset(d0, 0, sizeof(float) * (size_t)n);
-        for (int b = 0; b < B + B0; b++)
-            for (int i = 0; i < n; i++) {
-                double v = fixed && fixed[i] ? 0.0 : c->dY[(size_t)b * n + i];
-                c->dyf[(size_t)b * n + i] = (float)v;
-                d0[i] -= (float)v;
+            for (int k = 0; k < r; k++) {
+                double d = z[(size_t)b * r + k] - z[(size_t)e * r + k];
+                dz += d * d;
             }
-        memset(grad, 0, sizeof(float) * c->net->nparams);
-        rc = crom_nn_mlp_backward(c->net, &c->ws, rows, c->dyf, grad, NULL);
+            for (int i = 0; i < n; i++) {
+                double d = Yb[i] - Ye[i];
+                D2 += c->mw[i] * d * d;
+            }
+            if (!(D2 > 0) || !(dz > 0))
+                continue;
+            double l = 0.5 * log(D2) - 0.5 * log(dz) - ls;
+            *pen += l * l / npairs;
+            *obj += lam * l * l / npairs;
+            double coef = lam / npairs * 2 * l / D2;
+            double *dYb = c->dY + (size_t)b * n, *dYe = c->dY + (size_t)e * n;
+            for (int i = 0; i < n; i++) {
+                double v = coef * c->mw[i] * (Yb[i] - Ye[i]);
+                dYb[i] += v;
+                dYe[i] -= v;
+            }
+        }
+}
+
+/* The tangent at rest, conformal: λ_0 mean_s (ℓ_s − ℓ̄)², ℓ_s = ½ log D_s²
+ * − log |z_s| with D_s the RMS displacement of the small sample z_s from
+ * rest and ℓ̄ the mean over the samples: every direction moves the body
+ * alike near rest, at a scale the map is free to choose (the gradient of
+ * the mean cancels, Σ_s (ℓ_s − ℓ̄) = 0). */
+static void tangent_term(crom_datafree_ctx *c, int B, const double *z, double *obj, double *tan)
+{
+    int r = c->r, n = c->n, B0 = c->B0, ok = 1;
+    double lam0 = c->o.tangent_weight, *lsb = c->cb, lbar = 0;
+    for (int b = B; b < B + B0; b++) {
+        const double *Yb = c->Y + (size_t)b * n;
+        double dz = 0, D2 = 0;
+        for (int k = 0; k < r; k++)
+            dz += z[(size_t)b * r + k] * z[(size_t)b * r + k];
+        for (int i = 0; i < n; i++)
+            D2 += c->mw[i] * Yb[i] * Yb[i];
+        memset(c->dY + (size_t)b * n, 0, sizeof(double) * (size_t)n);
+        ok &= D2 > 0 && dz > 0;
+        lsb[b - B] = 0.5 * log(D2) - 0.5 * log(dz);
+        lbar += lsb[b - B] / B0;
     }
-    return rc;
+    for (int b = B; ok && b < B + B0; b++) {
+        const double *Yb = c->Y + (size_t)b * n;
+        double *dYb = c->dY + (size_t)b * n, D2 = 0, l = lsb[b - B] - lbar;
+        for (int i = 0; i < n; i++)
+            D2 += c->mw[i] * Yb[i] * Yb[i];
+        *tan += l * l / B0;
+        *obj += lam0 * l * l / B0;
+        double coef = lam0 / B0 * 2 * l / D2;
+        for (int i = 0; i < n; i++)
+            dYb[i] = coef * c->mw[i] * Yb[i];
+    }
+}
+
+/* neuralmodes: the M-orthogonality of y(z) − y(0) to the modes, w_o/B
+ * Σ_b ‖Wᵀ M Y_b / m‖² / a². */
+static void ortho_term(crom_datafree_ctx *c, int B, double *obj, double *pen)
+{
+    int r = c->r, n = c->n;
+    double a2 = c->o.box * c->o.box, wo = c->o.ortho_weight, *cp = c->cb;
+    for (int b = 0; b < B; b++) {
+        const double *Yb = c->Y + (size_t)b * n;
+        cblas_dgemv(CblasRowMajor, CblasTrans, n, r, 1.0, c->MWm, r, Yb, 1, 0.0, cp, 1);
+        double o2 = 0;
+        for (int k = 0; k < r; k++)
+            o2 += cp[k] * cp[k];
+        o2 /= a2;
+        *pen += o2 / B;
+        *obj += wo * o2 / B;
+        /* d/dY_b of wo/B ‖c‖²/a² = 2 wo/(B a²) M W c / m */
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, n, r, 2 * wo / (B * a2), c->MWm, r, cp, 1, 1.0,
+                    c->dY + (size_t)b * n, 1);
+    }
+}
+
+int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho, int K, const int *tets,
+                       crom_dftrain_terms *t, float *grad)
+{
+    int r = c->r, nm = c->o.objective == CROM_DATAFREE_NEURALMODES, rows = B + c->B0 + 1, rc;
+    if (B < 1 || B > c->maxbatch)
+        return crom_err(CROM_EUSAGE, "batch of %d samples (at most %d)", B, c->maxbatch);
+    for (int k = 0; tets && k < K; k++)
+        if (tets[k] < 0 || tets[k] >= c->fem.nt)
+            return crom_err(CROM_EUSAGE, "tet %d out of range", tets[k]);
+    if (tets && K < 1)
+        return crom_err(CROM_EUSAGE, "a cubature of %d tets", K);
+    rho = nm ? 1 : rho < 0 ? 0 : rho > 1 ? 1 : rho;
+    if ((rc = map_outputs(c, B, z)))
+        return rc;
+#pragma omp parallel for num_threads(c->nthreads) schedule(static)
+    for (int b = 0; b < B; b++)
+        c->bad[b] = sample_energy(c, b, z + (size_t)b * r, rho, K, tets, c->xb + (size_t)crom_dfloss_thread() * c->n);
+    if ((rc = crom_dfloss_check(B, c->bad, c->E, "sample")))
+        return rc;
+    double obj = 0, Em = 0, pen = 0, tan = 0;
+    energy_term(c, B, rho, &obj, &Em);
+    if (!nm && B >= 2)
+        isometry_term(c, B, z, &obj, &pen);
+    if (c->B0 > 0)
+        tangent_term(c, B, z, &obj, &tan);
+    if (nm)
+        ortho_term(c, B, &obj, &pen);
+    if ((rc = crom_dfloss_terms(t, obj, Em, pen, tan, "data-free")))
+        return rc;
+    if (!grad)
+        return 0;
+    /* through the anchor: dL/dN(z_b) = dY_b, dL/dN(0) = −Σ_b dY_b */
+    crom_dfloss_anchor_grad(rows, c->n, c->dY, c->P.fixed, c->dyf);
+    memset(grad, 0, sizeof(float) * c->net->nparams);
+    return crom_nn_mlp_backward(c->net, &c->ws, rows, c->dyf, grad, NULL);
 }
 
 /* ============================================================ training */

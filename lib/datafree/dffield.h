@@ -33,6 +33,7 @@
 #define CROM_DFFIELD_H
 
 #include "datafree/datafree.h"
+#include "datafree/dfloss.h"
 #include "nn/nn.h"
 #include "phys/fem.h"
 #include "rom/model.h"
@@ -43,16 +44,17 @@ typedef struct {
     const crom_nn_mlp *W, *phi; /* 3 -> 3p and r -> p */
     crom_fem fem;
     crom_nn_ws wsW, wsP;
-    int r, p, maxbatch, maxtets, maxrows, nthreads, ns, npins;
+    int r, p, maxbatch, maxtets, maxrows, nthreads, npins;
     int B0;                  /* tangent samples after the batch (0: none) */
     double mass, Eref, pin_length;
-    int *loc, *vs, *bad;
+    crom_dfloss_cub cub;     /* the drawn tets */
+    int *bad;
     float *xf, *zf, *dFf, *dPf;
     double *pinX;            /* [npins][3] pinned vertices' positions */
     int ntri;                /* pinned boundary triangles */
     double *triX;            /* [ntri][3][3] their corners */
     double *mask;            /* [nv] s(d(X_v)/ℓ) */
-    double *F, *Phi, *gu, *dF, *dPhi, *mloc, *E, *G, *S, *tmp, *xb;
+    double *F, *Phi, *gu, *dF, *dPhi, *E, *G, *S, *tmp, *xb;
 } crom_dffield_ctx;
 
 /* Set up the loss of the continuous field (objective field: o->sigma,
