@@ -55,6 +55,7 @@
 
 #include <hdf5.h>
 
+#include "datafree/dfloss.h"
 #include "datafree/dftrain.h"
 #include "mesh/mesh.h"
 #include "nn/nn.h"
@@ -110,15 +111,16 @@ typedef struct {
     const crom_nn_mlp *net;   /* 3 -> H' */
     crom_fem fem;
     crom_nn_ws ws;
-    int H, Ht, constant, maxbatch, maxtets, maxrows, nthreads, ns;
+    int H, Ht, constant, maxbatch, maxtets, maxrows, nthreads;
     double F[12];             /* body frame */
     double mass, Eref, pin_length;
     int npins, ntri;
     double *pinX, *triX;      /* the pin mask: pinned points, triangles */
     double *mask;             /* [nv] s(d(X_v)/ℓ) */
-    int *loc, *vs, *bad;
+    crom_dfloss_cub cub;      /* the drawn tets */
+    int *bad;
     float *xf, *dwf;
-    double *w, *wh, *xh, *L, *U, *gu, *dw, *mloc, *E, *R, *G, *xb;
+    double *w, *wh, *xh, *L, *U, *gu, *dw, *E, *R, *G, *xb;
 } crom_dfskin_ctx;
 
 /* Set up the trained loss (o: handles, sigma, ortho_weight, pin_length,
