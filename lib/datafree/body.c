@@ -205,6 +205,19 @@ static int provenance(crom_model *m, const crom_scenario *s, int gravity)
     return 0;
 }
 
+/* Record sc in m (gravity if asked), create the output at path and write
+ * m into it; on failure nothing is left behind. */
+static int create(const crom_body *b, const crom_scenario *sc, int gravity, crom_model *m, const char *path,
+                  const char *cmdline, crom_out *out)
+{
+    int rc = provenance(m, sc, gravity);
+    if (!rc)
+        rc = crom_out_create(out, path, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cmdline, b->history, CROM_OUT_PLAIN);
+    if (!rc && (rc = crom_model_write(out->h5, m)))
+        crom_out_fail(out);
+    return rc;
+}
+
 /* Commit out if rc is 0, else drop it. */
 static int finish(crom_out *out, int rc)
 {
@@ -220,14 +233,10 @@ int crom_body_write_map(const crom_body *b, const crom_scenario *sc, crom_model 
 {
     int nm = o->objective == CROM_DATAFREE_NEURALMODES;
     crom_out out;
-    int rc = provenance(m, sc, !nm);
-    if (!rc)
-        rc = crom_out_create(&out, path, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cmdline, b->history, CROM_OUT_PLAIN);
+    int rc = create(b, sc, !nm, m, path, cmdline, &out);
     if (rc)
         return rc;
-    rc = crom_model_write(out.h5, m);
-    if (!rc)
-        rc = crom_datafree_write_record(out.h5, o, P, log, crom_body_mass(b), nm ? b->modes.model_id : NULL);
+    rc = crom_datafree_write_record(out.h5, o, P, log, crom_body_mass(b), nm ? b->modes.model_id : NULL);
     return finish(&out, rc);
 }
 
@@ -235,13 +244,8 @@ int crom_body_write_skin(const crom_body *b, const crom_scenario *sc, crom_model
                          const crom_dftrain_log *log, const char *path, const char *cmdline)
 {
     crom_out out;
-    int rc = provenance(m, sc, 0);
-    if (!rc)
-        rc = crom_out_create(&out, path, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cmdline, b->history, CROM_OUT_PLAIN);
+    int rc = create(b, sc, 0, m, path, cmdline, &out);
     if (rc)
         return rc;
-    rc = crom_model_write(out.h5, m);
-    if (!rc)
-        rc = crom_dfskin_write_record(out.h5, o, log, crom_body_mass(b));
-    return finish(&out, rc);
+    return finish(&out, crom_dfskin_write_record(out.h5, o, log, crom_body_mass(b)));
 }
