@@ -437,8 +437,7 @@ static int map_setup(map_trainer *T, const crom_datafree_problem *p)
     T->grad = crom_calloc(T->np, sizeof(float));
     if (!T->params || !T->grad)
         return CROM_EINTERNAL;
-    crom_rng_seed(&T->irng, o->seed);
-    crom_rng_seed(&T->srng, o->seed ^ 0x5eed5a3b1e5ULL);
+    crom_dftrain_seed(o->seed, &T->irng, &T->srng);
     if ((rc = crom_nn_mlp_init(&T->net, &spec, T->params, &T->irng)))
         return rc;
     /* the last layer: pinned outputs stay exactly 0; neuralmodes starts

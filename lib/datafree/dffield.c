@@ -437,8 +437,7 @@ static int field_setup(field_trainer *T, const crom_datafree_problem *p)
     if ((rc = crom_dftrain_spec(&wspec, 3, o->field_width, o->field_depth, 3 * pf, o->act)) ||
         (rc = crom_dftrain_spec(&pspec, o->rank, o->width, o->depth, pf, o->act)))
         return rc;
-    crom_rng_seed(&T->irng, o->seed);
-    crom_rng_seed(&T->srng, o->seed ^ 0x5eed5a3b1e5ULL);
+    crom_dftrain_seed(o->seed, &T->irng, &T->srng);
     if ((rc = crom_nn_mlp_init(&T->W, &wspec, NULL, &T->irng)) ||
         (rc = crom_nn_mlp_init(&T->phi, &pspec, NULL, &T->irng)) || (rc = crom_dftrain_norm_box(&T->W, p->mesh)))
         return rc;

@@ -513,8 +513,7 @@ static int skin_setup(skin_trainer *T, const crom_dfskin_problem *p, int pinned)
     crom_nn_spec spec;
     if ((rc = crom_dftrain_spec(&spec, 3, o->width, o->depth, H - !pinned, o->act)))
         return rc;
-    crom_rng_seed(&T->irng, o->seed);
-    crom_rng_seed(&T->srng, o->seed ^ 0x5eed5a3b1e5ULL);
+    crom_dftrain_seed(o->seed, &T->irng, &T->srng);
     if ((rc = crom_nn_mlp_init(&T->net, &spec, NULL, &T->irng)) || (rc = crom_dftrain_norm_box(&T->net, p->mesh)))
         return rc;
     if ((rc = crom_dfskin_ctx_init(&T->ctx, p, o, &T->net, o->batch, K)))
@@ -681,6 +680,29 @@ out:
     return rc;
 }
 
+/* The weights w [nv][H] of the eigenvectors Y [H - constant][nf] (M-
+ * orthonormal over the nf free vertices, vmap[v] the free index of v or -1)
+ * after the constant handle of a free body: unit RMS over the body (sm =
+ * sqrt of its mass), largest entry positive; their eigenvalues in eig. */
+static void eigen_weights(double sm, int nv, const int *vmap, int nf, int H, int constant, const double *Y,
+                          const double *lam, double *w, double *eig)
+{
+    for (int h = 0; h < H; h++) {
+        int e = h - constant;
+        const double *y = e >= 0 ? Y + (size_t)e * nf : NULL;
+        double big = 0, sign = 1;
+        for (int j = 0; y && j < nf; j++)
+            if (fabs(y[j]) > big) {
+                big = fabs(y[j]);
+                sign = y[j] < 0 ? -1 : 1;
+            }
+        for (int v = 0; v < nv; v++)
+            if (vmap[v] >= 0)
+                w[(size_t)v * H + h] = y ? sign * sm * y[vmap[v]] : 1;
+        eig[h] = y ? lam[e] : 0;
+    }
+}
+
 int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const unsigned char *fixed, int H,
                    crom_model *out, long *solves)
 {
@@ -745,22 +767,7 @@ int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const uns
                                     solves)))
             goto out;
     }
-    /* weights with unit RMS over the body, largest entry positive */
-    double sm = sqrt(fem.total_mass);
-    for (int h = 0; h < H; h++) {
-        int e = h - constant;
-        const double *y = e >= 0 ? Y + (size_t)e * nf : NULL;
-        double big = 0, sign = 1;
-        for (int j = 0; y && j < nf; j++)
-            if (fabs(y[j]) > big) {
-                big = fabs(y[j]);
-                sign = y[j] < 0 ? -1 : 1;
-            }
-        for (int v = 0; v < nv; v++)
-            if (vmap[v] >= 0)
-                w[(size_t)v * H + h] = y ? sign * sm * y[vmap[v]] : 1;
-        eig[h] = y ? lam[e] : 0;
-    }
+    eigen_weights(sqrt(fem.total_mass), nv, vmap, nf, H, constant, Y, lam, w, eig);
     double F[12];
     if ((rc = crom_skin_frame((size_t)nv, mesh->X, fem.mass, F)))
         goto out;

@@ -51,6 +51,12 @@ void crom_dftrain_scale_last(crom_nn_mlp *net, float f)
         ly->b[i] *= f;
 }
 
+void crom_dftrain_seed(uint64_t seed, crom_rng *init, crom_rng *samples)
+{
+    crom_rng_seed(init, seed);
+    crom_rng_seed(samples, seed ^ 0x5eed5a3b1e5ULL);
+}
+
 int crom_dftrain_threads(int n) { return n < 1 ? 1 : n > 256 ? 256 : n; }
 
 /* ============================================================ the record */

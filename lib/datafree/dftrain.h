@@ -21,6 +21,7 @@
 #define CROM_DFTRAIN_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #include <hdf5.h>
 
@@ -43,6 +44,10 @@ int crom_dftrain_norm_box(crom_nn_mlp *net, const crom_mesh *m);
 
 /* Scale the last layer of net (weights and biases) by f. */
 void crom_dftrain_scale_last(crom_nn_mlp *net, float f);
+
+/* The two random streams of a trainer from its seed: init for the
+ * networks' initialization, samples for everything drawn after it. */
+void crom_dftrain_seed(uint64_t seed, crom_rng *init, crom_rng *samples);
 
 /* The threads of the energy evaluations: n clamped to [1, 256]. */
 int crom_dftrain_threads(int n);
