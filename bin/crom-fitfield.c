@@ -1,8 +1,8 @@
 /* crom-fitfield — learn a displacement basis W(X) (crom/model) from point
  * samples (crom/samples): a neural field, or a classic POD basis; or, with
- * no data at all, a nonlinear subspace of one mesh from its energy
- * (--objective energy: Sharp et al. 2023; --objective neuralmodes: Wang et
- * al. 2024). */
+ * no data at all, a subspace from the energy of a body (--objective
+ * energy|neuralmodes|field|skinning: the library's datafree layer; this
+ * program parses the options, reports and shows progress). */
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -488,6 +488,21 @@ static int load_body(crom_cli *cli, const args *a, crom_body *b)
     return rc;
 }
 
+/* The linear modes of a neuralmodes map, warning where their material is
+ * not the one trained with. */
+static int load_modes(crom_cli *cli, args *a, crom_body *b)
+{
+    int differs;
+    if (!GIVEN(a, O_RANK))
+        a->df.rank = 0; /* every mode */
+    int rc = crom_body_load_modes(b, a->modes, a->mesh, &a->df.rank, &a->sc, a->material_given, &differs);
+    if (differs)
+        crom_cli_warn(cli, "the modes were computed with E = %g, nu = %g, rho = %g; training uses E = %g, nu = %g, "
+                      "rho = %g", b->modes.youngs, b->modes.poisson, b->modes.density, a->sc.youngs, a->sc.poisson,
+                      a->sc.density);
+    return rc;
+}
+
 /* The options of the skinning weights: the data-free options given, the
  * skinning defaults for the others. */
 static crom_dfskin_opts skin_opts(const crom_cli *cli, const args *a)
@@ -511,6 +526,30 @@ static crom_dfskin_opts skin_opts(const crom_cli *cli, const args *a)
     return o;
 }
 
+/* The summary of a trained map or field. */
+static void report_map(crom_cli *cli, const args *a, const crom_body *b, const crom_model *m,
+                       const crom_dftrain_log *log, double secs)
+{
+    int j = log->nblocks - 1, r = a->df.rank, nv = b->mesh.nv, np = b->npinned;
+    if (a->objective == CROM_DATAFREE_FIELD)
+        crom_cli_info(cli, "continuous field, rank %d with %d features, trained on %d vertices (%d pinned): %ld steps "
+                      "in %.1f s; last objective %.4g, mean potential energy %.4g J, mean squared log isometry ratio "
+                      "%.3g (sigma %.4g m)", r, a->df.features, nv, np, log->steps, secs, log->objective[j],
+                      log->energy[j], log->penalty[j], log->sigma);
+    else if (a->objective == CROM_DATAFREE_NEURALMODES)
+        crom_cli_info(cli, "neuralmodes map, rank %d on %d vertices (%d pinned): %ld steps in %.1f s; last objective "
+                      "%.4g, mean elastic energy %.4g J, orthogonality penalty %.3g (box %.4g m)", r, nv, np,
+                      log->steps, secs, log->objective[j], log->energy[j], log->penalty[j], log->box);
+    else
+        crom_cli_info(cli, "energy map, rank %d on %d vertices (%d pinned): %ld steps in %.1f s; last objective %.4g, "
+                      "mean potential energy %.4g J, mean squared log isometry ratio %.3g (sigma %.4g m)", r, nv, np,
+                      log->steps, secs, log->objective[j], log->energy[j], log->penalty[j], log->sigma);
+    if (cli->verbose)
+        crom_cli_info(cli, "%s: reference energy %.4g J; model_id %s", a->objective == CROM_DATAFREE_FIELD ? "field"
+                      : a->objective == CROM_DATAFREE_NEURALMODES ? "neuralmodes" : "energy", log->Eref, m->model_id);
+}
+
+/* The summary of a trained skinning model or of skinning eigenmodes. */
 static void report_skin(crom_cli *cli, const args *a, const crom_body *b, const crom_model *m,
                         const crom_dftrain_log *log, long solves, double secs)
 {
@@ -536,108 +575,49 @@ static void report_skin(crom_cli *cli, const args *a, const crom_body *b, const 
         crom_cli_info(cli, "skinning: model_id %s", m->model_id);
 }
 
-static int run_skinning(crom_cli *cli, args *a)
-{
-    crom_body b;
-    crom_model out;
-    crom_dftrain_log log;
-    long solves = 0;
-    crom_model_clear(&out);
-    memset(&log, 0, sizeof log);
-    crom_dfskin_opts o = skin_opts(cli, a);
-    int rc = load_body(cli, a, &b);
-    if (!rc)
-        rc = crom_body_pins(&b, &a->sc, 1);
-    double t0 = crom_clock_now();
-    if (!rc && a->eigen) {
-        rc = crom_dfskin_eigen(&b.mesh, &b.mat, b.fixed, o.handles, &out, &solves);
-    } else if (!rc) {
-        crom_cli_progress prog;
-        crom_cli_progress_start(&prog, cli, "fitfield", 1000);
-        o.progress = on_df_progress;
-        o.progress_ctx = &prog;
-        rc = crom_body_train_skin(&b, &o, &out, &log);
-        crom_cli_progress_end(&prog);
-    }
-    if (!rc && !a->raw_coords)
-        rc = crom_body_skin_coordinates(&b, &out, a->coord_tol > 0 ? a->coord_tol : 1e-6);
-    double secs = crom_clock_now() - t0;
-    if (!rc && a->eigen)
-        out.training_seconds = crom_clock_wall(secs);
-    if (!rc)
-        rc = crom_body_write_skin(&b, &a->sc, &out, &o, a->eigen ? NULL : &log, a->out, cli->cmdline);
-    if (!rc)
-        report_skin(cli, a, &b, &out, &log, solves, secs);
-    crom_dftrain_log_free(&log);
-    crom_model_free(&out);
-    crom_body_free(&b);
-    return rc;
-}
-
-/* The linear modes of a neuralmodes map, warning where their material is
- * not the one trained with. */
-static int load_modes(crom_cli *cli, args *a, crom_body *b)
-{
-    int differs;
-    if (!GIVEN(a, O_RANK))
-        a->df.rank = 0; /* every mode */
-    int rc = crom_body_load_modes(b, a->modes, a->mesh, &a->df.rank, &a->sc, a->material_given, &differs);
-    if (differs)
-        crom_cli_warn(cli, "the modes were computed with E = %g, nu = %g, rho = %g; training uses E = %g, nu = %g, "
-                      "rho = %g", b->modes.youngs, b->modes.poisson, b->modes.density, a->sc.youngs, a->sc.poisson,
-                      a->sc.density);
-    return rc;
-}
-
-static void report_map(crom_cli *cli, const args *a, const crom_body *b, const crom_model *m,
-                       const crom_dftrain_log *log, double secs)
-{
-    int j = log->nblocks - 1, r = a->df.rank, nv = b->mesh.nv, np = b->npinned;
-    if (a->objective == CROM_DATAFREE_FIELD)
-        crom_cli_info(cli, "continuous field, rank %d with %d features, trained on %d vertices (%d pinned): %ld steps "
-                      "in %.1f s; last objective %.4g, mean potential energy %.4g J, mean squared log isometry ratio "
-                      "%.3g (sigma %.4g m)", r, a->df.features, nv, np, log->steps, secs, log->objective[j],
-                      log->energy[j], log->penalty[j], log->sigma);
-    else if (a->objective == CROM_DATAFREE_NEURALMODES)
-        crom_cli_info(cli, "neuralmodes map, rank %d on %d vertices (%d pinned): %ld steps in %.1f s; last objective "
-                      "%.4g, mean elastic energy %.4g J, orthogonality penalty %.3g (box %.4g m)", r, nv, np,
-                      log->steps, secs, log->objective[j], log->energy[j], log->penalty[j], log->box);
-    else
-        crom_cli_info(cli, "energy map, rank %d on %d vertices (%d pinned): %ld steps in %.1f s; last objective %.4g, "
-                      "mean potential energy %.4g J, mean squared log isometry ratio %.3g (sigma %.4g m)", r, nv, np,
-                      log->steps, secs, log->objective[j], log->energy[j], log->penalty[j], log->sigma);
-    if (cli->verbose)
-        crom_cli_info(cli, "%s: reference energy %.4g J; model_id %s", a->objective == CROM_DATAFREE_FIELD ? "field"
-                      : a->objective == CROM_DATAFREE_NEURALMODES ? "neuralmodes" : "energy", log->Eref, m->model_id);
-}
-
+/* A data-free subspace: the body (and the modes), its pins, the training
+ * (skinning eigenmodes: an eigensolve) with the progress display, the
+ * coordinates of skinning weights, the model, the summary. */
 static int run_datafree(crom_cli *cli, args *a)
 {
+    int skin = a->objective == OBJ_SKINNING;
     crom_body b;
     crom_model out;
     crom_dftrain_log log;
     crom_datafree_problem P;
+    crom_dfskin_opts so = skin_opts(cli, a);
+    long solves = 0;
     crom_model_clear(&out);
     memset(&log, 0, sizeof log);
     int rc = load_body(cli, a, &b);
     if (!rc && a->objective == CROM_DATAFREE_NEURALMODES)
         rc = load_modes(cli, a, &b);
     if (!rc)
-        rc = crom_body_pins(&b, &a->sc, 0);
-    if (!rc)
+        rc = crom_body_pins(&b, &a->sc, skin);
+    if (!rc && !skin)
         rc = crom_body_map_problem(&b, &a->sc, a->objective, a->df.rank, &P);
     double t0 = crom_clock_now();
-    if (!rc) {
+    if (!rc && skin && a->eigen) {
+        rc = crom_dfskin_eigen(&b.mesh, &b.mat, b.fixed, so.handles, &out, &solves);
+    } else if (!rc) {
         crom_cli_progress prog;
         crom_cli_progress_start(&prog, cli, "fitfield", 1000);
-        a->df.progress = on_df_progress;
-        a->df.progress_ctx = &prog;
-        rc = crom_datafree_train(&P, &a->df, &out, &log);
+        so.progress = a->df.progress = on_df_progress;
+        so.progress_ctx = a->df.progress_ctx = &prog;
+        rc = skin ? crom_body_train_skin(&b, &so, &out, &log) : crom_datafree_train(&P, &a->df, &out, &log);
         crom_cli_progress_end(&prog);
     }
+    if (!rc && skin && !a->raw_coords)
+        rc = crom_body_skin_coordinates(&b, &out, a->coord_tol > 0 ? a->coord_tol : 1e-6);
+    double secs = crom_clock_now() - t0;
+    if (!rc && skin && a->eigen)
+        out.training_seconds = crom_clock_wall(secs);
     if (!rc)
-        rc = crom_body_write_map(&b, &a->sc, &out, &a->df, &P, &log, a->out, cli->cmdline);
-    if (!rc)
+        rc = skin ? crom_body_write_skin(&b, &a->sc, &out, &so, a->eigen ? NULL : &log, a->out, cli->cmdline)
+                  : crom_body_write_map(&b, &a->sc, &out, &a->df, &P, &log, a->out, cli->cmdline);
+    if (!rc && skin)
+        report_skin(cli, a, &b, &out, &log, solves, secs);
+    else if (!rc)
         report_map(cli, a, &b, &out, &log, crom_clock_now() - t0);
     crom_dftrain_log_free(&log);
     crom_model_free(&out);
@@ -647,8 +627,6 @@ static int run_datafree(crom_cli *cli, args *a)
 
 static int run(crom_cli *cli, args *a)
 {
-    if (a->objective == OBJ_SKINNING)
-        return run_skinning(cli, a);
     if (a->objective)
         return run_datafree(cli, a);
     crom_in in;
