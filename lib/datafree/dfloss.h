@@ -49,8 +49,8 @@ void crom_dfloss_cub_clear(crom_dfloss_cub *c);
 /* The energy Σ_k wK E_k of the K tets tets [K] at the positions X + u (X
  * NULL: u holds the positions), with u and the gradient g indexed by a
  * vertex's row loc[v] (loc NULL: by v); the gradient is added to g, the
- * energy stored in *E. Returns 0, or 1 at a tet whose energy is not
- * defined (inverted), where it stops. */
+ * energy stored in *E. Returns 0, or 1 at a tet whose energy or gradient
+ * is not finite, where it stops. */
 int crom_dfloss_tets(const crom_fem *fem, int K, const int *tets, double wK, const double *X, const double *u,
                      const int *loc, double *E, double *g);
 

@@ -115,6 +115,9 @@ static int run_begin(run *R, const crom_dftrain_loop *L, crom_dftrain_log *log)
     R->log = log;
     R->block = L->steps >= 100 ? (L->steps + 99) / 100 : 1;
     int maxblocks = L->steps / R->block + 2;
+    log->nblocks = 0;
+    log->steps = 0;
+    log->seconds_total = 0;
     log->objective = crom_malloc(sizeof(double) * (size_t)maxblocks);
     log->energy = crom_malloc(sizeof(double) * (size_t)maxblocks);
     log->penalty = crom_malloc(sizeof(double) * (size_t)maxblocks);

@@ -108,8 +108,8 @@ typedef struct {
     void *progress_ctx;
 } crom_dftrain_loop;
 
-/* Train: run L's schedule, recording in log (its sigma, box and Eref are
- * left as they are). Returns 0; the loss's error, CROM_EDATA with
+/* Train: run L's schedule, recording in log (allocated here; its sigma,
+ * box and Eref are left as they are). Returns 0; the loss's error, CROM_EDATA with
  * "training diverged at step k" for a non-finite loss; CROM_EUSAGE if the
  * time budget ran out before the first step; CROM_EINTERNAL. On failure
  * the record is freed. */
