@@ -625,21 +625,20 @@ static int run_datafree(crom_cli *cli, args *a)
     return rc;
 }
 
-static int run(crom_cli *cli, args *a)
+/* A basis fitted to the samples: POD, or the neural field with the
+ * progress display; the model; the summary. */
+static int run_samples(crom_cli *cli, args *a)
 {
-    if (a->objective)
-        return run_datafree(cli, a);
     crom_in in;
+    crom_samples S;
     int rc = crom_in_open(&in, a->input);
     if (rc)
         return rc;
-    crom_samples S;
-    if ((rc = crom_in_expect(&in, CROM_SAMPLES_SCHEMA, CROM_SAMPLES_VERSION)) ||
-        (rc = crom_samples_read(&in, &S))) {
-        crom_in_close(&in);
-        return rc;
-    }
+    if (!(rc = crom_in_expect(&in, CROM_SAMPLES_SCHEMA, CROM_SAMPLES_VERSION)))
+        rc = crom_samples_read(&in, &S);
     crom_in_close(&in);
+    if (rc)
+        return rc;
     crom_model m;
     crom_model_clear(&m);
     double captured = NAN, t0 = crom_clock_now();
@@ -684,6 +683,8 @@ static int run(crom_cli *cli, args *a)
     crom_samples_free(&S);
     return rc;
 }
+
+static int run(crom_cli *cli, args *a) { return a->objective ? run_datafree(cli, a) : run_samples(cli, a); }
 
 int main(int argc, char **argv)
 {

@@ -35,7 +35,8 @@
 double crom_dftrain_diag(const crom_mesh *m);
 
 /* A network in -> width x (depth - 1) -> out of activation act (depth >= 1,
- * at most CROM_NN_MAX_LAYERS). Returns what crom_nn_spec_set returns. */
+ * at most CROM_NN_MAX_LAYERS, else CROM_EUSAGE). Returns what
+ * crom_nn_spec_set returns. */
 int crom_dftrain_spec(crom_nn_spec *spec, int in, int width, int depth, int out, crom_nn_act act);
 
 /* Normalize the input of net (3 -> ...) to the bounding box of the mesh.
