@@ -1,8 +1,8 @@
 /* crom-fitfield — learn a displacement basis W(X) (crom/model) from point
  * samples (crom/samples): a neural field, or a classic POD basis; or, with
- * no data at all, a nonlinear subspace of one mesh from its energy
- * (--objective energy: Sharp et al. 2023; --objective neuralmodes: Wang et
- * al. 2024). */
+ * no data at all, a subspace from the energy of a body (--objective
+ * energy|neuralmodes|field|skinning: the library's datafree layer; this
+ * program parses the options, reports and shows progress). */
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -13,20 +13,14 @@
 
 #include "base/err.h"
 #include "cli/cli.h"
+#include "datafree/body.h"
 #include "datafree/datafree.h"
 #include "datafree/dfskin.h"
 #include "io/io.h"
-#include "mesh/cloud.h"
-#include "mesh/locate.h"
-#include "mesh/mesh.h"
-#include "phys/modes.h"
 #include "phys/scenario.h"
 #include "rom/fit.h"
-#include "rom/map.h"
 #include "rom/model.h"
-#include "rom/result.h"
 #include "rom/samples.h"
-#include "rom/skin.h"
 
 enum { O_RANK = 300, O_ENCODER, O_BASIS, O_EPOCHS, O_MINUTES, O_LR, O_BATCH, O_PPS, O_ENCPTS,
        O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX, O_BOXSC,
@@ -183,225 +177,160 @@ typedef struct {
     const char *input, *out;
     int pod;
     crom_fit_opts fit;
-    int encoder_given;
     /* data-free */
-    int objective;               /* 0: samples, else CROM_DATAFREE_* */
+    int objective;               /* 0: samples, else CROM_DATAFREE_* or OBJ_SKINNING */
     const char *mesh, *modes, *surface, *cloud;
-    int sample_points, handles, eigen, handles_given, raw_coords;
+    int sample_points, handles, eigen, raw_coords;
     double coord_tol;
     crom_datafree_opts df;
     crom_scenario sc;
-    const char *samples_only;    /* a samples-only option given, for the message */
-    int rank_given, act_given, width_given, depth_given, lr_given, batch_given, minutes_given;
-    unsigned char given[O_LAST - O_RANK]; /* which options were given */
-    int material_given;
-    const char *df_only;         /* a data-free-only option given */
-    char df_flag[48];
+    unsigned char given[O_LAST - O_RANK]; /* which options were given (GIVEN) */
+    int material_given;          /* --youngs, --poisson or --density */
+    int samples_only;            /* a samples-only option given (its key), for the message */
+    int df_only;                 /* a data-free-only option given (its key) */
 } args;
+
+#define GIVEN(a, key) ((a)->given[(key) - O_RANK])
+
+/* Whether key is an option of the table opts. */
+static int in_opts(const crom_opt *opts, int key)
+{
+    for (; opts->name; opts++)
+        if (opts->key == key)
+            return 1;
+    return 0;
+}
+
+/* The long name of option key, for messages. */
+static const char *opt_name(int key)
+{
+    for (int g = 0; groups[g].opts; g++)
+        for (const crom_opt *o = groups[g].opts; o->name; o++)
+            if (o->key == key)
+                return o->name;
+    return "?";
+}
+
+/* Option key's value v: an integer in [lo, hi]. */
+static int int_opt(int key, const char *v, long lo, long hi, int *out)
+{
+    char flag[64];
+    long n;
+    snprintf(flag, sizeof flag, "--%s", opt_name(key));
+    if (crom_parse_int(v, flag, lo, hi, &n))
+        return CROM_EUSAGE;
+    *out = (int)n;
+    return 0;
+}
+
+/* Option key's value v: a number >= 0. */
+static int nonneg_opt(int key, const char *v, double *out)
+{
+    char flag[64];
+    snprintf(flag, sizeof flag, "--%s", opt_name(key));
+    if (crom_parse_double(v, flag, out))
+        return CROM_EUSAGE;
+    return *out >= 0 ? 0 : crom_err(CROM_EUSAGE, "%s must be >= 0, got %s", flag, v);
+}
+
+/* Option key's value v: one of the words names (NULL-terminated), its
+ * index in *out. */
+static int choice_opt(int key, const char *v, const char *const *names, int *out)
+{
+    char list[160] = "";
+    int n = 0;
+    while (names[n])
+        n++;
+    for (int i = 0; i < n; i++) {
+        if (!strcmp(v, names[i])) {
+            *out = i;
+            return 0;
+        }
+        size_t l = strlen(list);
+        snprintf(list + l, sizeof list - l, "%s%s", i == 0 ? "" : i == n - 1 ? " or " : ", ", names[i]);
+    }
+    return crom_err(CROM_EUSAGE, "--%s: '%s' is not %s", opt_name(key), v, list);
+}
 
 static int on_opt(void *ctx, int key, const char *v)
 {
+    static const char *const objectives[] = {"samples", "energy", "neuralmodes", "field", "skinning", NULL};
+    static const int objective_codes[] = {0, CROM_DATAFREE_ENERGY, CROM_DATAFREE_NEURALMODES, CROM_DATAFREE_FIELD,
+                                          OBJ_SKINNING};
+    static const char *const coords[] = {"orthonormal", "handles", NULL}, *const weights[] = {"trained", "eigen", NULL},
+                             *const boxsc[] = {"uniform", "frequency", NULL}, *const optim[] = {"adam", "lbfgs", NULL},
+                             *const basis[] = {"mlp", "pod", NULL}, *const encoders[] = {"lsq", "pointnet", NULL};
     args *a = ctx;
-    long n;
+    int i, rc;
     double d;
     const char *scn = crom_scenario_opt_name(key);
     if (scn) {
         if (!strcmp(scn, "youngs") || !strcmp(scn, "poisson") || !strcmp(scn, "density"))
             a->material_given = 1;
-        if (!a->df_only) {
-            snprintf(a->df_flag, sizeof a->df_flag, "--%s", scn);
-            a->df_only = a->df_flag;
-        }
+        if (!a->df_only)
+            a->df_only = key;
         return crom_scenario_option(&a->sc, key, v);
     }
     if (key >= O_RANK && key < O_LAST)
-        a->given[key - O_RANK] = 1;
+        GIVEN(a, key) = 1;
+    if (in_opts(df_opts, key))
+        a->df_only = key;
+    else if (key == O_EPOCHS || key == O_BASIS || key == O_ENCODER || key == O_PPS || key == O_ENCPTS || key == O_TIK)
+        a->samples_only = key;
     switch (key) {
-    case O_RANK: case O_WIDTH: case O_DEPTH: case O_LR: case O_BATCH: case O_ACT: case O_MINUTES: break;
-    case O_EPOCHS: a->samples_only = "--epochs"; break;
-    case O_BASIS: a->samples_only = "--basis"; break;
-    case O_ENCODER: a->samples_only = "--encoder"; break;
-    case O_PPS: a->samples_only = "--points-per-step"; break;
-    case O_ENCPTS: a->samples_only = "--encoder-points"; break;
-    case O_TIK: a->samples_only = "--tikhonov"; break;
-    case O_MESH: a->df_only = "--mesh"; break;
-    case O_MODES: a->df_only = "--modes"; break;
-    case O_STEPS: a->df_only = "--steps"; break;
-    case O_SIGMA: a->df_only = "--sigma"; break;
-    case O_LAMBDA: a->df_only = "--lambda"; break;
-    case O_RAMP: a->df_only = "--ramp"; break;
-    case O_BOX: a->df_only = "--box"; break;
-    case O_BOXSC: a->df_only = "--box-scaling"; break;
-    case O_ORTHO: a->df_only = "--ortho-weight"; break;
-    case O_FEATURES: a->df_only = "--features"; break;
-    case O_TETS: a->df_only = "--tets"; break;
-    case O_PINW: a->df_only = "--pin-length"; break;
-    case O_HANDLES: a->df_only = "--handles"; break;
-    case O_WEIGHTS: a->df_only = "--weights"; break;
-    case O_COORDS: a->df_only = "--coordinates"; break;
-    case O_COORDTOL: a->df_only = "--coordinate-tol"; break;
-    case O_SURFACE: a->df_only = "--surface"; break;
-    case O_CLOUD: a->df_only = "--cloud"; break;
-    case O_SPOINTS: a->df_only = "--sample-points"; break;
-    case O_OPTIM: a->df_only = "--optimizer"; break;
-    case O_RESAMPLE: a->df_only = "--resample"; break;
-    case O_TANW: a->df_only = "--tangent-weight"; break;
-    }
-    switch (key) {
-    case O_OBJECTIVE:
-        if (!strcmp(v, "samples"))
-            a->objective = 0;
-        else if (!strcmp(v, "energy"))
-            a->objective = CROM_DATAFREE_ENERGY;
-        else if (!strcmp(v, "neuralmodes"))
-            a->objective = CROM_DATAFREE_NEURALMODES;
-        else if (!strcmp(v, "field"))
-            a->objective = CROM_DATAFREE_FIELD;
-        else if (!strcmp(v, "skinning"))
-            a->objective = OBJ_SKINNING;
-        else
-            return crom_err(CROM_EUSAGE, "--objective: '%s' is not samples, energy, neuralmodes, field or skinning", v);
-        return 0;
-    case O_MESH: a->mesh = v; return 0;
-    case O_SURFACE: a->surface = v; return 0;
-    case O_CLOUD: a->cloud = v; return 0;
-    case O_SPOINTS:
-        if (crom_parse_int(v, "--sample-points", 1, 100000000L, &n))
-            return CROM_EUSAGE;
-        a->sample_points = (int)n;
-        return 0;
-    case O_HANDLES:
-        /* 0 parses, so that the training reports it as a count it cannot use */
-        if (crom_parse_int(v, "--handles", 0, 100000L, &n))
-            return CROM_EUSAGE;
-        a->handles = (int)n;
-        a->handles_given = 1;
-        return 0;
-    case O_COORDS:
-        if (!strcmp(v, "orthonormal"))
-            a->raw_coords = 0;
-        else if (!strcmp(v, "handles"))
-            a->raw_coords = 1;
-        else
-            return crom_err(CROM_EUSAGE, "--coordinates: '%s' is not orthonormal or handles", v);
-        return 0;
-    case O_COORDTOL:
-        if (crom_parse_double(v, "--coordinate-tol", &a->coord_tol) || !(a->coord_tol >= 0 && a->coord_tol < 1))
-            return crom_err(CROM_EUSAGE, "--coordinate-tol must be in [0, 1), got %s", v);
-        return 0;
-    case O_WEIGHTS:
-        if (!strcmp(v, "trained"))
-            a->eigen = 0;
-        else if (!strcmp(v, "eigen"))
-            a->eigen = 1;
-        else
-            return crom_err(CROM_EUSAGE, "--weights: '%s' is not trained or eigen", v);
-        return 0;
-    case O_MODES: a->modes = v; return 0;
-    case O_STEPS:
-        if (crom_parse_int(v, "--steps", 1, 1000000000L, &n))
-            return CROM_EUSAGE;
-        a->df.steps = (int)n;
-        return 0;
-    case O_SIGMA: return crom_parse_positive(v, "--sigma", &a->df.sigma);
-    case O_LAMBDA:
-        if (crom_parse_double(v, "--lambda", &a->df.lambda))
-            return CROM_EUSAGE;
-        return a->df.lambda >= 0 ? 0 : crom_err(CROM_EUSAGE, "--lambda must be >= 0, got %s", v);
-    case O_RAMP:
-        if (crom_parse_double(v, "--ramp", &a->df.ramp))
-            return CROM_EUSAGE;
-        return a->df.ramp >= 0 && a->df.ramp <= 1 ? 0 : crom_err(CROM_EUSAGE, "--ramp must be in [0, 1], got %s", v);
-    case O_BOX: return crom_parse_positive(v, "--box", &a->df.box);
-    case O_BOXSC:
-        if (!strcmp(v, "uniform") || !strcmp(v, "frequency")) {
-            a->df.box_scaled = !strcmp(v, "frequency");
-            return 0;
-        }
-        return crom_err(CROM_EUSAGE, "--box-scaling: '%s' is not uniform or frequency", v);
-    case O_FEATURES:
-        if (crom_parse_int(v, "--features", 1, 4096, &n))
-            return CROM_EUSAGE;
-        a->df.features = (int)n;
-        return 0;
-    case O_TETS:
-        if (crom_parse_int(v, "--tets", 1, 100000000L, &n))
-            return CROM_EUSAGE;
-        a->df.tets = (int)n;
-        return 0;
-    case O_PINW:
-        return crom_parse_positive(v, "--pin-length", &a->df.pin_length);
-    case O_OPTIM:
-        if (!strcmp(v, "adam") || !strcmp(v, "lbfgs")) {
-            a->df.optimizer = strcmp(v, "adam") ? CROM_DATAFREE_LBFGS : CROM_DATAFREE_ADAM;
-            return 0;
-        }
-        return crom_err(CROM_EUSAGE, "--optimizer: '%s' is not adam or lbfgs", v);
-    case O_TANW:
-        if (crom_parse_double(v, "--tangent-weight", &a->df.tangent_weight))
-            return CROM_EUSAGE;
-        return a->df.tangent_weight >= 0 ? 0 : crom_err(CROM_EUSAGE, "--tangent-weight must be >= 0, got %s", v);
-    case O_RESAMPLE:
-        if (crom_parse_int(v, "--resample", 1, 1000000L, &n))
-            return CROM_EUSAGE;
-        a->df.resample = (int)n;
-        return 0;
-    case O_ORTHO:
-        if (crom_parse_double(v, "--ortho-weight", &a->df.ortho_weight))
-            return CROM_EUSAGE;
-        return a->df.ortho_weight >= 0 ? 0 : crom_err(CROM_EUSAGE, "--ortho-weight must be >= 0, got %s", v);
     case 0:
         if (a->input)
             return crom_err(CROM_EUSAGE, "unexpected operand '%s' (one samples file)", v);
         a->input = v;
         return 0;
     case 'o': a->out = v; return 0;
-    case O_RANK:
-        if (crom_parse_int(v, "--rank", 1, 10000, &n))
+    case O_OBJECTIVE:
+        if ((rc = choice_opt(key, v, objectives, &i)))
+            return rc;
+        a->objective = objective_codes[i];
+        return 0;
+    case O_MESH: a->mesh = v; return 0;
+    case O_SURFACE: a->surface = v; return 0;
+    case O_CLOUD: a->cloud = v; return 0;
+    case O_MODES: a->modes = v; return 0;
+    case O_SPOINTS: return int_opt(key, v, 1, 100000000L, &a->sample_points);
+    /* 0 parses, so that the training reports it as a count it cannot use */
+    case O_HANDLES: return int_opt(key, v, 0, 100000L, &a->handles);
+    case O_COORDS: return choice_opt(key, v, coords, &a->raw_coords);
+    case O_COORDTOL:
+        if (crom_parse_double(v, "--coordinate-tol", &a->coord_tol) || !(a->coord_tol >= 0 && a->coord_tol < 1))
+            return crom_err(CROM_EUSAGE, "--coordinate-tol must be in [0, 1), got %s", v);
+        return 0;
+    case O_WEIGHTS: return choice_opt(key, v, weights, &a->eigen);
+    case O_STEPS: return int_opt(key, v, 1, 1000000000L, &a->df.steps);
+    case O_SIGMA: return crom_parse_positive(v, "--sigma", &a->df.sigma);
+    case O_LAMBDA: return nonneg_opt(key, v, &a->df.lambda);
+    case O_RAMP:
+        if (crom_parse_double(v, "--ramp", &a->df.ramp))
             return CROM_EUSAGE;
-        a->fit.rank = (int)n;
-        a->rank_given = 1;
-        return 0;
-    case O_BASIS:
-        if (!strcmp(v, "mlp"))
-            a->pod = 0;
-        else if (!strcmp(v, "pod"))
-            a->pod = 1;
-        else
-            return crom_err(CROM_EUSAGE, "--basis: '%s' is not mlp or pod", v);
-        return 0;
+        return a->df.ramp >= 0 && a->df.ramp <= 1 ? 0 : crom_err(CROM_EUSAGE, "--ramp must be in [0, 1], got %s", v);
+    case O_BOX: return crom_parse_positive(v, "--box", &a->df.box);
+    case O_BOXSC: return choice_opt(key, v, boxsc, &a->df.box_scaled);
+    case O_FEATURES: return int_opt(key, v, 1, 4096, &a->df.features);
+    case O_TETS: return int_opt(key, v, 1, 100000000L, &a->df.tets);
+    case O_PINW: return crom_parse_positive(v, "--pin-length", &a->df.pin_length);
+    case O_OPTIM: return choice_opt(key, v, optim, &a->df.optimizer); /* CROM_DATAFREE_ADAM, _LBFGS */
+    case O_TANW: return nonneg_opt(key, v, &a->df.tangent_weight);
+    case O_RESAMPLE: return int_opt(key, v, 1, 1000000L, &a->df.resample);
+    case O_ORTHO: return nonneg_opt(key, v, &a->df.ortho_weight);
+    case O_RANK: return int_opt(key, v, 1, 10000, &a->fit.rank);
+    case O_BASIS: return choice_opt(key, v, basis, &a->pod);
     case O_ENCODER:
-        if (!strcmp(v, "lsq"))
-            a->fit.encoder = CROM_MODEL_ENC_LSQ;
-        else if (!strcmp(v, "pointnet"))
-            a->fit.encoder = CROM_MODEL_ENC_POINTNET;
-        else
-            return crom_err(CROM_EUSAGE, "--encoder: '%s' is not lsq or pointnet", v);
-        a->encoder_given = 1;
+        if ((rc = choice_opt(key, v, encoders, &i)))
+            return rc;
+        a->fit.encoder = i ? CROM_MODEL_ENC_POINTNET : CROM_MODEL_ENC_LSQ;
         return 0;
-    case O_EPOCHS:
-        if (crom_parse_int(v, "--epochs", 1, 100000000L, &n))
-            return CROM_EUSAGE;
-        a->fit.epochs = (int)n;
-        return 0;
-    case O_MINUTES: a->minutes_given = 1; return crom_parse_positive(v, "--minutes", &a->fit.minutes);
-    case O_LR: a->lr_given = 1; return crom_parse_positive(v, "--lr", &a->fit.lr);
-    case O_BATCH:
-        if (crom_parse_int(v, "--batch", 1, 1000000L, &n))
-            return CROM_EUSAGE;
-        a->fit.batch = (int)n;
-        a->batch_given = 1;
-        return 0;
-    case O_PPS:
-        if (crom_parse_int(v, "--points-per-step", 1, 100000000L, &n))
-            return CROM_EUSAGE;
-        a->fit.points_per_step = (int)n;
-        return 0;
-    case O_ENCPTS:
-        if (crom_parse_int(v, "--encoder-points", 1, 100000000L, &n))
-            return CROM_EUSAGE;
-        a->fit.enc_points = (int)n;
-        return 0;
+    case O_EPOCHS: return int_opt(key, v, 1, 100000000L, &a->fit.epochs);
+    case O_MINUTES: return crom_parse_positive(v, "--minutes", &a->fit.minutes);
+    case O_LR: return crom_parse_positive(v, "--lr", &a->fit.lr);
+    case O_BATCH: return int_opt(key, v, 1, 1000000L, &a->fit.batch);
+    case O_PPS: return int_opt(key, v, 1, 100000000L, &a->fit.points_per_step);
+    case O_ENCPTS: return int_opt(key, v, 1, 100000000L, &a->fit.enc_points);
     case O_ACT:
         if (!strcmp(v, "elu"))
             a->fit.act = CROM_NN_ELU;
@@ -411,20 +340,9 @@ static int on_opt(void *ctx, int key, const char *v)
             a->fit.act = CROM_NN_GELU;
         else
             return crom_err(CROM_EUSAGE, "--activation: '%s' is not elu or sine (or gelu, for data-free maps)", v);
-        a->act_given = 1;
         return 0;
-    case O_WIDTH:
-        if (crom_parse_int(v, "--width", 1, 4096, &n))
-            return CROM_EUSAGE;
-        a->fit.width = (int)n;
-        a->width_given = 1;
-        return 0;
-    case O_DEPTH:
-        if (crom_parse_int(v, "--depth", 2, CROM_NN_MAX_LAYERS, &n))
-            return CROM_EUSAGE;
-        a->fit.depth = (int)n;
-        a->depth_given = 1;
-        return 0;
+    case O_WIDTH: return int_opt(key, v, 1, 4096, &a->fit.width);
+    case O_DEPTH: return int_opt(key, v, 2, CROM_NN_MAX_LAYERS, &a->fit.depth);
     case O_TIK:
         if (crom_parse_double(v, "--tikhonov", &d))
             return CROM_EUSAGE;
@@ -436,7 +354,79 @@ static int on_opt(void *ctx, int key, const char *v)
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
 
-static void usage_exit(crom_cli *cli) { exit(crom_cli_exit(cli, CROM_EUSAGE)); }
+/* Exit with the usage error just recorded (rc, CROM_EUSAGE). */
+static void usage_exit(crom_cli *cli, int rc) { exit(crom_cli_exit(cli, rc)); }
+
+/* The data-free objective's options fit together (else a usage error). */
+static void check_datafree(crom_cli *cli, const args *a)
+{
+    int skin = a->objective == OBJ_SKINNING, cont = skin || a->objective == CROM_DATAFREE_FIELD;
+    const char *name = a->objective == CROM_DATAFREE_ENERGY ? "energy" : a->objective == CROM_DATAFREE_FIELD ? "field"
+                       : skin ? "skinning" : "neuralmodes";
+    int ngeom = !!a->mesh + !!a->surface + !!a->cloud;
+    const char *bad = !skin && GIVEN(a, O_HANDLES) ? "--handles" : !skin && a->eigen ? "--weights"
+                      : !skin && (a->raw_coords || a->coord_tol > 0) ? "--coordinates"
+                      : skin && GIVEN(a, O_RANK) ? "--rank" : !cont && a->surface ? "--surface"
+                      : !cont && a->cloud ? "--cloud" : !a->surface && a->sample_points ? "--sample-points" : NULL;
+    if (bad)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "%s does not apply to --objective %s%s", bad, name,
+                                 !strcmp(bad, "--rank") ? " (its latent has 12 coordinates per handle: --handles H)"
+                                 : !strcmp(bad, "--sample-points") ? " without --surface"
+                                 : !cont ? " (a map of one mesh needs that mesh: --mesh)" : ""));
+    if (cont && ngeom != 1)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--objective %s trains on %s: --mesh MESH, --surface STL or --cloud FILE",
+                                 name, ngeom ? "one body, give only one of" : "a body"));
+    if (skin && a->eigen && !a->mesh)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--weights eigen solves an eigenproblem on a tet mesh: give --mesh MESH "
+                                 "(or train the weights from %s: --weights trained)",
+                                 a->surface ? "the surface" : "the cloud"));
+    if (a->samples_only)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--%s applies to --objective samples, not %s%s",
+                                 opt_name(a->samples_only), name, a->samples_only == O_EPOCHS ? " (use --steps)" : ""));
+    if (a->input)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--objective %s learns from no samples: drop the operand '%s' (the mesh "
+                                 "comes with --mesh)", name, a->input));
+    if (!cont && !a->mesh)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--objective %s needs the mesh it maps: --mesh MESH", name));
+    if (a->objective == CROM_DATAFREE_NEURALMODES && !a->modes)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--objective neuralmodes needs the linear modes it builds on: --modes "
+                                 "MODEL (from crom-modes on the same mesh)"));
+    if (a->objective != CROM_DATAFREE_NEURALMODES && a->modes)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--modes applies to --objective neuralmodes"));
+}
+
+/* The data-free options: those given, the objective's defaults for the
+ * others (skinning: the field's, see skin_opts). */
+static crom_datafree_opts datafree_opts(const crom_cli *cli, const args *a)
+{
+    crom_datafree_opts d;
+    crom_datafree_defaults(&d, a->objective == OBJ_SKINNING ? CROM_DATAFREE_FIELD : a->objective);
+    d.rank = GIVEN(a, O_RANK) ? a->fit.rank : d.rank;
+    d.act = GIVEN(a, O_ACT) ? a->fit.act : d.act;
+    d.width = GIVEN(a, O_WIDTH) ? a->fit.width : d.width;
+    d.depth = GIVEN(a, O_DEPTH) ? a->fit.depth : d.depth;
+    d.lr = GIVEN(a, O_LR) ? a->fit.lr : d.lr;
+    d.batch = GIVEN(a, O_BATCH) ? a->fit.batch : d.batch;
+    d.minutes = GIVEN(a, O_MINUTES) ? a->fit.minutes : 0;
+    /* the data-free options given; the objective's defaults for the others */
+#define DF_GIVEN(key, field) if (GIVEN(a, key)) d.field = a->df.field
+    DF_GIVEN(O_STEPS, steps);
+    DF_GIVEN(O_SIGMA, sigma);
+    DF_GIVEN(O_LAMBDA, lambda);
+    DF_GIVEN(O_RAMP, ramp);
+    DF_GIVEN(O_BOX, box);
+    DF_GIVEN(O_BOXSC, box_scaled);
+    DF_GIVEN(O_ORTHO, ortho_weight);
+    DF_GIVEN(O_FEATURES, features);
+    DF_GIVEN(O_TETS, tets);
+    DF_GIVEN(O_PINW, pin_length);
+    DF_GIVEN(O_OPTIM, optimizer);
+    DF_GIVEN(O_RESAMPLE, resample);
+    DF_GIVEN(O_TANW, tangent_weight);
+#undef DF_GIVEN
+    d.seed = cli->seed;
+    return d;
+}
 
 static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
 {
@@ -450,94 +440,18 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     crom_datafree_defaults(&a->df, CROM_DATAFREE_ENERGY);
     crom_scenario_defaults(&a->sc);
     crom_cli_parse(cli, &doc, argc, argv, on_opt, a);
-    if (a->pod && a->encoder_given && a->fit.encoder == CROM_MODEL_ENC_POINTNET) {
-        crom_err(CROM_EUSAGE, "--basis pod has no neural encoder: its q is the lsq projection (drop --encoder pointnet)");
-        exit(crom_cli_exit(cli, CROM_EUSAGE));
-    }
-    if (!a->objective && a->df_only) {
-        crom_err(CROM_EUSAGE, "%s applies to a data-free subspace (--objective energy|neuralmodes|field|skinning)",
-                 a->df_only);
-        usage_exit(cli);
-    }
+    if (a->pod && GIVEN(a, O_ENCODER) && a->fit.encoder == CROM_MODEL_ENC_POINTNET)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--basis pod has no neural encoder: its q is the lsq projection (drop "
+                                 "--encoder pointnet)"));
+    if (!a->objective && a->df_only)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--%s applies to a data-free subspace (--objective "
+                                 "energy|neuralmodes|field|skinning)", opt_name(a->df_only)));
     if (a->objective) {
-        int skin = a->objective == OBJ_SKINNING, cont = skin || a->objective == CROM_DATAFREE_FIELD;
-        const char *name = a->objective == CROM_DATAFREE_ENERGY ? "energy" : a->objective == CROM_DATAFREE_FIELD ? "field"
-                           : skin ? "skinning" : "neuralmodes";
-        int ngeom = !!a->mesh + !!a->surface + !!a->cloud;
-        const char *bad = !skin && a->handles_given ? "--handles" : !skin && a->eigen ? "--weights"
-                          : !skin && (a->raw_coords || a->coord_tol > 0) ? "--coordinates"
-                          : skin && a->rank_given ? "--rank" : !cont && a->surface ? "--surface"
-                          : !cont && a->cloud ? "--cloud" : !a->surface && a->sample_points ? "--sample-points" : NULL;
-        if (bad) {
-            crom_err(CROM_EUSAGE, "%s does not apply to --objective %s%s", bad, name,
-                     !strcmp(bad, "--rank") ? " (its latent has 12 coordinates per handle: --handles H)"
-                     : !strcmp(bad, "--sample-points") ? " without --surface"
-                     : !cont ? " (a map of one mesh needs that mesh: --mesh)" : "");
-            usage_exit(cli);
-        }
-        if (cont && ngeom != 1) {
-            crom_err(CROM_EUSAGE, "--objective %s trains on %s: --mesh MESH, --surface STL or --cloud FILE", name,
-                     ngeom ? "one body, give only one of" : "a body");
-            usage_exit(cli);
-        }
-        if (skin && a->eigen && !a->mesh) {
-            crom_err(CROM_EUSAGE, "--weights eigen solves an eigenproblem on a tet mesh: give --mesh MESH (or train "
-                                  "the weights from %s: --weights trained)", a->surface ? "the surface" : "the cloud");
-            usage_exit(cli);
-        }
-        if (a->samples_only) {
-            crom_err(CROM_EUSAGE, "%s applies to --objective samples, not %s%s", a->samples_only, name,
-                     !strcmp(a->samples_only, "--epochs") ? " (use --steps)" : "");
-            usage_exit(cli);
-        }
-        if (a->input) {
-            crom_err(CROM_EUSAGE, "--objective %s learns from no samples: drop the operand '%s' (the mesh comes "
-                                  "with --mesh)", name, a->input);
-            usage_exit(cli);
-        }
-        if (!cont && !a->mesh) {
-            crom_err(CROM_EUSAGE, "--objective %s needs the mesh it maps: --mesh MESH", name);
-            usage_exit(cli);
-        }
-        if (a->objective == CROM_DATAFREE_NEURALMODES && !a->modes) {
-            crom_err(CROM_EUSAGE, "--objective neuralmodes needs the linear modes it builds on: --modes MODEL "
-                                  "(from crom-modes on the same mesh)");
-            usage_exit(cli);
-        }
-        if (a->objective != CROM_DATAFREE_NEURALMODES && a->modes) {
-            crom_err(CROM_EUSAGE, "--modes applies to --objective neuralmodes");
-            usage_exit(cli);
-        }
-        crom_datafree_opts d;
-        crom_datafree_defaults(&d, skin ? CROM_DATAFREE_FIELD : a->objective);
-        d.rank = a->rank_given ? a->fit.rank : d.rank;
-        d.act = a->act_given ? a->fit.act : d.act;
-        d.width = a->width_given ? a->fit.width : d.width;
-        d.depth = a->depth_given ? a->fit.depth : d.depth;
-        d.lr = a->lr_given ? a->fit.lr : d.lr;
-        d.batch = a->batch_given ? a->fit.batch : d.batch;
-        d.minutes = a->minutes_given ? a->fit.minutes : 0;
-        /* the data-free options given; the objective's defaults for the others */
-#define DF_GIVEN(key, field) if (a->given[(key) - O_RANK]) d.field = a->df.field
-        DF_GIVEN(O_STEPS, steps);
-        DF_GIVEN(O_SIGMA, sigma);
-        DF_GIVEN(O_LAMBDA, lambda);
-        DF_GIVEN(O_RAMP, ramp);
-        DF_GIVEN(O_BOX, box);
-        DF_GIVEN(O_BOXSC, box_scaled);
-        DF_GIVEN(O_ORTHO, ortho_weight);
-        DF_GIVEN(O_FEATURES, features);
-        DF_GIVEN(O_TETS, tets);
-        DF_GIVEN(O_PINW, pin_length);
-        DF_GIVEN(O_OPTIM, optimizer);
-        DF_GIVEN(O_RESAMPLE, resample);
-        DF_GIVEN(O_TANW, tangent_weight);
-#undef DF_GIVEN
-        d.seed = cli->seed;
-        a->df = d;
+        check_datafree(cli, a);
+        a->df = datafree_opts(cli, a);
     } else if (a->fit.act == CROM_NN_GELU) {
-        crom_err(CROM_EUSAGE, "--activation: gelu is for data-free maps; a neural field is elu or sine");
-        usage_exit(cli);
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--activation: gelu is for data-free maps; a neural field is elu or "
+                                 "sine"));
     }
     a->fit.seed = cli->seed;
 #ifdef _OPENMP
@@ -562,399 +476,169 @@ static void on_df_progress(void *ctx, long step, double frac, double obj)
     crom_cli_progress_update(ctx, (long)(frac * 1000), buf);
 }
 
-/* The pins recorded in a modes model's scenario text, appended to sc. */
-static int add_model_pins(crom_scenario *sc, const char *text)
+/* The body of a data-free objective (lib/datafree/body.h); a sampled one
+ * is announced. */
+static int load_body(crom_cli *cli, const args *a, crom_body *b)
 {
-    crom_scenario tmp;
-    crom_scenario_defaults(&tmp);
-    int rc = crom_scenario_parse_text(text, &tmp);
-    for (int i = 0; !rc && i < tmp.npins; i++) {
-        int dup = 0;
-        for (int j = 0; j < sc->npins; j++)
-            dup |= !strcmp(sc->pins[j], tmp.pins[i]);
-        if (dup)
-            continue;
-        if (sc->npins == CROM_SCENARIO_MAX)
-            return crom_err(CROM_EUSAGE, "too many pins (at most %d)", CROM_SCENARIO_MAX);
-        snprintf(sc->pins[sc->npins++], sizeof sc->pins[0], "%s", tmp.pins[i]);
-    }
+    crom_body_source src = {a->mesh, a->surface, a->cloud, a->sample_points, cli->seed};
+    int rc = crom_body_load(b, &src, &a->sc);
+    if (!rc && b->cloud.n)
+        crom_cli_info(cli, "%s: %d points standing for %.6g m^3, integrated through virtual tets",
+                      a->surface ? a->surface : a->cloud, b->cloud.n, b->cloud.volume);
     return rc;
 }
 
-/* The material, gravity (energy) and pins as flags, one per line. */
-static char *df_scenario_text(const crom_scenario *s, int energy)
+/* The linear modes of a neuralmodes map, warning where their material is
+ * not the one trained with. */
+static int load_modes(crom_cli *cli, args *a, crom_body *b)
 {
-    size_t cap = 512 + (size_t)s->npins * 140;
-    char *t = crom_malloc(cap);
-    if (!t)
-        return NULL;
-    size_t l = (size_t)snprintf(t, cap, "--youngs %.17g\n--poisson %.17g\n--density %.17g\n", s->youngs, s->poisson,
-                                s->density);
-    if (energy)
-        l += (size_t)snprintf(t + l, cap - l, "--gravity %.17g,%.17g,%.17g\n", s->gravity[0], s->gravity[1],
-                              s->gravity[2]);
-    for (int i = 0; i < s->npins; i++)
-        l += (size_t)snprintf(t + l, cap - l, "--pin %s\n", s->pins[i]);
-    return t;
+    int differs;
+    if (!GIVEN(a, O_RANK))
+        a->df.rank = 0; /* every mode */
+    int rc = crom_body_load_modes(b, a->modes, a->mesh, &a->df.rank, &a->sc, a->material_given, &differs);
+    if (differs)
+        crom_cli_warn(cli, "the modes were computed with E = %g, nu = %g, rho = %g; training uses E = %g, nu = %g, "
+                      "rho = %g", b->modes.youngs, b->modes.poisson, b->modes.density, a->sc.youngs, a->sc.poisson,
+                      a->sc.density);
+    return rc;
 }
 
-/* The body a continuous objective trains on: --mesh, or the virtual tets
- * of a point sampling of --surface or --cloud (lib/mesh/cloud.h), which cl
- * then keeps (its surface makes the pin mask exact). */
-static int load_body(crom_cli *cli, const args *a, crom_mesh *mesh, char **hist, crom_cloud *cl)
+/* The options of the skinning weights: the data-free options given, the
+ * skinning defaults for the others. */
+static crom_dfskin_opts skin_opts(const crom_cli *cli, const args *a)
 {
-    memset(cl, 0, sizeof *cl);
-    if (a->mesh)
-        return crom_mesh_load(a->mesh, 0, mesh, hist) ? crom_err_ctx("--mesh") : 0;
-    for (int i = 0; i < a->sc.npins; i++) /* before the sampling reports anything */
-        if (!crom_pred_is(a->sc.pins[i]))
-            return crom_err(CROM_EUSAGE, "--pin %s: a surface or point cloud has no named regions; give a predicate "
-                            "such as 'x<-0.49'", a->sc.pins[i]);
-    int rc = a->surface ? crom_cloud_from_surface(a->surface, a->sample_points ? a->sample_points : 8192,
-                                                  cli->seed ^ 0xc10d, cl)
-                        : crom_cloud_read(a->cloud, cl);
-    if (rc)
-        return crom_err_ctx(a->surface ? "--surface" : "--cloud");
-    if ((rc = crom_cloud_stencils(cl, cli->seed ^ 0x57e1, mesh)))
-        return rc;
-    crom_cli_info(cli, "%s: %d points standing for %.6g m^3, integrated through virtual tets", a->surface ? a->surface
-                  : a->cloud, cl->n, cl->volume);
-    return 0;
-}
-
-/* The scenario's material, and the pinned DOFs of mesh (pins by region or
- * predicate; a sampled body's by predicate only, with what they hold in the
- * cloud: its pinned points and triangles). */
-static int body_pins(const args *a, const crom_mesh *mesh, const crom_cloud *cl, crom_material *mat,
-                     unsigned char **fixed, int *npinned, int *npin, double **pinX, int *ntri, double **triX)
-{
-    int rc = crom_scenario_check(&a->sc);
-    if (!rc)
-        rc = crom_material_init(mat, a->sc.youngs, a->sc.poisson, a->sc.density);
-    if (rc)
-        return rc;
-    const char *refs[CROM_SCENARIO_MAX];
-    for (int i = 0; i < a->sc.npins; i++)
-        refs[i] = a->sc.pins[i];
-    *npin = *ntri = 0;
-    *pinX = *triX = NULL;
-    if (cl->n && (rc = crom_cloud_pins(cl, a->sc.npins, refs, npin, pinX, ntri, triX)))
-        return rc;
-    return crom_modes_pins(mesh, a->sc.npins, refs, fixed, npinned);
-}
-
-static int run_skinning(crom_cli *cli, args *a)
-{
-    crom_mesh mesh;
-    crom_cloud cl;
-    crom_model out;
-    crom_datafree_log log;
-    char *hist = NULL, *text = NULL;
-    unsigned char *fixed = NULL;
-    double *pinX = NULL, *triX = NULL;
-    int npinned = 0, npin = 0, ntri = 0, rc;
-    long solves = 0;
-    memset(&mesh, 0, sizeof mesh);
-    memset(&log, 0, sizeof log);
-    crom_model_clear(&out);
-    crom_material mat;
-    if ((rc = load_body(cli, a, &mesh, &hist, &cl)) ||
-        (rc = body_pins(a, &mesh, &cl, &mat, &fixed, &npinned, &npin, &pinX, &ntri, &triX)))
-        goto out;
     crom_dfskin_opts o;
     crom_dfskin_defaults(&o);
-    o.handles = a->handles_given ? a->handles : o.handles;
-    o.depth = a->depth_given ? a->df.depth : o.depth;
-    o.width = a->width_given ? a->df.width : o.width;
-    o.act = a->act_given ? a->df.act : o.act;
+    o.handles = GIVEN(a, O_HANDLES) ? a->handles : o.handles;
+    o.depth = GIVEN(a, O_DEPTH) ? a->df.depth : o.depth;
+    o.width = GIVEN(a, O_WIDTH) ? a->df.width : o.width;
+    o.act = GIVEN(a, O_ACT) ? a->df.act : o.act;
     o.steps = a->df.steps;
     o.minutes = a->df.minutes;
     o.lr = a->df.lr;
-    o.batch = a->batch_given ? a->df.batch : o.batch;
+    o.batch = GIVEN(a, O_BATCH) ? a->df.batch : o.batch;
     o.sigma = a->df.sigma;
-    o.ortho_weight = a->given[O_ORTHO - O_RANK] ? a->df.ortho_weight : o.ortho_weight;
+    o.ortho_weight = GIVEN(a, O_ORTHO) ? a->df.ortho_weight : o.ortho_weight;
     o.tets = a->df.tets;
     o.pin_length = a->df.pin_length;
     o.threads = a->df.threads;
     o.seed = cli->seed;
-    double t0 = crom_clock_now();
-    if (a->eigen) {
-        rc = crom_dfskin_eigen(&mesh, &mat, fixed, o.handles, &out, &solves);
-    } else {
-        if (cl.n && (rc = crom_dfskin_check_handles(&mesh, fixed, o.handles)))
-            goto out;
-        crom_dfskin_problem P = {&mesh, mat, fixed, cl.n > 0, npin, pinX, ntri, triX};
-        crom_cli_progress prog;
-        crom_cli_progress_start(&prog, cli, "fitfield", 1000);
-        o.progress = on_df_progress;
-        o.progress_ctx = &prog;
-        rc = crom_dfskin_train(&P, &o, &out, &log);
-        crom_cli_progress_end(&prog);
-    }
-    if (rc)
-        goto out;
-    if (!a->raw_coords) {
-        /* orthonormal coordinates over the training geometry: the mesh's
-         * vertices with their lumped volumes, or the sampled points */
-        double *vv = cl.n ? NULL : crom_malloc(sizeof(double) * (size_t)mesh.nv);
-        if (!cl.n && !vv) {
-            rc = CROM_EINTERNAL;
-            goto out;
-        }
-        if (vv)
-            crom_mesh_vertex_volumes(&mesh, vv);
-        rc = cl.n ? crom_skin_orthonormalize(&out, (size_t)cl.n, cl.X, cl.vol, a->coord_tol > 0 ? a->coord_tol : 1e-6)
-                  : crom_skin_orthonormalize(&out, (size_t)mesh.nv, mesh.X, vv, a->coord_tol > 0 ? a->coord_tol : 1e-6);
-        free(vv);
-        if (rc)
-            goto out;
-    }
-    double secs = crom_clock_now() - t0;
-    if (a->eigen)
-        out.training_seconds = crom_clock_wall(secs);
-    if (!(text = df_scenario_text(&a->sc, 0))) {
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
-    out.scenario = crom_strdup(text);
-    out.youngs = a->sc.youngs;
-    out.poisson = a->sc.poisson;
-    out.density = a->sc.density;
-    crom_out o5;
-    if ((rc = crom_out_create(&o5, a->out, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cli->cmdline, hist, CROM_OUT_PLAIN)))
-        goto out;
-    double mass = mat.rho * (cl.n ? cl.volume : crom_mesh_volume(&mesh));
-    rc = crom_model_write(o5.h5, &out);
-    if (!rc)
-        rc = crom_h5_set_f64(o5.h5, ".", "mass", &mass, 1);
-    if (!rc && !a->eigen) {
-        long long steps = log.steps, k = o.tets;
-        double sig = log.sigma;
-        hsize_t d = (hsize_t)log.nblocks;
-        rc = crom_h5_set_i64(o5.h5, ".", "training_steps", steps);
-        if (!rc)
-            rc = crom_h5_set_f64(o5.h5, ".", "sigma", &sig, 1);
-        if (!rc)
-            rc = crom_h5_set_f64(o5.h5, ".", "ortho_weight", &o.ortho_weight, 1);
-        if (!rc)
-            rc = crom_h5_set_i64(o5.h5, ".", "cubature_tets", k);
-        if (!rc && d > 0)
-            rc = crom_h5_put_f64(o5.h5, "training/objective", 1, &d, log.objective);
-        if (!rc && d > 0)
-            rc = crom_h5_put_f64(o5.h5, "training/energy", 1, &d, log.energy);
-        if (!rc && d > 0)
-            rc = crom_h5_put_f64(o5.h5, "training/penalty", 1, &d, log.penalty);
-        if (!rc && d > 0)
-            rc = crom_h5_put_f64(o5.h5, "training/seconds", 1, &d, log.seconds);
-    }
-    if (!rc)
-        rc = crom_out_commit(&o5);
-    else
-        crom_out_fail(&o5);
-    if (rc)
-        goto out;
-    if (a->eigen)
-        crom_cli_info(cli, "skinning eigenmodes, %d handles (rank %d%s) on %d vertices (%d pinned): %ld solves in "
-                      "%.2f s; eigenvalues %.4g .. %.4g 1/s^2", out.handles, out.rank,
-                      out.skin_constant ? ", one constant" : "", mesh.nv, npinned, solves, secs,
-                      out.skin_eig[out.skin_constant < out.handles ? out.skin_constant : 0], out.skin_eig[out.handles - 1]);
-    else {
-        char where[96];
-        if (cl.n)
-            snprintf(where, sizeof where, "%d points (pinned: %d points, %d surface triangles)", cl.n, npin, ntri);
-        else
-            snprintf(where, sizeof where, "%d vertices (%d pinned)", mesh.nv, npinned);
-        crom_cli_info(cli, "trained skinning weights, %d handles (rank %d%s) on %s: %ld steps in %.1f s; last "
-                      "objective %.4g, mean energy %.4g J, |G - I|^2 %.3g (sigma %.4g m)", out.handles, out.rank,
-                      out.skin_constant ? ", one constant" : "", where, log.steps, secs, log.objective[log.nblocks - 1],
-                      log.energy[log.nblocks - 1], log.penalty[log.nblocks - 1], log.sigma);
-    }
-    if (cli->verbose)
-        crom_cli_info(cli, "skinning: model_id %s", out.model_id);
-out:
-    crom_datafree_log_free(&log);
-    crom_model_free(&out);
-    crom_mesh_free(&mesh);
-    crom_cloud_free(&cl);
-    free(hist);
-    free(text);
-    free(fixed);
-    free(pinX);
-    free(triX);
-    return rc;
+    return o;
 }
 
-static int run_datafree(crom_cli *cli, args *a)
+/* The summary of a trained map or field. */
+static void report_map(crom_cli *cli, const args *a, const crom_body *b, const crom_model *m,
+                       const crom_dftrain_log *log, double secs)
 {
-    int nm = a->objective == CROM_DATAFREE_NEURALMODES, field = a->objective == CROM_DATAFREE_FIELD, rc;
-    const char *name = nm ? "neuralmodes" : field ? "field" : "energy";
-    crom_mesh mesh;
-    char *hist = NULL, *text = NULL;
-    unsigned char *fixed = NULL;
-    double *W = NULL, *freq = NULL;
-    crom_model modes, out;
-    crom_model_clear(&modes);
-    crom_model_clear(&out);
-    crom_datafree_log log;
-    memset(&log, 0, sizeof log);
-    memset(&mesh, 0, sizeof mesh);
-    crom_cloud cl;
-    if ((rc = load_body(cli, a, &mesh, &hist, &cl))) {
-        crom_mesh_free(&mesh);
-        crom_cloud_free(&cl);
-        return rc;
-    }
-    double body_volume = cl.n ? cl.volume : crom_mesh_volume(&mesh);
-    crom_cloud_free(&cl);
-    if (nm) {
-        if ((rc = crom_model_load(a->modes, &modes))) {
-            crom_err_ctx("--modes");
-            goto out;
-        }
-        if (strcmp(modes.basis, "modes")) {
-            rc = crom_err(CROM_EDATA, "--modes %s is a '%s' model; neuralmodes builds on linear vibration modes "
-                          "(basis 'modes', from crom-modes)", a->modes, modes.basis);
-            goto out;
-        }
-        if (crom_map_same_mesh(&modes.mesh, &mesh)) {
-            rc = crom_err(CROM_EDATA, "--modes %s was computed on another mesh (%d vertices, %d tets) than --mesh %s "
-                          "(%d vertices, %d tets)", a->modes, modes.mesh.nv, modes.mesh.nt, a->mesh, mesh.nv, mesh.nt);
-            goto out;
-        }
-        if (!a->rank_given)
-            a->df.rank = modes.rank;
-        else if (a->df.rank > modes.rank) {
-            rc = crom_err(CROM_EUSAGE, "--rank %d: --modes %s has only %d modes", a->df.rank, a->modes, modes.rank);
-            goto out;
-        }
-        if (!a->material_given && isfinite(modes.youngs) && isfinite(modes.poisson) && isfinite(modes.density)) {
-            a->sc.youngs = modes.youngs;
-            a->sc.poisson = modes.poisson;
-            a->sc.density = modes.density;
-        } else if (isfinite(modes.youngs) && (modes.youngs != a->sc.youngs || modes.poisson != a->sc.poisson ||
-                                             modes.density != a->sc.density)) {
-            crom_cli_warn(cli, "the modes were computed with E = %g, nu = %g, rho = %g; training uses E = %g, nu = %g, "
-                          "rho = %g", modes.youngs, modes.poisson, modes.density, a->sc.youngs, a->sc.poisson,
-                          a->sc.density);
-        }
-        if ((rc = add_model_pins(&a->sc, modes.scenario)))
-            goto out;
-    }
-    if ((rc = crom_scenario_check(&a->sc)))
-        goto out;
-    crom_material mat;
-    if ((rc = crom_material_init(&mat, a->sc.youngs, a->sc.poisson, a->sc.density)))
-        goto out;
-    const char *refs[CROM_SCENARIO_MAX];
-    int npinned = 0;
-    for (int i = 0; i < a->sc.npins; i++)
-        refs[i] = a->sc.pins[i];
-    if ((rc = crom_modes_pins(&mesh, a->sc.npins, refs, &fixed, &npinned)))
-        goto out;
-    int r = a->df.rank, n = 3 * mesh.nv;
-    if (nm) {
-        /* the lowest r modes, [nv][3][r]; they must not move a pinned vertex */
-        W = crom_malloc(sizeof(double) * (size_t)n * r);
-        freq = crom_malloc(sizeof(double) * (size_t)r);
-        if (!W || !freq) {
-            rc = CROM_EINTERNAL;
-            goto out;
-        }
-        for (int i = 0; i < n; i++)
-            for (int k = 0; k < r; k++) {
-                double w = modes.basis_v[(size_t)i * modes.rank + k];
-                W[(size_t)i * r + k] = w;
-                if (fixed[i] && w != 0) {
-                    rc = crom_err(CROM_EDATA, "--modes %s moves vertex %d, which is pinned here: compute the modes "
-                                  "with the same --pin", a->modes, i / 3);
-                    goto out;
-                }
-            }
-        for (int k = 0; k < r; k++)
-            freq[k] = modes.frequencies ? modes.frequencies[k] : 0;
-    }
-    crom_datafree_problem P = {&mesh, mat, {a->sc.gravity[0], a->sc.gravity[1], a->sc.gravity[2]}, fixed, W, freq};
-    if (nm)
-        P.gravity[0] = P.gravity[1] = P.gravity[2] = 0;
-    crom_cli_progress prog;
-    crom_cli_progress_start(&prog, cli, "fitfield", 1000);
-    a->df.progress = on_df_progress;
-    a->df.progress_ctx = &prog;
-    double t0 = crom_clock_now();
-    rc = crom_datafree_train(&P, &a->df, &out, &log);
-    crom_cli_progress_end(&prog);
-    if (rc)
-        goto out;
-    text = df_scenario_text(&a->sc, !nm);
-    if (!text) {
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
-    out.scenario = crom_strdup(text);
-    out.youngs = a->sc.youngs;
-    out.poisson = a->sc.poisson;
-    out.density = a->sc.density;
-    crom_out o;
-    if ((rc = crom_out_create(&o, a->out, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cli->cmdline, hist, CROM_OUT_PLAIN)))
-        goto out;
-    rc = crom_model_write(o.h5, &out);
-    if (!rc)
-        rc = crom_datafree_write_record(o.h5, &a->df, &P, &log, mat.rho * body_volume,
-                                  nm ? modes.model_id : NULL);
-    if (!rc)
-        rc = crom_out_commit(&o);
-    else
-        crom_out_fail(&o);
-    if (rc)
-        goto out;
-    int j = log.nblocks - 1;
-    if (field)
+    int j = log->nblocks - 1, r = a->df.rank, nv = b->mesh.nv, np = b->npinned;
+    if (a->objective == CROM_DATAFREE_FIELD)
         crom_cli_info(cli, "continuous field, rank %d with %d features, trained on %d vertices (%d pinned): %ld steps "
                       "in %.1f s; last objective %.4g, mean potential energy %.4g J, mean squared log isometry ratio "
-                      "%.3g (sigma %.4g m)", r, a->df.features, mesh.nv, npinned, log.steps, crom_clock_now() - t0,
-                      log.objective[j], log.energy[j], log.penalty[j], log.sigma);
-    else if (nm)
+                      "%.3g (sigma %.4g m)", r, a->df.features, nv, np, log->steps, secs, log->objective[j],
+                      log->energy[j], log->penalty[j], log->sigma);
+    else if (a->objective == CROM_DATAFREE_NEURALMODES)
         crom_cli_info(cli, "neuralmodes map, rank %d on %d vertices (%d pinned): %ld steps in %.1f s; last objective "
-                      "%.4g, mean elastic energy %.4g J, orthogonality penalty %.3g (box %.4g m)",
-                      r, mesh.nv, npinned, log.steps, crom_clock_now() - t0, log.objective[j], log.energy[j],
-                      log.penalty[j], log.box);
+                      "%.4g, mean elastic energy %.4g J, orthogonality penalty %.3g (box %.4g m)", r, nv, np,
+                      log->steps, secs, log->objective[j], log->energy[j], log->penalty[j], log->box);
     else
         crom_cli_info(cli, "energy map, rank %d on %d vertices (%d pinned): %ld steps in %.1f s; last objective %.4g, "
-                      "mean potential energy %.4g J, mean squared log isometry ratio %.3g (sigma %.4g m)",
-                      r, mesh.nv, npinned, log.steps, crom_clock_now() - t0, log.objective[j], log.energy[j],
-                      log.penalty[j], log.sigma);
+                      "mean potential energy %.4g J, mean squared log isometry ratio %.3g (sigma %.4g m)", r, nv, np,
+                      log->steps, secs, log->objective[j], log->energy[j], log->penalty[j], log->sigma);
     if (cli->verbose)
-        crom_cli_info(cli, "%s: reference energy %.4g J; model_id %s", name, log.Eref, out.model_id);
-out:
-    crom_datafree_log_free(&log);
+        crom_cli_info(cli, "%s: reference energy %.4g J; model_id %s", a->objective == CROM_DATAFREE_FIELD ? "field"
+                      : a->objective == CROM_DATAFREE_NEURALMODES ? "neuralmodes" : "energy", log->Eref, m->model_id);
+}
+
+/* The summary of a trained skinning model or of skinning eigenmodes. */
+static void report_skin(crom_cli *cli, const args *a, const crom_body *b, const crom_model *m,
+                        const crom_dftrain_log *log, long solves, double secs)
+{
+    const char *one = m->skin_constant ? ", one constant" : "";
+    if (a->eigen) {
+        crom_cli_info(cli, "skinning eigenmodes, %d handles (rank %d%s) on %d vertices (%d pinned): %ld solves in "
+                      "%.2f s; eigenvalues %.4g .. %.4g 1/s^2", m->handles, m->rank, one, b->mesh.nv, b->npinned,
+                      solves, secs, m->skin_eig[m->skin_constant < m->handles ? m->skin_constant : 0],
+                      m->skin_eig[m->handles - 1]);
+    } else {
+        char where[96];
+        int j = log->nblocks - 1;
+        if (b->cloud.n)
+            snprintf(where, sizeof where, "%d points (pinned: %d points, %d surface triangles)", b->cloud.n, b->npin,
+                     b->ntri);
+        else
+            snprintf(where, sizeof where, "%d vertices (%d pinned)", b->mesh.nv, b->npinned);
+        crom_cli_info(cli, "trained skinning weights, %d handles (rank %d%s) on %s: %ld steps in %.1f s; last "
+                      "objective %.4g, mean energy %.4g J, |G - I|^2 %.3g (sigma %.4g m)", m->handles, m->rank, one,
+                      where, log->steps, secs, log->objective[j], log->energy[j], log->penalty[j], log->sigma);
+    }
+    if (cli->verbose)
+        crom_cli_info(cli, "skinning: model_id %s", m->model_id);
+}
+
+/* A data-free subspace: the body (and the modes), its pins, the training
+ * (skinning eigenmodes: an eigensolve) with the progress display, the
+ * coordinates of skinning weights, the model, the summary. */
+static int run_datafree(crom_cli *cli, args *a)
+{
+    int skin = a->objective == OBJ_SKINNING;
+    crom_body b;
+    crom_model out;
+    crom_dftrain_log log;
+    crom_datafree_problem P;
+    crom_dfskin_opts so = skin_opts(cli, a);
+    long solves = 0;
+    crom_model_clear(&out);
+    memset(&log, 0, sizeof log);
+    int rc = load_body(cli, a, &b);
+    if (!rc && a->objective == CROM_DATAFREE_NEURALMODES)
+        rc = load_modes(cli, a, &b);
+    if (!rc)
+        rc = crom_body_pins(&b, &a->sc, skin);
+    if (!rc && !skin)
+        rc = crom_body_map_problem(&b, &a->sc, a->objective, a->df.rank, &P);
+    double t0 = crom_clock_now();
+    if (!rc && skin && a->eigen) {
+        rc = crom_dfskin_eigen(&b.mesh, &b.mat, b.fixed, so.handles, &out, &solves);
+    } else if (!rc) {
+        crom_cli_progress prog;
+        crom_cli_progress_start(&prog, cli, "fitfield", 1000);
+        so.progress = a->df.progress = on_df_progress;
+        so.progress_ctx = a->df.progress_ctx = &prog;
+        rc = skin ? crom_body_train_skin(&b, &so, &out, &log) : crom_datafree_train(&P, &a->df, &out, &log);
+        crom_cli_progress_end(&prog);
+    }
+    if (!rc && skin && !a->raw_coords)
+        rc = crom_body_skin_coordinates(&b, &out, a->coord_tol > 0 ? a->coord_tol : 1e-6);
+    double secs = crom_clock_now() - t0;
+    if (!rc && skin && a->eigen)
+        out.training_seconds = crom_clock_wall(secs);
+    if (!rc)
+        rc = skin ? crom_body_write_skin(&b, &a->sc, &out, &so, a->eigen ? NULL : &log, a->out, cli->cmdline)
+                  : crom_body_write_map(&b, &a->sc, &out, &a->df, &P, &log, a->out, cli->cmdline);
+    if (!rc && skin)
+        report_skin(cli, a, &b, &out, &log, solves, secs);
+    else if (!rc)
+        report_map(cli, a, &b, &out, &log, crom_clock_now() - t0);
+    crom_dftrain_log_free(&log);
     crom_model_free(&out);
-    crom_model_free(&modes);
-    crom_mesh_free(&mesh);
-    free(hist);
-    free(text);
-    free(fixed);
-    free(W);
-    free(freq);
+    crom_body_free(&b);
     return rc;
 }
 
-static int run(crom_cli *cli, args *a)
+/* A basis fitted to the samples: POD, or the neural field with the
+ * progress display; the model; the summary. */
+static int run_samples(crom_cli *cli, args *a)
 {
-    if (a->objective == OBJ_SKINNING)
-        return run_skinning(cli, a);
-    if (a->objective)
-        return run_datafree(cli, a);
     crom_in in;
+    crom_samples S;
     int rc = crom_in_open(&in, a->input);
     if (rc)
         return rc;
-    crom_samples S;
-    if ((rc = crom_in_expect(&in, CROM_SAMPLES_SCHEMA, CROM_SAMPLES_VERSION)) ||
-        (rc = crom_samples_read(&in, &S))) {
-        crom_in_close(&in);
-        return rc;
-    }
+    if (!(rc = crom_in_expect(&in, CROM_SAMPLES_SCHEMA, CROM_SAMPLES_VERSION)))
+        rc = crom_samples_read(&in, &S);
     crom_in_close(&in);
+    if (rc)
+        return rc;
     crom_model m;
     crom_model_clear(&m);
     double captured = NAN, t0 = crom_clock_now();
@@ -999,6 +683,8 @@ static int run(crom_cli *cli, args *a)
     crom_samples_free(&S);
     return rc;
 }
+
+static int run(crom_cli *cli, args *a) { return a->objective ? run_datafree(cli, a) : run_samples(cli, a); }
 
 int main(int argc, char **argv)
 {

@@ -56,35 +56,16 @@
  * onto the modes to about 1 % of the box. The last layer starts at zero:
  * training starts from the linear modes.
  *
- * field (beyond both papers: a CONTINUOUS data-free subspace, crom/model
- * basis "energy-field"): x(X, z) = X + W(X) (φ(z) − φ(0)) with W a neural
- * field 3 -> 3p over the body (LiCROM's representation, laid on any mesh)
- * and φ an ELU MLP r -> p, trained on the energy loss above with the
- * integrals over the body replaced by a random cubature drawn afresh each
- * step: K tets, each standing for nt/K of them (an unbiased estimate of E
- * and of the gravity potential, lumped masses of the drawn tets for M), so
- * W is evaluated only at their vertices:
- *
- *   L = 1/B Σ_b Ê_pot(X + ρ W Φ_b) / (E V)
- *     + λ · mean over pairs ( log( D̂_bc / (σ ‖z_b − z_c‖) ) )² + λ_0 · (as above),
- *
- *   Φ_b = φ(z_b) − φ(0),  D̂²_bc = ΔΦᵀ Ĝ ΔΦ / m̂,  Ĝ = Σ_v m̂_v W(X_v)ᵀ W(X_v),
- *
- * with z ~ N(0, I) and ρ ramped as above. Pins are built in as a mask
- * over space: W(X) = s(d(X)/ℓ) W̃(X), s the smoothstep 3t² − 2t³ (1 for t
- * >= 1) and d the distance to the pinned part of the training mesh: its
- * boundary triangles with three pinned vertices, and its pinned vertices
- * (for pins off the boundary), stored in the model with ℓ; so the field is
- * exactly zero on a pinned face of the body on ANY mesh of it, and the
- * reduced simulation's own penalty holds whatever else a region pins. (A
- * penalty on the pins instead competes with the energy, which is weak in
- * units of E V, and the trained map then barely moves under gravity.) The
- * one-mesh maps take the same random cubature on request (`tets`).
+ * field (beyond both papers): a CONTINUOUS data-free subspace x(X, z) = X
+ * + W(X) (φ(z) − φ(0)), W a neural field over the body, trained on the
+ * energy loss above integrated by a random cubature of the mesh: dffield.h.
+ * The one-mesh maps take the same random cubature on request (`tets`).
  *
  * Training: Adam on a fresh batch every step, learning rate halved after
  * each quarter of the steps (the paper's schedule, on a shorter run); or
  * L-BFGS with a backtracking line search (Wang et al.'s optimizer,
- * lib/lbfgs.h), `resample` iterations on each batch. The defaults come from
+ * lib/base/lbfgs.h), `resample` iterations on each batch (the loop of
+ * dftrain.h, shared with the field and the skinning weights). The defaults come from
  * issue 14's measurements on a soft clamped bar sagging under gravity (a
  * third of its length; README, "Benchmarks"): for the one-mesh maps many
  * small steps (batch 8, rate 3e-3) beat fewer large ones at equal time;
@@ -105,6 +86,7 @@
 
 #include <hdf5.h>
 
+#include "datafree/dftrain.h"
 #include "mesh/mesh.h"
 #include "nn/nn.h"
 #include "phys/fem.h"
@@ -160,14 +142,6 @@ void crom_datafree_defaults(crom_datafree_opts *o, int objective);
 
 /* ------------------------------------------------------------- the loss */
 
-/* What one evaluation of the loss gives, besides its value. */
-typedef struct {
-    double objective; /* L (dimensionless) */
-    double energy;    /* mean E_pot (energy) or elastic energy (neuralmodes) of the samples (J) */
-    double penalty;   /* energy: mean squared log-ratio; neuralmodes: mean ‖WᵀMy/m‖²/a² */
-    double tangent;   /* energy, field: mean squared log-ratio of the tangent samples */
-} crom_datafree_terms;
-
 typedef struct {
     crom_datafree_problem P;
     crom_datafree_opts o;
@@ -201,93 +175,17 @@ void crom_datafree_ctx_free(crom_datafree_ctx *c);
  * its gradient dL/dparams (overwritten, layout of net->params). Returns 0,
  * CROM_EUSAGE (sizes, a tet out of range), or CROM_EDATA for a non-finite
  * energy. */
-int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_datafree_terms *t,
+int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_dftrain_terms *t,
                  float *grad);
 
-/* ------------------------------------------- the continuous field's loss */
-
-typedef struct {
-    crom_datafree_problem P;
-    crom_datafree_opts o;
-    const crom_nn_mlp *W, *phi; /* 3 -> 3p and r -> p */
-    crom_fem fem;
-    crom_nn_ws wsW, wsP;
-    int r, p, maxbatch, maxtets, maxrows, nthreads, ns, npins;
-    int B0;                  /* tangent samples after the batch (0: none) */
-    double mass, Eref, pin_length;
-    int *loc, *vs, *bad;
-    float *xf, *zf, *dFf, *dPf;
-    double *pinX;            /* [npins][3] pinned vertices' positions */
-    int ntri;                /* pinned boundary triangles */
-    double *triX;            /* [ntri][3][3] their corners */
-    double *mask;            /* [nv] s(d(X_v)/ℓ) */
-    double *F, *Phi, *gu, *dF, *dPhi, *mloc, *E, *G, *S, *tmp, *xb;
-} crom_datafree_field_ctx;
-
-/* Set up the loss of the continuous field (objective field: o->sigma,
- * lambda, pin_length, threads) for networks W (3 -> 3p, unmasked) and phi
- * (r -> p), batches of up to maxbatch samples over up to maxtets tets. */
-int crom_datafree_field_ctx_init(crom_datafree_field_ctx *c, const crom_datafree_problem *p, const crom_datafree_opts *o, const crom_nn_mlp *W,
-                      const crom_nn_mlp *phi, int maxbatch, int maxtets);
-void crom_datafree_field_ctx_free(crom_datafree_field_ctx *c);
-
-/* The loss L of B samples at blend rho over the K tets tets [K] (repeats
- * allowed): z holds [B + c->B0][r], the batch then the tangent samples. If
- * gW, gP != NULL, its gradients with respect to the parameters of W and
- * phi (overwritten). t->penalty is the isometry term, t->tangent the one
- * at rest. Returns 0, CROM_EUSAGE (sizes), CROM_EDATA (a non-finite
- * energy). */
-int crom_datafree_field_loss(crom_datafree_field_ctx *c, int B, const double *z, double rho, int K, const int *tets, crom_datafree_terms *t,
-                  float *gW, float *gP);
-
-/* The learning rate at fraction frac of the run: base, halved after each
- * quarter (Sharp et al.'s schedule on a shorter run). */
-double crom_datafree_lr(double base, double frac);
-
 /* ------------------------------------------------------------- training */
-
-/* The record of a run: per block of steps (about 100 blocks), the mean
- * terms and the wall time at its end; and totals. */
-typedef struct {
-    int nblocks;
-    double *objective, *energy, *penalty, *seconds;
-    long steps;
-    double seconds_total;
-    double sigma, box, Eref; /* as used */
-} crom_datafree_log;
-
-void crom_datafree_log_free(crom_datafree_log *l);
-
-/* The clock and record of a training run, shared by the objectives: the
- * schedule's fraction done (steps or --minutes, whichever is further) and
- * the per-block means of the terms, with progress reports. */
-typedef struct {
-    crom_datafree_log *log;
-    const crom_datafree_opts *o;
-    int block, inblock;
-    double budget, tstart, sobj, sen, spen;
-} crom_datafree_run;
-
-/* Start: allocate the record for o->steps steps. CROM_EINTERNAL. */
-int crom_datafree_run_begin(crom_datafree_run *R, crom_datafree_log *log, const crom_datafree_opts *o);
-/* Before step k: 0 when the time budget is spent, else 1 with the
- * fraction of the schedule done in *frac. */
-int crom_datafree_run_next(crom_datafree_run *R, long k, double *frac);
-/* After step k: record its terms. */
-void crom_datafree_run_record(crom_datafree_run *R, long k, const crom_datafree_terms *t);
-/* After the last step (k steps taken): close the record. CROM_EUSAGE if
- * no step was taken (the time budget ran out first). */
-int crom_datafree_run_end(crom_datafree_run *R, long k);
-
-/* Train the continuous field (crom_datafree_train calls it for CROM_DATAFREE_FIELD). */
-int crom_datafree_train_field(const crom_datafree_problem *p, const crom_datafree_opts *o, crom_model *out, crom_datafree_log *log);
 
 /* Train a map on problem p with options o; out gets a model of kind
  * "energy" or "neuralmodes" (mesh copied with its regions; neuralmodes also
  * keeps W and the frequencies) and log the record. Returns 0, CROM_EUSAGE
  * (rank larger than the free degrees of freedom, a free body under gravity,
  * bad options), CROM_EDATA (training diverged) or CROM_EINTERNAL. */
-int crom_datafree_train(const crom_datafree_problem *p, const crom_datafree_opts *o, crom_model *out, crom_datafree_log *log);
+int crom_datafree_train(const crom_datafree_problem *p, const crom_datafree_opts *o, crom_model *out, crom_dftrain_log *log);
 
 /* Write what a data-free model records beyond its basis (after
  * crom_model_write): the options as attributes (sigma, isometry_weight,
@@ -295,7 +193,7 @@ int crom_datafree_train(const crom_datafree_problem *p, const crom_datafree_opts
  * mass, and the training record (training/objective, /energy, /penalty,
  * /seconds). modes_id may be NULL. Returns 0 or an HDF5 error. */
 int crom_datafree_write_record(hid_t loc, const crom_datafree_opts *o, const crom_datafree_problem *p,
-                         const crom_datafree_log *log, double mass, const char *modes_id);
+                         const crom_dftrain_log *log, double mass, const char *modes_id);
 
 
 #endif

@@ -1,9 +1,6 @@
 /* dfskin.c — skinning weights with no data: trained (Simplicits) or the
  * lowest eigenvectors of the scalar stiffness (skinning eigenmodes); see
  * dfskin.h. */
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -13,7 +10,9 @@
 #include "base/clock.h"
 #include "base/err.h"
 #include "base/rng.h"
+#include "datafree/dfloss.h"
 #include "datafree/dfskin.h"
+#include "io/io.h"
 #include "phys/modes.h"
 #include "rom/skin.h"
 
@@ -39,7 +38,7 @@ static int count_free(const crom_mesh *mesh, const unsigned char *fixed, int *np
 {
     int nfree = 0, np = 0;
     for (int v = 0; v < mesh->nv; v++) {
-        int pin = fixed && (fixed[3 * v] || fixed[3 * v + 1] || fixed[3 * v + 2]);
+        int pin = crom_dfloss_pinned(fixed, v);
         np += pin;
         nfree += !pin;
     }
@@ -70,19 +69,12 @@ void crom_dfskin_ctx_free(crom_dfskin_ctx *c)
         return;
     crom_fem_free(&c->fem);
     crom_nn_ws_free(&c->ws);
-    void *bufs[] = {c->pinX, c->triX, c->mask, c->loc, c->vs, c->bad, c->xf, c->dwf, c->w, c->xh, c->wh, c->L,
-                    c->U, c->gu, c->dw, c->mloc, c->E, c->R, c->G, c->xb};
+    crom_dfloss_cub_free(&c->cub);
+    void *bufs[] = {c->pinX, c->triX, c->mask, c->bad, c->xf, c->dwf, c->w, c->xh, c->wh, c->L, c->U, c->gu, c->dw,
+                    c->E, c->R, c->G, c->xb};
     for (size_t i = 0; i < sizeof bufs / sizeof *bufs; i++)
         free(bufs[i]);
     memset(c, 0, sizeof *c);
-}
-
-static double bbox_diag(const crom_mesh *m)
-{
-    double lo[3], hi[3];
-    crom_mesh_bbox(m, lo, hi);
-    return sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                (hi[2] - lo[2]) * (hi[2] - lo[2]));
 }
 
 /* The pinned part of the training geometry: for a tet mesh its pinned
@@ -90,42 +82,50 @@ static double bbox_diag(const crom_mesh *m)
  * given points and triangles. */
 static int pinned_part(crom_dfskin_ctx *c, const crom_dfskin_problem *p)
 {
-    const crom_mesh *m = p->mesh;
-    int nv = m->nv, ntb = 0, *tri = NULL;
-    int own = !p->virtual_tets && p->fixed;
-    if (own && crom_mesh_boundary(m, &ntb, &tri, NULL))
-        return CROM_EINTERNAL;
-    c->pinX = crom_malloc(sizeof(double) * 3 * ((size_t)(own ? nv : 0) + (size_t)p->npin + 1));
-    c->triX = crom_malloc(sizeof(double) * 9 * ((size_t)ntb + (size_t)p->ntri + 1));
-    if (!c->pinX || !c->triX) {
-        free(tri);
-        return CROM_EINTERNAL;
-    }
-    for (int v = 0; own && v < nv; v++)
-        if (p->fixed[3 * v] || p->fixed[3 * v + 1] || p->fixed[3 * v + 2])
-            memcpy(c->pinX + 3 * (size_t)c->npins++, m->X + 3 * (size_t)v, sizeof(double) * 3);
+    int rc = crom_dfloss_pinned_part(p->mesh, p->virtual_tets ? NULL : p->fixed, p->npin, p->ntri, &c->npins,
+                                     &c->pinX, &c->ntri, &c->triX);
+    if (rc)
+        return rc;
     if (p->npin)
         memcpy(c->pinX + 3 * (size_t)c->npins, p->pinX, sizeof(double) * 3 * (size_t)p->npin);
     c->npins += p->npin;
-    for (int k = 0; k < ntb; k++) {
-        int all = 1;
-        for (int a = 0; a < 3; a++)
-            all &= p->fixed[3 * (size_t)tri[3 * k + a]] != 0;
-        if (!all)
-            continue;
-        for (int a = 0; a < 3; a++)
-            memcpy(c->triX + 9 * (size_t)c->ntri + 3 * a, m->X + 3 * (size_t)tri[3 * k + a], sizeof(double) * 3);
-        c->ntri++;
-    }
-    free(tri);
     if (p->ntri)
         memcpy(c->triX + 9 * (size_t)c->ntri, p->triX, sizeof(double) * 9 * (size_t)p->ntri);
     c->ntri += p->ntri;
     return 0;
 }
 
-int crom_dfskin_ctx_init(crom_dfskin_ctx *c, const crom_dfskin_problem *p, const crom_dfskin_opts *o, const crom_nn_mlp *net,
-                      int maxbatch, int maxtets)
+/* The work space: the network's for maxrows vertices, the drawn tets, the
+ * arrays of the loss. */
+static int buffers(crom_dfskin_ctx *c)
+{
+    int nv = c->P.mesh->nv, rc;
+    size_t R = (size_t)c->maxrows, B = (size_t)c->maxbatch, Hs = (size_t)c->H;
+    if ((rc = crom_nn_ws_init(&c->ws, c->net, c->maxrows, 1)) || (rc = crom_dfloss_cub_init(&c->cub, nv, c->maxrows)))
+        return rc;
+    c->mask = crom_malloc(sizeof(double) * (size_t)nv);
+    c->bad = crom_malloc(sizeof(int) * B);
+    c->xf = crom_malloc(sizeof(float) * 3 * R);
+    c->dwf = crom_malloc(sizeof(float) * R * Hs);
+    c->w = crom_malloc(sizeof(double) * R * Hs);
+    c->xh = crom_malloc(sizeof(double) * R * 4);
+    c->wh = crom_malloc(sizeof(double) * R * Hs);
+    c->L = crom_malloc(sizeof(double) * 4 * Hs * Hs);
+    c->U = crom_malloc(sizeof(double) * (size_t)c->nthreads * 3 * R);
+    c->gu = crom_malloc(sizeof(double) * B * 3 * R);
+    c->dw = crom_malloc(sizeof(double) * R * Hs);
+    c->E = crom_malloc(sizeof(double) * B);
+    c->R = crom_malloc(sizeof(double) * B);
+    c->G = crom_malloc(sizeof(double) * Hs * Hs);
+    c->xb = crom_malloc(sizeof(double) * Hs);
+    if (!c->mask || !c->bad || !c->xf || !c->dwf || !c->w || !c->xh || !c->wh || !c->L || !c->U || !c->gu || !c->dw ||
+        !c->E || !c->R || !c->G || !c->xb)
+        return CROM_EINTERNAL;
+    return 0;
+}
+
+int crom_dfskin_ctx_init(crom_dfskin_ctx *c, const crom_dfskin_problem *p, const crom_dfskin_opts *o,
+                         const crom_nn_mlp *net, int maxbatch, int maxtets)
 {
     memset(c, 0, sizeof *c);
     c->P = *p;
@@ -141,7 +141,7 @@ int crom_dfskin_ctx_init(crom_dfskin_ctx *c, const crom_dfskin_problem *p, const
     c->maxbatch = maxbatch;
     c->maxtets = maxtets;
     c->maxrows = 4 * maxtets < nv ? 4 * maxtets : nv;
-    c->nthreads = o->threads < 1 ? 1 : o->threads > 256 ? 256 : o->threads;
+    c->nthreads = crom_dftrain_threads(o->threads);
     c->pin_length = o->pin_length;
     if ((rc = crom_fem_init(&c->fem, p->mesh, &p->mat)) || (rc = pinned_part(c, p))) {
         crom_dfskin_ctx_free(c);
@@ -150,62 +150,34 @@ int crom_dfskin_ctx_init(crom_dfskin_ctx *c, const crom_dfskin_problem *p, const
     c->constant = c->npins == 0 && c->ntri == 0 && !(p->fixed && count_free(p->mesh, p->fixed, NULL) < nv);
     c->Ht = H - c->constant;
     const crom_nn_spec *sp = &net->spec;
-    if (sp->width[0] != 3 || sp->width[sp->nlayers] != c->Ht) {
+    if (sp->width[0] != 3 || sp->width[sp->nlayers] != c->Ht)
         rc = crom_err(CROM_EUSAGE, "the weight network goes %d -> %d, expected 3 -> %d", sp->width[0],
                       sp->width[sp->nlayers], c->Ht);
+    if (!rc)
+        rc = crom_skin_frame((size_t)nv, p->mesh->X, c->fem.mass, c->F);
+    if (!rc)
+        rc = buffers(c);
+    if (rc) {
         crom_dfskin_ctx_free(c);
         return rc;
     }
-    if ((rc = crom_skin_frame((size_t)nv, p->mesh->X, c->fem.mass, c->F))) {
-        crom_dfskin_ctx_free(c);
-        return rc;
-    }
-    size_t R = (size_t)c->maxrows, B = (size_t)maxbatch, Hs = (size_t)H;
-    if ((rc = crom_nn_ws_init(&c->ws, net, c->maxrows, 1))) {
-        crom_dfskin_ctx_free(c);
-        return rc;
-    }
-    c->mask = crom_malloc(sizeof(double) * (size_t)nv);
-    c->loc = crom_malloc(sizeof(int) * (size_t)nv);
-    c->vs = crom_malloc(sizeof(int) * R);
-    c->bad = crom_malloc(sizeof(int) * B);
-    c->xf = crom_malloc(sizeof(float) * 3 * R);
-    c->dwf = crom_malloc(sizeof(float) * R * Hs);
-    c->w = crom_malloc(sizeof(double) * R * Hs);
-    c->xh = crom_malloc(sizeof(double) * R * 4);
-    c->wh = crom_malloc(sizeof(double) * R * Hs);
-    c->L = crom_malloc(sizeof(double) * 4 * Hs * Hs);
-    c->U = crom_malloc(sizeof(double) * (size_t)c->nthreads * 3 * R);
-    c->gu = crom_malloc(sizeof(double) * B * 3 * R);
-    c->dw = crom_malloc(sizeof(double) * R * Hs);
-    c->mloc = crom_malloc(sizeof(double) * R);
-    c->E = crom_malloc(sizeof(double) * B);
-    c->R = crom_malloc(sizeof(double) * B);
-    c->G = crom_malloc(sizeof(double) * Hs * Hs);
-    c->xb = crom_malloc(sizeof(double) * Hs);
-    if (!c->mask || !c->loc || !c->vs || !c->bad || !c->xf || !c->dwf || !c->w || !c->xh || !c->wh || !c->L || !c->U ||
-        !c->gu || !c->dw || !c->mloc || !c->E || !c->R || !c->G || !c->xb) {
-        crom_dfskin_ctx_free(c);
-        return CROM_EINTERNAL;
-    }
-    for (int v = 0; v < nv; v++) {
-        c->loc[v] = -1;
+    for (int v = 0; v < nv; v++)
         c->mask[v] = crom_skin_mask_at(p->mesh->X + 3 * (size_t)v, c->npins, c->pinX, c->ntri, c->triX, c->pin_length);
-    }
     c->mass = c->fem.total_mass;
-    double D = bbox_diag(p->mesh);
+    double D = crom_dftrain_diag(p->mesh);
     c->Eref = p->mat.E * c->fem.volume / (D * D);
     return 0;
 }
 
-/* The weights w [ns][H] of the collected vertices from the network's
- * output (mask and constant handle), and their frame coordinates xh. */
-static int weights_at(crom_dfskin_ctx *c, int ns)
+/* The weights w [ns][H] of the drawn vertices from the network's output
+ * (mask and constant handle), and their frame coordinates xh. */
+static int weights_at(crom_dfskin_ctx *c)
 {
     const double *X = c->P.mesh->X;
-    int H = c->H, Ht = c->Ht, k = c->constant, rc;
+    int H = c->H, Ht = c->Ht, k = c->constant, ns = c->cub.ns, rc;
+    const int *vs = c->cub.vs;
     for (int i = 0; i < ns; i++) {
-        const double *x = X + 3 * (size_t)c->vs[i];
+        const double *x = X + 3 * (size_t)vs[i];
         for (int d = 0; d < 3; d++)
             c->xf[3 * i + d] = (float)x[d];
         double *xh = c->xh + 4 * (size_t)i;
@@ -217,7 +189,7 @@ static int weights_at(crom_dfskin_ctx *c, int ns)
         return rc;
     const float *wt = crom_nn_ws_output(&c->ws);
     for (int i = 0; i < ns; i++) {
-        double s = c->mask[c->vs[i]];
+        double s = c->mask[vs[i]];
         if (k)
             c->w[(size_t)i * H] = 1;
         for (int h = 0; h < Ht; h++)
@@ -226,55 +198,18 @@ static int weights_at(crom_dfskin_ctx *c, int ns)
     return 0;
 }
 
-static int local(crom_dfskin_ctx *c, int v)
+/* The Gram matrix G = Σ m̂ w wᵀ / m̂ = L Lᵀ of the weights over the drawn
+ * vertices, L⁻¹ (Li), and the whitened weights ŵ_v = L⁻¹ w_v (orthonormal
+ * there) that the energy sees: it depends on their span only. CROM_EDATA
+ * where the weights are linearly dependent there. */
+static int whiten(crom_dfskin_ctx *c)
 {
-    if (c->loc[v] < 0) {
-        c->loc[v] = c->ns;
-        c->vs[c->ns++] = v;
-    }
-    return c->loc[v];
-}
-
-int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const int *tets, crom_datafree_terms *t, float *grad)
-{
-    const crom_fem *fem = &c->fem;
-    const double *X = c->P.mesh->X;
-    int H = c->H, Ht = c->Ht, k0 = c->constant, nt = fem->nt, rc = 0;
-    if (B < 1 || B > c->maxbatch || K < 1 || K > c->maxtets)
-        return crom_err(CROM_EUSAGE, "batch of %d poses, %d tets (at most %d, %d)", B, K, c->maxbatch, c->maxtets);
-    c->ns = 0;
-    for (int k = 0; k < K; k++) {
-        if (tets[k] < 0 || tets[k] >= nt) {
-            rc = crom_err(CROM_EUSAGE, "tet %d out of range", tets[k]);
-            goto out;
-        }
-        for (int a = 0; a < 4; a++) {
-            if (c->ns >= c->maxrows && c->loc[fem->tets[4 * (size_t)tets[k] + a]] < 0) {
-                rc = crom_err(CROM_EUSAGE, "more than %d vertices", c->maxrows);
-                goto out;
-            }
-            local(c, fem->tets[4 * (size_t)tets[k] + a]);
-        }
-    }
-    int ns = c->ns, m3 = 3 * ns;
-    if ((rc = weights_at(c, ns)))
-        goto out;
-    /* the cubature: each drawn tet stands for nt/K; lumped masses of the drawn tets */
-    double wK = (double)nt / K, mhat = 0;
-    memset(c->mloc, 0, sizeof(double) * (size_t)ns);
-    for (int k = 0; k < K; k++)
-        for (int a = 0; a < 4; a++)
-            c->mloc[c->loc[fem->tets[4 * (size_t)tets[k] + a]]] += wK * c->P.mat.rho * fem->vol[tets[k]] / 4;
-    for (int i = 0; i < ns; i++)
-        mhat += c->mloc[i];
-    /* the Gram matrix G = Σ m̂ w wᵀ / m̂ = L Lᵀ of the weights over the
-     * drawn vertices, and the whitened weights ŵ_v = L⁻¹ w_v (orthonormal
-     * there) that the energy sees: it depends on their span only */
-    double *G = c->G, *L = c->L, *Li = c->L + (size_t)H * H, *S = Li + (size_t)H * H, *T = S + (size_t)H * H;
+    int H = c->H, ns = c->cub.ns;
+    double *G = c->G, *L = c->L, *Li = c->L + (size_t)H * H, mhat = c->cub.mhat;
     memset(G, 0, sizeof(double) * (size_t)H * H);
     for (int i = 0; i < ns; i++) {
         const double *wi = c->w + (size_t)i * H;
-        double f = c->mloc[i] / mhat;
+        double f = c->cub.mloc[i] / mhat;
         for (int a = 0; a < H; a++)
             for (int b = 0; b <= a; b++)
                 G[a * H + b] += f * wi[a] * wi[b];
@@ -285,15 +220,11 @@ int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const in
                 G[a * H + b] = G[b * H + a];
             L[a * H + b] = b <= a ? G[a * H + b] : 0;
         }
-    if (LAPACKE_dpotrf(LAPACK_ROW_MAJOR, 'L', H, L, H) != 0) {
-        rc = crom_err(CROM_EDATA, "the skinning weights became linearly dependent over the drawn tets");
-        goto out;
-    }
+    if (LAPACKE_dpotrf(LAPACK_ROW_MAJOR, 'L', H, L, H) != 0)
+        return crom_err(CROM_EDATA, "the skinning weights became linearly dependent over the drawn tets");
     memcpy(Li, L, sizeof(double) * (size_t)H * H);
-    if (LAPACKE_dtrtri(LAPACK_ROW_MAJOR, 'L', 'N', H, Li, H) != 0) {
-        rc = crom_err(CROM_EDATA, "the skinning weights' Gram matrix is singular");
-        goto out;
-    }
+    if (LAPACKE_dtrtri(LAPACK_ROW_MAJOR, 'L', 'N', H, Li, H) != 0)
+        return crom_err(CROM_EDATA, "the skinning weights' Gram matrix is singular");
     for (int a = 0; a < H; a++)
         for (int b = a + 1; b < H; b++)
             L[a * H + b] = Li[a * H + b] = 0;
@@ -307,74 +238,53 @@ int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const in
             wh[a] = v;
         }
     }
-    /* energies of the poses: u_v = Σ_h ŵ_hv Q_bh x̂_v, and their gradients gu */
-#pragma omp parallel for num_threads(c->nthreads) schedule(static)
-    for (int b = 0; b < B; b++) {
-        int tid = 0;
-#ifdef _OPENMP
-        tid = omp_get_thread_num();
-#endif
-        double *u = c->U + (size_t)tid * 3 * c->maxrows, *gb = c->gu + (size_t)b * m3, Eb = 0;
-        const double *qb = q + (size_t)b * 12 * H;
-        for (int i = 0; i < ns; i++) {
-            const double *wi = c->wh + (size_t)i * H, *xh = c->xh + 4 * (size_t)i;
-            for (int d = 0; d < 3; d++) {
-                double s = 0;
-                for (int h = 0; h < H; h++) {
-                    const double *Q = qb + 12 * (size_t)h + 4 * d;
-                    s += wi[h] * (Q[0] * xh[0] + Q[1] * xh[1] + Q[2] * xh[2] + Q[3]);
-                }
-                u[3 * i + d] = s;
+    return 0;
+}
+
+/* Pose b's displacements u_v = Σ_h ŵ_hv Q_bh x̂_v (u scratch [3ns]), its
+ * energy E_b over the drawn tets and its Rayleigh quotient R_b = E_b / d_b²,
+ * d_b² = Σ m̂ |u|² / m̂ its mean squared displacement, with the gradient
+ * dR/du = (g − (E/d²) 2 m̂ u / m̂) / d² in gu_b. Returns 1 where it is not
+ * defined. */
+static int pose_energy(crom_dfskin_ctx *c, int b, const double *q, int K, const int *tets, double *u)
+{
+    int H = c->H, ns = c->cub.ns, m3 = 3 * ns, bad;
+    double *gb = c->gu + (size_t)b * m3, Eb, mhat = c->cub.mhat;
+    const double *qb = q + (size_t)b * 12 * H, *mloc = c->cub.mloc;
+    for (int i = 0; i < ns; i++) {
+        const double *wi = c->wh + (size_t)i * H, *xh = c->xh + 4 * (size_t)i;
+        for (int d = 0; d < 3; d++) {
+            double s = 0;
+            for (int h = 0; h < H; h++) {
+                const double *Q = qb + 12 * (size_t)h + 4 * d;
+                s += wi[h] * (Q[0] * xh[0] + Q[1] * xh[1] + Q[2] * xh[2] + Q[3]);
             }
+            u[3 * i + d] = s;
         }
-        memset(gb, 0, sizeof(double) * (size_t)m3);
-        c->bad[b] = 0;
-        for (int k = 0; k < K && !c->bad[b]; k++) {
-            int tt = tets[k], l[4];
-            double xe[12], ge[12], Ee;
-            for (int a = 0; a < 4; a++) {
-                int v = fem->tets[4 * (size_t)tt + a];
-                l[a] = c->loc[v];
-                for (int d = 0; d < 3; d++)
-                    xe[3 * a + d] = X[3 * (size_t)v + d] + u[3 * l[a] + d];
-            }
-            if (crom_fem_tet_eval(&fem->mat, xe, fem->Dminv + 9 * (size_t)tt, fem->vol[tt], 0, &Ee, ge, NULL)) {
-                c->bad[b] = 1;
-                break;
-            }
-            Eb += wK * Ee;
-            for (int a = 0; a < 4; a++)
-                for (int d = 0; d < 3; d++)
-                    gb[3 * l[a] + d] += wK * ge[3 * a + d];
-        }
-        /* the pose's Rayleigh quotient E_b / d_b², d_b² = Σ m̂ |u|² / m̂ its
-         * mean squared displacement: dL/du = (g − (E/d²) 2 m̂ u / m̂) / d² */
-        double d2 = 0;
+    }
+    memset(gb, 0, sizeof(double) * (size_t)m3);
+    bad = crom_dfloss_tets(&c->fem, K, tets, c->cub.wK, c->P.mesh->X, u, c->cub.loc, &Eb, gb);
+    double d2 = 0;
+    for (int i = 0; i < ns; i++)
+        d2 += mloc[i] * (u[3 * i] * u[3 * i] + u[3 * i + 1] * u[3 * i + 1] + u[3 * i + 2] * u[3 * i + 2]);
+    d2 /= mhat;
+    if (!(d2 > 0))
+        bad = 1;
+    else {
+        double R = Eb / d2;
         for (int i = 0; i < ns; i++)
-            d2 += c->mloc[i] * (u[3 * i] * u[3 * i] + u[3 * i + 1] * u[3 * i + 1] + u[3 * i + 2] * u[3 * i + 2]);
-        d2 /= mhat;
-        if (!(d2 > 0))
-            c->bad[b] = 1;
-        else {
-            double R = Eb / d2;
-            for (int i = 0; i < ns; i++)
-                for (int d = 0; d < 3; d++)
-                    gb[3 * i + d] = (gb[3 * i + d] - R * 2 * c->mloc[i] * u[3 * i + d] / mhat) / d2;
-        }
-        c->E[b] = Eb;
-        c->R[b] = d2 > 0 ? Eb / d2 : NAN;
+            for (int d = 0; d < 3; d++)
+                gb[3 * i + d] = (gb[3 * i + d] - R * 2 * mloc[i] * u[3 * i + d] / mhat) / d2;
     }
-    for (int b = 0; b < B; b++)
-        if (c->bad[b] || !isfinite(c->E[b])) {
-            rc = crom_err(CROM_EDATA, "pose %d of the batch has a non-finite energy", b);
-            goto out;
-        }
-    double obj = 0, Em = 0, scale = 1.0 / (B * c->Eref);
-    for (int b = 0; b < B; b++) {
-        Em += c->E[b] / B;
-        obj += c->R[b] * scale;
-    }
-    /* dL/dw_hv = s Σ_b gu_bv · (Q_bh x̂_v) */
+    c->E[b] = Eb;
+    c->R[b] = d2 > 0 ? Eb / d2 : NAN;
+    return bad;
+}
+
+/* dL/dŵ_hv = s Σ_b gu_bv · (Q_bh x̂_v), into dw. */
+static void whitened_grad(crom_dfskin_ctx *c, int B, const double *q, double scale)
+{
+    int H = c->H, ns = c->cub.ns, m3 = 3 * ns;
     for (int i = 0; i < ns; i++) {
         const double *xh = c->xh + 4 * (size_t)i;
         double *dwi = c->dw + (size_t)i * H;
@@ -388,10 +298,16 @@ int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const in
             dwi[h] = scale * acc;
         }
     }
-    /* back through the whitening ŵ_v = L⁻¹ w_v, G = L Lᵀ: with g_v = dL/dŵ_v
-     * and S = Σ_v ŵ_v g_vᵀ, dL/dw_v = L⁻ᵀ g_v − 2 m̂_v/m̂ sym(P) w_v,
-     * P = L⁻ᵀ Φ(Sᵀ) L⁻¹ (Φ: the lower triangle, diagonal halved; the
-     * derivative of the Cholesky factor, δL = L Φ(L⁻¹ δG L⁻ᵀ)) */
+}
+
+/* Back through the whitening ŵ_v = L⁻¹ w_v, G = L Lᵀ: with g_v = dL/dŵ_v
+ * and S = Σ_v ŵ_v g_vᵀ, dL/dw_v = L⁻ᵀ g_v − 2 m̂_v/m̂ sym(P) w_v, P = L⁻ᵀ
+ * Φ(Sᵀ) L⁻¹ (Φ: the lower triangle, diagonal halved; the derivative of the
+ * Cholesky factor, δL = L Φ(L⁻¹ δG L⁻ᵀ)); dw in place. */
+static void unwhiten_grad(crom_dfskin_ctx *c)
+{
+    int H = c->H, ns = c->cub.ns;
+    double *Li = c->L + (size_t)H * H, *S = Li + (size_t)H * H, *T = S + (size_t)H * H, mhat = c->cub.mhat;
     memset(S, 0, sizeof(double) * (size_t)H * H);
     for (int i = 0; i < ns; i++) {
         const double *wh = c->wh + (size_t)i * H, *g = c->dw + (size_t)i * H;
@@ -422,7 +338,7 @@ int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const in
             S[a * H + b] = S[b * H + a] = 0.5 * (T[a * H + b] + T[b * H + a]);
     for (int i = 0; i < ns; i++) {
         const double *wi = c->w + (size_t)i * H;
-        double *g = c->dw + (size_t)i * H, gn[CROM_DFSKIN_MAXH], f = 2 * c->mloc[i] / mhat;
+        double *g = c->dw + (size_t)i * H, gn[CROM_DFSKIN_MAXH], f = 2 * c->cub.mloc[i] / mhat;
         for (int a = 0; a < H; a++) {
             double v = 0;
             for (int k = a; k < H; k++)
@@ -433,17 +349,23 @@ int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const in
         }
         memcpy(g, gn, sizeof(double) * (size_t)H);
     }
-    /* orthogonality of the raw weights: λ ‖G − I‖²; dL/dw_v = 4λ m̂_v/m̂ (G − I) w_v
-     * (it keeps G, hence the whitening, well conditioned) */
-    double pen = 0, lam = c->o.ortho_weight;
+}
+
+/* The orthogonality of the raw weights: λ ‖G − I‖², with dL/dw_v = 4λ
+ * m̂_v/m̂ (G − I) w_v added to dw (it keeps G, hence the whitening, well
+ * conditioned). Returns ‖G − I‖² (G becomes G − I). */
+static double ortho_term(crom_dfskin_ctx *c, double *obj)
+{
+    int H = c->H, ns = c->cub.ns;
+    double pen = 0, lam = c->o.ortho_weight, *G = c->G;
     for (int a = 0; a < H; a++)
         G[a * H + a] -= 1;
     for (int a = 0; a < H * H; a++)
         pen += G[a] * G[a];
-    obj += lam * pen;
+    *obj += lam * pen;
     for (int i = 0; i < ns; i++) {
         const double *wi = c->w + (size_t)i * H;
-        double f = 4 * lam * c->mloc[i] / mhat;
+        double f = 4 * lam * c->cub.mloc[i] / c->cub.mhat;
         for (int a = 0; a < H; a++) {
             double v = 0;
             for (int b = 0; b < H; b++)
@@ -451,26 +373,47 @@ int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const in
             c->dw[(size_t)i * H + a] += f * v;
         }
     }
-    if (t) {
-        t->objective = obj;
-        t->energy = Em;
-        t->penalty = pen;
-        t->tangent = 0;
+    return pen;
+}
+
+/* The loss over the drawn tets (drawn already). */
+static int drawn_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const int *tets, crom_dftrain_terms *t,
+                      float *grad)
+{
+    int H = c->H, Ht = c->Ht, k0 = c->constant, ns = c->cub.ns, rc;
+    if ((rc = weights_at(c)) || (rc = whiten(c)))
+        return rc;
+#pragma omp parallel for num_threads(c->nthreads) schedule(static)
+    for (int b = 0; b < B; b++)
+        c->bad[b] = pose_energy(c, b, q, K, tets, c->U + (size_t)crom_dfloss_thread() * 3 * c->maxrows);
+    if ((rc = crom_dfloss_check(B, c->bad, c->E, "pose")))
+        return rc;
+    double obj = 0, Em = 0, scale = 1.0 / (B * c->Eref);
+    for (int b = 0; b < B; b++) {
+        Em += c->E[b] / B;
+        obj += c->R[b] * scale;
     }
-    if (!isfinite(obj)) {
-        rc = crom_err(CROM_EDATA, "the skinning objective is not finite");
-        goto out;
-    }
-    if (grad) { /* through the mask to the network's outputs */
-        for (int i = 0; i < ns; i++)
-            for (int h = 0; h < Ht; h++)
-                c->dwf[(size_t)i * Ht + h] = (float)(c->mask[c->vs[i]] * c->dw[(size_t)i * H + k0 + h]);
-        memset(grad, 0, sizeof(float) * c->net->nparams);
-        rc = crom_nn_mlp_backward(c->net, &c->ws, ns, c->dwf, grad, NULL);
-    }
-out:
-    for (int i = 0; i < c->ns; i++)
-        c->loc[c->vs[i]] = -1;
+    whitened_grad(c, B, q, scale);
+    unwhiten_grad(c);
+    double pen = ortho_term(c, &obj);
+    if ((rc = crom_dfloss_terms(t, obj, Em, pen, 0, "skinning")) || !grad)
+        return rc;
+    for (int i = 0; i < ns; i++) /* through the mask to the network's outputs */
+        for (int h = 0; h < Ht; h++)
+            c->dwf[(size_t)i * Ht + h] = (float)(c->mask[c->cub.vs[i]] * c->dw[(size_t)i * H + k0 + h]);
+    memset(grad, 0, sizeof(float) * c->net->nparams);
+    return crom_nn_mlp_backward(c->net, &c->ws, ns, c->dwf, grad, NULL);
+}
+
+int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const int *tets, crom_dftrain_terms *t,
+                     float *grad)
+{
+    if (B < 1 || B > c->maxbatch || K < 1 || K > c->maxtets)
+        return crom_err(CROM_EUSAGE, "batch of %d poses, %d tets (at most %d, %d)", B, K, c->maxbatch, c->maxtets);
+    int rc = crom_dfloss_cub_draw(&c->cub, &c->fem, c->P.mat.rho, K, tets);
+    if (!rc)
+        rc = drawn_loss(c, B, q, K, tets, t, grad);
+    crom_dfloss_cub_clear(&c->cub);
     return rc;
 }
 
@@ -487,14 +430,14 @@ static int init_scale(crom_dfskin_ctx *c, crom_nn_mlp *net, crom_rng *rng)
         int v = n == nv ? i : (int)crom_rng_below(rng, (uint64_t)nv);
         for (int d = 0; d < 3; d++)
             c->xf[3 * i + d] = (float)c->P.mesh->X[3 * (size_t)v + d];
-        c->vs[i] = v;
+        c->cub.vs[i] = v;
     }
     if ((rc = crom_nn_mlp_forward(net, &c->ws, n, c->xf, NULL)))
         return rc;
     const float *w = crom_nn_ws_output(&c->ws);
     double s2 = 0, mw = 0;
     for (int i = 0; i < n; i++) {
-        double m = c->fem.mass[c->vs[i]], s = c->mask[c->vs[i]];
+        double m = c->fem.mass[c->cub.vs[i]], s = c->mask[c->cub.vs[i]];
         mw += m;
         for (int h = 0; h < Ht; h++)
             s2 += m * s * s * w[(size_t)i * Ht + h] * w[(size_t)i * Ht + h];
@@ -502,105 +445,87 @@ static int init_scale(crom_dfskin_ctx *c, crom_nn_mlp *net, crom_rng *rng)
     double rms = sqrt(s2 / (mw * Ht));
     if (!(rms > 0) || !isfinite(rms))
         return crom_err(CROM_EDATA, "the initial weights are zero or not finite");
-    crom_nn_layer *ly = &net->layer[net->spec.nlayers - 1];
-    float f = (float)(1 / rms);
-    for (int i = 0; i < ly->out * ly->in; i++)
-        ly->W[i] *= f;
-    for (int i = 0; i < ly->out; i++)
-        ly->b[i] *= f;
+    crom_dftrain_scale_last(net, (float)(1 / rms));
     return 0;
 }
 
-int crom_dfskin_train(const crom_dfskin_problem *p, const crom_dfskin_opts *o_in, crom_model *out, crom_datafree_log *log)
+/* Check the problem and the options, and fill in sigma and the pin
+ * length (0.01 and 0.05 times the bounding-box diagonal) where they are
+ * unset; *pinned: whether anything is pinned (else handle 0 is the
+ * constant). */
+static int check_skin(const crom_dfskin_problem *p, crom_dfskin_opts *o, int *pinned)
 {
-    crom_model_clear(out);
-    memset(log, 0, sizeof *log);
-    crom_dfskin_opts o = *o_in;
     const crom_mesh *mesh = p->mesh;
-    int nt = mesh->nt, H = o.handles, rc = 0;
-    double t0 = crom_clock_now();
+    int H = o->handles, rc;
     if (!p->virtual_tets && (rc = crom_dfskin_check_handles(mesh, p->fixed, H)))
         return rc;
     if (H < 1)
         return crom_err(CROM_EUSAGE, "--handles %d: a skinning subspace needs at least one handle", H);
-    if (o.steps < 1 || o.batch < 1 || o.depth < 2 || o.width < 1 || o.tets < 1)
+    if (o->steps < 1 || o->batch < 1 || o->depth < 2 || o->width < 1 || o->tets < 1)
         return crom_err(CROM_EUSAGE, "steps, batch, depth (>= 2), width and tets must be positive");
-    if (o.depth > CROM_NN_MAX_LAYERS)
-        return crom_err(CROM_EUSAGE, "--depth %d: at most %d layers", o.depth, CROM_NN_MAX_LAYERS);
-    double D = bbox_diag(mesh);
-    if (!(o.sigma > 0))
-        o.sigma = 0.01 * D;
-    if (!(o.pin_length > 0))
-        o.pin_length = 0.05 * D;
-    if (!isfinite(o.sigma) || !isfinite(o.pin_length) || !(o.ortho_weight >= 0) || !isfinite(o.ortho_weight) ||
-        !(o.lr > 0) || !isfinite(o.lr))
+    if (o->depth > CROM_NN_MAX_LAYERS)
+        return crom_err(CROM_EUSAGE, "--depth %d: at most %d layers", o->depth, CROM_NN_MAX_LAYERS);
+    double D = crom_dftrain_diag(mesh);
+    if (!(o->sigma > 0))
+        o->sigma = 0.01 * D;
+    if (!(o->pin_length > 0))
+        o->pin_length = 0.05 * D;
+    if (!isfinite(o->sigma) || !isfinite(o->pin_length) || !(o->ortho_weight >= 0) || !isfinite(o->ortho_weight) ||
+        !(o->lr > 0) || !isfinite(o->lr))
         return crom_err(CROM_EUSAGE, "non-finite or negative training weight");
-    int K = o.tets < nt ? o.tets : nt;
     /* is there a pin? then every handle is masked, else handle 0 is constant */
-    int pinned = p->npin > 0 || p->ntri > 0;
-    for (int i = 0; !pinned && p->fixed && i < 3 * mesh->nv; i++)
-        pinned = p->fixed[i] != 0;
-    int Ht = H - !pinned;
-    if (Ht < 1)
+    *pinned = p->npin > 0 || p->ntri > 0;
+    for (int i = 0; !*pinned && p->fixed && i < 3 * mesh->nv; i++)
+        *pinned = p->fixed[i] != 0;
+    if (H - !*pinned < 1)
         return crom_err(CROM_EUSAGE, "--handles 1 on a free body is only its constant handle (affine motions): "
                         "train at least 2");
-    int widths[CROM_NN_MAX_LAYERS + 1];
-    widths[0] = 3;
-    for (int l = 1; l < o.depth; l++)
-        widths[l] = o.width;
-    widths[o.depth] = Ht;
-    crom_nn_spec spec;
-    if ((rc = crom_nn_spec_set(&spec, o.depth + 1, widths, o.act)))
-        return rc;
+    return 0;
+}
+
+/* Weights in training: the options as used, the network and its gradient,
+ * the loss, the scales of the pose coordinates, and the random streams of
+ * the initialization and of the poses. */
+typedef struct {
+    crom_dfskin_opts o;
     crom_nn_mlp net;
-    memset(&net, 0, sizeof net);
+    float *grad;
     crom_dfskin_ctx ctx;
-    memset(&ctx, 0, sizeof ctx);
-    crom_nn_adam adam;
-    memset(&adam, 0, sizeof adam);
-    float *grad = NULL;
-    double *q = crom_malloc(sizeof(double) * (size_t)o.batch * 12 * H);
-    int *tets = crom_malloc(sizeof(int) * (size_t)K);
-    /* the shared clock and record of the data-free trainers */
-    crom_datafree_opts ro;
-    crom_datafree_defaults(&ro, CROM_DATAFREE_FIELD);
-    ro.steps = o.steps;
-    ro.minutes = o.minutes;
-    ro.progress = o.progress;
-    ro.progress_ctx = o.progress_ctx;
-    crom_datafree_run R;
-    int rcr = crom_datafree_run_begin(&R, log, &ro);
-    if (!q || !tets || rcr) {
-        rc = CROM_EINTERNAL;
-        goto done;
-    }
+    double *scale;           /* [12H] */
     crom_rng irng, srng;
-    crom_rng_seed(&irng, o.seed);
-    crom_rng_seed(&srng, o.seed ^ 0x5eed5a3b1e5ULL);
-    if ((rc = crom_nn_mlp_init(&net, &spec, NULL, &irng)))
-        goto done;
-    {
-        float sh[3], sc[3];
-        double lo[3], hi[3];
-        crom_mesh_bbox(mesh, lo, hi);
-        double corners[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
-        if ((rc = crom_nn_norm_fit(corners, 2, 3, sh, sc)) || (rc = crom_nn_mlp_set_norm(&net, sh, sc)))
-            goto done;
-    }
-    if ((rc = crom_dfskin_ctx_init(&ctx, p, &o, &net, o.batch, K)))
-        goto done;
-    if (ctx.constant == pinned) {
-        rc = crom_err(CROM_EINTERNAL, "pin detection disagrees");
-        goto done;
-    }
-    if ((rc = init_scale(&ctx, &net, &srng)))
-        goto done;
-    if (!(grad = crom_malloc(sizeof(float) * net.nparams)) || (rc = crom_nn_adam_init(&adam, net.nparams))) {
-        rc = rc ? rc : CROM_EINTERNAL;
-        goto done;
-    }
-    log->sigma = o.sigma;
-    log->Eref = ctx.Eref;
+} skin_trainer;
+
+static void skin_free(skin_trainer *T)
+{
+    crom_dfskin_ctx_free(&T->ctx);
+    crom_nn_mlp_free(&T->net);
+    free(T->grad);
+    free(T->scale);
+}
+
+/* The network 3 -> width x (depth - 1) -> H' with the input normalized to
+ * the bounding box, the loss, the network scaled to unit weights; the
+ * scales of the pose coordinates. */
+static int skin_setup(skin_trainer *T, const crom_dfskin_problem *p, int pinned)
+{
+    const crom_dfskin_opts *o = &T->o;
+    int nt = p->mesh->nt, H = o->handles, K = o->tets < nt ? o->tets : nt, rc;
+    crom_nn_spec spec;
+    if ((rc = crom_dftrain_spec(&spec, 3, o->width, o->depth, H - !pinned, o->act)))
+        return rc;
+    crom_dftrain_seed(o->seed, &T->irng, &T->srng);
+    if ((rc = crom_nn_mlp_init(&T->net, &spec, NULL, &T->irng)) || (rc = crom_dftrain_norm_box(&T->net, p->mesh)))
+        return rc;
+    if ((rc = crom_dfskin_ctx_init(&T->ctx, p, o, &T->net, o->batch, K)))
+        return rc;
+    if (T->ctx.constant == pinned)
+        return crom_err(CROM_EINTERNAL, "pin detection disagrees");
+    if ((rc = init_scale(&T->ctx, &T->net, &T->srng)))
+        return rc;
+    T->grad = crom_malloc(sizeof(float) * T->net.nparams);
+    T->scale = crom_malloc(sizeof(double) * 12 * (size_t)H);
+    if (!T->grad || !T->scale)
+        return CROM_EINTERNAL;
     /* pose coordinates: the translations Q_h[c][3] carry 90 % of the
      * variance, the linear parts Q_h[c][0..2] (times X̂, unit variance) the
      * rest, for an RMS displacement σ. A linear part weighs a weight's
@@ -610,41 +535,74 @@ int crom_dfskin_train(const crom_dfskin_problem *p, const crom_dfskin_opts *o_in
      * 28 % with every coordinate of equal variance, 13-18 % at 90 %, 21 % with
      * translations alone) */
     double tfrac = 0.9;
-    double qt = o.sigma * sqrt(tfrac / (3.0 * H)), ql = o.sigma * sqrt((1 - tfrac) / (9.0 * H));
-    long k;
-    R.tstart = crom_clock_now(); /* the clock starts after the set-up */
-    for (k = 0; k < o.steps; k++) {
-        double frac;
-        if (!crom_datafree_run_next(&R, k, &frac))
-            break;
-        for (int i = 0; i < o.batch * 12 * H; i++)
-            q[i] = (i % 4 == 3 ? qt : ql) * crom_rng_normal(&srng);
-        for (int i = 0; i < K; i++) /* a fresh random cubature each step */
-            tets[i] = K == nt ? i : (int)crom_rng_below(&srng, (uint64_t)nt);
-        crom_datafree_terms tm;
-        if ((rc = crom_dfskin_loss(&ctx, o.batch, q, K, tets, &tm, grad))) {
-            if (rc == CROM_EDATA)
-                crom_err_ctx("training diverged at step %ld (try a smaller --lr or --sigma)", k + 1);
-            goto done;
-        }
-        crom_nn_adam_step(&adam, net.params, grad, crom_datafree_lr(o.lr, frac));
-        crom_datafree_run_record(&R, k, &tm);
-    }
-    if ((rc = crom_datafree_run_end(&R, k)))
-        goto done;
-    if ((rc = crom_skin_model_mlp(out, &net, H, ctx.constant, ctx.F, ctx.npins, ctx.pinX, ctx.ntri, ctx.triX,
-                                  ctx.pin_length)))
-        goto done;
-    out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
-done:
-    crom_nn_adam_free(&adam);
-    crom_dfskin_ctx_free(&ctx);
-    crom_nn_mlp_free(&net);
-    free(grad);
-    free(q);
-    free(tets);
+    double qt = o->sigma * sqrt(tfrac / (3.0 * H)), ql = o->sigma * sqrt((1 - tfrac) / (9.0 * H));
+    for (int i = 0; i < 12 * H; i++)
+        T->scale[i] = i % 4 == 3 ? qt : ql;
+    return 0;
+}
+
+static int skin_loss(void *ctx, const double *q, double rho, int K, const int *tets, crom_dftrain_terms *t)
+{
+    skin_trainer *T = ctx;
+    return crom_dfskin_loss(&T->ctx, T->o.batch, q, K, tets, t, T->grad);
+}
+
+/* Train the weights with Adam on random poses and a fresh random cubature
+ * each step. */
+static int skin_train(skin_trainer *T, const crom_dfskin_problem *p, crom_dftrain_log *log)
+{
+    const crom_dfskin_opts *o = &T->o;
+    int nt = p->mesh->nt;
+    log->sigma = o->sigma;
+    log->Eref = T->ctx.Eref;
+    crom_dftrain_loop L = {
+        .loss = skin_loss, .ctx = T, .nblocks = 1, .params = {T->net.params}, .grad = {T->grad},
+        .nparams = {T->net.nparams}, .rng = &T->srng, .batch = o->batch, .r = 12 * o->handles, .scale = T->scale,
+        .K = o->tets < nt ? o->tets : nt, .nt = nt, .steps = o->steps, .minutes = o->minutes, .lr = o->lr,
+        .hint = " (try a smaller --lr or --sigma)", .progress = o->progress, .progress_ctx = o->progress_ctx};
+    return crom_dftrain_run(&L, log);
+}
+
+int crom_dfskin_train(const crom_dfskin_problem *p, const crom_dfskin_opts *o, crom_model *out,
+                      crom_dftrain_log *log)
+{
+    crom_model_clear(out);
+    memset(log, 0, sizeof *log);
+    double t0 = crom_clock_now();
+    skin_trainer T;
+    memset(&T, 0, sizeof T);
+    T.o = *o;
+    int pinned, rc = check_skin(p, &T.o, &pinned);
+    if (!rc)
+        rc = skin_setup(&T, p, pinned);
+    if (!rc)
+        rc = skin_train(&T, p, log);
+    if (!rc)
+        rc = crom_skin_model_mlp(out, &T.net, T.o.handles, T.ctx.constant, T.ctx.F, T.ctx.npins, T.ctx.pinX,
+                                 T.ctx.ntri, T.ctx.triX, T.ctx.pin_length);
+    if (!rc)
+        out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
+    skin_free(&T);
     if (rc)
-        crom_datafree_log_free(log);
+        crom_dftrain_log_free(log);
+    return rc;
+}
+
+int crom_dfskin_write_record(hid_t loc, const crom_dfskin_opts *o, const crom_dftrain_log *log, double mass)
+{
+    int rc = crom_h5_set_f64(loc, ".", "mass", &mass, 1);
+    if (rc || !log)
+        return rc;
+    long long steps = log->steps, k = o->tets;
+    rc = crom_h5_set_i64(loc, ".", "training_steps", steps);
+    if (!rc)
+        rc = crom_h5_set_f64(loc, ".", "sigma", &log->sigma, 1);
+    if (!rc)
+        rc = crom_h5_set_f64(loc, ".", "ortho_weight", &o->ortho_weight, 1);
+    if (!rc)
+        rc = crom_h5_set_i64(loc, ".", "cubature_tets", k);
+    if (!rc)
+        rc = crom_dftrain_log_write(loc, log);
     return rc;
 }
 
@@ -722,6 +680,29 @@ out:
     return rc;
 }
 
+/* The weights w [nv][H] of the eigenvectors Y [H - constant][nf] (M-
+ * orthonormal over the nf free vertices, vmap[v] the free index of v or -1)
+ * after the constant handle of a free body: unit RMS over the body (sm =
+ * sqrt of its mass), largest entry positive; their eigenvalues in eig. */
+static void eigen_weights(double sm, int nv, const int *vmap, int nf, int H, int constant, const double *Y,
+                          const double *lam, double *w, double *eig)
+{
+    for (int h = 0; h < H; h++) {
+        int e = h - constant;
+        const double *y = e >= 0 ? Y + (size_t)e * nf : NULL;
+        double big = 0, sign = 1;
+        for (int j = 0; y && j < nf; j++)
+            if (fabs(y[j]) > big) {
+                big = fabs(y[j]);
+                sign = y[j] < 0 ? -1 : 1;
+            }
+        for (int v = 0; v < nv; v++)
+            if (vmap[v] >= 0)
+                w[(size_t)v * H + h] = y ? sign * sm * y[vmap[v]] : 1;
+        eig[h] = y ? lam[e] : 0;
+    }
+}
+
 int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const unsigned char *fixed, int H,
                    crom_model *out, long *solves)
 {
@@ -747,7 +728,7 @@ int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const uns
     if ((rc = crom_fem_assemble(&fem, mesh->X, &fo, NULL, NULL, Kv)))
         goto out;
     for (int v = 0; v < nv; v++) {
-        int pin = fixed && (fixed[3 * v] || fixed[3 * v + 1] || fixed[3 * v + 2]);
+        int pin = crom_dfloss_pinned(fixed, v);
         np += pin;
         vmap[v] = !pin && fem.mass[v] > 0 ? nf++ : -1;
     }
@@ -786,22 +767,7 @@ int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const uns
                                     solves)))
             goto out;
     }
-    /* weights with unit RMS over the body, largest entry positive */
-    double sm = sqrt(fem.total_mass);
-    for (int h = 0; h < H; h++) {
-        int e = h - constant;
-        const double *y = e >= 0 ? Y + (size_t)e * nf : NULL;
-        double big = 0, sign = 1;
-        for (int j = 0; y && j < nf; j++)
-            if (fabs(y[j]) > big) {
-                big = fabs(y[j]);
-                sign = y[j] < 0 ? -1 : 1;
-            }
-        for (int v = 0; v < nv; v++)
-            if (vmap[v] >= 0)
-                w[(size_t)v * H + h] = y ? sign * sm * y[vmap[v]] : 1;
-        eig[h] = y ? lam[e] : 0;
-    }
+    eigen_weights(sqrt(fem.total_mass), nv, vmap, nf, H, constant, Y, lam, w, eig);
     double F[12];
     if ((rc = crom_skin_frame((size_t)nv, mesh->X, fem.mass, F)))
         goto out;

@@ -53,7 +53,10 @@
 
 #include <stdint.h>
 
-#include "datafree/datafree.h"
+#include <hdf5.h>
+
+#include "datafree/dfloss.h"
+#include "datafree/dftrain.h"
 #include "mesh/mesh.h"
 #include "nn/nn.h"
 #include "phys/fem.h"
@@ -108,15 +111,16 @@ typedef struct {
     const crom_nn_mlp *net;   /* 3 -> H' */
     crom_fem fem;
     crom_nn_ws ws;
-    int H, Ht, constant, maxbatch, maxtets, maxrows, nthreads, ns;
+    int H, Ht, constant, maxbatch, maxtets, maxrows, nthreads;
     double F[12];             /* body frame */
     double mass, Eref, pin_length;
     int npins, ntri;
     double *pinX, *triX;      /* the pin mask: pinned points, triangles */
     double *mask;             /* [nv] s(d(X_v)/ℓ) */
-    int *loc, *vs, *bad;
+    crom_dfloss_cub cub;      /* the drawn tets */
+    int *bad;
     float *xf, *dwf;
-    double *w, *wh, *xh, *L, *U, *gu, *dw, *mloc, *E, *R, *G, *xb;
+    double *w, *wh, *xh, *L, *U, *gu, *dw, *E, *R, *G, *xb;
 } crom_dfskin_ctx;
 
 /* Set up the trained loss (o: handles, sigma, ortho_weight, pin_length,
@@ -133,14 +137,14 @@ void crom_dfskin_ctx_free(crom_dfskin_ctx *c);
  * poses (J), t->penalty ‖G − I‖²_F. Returns 0, CROM_EUSAGE (sizes),
  * CROM_EDATA (a non-finite energy, or a pose that does not move the
  * drawn tets). */
-int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const int *tets, crom_datafree_terms *t, float *grad);
+int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const int *tets, crom_dftrain_terms *t, float *grad);
 
 /* ------------------------------------------------------------- building */
 
 /* Train the weights on problem p; out gets a trained "skinning" model and
- * log the record (crom_datafree_log of datafree.h). CROM_EUSAGE (bad options or
+ * log the record (crom_dftrain_log of dftrain.h). CROM_EUSAGE (bad options or
  * handle count), CROM_EDATA (training diverged), CROM_EINTERNAL. */
-int crom_dfskin_train(const crom_dfskin_problem *p, const crom_dfskin_opts *o, crom_model *out, crom_datafree_log *log);
+int crom_dfskin_train(const crom_dfskin_problem *p, const crom_dfskin_opts *o, crom_model *out, crom_dftrain_log *log);
 
 /* Skinning eigenmodes of a tet mesh: H handles for material mat with the
  * DOFs fixed [3nv] (NULL: a free body) pinned. out gets an "eigen"
@@ -148,5 +152,13 @@ int crom_dfskin_train(const crom_dfskin_problem *p, const crom_dfskin_opts *o, c
  * CROM_EUSAGE (handle count), CROM_EDATA (bad mesh), CROM_EINTERNAL. */
 int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const unsigned char *fixed, int H,
                    crom_model *out, long *solves);
+
+/* Write what a skinning model records beyond its basis (after
+ * crom_model_write): the body's mass and, for trained weights (log not
+ * NULL), the options as attributes (training_steps, sigma as used,
+ * ortho_weight, cubature_tets) and the training record
+ * (training/objective, /energy, /penalty, /seconds). Returns 0 or an HDF5
+ * error. */
+int crom_dfskin_write_record(hid_t loc, const crom_dfskin_opts *o, const crom_dftrain_log *log, double mass);
 
 #endif

@@ -33,6 +33,7 @@
 #include "base/lbfgs.h"
 #include "base/rng.h"
 #include "datafree/datafree.h"
+#include "datafree/dffield.h"
 #include "mesh/meshgen.h"
 #include "nn/nn.h"
 #include "phys/fem.h"
@@ -99,7 +100,7 @@ static double loss_at(const double *x, void *v)
     fd_case *t = v;
     for (int i = 0; i < t->n; i++)
         t->p[i] = (float)x[i];
-    crom_datafree_terms tm;
+    crom_dftrain_terms tm;
     if (crom_datafree_loss(t->c, t->B, t->z, t->rho, t->K, t->tets, &tm, NULL))
         return NAN;
     return tm.objective;
@@ -166,7 +167,7 @@ static void gradient_check(int objective)
             c.o.lambda = 0;
             c.o.tangent_weight = 10;
         }
-        crom_datafree_terms tm;
+        crom_dftrain_terms tm;
         int rc = crom_datafree_loss(&c, B, z, rhos[k], Ks[k], Ks[k] ? tets : NULL, &tm, g);
         CHECK_MSG(rc == 0, "loss: %s", crom_errmsg());
         for (int i = 0; i < n; i++) {
@@ -212,7 +213,7 @@ static void gradient_check(int objective)
  * differences over the parameters of both networks, on a tet list with
  * repeats; the mask is zero at the pins and 1 far from them. */
 typedef struct {
-    crom_datafree_field_ctx *c;
+    crom_dffield_ctx *c;
     float *pw, *pp;
     int nw, np, B, K;
     const double *z;
@@ -226,8 +227,8 @@ static double field_loss_at(const double *x, void *v)
         t->pw[i] = (float)x[i];
     for (int i = 0; i < t->np; i++)
         t->pp[i] = (float)x[t->nw + i];
-    crom_datafree_terms tm;
-    if (crom_datafree_field_loss(t->c, t->B, t->z, 0.7, t->K, t->tets, &tm, NULL, NULL))
+    crom_dftrain_terms tm;
+    if (crom_dffield_loss(t->c, t->B, t->z, 0.7, t->K, t->tets, &tm, NULL, NULL))
         return NAN;
     return tm.objective;
 }
@@ -264,8 +265,8 @@ static void gradient_check_field(void)
     for (int k = 0; k < K; k++)
         tets[k] = (int)crom_rng_below(&rng, (uint64_t)m.nt);
     tets[K - 1] = tets[0]; /* a repeat */
-    crom_datafree_field_ctx c;
-    CHECK(crom_datafree_field_ctx_init(&c, &P, &o, &W, &phi, B, K) == 0);
+    crom_dffield_ctx c;
+    CHECK(crom_dffield_ctx_init(&c, &P, &o, &W, &phi, B, K) == 0);
     int inside = 0, onpin = 1, far = 1;
     for (int v = 0; v < m.nv; v++) {
         double x = m.X[3 * v];
@@ -285,8 +286,8 @@ static void gradient_check_field(void)
     int nw = (int)W.nparams, np = (int)phi.nparams, n = nw + np;
     float *gw = malloc(sizeof(float) * nw), *gp = malloc(sizeof(float) * np);
     double *ga = malloc(sizeof(double) * n), *gf = malloc(sizeof(double) * n), *x = malloc(sizeof(double) * n);
-    crom_datafree_terms tm;
-    int rc = crom_datafree_field_loss(&c, B, z, 0.7, K, tets, &tm, gw, gp);
+    crom_dftrain_terms tm;
+    int rc = crom_dffield_loss(&c, B, z, 0.7, K, tets, &tm, gw, gp);
     CHECK_MSG(rc == 0, "field loss: %s", crom_errmsg());
     for (int i = 0; i < nw; i++) {
         ga[i] = gw[i];
@@ -310,8 +311,8 @@ static void gradient_check_field(void)
     CHECK_LT(e, FD_TOL);
     CHECK_LT(ep, FD_TOL);
     CHECK(tm.penalty > 0 && tm.tangent > 0 && tm.energy != 0);
-    CHECK(crom_datafree_field_loss(&c, B, z, 0.7, K + 1, tets, &tm, NULL, NULL) == CROM_EUSAGE);
-    crom_datafree_field_ctx_free(&c);
+    CHECK(crom_dffield_loss(&c, B, z, 0.7, K + 1, tets, &tm, NULL, NULL) == CROM_EUSAGE);
+    crom_dffield_ctx_free(&c);
     crom_nn_mlp_free(&W);
     crom_nn_mlp_free(&phi);
     free(tets);
@@ -545,7 +546,7 @@ static void test_energy_subspace(bar_case *b)
     o.batch = 16;
     o.width = 32;
     o.seed = 3;
-    crom_datafree_log log;
+    crom_dftrain_log log;
     int rc = crom_datafree_train(&P, &o, &g_energy_model, &log);
     CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
     if (rc)
@@ -585,7 +586,7 @@ static void test_energy_subspace(bar_case *b)
     crom_map_free(&map);
     crom_map_free(&lin);
     crom_model_free(&lm);
-    crom_datafree_log_free(&log);
+    crom_dftrain_log_free(&log);
 }
 
 /* Wang et al.: Neural Modes on the 3 lowest modes, 400 steps of 16 samples
@@ -607,7 +608,7 @@ static void test_neuralmodes_subspace(bar_case *b)
     o.width = 32;
     o.box = 0.1;
     o.box_scaled = 0; /* Wang et al.'s box: every mode in [-0.1, 0.1] */
-    crom_datafree_log log;
+    crom_dftrain_log log;
     crom_model nm;
     int rc = crom_datafree_train(&P, &o, &nm, &log);
     CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
@@ -672,7 +673,7 @@ static void test_neuralmodes_subspace(bar_case *b)
     crom_map_free(&lin);
     crom_model_free(&lm);
     crom_model_free(&nm);
-    crom_datafree_log_free(&log);
+    crom_dftrain_log_free(&log);
 }
 
 /* Run steps latent steps and measure the energy budget: the largest rise
@@ -732,7 +733,7 @@ static void test_field_subspace(bar_case *b)
     o.tets = b->mesh.nt / 2;
     o.seed = 3;
     crom_model fm;
-    crom_datafree_log log;
+    crom_dftrain_log log;
     int rc = crom_datafree_train(&P, &o, &fm, &log);
     CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
     if (rc)
@@ -804,7 +805,7 @@ static void test_field_subspace(bar_case *b)
     crom_model_free(&fm);
     crom_fem_free(&ffem);
     crom_mesh_free(&fine);
-    crom_datafree_log_free(&log);
+    crom_dftrain_log_free(&log);
 }
 
 /* ------------------------------------------------------ latent dynamics */
@@ -1231,7 +1232,7 @@ static void test_lbfgs(bar_case *bc)
     o.ramp = 0; /* the same objective from the start: comparable values */
     o.tets = bc->mesh.nt / 2;
     crom_model m;
-    crom_datafree_log log;
+    crom_dftrain_log log;
     int rc = crom_datafree_train(&P, &o, &m, &log);
     CHECK_MSG(rc == 0, "lbfgs training: %s", crom_errmsg());
     if (rc)
@@ -1245,7 +1246,7 @@ static void test_lbfgs(bar_case *bc)
                     "steps %.4g, of the last 10 %.4g (%ld steps)\n", o.tets, bc->mesh.nt, first, last, log.steps);
     CHECK(log.steps == 60 && log.nblocks == 60 && last < 0.5 * first);
     crom_model_free(&m);
-    crom_datafree_log_free(&log);
+    crom_dftrain_log_free(&log);
 }
 
 int main(void)

@@ -486,7 +486,7 @@ static double loss_at(const double *x, void *v)
     loss_case *t = v;
     for (int i = 0; i < t->np; i++)
         t->p[i] = (float)x[i];
-    crom_datafree_terms tm;
+    crom_dftrain_terms tm;
     if (crom_dfskin_loss(t->c, t->B, t->q, t->K, t->tets, &tm, NULL))
         return NAN;
     return tm.objective;
@@ -524,7 +524,7 @@ static void gradient_check(const crom_mesh *m, const crom_material *mat, int pin
     int np = (int)net.nparams;
     float *g = malloc(sizeof(float) * np);
     double *ga = malloc(sizeof(double) * np), *gf = malloc(sizeof(double) * np), *x = malloc(sizeof(double) * np);
-    crom_datafree_terms tm;
+    crom_dftrain_terms tm;
     rc = crom_dfskin_loss(&c, B, q, K, tets, &tm, g);
     CHECK_MSG(rc == 0, "loss: %s", crom_errmsg());
     for (int i = 0; i < np; i++) {
@@ -627,7 +627,7 @@ static void test_trained(const crom_mesh *m, const crom_mesh *other, const crom_
     o.steps = 60;
     o.tets = 100;
     crom_model tm;
-    crom_datafree_log log;
+    crom_dftrain_log log;
     int rc = crom_dfskin_train(&P, &o, &tm, &log);
     CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
     CHECK(tm.skin_constant == 1 && tm.rank == 48 && log.steps == 60);
@@ -636,7 +636,7 @@ static void test_trained(const crom_mesh *m, const crom_mesh *other, const crom_
     CHECK(crom_skin_orthonormalize(&tm, (size_t)m->nv, m->X, vv, 1e-6) == 0);
     check_rigid(&tm, m, mat, "trained skinning, free body");
     check_rigid(&tm, other, mat, "trained skinning laid on another mesh");
-    crom_datafree_log_free(&log);
+    crom_dftrain_log_free(&log);
     crom_model_free(&tm);
     /* clamped */
     unsigned char *fixed = clamp_mask(m);
@@ -657,7 +657,7 @@ static void test_trained(const crom_mesh *m, const crom_mesh *other, const crom_
             wfar);
     CHECK_LT(wmax, 1e-14);
     CHECK(wfar > 0.1);
-    crom_datafree_log_free(&log);
+    crom_dftrain_log_free(&log);
     crom_model_free(&tm);
     o.handles = 0;
     CHECK(crom_dfskin_train(&P, &o, &tm, &log) == CROM_EUSAGE);
@@ -773,14 +773,14 @@ static void test_cloud(void)
     o.steps = 20;
     o.tets = 200;
     crom_model tm;
-    crom_datafree_log log;
+    crom_dftrain_log log;
     rc = crom_dfskin_train(&P, &o, &tm, &log);
     CHECK_MSG(rc == 0, "train on points: %s", crom_errmsg());
     CHECK(tm.skin_constant == 0 && tm.npin_triangles == 2);
     double face[3] = {-0.5, 0.03, -0.07}, w[3];
     CHECK(crom_skin_weights(&tm, 1, face, w, NULL) == 0);
     CHECK_LT(fabs(w[0]) + fabs(w[1]) + fabs(w[2]), 1e-14);
-    crom_datafree_log_free(&log);
+    crom_dftrain_log_free(&log);
     crom_model_free(&tm);
     free(pX);
     free(tX);

@@ -1,0 +1,251 @@
+/* body.c — the body a data-free subspace is trained on (see body.h). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/err.h"
+#include "datafree/body.h"
+#include "io/io.h"
+#include "mesh/pred.h"
+#include "phys/modes.h"
+#include "rom/map.h"
+#include "rom/skin.h"
+
+/* ============================================================ geometry */
+
+int crom_body_load(crom_body *b, const crom_body_source *src, const crom_scenario *sc)
+{
+    memset(b, 0, sizeof *b);
+    crom_model_clear(&b->modes);
+    if (src->mesh)
+        return crom_mesh_load(src->mesh, 0, &b->mesh, &b->history) ? crom_err_ctx("--mesh") : 0;
+    for (int i = 0; i < sc->npins; i++) /* before the sampling reports anything */
+        if (!crom_pred_is(sc->pins[i]))
+            return crom_err(CROM_EUSAGE, "--pin %s: a surface or point cloud has no named regions; give a predicate "
+                            "such as 'x<-0.49'", sc->pins[i]);
+    int rc = src->surface ? crom_cloud_from_surface(src->surface, src->sample_points ? src->sample_points : 8192,
+                                                    src->seed ^ 0xc10d, &b->cloud)
+                          : crom_cloud_read(src->cloud, &b->cloud);
+    if (rc)
+        return crom_err_ctx(src->surface ? "--surface" : "--cloud");
+    return crom_cloud_stencils(&b->cloud, src->seed ^ 0x57e1, &b->mesh);
+}
+
+void crom_body_free(crom_body *b)
+{
+    crom_mesh_free(&b->mesh);
+    crom_cloud_free(&b->cloud);
+    crom_model_free(&b->modes);
+    free(b->history);
+    free(b->fixed);
+    free(b->pinX);
+    free(b->triX);
+    free(b->W);
+    free(b->freq);
+    memset(b, 0, sizeof *b);
+}
+
+double crom_body_volume(const crom_body *b)
+{
+    return b->cloud.n ? b->cloud.volume : crom_mesh_volume(&b->mesh);
+}
+
+double crom_body_mass(const crom_body *b) { return b->mat.rho * crom_body_volume(b); }
+
+/* ============================================================ the modes */
+
+/* The pins recorded in a scenario text, appended to sc (without repeats). */
+static int add_pins(crom_scenario *sc, const char *text)
+{
+    crom_scenario tmp;
+    crom_scenario_defaults(&tmp);
+    int rc = crom_scenario_parse_text(text, &tmp);
+    for (int i = 0; !rc && i < tmp.npins; i++) {
+        int dup = 0;
+        for (int j = 0; j < sc->npins; j++)
+            dup |= !strcmp(sc->pins[j], tmp.pins[i]);
+        if (dup)
+            continue;
+        if (sc->npins == CROM_SCENARIO_MAX)
+            return crom_err(CROM_EUSAGE, "too many pins (at most %d)", CROM_SCENARIO_MAX);
+        snprintf(sc->pins[sc->npins++], sizeof sc->pins[0], "%s", tmp.pins[i]);
+    }
+    return rc;
+}
+
+int crom_body_load_modes(crom_body *b, const char *path, const char *mesh_name, int *rank, crom_scenario *sc,
+                         int material_given, int *differs)
+{
+    crom_model *m = &b->modes;
+    if (differs)
+        *differs = 0;
+    b->modes_path = path;
+    if (crom_model_load(path, m))
+        return crom_err_ctx("--modes");
+    if (strcmp(m->basis, "modes"))
+        return crom_err(CROM_EDATA, "--modes %s is a '%s' model; neuralmodes builds on linear vibration modes "
+                        "(basis 'modes', from crom-modes)", path, m->basis);
+    if (crom_map_same_mesh(&m->mesh, &b->mesh))
+        return crom_err(CROM_EDATA, "--modes %s was computed on another mesh (%d vertices, %d tets) than --mesh %s "
+                        "(%d vertices, %d tets)", path, m->mesh.nv, m->mesh.nt, mesh_name, b->mesh.nv, b->mesh.nt);
+    if (*rank <= 0)
+        *rank = m->rank;
+    else if (*rank > m->rank)
+        return crom_err(CROM_EUSAGE, "--rank %d: --modes %s has only %d modes", *rank, path, m->rank);
+    if (!material_given && isfinite(m->youngs) && isfinite(m->poisson) && isfinite(m->density)) {
+        sc->youngs = m->youngs;
+        sc->poisson = m->poisson;
+        sc->density = m->density;
+    } else if (differs && isfinite(m->youngs) &&
+               (m->youngs != sc->youngs || m->poisson != sc->poisson || m->density != sc->density)) {
+        *differs = 1;
+    }
+    return add_pins(sc, m->scenario);
+}
+
+/* The lowest r modes [nv][3][r] and their frequencies; they must not move
+ * a pinned vertex. */
+static int take_modes(crom_body *b, int r)
+{
+    const crom_model *m = &b->modes;
+    int n = 3 * b->mesh.nv;
+    b->W = crom_malloc(sizeof(double) * (size_t)n * r);
+    b->freq = crom_malloc(sizeof(double) * (size_t)r);
+    if (!b->W || !b->freq)
+        return CROM_EINTERNAL;
+    for (int i = 0; i < n; i++)
+        for (int k = 0; k < r; k++) {
+            double w = m->basis_v[(size_t)i * m->rank + k];
+            b->W[(size_t)i * r + k] = w;
+            if (b->fixed[i] && w != 0)
+                return crom_err(CROM_EDATA, "--modes %s moves vertex %d, which is pinned here: compute the modes "
+                                "with the same --pin", b->modes_path, i / 3);
+        }
+    for (int k = 0; k < r; k++)
+        b->freq[k] = m->frequencies ? m->frequencies[k] : 0;
+    return 0;
+}
+
+/* ============================================================ problems */
+
+int crom_body_pins(crom_body *b, const crom_scenario *sc, int cloud_pins)
+{
+    int rc = crom_scenario_check(sc);
+    if (!rc)
+        rc = crom_material_init(&b->mat, sc->youngs, sc->poisson, sc->density);
+    if (rc)
+        return rc;
+    const char *refs[CROM_SCENARIO_MAX];
+    for (int i = 0; i < sc->npins; i++)
+        refs[i] = sc->pins[i];
+    if (cloud_pins && b->cloud.n &&
+        (rc = crom_cloud_pins(&b->cloud, sc->npins, refs, &b->npin, &b->pinX, &b->ntri, &b->triX)))
+        return rc;
+    return crom_modes_pins(&b->mesh, sc->npins, refs, &b->fixed, &b->npinned);
+}
+
+int crom_body_map_problem(crom_body *b, const crom_scenario *sc, int objective, int rank,
+                          crom_datafree_problem *P)
+{
+    int nm = objective == CROM_DATAFREE_NEURALMODES, rc;
+    if (nm && (rc = take_modes(b, rank)))
+        return rc;
+    *P = (crom_datafree_problem){&b->mesh, b->mat, {sc->gravity[0], sc->gravity[1], sc->gravity[2]}, b->fixed, b->W,
+                                 b->freq};
+    if (nm) /* nonlinear modes are equilibria of the elastic energy alone */
+        P->gravity[0] = P->gravity[1] = P->gravity[2] = 0;
+    return 0;
+}
+
+int crom_body_train_skin(const crom_body *b, const crom_dfskin_opts *o, crom_model *out, crom_dftrain_log *log)
+{
+    int rc;
+    if (b->cloud.n && (rc = crom_dfskin_check_handles(&b->mesh, b->fixed, o->handles)))
+        return rc;
+    crom_dfskin_problem P = {&b->mesh, b->mat, b->fixed, b->cloud.n > 0, b->npin, b->pinX, b->ntri, b->triX};
+    return crom_dfskin_train(&P, o, out, log);
+}
+
+int crom_body_skin_coordinates(const crom_body *b, crom_model *m, double tol)
+{
+    if (b->cloud.n)
+        return crom_skin_orthonormalize(m, (size_t)b->cloud.n, b->cloud.X, b->cloud.vol, tol);
+    double *vv = crom_malloc(sizeof(double) * (size_t)b->mesh.nv);
+    if (!vv)
+        return CROM_EINTERNAL;
+    crom_mesh_vertex_volumes(&b->mesh, vv);
+    int rc = crom_skin_orthonormalize(m, (size_t)b->mesh.nv, b->mesh.X, vv, tol);
+    free(vv);
+    return rc;
+}
+
+/* ============================================================ the record */
+
+/* The material, the gravity (if asked) and the pins of sc as flags, one
+ * per line, and the material, into m. */
+static int provenance(crom_model *m, const crom_scenario *s, int gravity)
+{
+    size_t cap = 512 + (size_t)s->npins * 140;
+    char *t = crom_malloc(cap);
+    if (!t)
+        return CROM_EINTERNAL;
+    size_t l = (size_t)snprintf(t, cap, "--youngs %.17g\n--poisson %.17g\n--density %.17g\n", s->youngs, s->poisson,
+                                s->density);
+    if (gravity)
+        l += (size_t)snprintf(t + l, cap - l, "--gravity %.17g,%.17g,%.17g\n", s->gravity[0], s->gravity[1],
+                              s->gravity[2]);
+    for (int i = 0; i < s->npins; i++)
+        l += (size_t)snprintf(t + l, cap - l, "--pin %s\n", s->pins[i]);
+    free(m->scenario);
+    m->scenario = t;
+    m->youngs = s->youngs;
+    m->poisson = s->poisson;
+    m->density = s->density;
+    return 0;
+}
+
+/* Record sc in m (gravity if asked), create the output at path and write
+ * m into it; on failure nothing is left behind. */
+static int create(const crom_body *b, const crom_scenario *sc, int gravity, crom_model *m, const char *path,
+                  const char *cmdline, crom_out *out)
+{
+    int rc = provenance(m, sc, gravity);
+    if (!rc)
+        rc = crom_out_create(out, path, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cmdline, b->history, CROM_OUT_PLAIN);
+    if (!rc && (rc = crom_model_write(out->h5, m)))
+        crom_out_fail(out);
+    return rc;
+}
+
+/* Commit out if rc is 0, else drop it. */
+static int finish(crom_out *out, int rc)
+{
+    if (!rc)
+        return crom_out_commit(out);
+    crom_out_fail(out);
+    return rc;
+}
+
+int crom_body_write_map(const crom_body *b, const crom_scenario *sc, crom_model *m, const crom_datafree_opts *o,
+                        const crom_datafree_problem *P, const crom_dftrain_log *log, const char *path,
+                        const char *cmdline)
+{
+    int nm = o->objective == CROM_DATAFREE_NEURALMODES;
+    crom_out out;
+    int rc = create(b, sc, !nm, m, path, cmdline, &out);
+    if (rc)
+        return rc;
+    rc = crom_datafree_write_record(out.h5, o, P, log, crom_body_mass(b), nm ? b->modes.model_id : NULL);
+    return finish(&out, rc);
+}
+
+int crom_body_write_skin(const crom_body *b, const crom_scenario *sc, crom_model *m, const crom_dfskin_opts *o,
+                         const crom_dftrain_log *log, const char *path, const char *cmdline)
+{
+    crom_out out;
+    int rc = create(b, sc, 0, m, path, cmdline, &out);
+    if (rc)
+        return rc;
+    return finish(&out, crom_dfskin_write_record(out.h5, o, log, crom_body_mass(b)));
+}

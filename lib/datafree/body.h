@@ -1,0 +1,116 @@
+/* body.h — the body a data-free subspace is trained on (crom-fitfield
+ * --objective energy|neuralmodes|field|skinning), set up from the files and
+ * the scenario it is given, and what the model records of it.
+ *
+ * The geometry is a tet mesh (a crom/mesh file), or the virtual tets of a
+ * point sampling (lib/mesh/cloud.h) of a closed triangle surface or of a
+ * point cloud with volumes; a sampled body's pins must be predicates
+ * ('x<-0.49'), and for skinning the points and surface triangles they hold
+ * make its pin mask. The pins fix DOFs of the training geometry by region or
+ * predicate (crom_modes_pins), the material is the scenario's. A
+ * neuralmodes map builds on linear modes of the same mesh (crom-modes): the
+ * body takes their material where none was given, and their pins. The
+ * model records the material, the pins and (energy, field) the gravity as
+ * scenario flags, the body's mass, and the training record (datafree.h,
+ * dfskin.h).
+ */
+#ifndef CROM_BODY_H
+#define CROM_BODY_H
+
+#include <stdint.h>
+
+#include "datafree/datafree.h"
+#include "datafree/dfskin.h"
+#include "datafree/dftrain.h"
+#include "mesh/cloud.h"
+#include "mesh/mesh.h"
+#include "phys/material.h"
+#include "phys/scenario.h"
+#include "rom/model.h"
+
+/* Where the body comes from: exactly one of the three files. */
+typedef struct {
+    const char *mesh;        /* a crom/mesh ('-': stdin) */
+    const char *surface;     /* a closed surface (.stl, .obj) */
+    const char *cloud;       /* a point cloud with volumes */
+    int sample_points;       /* surface: about this many points (0: 8192) */
+    uint64_t seed;           /* of the sampling and of the stencils' rotations */
+} crom_body_source;
+
+typedef struct {
+    crom_mesh mesh;          /* the training geometry: the mesh, or the virtual tets of the points */
+    crom_cloud cloud;        /* the sampled body (cloud.n = 0 for a mesh) */
+    char *history;           /* the mesh file's history (NULL for a sampled body) */
+    crom_material mat;
+    unsigned char *fixed;    /* [3nv] pinned DOFs */
+    int npinned;             /* pinned vertices of the training geometry */
+    int npin, ntri;          /* a sampled body: its pinned points and surface triangles */
+    double *pinX, *triX;     /* [npin][3], [ntri][3][3] */
+    const char *modes_path;  /* neuralmodes: where the modes came from (for messages) */
+    crom_model modes;        /* neuralmodes: the linear modes */
+    double *W, *freq;        /* neuralmodes: the lowest r of them [3nv][r], their frequencies [r] */
+} crom_body;
+
+/* Load the geometry of src into b (cleared first; free it with
+ * crom_body_free in any case). A sampled body's pins in sc must be
+ * predicates (checked before sampling). Returns 0, CROM_EUSAGE (a region
+ * pin on a sampled body), or the loader's error with "--mesh", "--surface"
+ * or "--cloud" as context. */
+int crom_body_load(crom_body *b, const crom_body_source *src, const crom_scenario *sc);
+
+void crom_body_free(crom_body *b);
+
+/* The body's volume (the mesh's, or the sampled points') and mass (m³, kg;
+ * the mass after crom_body_pins). */
+double crom_body_volume(const crom_body *b);
+double crom_body_mass(const crom_body *b);
+
+/* The linear modes at path for a neuralmodes map of b, named mesh_name in
+ * messages: a model of basis "modes" on the same mesh with at least *rank
+ * modes (*rank <= 0: all of them, set). Then, unless material_given, sc
+ * takes the modes' material (if they record one); *differs (may be NULL)
+ * is set to 1 when the modes were computed with another material than sc's
+ * (for a warning); and sc gets the modes' pins it does not have yet.
+ * Returns 0, CROM_EDATA (another basis, another mesh), CROM_EUSAGE (too
+ * few modes, too many pins), or the loader's error. */
+int crom_body_load_modes(crom_body *b, const char *path, const char *mesh_name, int *rank, crom_scenario *sc,
+                         int material_given, int *differs);
+
+/* The material of sc (checked) and the DOFs its pins fix; with
+ * cloud_pins, also a sampled body's pinned points and triangles. Returns
+ * 0, or CROM_EUSAGE (a bad scenario, an unknown region, a pin that selects
+ * nothing). */
+int crom_body_pins(crom_body *b, const crom_scenario *sc, int cloud_pins);
+
+/* The problem of a map or field of the given objective (CROM_DATAFREE_*)
+ * and rank on b, after crom_body_pins (borrowing from b): gravity from sc
+ * (none for neuralmodes, which takes the lowest rank modes). Returns 0,
+ * CROM_EDATA (a mode moves a pinned DOF), CROM_EINTERNAL. */
+int crom_body_map_problem(crom_body *b, const crom_scenario *sc, int objective, int rank,
+                          crom_datafree_problem *P);
+
+/* Train skinning weights on b (after crom_body_pins with cloud_pins):
+ * crom_dfskin_train, after checking the handle count of a sampled body. */
+int crom_body_train_skin(const crom_body *b, const crom_dfskin_opts *o, crom_model *out, crom_dftrain_log *log);
+
+/* Orthonormal coordinates for a skinning model over b's training geometry:
+ * the mesh's vertices with their lumped volumes, or the sampled points
+ * with theirs (crom_skin_orthonormalize, relative tolerance tol). */
+int crom_body_skin_coordinates(const crom_body *b, crom_model *m, double tol);
+
+/* Write a map or field m trained with o on problem P (and its record log)
+ * to path (crom_out_create: cmdline and the body's history as history)
+ * with what it records: the scenario flags of sc (gravity but for
+ * neuralmodes) and its material in m, then the record of
+ * crom_datafree_write_record with the body's mass (and the modes' id).
+ * The file appears only whole. Returns 0, or an I/O error. */
+int crom_body_write_map(const crom_body *b, const crom_scenario *sc, crom_model *m, const crom_datafree_opts *o,
+                        const crom_datafree_problem *P, const crom_dftrain_log *log, const char *path,
+                        const char *cmdline);
+
+/* The same for a skinning model m: the scenario flags of sc (no gravity),
+ * and crom_dfskin_write_record (log NULL for eigen weights). */
+int crom_body_write_skin(const crom_body *b, const crom_scenario *sc, crom_model *m, const crom_dfskin_opts *o,
+                         const crom_dftrain_log *log, const char *path, const char *cmdline);
+
+#endif
