@@ -8,7 +8,6 @@
 
 #include "base/err.h"
 #include "cli/cli.h"
-#include "datafree/datafree.h"
 #include "io/io.h"
 #include "mesh/mesh.h"
 #include "phys/fem.h"

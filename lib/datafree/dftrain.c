@@ -386,14 +386,22 @@ static void lbfgs_accept(lbfgs_state *S)
 
 /* L-BFGS, L->resample iterations on each batch of samples and tets
  * before a fresh one is drawn; *kout the steps taken. */
+#define IDLE_BATCHES 100
+
 static int train_lbfgs(run *R, long *kout)
 {
     const crom_dftrain_loop *L = R->L;
     lbfgs_state S;
-    int rc = lbfgs_init(&S, L), ready = !rc, stop = 0;
+    int rc = lbfgs_init(&S, L), ready = !rc, stop = 0, idle = 0;
     long k = 0;
     R->tstart = crom_clock_now(); /* the clock starts after the set-up */
-    while (!rc && !stop && k < L->steps) {
+    /* A batch on which no step is accepted (a zero gradient, or no decrease
+     * along any direction tried) draws the next one; after IDLE_BATCHES such
+     * batches in a row the parameters are taken as converged and training
+     * ends (an error if it never took a step), rather than drawing batches
+     * for ever. */
+    while (!rc && !stop && k < L->steps && idle < IDLE_BATCHES) {
+        long k0 = k;
         double frac;
         if (!run_next(R, k, &frac))
             break;
@@ -423,7 +431,11 @@ static int train_lbfgs(run *R, long *kout)
             run_record(R, k, &S.tt);
             k++;
         }
+        idle = k == k0 ? idle + 1 : 0;
     }
+    if (!rc && idle >= IDLE_BATCHES && k == 0)
+        rc = crom_err(CROM_EDATA, "L-BFGS took no step on %d batches in a row (a zero gradient, or no decrease "
+                                  "along the gradient)", IDLE_BATCHES);
     for (size_t i = 0; ready && i < S.np; i++) /* the parameters of the last accepted step */
         L->params[0][i] = (float)S.x[i];
     lbfgs_free(&S);

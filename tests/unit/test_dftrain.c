@@ -211,6 +211,24 @@ static void test_lbfgs(void)
     CHECK(log.steps == 4 && log.nblocks == 4);
     CHECK(Q.draws_ok);
     crom_dftrain_log_free(&log);
+
+    /* at the minimum itself (zero gradient) no step is ever accepted: the
+     * loop ends after its idle batches, with no clock to stop it */
+    quad_setup(&Q, &L, params, grad, &rng, 1);
+    for (int i = 0; i < NP; i++)
+        params[0][i] = (float)Q.target[i];
+    for (int i = 0; i < NP; i++)
+        Q.target[i] = params[0][i];
+    L.steps = 10;
+    L.lr = 0.5;
+    L.lbfgs = 1;
+    L.resample = 10;
+    memset(&log, 0, sizeof log);
+    rc = crom_dftrain_run(&L, &log);
+    printf("L-BFGS at the minimum: rc %d, %ld steps, %ld evaluations\n", rc, log.steps, Q.calls);
+    CHECK(rc == CROM_EDATA && strstr(crom_errmsg(), "no step on 100 batches"));
+    CHECK(Q.calls == 100);
+    crom_dftrain_log_free(&log);
 }
 
 static void test_stops(void)
