@@ -64,6 +64,10 @@ typedef struct {
     crom_rsim_bc *bc, *force;
     double *lam;        /* [nplanes][nsurf] lagged normal forces */
     double *qn, *qhat, *g, *H, *d, *qt, *gt, *fext;
+    /* the objective's quadratic part ½aᵀQa + lᵀa + c₀ in a = q − q̂ (rsim.c,
+     * crom_rsim_begin_step): Q [r][r] per cubature, κ Σ P_b [r][r], l [r]
+     * and c₀ per step */
+    double *Q, *Pk, *lin, c0;
     /* the factored reduced Hessian reused across iterations and steps (see
      * rsim.c, step_direction) */
     int lagged;         /* 1: reuse it (the default); 0: a fresh Hessian every iteration */
