@@ -13,6 +13,11 @@
 #include "rom/newton.h"
 #include "rom/rsim.h"
 
+/* the reuse of the reduced Hessian's factor (see the step's problem below) */
+#define SLOW_ITERS 10
+#define LAG_ITERS 24
+#define PAIRS 16
+
 static void free_bcs(crom_rsim_bc *b, int n)
 {
     for (int i = 0; b && i < n; i++) {
@@ -43,6 +48,7 @@ static void free_cub_data(crom_rsim *s)
     free(s->Pk);
     free(s->lin);
     crom_elastic_free(&s->el);
+    crom_newton_memory_free(&s->mem);
     free_bcs(s->bc, s->nbc);
     free_bcs(s->force, s->nforce);
     s->Mr = s->fg = s->G = s->Gfac = s->lam = NULL;
@@ -179,7 +185,7 @@ static int build(crom_rsim *s)
         !s->H || !s->d || !s->qt || !s->gt || !s->fext || !s->Hfac || !s->Q || !s->Pk || !s->lin || !s->bc ||
         !s->force)
         return CROM_EINTERNAL;
-    if ((rc = crom_elastic_init(&s->el, c)))
+    if ((rc = crom_elastic_init(&s->el, c)) || (rc = crom_newton_memory_init(&s->mem, r, PAIRS)))
         return rc;
     for (size_t i = 0; i < rr; i++)
         s->Mr[i] = rho * c->WtVW[i];
@@ -301,7 +307,8 @@ int crom_rsim_init(crom_rsim *s, const crom_cubature *cub, const crom_scenario *
     s->r = cub->r;
     s->q = crom_calloc((size_t)s->r, sizeof(double));
     s->qd = crom_calloc((size_t)s->r, sizeof(double));
-    if (!s->q || !s->qd) {
+    s->corr = crom_calloc((size_t)s->r, sizeof(double));
+    if (!s->q || !s->qd || !s->corr) {
         crom_rsim_free(s);
         return CROM_EINTERNAL;
     }
@@ -331,6 +338,7 @@ void crom_rsim_free(crom_rsim *s)
     free_cub_data(s);
     free(s->q);
     free(s->qd);
+    free(s->corr);
     memset(s, 0, sizeof *s);
 }
 
@@ -470,19 +478,29 @@ static double rms_disp(const crom_rsim *s, const double *d)
  * objective, the Newton (or the paper's descent) direction, the size of a
  * correction as an RMS displacement relative to the body.
  *
- * The reduced Hessian costs K 12 r² flops over a cubature of K tets, the
- * gradient K 24 r: with r in the hundreds (skinning handles) the Hessian is
- * nearly all of a step. So its Cholesky factor is kept and reused across
- * iterations and steps (the chord method; the Hessian changes little from
- * one step to the next: M/h² dominates it and the elastic part moves
- * slowly), and a fresh one is made when the reused one has served
- * LAG_ITERS iterations of a step without convergence, or fails to give an
- * acceptable step (newton.h). Measured on a 222-dimensional skinning
- * subspace over 190 tets (soft bar, dt 0.05, lib/rom/elastic.c's Hessian):
- * 9.2 ms per step with a fresh Hessian at every iteration (5.2 iterations),
- * 2.4-4 ms reusing it for 2-6 iterations (5.4-8.1 iterations); never
- * refreshing it within a step does not converge. */
-#define LAG_ITERS 4
+ * The reduced Hessian costs 4 K r² (block basis, elastic.h) to 18 K r²
+ * flops over a cubature of K tets and its factor r³/3, the gradient 18 K r:
+ * with r in the hundreds (skinning handles) one Hessian costs as much as
+ * 20-30 iterations without one. So its Cholesky factor is kept and reused
+ * across iterations and steps (the chord method; the Hessian changes little
+ * from one step to the next: M/h² dominates it and the elastic part moves
+ * slowly), corrected by the quasi-Newton pairs of the iterations since it
+ * was made (newton.h; PAIRS of them, kept across steps: the steps'
+ * objectives differ by terms linear in q). A fresh one is made at the start
+ * of a step when the last step needed more than SLOW_ITERS iterations with
+ * the reused one, within a step after LAG_ITERS iterations without
+ * convergence, and when the reused one fails to give an acceptable step
+ * (newton.h). Measured on a 222-dimensional skinning subspace over 197 tets
+ * (soft bar of issue 14, dt 0.05, 100 steps, one core, under load): a
+ * fresh Hessian at every iteration takes 3.9 iterations per step (6 ms);
+ * the chord method alone, refreshed after 4 iterations of a step, 7.1
+ * iterations and 1.2 Hessians per step (2.4-2.7 ms median); with the pairs,
+ * this schedule and the extrapolated start 7.4 iterations and 0.2 Hessians
+ * (0.5 ms median, 0.9 ms mean). More pairs (32) or a later refresh
+ * (SLOW_ITERS 12) changed little; refreshing within the step after 8
+ * iterations, or the chord method without pairs at its best refresh (12
+ * iterations of a step), cost about 30% more (9.7 iterations and 0.25
+ * Hessians per step for the latter). */
 
 static int step_objective(void *ctx, const double *q, double *E, double *g, double *H, int project)
 {
@@ -492,7 +510,7 @@ static int step_objective(void *ctx, const double *q, double *E, double *g, doub
 static int step_wants_hessian(void *ctx, int it)
 {
     crom_rsim *s = ctx;
-    return !s->fac_ok || s->fac_iters >= LAG_ITERS;
+    return !s->fac_ok || (it == 0 && s->fac_slow) || s->fac_iters >= LAG_ITERS;
 }
 
 static void step_stale(void *ctx) { ((crom_rsim *)ctx)->fac_ok = 0; }
@@ -512,6 +530,7 @@ static int step_direction(void *ctx, int it, int project, const double *q, const
               * column-major lower factor: no transposed copies) */
         memcpy(s->Hfac, H, sizeof(double) * (size_t)r * r);
         s->fac_iters = 0;
+        s->fac_slow = 0;
         if (!(s->fac_ok = LAPACKE_dpotrf_work(LAPACK_COL_MAJOR, 'L', r, s->Hfac, r) == 0))
             return 1;
     }
@@ -530,21 +549,28 @@ int crom_rsim_step(crom_rsim *s, crom_rsim_stats *st)
     double h = sc->dt, t0 = crom_clock_now();
     memset(st, 0, sizeof *st);
     crom_rsim_begin_step(s);
-    memcpy(s->q, s->qhat, sizeof(double) * (size_t)r);
-    int lag = s->lagged && s->solver != CROM_RSIM_GD;
+    /* Newton starts from q̂ plus the last step's correction q − q̂ (h² times
+     * its acceleration: a second-order extrapolation); the paper's descent
+     * from q̂ */
+    int newton = s->solver != CROM_RSIM_GD, lag = s->lagged && newton;
+    for (int i = 0; i < r; i++)
+        s->q[i] = s->qhat[i] + (newton ? s->corr[i] : 0);
     if (!lag)
         s->fac_ok = 0;
     s->fac_iters = 0; /* a reused factor gets LAG_ITERS iterations in each step */
     const crom_newton_problem prob = {r, step_objective, step_direction, step_size,
                                       lag ? step_wants_hessian : NULL, lag ? step_stale : NULL,
-                                      s->solver == CROM_RSIM_GD, "Newton", "the reduced Hessian is singular"};
-    const crom_newton_work w = {s->g, s->H, s->d, s->qt};
+                                      s->solver == CROM_RSIM_GD, "Newton", "the reduced Hessian is singular", 1};
+    const crom_newton_work w = {s->g, s->H, s->d, s->qt, &s->mem};
     int rc = crom_newton_solve(&prob, s, &w, s->q, sc->tol, sc->max_iter, s->step, &st->iterations,
                                &st->residual, &st->converged);
     if (rc)
         return rc;
-    for (int i = 0; i < r; i++)
+    s->fac_slow = s->fac_iters > SLOW_ITERS;
+    for (int i = 0; i < r; i++) {
+        s->corr[i] = s->q[i] - s->qhat[i];
         s->qd[i] = (s->q[i] - s->qn[i]) / h;
+    }
     s->step++;
     s->t = (double)s->step * h; /* exact multiples of dt (issue 12) */
     st->constraint_residual = crom_rsim_constraint_residual(s);
