@@ -4,6 +4,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <cblas.h>
+
 #include "base/err.h"
 #include "base/linesearch.h"
 #include "rom/newton.h"
@@ -46,14 +48,12 @@ void crom_newton_memory_reset(crom_newton_memory *Q)
 static void memory_push(crom_newton_memory *Q, const double *q, const double *qp, const double *g, const double *gp)
 {
     int r = Q->r;
-    double *sj = Q->s + (size_t)Q->head * r, *yj = Q->y + (size_t)Q->head * r, ys = 0, ss = 0, yy = 0;
+    double *sj = Q->s + (size_t)Q->head * r, *yj = Q->y + (size_t)Q->head * r;
     for (int i = 0; i < r; i++) {
         sj[i] = q[i] - qp[i];
         yj[i] = g[i] - gp[i];
-        ys += sj[i] * yj[i];
-        ss += sj[i] * sj[i];
-        yy += yj[i] * yj[i];
     }
+    double ys = cblas_ddot(r, sj, 1, yj, 1), ss = cblas_ddot(r, sj, 1, sj, 1), yy = cblas_ddot(r, yj, 1, yj, 1);
     if (!(ys > 1e-10 * sqrt(ss * yy)) || !isfinite(ys))
         return;
     Q->rho[Q->head] = 1 / ys;
@@ -72,26 +72,16 @@ static int memory_direction(const crom_newton_problem *p, void *ctx, crom_newton
     memcpy(v, g, sizeof(double) * (size_t)r);
     for (int t = 0; t < Q->k; t++) { /* newest to oldest: a_j = ρ_j s_jᵀ v, v −= a_j y_j */
         int j = (Q->head - 1 - t + 2 * Q->m) % Q->m;
-        const double *sj = Q->s + (size_t)j * r, *yj = Q->y + (size_t)j * r;
-        double dot = 0;
-        for (int i = 0; i < r; i++)
-            dot += sj[i] * v[i];
-        Q->a[j] = Q->rho[j] * dot;
-        for (int i = 0; i < r; i++)
-            v[i] -= Q->a[j] * yj[i];
+        Q->a[j] = Q->rho[j] * cblas_ddot(r, Q->s + (size_t)j * r, 1, v, 1);
+        cblas_daxpy(r, -Q->a[j], Q->y + (size_t)j * r, 1, v, 1);
     }
     int dr = p->direction(ctx, it, project, q, v, NULL, d);
     if (dr)
         return dr;
     for (int t = Q->k - 1; t >= 0; t--) { /* oldest to newest on −d: b = ρ_j y_jᵀ(−d), −d += (a_j − b) s_j */
         int j = (Q->head - 1 - t + 2 * Q->m) % Q->m;
-        const double *sj = Q->s + (size_t)j * r, *yj = Q->y + (size_t)j * r;
-        double dot = 0;
-        for (int i = 0; i < r; i++)
-            dot -= yj[i] * d[i];
-        double b = Q->rho[j] * dot;
-        for (int i = 0; i < r; i++)
-            d[i] -= (Q->a[j] - b) * sj[i];
+        double b = -Q->rho[j] * cblas_ddot(r, Q->y + (size_t)j * r, 1, d, 1);
+        cblas_daxpy(r, b - Q->a[j], Q->s + (size_t)j * r, 1, d, 1);
     }
     return 0;
 }
