@@ -17,6 +17,8 @@ void crom_elastic_free(crom_elastic *e)
     free(e->Y);
     free(e->A);
     free(e->Hb);
+    free(e->Fq);
+    free(e->Pm);
     memset(e, 0, sizeof *e);
 }
 
@@ -67,12 +69,15 @@ int crom_elastic_init(crom_elastic *e, const crom_cubature *c)
     e->rows = e->block ? 3 : 9;
     size_t per = (size_t)e->rows * e->m, k = (size_t)(c->k > 0 ? c->k : 1);
     e->G = crom_calloc(k * per, sizeof(double));
-    e->Y = crom_malloc(sizeof(double) * k * per);
+    /* block: Y holds the three blocks (c, d >= c) of a block row side by side */
+    e->Y = crom_malloc(sizeof(double) * k * per * (e->block ? 3 : 1));
     e->F0 = crom_malloc(sizeof(double) * 9 * k);
     e->wV = crom_malloc(sizeof(double) * k);
     e->A = crom_malloc(sizeof(double) * 81 * k);
-    e->Hb = crom_malloc(sizeof(double) * (size_t)(e->block ? e->S * e->S : 1));
-    if (!e->G || !e->Y || !e->F0 || !e->wV || !e->A || !e->Hb) {
+    e->Hb = crom_malloc(sizeof(double) * (size_t)(e->block ? 3 * e->S * e->S : 1));
+    e->Fq = crom_malloc(sizeof(double) * 9 * k);
+    e->Pm = crom_malloc(sizeof(double) * 9 * k);
+    if (!e->G || !e->Y || !e->F0 || !e->wV || !e->A || !e->Hb || !e->Fq || !e->Pm) {
         crom_elastic_free(e);
         return CROM_EINTERNAL;
     }
@@ -101,22 +106,37 @@ int crom_elastic_init(crom_elastic *e, const crom_cubature *c)
     return 0;
 }
 
-/* F of tet q at latent q (vec F = F0 + G q, or per component with B) */
-static void tet_F(const crom_elastic *e, int t, const double *q, double F[9])
+/* G q of every tet, in one product over the cubature: Fq[9t + 3c + j] =
+ * (G_t q)[3c + j]; for a block basis Fq[(3t + j) 3 + c] = (B_t q_c)[j], with
+ * q_c = q[cS, (c+1)S) the coordinates of component c */
+static void all_Gq(crom_elastic *e, const double *q)
 {
-    const double *G = e->G + (size_t)t * e->rows * e->m;
-    memcpy(F, e->F0 + 9 * (size_t)t, 9 * sizeof(double));
-    if (e->block) {
+    int K = e->k;
+    if (e->block) /* three products B q_c: faster than one of three columns */
+        for (int c = 0; c < 3; c++)
+            cblas_dgemv(CblasRowMajor, CblasNoTrans, 3 * K, e->S, 1.0, e->G, e->S, q + (size_t)c * e->S, 1, 0.0,
+                        e->Fq + c, 3);
+    else
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, 9 * K, e->r, 1.0, e->G, e->r, q, 1, 0.0, e->Fq, 1);
+}
+
+/* F of tet t from all_Gq's products */
+static void tet_F(const crom_elastic *e, int t, double F[9])
+{
+    const double *F0 = e->F0 + 9 * (size_t)t, *Fq = e->Fq + 9 * (size_t)t;
+    if (e->block)
         for (int c = 0; c < 3; c++)
             for (int j = 0; j < 3; j++)
-                F[3 * c + j] += cblas_ddot(e->S, G + (size_t)j * e->S, 1, q + (size_t)c * e->S, 1);
-    } else {
-        cblas_dgemv(CblasRowMajor, CblasNoTrans, 9, e->r, 1.0, G, e->r, q, 1, 1.0, F, 1);
-    }
+                F[3 * c + j] = F0[3 * c + j] + Fq[3 * j + c];
+    else
+        for (int i = 0; i < 9; i++)
+            F[i] = F0[i] + Fq[i];
 }
 
 /* H += Σ_t G_tᵀ A_t G_t (A_t = w V ∂P/∂F of tet t, in e->A): one product
- * over all tets, or six per-component blocks for a block basis */
+ * over all tets, or for a block basis one per block row c, Bᵀ [Y_cc Y_c,c+1
+ * … Y_c2] over all tets with Y_cd = A_t[c rows][d cols] B_t, the blocks
+ * below the diagonal being the transposes of those above */
 static void add_hessian(crom_elastic *e, double *H)
 {
     int r = e->r, K = e->k;
@@ -128,50 +148,52 @@ static void add_hessian(crom_elastic *e, double *H)
         return;
     }
     int S = e->S;
-    for (int c = 0; c < 3; c++)
-        for (int d = c; d < 3; d++) {
-            /* Y_t = A_t[c-block rows][d-block cols] B_t: [3][S] */
-            for (int t = 0; t < K; t++) {
-                const double *A = e->A + 81 * (size_t)t, *B = e->G + (size_t)t * 3 * S;
-                double Acd[9];
-                for (int j = 0; j < 3; j++)
-                    for (int l = 0; l < 3; l++)
-                        Acd[3 * j + l] = A[9 * (3 * c + j) + 3 * d + l];
-                cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, 3, S, 3, 1.0, Acd, 3, B, S, 0.0,
-                            e->Y + (size_t)t * 3 * S, S);
-            }
-            /* block (c, d) of H += Bᵀ Y over all tets, and its transpose at (d, c) */
-            cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, S, S, 3 * K, 1.0, e->G, S, e->Y, S, 0.0, e->Hb,
-                        S);
-            for (int i = 0; i < S; i++)
-                for (int j = 0; j < S; j++) {
-                    H[(size_t)(c * S + i) * r + d * S + j] += e->Hb[i * S + j];
-                    if (d != c)
-                        H[(size_t)(d * S + j) * r + c * S + i] += e->Hb[i * S + j];
+    for (int c = 0; c < 3; c++) {
+        int nb = 3 - c, ld = nb * S; /* blocks d = c..2 side by side: Y [3K][nb S] */
+        for (int t = 0; t < K; t++) {
+            const double *A = e->A + 81 * (size_t)t, *B = e->G + (size_t)t * 3 * S;
+            for (int d = c; d < 3; d++)
+                for (int j = 0; j < 3; j++) {
+                    double *y = e->Y + ((size_t)3 * t + j) * ld + (size_t)(d - c) * S;
+                    const double *a = A + 9 * (3 * c + j) + 3 * d; /* row j of block (c, d) */
+                    for (int s = 0; s < S; s++)
+                        y[s] = a[0] * B[s] + a[1] * B[S + s] + a[2] * B[2 * S + s];
                 }
         }
+        cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, S, ld, 3 * K, 1.0, e->G, S, e->Y, ld, 0.0, e->Hb, ld);
+        for (int i = 0; i < S; i++)
+            for (int d = c; d < 3; d++)
+                for (int j = 0; j < S; j++) {
+                    double v = e->Hb[(size_t)i * ld + (size_t)(d - c) * S + j];
+                    H[(size_t)(c * S + i) * r + d * S + j] += v;
+                    if (d != c)
+                        H[(size_t)(d * S + j) * r + c * S + i] += v;
+                }
+    }
 }
 
 int crom_elastic_eval(crom_elastic *e, const crom_material *mat, const double *q, int project, double *E,
                       double *g, double *H)
 {
     double Et = 0;
+    all_Gq(e, q);
     for (int t = 0; t < e->k; t++) {
         double F[9], P[9], wV = e->wV[t];
-        tet_F(e, t, q, F);
+        tet_F(e, t, F);
         double psi = crom_fem_psi(mat, F);
         if (!isfinite(psi))
             return crom_err(CROM_EDATA, "cubature tet %d: non-finite elastic energy", t);
         Et += wV * psi;
-        if (g) {
+        if (g) { /* w V P, laid out as Fq */
+            double *Pm = e->Pm + 9 * (size_t)t;
             crom_fem_pk1(mat, F, P);
-            const double *G = e->G + (size_t)t * e->rows * e->m;
-            if (e->block) /* g[cS + s] += w V Σ_j B[j][s] P[c][j] */
+            if (e->block)
                 for (int c = 0; c < 3; c++)
-                    cblas_dgemv(CblasRowMajor, CblasTrans, 3, e->S, wV, G, e->S, P + 3 * c, 1, 1.0,
-                                g + (size_t)c * e->S, 1);
+                    for (int j = 0; j < 3; j++)
+                        Pm[3 * j + c] = wV * P[3 * c + j];
             else
-                cblas_dgemv(CblasRowMajor, CblasTrans, 9, e->r, wV, G, e->r, P, 1, 1.0, g, 1);
+                for (int i = 0; i < 9; i++)
+                    Pm[i] = wV * P[i];
         }
         if (H) {
             double *A = e->A + 81 * (size_t)t;
@@ -182,6 +204,14 @@ int crom_elastic_eval(crom_elastic *e, const crom_material *mat, const double *q
                     return crom_err(CROM_EDATA, "cubature tet %d: non-finite elastic Hessian", t);
             }
         }
+    }
+    if (g && e->k > 0) { /* g += Σ_t G_tᵀ w V vec P: g_c += Σ_t B_tᵀ (w V P_t)[c][:] for a block basis */
+        if (e->block)
+            for (int c = 0; c < 3; c++)
+                cblas_dgemv(CblasRowMajor, CblasTrans, 3 * e->k, e->S, 1.0, e->G, e->S, e->Pm + c, 3, 1.0,
+                            g + (size_t)c * e->S, 1);
+        else
+            cblas_dgemv(CblasRowMajor, CblasTrans, 9 * e->k, e->r, 1.0, e->G, e->r, e->Pm, 1, 1.0, g, 1);
     }
     if (g)
         for (int i = 0; i < e->r; i++)

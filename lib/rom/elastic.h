@@ -13,14 +13,20 @@
  * with G_k computed once per cubature (9 r numbers per tet instead of the
  * 12 r of the basis at its corners), and H formed by one matrix product over
  * all tets (Gᵀ Y with G stacked [9K][r], Y = blockdiag(w V ∂P/∂F) G): 18 K r²
- * flops against 24 K r² for W_eᵀ H_e W_e per tet, in one BLAS call.
+ * flops against 24 K r² for W_eᵀ H_e W_e per tet, in one BLAS call. The F of
+ * all tets is one product G q and the gradient one product Gᵀ p (p the
+ * stacked w V vec P), so that an evaluation without Hessian is two BLAS
+ * calls and the per-tet material law.
  *
  * A basis that moves the three components by the same functions — W_v =
  * I₃ ⊗ ψ_vᵀ, r = 3S, as the orthonormal coordinates of a skinning subspace
  * (lib/rom/skin.h) — has G_k = I₃ ⊗ B_k with B_k = Σ_a ∇N_a ψ_aᵀ [3][S];
- * then only B_k is stored (3 S numbers per tet), F, g cost 9 S per tet, and
- * each of the six blocks (c ≤ d) of H is one product Bᵀ Y of [S][3K][S]
- * (36 K S² = 4 K r² flops in all). The structure is detected exactly.
+ * then only B_k is stored (3 S numbers per tet), F, g cost 9 S per tet (the
+ * F of all tets one product [3K][S][3], the gradient one [3][3K][S]), and the
+ * blocks (c, d ≥ c) of block row c of H are one product Bᵀ [Y_cc … Y_c2] of
+ * [S][3K][(3 − c)S], Y_cd = blockdiag(w V ∂P/∂F[c rows][d cols]) B, the
+ * blocks below the diagonal their transposes (36 K S² = 4 K r² flops in
+ * all). The structure is detected exactly.
  */
 #ifndef CROM_ELASTIC_H
 #define CROM_ELASTIC_H
@@ -37,9 +43,11 @@ typedef struct {
     double *G;      /* [k][rows][m]: B_k (block) or G_k */
     double *F0;     /* [k][9] F_k(0), the rest (I up to round-off) */
     double *wV;     /* [k] w_k V_k */
-    double *Y;      /* [k][rows][m] Hessian scratch */
+    double *Y;      /* [k][rows][m] Hessian scratch (block: [k][3][3S]) */
     double *A;      /* [k][81] ∂P/∂F of the last Hessian evaluation */
-    double *Hb;     /* block: [S][S] scratch */
+    double *Hb;     /* block: [S][3S] scratch */
+    double *Fq;     /* [k][9] G_k q of the last evaluation */
+    double *Pm;     /* [k][9] w_k V_k vec P(F_k) of the last evaluation */
 } crom_elastic;
 
 /* Precompute G_k, F0_k and w_k V_k of every tet of cubature c (borrowed

@@ -4,30 +4,126 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <cblas.h>
+
 #include "base/err.h"
 #include "base/linesearch.h"
 #include "rom/newton.h"
 
-/* the objective without Hessian, for the line search */
+void crom_newton_memory_free(crom_newton_memory *Q)
+{
+    if (!Q)
+        return;
+    free(Q->s);
+    memset(Q, 0, sizeof *Q);
+}
+
+int crom_newton_memory_init(crom_newton_memory *Q, int r, int m)
+{
+    memset(Q, 0, sizeof *Q);
+    if (r < 1 || m < 1)
+        return crom_err(CROM_EUSAGE, "a quasi-Newton memory of %d pairs in %d unknowns", m, r);
+    size_t n = (size_t)r, pairs = (size_t)m;
+    Q->s = crom_malloc(sizeof(double) * (2 * pairs * n + 2 * pairs));
+    if (!Q->s)
+        return CROM_EINTERNAL;
+    Q->r = r;
+    Q->m = m;
+    Q->y = Q->s + pairs * n;
+    Q->rho = Q->y + pairs * n;
+    Q->a = Q->rho + pairs;
+    return 0;
+}
+
+void crom_newton_memory_reset(crom_newton_memory *Q)
+{
+    if (Q) {
+        Q->k = 0;
+        Q->head = 0;
+    }
+}
+
+/* keep the pair s = q − qp, y = g − gp if its curvature yᵀs is positive
+ * beyond round-off, dropping the oldest beyond m */
+static void memory_push(crom_newton_memory *Q, const double *q, const double *qp, const double *g, const double *gp)
+{
+    int r = Q->r;
+    double *sj = Q->s + (size_t)Q->head * r, *yj = Q->y + (size_t)Q->head * r;
+    for (int i = 0; i < r; i++) {
+        sj[i] = q[i] - qp[i];
+        yj[i] = g[i] - gp[i];
+    }
+    double ys = cblas_ddot(r, sj, 1, yj, 1), ss = cblas_ddot(r, sj, 1, sj, 1), yy = cblas_ddot(r, yj, 1, yj, 1);
+    if (!(ys > 1e-10 * sqrt(ss * yy)) || !isfinite(ys))
+        return;
+    Q->rho[Q->head] = 1 / ys;
+    Q->head = (Q->head + 1) % Q->m;
+    if (Q->k < Q->m)
+        Q->k++;
+}
+
+/* d = −H_k g by the L-BFGS two-loop recursion (Nocedal & Wright 2006,
+ * Algorithm 7.4) with the problem's direction on its reused factor as H_0
+ * (d₀ = −H_0⁻¹ v) instead of a multiple of I; v [r] is scratch */
+static int memory_direction(const crom_newton_problem *p, void *ctx, crom_newton_memory *Q, int it, int project,
+                            const double *q, const double *g, double *v, double *d)
+{
+    int r = p->r;
+    memcpy(v, g, sizeof(double) * (size_t)r);
+    for (int t = 0; t < Q->k; t++) { /* newest to oldest: a_j = ρ_j s_jᵀ v, v −= a_j y_j */
+        int j = (Q->head - 1 - t + 2 * Q->m) % Q->m;
+        Q->a[j] = Q->rho[j] * cblas_ddot(r, Q->s + (size_t)j * r, 1, v, 1);
+        cblas_daxpy(r, -Q->a[j], Q->y + (size_t)j * r, 1, v, 1);
+    }
+    int dr = p->direction(ctx, it, project, q, v, NULL, d);
+    if (dr)
+        return dr;
+    for (int t = Q->k - 1; t >= 0; t--) { /* oldest to newest on −d: b = ρ_j y_jᵀ(−d), −d += (a_j − b) s_j */
+        int j = (Q->head - 1 - t + 2 * Q->m) % Q->m;
+        double b = -Q->rho[j] * cblas_ddot(r, Q->y + (size_t)j * r, 1, d, 1);
+        cblas_daxpy(r, b - Q->a[j], Q->s + (size_t)j * r, 1, d, 1);
+    }
+    return 0;
+}
+
+/* the objective without Hessian, for the line search; with `keep` it also
+ * computes the gradient and keeps value, gradient and point (the next
+ * iteration starts from the accepted one) */
 typedef struct {
     const crom_newton_problem *p;
     void *ctx;
     int project;
+    int keep, valid;
+    double E, *g, *x;
 } ls_ctx;
 
 static int ls_eval(void *ctx, const double *q, double *f, double *g)
 {
     ls_ctx *c = ctx;
-    return c->p->objective(c->ctx, q, f, g, NULL, c->project);
+    if (!c->keep)
+        return c->p->objective(c->ctx, q, f, g, NULL, c->project);
+    int rc = c->p->objective(c->ctx, q, f, c->g, NULL, c->project);
+    c->valid = rc == 0;
+    c->E = *f;
+    memcpy(c->x, q, sizeof(double) * (size_t)c->p->r);
+    if (g && !rc)
+        memcpy(g, c->g, sizeof(double) * (size_t)c->p->r);
+    return rc;
 }
 
 int crom_newton_solve(const crom_newton_problem *p, void *ctx, const crom_newton_work *w, double *q, double tol,
                       int max_iter, long step, int *iterations, double *residual, int *converged)
 {
     int r = p->r, rc = 0, project = 0, gd = p->descent;
-    double *gt = crom_malloc(sizeof(double) * (size_t)r); /* the line search's gradient */
+    crom_newton_memory *Q = !gd && p->wants_hessian ? w->memory : NULL;
+    /* the line search's gradient; the kept evaluation's gradient and point;
+     * the previous iterate and gradient and the two-loop's scratch */
+    double *gt = crom_malloc(sizeof(double) * 6 * (size_t)r);
     if (!gt)
         return CROM_EINTERNAL;
+    double *qp = gt + 3 * (size_t)r, *gp = qp + r, *v = gp + r;
+    int have_prev = 0;
+    ls_ctx lc = {p, ctx, 0, p->ls_gradient, 0, 0, gt + r, gt + 2 * (size_t)r};
     *iterations = 0;
     *residual = INFINITY;
     *converged = 0;
@@ -35,9 +131,22 @@ int crom_newton_solve(const crom_newton_problem *p, void *ctx, const crom_newton
         double E;
         /* fresh: a Hessian computed at this iteration (not reused) */
         int fresh = !gd && (!p->wants_hessian || p->wants_hessian(ctx, it));
-        if ((rc = p->objective(ctx, q, &E, w->g, fresh ? w->H : NULL, project)))
+        if (!fresh && lc.valid && lc.project == project && !memcmp(lc.x, q, sizeof(double) * (size_t)r)) {
+            E = lc.E; /* the line search's accepted evaluation */
+            memcpy(w->g, lc.g, sizeof(double) * (size_t)r);
+        } else if ((rc = p->objective(ctx, q, &E, w->g, fresh ? w->H : NULL, project))) {
             break;
-        int dr = p->direction(ctx, it, project, q, w->g, fresh ? w->H : NULL, w->d);
+        }
+        lc.valid = 0;
+        if (Q) {
+            if (fresh)
+                crom_newton_memory_reset(Q); /* the fresh Hessian holds the curvature */
+            else if (have_prev)
+                memory_push(Q, q, qp, w->g, gp);
+        }
+        have_prev = 0;
+        int dr = Q && Q->k ? memory_direction(p, ctx, Q, it, project, q, w->g, v, w->d)
+                           : p->direction(ctx, it, project, q, w->g, fresh ? w->H : NULL, w->d);
         if (dr > 1) {
             rc = dr;
             break;
@@ -82,10 +191,11 @@ int crom_newton_solve(const crom_newton_problem *p, void *ctx, const crom_newton
         /* Armijo line search; below the energy's resolution the directional
          * derivative decides */
         double scale = fabs(E) + 1e-300;
-        ls_ctx lc = {p, ctx, project};
+        lc.project = project;
         double alpha = crom_linesearch(ls_eval, &lc, (size_t)r, q, w->d, E, slope, 64 * DBL_EPSILON * scale,
                                        -slope < 1e-10 * scale, w->qt, gt, NULL);
         if (alpha == 0) {
+            lc.valid = 0;
             if (!gd && !fresh) {
                 p->stale(ctx);
                 continue;
@@ -96,6 +206,11 @@ int crom_newton_solve(const crom_newton_problem *p, void *ctx, const crom_newton
             }
             *converged = 1; /* no decrease possible: as converged as it gets */
             break;
+        }
+        if (Q) {
+            memcpy(qp, q, sizeof(double) * (size_t)r);
+            memcpy(gp, w->g, sizeof(double) * (size_t)r);
+            have_prev = 1;
         }
         memcpy(q, w->qt, sizeof(double) * (size_t)r);
         if (gd && alpha * *residual <= tol) {

@@ -17,7 +17,20 @@
  * objective must compute H, and its direction then uses the last factor.
  * When such a direction fails (no direction, no descent, no acceptable
  * step), the driver asks for a fresh Hessian (stale) before it switches to
- * projected Hessians.
+ * projected Hessians. With a quasi-Newton memory (crom_newton_work.memory)
+ * the reused factor is corrected by the curvature the iterations have seen
+ * since it was made: L-BFGS (Nocedal & Wright 2006, Algorithm 7.4) with the
+ * factor as its initial matrix H_0, over the pairs s = q_{k+1} − q_k,
+ * y = g_{k+1} − g_k of accepted steps, kept across solves (steps) until the
+ * next fresh Hessian. The pairs of earlier steps stay exact secants of the
+ * current objective as long as the steps' objectives differ only by terms
+ * linear in q (the predictor, loads and prescribed motions of an implicit
+ * Euler step do). The chord method converges linearly at the rate of
+ * ‖I − H_0⁻¹H‖; the corrections speed it up where H has drifted from H_0.
+ *
+ * A problem whose gradient costs little beyond its value (ls_gradient) has
+ * the line search evaluate both, and the next iteration starts from the
+ * accepted point's value and gradient instead of evaluating them again.
  */
 #ifndef CROM_NEWTON_H
 #define CROM_NEWTON_H
@@ -44,12 +57,32 @@ typedef struct {
     int descent;        /* 1: gradient descent (see above), no Hessian */
     const char *method; /* "Newton", "Gauss-Newton": for messages */
     const char *singular; /* what failed when no direction exists, for messages */
+    int ls_gradient;    /* 1: the line search computes gradients too (see above) */
 } crom_newton_problem;
 
+/* The quasi-Newton memory of a lagged problem: up to m pairs (s, y) in r
+ * unknowns, owned by the stepper and kept across its steps. */
+typedef struct {
+    int r, m, k, head;  /* unknowns, capacity, pairs stored, next slot */
+    double *s, *y;      /* [m][r] */
+    double *rho, *a;    /* [m] 1/yᵀs and the two-loop's coefficients */
+} crom_newton_memory;
+
+/* Memory for m >= 1 pairs in r >= 1 unknowns (CROM_EUSAGE, CROM_EINTERNAL). */
+int crom_newton_memory_init(crom_newton_memory *Q, int r, int m);
+
+/* Forget every pair (a new cubature, a restarted run). */
+void crom_newton_memory_reset(crom_newton_memory *Q);
+
+/* Release it (safe on a zeroed struct). */
+void crom_newton_memory_free(crom_newton_memory *Q);
+
 /* Buffers of crom_newton_solve, owned by the stepper and free for it to
- * use between steps: g, d, qt [r], H [r][r] (unused in descent mode). */
+ * use between steps: g, d, qt [r], H [r][r] (unused in descent mode); the
+ * quasi-Newton memory of a lagged problem (NULL: the plain chord method). */
 typedef struct {
     double *g, *H, *d, *qt;
+    crom_newton_memory *memory;
 } crom_newton_work;
 
 /* Minimize from q (in: the predictor; out: the minimizer) with at most

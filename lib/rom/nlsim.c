@@ -720,8 +720,8 @@ int crom_nlsim_step(crom_nlsim *s, crom_rsim_stats *st)
     }
     const crom_newton_problem prob = {r, step_objective, step_direction, step_size, NULL, NULL, 0, "Gauss-Newton",
                                       "the Gauss-Newton matrix is singular (the map's latent directions are "
-                                      "degenerate here)"};
-    const crom_newton_work w = {s->g, s->H, s->d, s->qt};
+                                      "degenerate here)", 0};
+    const crom_newton_work w = {s->g, s->H, s->d, s->qt, NULL};
     int rc = crom_newton_solve(&prob, &c, &w, s->q, sc->tol, sc->max_iter, s->step, &st->iterations,
                                &st->residual, &st->converged);
     free(c.C);

@@ -13,6 +13,11 @@
 #include "rom/newton.h"
 #include "rom/rsim.h"
 
+/* the reuse of the reduced Hessian's factor (see the step's problem below) */
+#define SLOW_ITERS 10
+#define LAG_ITERS 24
+#define PAIRS 16
+
 static void free_bcs(crom_rsim_bc *b, int n)
 {
     for (int i = 0; b && i < n; i++) {
@@ -39,11 +44,15 @@ static void free_cub_data(crom_rsim *s)
     free(s->gt);
     free(s->fext);
     free(s->Hfac);
+    free(s->Q);
+    free(s->Pk);
+    free(s->lin);
     crom_elastic_free(&s->el);
+    crom_newton_memory_free(&s->mem);
     free_bcs(s->bc, s->nbc);
     free_bcs(s->force, s->nforce);
     s->Mr = s->fg = s->G = s->Gfac = s->lam = NULL;
-    s->qn = s->qhat = s->g = s->H = s->d = s->qt = s->gt = s->fext = s->Hfac = NULL;
+    s->qn = s->qhat = s->g = s->H = s->d = s->qt = s->gt = s->fext = s->Hfac = s->Q = s->Pk = s->lin = NULL;
     s->fac_ok = 0;
     s->bc = s->force = NULL;
     s->nbc = s->nforce = 0;
@@ -166,13 +175,17 @@ static int build(crom_rsim *s)
     s->gt = crom_malloc(sizeof(double) * 4 * (size_t)r);
     s->fext = crom_calloc((size_t)r, sizeof(double));
     s->Hfac = crom_malloc(sizeof(double) * rr);
+    s->Q = crom_malloc(sizeof(double) * rr);
+    s->Pk = crom_calloc(rr, sizeof(double));
+    s->lin = crom_malloc(sizeof(double) * (size_t)r);
     s->fac_ok = 0;
     s->bc = crom_calloc((size_t)(sc->npins + sc->nvel + 1), sizeof(crom_rsim_bc));
     s->force = crom_calloc((size_t)(sc->nforce + 1), sizeof(crom_rsim_bc));
     if (!s->Mr || !s->fg || !s->G || !s->Gfac || !s->lam || !s->qn || !s->qhat || !s->g ||
-        !s->H || !s->d || !s->qt || !s->gt || !s->fext || !s->Hfac || !s->bc || !s->force)
+        !s->H || !s->d || !s->qt || !s->gt || !s->fext || !s->Hfac || !s->Q || !s->Pk || !s->lin || !s->bc ||
+        !s->force)
         return CROM_EINTERNAL;
-    if ((rc = crom_elastic_init(&s->el, c)))
+    if ((rc = crom_elastic_init(&s->el, c)) || (rc = crom_newton_memory_init(&s->mem, r, PAIRS)))
         return rc;
     for (size_t i = 0; i < rr; i++)
         s->Mr[i] = rho * c->WtVW[i];
@@ -204,6 +217,12 @@ static int build(crom_rsim *s)
     }
     if (s->nbc && s->bc_threshold > 0 && (rc = constrain_directions(s)))
         return rc;
+    /* the objective's constant quadratic part: Q = (1/h² + A/h) M_r + κ Σ_b P_b */
+    double cq = 1 / (sc->dt * sc->dt) + sc->damping / sc->dt;
+    for (int b = 0; b < s->nbc; b++)
+        cblas_daxpy((int)rr, s->kappa, s->bc[b].P, 1, s->Pk, 1);
+    for (size_t i = 0; i < rr; i++)
+        s->Q[i] = cq * s->Mr[i] + s->Pk[i];
     /* the gd preconditioner: G = Σ_e w_e V_e/4 Σ_{a in e} W_aᵀ W_a (LiCROM
      * eq. 10, each cubature point weighted by its share of volume), scaled by
      * ρ/h² to mass units (the cubature's estimate of M_r/h²), plus the boundary-condition penalty's
@@ -288,7 +307,8 @@ int crom_rsim_init(crom_rsim *s, const crom_cubature *cub, const crom_scenario *
     s->r = cub->r;
     s->q = crom_calloc((size_t)s->r, sizeof(double));
     s->qd = crom_calloc((size_t)s->r, sizeof(double));
-    if (!s->q || !s->qd) {
+    s->corr = crom_calloc((size_t)s->r, sizeof(double));
+    if (!s->q || !s->qd || !s->corr) {
         crom_rsim_free(s);
         return CROM_EINTERNAL;
     }
@@ -318,6 +338,7 @@ void crom_rsim_free(crom_rsim *s)
     free_cub_data(s);
     free(s->q);
     free(s->qd);
+    free(s->corr);
     memset(s, 0, sizeof *s);
 }
 
@@ -348,6 +369,33 @@ void crom_rsim_begin_step(crom_rsim *s)
     for (int i = 0; i < r; i++)
         s->qhat[i] = s->q[i] + h * s->qd[i];
     loads(s, (double)(s->step + 1) * h, FEXT(s));
+    /* The quadratic terms of the objective about the predictor: with
+     * a = q − q̂, v = q̂ − q_n (vp), b = q − q_n = a + v and q = a + q̂,
+     *   1/(2h²) aᵀM a + A/(2h) bᵀM b − fᵀb + κ/2 Σ_b (qᵀP_b q − 2qᵀS_b ū_b + m_b|ū_b|²)
+     *   = ½ aᵀQ a + lᵀa + c₀,   l = (A/h) M v − f + Σ_b κ (P_b q̂ − S_b ū_b),
+     *   c₀ = A/(2h) vᵀM v − fᵀv + Σ_b κ/2 (q̂ᵀP_b q̂ − 2q̂ᵀS_b ū_b + m_b|ū_b|²),
+     * so that an evaluation costs one product Q a (Q from build) */
+    double *vp = s->gt, *Mv = s->gt + r, cd = sc->damping / h, t1 = (double)(s->step + 1) * h;
+    for (int i = 0; i < r; i++)
+        vp[i] = s->qhat[i] - s->qn[i];
+    cblas_dsymv(CblasRowMajor, CblasUpper, r, 1.0, s->Mr, r, vp, 1, 0.0, Mv, 1);
+    cblas_dsymv(CblasRowMajor, CblasUpper, r, 1.0, s->Pk, r, s->qhat, 1, 0.0, s->lin, 1);
+    s->c0 = 0.5 * cd * cblas_ddot(r, vp, 1, Mv, 1) - cblas_ddot(r, FEXT(s), 1, vp, 1) +
+            0.5 * cblas_ddot(r, s->qhat, 1, s->lin, 1);
+    for (int i = 0; i < r; i++)
+        s->lin[i] += cd * Mv[i] - FEXT(s)[i];
+    for (int k = 0; k < s->nbc; k++) {
+        const crom_rsim_bc *bc = &s->bc[k];
+        double u[3] = {0, 0, 0};
+        if (!bc->bc)
+            continue; /* a pin: ū = 0 */
+        crom_bc_displacement(bc->bc, t1, u);
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, r, 3, -s->kappa, bc->S, 3, u, 1, 1.0, s->lin, 1);
+        double Su = 0;
+        for (int i = 0; i < r; i++)
+            Su += s->qhat[i] * (bc->S[i * 3] * u[0] + bc->S[i * 3 + 1] * u[1] + bc->S[i * 3 + 2] * u[2]);
+        s->c0 += 0.5 * s->kappa * (bc->mass * (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) - 2 * Su);
+    }
     /* lagged normal forces of the contact points, from the start of the step */
     for (int p = 0; p < sc->nplanes; p++)
         for (int k = 0; k < c->nsurf; k++) {
@@ -366,45 +414,18 @@ int crom_rsim_objective(crom_rsim *s, const double *q, double *Eout, double *g, 
     const crom_cubature *c = s->cub;
     int r = s->r;
     size_t rr = (size_t)r * r;
-    double h = sc->dt, *fext = FEXT(s);
-    double *a = s->gt, *b = s->gt + r, *Ma = s->gt + 2 * (size_t)r, *Mb = s->gt + 3 * (size_t)r;
-    if (g)
-        memset(g, 0, sizeof(double) * (size_t)r);
-    if (H)
-        memset(H, 0, sizeof(double) * rr);
-    /* inertia and damping: ½h⁻²aᵀM a + A/(2h) bᵀM b */
-    for (int i = 0; i < r; i++) {
+    double *a = s->gt, *Qa = s->gt + r;
+    /* inertia, damping, loads and boundary conditions: ½aᵀQa + lᵀa + c₀ (see
+     * crom_rsim_begin_step) */
+    for (int i = 0; i < r; i++)
         a[i] = q[i] - s->qhat[i];
-        b[i] = q[i] - s->qn[i];
-    }
-    double E = 0, cin = 1 / (h * h), cd = sc->damping / h;
-    cblas_dsymv(CblasRowMajor, CblasUpper, r, 1.0, s->Mr, r, a, 1, 0.0, Ma, 1);
-    cblas_dsymv(CblasRowMajor, CblasUpper, r, 1.0, s->Mr, r, b, 1, 0.0, Mb, 1);
-    E += 0.5 * cin * cblas_ddot(r, a, 1, Ma, 1) + 0.5 * cd * cblas_ddot(r, b, 1, Mb, 1);
-    E -= cblas_ddot(r, fext, 1, b, 1); /* external work relative to the step start */
+    cblas_dsymv(CblasRowMajor, CblasUpper, r, 1.0, s->Q, r, a, 1, 0.0, Qa, 1);
+    double E = cblas_ddot(r, a, 1, Qa, 1) * 0.5 + cblas_ddot(r, s->lin, 1, a, 1) + s->c0;
     if (g)
         for (int i = 0; i < r; i++)
-            g[i] += cin * Ma[i] + cd * Mb[i] - fext[i];
+            g[i] = Qa[i] + s->lin[i];
     if (H)
-        cblas_daxpy((int)rr, cin + cd, s->Mr, 1, H, 1);
-    /* boundary-condition penalty κ/2 Σ m ‖W q − ū‖² = κ/2 (qᵀPq − 2qᵀSū + Σm|ū|²) */
-    double t1 = (double)(s->step + 1) * h; /* step * dt, not a running sum */
-    for (int k = 0; k < s->nbc; k++) {
-        const crom_rsim_bc *bc = &s->bc[k];
-        double u[3] = {0, 0, 0};
-        if (bc->bc)
-            crom_bc_displacement(bc->bc, t1, u);
-        double *Pq = Ma, *Su = Mb; /* free again */
-        cblas_dsymv(CblasRowMajor, CblasUpper, r, 1.0, bc->P, r, q, 1, 0.0, Pq, 1);
-        cblas_dgemv(CblasRowMajor, CblasNoTrans, r, 3, 1.0, bc->S, 3, u, 1, 0.0, Su, 1);
-        double qPq = cblas_ddot(r, q, 1, Pq, 1), qSu = cblas_ddot(r, q, 1, Su, 1);
-        if (g)
-            for (int i = 0; i < r; i++)
-                g[i] += s->kappa * (Pq[i] - Su[i]);
-        E += 0.5 * s->kappa * (qPq - 2 * qSu + bc->mass * (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]));
-        if (H)
-            cblas_daxpy((int)rr, s->kappa, bc->P, 1, H, 1);
-    }
+        memcpy(H, s->Q, sizeof(double) * rr);
     /* elastic energy by cubature (LiCROM eq. 7-8), in the space of F */
     double Ee;
     int rc = crom_elastic_eval(&s->el, &s->mat, q, project, &Ee, g, H);
@@ -426,7 +447,7 @@ int crom_rsim_objective(crom_rsim *s, const double *q, double *Eout, double *g, 
             cblas_dgemv(CblasRowMajor, CblasNoTrans, 3, r, 1.0, Wv, r, s->qn, 1, 1.0, xp, 1);
             double gc[3] = {0, 0, 0}, Hc[9] = {0}, WH[3 * 64];
             E += crom_contact_eval(&sc->plane[p], sc->contact_stiffness, sc->density * c->vvol[v], x, xp, lam,
-                                   sc->friction_eps * h, g ? gc : NULL, H ? Hc : NULL);
+                                   sc->friction_eps * sc->dt, g ? gc : NULL, H ? Hc : NULL);
             if (g)
                 cblas_dgemv(CblasRowMajor, CblasTrans, 3, r, 1.0, Wv, r, gc, 1, 1.0, g, 1);
             if (H) { /* H += Wvᵀ Hc Wv, in slices of 64 columns */
@@ -457,19 +478,29 @@ static double rms_disp(const crom_rsim *s, const double *d)
  * objective, the Newton (or the paper's descent) direction, the size of a
  * correction as an RMS displacement relative to the body.
  *
- * The reduced Hessian costs K 12 r² flops over a cubature of K tets, the
- * gradient K 24 r: with r in the hundreds (skinning handles) the Hessian is
- * nearly all of a step. So its Cholesky factor is kept and reused across
- * iterations and steps (the chord method; the Hessian changes little from
- * one step to the next: M/h² dominates it and the elastic part moves
- * slowly), and a fresh one is made when the reused one has served
- * LAG_ITERS iterations of a step without convergence, or fails to give an
- * acceptable step (newton.h). Measured on a 222-dimensional skinning
- * subspace over 190 tets (soft bar, dt 0.05, lib/rom/elastic.c's Hessian):
- * 9.2 ms per step with a fresh Hessian at every iteration (5.2 iterations),
- * 2.4-4 ms reusing it for 2-6 iterations (5.4-8.1 iterations); never
- * refreshing it within a step does not converge. */
-#define LAG_ITERS 4
+ * The reduced Hessian costs 4 K r² (block basis, elastic.h) to 18 K r²
+ * flops over a cubature of K tets and its factor r³/3, the gradient 18 K r:
+ * with r in the hundreds (skinning handles) one Hessian costs as much as
+ * 20-30 iterations without one. So its Cholesky factor is kept and reused
+ * across iterations and steps (the chord method; the Hessian changes little
+ * from one step to the next: M/h² dominates it and the elastic part moves
+ * slowly), corrected by the quasi-Newton pairs of the iterations since it
+ * was made (newton.h; PAIRS of them, kept across steps: the steps'
+ * objectives differ by terms linear in q). A fresh one is made at the start
+ * of a step when the last step needed more than SLOW_ITERS iterations with
+ * the reused one, within a step after LAG_ITERS iterations without
+ * convergence, and when the reused one fails to give an acceptable step
+ * (newton.h). Measured on a 222-dimensional skinning subspace over 197 tets
+ * (soft bar of issue 14, dt 0.05, 100 steps, one core, under load): a
+ * fresh Hessian at every iteration takes 3.9 iterations per step (6 ms);
+ * the chord method alone, refreshed after 4 iterations of a step, 7.1
+ * iterations and 1.2 Hessians per step (2.4-2.7 ms median); with the pairs,
+ * this schedule and the extrapolated start 7.4 iterations and 0.2 Hessians
+ * (0.5 ms median, 0.9 ms mean). More pairs (32) or a later refresh
+ * (SLOW_ITERS 12) changed little; refreshing within the step after 8
+ * iterations, or the chord method without pairs at its best refresh (12
+ * iterations of a step), cost about 30% more (9.7 iterations and 0.25
+ * Hessians per step for the latter). */
 
 static int step_objective(void *ctx, const double *q, double *E, double *g, double *H, int project)
 {
@@ -479,7 +510,7 @@ static int step_objective(void *ctx, const double *q, double *E, double *g, doub
 static int step_wants_hessian(void *ctx, int it)
 {
     crom_rsim *s = ctx;
-    return !s->fac_ok || s->fac_iters >= LAG_ITERS;
+    return !s->fac_ok || (it == 0 && s->fac_slow) || s->fac_iters >= LAG_ITERS;
 }
 
 static void step_stale(void *ctx) { ((crom_rsim *)ctx)->fac_ok = 0; }
@@ -499,6 +530,7 @@ static int step_direction(void *ctx, int it, int project, const double *q, const
               * column-major lower factor: no transposed copies) */
         memcpy(s->Hfac, H, sizeof(double) * (size_t)r * r);
         s->fac_iters = 0;
+        s->fac_slow = 0;
         if (!(s->fac_ok = LAPACKE_dpotrf_work(LAPACK_COL_MAJOR, 'L', r, s->Hfac, r) == 0))
             return 1;
     }
@@ -517,21 +549,28 @@ int crom_rsim_step(crom_rsim *s, crom_rsim_stats *st)
     double h = sc->dt, t0 = crom_clock_now();
     memset(st, 0, sizeof *st);
     crom_rsim_begin_step(s);
-    memcpy(s->q, s->qhat, sizeof(double) * (size_t)r);
-    int lag = s->lagged && s->solver != CROM_RSIM_GD;
+    /* Newton starts from q̂ plus the last step's correction q − q̂ (h² times
+     * its acceleration: a second-order extrapolation); the paper's descent
+     * from q̂ */
+    int newton = s->solver != CROM_RSIM_GD, lag = s->lagged && newton;
+    for (int i = 0; i < r; i++)
+        s->q[i] = s->qhat[i] + (newton ? s->corr[i] : 0);
     if (!lag)
         s->fac_ok = 0;
     s->fac_iters = 0; /* a reused factor gets LAG_ITERS iterations in each step */
     const crom_newton_problem prob = {r, step_objective, step_direction, step_size,
                                       lag ? step_wants_hessian : NULL, lag ? step_stale : NULL,
-                                      s->solver == CROM_RSIM_GD, "Newton", "the reduced Hessian is singular"};
-    const crom_newton_work w = {s->g, s->H, s->d, s->qt};
+                                      s->solver == CROM_RSIM_GD, "Newton", "the reduced Hessian is singular", 1};
+    const crom_newton_work w = {s->g, s->H, s->d, s->qt, &s->mem};
     int rc = crom_newton_solve(&prob, s, &w, s->q, sc->tol, sc->max_iter, s->step, &st->iterations,
                                &st->residual, &st->converged);
     if (rc)
         return rc;
-    for (int i = 0; i < r; i++)
+    s->fac_slow = s->fac_iters > SLOW_ITERS;
+    for (int i = 0; i < r; i++) {
+        s->corr[i] = s->q[i] - s->qhat[i];
         s->qd[i] = (s->q[i] - s->qn[i]) / h;
+    }
     s->step++;
     s->t = (double)s->step * h; /* exact multiples of dt (issue 12) */
     st->constraint_residual = crom_rsim_constraint_residual(s);
@@ -561,10 +600,9 @@ double crom_rsim_constraint_residual(const crom_rsim *s)
 int crom_rsim_energies(crom_rsim *s, double *kinetic, double *elastic, double *external)
 {
     int r = s->r;
-    double K = 0, Ee = 0, W = 0, *f = s->gt;
-    for (int i = 0; i < r; i++)
-        for (int j = 0; j < r; j++)
-            K += 0.5 * s->qd[i] * s->Mr[i * r + j] * s->qd[j];
+    double Ee = 0, W = 0, *f = s->gt, *Mqd = s->gt + r;
+    cblas_dsymv(CblasRowMajor, CblasUpper, r, 1.0, s->Mr, r, s->qd, 1, 0.0, Mqd, 1);
+    double K = 0.5 * cblas_ddot(r, s->qd, 1, Mqd, 1);
     loads(s, s->t, f);
     for (int i = 0; i < r; i++)
         W -= f[i] * s->q[i];

@@ -13,8 +13,11 @@
  * every surface vertex. Solvers:
  *   newton  exact reduced gradient and Hessian Σ w_e W_eᵀ H_e W_e (LiCROM §7),
  *           true element Hessians, projected to SPD when the sum is not
- *           positive definite; line search; converged when the RMS
- *           displacement of the correction is below tol times the size;
+ *           positive definite, its factor reused across iterations and
+ *           steps with quasi-Newton corrections (rsim.c, newton.h); started
+ *           from q̂ plus the last step's correction; line search; converged
+ *           when the RMS displacement of the correction is below tol times
+ *           the size;
  *   gd      LiCROM §5: descent directions −G⁻¹∇E with G = Σ w_e Σ_a W_aᵀ W_a
  *           prefactored (the least-squares projection of full-space
  *           increments at the cubature points, eq. 10), scaled by ρ/h² and
@@ -27,6 +30,7 @@
 #include "phys/scenario.h"
 #include "rom/cubature.h"
 #include "rom/elastic.h"
+#include "rom/newton.h"
 
 enum { CROM_RSIM_NEWTON = 0, CROM_RSIM_GD = 1 };
 
@@ -58,19 +62,26 @@ typedef struct {
     double t;
     long step;
     double *q, *qd;     /* state (m, m/s) */
+    double *corr;       /* the last step's q − q̂, added to Newton's start (rsim.c) */
     /* private, rebuilt per cubature */
     double *Mr, *fg, *G, *Gfac, L;
     int nbc, nforce;
     crom_rsim_bc *bc, *force;
     double *lam;        /* [nplanes][nsurf] lagged normal forces */
     double *qn, *qhat, *g, *H, *d, *qt, *gt, *fext;
+    /* the objective's quadratic part ½aᵀQa + lᵀa + c₀ in a = q − q̂ (rsim.c,
+     * crom_rsim_begin_step): Q [r][r] per cubature, κ Σ P_b [r][r], l [r]
+     * and c₀ per step */
+    double *Q, *Pk, *lin, c0;
     /* the factored reduced Hessian reused across iterations and steps (see
      * rsim.c, step_direction) */
     int lagged;         /* 1: reuse it (the default); 0: a fresh Hessian every iteration */
     double *Hfac;       /* [r][r] its Cholesky factor */
     int fac_ok;         /* Hfac holds a factor */
-    int fac_iters;      /* iterations since it was made */
+    int fac_iters;      /* iterations of this step since it was made */
+    int fac_slow;       /* the last step needed more than its share: refresh (rsim.c) */
     crom_elastic el;    /* the elastic energy over the cubature (rebuilt per cubature) */
+    crom_newton_memory mem; /* quasi-Newton pairs that correct the reused factor (newton.h) */
 } crom_rsim;
 
 /* Set up on a cubature (borrowed) with a scenario (borrowed); q = q0 and
