@@ -611,15 +611,21 @@ static int read_mlp(hid_t h, crom_model *m, char *act)
     return rc ? crom_err_ctx("field") : 0;
 }
 
-static int read_mesh_field(hid_t h, crom_model *m)
+int crom_model_read_field_mesh(hid_t h, crom_model *m)
 {
     hid_t g = H5Gopen2(h, "field/mesh", H5P_DEFAULT);
     if (g < 0)
         return crom_err(CROM_EDATA, "missing group field/mesh");
     int rc = crom_mesh_read(g, &m->mesh);
     H5Gclose(g);
+    return rc ? crom_err_ctx("field/mesh") : 0;
+}
+
+static int read_mesh_field(hid_t h, crom_model *m)
+{
+    int rc = crom_model_read_field_mesh(h, m);
     if (rc)
-        return crom_err_ctx("field/mesh");
+        return rc;
     hsize_t d[3];
     if ((rc = crom_h5_read_f64(h, "field/basis", 3, d, &m->basis_v)))
         return rc;

@@ -175,6 +175,11 @@ double crom_model_mask(const crom_model *m, const double X[3]);
  * and simulated through lib/rom/map.h, with no basis W(X). */
 int crom_model_is_nonlinear(const crom_model *m);
 
+/* The mesh a field is stored on (group field/mesh of an open model file h)
+ * into m->mesh: LiCROM mesh fields and skinning weights share it. Returns 0
+ * or CROM_EDATA naming field/mesh. */
+int crom_model_read_field_mesh(hid_t h, crom_model *m);
+
 /* Read a crom/model input (schema and version are checked here) and validate
  * it: shapes, finite parameters, a model_id that matches the parameters.
  * Returns 0, or CROM_EDATA with a message naming the input. */

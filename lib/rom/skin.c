@@ -643,13 +643,9 @@ static int read_weight_mlp(hid_t h, crom_model *m, const char *actname)
 
 static int read_weight_mesh(hid_t h, crom_model *m)
 {
-    hid_t g = H5Gopen2(h, "field/mesh", H5P_DEFAULT);
-    if (g < 0)
-        return crom_err(CROM_EDATA, "missing group field/mesh");
-    int rc = crom_mesh_read(g, &m->mesh);
-    H5Gclose(g);
+    int rc = crom_model_read_field_mesh(h, m);
     if (rc)
-        return crom_err_ctx("field/mesh");
+        return rc;
     hsize_t d[2];
     if ((rc = crom_h5_read_f64(h, "skin/weights", 2, d, &m->skin_w)))
         return rc;
