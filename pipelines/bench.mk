@@ -4,8 +4,8 @@
 # (`make bench`); sizes are variables, e.g.
 #   make bench T_SIZES="0.056" FULL_SIZES="0.056"      # a quick one
 #   make -f pipelines/bench.mk datafree DF_SIZE=0.1 DF_MINUTES=0.1 DF_STEPS=10 OUT=/tmp/df
-# About 55 minutes at the defaults on this 2-core machine (datafree: about 25,
-# and about 10 more for the soft bar).
+# About 50 minutes at the defaults on this 2-core machine (datafree: about 20,
+# and about 5 more for the soft bar).
 include $(dir $(lastword $(MAKEFILE_LIST)))common.mk
 .SECONDEXPANSION:
 
