@@ -4,7 +4,11 @@
  * pairs s_i = x_{i+1} − x_i, y_i = g_{i+1} − g_i, with H_0 = γ I,
  * γ = sᵀy / yᵀy of the newest pair (eq. 7.20). What the Neural Modes paper
  * trains with (Wang et al. 2024, §5: L-BFGS with line search); the line
- * search is the caller's, on its own objective.
+ * search is the caller's, on its own objective. Its pairs are network
+ * parameters (up to millions), kept in float. The reduced Newton solver
+ * keeps its own memory (lib/rom/newton.c): a few hundred latent unknowns in
+ * double, multiplied by BLAS, with the factored reduced Hessian as H_0
+ * instead of γ I — the same recursion, other storage and H_0.
  */
 #ifndef CROM_LBFGS_H
 #define CROM_LBFGS_H
