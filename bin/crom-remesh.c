@@ -1,17 +1,16 @@
 /* crom-remesh — meshes for run-time topology changes: cut, punch, swap,
  * refine (crom/mesh to crom/mesh). */
-#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
 #include "base/err.h"
 #include "cli/cli.h"
 #include "io/io.h"
 #include "mesh/mesh.h"
 #include "mesh/remesh.h"
+#include "view/export.h"
 
 enum { SUB_CUT = 1, SUB_PUNCH, SUB_SWAP, SUB_REFINE };
 static const char *sub_names[] = {"", "cut", "punch", "swap", "refine"};
@@ -316,28 +315,6 @@ static int write_mesh(const crom_cli *cli, const char *path, const char *history
     return rc;
 }
 
-static int make_dir(const char *path)
-{
-    char buf[1024];
-    if (snprintf(buf, sizeof buf, "%s", path) >= (int)sizeof buf)
-        return crom_err(CROM_ECANTCREAT, "directory name too long");
-    for (char *p = buf + 1;; p++) {
-        if (*p == '/' || !*p) {
-            char c = *p;
-            *p = 0;
-            if (mkdir(buf, 0777) != 0 && errno != EEXIST)
-                return crom_err(CROM_ECANTCREAT, "cannot create directory %s: %s", buf, strerror(errno));
-            if (!c)
-                break;
-            *p = c;
-        }
-    }
-    struct stat st;
-    if (stat(path, &st) != 0 || !S_ISDIR(st.st_mode))
-        return crom_err(CROM_ECANTCREAT, "%s exists and is not a directory", path);
-    return 0;
-}
-
 static void summary(const crom_cli *cli, const char *what, const crom_mesh *m)
 {
     double worst, mean;
@@ -351,7 +328,7 @@ static int run_cut(crom_cli *cli, args *a, const crom_mesh *m, const char *hist,
 {
     crom_remesh_cut_opts c = {a->axis, a->nseg, &a->seg[0][0], (int)a->stages, (int)a->stage};
     int k0 = a->alldir ? 1 : (int)a->stage, k1 = a->alldir ? (int)a->stages : (int)a->stage, rc = 0;
-    if (a->alldir && (rc = make_dir(a->alldir)))
+    if (a->alldir && (rc = crom_export_mkdir(a->alldir)))
         return rc;
     for (int k = k0; k <= k1 && !rc; k++) {
         crom_mesh out;
