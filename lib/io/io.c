@@ -988,9 +988,8 @@ int crom_in_read_all(crom_in *in, double **frames, long *nframes)
 {
     size_t cap = 0, n = 0, fl = in->frame_len ? in->frame_len : 1;
     double *all = NULL;
-    int rc = crom_array_reserve((void **)&all, &cap, 16, fl * sizeof(double));
-    if (rc)
-        return rc;
+    int rc = 0;
+    /* (grown as frames arrive, never from the declared frame size alone) */
     while ((rc = crom_in_next(in)) == 1) {
         if ((rc = crom_array_reserve((void **)&all, &cap, n + 1, fl * sizeof(double)))) {
             free(all);
@@ -1003,6 +1002,8 @@ int crom_in_read_all(crom_in *in, double **frames, long *nframes)
         free(all);
         return rc;
     }
+    if (!all && !(all = crom_calloc(1, sizeof(double))))
+        return CROM_EINTERNAL;
     *frames = all;
     *nframes = (long)n;
     return 0;
