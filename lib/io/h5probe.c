@@ -32,9 +32,12 @@ enum { PROBE_OK = 0, PROBE_NOOPEN = 40, PROBE_BAD = 41 };
 #define READ_PIECE 4096u               /* elements read per dataset, at most */
 #define ATTR_MAX ((hsize_t)64 << 20)   /* bytes an attribute may declare */
 #define FILTER_RATIO 1100              /* above deflate's 1032:1 ceiling */
+#define ABSENT "crom-probe: no such name"  /* a name no crom file has */
 
 typedef struct {
     hid_t file;
+    hid_t dxpl; /* reads with a small conversion buffer (the default 1 MB
+                 * costs page faults in the fresh child) */
     unsigned long long fsize;
     char why[200];
 } walk;
@@ -49,17 +52,19 @@ static herr_t fail(walk *w, const char *fmt, ...)
     return -1;
 }
 
-/* The memory type crom reads data of file type ft with (io.c): doubles for
- * floats, 64-bit integers for integers, strings as stored; other classes in
- * their native form. Reference types are not read (-1 with *skip set). */
+/* The memory type crom reads data of file type ft with (io.c): float or
+ * double for floats, int or long long for integers (by size: converting
+ * anything else exercises the conversion a reader would run), strings as
+ * stored; other classes in their native form. Reference types are not read
+ * (-1 with *skip set). */
 static hid_t mem_type(hid_t ft, int *skip)
 {
     *skip = 0;
     switch (H5Tget_class(ft)) {
     case H5T_FLOAT:
-        return H5Tcopy(H5T_NATIVE_DOUBLE);
+        return H5Tcopy(H5Tget_size(ft) == 4 ? H5T_NATIVE_FLOAT : H5T_NATIVE_DOUBLE);
     case H5T_INTEGER:
-        return H5Tcopy(H5T_NATIVE_LLONG);
+        return H5Tcopy(H5Tget_size(ft) == 4 ? H5T_NATIVE_INT : H5T_NATIVE_LLONG);
     case H5T_STRING: {
         hid_t mt = H5Tcopy(H5T_C_S1);
         if (H5Tis_variable_str(ft) > 0)
@@ -91,11 +96,13 @@ static herr_t check_attr(hid_t loc, const char *name, const H5A_info_t *info, vo
     if (a < 0)
         return fail(w, "cannot open attribute '%s'", name);
     hid_t ft = H5Aget_type(a), sp = H5Aget_space(a);
-    herr_t r = 0;
+    herr_t r = H5Aexists(loc, name) > 0 ? 0 : fail(w, "cannot find attribute '%s' by name", name);
     int skip = 0;
     hid_t mt = ft >= 0 ? mem_type(ft, &skip) : -1;
     hssize_t np = sp >= 0 ? H5Sget_simple_extent_npoints(sp) : -1;
-    if (ft < 0 || sp < 0 || np < 0 || (mt < 0 && !skip))
+    if (r < 0)
+        ;
+    else if (ft < 0 || sp < 0 || np < 0 || (mt < 0 && !skip))
         r = fail(w, "attribute '%s' has a corrupt type or shape", name);
     else if (!skip && np > 0) {
         size_t es = H5Tget_size(mt);
@@ -153,7 +160,7 @@ static herr_t read_piece(walk *w, hid_t d, hid_t ft, hid_t sp, const char *name)
         r = fail(w, "'%s' has a corrupt type", name);
     else if (rank > 0 && H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, NULL, count, NULL) < 0)
         r = fail(w, "'%s' has a corrupt shape", name);
-    else if (H5Dread(d, mt, ms, fs, H5P_DEFAULT, buf) < 0)
+    else if (H5Dread(d, mt, ms, fs, w->dxpl, buf) < 0)
         r = fail(w, "cannot read dataset '%s'", name);
     else
         reclaim(mt, ms, buf);
@@ -205,6 +212,19 @@ static herr_t check_dset(walk *w, hid_t d, const char *name)
     return r;
 }
 
+/* Readers ask for names that may not be there: a lookup of an absent name
+ * goes through every attribute message (and every link of a group) by the
+ * search path, which decodes them differently from an iteration; it comes
+ * first, as in a reader, before anything else has decoded them. */
+static herr_t search(walk *w, hid_t o, int group, const char *name)
+{
+    if (H5Aexists(o, ABSENT) < 0)
+        return fail(w, "cannot search the attributes of '%s'", name);
+    if (group && H5Lexists(o, ABSENT, H5P_DEFAULT) < 0)
+        return fail(w, "cannot search the links of '%s'", name);
+    return 0;
+}
+
 /* One object of the walk, opened again by its path (which exercises the
  * lookup by name the readers use, not only the iteration). */
 static herr_t check_object(hid_t root, const char *name, const H5O_info_t *info, void *data)
@@ -213,10 +233,10 @@ static herr_t check_object(hid_t root, const char *name, const H5O_info_t *info,
     hid_t o = H5Oopen(w->file, name, H5P_DEFAULT);
     if (o < 0)
         return fail(w, "cannot open '%s' by name", name);
+    herr_t r = search(w, o, info->type == H5O_TYPE_GROUP, name);
     hsize_t idx = 0;
-    herr_t r = H5Aiterate2(o, H5_INDEX_NAME, H5_ITER_INC, &idx, check_attr, w);
-    if (r < 0 && !w->why[0])
-        r = fail(w, "cannot list the attributes of '%s'", name);
+    if (r >= 0 && H5Aiterate2(o, H5_INDEX_NAME, H5_ITER_INC, &idx, check_attr, w) < 0)
+        r = w->why[0] ? -1 : fail(w, "cannot list the attributes of '%s'", name);
     if (r >= 0 && info->type == H5O_TYPE_DATASET)
         r = check_dset(w, o, name);
     H5Oclose(o);
@@ -233,8 +253,10 @@ static herr_t check_link(hid_t g, const char *name, const H5L_info_t *info, void
 }
 
 /* The child: never returns. */
-static void child(const char *path, const void *image, size_t len, unsigned secs, int out)
+static void child(const crom_h5probe_src *src, unsigned secs, int out)
 {
+    /* Until the replay below nothing here allocates, so the heap the replay
+     * runs on is the caller's own, byte for byte (see h5probe.h). */
     static const int sigs[] = {SIGSEGV, SIGBUS, SIGABRT, SIGFPE, SIGILL, SIGALRM, SIGXCPU};
     for (size_t i = 0; i < sizeof sigs / sizeof sigs[0]; i++)
         signal(sigs[i], SIG_DFL);
@@ -247,13 +269,14 @@ static void child(const char *path, const void *image, size_t len, unsigned secs
     setrlimit(RLIMIT_CPU, &cpu);
 #ifndef PROBE_ASAN
     /* 2 GiB beyond what the process maps now (it is a copy of the caller) */
-    unsigned long pages = 0;
-    FILE *f = fopen("/proc/self/statm", "r");
-    if (f) {
-        if (fscanf(f, "%lu", &pages) != 1)
-            pages = 0;
-        fclose(f);
+    char statm[64] = {0};
+    int fd = open("/proc/self/statm", O_RDONLY);
+    if (fd >= 0) {
+        ssize_t k = read(fd, statm, sizeof statm - 1);
+        (void)k;
+        close(fd);
     }
+    unsigned long long pages = strtoull(statm, NULL, 10);
     if (pages) {
         rlim_t as = (rlim_t)pages * (rlim_t)sysconf(_SC_PAGESIZE) + ((rlim_t)2 << 30);
         struct rlimit mem = {as, as};
@@ -261,14 +284,18 @@ static void child(const char *path, const void *image, size_t len, unsigned secs
     }
 #endif
     alarm(secs);
-    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
-    walk w = {.fsize = len};
-    w.file = image ? H5LTopen_file_image((void *)image, len,
-                                         H5LT_FILE_IMAGE_DONT_COPY | H5LT_FILE_IMAGE_DONT_RELEASE)
-                   : H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+    walk w = {.fsize = src->len};
+    w.file = src->replay(src->arg);
     if (w.file < 0)
         _exit(PROBE_NOOPEN);
-    herr_t r = H5Lvisit(w.file, H5_INDEX_NAME, H5_ITER_INC, check_link, &w);
+    w.dxpl = H5Pcreate(H5P_DATASET_XFER);
+    H5Pset_buffer(w.dxpl, (size_t)READ_PIECE * 16, NULL, NULL);
+    hid_t root = H5Oopen(w.file, "/", H5P_DEFAULT);
+    herr_t r = root < 0 ? fail(&w, "cannot open the root group") : search(&w, root, 1, "/");
+    if (root >= 0)
+        H5Oclose(root);
+    if (r >= 0)
+        r = H5Lvisit(w.file, H5_INDEX_NAME, H5_ITER_INC, check_link, &w);
     if (r >= 0)
         r = H5Ovisit2(w.file, H5_INDEX_NAME, H5_ITER_INC, check_object, &w, H5O_INFO_BASIC);
     if (r < 0) {
@@ -302,14 +329,9 @@ static unsigned probe_seconds(size_t len)
     return 20u + (unsigned)(len / 100000000u);
 }
 
-int crom_h5probe(const char *path, const void *image, size_t len, const char *name)
+int crom_h5probe(const crom_h5probe_src *src, const char *name)
 {
-    if (!image) {
-        struct stat st;
-        if (stat(path, &st) != 0)
-            return crom_err(CROM_ENOINPUT, "%s: %s", name, strerror(errno));
-        len = (size_t)st.st_size;
-    }
+    size_t len = src->len;
     unsigned secs = probe_seconds(len);
     int fd[2];
     if (pipe(fd) != 0)
@@ -322,7 +344,7 @@ int crom_h5probe(const char *path, const void *image, size_t len, const char *na
     }
     if (pid == 0) {
         close(fd[0]);
-        child(path, image, len, secs, fd[1]);
+        child(src, secs, fd[1]);
     }
     close(fd[1]);
     char why[200];

@@ -27,12 +27,27 @@
 
 #include <stddef.h>
 
-/* Check the HDF5 file at path, or the file image [image, image+len) when
- * image is not NULL; name is what messages call it. Returns 0, or
- * CROM_EDATA with a one-line message ("NAME: corrupt HDF5 file: ..."), or
+#include <hdf5.h>
+
+/* The file to check. replay, called first in the child, opens the file
+ * exactly as the caller will right after the check and makes the caller's
+ * first reads (its root attributes, say), then returns the open file (or a
+ * negative id). As the child is a copy of the caller and allocates nothing
+ * before replay, those reads run on the very heap layout the caller's will:
+ * a stray read or write that would crash the caller crashes the child
+ * instead, even where it would go unnoticed in another layout. len is the
+ * file's size in bytes. */
+typedef struct {
+    hid_t (*replay)(void *arg);
+    void *arg;
+    size_t len;
+} crom_h5probe_src;
+
+/* Check the file src describes; name is what messages call it. Returns 0,
+ * or CROM_EDATA with a one-line message ("NAME: corrupt HDF5 file: ..."), or
  * CROM_EINTERNAL when no child process can be made. The time limit is
  * 20 s plus 1 s per 100 MB, or CROM_PROBE_SECONDS seconds when that
  * environment variable is a positive integer. */
-int crom_h5probe(const char *path, const void *image, size_t len, const char *name);
+int crom_h5probe(const crom_h5probe_src *src, const char *name);
 
 #endif

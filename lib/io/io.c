@@ -718,6 +718,40 @@ static int read_fields(crom_in *in)
     return in->frame ? 0 : CROM_EINTERNAL;
 }
 
+static int read_identity(crom_in *in);
+
+/* The untrusted-input check (h5probe.h): in a child, the open and the
+ * first reads crom_in_open makes, on the caller's heap layout, then a walk
+ * of the whole file. in->h5 is set in the child only. */
+typedef struct {
+    crom_in *in;
+    const char *path; /* NULL: in->image */
+} replay_arg;
+
+static hid_t replay(void *arg)
+{
+    replay_arg *a = arg;
+    crom_in *in = a->in;
+    in->h5 = a->path ? H5Fopen(a->path, H5F_ACC_RDONLY, H5P_DEFAULT)
+                     : open_image(in->image, in->image_size);
+    if (in->h5 >= 0 && !read_identity(in))
+        read_fields(in);
+    return in->h5;
+}
+
+static int probe(crom_in *in, const char *path)
+{
+    replay_arg a = {in, path};
+    crom_h5probe_src src = {replay, &a, in->image_size};
+    if (path) {
+        struct stat st;
+        if (stat(path, &st) != 0)
+            return crom_err(CROM_ENOINPUT, "%s: %s", in->name, strerror(errno));
+        src.len = (size_t)st.st_size;
+    }
+    return crom_h5probe(&src, in->name);
+}
+
 /* in->fp: the file at path, or stdin (not a terminal). */
 static int open_source(crom_in *in, const char *path, int from_stdin)
 {
@@ -747,16 +781,14 @@ static int open_h5(crom_in *in, const char *path, const unsigned char head[8], i
     in->form = CROM_IO_H5;
     if (from_stdin) {
         int rc = slurp(in->fp, head, 8, &in->image, &in->image_size);
-        if (!rc)
-            rc = crom_h5probe(NULL, in->image, in->image_size, in->name);
-        if (rc)
+        if (rc || (rc = probe(in, NULL)))
             return rc;
         in->h5 = open_image(in->image, in->image_size);
     } else {
         fclose(in->fp);
         in->fp = NULL;
         in->own_fp = 0;
-        int rc = crom_h5probe(path, NULL, 0, in->name);
+        int rc = probe(in, path);
         if (rc)
             return rc;
         in->h5 = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
@@ -788,7 +820,7 @@ static int open_stream(crom_in *in)
         return rc;
     if (in->image_size < hlen)
         return crom_err(CROM_EDATA, "%s: crom stream header is truncated", in->name);
-    rc = crom_h5probe(NULL, in->image, in->image_size, in->name);
+    rc = probe(in, NULL);
     if (rc)
         return rc;
     in->h5 = open_image(in->image, in->image_size);
