@@ -12,22 +12,10 @@
 
 #include "check.h"
 #include "base/err.h"
+#include "bench.h"
 #include "fixtures.h"
 #include "phys/fem.h"
 #include "base/rng.h"
-
-static double now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-
-static int cmp(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
 
 static void bench(const char *name, const crom_fem *fem, const double *x,
                   const crom_fem_opts *o, int energy, int grad, int hess,
@@ -36,16 +24,16 @@ static void bench(const char *name, const crom_fem *fem, const double *x,
     enum { REPS = 7 };
     double t[REPS], E;
     for (int r = 0; r < REPS; r++) {
-        double t0 = now();
+        double t0 = bench_now();
         int rc = crom_fem_assemble(fem, x, o, energy ? &E : NULL, grad ? gbuf : NULL,
                                    hess ? Hbuf : NULL);
-        t[r] = now() - t0;
+        t[r] = bench_now() - t0;
         if (rc) {
             fprintf(stderr, "bench_fem: %s\n", crom_errmsg());
             exit(1);
         }
     }
-    qsort(t, REPS, sizeof t[0], cmp);
+    qsort(t, REPS, sizeof t[0], bench_cmp);
     printf("%-44s min %7.1f ms  median %7.1f ms  %6.0f ns/tet\n", name, 1e3 * t[0],
            1e3 * t[REPS / 2], 1e9 * t[0] / fem->nt);
 }
@@ -64,14 +52,14 @@ int main(int argc, char **argv)
     crom_material mat;
     crom_material_init(&mat, 2.5e6, 0.25, 1000);
     crom_fem fem;
-    double t0 = now();
+    double t0 = bench_now();
     if (crom_fem_init(&fem, &mesh, &mat)) {
         fprintf(stderr, "bench_fem: %s\n", crom_errmsg());
         return 1;
     }
     printf("mesh: %d vertices, %d tets, Hessian %d x %d with %d upper entries, "
            "%d colours; crom_fem_init %.1f ms\n", fem.nv, fem.nt, fem.n, fem.n,
-           fem.nnz, fem.ncolors, 1e3 * (now() - t0));
+           fem.nnz, fem.ncolors, 1e3 * (bench_now() - t0));
 
     /* a compressed, twisted, noisy state so that the projection is busy */
     crom_rng r;
@@ -112,14 +100,14 @@ int main(int argc, char **argv)
 
     /* the element kernel alone, without scatter */
     {
-        double t1 = now(), acc = 0;
+        double t1 = bench_now(), acc = 0;
         for (int t = 0; t < fem.nt; t++) {
             double xe[12], ge[12], He[144], E;
             crom_fem_tet_positions(&fem, x, t, xe);
             crom_fem_tet_eval(&mat, xe, fem.Dminv + 9 * (size_t)t, fem.vol[t], 1, &E, ge, He);
             acc += E + He[17];
         }
-        double dt = now() - t1;
+        double dt = bench_now() - t1;
         printf("%-44s     %7.1f ms              %6.0f ns/tet (%g)\n",
                "crom_fem_tet_eval loop (projected, full H)", 1e3 * dt, 1e9 * dt / fem.nt, acc);
     }

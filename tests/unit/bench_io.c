@@ -10,21 +10,9 @@
 #include <unistd.h>
 
 #include "base/err.h"
+#include "bench.h"
 #include "io/h5probe.h"
 #include "io/io.h"
-
-static double now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-
-static int cmp(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
 
 static int write_series(const char *path, hsize_t r, int nframes)
 {
@@ -55,12 +43,6 @@ enum { REPS = 15 };
 
 static hid_t open_path(void *path) { return H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT); }
 
-static double median(double *t)
-{
-    qsort(t, REPS, sizeof *t, cmp);
-    return t[REPS / 2];
-}
-
 int main(void)
 {
     char dir[] = "/tmp/crom-bench-io-XXXXXX";
@@ -82,31 +64,31 @@ int main(void)
         fclose(f);
         double tp[REPS], th[REPS], ti[REPS];
         for (int k = 0; k < REPS; k++) {
-            double t0 = now();
+            double t0 = bench_now();
             crom_h5probe_src src = {open_path, path, (size_t)(mb * 1e6 + 0.5)};
             if (crom_h5probe(&src, path)) {
                 fprintf(stderr, "bench_io: %s\n", crom_errmsg());
                 return 1;
             }
-            tp[k] = now() - t0;
-            t0 = now();
+            tp[k] = bench_now() - t0;
+            t0 = bench_now();
             hid_t h = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
             H5Fclose(h);
-            th[k] = now() - t0;
-            t0 = now();
+            th[k] = bench_now() - t0;
+            t0 = bench_now();
             crom_in in;
             if (crom_in_open(&in, path)) {
                 fprintf(stderr, "bench_io: %s\n", crom_errmsg());
                 return 1;
             }
             crom_in_close(&in);
-            ti[k] = now() - t0;
+            ti[k] = bench_now() - t0;
         }
         char name[64];
         snprintf(name, sizeof name, "latent r=%llu, %d frames", (unsigned long long)cases[c].r,
                  cases[c].frames);
-        printf("%-28s %10.1f %12.2f %12.2f %14.2f\n", name, mb, 1e3 * median(tp), 1e3 * median(th),
-               1e3 * median(ti));
+        printf("%-28s %10.1f %12.2f %12.2f %14.2f\n", name, mb, 1e3 * bench_median(tp, REPS), 1e3 * bench_median(th, REPS),
+               1e3 * bench_median(ti, REPS));
         unlink(path);
     }
     rmdir(dir);

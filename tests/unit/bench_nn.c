@@ -13,15 +13,9 @@
 #include <cblas.h>
 
 #include "base/err.h"
+#include "bench.h"
 #include "nn/nn.h"
 #include "base/rng.h"
-
-static double now(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
 
 static void die(void)
 {
@@ -56,13 +50,13 @@ int main(int argc, char **argv)
         y[i] = (float)(1e-3 * crom_rng_normal(&rng));
     double tf = 0, tb = 0;
     for (int k = 0; k <= reps && strcmp(only, "pointnet"); k++) {
-        double t0 = now();
+        double t0 = bench_now();
         if (crom_nn_mlp_forward(&net, &ws, B, x, NULL))
             die();
-        double t1 = now();
+        double t1 = bench_now();
         if (crom_nn_mlp_backward(&net, &ws, B, y, g, NULL))
             die();
-        double t2 = now();
+        double t2 = bench_now();
         if (k > 0) { /* the first round warms up */
             tf += t1 - t0;
             tb += t2 - t1;
@@ -83,11 +77,11 @@ int main(int argc, char **argv)
     double *xd = malloc(sizeof(double) * (size_t)B * 3), *yd = malloc(sizeof(double) * (size_t)B * 60);
     for (size_t i = 0; i < (size_t)B * 3; i++)
         xd[i] = x[i];
-    double t0 = now();
+    double t0 = bench_now();
     for (int k = 0; k < reps; k++)
         if (crom_nn_mlp_eval(&net, &ws, (size_t)B, xd, yd, NULL))
             die();
-    double te = now() - t0;
+    double te = bench_now() - t0;
     printf("  eval (double in/out) %8.2f ms  %10.3g points/s\n", 1e3 * te / reps, B * reps / te);
 
     if (!strcmp(only, "field"))
@@ -111,13 +105,13 @@ int main(int argc, char **argv)
     tf = tb = 0;
     int preps = reps > 3 ? reps / 2 : reps;
     for (int k = 0; k <= preps; k++) {
-        double a = now();
+        double a = bench_now();
         if (crom_nn_pointnet_forward(&pn, &pws, F, P, pts, q))
             die();
-        double b = now();
+        double b = bench_now();
         if (crom_nn_pointnet_backward(&pn, &pws, F, P, dq, pg, NULL))
             die();
-        double c = now();
+        double c = bench_now();
         if (k > 0) {
             tf += b - a;
             tb += c - b;
