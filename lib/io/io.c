@@ -627,9 +627,12 @@ int crom_h5_read_i32(hid_t loc, const char *name, int rank, hsize_t *dims, int *
 /* Read the rest of f into a buffer that starts with `head` (n0 bytes). */
 static int slurp(FILE *f, const unsigned char *head, size_t n0, void **buf, size_t *len)
 {
-    size_t cap = 0, n = n0;
+    size_t cap = 0, n = n0, hint = 1 << 20;
+    struct stat st;
+    if (fstat(fileno(f), &st) == 0 && S_ISREG(st.st_mode) && (size_t)st.st_size + 1 > hint)
+        hint = (size_t)st.st_size + 1; /* (a regular file: one allocation) */
     unsigned char *b = NULL;
-    int rc = crom_array_reserve((void **)&b, &cap, n0 > 1 << 20 ? n0 : 1 << 20, 1);
+    int rc = crom_array_reserve((void **)&b, &cap, n0 > hint ? n0 : hint, 1);
     if (rc)
         return rc;
     memcpy(b, head, n0);
@@ -774,12 +777,18 @@ static int open_source(crom_in *in, const char *path, int from_stdin)
     return 0;
 }
 
-/* An HDF5 input whose first 8 bytes, head, were read: a file is reopened
- * by HDF5, stdin read whole into a file image. */
+/* An HDF5 input whose first 8 bytes, head, were read: stdin, and a file of
+ * up to IMAGE_MAX bytes, are read whole into a file image, so the contained
+ * check and the reads that follow see the same bytes even if the file is
+ * rewritten or replaced meanwhile; a larger file is reopened by HDF5 (and
+ * checked by name, which leaves that window open). */
+#define IMAGE_MAX ((off_t)64 << 20)
+
 static int open_h5(crom_in *in, const char *path, const unsigned char head[8], int from_stdin)
 {
     in->form = CROM_IO_H5;
-    if (from_stdin) {
+    struct stat st;
+    if (from_stdin || (fstat(fileno(in->fp), &st) == 0 && st.st_size <= IMAGE_MAX)) {
         int rc = slurp(in->fp, head, 8, &in->image, &in->image_size);
         if (rc || (rc = probe(in, NULL)))
             return rc;

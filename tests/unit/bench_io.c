@@ -49,7 +49,7 @@ int main(void)
     if (!mkdtemp(dir))
         return 1;
     H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
-    const struct { hsize_t r; int frames; } cases[] = {{3, 100}, {3000, 100}, {12000, 1000}};
+    const struct { hsize_t r; int frames; } cases[] = {{3, 100}, {3000, 100}, {3000, 1000}, {12000, 1000}};
     printf("%-28s %10s %12s %12s %14s\n", "file", "MB", "probe ms", "H5Fopen ms", "crom_in_open ms");
     for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
         char path[128];
