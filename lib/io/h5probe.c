@@ -1,4 +1,5 @@
 /* h5probe.c — an untrusted HDF5 file opened first in a contained child (see h5probe.h). */
+#define _GNU_SOURCE /* memfd_create */
 #include <errno.h>
 #include <fcntl.h>
 #include <malloc.h>
@@ -7,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -252,8 +254,112 @@ static herr_t check_link(hid_t g, const char *name, const H5L_info_t *info, void
     return 0;
 }
 
+/* ------------------------------------------------------- the clean copy
+ * What the caller opens: a new file, written by libhdf5 in the child from
+ * what it decoded of the input (attributes read and written again, objects
+ * copied with H5Ocopy, which decodes and re-encodes their headers). A
+ * corrupt length or offset that went through the walk without a fault is
+ * either refused there or comes out as a well-formed value. */
+
+static herr_t copy_attr(hid_t loc, const char *name, const H5A_info_t *info, void *data)
+{
+    hid_t dst = *(hid_t *)data;
+    hid_t a = H5Aopen(loc, name, H5P_DEFAULT);
+    hid_t ft = a >= 0 ? H5Aget_type(a) : -1, sp = a >= 0 ? H5Aget_space(a) : -1;
+    hid_t mt = ft >= 0 ? H5Tget_native_type(ft, H5T_DIR_DEFAULT) : -1;
+    hssize_t np = sp >= 0 ? H5Sget_simple_extent_npoints(sp) : -1;
+    size_t es = mt >= 0 ? H5Tget_size(mt) : 0;
+    herr_t r = -1;
+    void *buf = np >= 0 && es && (hsize_t)np <= ATTR_MAX / es ? calloc(np ? (size_t)np : 1, es) : NULL;
+    if (buf && H5Aread(a, mt, buf) >= 0) {
+        hid_t b = H5Acreate2(dst, name, ft, sp, H5P_DEFAULT, H5P_DEFAULT);
+        if (b >= 0 && H5Awrite(b, mt, buf) >= 0)
+            r = 0;
+        if (b >= 0)
+            H5Aclose(b);
+        reclaim(mt, sp, buf);
+    }
+    free(buf);
+    if (mt >= 0)
+        H5Tclose(mt);
+    if (sp >= 0)
+        H5Sclose(sp);
+    if (ft >= 0)
+        H5Tclose(ft);
+    if (a >= 0)
+        H5Aclose(a);
+    return r;
+}
+
+typedef struct {
+    walk *w;
+    hid_t dst;
+} copying;
+
+static herr_t copy_link(hid_t g, const char *name, const H5L_info_t *info, void *data)
+{
+    copying *c = data;
+    if (info->type == H5L_TYPE_HARD)
+        return H5Ocopy(g, name, c->dst, name, H5P_DEFAULT, H5P_DEFAULT) < 0
+                   ? fail(c->w, "cannot copy '%s'", name) : 0;
+    if (info->type == H5L_TYPE_SOFT && info->u.val_size > 0 && info->u.val_size < 4096) {
+        char target[4096];
+        if (H5Lget_val(g, name, target, sizeof target, H5P_DEFAULT) >= 0 &&
+            H5Lcreate_soft(target, c->dst, name, H5P_DEFAULT, H5P_DEFAULT) >= 0)
+            return 0;
+    }
+    return fail(c->w, "cannot copy the link '%s'", name);
+}
+
+/* Write the clean copy of w->file to the file out (a memfd the caller
+ * reads after the child has left: a pipe would take a context switch per
+ * 64 KiB). Returns 0, or -1 with w->why set. */
+static int send_copy(walk *w, int out)
+{
+    hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
+    /* (grown in one step of about the input's size: small steps cost a
+     * realloc and a copy each) */
+    H5Pset_fapl_core(fapl, (size_t)w->fsize + ((size_t)1 << 20), 0);
+    hid_t dst = H5Fcreate("crom-probe-copy", H5F_ACC_EXCL, H5P_DEFAULT, fapl);
+    H5Pclose(fapl);
+    if (dst < 0)
+        return fail(w, "cannot make a copy in memory");
+    copying c = {w, dst};
+    hid_t root = H5Oopen(w->file, "/", H5P_DEFAULT), droot = H5Oopen(dst, "/", H5P_DEFAULT);
+    hsize_t idx = 0;
+    herr_t r = root < 0 || droot < 0 ? -1 : H5Aiterate2(root, H5_INDEX_NAME, H5_ITER_INC, &idx, copy_attr, &droot);
+    if (r < 0)
+        fail(w, "cannot copy the root attributes");
+    idx = 0;
+    if (r >= 0)
+        r = H5Literate(w->file, H5_INDEX_NAME, H5_ITER_INC, &idx, copy_link, &c);
+    if (root >= 0)
+        H5Oclose(root);
+    if (droot >= 0)
+        H5Oclose(droot);
+    ssize_t n = r >= 0 && H5Fflush(dst, H5F_SCOPE_GLOBAL) >= 0 ? H5Fget_file_image(dst, NULL, 0) : -1;
+    char *img = n > 0 ? malloc((size_t)n) : NULL;
+    if (r >= 0 && (!img || H5Fget_file_image(dst, img, (size_t)n) != n))
+        r = fail(w, "cannot make a copy in memory");
+    H5Fclose(dst);
+    if (r < 0) {
+        free(img);
+        return -1;
+    }
+    for (size_t done = 0, total = (size_t)n; done < total;) {
+        ssize_t k = write(out, img + done, total - done);
+        if (k < 0 && errno == EINTR)
+            continue;
+        if (k <= 0)
+            _exit(PROBE_NOOPEN); /* (the caller went away) */
+        done += (size_t)k;
+    }
+    free(img);
+    return 0;
+}
+
 /* The child: never returns. */
-static void child(const crom_h5probe_src *src, unsigned secs, int out)
+static void child(const crom_h5probe_src *src, unsigned secs, int out, int copyfd)
 {
     /* Until the replay below nothing here allocates, so the heap the replay
      * runs on is the caller's own, byte for byte (see h5probe.h). */
@@ -298,6 +404,8 @@ static void child(const crom_h5probe_src *src, unsigned secs, int out)
         r = H5Lvisit(w.file, H5_INDEX_NAME, H5_ITER_INC, check_link, &w);
     if (r >= 0)
         r = H5Ovisit2(w.file, H5_INDEX_NAME, H5_ITER_INC, check_object, &w, H5O_INFO_BASIC);
+    if (r >= 0 && copyfd >= 0)
+        r = send_copy(&w, copyfd);
     if (r < 0) {
         if (!w.why[0])
             snprintf(w.why, sizeof w.why, "its groups cannot be walked");
@@ -329,6 +437,36 @@ static unsigned probe_seconds(size_t len)
     return 20u + (unsigned)(len / 100000000u);
 }
 
+/* The clean copy the child left in fd (bounded: a copy is about as large as
+ * the file it copies). */
+static int read_copy(int fd, size_t len, crom_h5probe_copy *out, const char *name)
+{
+    struct stat st;
+    size_t most = 4 * len + ((size_t)16 << 20);
+    if (fstat(fd, &st) != 0 || st.st_size <= 0)
+        return crom_err(CROM_EINTERNAL, "%s: the checked copy is missing", name);
+    if ((size_t)st.st_size > most)
+        return crom_err(CROM_EDATA, "%s: corrupt HDF5 file: its copy grew to %lld bytes", name,
+                        (long long)st.st_size);
+    unsigned char *b = crom_malloc((size_t)st.st_size);
+    if (!b)
+        return CROM_EINTERNAL;
+    size_t got = 0;
+    while (got < (size_t)st.st_size) {
+        ssize_t k = pread(fd, b + got, (size_t)st.st_size - got, (off_t)got);
+        if (k < 0 && errno == EINTR)
+            continue;
+        if (k <= 0) {
+            free(b);
+            return crom_err(CROM_EINTERNAL, "%s: the checked copy cannot be read", name);
+        }
+        got += (size_t)k;
+    }
+    out->buf = b;
+    out->len = got;
+    return 0;
+}
+
 int crom_h5probe(const crom_h5probe_src *src, const char *name)
 {
     size_t len = src->len;
@@ -336,15 +474,23 @@ int crom_h5probe(const crom_h5probe_src *src, const char *name)
     int fd[2];
     if (pipe(fd) != 0)
         return crom_err(CROM_EINTERNAL, "cannot check %s: pipe: %s", name, strerror(errno));
+    int copyfd = -1;
+    if (src->copy_out && (copyfd = memfd_create("crom-probe-copy", MFD_CLOEXEC)) < 0) {
+        close(fd[0]);
+        close(fd[1]);
+        return crom_err(CROM_EINTERNAL, "cannot check %s: memfd_create: %s", name, strerror(errno));
+    }
     pid_t pid = fork();
     if (pid < 0) {
         close(fd[0]);
         close(fd[1]);
+        if (copyfd >= 0)
+            close(copyfd);
         return crom_err(CROM_EINTERNAL, "cannot check %s: fork: %s", name, strerror(errno));
     }
     if (pid == 0) {
         close(fd[0]);
-        child(src, secs, fd[1]);
+        child(src, secs, fd[1], copyfd);
     }
     close(fd[1]);
     char why[200];
@@ -363,8 +509,15 @@ int crom_h5probe(const crom_h5probe_src *src, const char *name)
     while (waitpid(pid, &status, 0) < 0)
         if (errno != EINTR)
             return crom_err(CROM_EINTERNAL, "cannot check %s: waitpid: %s", name, strerror(errno));
-    if (WIFEXITED(status) && WEXITSTATUS(status) == PROBE_OK)
-        return 0;
+    if (WIFEXITED(status) && WEXITSTATUS(status) == PROBE_OK) {
+        if (copyfd < 0)
+            return 0;
+        int rc = read_copy(copyfd, len, src->copy_out, name);
+        close(copyfd);
+        return rc;
+    }
+    if (copyfd >= 0)
+        close(copyfd);
     if (WIFEXITED(status) && WEXITSTATUS(status) == PROBE_NOOPEN)
         return crom_err(CROM_EDATA, "%s: HDF5 file is truncated or corrupt", name);
     if (WIFEXITED(status) && WEXITSTATUS(status) == PROBE_BAD)

@@ -38,9 +38,20 @@
  * instead, even where it would go unnoticed in another layout. len is the
  * file's size in bytes. */
 typedef struct {
+    void *buf;  /* malloc'd: the caller frees it */
+    size_t len;
+} crom_h5probe_copy;
+
+typedef struct {
     hid_t (*replay)(void *arg);
     void *arg;
     size_t len;
+    /* when copy_out is not NULL, the child also sends back a clean copy of
+     * the file (an HDF5 image) for the caller to open instead: written by
+     * libhdf5 from what it decoded (attributes read and rewritten, objects
+     * copied with H5Ocopy), so the caller's libhdf5 never parses the
+     * untrusted bytes at all */
+    crom_h5probe_copy *copy_out;
 } crom_h5probe_src;
 
 /* Check the file src describes; name is what messages call it. Returns 0,
