@@ -169,6 +169,10 @@ int crom_fileout_open(crom_fileout *o, const char *path, int binary);
 int crom_fileout_commit(crom_fileout *o);
 /* Close and remove the temporary file. */
 void crom_fileout_abort(crom_fileout *o);
+/* The state of the writes to f so far: 0, or CROM_EIO with the system's
+ * message for the write that failed ("No space left on device", when errno
+ * still names a write error) or "write failed". */
+int crom_fileout_error(FILE *f);
 
 /* End a run that streamed frames to o, with an optional per-step table in
  * stats (NULL or not open: none), given the run's code rc. rc == 0: commit
@@ -245,7 +249,8 @@ int crom_h5_set_i64(hid_t loc, const char *obj, const char *name, long long v);
 int crom_h5_get_i64(hid_t loc, const char *obj, const char *name, long long *v);
 int crom_h5_has_attr(hid_t loc, const char *obj, const char *name);
 
-/* Silence HDF5's own error printing (idempotent). */
+/* Silence HDF5's own error printing, keeping the errno of a system call
+ * that fails under it for the message (idempotent). */
 void crom_h5_quiet(void);
 
 #endif
