@@ -926,10 +926,51 @@ static int read_identity(crom_in *in)
     return 0;
 }
 
+/* ------------------------------------------- inputs changing under us
+ * HDF5's sec2 driver reads past the end of a file as zeros, so a file cut
+ * short while it is being read (an output rewritten in place, a copy still
+ * in progress) would give frames of zeros. Its size and mtime at open are
+ * kept, and after every frame read the descriptor HDF5 reads through is
+ * checked against them (one fstat per frame). A file replaced by rename
+ * is not a change: HDF5 keeps reading the version it opened. */
+static long long mtime_ns(const struct stat *st)
+{
+    return (long long)st->st_mtim.tv_sec * 1000000000LL + st->st_mtim.tv_nsec;
+}
+
+static void watch_start(crom_in *in)
+{
+    in->watch_fd = -1;
+    hid_t fapl = H5Fget_access_plist(in->h5);
+    int sec2 = fapl >= 0 && H5Pget_driver(fapl) == H5FD_SEC2;
+    if (fapl >= 0)
+        H5Pclose(fapl);
+    void *handle = NULL;
+    struct stat st;
+    if (!sec2 || H5Fget_vfd_handle(in->h5, H5P_DEFAULT, &handle) < 0 || !handle ||
+        fstat(*(int *)handle, &st) != 0)
+        return;
+    in->watch_fd = *(int *)handle;
+    in->watch_size = (long long)st.st_size;
+    in->watch_mtime_ns = mtime_ns(&st);
+}
+
+static int watch_check(const crom_in *in)
+{
+    struct stat st;
+    if (in->watch_fd < 0 || in->h5 < 0)
+        return 0;
+    if (fstat(in->watch_fd, &st) != 0 || (long long)st.st_size != in->watch_size ||
+        mtime_ns(&st) != in->watch_mtime_ns)
+        return crom_err(CROM_EDATA, "%s: changed or truncated while being read", in->name);
+    return 0;
+}
+
 int crom_in_open(crom_in *in, const char *path)
 {
     memset(in, 0, sizeof *in);
     in->h5 = -1;
+    in->watch_fd = -1;
     in->complete = 1;
     crom_h5_quiet();
     int from_stdin = !path || !strcmp(path, "-");
@@ -955,6 +996,8 @@ int crom_in_open(crom_in *in, const char *path)
         crom_in_close(in);
         return rc;
     }
+    if (in->form == CROM_IO_H5 && !from_stdin)
+        watch_start(in);
     if (in->form == CROM_IO_STREAM) {
         in->nframes = 0;
     } else if (crom_h5_has_attr(in->h5, ".", "complete")) {
@@ -1011,10 +1054,11 @@ static int read_h5_frame(crom_in *in, long k)
         H5Sclose(ms);
         H5Sclose(fs);
         if (e < 0)
-            return crom_err(CROM_EDATA, "%s: cannot read frame %ld of '%s' (corrupt file?)",
-                            in->name, k, f->name);
+            return watch_check(in) ? CROM_EDATA
+                                   : crom_err(CROM_EDATA, "%s: cannot read frame %ld of '%s' (corrupt file?)",
+                                              in->name, k, f->name);
     }
-    return 0;
+    return watch_check(in);
 }
 
 int crom_in_next(crom_in *in)
@@ -1123,6 +1167,7 @@ void crom_in_close(crom_in *in)
     if (in->h5 >= 0)
         H5Fclose(in->h5);
     in->h5 = -1;
+    in->watch_fd = -1;
     if (in->own_fp && in->fp)
         fclose(in->fp);
     in->fp = NULL;

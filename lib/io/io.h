@@ -60,6 +60,8 @@ typedef struct {
     int own_fp;
     void *image;
     size_t image_size;
+    int watch_fd;         /* HDF5's descriptor of a file input, or -1 */
+    long long watch_size, watch_mtime_ns; /* its size and mtime at open */
 } crom_in;
 
 /* Open any crom input: path, or stdin when path is NULL or "-". Detects HDF5
@@ -81,7 +83,9 @@ const double *crom_in_get(const crom_in *in, int field);
 
 /* Read the next frame into in->frame. Returns 1 when a frame was read, 0 at
  * the end, or an error code (negative of it: -CROM_EDATA for a truncated
- * stream). */
+ * stream). An HDF5 file that changed size or mtime since it was opened (HDF5
+ * reads past a truncated end as zeros) is CROM_EDATA "NAME: changed or
+ * truncated while being read". */
 int crom_in_next(crom_in *in);
 
 /* Random access for HDF5 inputs: make frame k current. Error for streams
