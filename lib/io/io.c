@@ -1388,6 +1388,8 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
         rc = e ? crom_err(CROM_EIO, "%s: %s", o->name, strerror(e))
                : crom_err(CROM_ECANTCREAT, "cannot create %s", o->name);
         drop_tmp(o);
+        free(o->target);
+        o->target = NULL;
         return rc;
     }
     if (o->form == CROM_IO_STREAM) {
@@ -1397,6 +1399,8 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
             rc = crom_err(CROM_ECANTCREAT, "cannot create %s: %s", o->name, strerror(errno));
             H5Fclose(o->h5);
             drop_tmp(o);
+            free(o->target);
+            o->target = NULL;
             return rc;
         }
     }
