@@ -2,6 +2,7 @@
 #include <errno.h>
 #include <libgen.h>
 #include <signal.h>
+#include <stdarg.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -35,6 +36,7 @@ static const unsigned char hdf5_sig[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a,
  * removes can only be found in a global. */
 #define MAX_TMP 16
 static char *volatile tmp_registry[MAX_TMP];
+static char *tmp_targets[MAX_TMP]; /* the name each temporary file will get */
 
 static void cleanup_signal(int sig)
 {
@@ -45,7 +47,7 @@ static void cleanup_signal(int sig)
     raise(sig);
 }
 
-static void tmp_register(char *path)
+static void tmp_register(char *path, const char *target)
 {
     /* (again at every registration: installing the same handler twice is harmless) */
     signal(SIGINT, cleanup_signal);
@@ -53,6 +55,7 @@ static void tmp_register(char *path)
     signal(SIGHUP, cleanup_signal);
     for (int i = 0; i < MAX_TMP; i++)
         if (!tmp_registry[i]) {
+            tmp_targets[i] = strdup(target);
             tmp_registry[i] = path;
             return;
         }
@@ -61,19 +64,163 @@ static void tmp_register(char *path)
 static void tmp_unregister(const char *path)
 {
     for (int i = 0; i < MAX_TMP; i++)
-        if (tmp_registry[i] == path)
+        if (path && tmp_registry[i] == path) {
             tmp_registry[i] = NULL;
+            free(tmp_targets[i]);
+            tmp_targets[i] = NULL;
+        }
+}
+
+/* The name a file HDF5 writes under `path` is reported by: the target of a
+ * temporary file, else path itself. */
+static const char *target_name(const char *path)
+{
+    for (int i = 0; i < MAX_TMP; i++)
+        if (tmp_registry[i] && tmp_targets[i] && !strcmp(tmp_registry[i], path))
+            return tmp_targets[i];
+    return path;
+}
+
+/* ------------------------------------------ system errors under HDF5
+ * HDF5 tells a failed write(2) only as text on its error stack ("file write
+ * failed: ..., filename = 'x', ..., errno = 28, error message = 'No space
+ * left on device'"), and the call that fails is often a later one than the
+ * write that lost the data (a chunk or metadata flush at H5Dclose or
+ * H5Fclose). The handler crom_h5_quiet installs reads the errno out of every
+ * failure's stack and keeps the last one with its file, so the failure is
+ * reported as the system's error (exit 74) by whichever call sees it. Kept
+ * per thread, like errno and crom_err's message. */
+static _Thread_local int sys_errno;
+static volatile int h5_broken; /* see h5_at_exit */
+static _Thread_local char sys_file[512];
+
+static herr_t note_sys_error(unsigned n, const H5E_error2_t *e, void *data)
+{
+    (void)n;
+    int *found = data;
+    const char *p = e->desc && !*found ? strstr(e->desc, "errno = ") : NULL;
+    if (!p)
+        return 0;
+    int v = atoi(p + 8);
+    if (v <= 0)
+        return 0;
+    *found = 1;
+    h5_broken = 1;
+    sys_errno = v;
+    sys_file[0] = 0;
+    const char *f = strstr(e->desc, "filename = '");
+    const char *end = f ? strchr(f + 12, '\'') : NULL;
+    if (end && (size_t)(end - f - 12) < sizeof sys_file) {
+        memcpy(sys_file, f + 12, (size_t)(end - f - 12));
+        sys_file[end - f - 12] = 0;
+    }
+    return 0;
+}
+
+static herr_t on_h5_error(hid_t stack, void *data)
+{
+    (void)data;
+    int found = 0;
+    H5Ewalk2(stack, H5E_WALK_UPWARD, note_sys_error, &found);
+    return 0;
+}
+
+/* The errno of the last system call that failed under HDF5 on file `path`
+ * (an error without a file name counts for every file), or 0. */
+static int sys_error_of(const char *path)
+{
+    return sys_errno && (!sys_file[0] || !strcmp(sys_file, path)) ? sys_errno : 0;
+}
+
+/* The errno of a failed system call on the file that holds loc, or 0. */
+static int h5_sys_error(hid_t loc, char *path, size_t n)
+{
+    if (!sys_errno || loc < 0)
+        return 0;
+    ssize_t len = H5Fget_name(loc, path, n);
+    return len > 0 && (size_t)len < n ? sys_error_of(path) : 0;
+}
+
+/* Record an HDF5 failure on the file that holds loc: as the system's error
+ * ("out.h5: No space left on device", CROM_EIO) when a system call failed
+ * under it, else as code with the message fmt. */
+static int h5_fail(hid_t loc, int code, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+static int h5_fail(hid_t loc, int code, const char *fmt, ...)
+{
+    char path[512];
+    int e = h5_sys_error(loc, path, sizeof path);
+    if (e)
+        return crom_err(CROM_EIO, "%s: %s", target_name(path), strerror(e));
+    char msg[1024];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    return crom_err(code, "%s", msg);
+}
+
+/* HDF5 closes whatever is still open at exit (H5_term_library, registered
+ * with atexit). A file whose H5Fclose failed stays in HDF5's tables half
+ * torn down, and closing it again there crashes (SIGSEGV in H5F__close_cb);
+ * an H5Fcreate that failed on a full disk leaves blocks that make the
+ * shutdown print "HDF5: infinite loop closing library". So crom takes that
+ * exit hook over and skips the library's shutdown once a close failed or a
+ * system call failed under HDF5 (what it holds is still reachable, not
+ * leaked). */
+static void h5_at_exit(void)
+{
+    if (!h5_broken)
+        H5close();
+}
+
+__attribute__((constructor)) static void h5_take_exit_hook(void)
+{
+    if (H5dont_atexit() >= 0)
+        atexit(h5_at_exit);
 }
 
 /* ------------------------------------------------------------ small things */
 
-void crom_h5_quiet(void) { H5Eset_auto2(H5E_DEFAULT, NULL, NULL); }
+void crom_h5_quiet(void) { H5Eset_auto2(H5E_DEFAULT, on_h5_error, NULL); }
 
 static int write_all(FILE *f, const void *p, size_t n, const char *name)
 {
     if (n && fwrite(p, 1, n, f) != n)
-        return crom_err(CROM_EIO, "%s: write failed: %s", name, strerror(errno));
+        return crom_err(CROM_EIO, "%s: %s", name, strerror(errno));
     return 0;
+}
+
+/* errno if it names an error of write(2) that a caller should see. */
+static int write_errno(int e)
+{
+    return e == ENOSPC || e == EIO || e == EDQUOT || e == EFBIG ? e : 0;
+}
+
+int crom_fileout_error(FILE *f)
+{
+    if (!ferror(f))
+        return 0;
+    int e = write_errno(errno);
+    return e ? crom_err(CROM_EIO, "%s", strerror(e)) : crom_err(CROM_EIO, "write failed");
+}
+
+/* Flush f and close it (unless it is to stay open, as stdout does). A
+ * failure is recorded as "NAME: <the system's error>" (CROM_EIO). A write
+ * that failed earlier left its mark on f but not always an error now (on
+ * tmpfs the rest may fit in the last page): errno is still that write's
+ * then, if it names a write error, else the message is "NAME: write failed". */
+static int flush_close(FILE *f, int close_it, const char *name)
+{
+    int bad = ferror(f), before = errno;
+    errno = 0;
+    int e = fflush(f) ? errno : 0;
+    if (close_it && fclose(f) && !e)
+        e = errno;
+    if (!e && bad)
+        e = write_errno(before);
+    if (e)
+        return crom_err(CROM_EIO, "%s: %s", name, strerror(e));
+    return bad ? crom_err(CROM_EIO, "%s: write failed", name) : 0;
 }
 
 /* Read exactly n bytes; returns n, or fewer at end of file. */
@@ -209,8 +356,8 @@ static int set_attr(hid_t loc, const char *obj, const char *name, const char *sc
 {
     hid_t o = open_obj(loc, obj);
     if (o < 0)
-        return crom_err(CROM_EINTERNAL, "cannot open object '%s' for attribute '%s'",
-                        obj ? obj : ".", name);
+        return h5_fail(loc, CROM_EINTERNAL, "cannot open object '%s' for attribute '%s'",
+                       obj ? obj : ".", name);
     int checked = check_attr_documented(o, name, schema_type);
     if (checked) {
         H5Oclose(o);
@@ -221,7 +368,7 @@ static int set_attr(hid_t loc, const char *obj, const char *name, const char *sc
     hid_t a = H5Acreate2(o, name, type, space, H5P_DEFAULT, H5P_DEFAULT);
     int rc = 0;
     if (a < 0 || H5Awrite(a, type, buf) < 0)
-        rc = crom_err(CROM_EINTERNAL, "cannot write attribute '%s'", name);
+        rc = h5_fail(o, CROM_EINTERNAL, "cannot write attribute '%s'", name);
     if (a >= 0)
         H5Aclose(a);
     H5Oclose(o);
@@ -424,7 +571,7 @@ hid_t crom_h5_group(hid_t loc, const char *name)
     H5Pclose(gcpl);
     H5Pclose(lcpl);
     if (g < 0)
-        crom_err(CROM_EINTERNAL, "cannot create group '%s'", name);
+        h5_fail(loc, CROM_EINTERNAL, "cannot create group '%s'", name);
     return g;
 }
 
@@ -447,7 +594,7 @@ static int write_dset(hid_t loc, const char *name, hid_t memtype, int rank, cons
     int rc = 0;
     hssize_t np = H5Sget_simple_extent_npoints(s);
     if (d < 0 || (np > 0 && H5Dwrite(d, memtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0))
-        rc = crom_err(CROM_EINTERNAL, "cannot write dataset '%s'", name);
+        rc = h5_fail(loc, CROM_EINTERNAL, "cannot write dataset '%s'", name);
     H5Pclose(dcpl);
     H5Pclose(lcpl);
     H5Sclose(s);
@@ -488,7 +635,7 @@ static int table_row(hid_t loc, const char *name, const char *type, int rank, co
 {
     const crom_schema *s = file_schema(loc);
     if (!s)
-        return crom_err(CROM_EINTERNAL, "cannot write dataset '%s': not in a crom file", name);
+        return h5_fail(loc, CROM_EINTERNAL, "cannot write dataset '%s': not in a crom file", name);
     int rc = object_path(loc, name, path, n);
     if (rc)
         return rc;
@@ -870,10 +1017,51 @@ static int read_identity(crom_in *in)
     return 0;
 }
 
+/* ------------------------------------------- inputs changing under us
+ * HDF5's sec2 driver reads past the end of a file as zeros, so a file cut
+ * short while it is being read (an output rewritten in place, a copy still
+ * in progress) would give frames of zeros. Its size and mtime at open are
+ * kept, and after every frame read the descriptor HDF5 reads through is
+ * checked against them (one fstat per frame). A file replaced by rename
+ * is not a change: HDF5 keeps reading the version it opened. */
+static long long mtime_ns(const struct stat *st)
+{
+    return (long long)st->st_mtim.tv_sec * 1000000000LL + st->st_mtim.tv_nsec;
+}
+
+static void watch_start(crom_in *in)
+{
+    in->watch_fd = -1;
+    hid_t fapl = H5Fget_access_plist(in->h5);
+    int sec2 = fapl >= 0 && H5Pget_driver(fapl) == H5FD_SEC2;
+    if (fapl >= 0)
+        H5Pclose(fapl);
+    void *handle = NULL;
+    struct stat st;
+    if (!sec2 || H5Fget_vfd_handle(in->h5, H5P_DEFAULT, &handle) < 0 || !handle ||
+        fstat(*(int *)handle, &st) != 0)
+        return;
+    in->watch_fd = *(int *)handle;
+    in->watch_size = (long long)st.st_size;
+    in->watch_mtime_ns = mtime_ns(&st);
+}
+
+static int watch_check(const crom_in *in)
+{
+    struct stat st;
+    if (in->watch_fd < 0 || in->h5 < 0)
+        return 0;
+    if (fstat(in->watch_fd, &st) != 0 || (long long)st.st_size != in->watch_size ||
+        mtime_ns(&st) != in->watch_mtime_ns)
+        return crom_err(CROM_EDATA, "%s: changed or truncated while being read", in->name);
+    return 0;
+}
+
 int crom_in_open(crom_in *in, const char *path)
 {
     memset(in, 0, sizeof *in);
     in->h5 = -1;
+    in->watch_fd = -1;
     in->complete = 1;
     crom_h5_quiet();
     int from_stdin = !path || !strcmp(path, "-");
@@ -899,6 +1087,8 @@ int crom_in_open(crom_in *in, const char *path)
         crom_in_close(in);
         return rc;
     }
+    if (in->form == CROM_IO_H5 && !from_stdin)
+        watch_start(in);
     if (in->form == CROM_IO_STREAM) {
         in->nframes = 0;
     } else if (crom_h5_has_attr(in->h5, ".", "complete")) {
@@ -955,10 +1145,11 @@ static int read_h5_frame(crom_in *in, long k)
         H5Sclose(ms);
         H5Sclose(fs);
         if (e < 0)
-            return crom_err(CROM_EDATA, "%s: cannot read frame %ld of '%s' (corrupt file?)",
-                            in->name, k, f->name);
+            return watch_check(in) ? CROM_EDATA
+                                   : crom_err(CROM_EDATA, "%s: cannot read frame %ld of '%s' (corrupt file?)",
+                                              in->name, k, f->name);
     }
-    return 0;
+    return watch_check(in);
 }
 
 int crom_in_next(crom_in *in)
@@ -1072,6 +1263,7 @@ void crom_in_close(crom_in *in)
     if (in->h5 >= 0)
         H5Fclose(in->h5);
     in->h5 = -1;
+    in->watch_fd = -1;
     if (in->own_fp && in->fp)
         fclose(in->fp);
     in->fp = NULL;
@@ -1129,7 +1321,7 @@ static int make_tmp(crom_out *o, const char *path)
         if (fchmod(fd, 0666 & ~mask) != 0) {
         }
         close(fd);
-        tmp_register(o->tmp);
+        tmp_register(o->tmp, path);
     }
     free(d);
     free(b);
@@ -1164,6 +1356,7 @@ int crom_fileout_open(crom_fileout *o, const char *path, int binary)
         if (!(o->f = fopen(path, "wb")))
             return crom_err(CROM_ECANTCREAT, "cannot open %s: %s", path, strerror(errno));
         o->in_place = 1;
+        o->target = crom_strdup(path);
         return 0;
     }
     crom_out tmp;
@@ -1184,20 +1377,14 @@ int crom_fileout_open(crom_fileout *o, const char *path, int binary)
 int crom_fileout_commit(crom_fileout *o)
 {
     int rc = 0;
-    if (o->in_place) {
-        if (ferror(o->f) | fclose(o->f))
-            rc = crom_err(CROM_EIO, "write failed: %s", strerror(errno));
+    if (o->in_place || o->to_stdout) {
+        rc = flush_close(o->f, o->in_place, o->in_place ? o->target : "stdout");
         o->f = NULL;
+        free(o->target);
+        o->target = NULL;
         return rc;
     }
-    if (o->to_stdout) {
-        if (fflush(stdout))
-            rc = crom_err(CROM_EIO, "stdout: write failed: %s", strerror(errno));
-        o->f = NULL;
-        return rc;
-    }
-    if (ferror(o->f) | fclose(o->f))
-        rc = crom_err(CROM_EIO, "%s: write failed: %s", o->target, strerror(errno));
+    rc = flush_close(o->f, 1, o->target);
     o->f = NULL;
     if (!rc && rename(o->tmp, o->target) != 0)
         rc = crom_err(CROM_ECANTCREAT, "cannot create %s: %s", o->target, strerror(errno));
@@ -1293,8 +1480,12 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
     else
         o->h5 = create_core(o);
     if (o->h5 < 0) {
-        rc = crom_err(CROM_ECANTCREAT, "cannot create %s", o->name);
+        int e = o->tmp ? sys_error_of(o->tmp) : 0;
+        rc = e ? crom_err(CROM_EIO, "%s: %s", o->name, strerror(e))
+               : crom_err(CROM_ECANTCREAT, "cannot create %s", o->name);
         drop_tmp(o);
+        free(o->target);
+        o->target = NULL;
         return rc;
     }
     if (o->form == CROM_IO_STREAM) {
@@ -1304,6 +1495,8 @@ int crom_out_create(crom_out *o, const char *path, const char *schema,
             rc = crom_err(CROM_ECANTCREAT, "cannot create %s: %s", o->name, strerror(errno));
             H5Fclose(o->h5);
             drop_tmp(o);
+            free(o->target);
+            o->target = NULL;
             return rc;
         }
     }
@@ -1358,7 +1551,7 @@ int crom_out_field(crom_out *o, const char *name, int rank, const hsize_t *dims,
     H5Sclose(s);
     H5Gclose(g);
     if (f->dset < 0)
-        return crom_err(CROM_EINTERNAL, "cannot create frame field '%s'", name);
+        return h5_fail(o->h5, CROM_EINTERNAL, "cannot create frame field '%s'", name);
     rc = crom_h5_set_str(f->dset, ".", "units", row->units);
     if (!rc)
         rc = crom_h5_set_str(f->dset, ".", "description", row->meaning);
@@ -1425,8 +1618,8 @@ int crom_out_begin(crom_out *o)
             rc = write_all(o->fp, &hl, 8, o->name);
         if (!rc)
             rc = write_all(o->fp, img, len, o->name);
-        if (!rc && fflush(o->fp))
-            rc = crom_err(CROM_EIO, "%s: write failed: %s", o->name, strerror(errno));
+        if (!rc)
+            rc = flush_close(o->fp, 0, o->name);
         free(img);
         for (int i = 0; i < o->nfields; i++) {
             H5Dclose(o->fields[i].dset);
@@ -1458,8 +1651,8 @@ int crom_out_frame(crom_out *o, const double *const *vals)
             rc = write_all(o->fp, &bytes, 8, o->name);
         if (!rc)
             rc = write_all(o->fp, o->pack, bytes, o->name);
-        if (!rc && fflush(o->fp))
-            rc = crom_err(CROM_EIO, "%s: write failed: %s", o->name, strerror(errno));
+        if (!rc)
+            rc = flush_close(o->fp, 0, o->name);
         if (!rc)
             o->nframes++;
         return rc;
@@ -1474,7 +1667,7 @@ int crom_out_frame(crom_out *o, const double *const *vals)
         for (int j = 0; j < f->rank; j++)
             size[j + 1] = count[j + 1] = f->dims[j];
         if (H5Dset_extent(f->dset, size) < 0) {
-            rc = crom_err(CROM_EIO, "%s: cannot extend '%s'", o->name, f->name);
+            rc = h5_fail(o->h5, CROM_EIO, "%s: cannot extend '%s'", o->name, f->name);
             break;
         }
         hid_t fs = H5Dget_space(f->dset);
@@ -1482,8 +1675,8 @@ int crom_out_frame(crom_out *o, const double *const *vals)
         hsize_t m = f->count;
         hid_t ms = H5Screate_simple(1, &m, NULL);
         if (H5Dwrite(f->dset, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, vals[i]) < 0)
-            rc = crom_err(CROM_EIO, "%s: cannot write frame %ld of '%s'", o->name,
-                          o->nframes, f->name);
+            rc = h5_fail(o->h5, CROM_EIO, "%s: cannot write frame %ld of '%s'", o->name,
+                         o->nframes, f->name);
         H5Sclose(ms);
         H5Sclose(fs);
     }
@@ -1492,45 +1685,49 @@ int crom_out_frame(crom_out *o, const double *const *vals)
     return rc;
 }
 
-/* Close the HDF5 side and put the result in place (stdout or rename). */
+/* Close the HDF5 side and put the result in place (stdout or rename). A
+ * file that cannot be flushed is left open for release() to discard. */
 static int finish_h5(crom_out *o, int complete)
 {
     int rc = 0;
     if (o->series)
         rc = crom_h5_set_i64(o->h5, ".", "complete", complete);
-    if (o->series && !complete)
-        crom_h5_set_i64(o->h5, ".", "frames_written", o->nframes);
-    for (int i = 0; i < o->nfields; i++)
-        if (o->fields[i].dset >= 0) {
-            H5Dclose(o->fields[i].dset);
-            o->fields[i].dset = -1;
-        }
+    if (!rc && o->series && !complete)
+        rc = crom_h5_set_i64(o->h5, ".", "frames_written", o->nframes);
+    if (rc)
+        return rc;
     if (o->to_stdout) {
         void *img = NULL;
         size_t len = 0;
         FILE *f = o->out ? o->out : stdout;
-        if (!rc)
-            rc = get_image(o->h5, &img, &len, o->name);
-        H5Fclose(o->h5);
-        o->h5 = -1;
+        rc = get_image(o->h5, &img, &len, o->name);
         if (!rc)
             rc = write_all(f, img, len, o->name);
-        if (!rc && fflush(f))
-            rc = crom_err(CROM_EIO, "%s: write failed: %s", o->name, strerror(errno));
+        if (!rc)
+            rc = flush_close(f, 0, o->name);
         free(img);
         return rc;
     }
-    if (H5Fclose(o->h5) < 0 && !rc)
-        rc = crom_err(CROM_EIO, "%s: cannot finish the HDF5 file", o->name);
+    /* everything written now (chunk caches, metadata), so that closing
+     * has nothing left to write that could fail */
+    if (H5Fflush(o->h5, H5F_SCOPE_LOCAL) < 0)
+        return h5_fail(o->h5, CROM_EIO, "%s: cannot finish the HDF5 file", o->name);
+    for (int i = 0; i < o->nfields; i++)
+        if (o->fields[i].dset >= 0 && H5Dclose(o->fields[i].dset) < 0)
+            h5_broken = 1;
+    o->nfields = 0;
+    herr_t closed = H5Fclose(o->h5);
     o->h5 = -1;
-    if (!rc && rename(o->tmp, o->target) != 0)
-        rc = crom_err(CROM_ECANTCREAT, "cannot create %s: %s", o->target, strerror(errno));
-    if (!rc) {
-        tmp_unregister(o->tmp);
-        free(o->tmp);
-        o->tmp = NULL;
+    if (closed < 0) {
+        h5_broken = 1;
+        return h5_fail(-1, CROM_EIO, "%s: cannot finish the HDF5 file", o->name);
     }
-    return rc;
+    if (rename(o->tmp, o->target) != 0)
+        return crom_err(CROM_ECANTCREAT, "cannot create %s: %s", o->target, strerror(errno));
+    tmp_unregister(o->tmp);
+    free(o->tmp);
+    o->tmp = NULL;
+    return 0;
 }
 
 static int finish_stream(crom_out *o, int complete)
@@ -1547,13 +1744,13 @@ static int finish_stream(crom_out *o, int complete)
     if (!rc)
         rc = write_all(o->fp, &count, 8, o->name);
     if (o->to_stdout) {
-        if (fflush(o->fp) && !rc)
-            rc = crom_err(CROM_EIO, "%s: write failed: %s", o->name, strerror(errno));
-        return rc;
+        int fc = flush_close(o->fp, 0, o->name);
+        return rc ? rc : fc;
     }
-    if (fclose(o->fp) && !rc)
-        rc = crom_err(CROM_EIO, "%s: write failed: %s", o->name, strerror(errno));
+    int fc = flush_close(o->fp, 1, o->name);
     o->fp = NULL;
+    if (!rc)
+        rc = fc;
     if (!rc && rename(o->tmp, o->target) != 0)
         rc = crom_err(CROM_ECANTCREAT, "cannot create %s: %s", o->target, strerror(errno));
     if (!rc) {
@@ -1564,13 +1761,22 @@ static int finish_stream(crom_out *o, int complete)
     return rc;
 }
 
+/* Close every handle of o once and remove its temporary file, if any is
+ * left (a failure). The file is emptied first: on a full disk HDF5's closing
+ * flush then fits in the space it held, so the close succeeds and the
+ * handles are really released. A close that fails anyway leaves its handle
+ * to HDF5 (see h5_at_exit) and is never tried again. */
 static void release(crom_out *o)
 {
+    if (o->tmp && o->h5 >= 0 && truncate(o->tmp, 0) != 0) {
+        /* nothing more to do: the close below may then fail, handled there */
+    }
     for (int i = 0; i < o->nfields; i++)
-        if (o->fields[i].dset > 0)
-            H5Dclose(o->fields[i].dset);
-    if (o->h5 >= 0)
-        H5Fclose(o->h5);
+        if (o->fields[i].dset >= 0 && H5Dclose(o->fields[i].dset) < 0)
+            h5_broken = 1;
+    o->nfields = 0;
+    if (o->h5 >= 0 && H5Fclose(o->h5) < 0)
+        h5_broken = 1;
     o->h5 = -1;
     if (o->fp && o->fp != stdout && o->fp != o->out)
         fclose(o->fp);
@@ -1602,18 +1808,27 @@ int crom_out_commit(crom_out *o)
     return rc;
 }
 
+/* The errno of a system call that failed on o's file under HDF5, or 0. */
+static int out_sys_error(const crom_out *o)
+{
+    if (o->form != CROM_IO_H5 || !o->tmp)
+        return 0;
+    return sys_error_of(o->tmp);
+}
+
 int crom_out_fail(crom_out *o)
 {
     if (o->done)
         return 1;
-    int kept = 0;
-    if (o->series && o->begun && o->nframes > 0) {
+    int kept = 0, sys = out_sys_error(o);
+    if (o->series && o->begun && o->nframes > 0 && !sys) {
         /* keep what is finished, marked incomplete; the original error stays */
         char saved[1024];
         int code = crom_errcode();
         snprintf(saved, sizeof saved, "%s", crom_errmsg());
         int rc = o->form == CROM_IO_STREAM ? finish_stream(o, 0) : finish_h5(o, 0);
         kept = rc == 0;
+        sys = kept ? 0 : out_sys_error(o);
         crom_err(code ? code : CROM_EINTERNAL, "%s", saved);
     } else if (o->form == CROM_IO_STREAM && o->begun) {
         uint32_t status = 1;
@@ -1623,6 +1838,10 @@ int crom_out_fail(crom_out *o)
             write_all(o->fp, &count, 8, o->name);
         fflush(o->fp);
     }
+    /* a file the system failed to write (a full disk, a device error) is
+     * removed, and that is the error to report, whatever call met it first */
+    if (sys)
+        crom_err(CROM_EIO, "%s: %s", o->name, strerror(sys));
     release(o);
     return kept ? 0 : 1;
 }
@@ -1639,5 +1858,5 @@ int crom_out_finish_run(crom_out *o, crom_fileout *stats, int rc)
         return crom_out_commit(o);
     if (crom_out_fail(o) == 0)
         crom_err_ctx("%s keeps the %ld frames done, marked incomplete", o->name, o->nframes);
-    return rc;
+    return crom_errcode() == CROM_EIO ? CROM_EIO : rc;
 }

@@ -61,6 +61,8 @@ typedef struct {
     int own_fp;
     void *image;
     size_t image_size;
+    int watch_fd;         /* HDF5's descriptor of a file input, or -1 */
+    long long watch_size, watch_mtime_ns; /* its size and mtime at open */
 } crom_in;
 
 /* Open any crom input: path, or stdin when path is NULL or "-". Detects HDF5
@@ -82,7 +84,9 @@ const double *crom_in_get(const crom_in *in, int field);
 
 /* Read the next frame into in->frame. Returns 1 when a frame was read, 0 at
  * the end, or an error code (negative of it: -CROM_EDATA for a truncated
- * stream). */
+ * stream). An HDF5 file that changed size or mtime since it was opened (HDF5
+ * reads past a truncated end as zeros) is CROM_EDATA "NAME: changed or
+ * truncated while being read". */
 int crom_in_next(crom_in *in);
 
 /* Random access for HDF5 inputs: make frame k current. Error for streams
@@ -170,6 +174,10 @@ int crom_fileout_open(crom_fileout *o, const char *path, int binary);
 int crom_fileout_commit(crom_fileout *o);
 /* Close and remove the temporary file. */
 void crom_fileout_abort(crom_fileout *o);
+/* The state of the writes to f so far: 0, or CROM_EIO with the system's
+ * message for the write that failed ("No space left on device", when errno
+ * still names a write error) or "write failed". */
+int crom_fileout_error(FILE *f);
 
 /* End a run that streamed frames to o, with an optional per-step table in
  * stats (NULL or not open: none), given the run's code rc. rc == 0: commit
@@ -246,7 +254,8 @@ int crom_h5_set_i64(hid_t loc, const char *obj, const char *name, long long v);
 int crom_h5_get_i64(hid_t loc, const char *obj, const char *name, long long *v);
 int crom_h5_has_attr(hid_t loc, const char *obj, const char *name);
 
-/* Silence HDF5's own error printing (idempotent). */
+/* Silence HDF5's own error printing, keeping the errno of a system call
+ * that fails under it for the message (idempotent). */
 void crom_h5_quiet(void);
 
 #endif

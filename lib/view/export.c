@@ -144,7 +144,7 @@ int crom_export_vtu(FILE *f, const crom_export_frame *fr)
     free(off);
     free(types);
     free(mask);
-    return ferror(f) ? crom_err(CROM_EIO, "write failed") : 0;
+    return crom_fileout_error(f);
 }
 
 int crom_export_pvd(FILE *f, const double *time, const char *const *file, int n)
@@ -160,7 +160,7 @@ int crom_export_pvd(FILE *f, const double *time, const char *const *file, int n)
         fputs("\"/>\n", f);
     }
     fprintf(f, "  </Collection>\n</VTKFile>\n");
-    return ferror(f) ? crom_err(CROM_EIO, "write failed") : 0;
+    return crom_fileout_error(f);
 }
 
 /* Boundary triangles and the compact list of the vertices they use. */
@@ -209,7 +209,7 @@ int crom_export_obj(FILE *f, const crom_mesh *m, const double *disp)
     free(T);
     free(sv);
     free(map);
-    return ferror(f) ? crom_err(CROM_EIO, "write failed") : 0;
+    return crom_fileout_error(f);
 }
 
 int crom_export_ply(FILE *f, const crom_mesh *m, const double *disp)
@@ -240,7 +240,7 @@ int crom_export_ply(FILE *f, const crom_mesh *m, const double *disp)
     free(T);
     free(sv);
     free(map);
-    return ferror(f) ? crom_err(CROM_EIO, "write failed") : 0;
+    return crom_fileout_error(f);
 }
 
 /* ------------------------------------------------------------------ XDMF */
@@ -387,7 +387,7 @@ int crom_export_xdmf(FILE *f, const char *h5name, const crom_mesh *const *meshes
         fputs("    </Grid>\n", f);
     }
     fputs("  </Domain>\n</Xdmf>\n", f);
-    return ferror(f) ? crom_err(CROM_EIO, "write failed") : 0;
+    return crom_fileout_error(f);
 }
 
 /* -------------------------------------------------------- whole files */
@@ -806,8 +806,10 @@ static int gmsh_write_into(FILE *f, const char *ext, const int *views, int nview
     while (in && (n = fread(buf, 1, sizeof buf, in)) > 0)
         if (fwrite(buf, 1, n, f) != n)
             break;
-    if (in && (ferror(in) || ferror(f)))
-        rc = crom_err(CROM_EIO, "write failed");
+    if (in && ferror(f))
+        rc = crom_fileout_error(f);
+    else if (in && ferror(in))
+        rc = crom_err(CROM_EIO, "cannot read back %s", tmp);
     if (in)
         fclose(in);
     unlink(tmp);

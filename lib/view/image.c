@@ -85,9 +85,23 @@ void crom_image_text(crom_image *im, int x, int y, const char *s, int scale)
     }
 }
 
+/* libpng's own handlers print ("libpng error: Write Error"): these only
+ * return to the setjmp below, so the failure is reported once, by crom. */
+static void png_quiet_error(png_structp png, png_const_charp msg)
+{
+    (void)msg;
+    png_longjmp(png, 1);
+}
+
+static void png_quiet_warning(png_structp png, png_const_charp msg)
+{
+    (void)png;
+    (void)msg;
+}
+
 int crom_image_write_png(const crom_image *im, FILE *f)
 {
-    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, png_quiet_error, png_quiet_warning);
     png_infop info = png ? png_create_info_struct(png) : NULL;
     if (!png || !info) {
         png_destroy_write_struct(&png, &info);
@@ -95,7 +109,7 @@ int crom_image_write_png(const crom_image *im, FILE *f)
     }
     if (setjmp(png_jmpbuf(png))) {
         png_destroy_write_struct(&png, &info);
-        return crom_err(CROM_EIO, "PNG write failed");
+        return ferror(f) ? crom_fileout_error(f) : crom_err(CROM_EIO, "PNG write failed");
     }
     png_init_io(png, f);
     png_set_IHDR(png, info, (png_uint_32)im->w, (png_uint_32)im->h, 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
@@ -105,7 +119,7 @@ int crom_image_write_png(const crom_image *im, FILE *f)
         png_write_row(png, im->rgb + 3 * (size_t)y * im->w);
     png_write_end(png, NULL);
     png_destroy_write_struct(&png, &info);
-    return ferror(f) ? crom_err(CROM_EIO, "PNG write failed") : 0;
+    return crom_fileout_error(f);
 }
 
 int crom_image_save(const crom_image *im, const char *path)
@@ -116,7 +130,7 @@ int crom_image_save(const crom_image *im, const char *path)
         return rc;
     if ((rc = crom_image_write_png(im, fo.f))) {
         crom_fileout_abort(&fo);
-        return rc;
+        return crom_err_ctx("%s", fo.to_stdout ? "stdout" : path);
     }
     return crom_fileout_commit(&fo);
 }
