@@ -210,8 +210,8 @@ int main(int argc, char **argv)
         return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "give two results A and B (see crom-diff --help)"));
     int rc = run(&cli, &a);
     if (rc == 1) { /* differences beyond --max-error: not an error message */
-        crom_cli_exit(&cli, 0);
-        return 1;
+        int wrc = crom_cli_exit(&cli, 0); /* still a failed write to stdout */
+        return wrc ? wrc : 1;
     }
     return crom_cli_exit(&cli, rc);
 }
