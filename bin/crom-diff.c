@@ -169,8 +169,9 @@ static int run(crom_cli *cli, args *a)
         ra = crom_result_next(&A, &ta, ua, NULL);
         rb = crom_result_next(&B, &tb, ub, NULL);
     }
-    if (ra > 1 || rb > 1) {
-        rc = ra > 1 ? ra : rb;
+    if (ra < 0 || ra > 1 || rb < 0 || rb > 1) { /* an error (negative: a truncated stream) */
+        rc = ra < 0 || ra > 1 ? ra : rb;
+        rc = rc < 0 ? -rc : rc;
         goto out2;
     }
     if (nmatch == 0) {

@@ -8,6 +8,7 @@
 #include "base/err.h"
 #include "io/schema.h"
 #include "mesh/mesh.h"
+#include "rom/result.h"
 #include "view/validate.h"
 
 #define MAX_SYM 32
@@ -276,12 +277,13 @@ int crom_validate_file(crom_in *in, FILE *report)
         if (in->complete != 1)
             violation(&c, "incomplete: the run that wrote it stopped after %ld frames", nframes);
         for (long f = 0; frames && f < nframes; f++)
-            for (size_t i = 0; i < in->frame_len; i++)
-                if (!isfinite(frames[(size_t)f * in->frame_len + i])) {
-                    violation(&c, "frame %ld has a non-finite value", f);
-                    f = nframes;
-                    break;
-                }
+            if (crom_result_check_frame(in, frames + (size_t)f * in->frame_len, f)) {
+                /* the message names the file first: the violation does too */
+                const char *m = crom_errmsg();
+                size_t len = strlen(in->name);
+                violation(&c, "%s", !strncmp(m, in->name, len) && !strncmp(m + len, ": ", 2) ? m + len + 2 : m);
+                break;
+            }
     }
     for (const crom_schema_dset *d = s->dsets; d->path; d++) {
         if (d->kinds)
