@@ -127,6 +127,8 @@ static int adopt_trajectory(crom_result *res, const char *mesh_path)
     if (g >= 0)
         H5Gclose(g);
     if (rc) {
+        if (g >= 0)
+            crom_err_ctx("/mesh");
         crom_err_ctx("%s", in->name);
         return rc;
     }
