@@ -505,11 +505,11 @@ static int common_option(crom_cli *cli, const crom_opt *o, const char *val)
         cli->verbose++;
         return 0;
     case CROM_CLI_SEED: {
-        char *end;
+        char *end = (char *)val;
         errno = 0;
-        unsigned long long s = strtoull(val, &end, 0);
-        if (errno || *end || !*val || val[0] == '-')
-            return crom_err(CROM_EUSAGE, "--seed: '%s' is not a non-negative integer", val);
+        unsigned long long s = isdigit((unsigned char)val[0]) ? strtoull(val, &end, 10) : 0;
+        if (!isdigit((unsigned char)val[0]) || errno || *end) /* decimal only: no 0x10, no octal 010 */
+            return crom_err(CROM_EUSAGE, "--seed: '%s' is not a non-negative decimal integer", val);
         cli->seed = s;
         cli->seed_given = 1;
         return 0;
