@@ -42,7 +42,7 @@ int crom_parse_double(const char *s, const char *what, double *out)
         double v = strtod(s, &end);
         if (end != s && !*end && !isfinite(v))
             return crom_err(CROM_EUSAGE, "%s: '%s' is not a finite number", what, s);
-        if (end != s && !*end)
+        if (end != s && !*end && strpbrk(s, "xX"))
             return crom_err(CROM_EUSAGE, "%s: '%s' is not a decimal number", what, s);
         return crom_err(CROM_EUSAGE, "%s: '%s' is not a number", what, s);
     }
