@@ -11,6 +11,7 @@
 #include "rom/map.h"
 #include "rom/metrics.h"
 #include "rom/model.h"
+#include "rom/result.h"
 
 enum { O_MODEL = 300, O_SCHEME, O_COUNT, O_POSES, O_TOL, O_CAND, O_YOUNGS, O_POISSON, O_MAXPOSE, O_SHRINK };
 
@@ -184,6 +185,11 @@ static int read_poses(const char *path, const char *model_id, int r, int maxpose
         rc = crom_err(CROM_EDATA, "%s has no frames", in.name);
         goto out;
     }
+    for (long f = 0; f < n; f++)
+        if ((rc = crom_result_check_frame(&in, all + (size_t)f * in.frame_len, f))) {
+            free(all);
+            goto out;
+        }
     int k = n < maxpose ? (int)n : maxpose;
     *poses = crom_malloc(sizeof(double) * (size_t)k * r);
     if (!*poses) {

@@ -169,8 +169,9 @@ static int run(crom_cli *cli, args *a)
         ra = crom_result_next(&A, &ta, ua, NULL);
         rb = crom_result_next(&B, &tb, ub, NULL);
     }
-    if (ra > 1 || rb > 1) {
-        rc = ra > 1 ? ra : rb;
+    if (ra < 0 || ra > 1 || rb < 0 || rb > 1) { /* an error (negative: a truncated stream) */
+        rc = ra < 0 || ra > 1 ? ra : rb;
+        rc = rc < 0 ? -rc : rc;
         goto out2;
     }
     if (nmatch == 0) {
@@ -210,8 +211,8 @@ int main(int argc, char **argv)
         return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "give two results A and B (see crom-diff --help)"));
     int rc = run(&cli, &a);
     if (rc == 1) { /* differences beyond --max-error: not an error message */
-        crom_cli_exit(&cli, 0);
-        return 1;
+        int wrc = crom_cli_exit(&cli, 0); /* still a failed write to stdout */
+        return wrc ? wrc : 1;
     }
     return crom_cli_exit(&cli, rc);
 }

@@ -11,6 +11,7 @@
 #include "mesh/mesh.h"
 #include "rom/model.h"
 #include "rom/project.h"
+#include "rom/result.h"
 
 enum { O_MODEL = 300, O_ENCODER, O_LSQ };
 
@@ -174,13 +175,7 @@ static int run(crom_cli *cli, args *a)
     while ((rc = crom_in_next(&in)) == 1) {
         rc = 0;
         const double *u = crom_in_get(&in, fd);
-        for (size_t i = 0; i < n3; i++)
-            if (!isfinite(u[i]) || (fv >= 0 && !isfinite(crom_in_get(&in, fv)[i]))) {
-                rc = crom_err(CROM_EDATA, "%s: frame %ld has a non-finite value at vertex %zu", in.name,
-                              nf, i / 3);
-                break;
-            }
-        if (rc)
+        if ((rc = crom_result_check_frame(&in, NULL, nf)))
             break;
         if (a->pointnet) {
             for (int v = 0; v < m.nv; v++)

@@ -54,6 +54,7 @@ typedef struct {
     char **regions;
     int nregions;
     double size, dims[3], radius, height, exponent, timeout;
+    int exponent_given;
     int algorithm, no_optimize, remesh;
 } args;
 
@@ -79,8 +80,14 @@ static int on_opt(void *ctx, int key, const char *v)
         return 0;
     case O_RADIUS: return crom_parse_positive(v, "--radius", &a->radius);
     case O_HEIGHT: return crom_parse_positive(v, "--height", &a->height);
-    case O_EXP: return crom_parse_double(v, "--exponent", &a->exponent);
+    case O_EXP: /* any value given is used (0 too, and refused by the range check) */
+        a->exponent_given = 1;
+        return crom_parse_double(v, "--exponent", &a->exponent);
     case O_REGION: {
+        size_t len = strcspn(v, "=");
+        for (int i = 0; i < a->nregions; i++)
+            if (!strncmp(a->regions[i], v, len) && a->regions[i][len] == '=' && v[len] == '=')
+                return crom_err(CROM_EUSAGE, "--region: region '%.*s' is given twice", (int)len, v);
         char **r = realloc(a->regions, sizeof(char *) * (size_t)(a->nregions + 1));
         if (!r)
             return crom_err(CROM_EINTERNAL, "out of memory");
@@ -132,7 +139,7 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
         a->gen.radius = a->radius;
     if (a->height > 0)
         a->gen.height = a->height;
-    if (a->exponent != 0)
+    if (a->exponent_given)
         a->gen.exponent = a->exponent;
     if (a->algorithm)
         a->gen.algorithm = a->algorithm;

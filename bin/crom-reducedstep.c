@@ -15,6 +15,7 @@
 #include "rom/map.h"
 #include "rom/model.h"
 #include "rom/nlsim.h"
+#include "rom/result.h"
 #include "rom/rsim.h"
 #include "rom/schedule.h"
 
@@ -156,6 +157,10 @@ static int read_init(const args *a, const char *model_id, int r, double *q, doub
     if (k < 0 || k >= n) {
         free(all);
         rc = crom_err(CROM_EUSAGE, "--init-frame %ld: %s has %ld frames", a->init_frame, in.name, n);
+        goto out;
+    }
+    if ((rc = crom_result_check_frame(&in, all + (size_t)k * in.frame_len, k))) {
+        free(all);
         goto out;
     }
     memcpy(q, all + (size_t)k * in.frame_len + in.fields[fq].offset, sizeof(double) * (size_t)r);

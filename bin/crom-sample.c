@@ -12,6 +12,7 @@
 #include "cli/cli.h"
 #include "io/io.h"
 #include "mesh/mesh.h"
+#include "rom/result.h"
 #include "rom/samples.h"
 
 enum { O_POINTS = 300, O_MODE, O_EVERY, O_SKIPREST };
@@ -209,15 +210,11 @@ static int sample_source(crom_cli *cli, args *a, crom_samples *s, const char *pa
         if (fi % a->every)
             continue;
         const double *u = crom_in_get(&in, fd);
+        if ((rc = crom_result_check_frame(&in, NULL, fi)))
+            goto endloop;
         int zero = 1;
-        for (size_t i = 0; i < 3 * (size_t)m.nv; i++) {
-            if (!isfinite(u[i])) {
-                rc = crom_err(CROM_EDATA, "%s: frame %ld has a non-finite displacement at vertex %zu",
-                              in.name, fi, i / 3);
-                goto endloop;
-            }
+        for (size_t i = 0; i < 3 * (size_t)m.nv; i++)
             zero &= u[i] == 0;
-        }
         if (zero && a->skip_rest)
             continue;
         if ((rc = crom_samples_add_frame(s, &pk, u, rng, k, crom_in_get(&in, ft)[0])))

@@ -463,6 +463,27 @@ static void usage_exit(crom_cli *cli)
     exit(code);
 }
 
+/* Flush stdout and report a write that failed on the way (a full disk,
+ * /dev/full, a closed descriptor): "PROG: cannot write to stdout: why" and
+ * CROM_EIO, or 0 when everything written reached the descriptor. Every exit
+ * of a program goes through here (crom_cli_exit and --help/--version). */
+static int stdout_status(const char *prog)
+{
+    errno = 0;
+    int flushed = fflush(stdout) == 0;
+    int why = errno;
+    if (flushed && !ferror(stdout))
+        return 0;
+    if (flushed || !why) {
+        /* An earlier write failed and stdio dropped that buffer, so its
+         * errno is gone. The output is already incomplete: one newline
+         * written straight to the descriptor asks it why (ENOSPC, EIO). */
+        why = write(1, "\n", 1) < 0 ? errno : 0;
+    }
+    fprintf(stderr, "%s: cannot write to stdout: %s\n", prog, why ? strerror(why) : "a write failed");
+    return CROM_EIO;
+}
+
 static int common_option(crom_cli *cli, const crom_opt *o, const char *val)
 {
     long n;
@@ -470,13 +491,13 @@ static int common_option(crom_cli *cli, const crom_opt *o, const char *val)
     switch (o->key) {
     case CROM_CLI_HELP:
         crom_cli_print_doc(cli->doc, stdout, 0);
-        exit(0);
+        exit(stdout_status(cli->prog));
     case CROM_CLI_HELP_MAN:
         crom_cli_print_doc(cli->doc, stdout, 1);
-        exit(0);
+        exit(stdout_status(cli->prog));
     case CROM_CLI_VERSION:
         printf("%s (crom) %s\n", cli->prog, CROM_VERSION);
-        exit(0);
+        exit(stdout_status(cli->prog));
     case 'q':
         cli->quiet = 1;
         return 0;
@@ -484,11 +505,11 @@ static int common_option(crom_cli *cli, const crom_opt *o, const char *val)
         cli->verbose++;
         return 0;
     case CROM_CLI_SEED: {
-        char *end;
+        char *end = (char *)val;
         errno = 0;
-        unsigned long long s = strtoull(val, &end, 0);
-        if (errno || *end || !*val || val[0] == '-')
-            return crom_err(CROM_EUSAGE, "--seed: '%s' is not a non-negative integer", val);
+        unsigned long long s = isdigit((unsigned char)val[0]) ? strtoull(val, &end, 10) : 0;
+        if (!isdigit((unsigned char)val[0]) || errno || *end) /* decimal only: no 0x10, no octal 010 */
+            return crom_err(CROM_EUSAGE, "--seed: '%s' is not a non-negative decimal integer", val);
         cli->seed = s;
         cli->seed_given = 1;
         return 0;
@@ -604,6 +625,9 @@ int crom_cli_exit(crom_cli *cli, int rc)
     if (rc) {
         const char *m = crom_errmsg();
         fprintf(stderr, "%s: %s\n", cli->prog, *m ? m : "failed");
+        fflush(stdout); /* the first error is the one to report */
+    } else {
+        rc = stdout_status(cli->prog);
     }
     for (int i = 0; i < cli->nexpanded; i++)
         free(cli->expanded[i]);

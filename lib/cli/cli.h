@@ -64,7 +64,10 @@ void crom_cli_parse(crom_cli *cli, const crom_cli_doc *doc, int argc, char **arg
                     crom_cli_opt_fn fn, void *ctx);
 
 /* Print "PROG: <last library error>" if rc != 0, free the cli, and return rc
- * (so main can `return crom_cli_exit(&cli, rc)`). */
+ * (so main can `return crom_cli_exit(&cli, rc)`). When rc is 0 it flushes
+ * stdout first: a write to stdout that failed (a full disk, /dev/full)
+ * prints "PROG: cannot write to stdout: REASON" and returns CROM_EIO (74).
+ * --help, --help-man and --version check stdout the same way. */
 int crom_cli_exit(crom_cli *cli, int rc);
 
 /* "PROG: message" on stderr, unless --quiet (info) / always (warn). */

@@ -598,6 +598,8 @@ int crom_mesh_load(const char *path, int carriers, crom_mesh *m, char **history)
         rc = g < 0 ? crom_err(CROM_EDATA, "%s has no mesh", in.name) : crom_mesh_read(g, m);
         if (g >= 0)
             H5Gclose(g);
+        if (rc && g >= 0 && strcmp(group, "/"))
+            crom_err_ctx("/%s", group);
         if (rc && g >= 0)
             crom_err_ctx("%s", in.name);
     }

@@ -27,9 +27,9 @@ const crom_opt crom_scenario_opts[] = {
     {"steps", SC_STEPS, "N", "Number of time steps (default 100)."},
     {"every", SC_EVERY, "K", "Store every K-th step (default 1); frame 0 is the initial state."},
     {"gravity", SC_GRAVITY, "GX,GY,GZ", "Gravitational acceleration in m/s^2 (default 0,-9.81,0)."},
-    {"pin", SC_PIN, "REGION", "Hold the vertices of REGION (a mesh region name or a predicate such as 'y<-0.45') at rest (repeatable)."},
-    {"velocity", SC_VELOCITY, "REGION=VX,VY,VZ[@T0:T1]", "Move REGION at the given velocity (m/s) during [T0, T1] (default: always) and hold it still outside (repeatable). LiCROM's compression: --velocity 'y>0.45=0,-2,0' --pin 'y<-0.45'."},
-    {"force", SC_FORCE, "REGION=FX,FY,FZ[@T0:T1]", "Apply a total force (N) to REGION, spread over its vertices by mass, during [T0, T1] (repeatable)."},
+    {"pin", SC_PIN, "REGION", "Hold the vertices of REGION (a mesh region name or a predicate such as 'y<-0.45') at rest (repeatable; a region pinned or moved by --velocity already is an error)."},
+    {"velocity", SC_VELOCITY, "REGION=VX,VY,VZ[@T0:T1]", "Move REGION at the given velocity (m/s) during [T0, T1] (default: always) and hold it still outside (repeatable, once per region). LiCROM's compression: --velocity 'y>0.45=0,-2,0' --pin 'y<-0.45'."},
+    {"force", SC_FORCE, "REGION=FX,FY,FZ[@T0:T1]", "Apply a total force (N) to REGION, spread over its vertices by mass, during [T0, T1] (repeatable: forces on one region add up)."},
     {"plane", SC_PLANE, "NX,NY,NZ,D[,MU]", "Collision half-space: keep n.x >= D (n is normalized), with Coulomb friction coefficient MU (default 0) (repeatable)."},
     {"damping", SC_DAMPING, "A", "Mass-proportional damping rate in 1/s (default 0): a drag force A m v."},
     {"contact-stiffness", SC_CONTACT_K, "K", "Penalty rate of the collision planes in 1/s^2: a vertex of mass m at depth d feels K m d (default 1e5)."},
@@ -64,7 +64,20 @@ const char *crom_scenario_opt_name(int key)
     return NULL;
 }
 
-int crom_scenario_option(crom_scenario *s, int key, const char *v)
+/* How region ref is already held ("pinned", "moved by --velocity"), or NULL:
+ * a region held twice would keep only the last silently. */
+static const char *held(const crom_scenario *s, const char *ref)
+{
+    for (int i = 0; i < s->npins; i++)
+        if (!strcmp(s->pins[i], ref))
+            return "pinned (--pin)";
+    for (int i = 0; i < s->nvel; i++)
+        if (!strcmp(s->vel[i].ref, ref))
+            return "moved by --velocity";
+    return NULL;
+}
+
+static int parse_option(crom_scenario *s, int key, const char *v)
 {
     long n;
     double d[5];
@@ -90,6 +103,8 @@ int crom_scenario_option(crom_scenario *s, int key, const char *v)
             return crom_err(CROM_EUSAGE, "--pin: at most %d", CROM_SCENARIO_MAX);
         if (!*v || strlen(v) >= sizeof s->pins[0])
             return crom_err(CROM_EUSAGE, "--pin: empty or too long region '%s'", v);
+        if (held(s, v))
+            return crom_err(CROM_EUSAGE, "--pin: region '%s' is already %s", v, held(s, v));
         snprintf(s->pins[s->npins++], sizeof s->pins[0], "%s", v);
         return 0;
     case SC_VELOCITY:
@@ -97,6 +112,9 @@ int crom_scenario_option(crom_scenario *s, int key, const char *v)
             return crom_err(CROM_EUSAGE, "--velocity: at most %d", CROM_SCENARIO_MAX);
         if (crom_bc_parse("--velocity", v, &s->vel[s->nvel]))
             return CROM_EUSAGE;
+        if (held(s, s->vel[s->nvel].ref))
+            return crom_err(CROM_EUSAGE, "--velocity: region '%s' is already %s (each vertex follows one)",
+                            s->vel[s->nvel].ref, held(s, s->vel[s->nvel].ref));
         s->nvel++;
         return 0;
     case SC_FORCE:
@@ -128,7 +146,7 @@ int crom_scenario_option(crom_scenario *s, int key, const char *v)
     case SC_DAMPING:
         if (crom_parse_double(v, "--damping", &s->damping))
             return CROM_EUSAGE;
-        return s->damping < 0 ? crom_err(CROM_EUSAGE, "--damping must be >= 0, got %s", v) : 0;
+        return 0;
     case SC_CONTACT_K: return crom_parse_positive(v, "--contact-stiffness", &s->contact_stiffness);
     case SC_FRICTION_EPS: return crom_parse_positive(v, "--friction-eps", &s->friction_eps);
     case SC_TOL: return crom_parse_positive(v, "--tol", &s->tol);
@@ -143,18 +161,85 @@ int crom_scenario_option(crom_scenario *s, int key, const char *v)
     return -1;
 }
 
+/* The range of each scenario value, checked as soon as it is given (so the
+ * message names the flag, not a later overflow) and again by
+ * crom_scenario_check. Returns 0 or CROM_EUSAGE. */
+#define SC_MAX_G 1e5      /* m/s^2: ten thousand g */
+#define SC_MAX_SPEED 1e5  /* m/s, rad/s */
+static int norm_ok(const double v[3], double max) { return sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) <= max; }
+
+static int check_value(const crom_scenario *s, int key)
+{
+    switch (key) {
+    case SC_YOUNGS:
+        if (!(s->youngs > 0 && s->youngs <= 1e13))
+            return crom_err(CROM_EUSAGE, "--youngs must be a positive modulus in Pa, got %g (allowed (0, 1e13])",
+                            s->youngs);
+        return 0;
+    case SC_POISSON:
+        if (!(s->poisson > -1 && s->poisson < 0.5))
+            return crom_err(CROM_EUSAGE, "--poisson must be in (-1, 0.5), got %g", s->poisson);
+        return 0;
+    case SC_DENSITY:
+        if (!(s->density > 0 && s->density <= 1e6))
+            return crom_err(CROM_EUSAGE, "--density must be positive, got %g (allowed (0, 1e6] kg/m^3)", s->density);
+        return 0;
+    case SC_DT:
+        if (!(s->dt >= 1e-9 && s->dt <= 1e3))
+            return crom_err(CROM_EUSAGE, "--dt must be in [1e-9, 1e3] s, got %g", s->dt);
+        return 0;
+    case SC_GRAVITY:
+        if (!norm_ok(s->gravity, SC_MAX_G))
+            return crom_err(CROM_EUSAGE, "--gravity: |g| must be at most %g m/s^2", SC_MAX_G);
+        return 0;
+    case SC_DAMPING:
+        if (!(s->damping >= 0 && s->damping <= 1e6))
+            return crom_err(CROM_EUSAGE, "--damping must be in [0, 1e6] 1/s, got %g", s->damping);
+        return 0;
+    case SC_CONTACT_K:
+        if (!(s->contact_stiffness > 0 && s->contact_stiffness <= 1e12))
+            return crom_err(CROM_EUSAGE, "--contact-stiffness must be in (0, 1e12] 1/s^2, got %g", s->contact_stiffness);
+        return 0;
+    case SC_FRICTION_EPS:
+        if (!(s->friction_eps >= 1e-12 && s->friction_eps <= 1e3))
+            return crom_err(CROM_EUSAGE, "--friction-eps must be in [1e-12, 1e3] m/s, got %g", s->friction_eps);
+        return 0;
+    case SC_TOL:
+        /* relative to the bounding-box diagonal: 0.1 already accepts the first Newton step */
+        if (!(s->tol >= 1e-16 && s->tol <= 0.1))
+            return crom_err(CROM_EUSAGE, "--tol must be in [1e-16, 0.1] (relative to the body's size), got %g", s->tol);
+        return 0;
+    case SC_V0:
+        if (!norm_ok(s->v0, SC_MAX_SPEED))
+            return crom_err(CROM_EUSAGE, "--initial-velocity: the speed must be at most %g m/s", SC_MAX_SPEED);
+        return 0;
+    case SC_SPIN:
+        if (!norm_ok(s->spin, SC_MAX_SPEED))
+            return crom_err(CROM_EUSAGE, "--spin: the angular speed must be at most %g rad/s", SC_MAX_SPEED);
+        return 0;
+    }
+    return 0;
+}
+
 int crom_scenario_check(const crom_scenario *s)
 {
-    if (!isfinite(s->youngs) || !(s->youngs > 0))
-        return crom_err(CROM_EUSAGE, "--youngs must be a positive modulus in Pa, got %g", s->youngs);
-    if (!isfinite(s->poisson) || !(s->poisson > -1 && s->poisson < 0.5))
-        return crom_err(CROM_EUSAGE, "--poisson must be in (-1, 0.5), got %g", s->poisson);
-    if (!isfinite(s->density) || !(s->density > 0))
-        return crom_err(CROM_EUSAGE, "--density must be positive, got %g", s->density);
+    static const int keys[] = {SC_YOUNGS, SC_POISSON, SC_DENSITY, SC_DT, SC_GRAVITY, SC_DAMPING,
+                               SC_CONTACT_K, SC_FRICTION_EPS, SC_TOL, SC_V0, SC_SPIN};
+    for (size_t i = 0; i < sizeof keys / sizeof *keys; i++) {
+        int rc = check_value(s, keys[i]);
+        if (rc)
+            return rc;
+    }
     if (s->every > s->steps && s->steps > 0)
         return crom_err(CROM_EUSAGE, "--every %d is more than --steps %d: no frame but the first would be stored",
                         s->every, s->steps);
     return 0;
+}
+
+int crom_scenario_option(crom_scenario *s, int key, const char *v)
+{
+    int rc = parse_option(s, key, v);
+    return rc ? rc : check_value(s, key);
 }
 
 static void appendf(char **buf, size_t *len, size_t *cap, const char *fmt, ...)

@@ -821,8 +821,10 @@ int crom_cubature_read(crom_in *in, crom_cubature *c)
     }
     rc = crom_mesh_read(g, &c->mesh);
     H5Gclose(g);
-    if (rc)
+    if (rc) {
+        crom_err_ctx("/mesh");
         goto fail;
+    }
     size_t nv = (size_t)c->mesh.nv;
     if ((rc = crom_h5_read_f64(in->h5, "W", 3, d, &c->W)))
         goto fail;
@@ -857,17 +859,20 @@ int crom_cubature_read(crom_in *in, crom_cubature *c)
     if ((rc = crom_h5_read_i32(in->h5, "surface", 1, d, &c->surf)))
         goto fail;
     c->nsurf = (int)d[0];
-    for (int j = 0; j < c->k; j++)
-        if (c->elem[j] < 0 || c->elem[j] >= c->mesh.nt || !(c->weight[j] >= 0) || !isfinite(c->weight[j]) ||
-            !(c->vol[j] > 0)) {
-            rc = crom_err(CROM_EDATA, "cubature tet %d is invalid (index, weight or volume)", j);
-            goto fail;
-        }
-    for (int j = 0; j < c->nsurf; j++)
-        if (c->surf[j] < 0 || c->surf[j] >= c->mesh.nv) {
-            rc = crom_err(CROM_EDATA, "surface vertex %d is out of range", j);
-            goto fail;
-        }
+    for (int j = 0; j < c->k && !rc; j++)
+        if (c->elem[j] < 0 || c->elem[j] >= c->mesh.nt)
+            rc = crom_err(CROM_EDATA, "/elements[%d] = %d is not a tet of the mesh (0..%d)", j, c->elem[j],
+                          c->mesh.nt - 1);
+        else if (!(c->weight[j] >= 0) || !isfinite(c->weight[j]))
+            rc = crom_err(CROM_EDATA, "/weights[%d] = %g is not a non-negative finite weight", j, c->weight[j]);
+        else if (!(c->vol[j] > 0) || !isfinite(c->vol[j]))
+            rc = crom_err(CROM_EDATA, "/volume[%d] = %g is not a positive finite volume", j, c->vol[j]);
+    for (int j = 0; j < c->nsurf && !rc; j++)
+        if (c->surf[j] < 0 || c->surf[j] >= c->mesh.nv)
+            rc = crom_err(CROM_EDATA, "/surface[%d] = %d is not a vertex of the mesh (0..%d)", j, c->surf[j],
+                          c->mesh.nv - 1);
+    if (rc)
+        goto fail;
     for (size_t i = 0; i < nv * 3 * (size_t)r; i++)
         if (!isfinite(c->W[i])) {
             rc = crom_err(CROM_EDATA, "W is not finite");

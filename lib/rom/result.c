@@ -127,6 +127,8 @@ static int adopt_trajectory(crom_result *res, const char *mesh_path)
     if (g >= 0)
         H5Gclose(g);
     if (rc) {
+        if (g >= 0)
+            crom_err_ctx("/mesh");
         crom_err_ctx("%s", in->name);
         return rc;
     }
@@ -165,10 +167,33 @@ int crom_result_adopt(crom_result *res, crom_in *opened, const char *mesh_path, 
     return rc;
 }
 
+int crom_result_check_frame(const crom_in *in, const double *frame, long k)
+{
+    if (!frame)
+        frame = in->frame;
+    for (int f = 0; f < in->nfields; f++) {
+        const crom_io_field *fd = &in->fields[f];
+        for (size_t i = 0; i < fd->count; i++) {
+            if (isfinite(frame[fd->offset + i]))
+                continue;
+            if (fd->rank == 2 && fd->dims[1] == 3)
+                return crom_err(CROM_EDATA, "%s: frame %ld has a non-finite %s at vertex %zu", in->name, k,
+                                fd->name, i / 3);
+            if (fd->count > 1)
+                return crom_err(CROM_EDATA, "%s: frame %ld has a non-finite %s at index %zu", in->name, k,
+                                fd->name, i);
+            return crom_err(CROM_EDATA, "%s: frame %ld has a non-finite %s", in->name, k, fd->name);
+        }
+    }
+    return 0;
+}
+
 int crom_result_next(crom_result *res, double *t, double *u, double *v)
 {
     int rc = crom_in_next(&res->in);
     if (rc != 1)
+        return rc;
+    if ((rc = crom_result_check_frame(&res->in, NULL, res->in.cursor - 1)))
         return rc;
     *t = crom_in_get(&res->in, res->ft)[0];
     int n = 3 * res->mesh.nv;

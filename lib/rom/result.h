@@ -45,4 +45,12 @@ int crom_result_next(crom_result *res, double *t, double *u, double *v);
 
 void crom_result_close(crom_result *res);
 
+/* The one check that frame data is finite, for every program that reads
+ * frames (crom-export and crom-diff through crom_result_next, crom-sample,
+ * crom-encode, crom-cubature --poses, crom-reducedstep --init): every value
+ * of `frame` (in->frame_len doubles packed in in's field order; NULL: the
+ * current frame) is finite. Returns 0, or CROM_EDATA with "NAME: frame K has
+ * a non-finite FIELD (at vertex V | at index I)". */
+int crom_result_check_frame(const crom_in *in, const double *frame, long k);
+
 #endif

@@ -232,7 +232,7 @@ static int check_frames(const crom_in *in, const crom_samples *s)
         }
         int k = s->source[f];
         if (k < 0 || k >= s->nsources) {
-            rc = crom_err(CROM_EDATA, "%s: frame %d names source %d, but there are %d", in->name, f,
+            rc = crom_err(CROM_EDATA, "%s: /frame_source: frame %d names source %d, but there are %d", in->name, f,
                           k, s->nsources);
             break;
         }
@@ -250,7 +250,7 @@ static int check_frames(const crom_in *in, const crom_samples *s)
             size_t j = (size_t)f * s->N + i;
             int v = s->vertex[j];
             if (v < -1 || v >= m->nv) {
-                rc = crom_err(CROM_EDATA, "%s: frame %d sample %d names vertex %d of a %d-vertex mesh",
+                rc = crom_err(CROM_EDATA, "%s: /vertex: frame %d sample %d names vertex %d of a %d-vertex mesh",
                               in->name, f, i, v, m->nv);
                 break;
             }

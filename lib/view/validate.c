@@ -8,6 +8,10 @@
 #include "base/err.h"
 #include "io/schema.h"
 #include "mesh/mesh.h"
+#include "rom/cubature.h"
+#include "rom/model.h"
+#include "rom/result.h"
+#include "rom/samples.h"
 #include "view/validate.h"
 
 #define MAX_SYM 32
@@ -19,6 +23,8 @@ typedef struct {
     int violations;
     const char *file;
     const crom_schema *s;
+    hsize_t filesize;   /* bytes of the file (or image): no dataset stores more */
+    int oversized;      /* a dataset declares more than the file holds: read nothing more */
 } ctx;
 
 static void violation(ctx *c, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
@@ -50,6 +56,77 @@ static int sym(ctx *c, const char *s, long long v, long long *expected)
     return 0;
 }
 
+/* Deflate, the strongest filter HDF5 ships, shrinks data at most about
+ * 1032:1: a filtered dataset that declares more than this many times what it
+ * stores cannot be real. */
+#define MAX_FILTER_RATIO 1032.0
+/* Values read at once when scanning a dataset (8 MB of doubles). */
+#define SCAN_VALUES ((hsize_t)1 << 20)
+
+/* 1 if dataset ds (n values of esize bytes in the file) can be what the file
+ * holds: its stored bytes (at most the file's size) cover the declared
+ * extent. Otherwise a violation, and nothing may be allocated from it. */
+static int storage_ok(ctx *c, hid_t ds, const char *path, hsize_t n, size_t esize)
+{
+    hsize_t stored = H5Dget_storage_size(ds);
+    if (c->filesize > 0 && stored > c->filesize)
+        stored = c->filesize;
+    hid_t dcpl = H5Dget_create_plist(ds);
+    int filtered = dcpl >= 0 && H5Pget_nfilters(dcpl) > 0;
+    if (dcpl >= 0)
+        H5Pclose(dcpl);
+    if ((double)n * (double)esize <= (double)stored * (filtered ? MAX_FILTER_RATIO : 1.0))
+        return 1;
+    violation(c, "/%s declared %llu values but the file stores only %llu bytes", path, (unsigned long long)n,
+              (unsigned long long)stored);
+    c->oversized = 1;
+    return 0;
+}
+
+/* Every value of the float dataset ds finite, read SCAN_VALUES at a time
+ * along its first dimension. */
+static void scan_finite(ctx *c, hid_t ds, hid_t sp, const char *path, int rank, const hsize_t *dims)
+{
+    hsize_t row = 1;
+    for (int k = 1; k < rank; k++)
+        row *= dims[k];
+    hsize_t nrows = rank > 0 ? dims[0] : 1, step = row >= SCAN_VALUES ? 1 : SCAN_VALUES / row;
+    if (!row || !nrows)
+        return;
+    double *buf = malloc(sizeof(double) * (size_t)(row * (step < nrows ? step : nrows)));
+    if (!buf) {
+        violation(c, "/%s cannot be read: out of memory", path);
+        return;
+    }
+    for (hsize_t r0 = 0; r0 < nrows; r0 += step) {
+        hsize_t cnt = nrows - r0 < step ? nrows - r0 : step;
+        hsize_t start[8] = {0}, count[8];
+        for (int k = 0; k < rank; k++)
+            count[k] = dims[k];
+        start[0] = r0;
+        count[0] = cnt;
+        hsize_t nmem = cnt * row;
+        hid_t mem = H5Screate_simple(1, &nmem, NULL);
+        herr_t e = rank > 0 ? H5Sselect_hyperslab(sp, H5S_SELECT_SET, start, NULL, count, NULL) : 0;
+        if (e < 0 || mem < 0 || H5Dread(ds, H5T_NATIVE_DOUBLE, rank > 0 ? mem : H5S_ALL,
+                                        rank > 0 ? sp : H5S_ALL, H5P_DEFAULT, buf) < 0) {
+            if (mem >= 0)
+                H5Sclose(mem);
+            violation(c, "/%s cannot be read (corrupt?)", path);
+            break;
+        }
+        H5Sclose(mem);
+        hsize_t i = 0;
+        while (i < nmem && isfinite(buf[i]))
+            i++;
+        if (i < nmem) {
+            violation(c, "/%s has a non-finite value at flat index %llu", path, (unsigned long long)(r0 * row + i));
+            break;
+        }
+    }
+    free(buf);
+}
+
 static void check_dset(ctx *c, hid_t root, const char *path, const crom_schema_dset *d)
 {
     if (!crom_h5_has(root, path)) {
@@ -73,9 +150,11 @@ static void check_dset(ctx *c, hid_t root, const char *path, const crom_schema_d
         violation(c, "/%s has the wrong type (expected %s)", path, want);
     hsize_t dims[8];
     int rank = H5Sget_simple_extent_ndims(sp);
-    if (rank > 8)
-        rank = 8;
-    H5Sget_simple_extent_dims(sp, dims, NULL);
+    if (rank < 0 || rank > 8 || H5Sget_simple_extent_dims(sp, dims, NULL) < 0) {
+        violation(c, "/%s has an unreadable shape (corrupt?)", path);
+        c->oversized = 1;
+        goto done;
+    }
     /* split the shape spec */
     char spec[64], *save = NULL;
     snprintf(spec, sizeof spec, "%s", d->shape);
@@ -99,21 +178,14 @@ static void check_dset(ctx *c, hid_t root, const char *path, const crom_schema_d
     }
     if (k != rank)
         violation(c, "/%s has rank %d, expected %d (%s)", path, rank, k, d->shape);
-    /* values must be finite */
-    if (ok && cls == H5T_FLOAT && rank >= 0) {
-        hssize_t n = H5Sget_simple_extent_npoints(sp);
-        double *buf = n > 0 ? malloc(sizeof(double) * (size_t)n) : NULL;
-        if (buf && H5Dread(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf) >= 0) {
-            for (hssize_t i = 0; i < n; i++)
-                if (!isfinite(buf[i])) {
-                    violation(c, "/%s has a non-finite value at flat index %lld", path, (long long)i);
-                    break;
-                }
-        } else if (n > 0) {
-            violation(c, "/%s cannot be read (corrupt?)", path);
-        }
-        free(buf);
-    }
+    /* what it declares must fit in what the file stores, before anything is
+     * allocated from it; then its values must be finite */
+    hssize_t n = H5Sget_simple_extent_npoints(sp);
+    if (n < 0 || !storage_ok(c, ds, path, (hsize_t)n, sz ? sz : 1))
+        goto done;
+    if (ok && cls == H5T_FLOAT)
+        scan_finite(c, ds, sp, path, rank, dims);
+done:
     H5Sclose(sp);
     H5Tclose(t);
     H5Dclose(ds);
@@ -238,6 +310,70 @@ static herr_t object_cb(hid_t root, const char *name, const H5O_info_t *info, vo
 
 /* --------------------------------------------------------------- checker */
 
+/* A violation from the last library error, which names the file first (the
+ * violation does too: that prefix is dropped) and then what = a mesh group
+ * (may be NULL) is put before the rest. */
+static void reader_violation(ctx *c, const crom_in *in, const char *what)
+{
+    const char *m = crom_errmsg();
+    size_t len = strlen(in->name);
+    if (!strncmp(m, in->name, len) && !strncmp(m + len, ": ", 2))
+        m += len + 2;
+    if (what)
+        violation(c, "%s: %s", what, m);
+    else
+        violation(c, "%s", m);
+    crom_err_clear();
+}
+
+/* The mesh in group `group` ("/" for the root) as crom_mesh_read takes it. */
+static void check_mesh(ctx *c, const crom_in *in, const char *group)
+{
+    hid_t loc = H5Gopen2(in->h5, group, H5P_DEFAULT);
+    if (loc < 0) {
+        crom_err_clear();
+        return; /* missing: already a violation of the table */
+    }
+    crom_mesh m;
+    char what[160];
+    snprintf(what, sizeof what, "/%s", strcmp(group, "/") ? group : "");
+    if (crom_mesh_read(loc, &m))
+        reader_violation(c, in, strcmp(group, "/") ? what : NULL);
+    else
+        crom_mesh_free(&m);
+    H5Gclose(loc);
+}
+
+/* Read the file as the programs do: each reader's refusal is a violation. */
+static void check_readers(ctx *c, crom_in *in)
+{
+    const char *sc = c->s->schema;
+    if (!strcmp(sc, "crom/mesh")) {
+        check_mesh(c, in, "/");
+    } else if (!strcmp(sc, "crom/trajectory")) {
+        check_mesh(c, in, "mesh");
+    } else if (!strcmp(sc, "crom/cubature")) {
+        crom_cubature cub;
+        if (crom_cubature_read(in, &cub))
+            reader_violation(c, in, NULL);
+        else
+            crom_cubature_free(&cub);
+    } else if (!strcmp(sc, "crom/model")) {
+        crom_model m;
+        if (crom_model_read(in, &m))
+            reader_violation(c, in, NULL);
+        else
+            crom_model_free(&m);
+    } else if (!strcmp(sc, "crom/samples")) {
+        crom_samples smp;
+        if (crom_samples_read(in, &smp))
+            reader_violation(c, in, NULL);
+        else
+            crom_samples_free(&smp);
+    }
+    crom_err_clear();
+}
+
 int crom_validate_file(crom_in *in, FILE *report)
 {
     ctx c;
@@ -250,6 +386,10 @@ int crom_validate_file(crom_in *in, FILE *report)
         return c.violations;
     }
     c.s = s;
+    hsize_t fsize = 0;
+    if (H5Fget_filesize(in->h5, &fsize) >= 0)
+        c.filesize = fsize;
+    crom_err_clear();
     if (in->version > s->version) {
         violation(&c, "%s v%d is newer than this crom understands (v%d)", s->schema, in->version,
                   s->version);
@@ -261,28 +401,10 @@ int crom_validate_file(crom_in *in, FILE *report)
         check_attr(&c, in->h5, ".", a);
     for (const crom_schema_attr *a = s->attrs; a && a->name; a++)
         check_attr(&c, in->h5, ".", a);
-    /* a stream carries its frames separately: bind F from what is read */
-    double *frames = NULL;
-    long nframes = 0;
-    if (s->series) {
-        if (!in->nfields)
-            violation(&c, "a %s must have frame fields under /frames", s->schema);
-        if (in->form == CROM_IO_H5)
-            in->cursor = 0; /* check every frame, wherever the reader stood */
-        if (crom_in_read_all(in, &frames, &nframes))
-            violation(&c, "frames cannot be read: %s", crom_errmsg());
-        long long dummy;
-        sym(&c, "F", in->form == CROM_IO_STREAM ? 0 : nframes, &dummy);
-        if (in->complete != 1)
-            violation(&c, "incomplete: the run that wrote it stopped after %ld frames", nframes);
-        for (long f = 0; frames && f < nframes; f++)
-            for (size_t i = 0; i < in->frame_len; i++)
-                if (!isfinite(frames[(size_t)f * in->frame_len + i])) {
-                    violation(&c, "frame %ld has a non-finite value", f);
-                    f = nframes;
-                    break;
-                }
-    }
+    /* a stream carries its frames separately (its header's are empty) */
+    long long dummy;
+    if (s->series)
+        sym(&c, "F", in->form == CROM_IO_STREAM ? 0 : in->nframes, &dummy);
     for (const crom_schema_dset *d = s->dsets; d->path; d++) {
         if (d->kinds)
             continue; /* a second row of a path: the same dtype and shape, other units */
@@ -308,23 +430,33 @@ int crom_validate_file(crom_in *in, FILE *report)
         }
         crom_h5_list_free(names);
     }
+    /* the frames, unless a dataset declares more than the file holds */
+    double *frames = NULL;
+    long nframes = 0;
+    if (s->series && !c.oversized) {
+        if (!in->nfields)
+            violation(&c, "a %s must have frame fields under /frames", s->schema);
+        if (in->form == CROM_IO_H5)
+            in->cursor = 0; /* check every frame, wherever the reader stood */
+        if (crom_in_read_all(in, &frames, &nframes))
+            violation(&c, "frames cannot be read: %s", crom_errmsg());
+        if (in->complete != 1)
+            violation(&c, "incomplete: the run that wrote it stopped after %ld frames", nframes);
+        for (long f = 0; frames && f < nframes; f++)
+            if (crom_result_check_frame(in, frames + (size_t)f * in->frame_len, f)) {
+                reader_violation(&c, in, NULL);
+                break;
+            }
+    }
     /* nothing the table does not describe; units and descriptions */
     if (H5Ovisit(in->h5, H5_INDEX_NAME, H5_ITER_INC, object_cb, &c) < 0)
         violation(&c, "the objects of the file cannot be listed");
     crom_err_clear();
-    /* semantic checks */
-    if (!strcmp(s->schema, "crom/mesh") || !strcmp(s->schema, "crom/trajectory")) {
-        crom_mesh m;
-        hid_t loc = !strcmp(s->schema, "crom/mesh") ? H5Gopen2(in->h5, "/", H5P_DEFAULT)
-                                                    : H5Gopen2(in->h5, "mesh", H5P_DEFAULT);
-        if (loc >= 0) {
-            if (crom_mesh_read(loc, &m))
-                violation(&c, "mesh: %s", crom_errmsg());
-            else
-                crom_mesh_free(&m);
-            H5Gclose(loc);
-        }
-    }
+    /* semantic checks: what the programs' own readers refuse (tets and
+     * regions of every mesh, cubature indices and weights, sample vertices
+     * and sources, network widths and parameter counts, ...) */
+    if (!c.oversized)
+        check_readers(&c, in);
     free(frames);
     return c.violations;
 }
