@@ -64,6 +64,22 @@ const char *crom_scenario_opt_name(int key)
     return NULL;
 }
 
+/* A region reference (a name or a predicate) goes into the scenario text one
+ * line per flag, after "--pin " (crom_scenario_text), and must read back the
+ * same: no control character (a newline would start a line, and a flag, of
+ * its own) and no blank at either end (the reader skips them). */
+static int check_ref(const char *flag, const char *ref, size_t len)
+{
+    if (len == 0)
+        return crom_err(CROM_EUSAGE, "%s: empty region", flag);
+    for (size_t i = 0; i < len; i++)
+        if ((unsigned char)ref[i] < 0x20 || ref[i] == 0x7f)
+            return crom_err(CROM_EUSAGE, "%s: region '%.*s' has a control character", flag, (int)len, ref);
+    if (ref[0] == ' ' || ref[len - 1] == ' ')
+        return crom_err(CROM_EUSAGE, "%s: region '%.*s' starts or ends with a blank", flag, (int)len, ref);
+    return 0;
+}
+
 int crom_scenario_option(crom_scenario *s, int key, const char *v)
 {
     long n;
@@ -90,19 +106,23 @@ int crom_scenario_option(crom_scenario *s, int key, const char *v)
             return crom_err(CROM_EUSAGE, "--pin: at most %d", CROM_SCENARIO_MAX);
         if (!*v || strlen(v) >= sizeof s->pins[0])
             return crom_err(CROM_EUSAGE, "--pin: empty or too long region '%s'", v);
+        if (check_ref("--pin", v, strlen(v)))
+            return CROM_EUSAGE;
         snprintf(s->pins[s->npins++], sizeof s->pins[0], "%s", v);
         return 0;
     case SC_VELOCITY:
         if (s->nvel == CROM_SCENARIO_MAX)
             return crom_err(CROM_EUSAGE, "--velocity: at most %d", CROM_SCENARIO_MAX);
-        if (crom_bc_parse("--velocity", v, &s->vel[s->nvel]))
+        if (crom_bc_parse("--velocity", v, &s->vel[s->nvel]) ||
+            check_ref("--velocity", s->vel[s->nvel].ref, strlen(s->vel[s->nvel].ref)))
             return CROM_EUSAGE;
         s->nvel++;
         return 0;
     case SC_FORCE:
         if (s->nforce == CROM_SCENARIO_MAX)
             return crom_err(CROM_EUSAGE, "--force: at most %d", CROM_SCENARIO_MAX);
-        if (crom_bc_parse("--force", v, &s->force[s->nforce]))
+        if (crom_bc_parse("--force", v, &s->force[s->nforce]) ||
+            check_ref("--force", s->force[s->nforce].ref, strlen(s->force[s->nforce].ref)))
             return CROM_EUSAGE;
         s->nforce++;
         return 0;
