@@ -14,6 +14,7 @@
 #include "base/array.h"
 #include "base/clock.h"
 #include "base/err.h"
+#include "io/h5probe.h"
 #include "io/io.h"
 #include "io/schema.h"
 
@@ -86,6 +87,30 @@ static size_t read_all(FILE *f, void *p, size_t n)
         got += k;
     }
     return got;
+}
+
+/* Read up to n bytes into *buf (capacity *cap, grown as the bytes arrive,
+ * so a length read from a file costs no more memory than the file holds);
+ * *got is how many arrived before end of file. */
+static int read_grown(FILE *f, void **buf, size_t *cap, size_t n, size_t *got)
+{
+    *got = 0;
+    if (!*buf) {
+        int rc = crom_array_reserve(buf, cap, 1, 1);
+        if (rc)
+            return rc;
+    }
+    while (*got < n) {
+        size_t want = n - *got < ((size_t)1 << 24) ? n - *got : (size_t)1 << 24;
+        int rc = crom_array_reserve(buf, cap, *got + want, 1);
+        if (rc)
+            return rc;
+        size_t k = read_all(f, (char *)*buf + *got, want);
+        *got += k;
+        if (k < want)
+            break;
+    }
+    return 0;
 }
 
 /* ------------------------------------------------------------- attributes */
@@ -685,7 +710,11 @@ static int read_fields(crom_in *in)
     if (rc)
         return rc;
     in->nframes = nframes < 0 ? 0 : nframes;
+    if (in->form == CROM_IO_STREAM || in->nframes == 0)
+        return 0; /* (the buffer grows as a stream's first frame arrives) */
+    /* bounded: the probe checked the frames stored back their shape */
     in->frame = crom_calloc(in->frame_len ? in->frame_len : 1, sizeof(double));
+    in->frame_cap = in->frame ? (in->frame_len ? in->frame_len : 1) * sizeof(double) : 0;
     return in->frame ? 0 : CROM_EINTERNAL;
 }
 
@@ -718,6 +747,8 @@ static int open_h5(crom_in *in, const char *path, const unsigned char head[8], i
     in->form = CROM_IO_H5;
     if (from_stdin) {
         int rc = slurp(in->fp, head, 8, &in->image, &in->image_size);
+        if (!rc)
+            rc = crom_h5probe(NULL, in->image, in->image_size, in->name);
         if (rc)
             return rc;
         in->h5 = open_image(in->image, in->image_size);
@@ -725,6 +756,9 @@ static int open_h5(crom_in *in, const char *path, const unsigned char head[8], i
         fclose(in->fp);
         in->fp = NULL;
         in->own_fp = 0;
+        int rc = crom_h5probe(path, NULL, 0, in->name);
+        if (rc)
+            return rc;
         in->h5 = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
     }
     if (in->h5 < 0)
@@ -748,12 +782,15 @@ static int open_stream(crom_in *in)
     if (hlen < 8 || hlen > ((uint64_t)1 << 36))
         return crom_err(CROM_EDATA, "%s: crom stream header has an impossible length %llu", in->name,
                         (unsigned long long)hlen);
-    in->image = malloc(hlen);
-    if (!in->image)
-        return crom_err(CROM_EINTERNAL, "out of memory");
-    in->image_size = hlen;
-    if (read_all(in->fp, in->image, hlen) != hlen)
+    size_t cap = 0;
+    int rc = read_grown(in->fp, &in->image, &cap, (size_t)hlen, &in->image_size);
+    if (rc)
+        return rc;
+    if (in->image_size < hlen)
         return crom_err(CROM_EDATA, "%s: crom stream header is truncated", in->name);
+    rc = crom_h5probe(NULL, in->image, in->image_size, in->name);
+    if (rc)
+        return rc;
     in->h5 = open_image(in->image, in->image_size);
     if (in->h5 < 0)
         return crom_err(CROM_EDATA, "%s: crom stream header is corrupt", in->name);
@@ -918,7 +955,11 @@ int crom_in_next(crom_in *in)
     if ((long)idx != in->cursor)
         return crom_err(CROM_EDATA, "%s: frame %llu arrived where frame %ld was expected",
                         in->name, (unsigned long long)idx, in->cursor);
-    if (read_all(in->fp, in->frame, bytes) != bytes) {
+    size_t got;
+    int rc = read_grown(in->fp, (void **)&in->frame, &in->frame_cap, (size_t)bytes, &got);
+    if (rc)
+        return rc;
+    if (got != bytes) {
         in->complete = 0;
         return 0;
     }

@@ -52,6 +52,7 @@ typedef struct {
     crom_io_field fields[CROM_IO_MAX_FIELDS];
     size_t frame_len;     /* doubles per packed frame */
     double *frame;        /* the current frame, packed in field order */
+    size_t frame_cap;     /* bytes allocated at frame */
     long nframes;         /* HDF5: number stored; stream: read so far */
     long cursor;          /* index of the next frame crom_in_next() returns */
     int complete;         /* 1 complete, 0 marked incomplete, -1 unknown yet */
