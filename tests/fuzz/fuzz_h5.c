@@ -26,7 +26,13 @@
 
 #include "fuzz.h"
 
-enum { KIND_MESH = 1, KIND_TRAJ, KIND_SAMPLES, KIND_MODEL, KIND_CUBATURE, KIND_CHECK };
+/* macros, not an enum: #if compares them */
+#define KIND_MESH 1
+#define KIND_TRAJ 2
+#define KIND_SAMPLES 3
+#define KIND_MODEL 4
+#define KIND_CUBATURE 5
+#define KIND_CHECK 6
 #ifndef FUZZ_KIND
 #error "build with -DFUZZ_KIND=KIND_MESH (or another KIND_*)"
 #endif
@@ -44,7 +50,7 @@ int LLVMFuzzerInitialize(int *argc, char ***argv)
     return 0;
 }
 
-static void mesh_use(const crom_mesh *m)
+__attribute__((unused)) static void mesh_use(const crom_mesh *m)
 {
     for (size_t j = 0; j < 4 * (size_t)m->nt; j++)
         if (m->tets[j] < 0 || m->tets[j] >= m->nv) {
@@ -144,6 +150,8 @@ static void run(const char *path)
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     run(fuzz_write(data, size, ".h5"));
+    if (getenv("CROM_FUZZ_VERBOSE")) /* why an input was refused */
+        fprintf(stderr, "%s\n", *crom_errmsg() ? crom_errmsg() : "read");
     crom_err_clear();
     return 0;
 }

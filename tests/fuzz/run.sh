@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# run.sh — run fuzz harnesses one after another, each for SECONDS (or, with
-# FUZZ_RUNS=N, for N inputs), starting from the seeds in FUZZ/corpus/NAME/
+# run.sh — run fuzz harnesses one after another, each for SECONDS (with
+# FUZZ_RUNS=N, for N inputs or at most SECONDS), starting from the seeds in FUZZ/corpus/NAME/
 # and keeping what they find new in FUZZ/work/NAME/. Any crash, sanitizer
 # report, leak (LeakSanitizer, third-party leaks of tests/lsan.supp
 # suppressed; after each input, or only at exit for the streams, below),
@@ -17,6 +17,8 @@ export ASAN_OPTIONS=detect_leaks=1:abort_on_error=0:allocator_may_return_null=1
 export LSAN_OPTIONS=suppressions=$TOP/tests/lsan.supp:print_suppressions=0
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
+# the contained HDF5 probe (lib/io/h5probe.h) gives up well within the per-input timeout
+export CROM_PROBE_SECONDS=${CROM_PROBE_SECONDS:-3}
 mkdir -p "$FUZZ/artifacts" "$FUZZ/logs"
 FUZZ=$(cd "$FUZZ" && pwd)
 # the harnesses run in an empty directory: a nested @NAME in a flag file
@@ -40,12 +42,13 @@ for name in "$@"; do
     *) len=524288 extra=() ;;     # a trajectory of a few steps is 400 KB
   esac
   [ -f "$FUZZ/fuzz_$name" ] || { echo "fuzz: no harness $FUZZ/fuzz_$name" >&2; exit 2; }
-  mkdir -p "$FUZZ/work/$name" "$FUZZ/corpus/$name"
-  log="$FUZZ/logs/$name.log"
-  if [ -n "${FUZZ_RUNS:-}" ]; then limit=(-runs="$FUZZ_RUNS"); else limit=(-max_total_time="$SECS"); fi
+  mkdir -p "$FUZZ/${FUZZ_WORK:-work}/$name" "$FUZZ/corpus/$name"
+  log="$FUZZ/logs/${FUZZ_WORK:-work}-$name.log"
+  limit=(-max_total_time="$SECS")
+  [ -z "${FUZZ_RUNS:-}" ] || limit+=(-runs="$FUZZ_RUNS")
   "$FUZZ/fuzz_$name" "${limit[@]}" -timeout="$TIMEOUT" -rss_limit_mb="$RSS" -max_len=$len \
     -artifact_prefix="$FUZZ/artifacts/$name-" -print_final_stats=1 "${extra[@]}" \
-    "$FUZZ/work/$name" "$FUZZ/corpus/$name" >"$log" 2>&1
+    "$FUZZ/${FUZZ_WORK:-work}/$name" "$FUZZ/corpus/$name" >"$log" 2>&1
   rc=$?
   runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log")
   rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log")
