@@ -131,7 +131,9 @@ int crom_scenario_option(crom_scenario *s, int key, const char *v)
             return crom_err(CROM_EUSAGE, "--plane: at most %d", CROM_SCENARIO_MAX);
         if (crom_parse_doubles_var(v, "--plane", 4, 5, d, &k))
             return CROM_EUSAGE;
-        double nn = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        /* hypot: a component near DBL_MAX would make the sum of squares inf and
+         * the normal (0, 0, 0) */
+        double nn = hypot(hypot(d[0], d[1]), d[2]);
         if (!(nn > 0))
             return crom_err(CROM_EUSAGE, "--plane '%s': the normal is zero", v);
         crom_contact_plane *p = &s->plane[s->nplanes++];
@@ -140,6 +142,13 @@ int crom_scenario_option(crom_scenario *s, int key, const char *v)
         for (int i = 0; i < 3; i++)
             p->n[i] = d[i] / nn;
         p->d = d[3] / nn;
+        /* a subnormal left by the division is 0 (the number parser refuses
+         * subnormals, and the scenario text must read back) */
+        for (int i = 0; i < 4; i++) {
+            double *x = i < 3 ? &p->n[i] : &p->d;
+            if (fabs(*x) < DBL_MIN)
+                *x = 0 * *x;
+        }
         p->mu = k == 5 ? d[4] : 0;
         if (p->mu < 0)
             return crom_err(CROM_EUSAGE, "--plane '%s': friction coefficient must be >= 0", v);
