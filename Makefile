@@ -6,6 +6,8 @@
 #   make demo       the built-in default run, mesh to pictures
 #   make bench      timing tables (bench/)
 #   make deps       install the Debian packages the build and tests need
+#   make fuzz       libFuzzer harnesses of every reader (build-fuzz/), a seed
+#                   corpus from the programs, FUZZ_SECONDS (10) per harness
 #   make install PREFIX=/usr/local
 #
 # WERROR=1 turns warnings into errors (CI does this).
@@ -51,7 +53,7 @@ UNIT_TESTS := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 BENCHES  := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(wildcard tests/unit/bench_*.c))
 MANPAGES := $(patsubst bin/%.c,man/%.1,$(PROG_SRC))
 
-.PHONY: all test check demo bench deps install uninstall clean distclean man
+.PHONY: all test check demo bench deps install uninstall clean distclean man fuzz fuzz-build
 .DELETE_ON_ERROR:
 
 all: $(PROGS) $(MANPAGES)
@@ -104,7 +106,8 @@ $(BUILD)/tests/test_%: $(BUILD)/tests/test_%.o $(LIBA) | $(DEPSTAMP)
 $(BUILD)/tests/bench_%: $(BUILD)/tests/bench_%.o $(LIBA) | $(DEPSTAMP)
 	$(CC) $(CFLAGS) $(LDFLAGS) $< $(LIBA) $(LDLIBS) -o $@
 
-# The whole suite: unit tests of lib/, then program and pipeline tests.
+# The whole suite: unit tests of lib/, then program and pipeline tests
+# (the fuzz harnesses replay tests/fuzz/regress/ in tests/prog/fuzz_regress.sh).
 test: $(PROGS) $(UNIT_TESTS) | $(DEPSTAMP)
 	@tests/run.sh $(BUILD) $(BINDIR)
 check: test
@@ -146,10 +149,85 @@ uninstall:
 	rm -rf $(SHARE)
 
 clean:
-	rm -rf build build-san man/*.1 $(patsubst bin/%.c,bin/%,$(PROG_SRC))
+	rm -rf build build-san build-fuzz man/*.1 $(patsubst bin/%.c,bin/%,$(PROG_SRC))
 
 # clean, plus everything the experiments, the demo and the benchmarks wrote
 distclean: clean
 	rm -rf runs out bench/results
 
+# ------------------------------------------------------------------ fuzzing
+# libFuzzer harnesses (tests/fuzz/README.md), one per reader: clang with
+# ASan + UBSan over the library compiled into build-fuzz/ with coverage
+# (-fsanitize=fuzzer-no-link). `make fuzz` builds them, makes a seed corpus
+# with the programs (tests/fuzz/corpus.sh) and runs each harness for
+# FUZZ_SECONDS; any crash, hang (FUZZ_TIMEOUT s on one input), memory over
+# FUZZ_RSS_MB or leak fails it (tests/fuzz/run.sh). The same harnesses, linked
+# with tests/fuzz/replay.c by the normal compiler, replay the reproducers in
+# tests/fuzz/regress/ in `make test`.
+FUZZ        := build-fuzz
+FUZZ_CC     := clang
+FUZZ_SECONDS ?= 10
+FUZZ_TIMEOUT ?= 10
+FUZZ_RSS_MB ?= 2048
+FUZZ_SAN    := -fsanitize=address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer
+FUZZ_CFLAGS := -g -O1 -std=c17 -Wall -Wextra -Wpedantic -Wno-unused-parameter -Wno-pass-failed -fopenmp $(FUZZ_SAN)
+FUZZ_LIB_OBJ := $(patsubst lib/%.c,$(FUZZ)/lib/%.o,$(LIB_SRC))
+# harness name: its source and defines (-Wl,--wrap=exit: crom_cli_parse exits)
+FUZZ_NAMES  := flags atfile stl obj cloud frames stream mesh traj samples model cubature check
+FUZZSRC_flags := tests/fuzz/fuzz_flags.c
+FUZZDEF_flags := -Wl,--wrap=exit
+FUZZSRC_atfile := tests/fuzz/fuzz_flags.c
+FUZZDEF_atfile := -DFUZZ_ATFILE -Wl,--wrap=exit
+FUZZSRC_stl := tests/fuzz/fuzz_surface.c
+FUZZSRC_obj := tests/fuzz/fuzz_surface.c
+FUZZDEF_obj := -DFUZZ_OBJ
+FUZZSRC_cloud := tests/fuzz/fuzz_cloud.c
+FUZZSRC_frames := tests/fuzz/fuzz_stream.c
+FUZZDEF_frames := -DFUZZ_FRAMES
+FUZZSRC_stream := tests/fuzz/fuzz_stream.c
+FUZZSRC_mesh := tests/fuzz/fuzz_h5.c
+FUZZDEF_mesh := -DFUZZ_KIND=KIND_MESH
+FUZZSRC_traj := tests/fuzz/fuzz_h5.c
+FUZZDEF_traj := -DFUZZ_KIND=KIND_TRAJ
+FUZZSRC_samples := tests/fuzz/fuzz_h5.c
+FUZZDEF_samples := -DFUZZ_KIND=KIND_SAMPLES
+FUZZSRC_model := tests/fuzz/fuzz_h5.c
+FUZZDEF_model := -DFUZZ_KIND=KIND_MODEL
+FUZZSRC_cubature := tests/fuzz/fuzz_h5.c
+FUZZDEF_cubature := -DFUZZ_KIND=KIND_CUBATURE
+FUZZSRC_check := tests/fuzz/fuzz_h5.c
+FUZZDEF_check := -DFUZZ_KIND=KIND_CHECK
+FUZZERS     := $(patsubst %,$(FUZZ)/fuzz_%,$(FUZZ_NAMES))
+FUZZ_REPLAYS := $(patsubst %,$(BUILD)/fuzz/replay_%,$(FUZZ_NAMES))
+test: $(FUZZ_REPLAYS)
+
+# the fuzz tree's flags, kept as $(FLAGSTAMP) keeps the others
+FUZZ_FLAGS_NOW := $(FUZZ_CC) $(CPPFLAGS) $(FUZZ_CFLAGS) | $(LDLIBS)
+ifneq ($(filter fuzz fuzz-build $(FUZZ)/%,$(MAKECMDGOALS)),)
+$(shell mkdir -p $(FUZZ) && { printf '%s\n' '$(subst ','\'',$(FUZZ_FLAGS_NOW))' | cmp -s - $(FUZZ)/.flags || printf '%s\n' '$(subst ','\'',$(FUZZ_FLAGS_NOW))' > $(FUZZ)/.flags; })
+endif
+$(FUZZ)/.flags: ;
+
+$(FUZZ)/lib/%.o: lib/%.c $(FUZZ)/.flags | $(DEPSTAMP)
+	@mkdir -p $(@D)
+	$(FUZZ_CC) $(CPPFLAGS) $(FUZZ_CFLAGS) -fsanitize=fuzzer-no-link -MMD -MP -c $< -o $@
+
+$(FUZZ)/libcrom.a: $(FUZZ_LIB_OBJ)
+	rm -f $@ && ar rcs $@ $^
+
+fuzz-build: $(FUZZERS)
+
+fuzz: $(FUZZERS) $(PROGS) | $(DEPSTAMP)
+	@tests/fuzz/corpus.sh $(BINDIR) $(FUZZ)/corpus
+	@FUZZ_TIMEOUT=$(FUZZ_TIMEOUT) FUZZ_RSS_MB=$(FUZZ_RSS_MB) tests/fuzz/run.sh $(FUZZ) $(FUZZ_SECONDS) $(FUZZ_NAMES)
+
+.SECONDEXPANSION:
+$(FUZZ)/fuzz_%: $$(FUZZSRC_$$*) tests/fuzz/fuzz.h $(FUZZ)/libcrom.a | $(DEPSTAMP)
+	$(FUZZ_CC) $(CPPFLAGS) -Itests/fuzz $(FUZZ_CFLAGS) -fsanitize=fuzzer $(FUZZDEF_$*) $< $(FUZZ)/libcrom.a $(LDLIBS) -o $@
+
+$(BUILD)/fuzz/replay_%: $$(FUZZSRC_$$*) tests/fuzz/fuzz.h tests/fuzz/replay.c $(LIBA) | $(DEPSTAMP)
+	@mkdir -p $(@D)
+	$(CC) $(CPPFLAGS) -Itests/fuzz $(CFLAGS) $(LDFLAGS) $(FUZZDEF_$*) $< tests/fuzz/replay.c $(LIBA) $(LDLIBS) -o $@
+
 -include $(wildcard $(BUILD)/*/*.d $(BUILD)/*/*/*.d)
+-include $(wildcard $(FUZZ)/lib/*/*.d)

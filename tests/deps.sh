@@ -4,7 +4,7 @@
 set -euo pipefail
 PKGS="build-essential pkg-config libgmsh-dev gmsh libhdf5-dev hdf5-tools libmetis-dev
 libsuitesparse-dev libopenblas-dev liblapacke-dev libarpack2-dev python3 python3-meshio
-python3-h5py python3-numpy gnuplot-nox libpng-dev"
+python3-h5py python3-numpy gnuplot-nox libpng-dev clang libclang-rt-14-dev libomp-14-dev"
 missing=()
 for p in $PKGS; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -77,6 +77,22 @@ static const char *held(const crom_scenario *s, const char *ref)
     return NULL;
 }
 
+/* A region reference (a name or a predicate) goes into the scenario text one
+ * line per flag, after "--pin " (crom_scenario_text), and must read back the
+ * same: no control character (a newline would start a line, and a flag, of
+ * its own) and no blank at either end (the reader skips them). */
+static int check_ref(const char *flag, const char *ref, size_t len)
+{
+    if (len == 0)
+        return crom_err(CROM_EUSAGE, "%s: empty region", flag);
+    for (size_t i = 0; i < len; i++)
+        if ((unsigned char)ref[i] < 0x20 || ref[i] == 0x7f)
+            return crom_err(CROM_EUSAGE, "%s: region '%.*s' has a control character", flag, (int)len, ref);
+    if (ref[0] == ' ' || ref[len - 1] == ' ')
+        return crom_err(CROM_EUSAGE, "%s: region '%.*s' starts or ends with a blank", flag, (int)len, ref);
+    return 0;
+}
+
 static int parse_option(crom_scenario *s, int key, const char *v)
 {
     long n;
@@ -103,6 +119,8 @@ static int parse_option(crom_scenario *s, int key, const char *v)
             return crom_err(CROM_EUSAGE, "--pin: at most %d", CROM_SCENARIO_MAX);
         if (!*v || strlen(v) >= sizeof s->pins[0])
             return crom_err(CROM_EUSAGE, "--pin: empty or too long region '%s'", v);
+        if (check_ref("--pin", v, strlen(v)))
+            return CROM_EUSAGE;
         if (held(s, v))
             return crom_err(CROM_EUSAGE, "--pin: region '%s' is already %s", v, held(s, v));
         snprintf(s->pins[s->npins++], sizeof s->pins[0], "%s", v);
@@ -110,7 +128,8 @@ static int parse_option(crom_scenario *s, int key, const char *v)
     case SC_VELOCITY:
         if (s->nvel == CROM_SCENARIO_MAX)
             return crom_err(CROM_EUSAGE, "--velocity: at most %d", CROM_SCENARIO_MAX);
-        if (crom_bc_parse("--velocity", v, &s->vel[s->nvel]))
+        if (crom_bc_parse("--velocity", v, &s->vel[s->nvel]) ||
+            check_ref("--velocity", s->vel[s->nvel].ref, strlen(s->vel[s->nvel].ref)))
             return CROM_EUSAGE;
         if (held(s, s->vel[s->nvel].ref))
             return crom_err(CROM_EUSAGE, "--velocity: region '%s' is already %s (each vertex follows one)",
@@ -120,7 +139,8 @@ static int parse_option(crom_scenario *s, int key, const char *v)
     case SC_FORCE:
         if (s->nforce == CROM_SCENARIO_MAX)
             return crom_err(CROM_EUSAGE, "--force: at most %d", CROM_SCENARIO_MAX);
-        if (crom_bc_parse("--force", v, &s->force[s->nforce]))
+        if (crom_bc_parse("--force", v, &s->force[s->nforce]) ||
+            check_ref("--force", s->force[s->nforce].ref, strlen(s->force[s->nforce].ref)))
             return CROM_EUSAGE;
         s->nforce++;
         return 0;
@@ -129,7 +149,9 @@ static int parse_option(crom_scenario *s, int key, const char *v)
             return crom_err(CROM_EUSAGE, "--plane: at most %d", CROM_SCENARIO_MAX);
         if (crom_parse_doubles_var(v, "--plane", 4, 5, d, &k))
             return CROM_EUSAGE;
-        double nn = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        /* hypot: a component near DBL_MAX would make the sum of squares inf and
+         * the normal (0, 0, 0) */
+        double nn = hypot(hypot(d[0], d[1]), d[2]);
         if (!(nn > 0))
             return crom_err(CROM_EUSAGE, "--plane '%s': the normal is zero", v);
         crom_contact_plane *p = &s->plane[s->nplanes++];
@@ -138,6 +160,13 @@ static int parse_option(crom_scenario *s, int key, const char *v)
         for (int i = 0; i < 3; i++)
             p->n[i] = d[i] / nn;
         p->d = d[3] / nn;
+        /* a subnormal left by the division is 0 (the number parser refuses
+         * subnormals, and the scenario text must read back) */
+        for (int i = 0; i < 4; i++) {
+            double *x = i < 3 ? &p->n[i] : &p->d;
+            if (fabs(*x) < DBL_MIN)
+                *x = 0 * *x;
+        }
         p->mu = k == 5 ? d[4] : 0;
         if (p->mu < 0)
             return crom_err(CROM_EUSAGE, "--plane '%s': friction coefficient must be >= 0", v);

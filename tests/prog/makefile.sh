@@ -29,7 +29,7 @@ fi
 ok
 
 # 1. the package check is the first command of every target that builds
-for t in all demo test bench install "all SANITIZE=1" "test SANITIZE=1" ""; do
+for t in all demo test bench install fuzz "all SANITIZE=1" "test SANITIZE=1" ""; do
   # shellcheck disable=SC2086
   (cd "$src" && make -n $t >"$TMP/n.log" 2>&1) || fail "make -n $t failed in a clean tree: $(tail -2 "$TMP/n.log")"
   first=$(head -n 1 "$TMP/n.log")
@@ -38,6 +38,15 @@ for t in all demo test bench install "all SANITIZE=1" "test SANITIZE=1" ""; do
     *) fail "make -n $t in a clean tree starts with '$first', not the package check" ;;
   esac
 done
+# make fuzz builds its harnesses with clang into build-fuzz/, over a library
+# compiled there with coverage, then makes the corpus and runs them
+fz=$(cd "$src" && make -n fuzz FUZZ_SECONDS=3)
+grep -q 'clang .*-fsanitize=fuzzer-no-link.* -c lib/io/io.c -o build-fuzz/lib/io/io.o' <<<"$fz" \
+  || fail "make -n fuzz does not compile lib/ with clang -fsanitize=fuzzer-no-link into build-fuzz/"; ok
+grep -q 'clang .*-fsanitize=fuzzer .*build-fuzz/libcrom.a.* -o build-fuzz/fuzz_flags' <<<"$fz" \
+  || fail "make -n fuzz does not link the harnesses with -fsanitize=fuzzer"; ok
+[ "$(grep -n 'tests/fuzz/corpus.sh' <<<"$fz" | cut -d: -f1)" -lt "$(grep -n 'tests/fuzz/run.sh build-fuzz 3' <<<"$fz" | cut -d: -f1)" ] \
+  || fail "make -n fuzz does not make the corpus and then run the harnesses for FUZZ_SECONDS"; ok
 # ... and nothing was compiled or installed by make -n
 [ -z "$(find "$src" -name '*.o' -o -name '.deps-ok' | head -1)" ] || fail "make -n built something"; ok
 
