@@ -18,6 +18,9 @@ crom-sample --points 20 -q -o s.h5 run.h5
 OUT="$O/out.h5"
 # values no flag accepts, substituted for X in a flag's template
 BAD=(inf nan 1e308 0x10 "" " 1")
+# under ASan (CI's second pass) two of them: the values reach the same parser,
+# which test_parse covers value by value, and the full set costs 8 minutes there
+case "$CROM_BUILD" in *-san) BAD=(nan 0x10) ;; esac
 # try PROG FLAG TEMPLATE BASE...: the flag with each bad value put in
 # TEMPLATE (X marks the spot) must be refused with exit 64
 try() {
