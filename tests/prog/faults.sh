@@ -206,12 +206,24 @@ err = p.stderr.read().decode()
 print("%d\t%s" % (p.wait(), err.strip()))
 EOF
 }
+# a file read by name (CROM_IO_IMAGE_MAX=0; by default only files over 64 MB
+# are): truncated or rewritten in place mid-read is exit 65
+export CROM_IO_IMAGE_MAX=0
 res=$(during_read truncate)
 [ "${res%%$'\t'*}" = 65 ] || fail "input truncated mid-read: crom-encode gave '$res', expected 65"; ok
 [ "${res#*$'\t'}" = "crom-encode: in.h5: changed or truncated while being read" ] || fail "truncated: '$res'"; ok
 ! crom-info --check out.stream >/dev/null 2>&1 || fail "truncated: the output stream looks complete"; ok
 res=$(during_read rewrite)
 [ "$res" = $'65\tcrom-encode: in.h5: changed or truncated while being read' ] || fail "input rewritten mid-read: '$res'"; ok
+unset CROM_IO_IMAGE_MAX
+# a file of up to 64 MB is read whole at open: truncating or rewriting it
+# afterwards cannot touch the run, which gives the undisturbed result
+for act in truncate rewrite; do
+  res=$(during_read $act)
+  [ "${res%%$'\t'*}" = 0 ] || fail "input ${act}d mid-read (read at open): '$res'"; ok
+  crom-diff --quiet --model pod.h5 --mesh m5.h5 --max-error 1e-300 out.stream ref.h5 >diff.out 2>&1 \
+    || fail "${act}d mid-read: output differs: $(cat diff.out)"; ok
+done
 # replaced by rename: the open file is still the old one, read whole and
 # consistently: the same latent trajectory as an undisturbed run
 res=$(during_read replace)

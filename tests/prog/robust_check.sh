@@ -50,7 +50,9 @@ text_modes=(
 )
 for c in "${text_modes[@]}"; do
   prog=${c%% *}
-  expect_full 74 "^$prog: $full" -- $c
+  # (a file output on stdout, as crom-diff --csv -, is named like the binary
+  # outputs: "stdout: ...", tests/prog/faults.sh)
+  expect_full 74 "^$prog: (cannot write to )?stdout: No space left on device\$" -- $c
   $c >"$O/text.txt" || fail "'$c' exits non-zero on a writable stdout"
   [ -s "$O/text.txt" ] || fail "'$c' printed nothing"
 done
@@ -223,8 +225,11 @@ PYEOF
 [ "$rc" -eq 65 ] || fail "--check on a mesh declaring 3e8 values exited $rc (in 10 s): $(cat "$TMP/check.err")"
 rss=$(tail -n 1 "$TMP/rss")
 [ "$rss" -lt 400000 ] || fail "--check on a mesh declaring 3e8 values peaked at $rss KB"
+# (the contained check of every HDF5 input refuses it first; the validator's
+# own bound stands behind it)
 grep -qE "^bad/huge_vertices.h5: /vertices declared 300000000 values but the file stores only 0 bytes\$" "$TMP/check.out" \
-  || fail "--check does not name the oversized dataset: $(cat "$TMP/check.out")"
+  || grep -qE "huge_vertices.h5: corrupt HDF5 file: dataset 'vertices' declares 2400000000 bytes but the file stores 0\$" "$TMP/check.err" \
+  || fail "--check does not name the oversized dataset: $(cat "$TMP/check.out" "$TMP/check.err")"
 ok
 crom-info --check bad/deflated.h5 >/dev/null || fail "--check refuses a deflated mesh"; ok
 
