@@ -208,7 +208,7 @@ out:
     return rc;
 }
 
-/* A nonlinear map model (energy, neuralmodes, energy-field) is integrated
+/* A nonlinear map model (energy, neuralmodes, energy-field, skin-field) is integrated
  * through its features: x = X + B a(q) (lib/rom/map.h), so the cubature caches
  * B as its basis and fits, at latent samples q_j of the model's training
  * distribution (or the --poses given in *poses), the latent forces

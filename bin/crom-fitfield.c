@@ -15,12 +15,14 @@
 #include "cli/cli.h"
 #include "datafree/body.h"
 #include "datafree/datafree.h"
+#include "datafree/dffield.h"
 #include "datafree/dfskin.h"
 #include "io/io.h"
 #include "phys/scenario.h"
 #include "rom/fit.h"
 #include "rom/model.h"
 #include "rom/samples.h"
+#include "rom/skin.h"
 
 enum { O_RANK = 300, O_ENCODER, O_BASIS, O_EPOCHS, O_MINUTES, O_LR, O_BATCH, O_PPS, O_ENCPTS,
        O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX, O_BOXSC,
@@ -43,16 +45,16 @@ static const crom_opt df_opts[] = {
     {"surface", O_SURFACE, "FILE", "field, skinning (trained): train on a closed triangle surface (.stl or .obj) instead of a tet mesh: --sample-points points inside it (inside/outside by the winding number, on a jittered grid), each standing for an equal share of the enclosed volume, integrated through small virtual tets. --pin takes predicates ('x<-0.49'); the surface's triangles inside a pin hold the weights at exactly 0 there on any mesh."},
     {"cloud", O_CLOUD, "FILE", "field, skinning (trained): train on a point cloud with volumes: a text file of lines 'x y z volume' (metres, cubic metres; blanks or commas; # comments), each point standing for its volume. --pin takes predicates."},
     {"sample-points", O_SPOINTS, "N", "--surface: about N points inside it (default 8192)."},
-    {"handles", O_HANDLES, "H", "skinning: the number of affine handles, 12 latent coordinates each (default 8). A free body (no pin) has a constant handle among them, so rigid motions are in the subspace exactly. At most the free degrees of freedom / 12."},
+    {"handles", O_HANDLES, "H", "skinning: the number of affine handles, 12 latent coordinates each (default 8). A free body (no pin) has a constant handle among them, so rigid motions are in the subspace exactly. At most the free degrees of freedom / 12. field: lay the continuous field over the skinning eigenmodes of H handles of --mesh instead of training a feature field W(X): x(X, z) = X + W(X) (phi(z) - phi(0)) with W the skinning basis and phi alone trained (model basis 'skin-field')."},
     {"coordinates", O_COORDS, "KIND", "skinning: orthonormal (default): the latent is 3S coordinates of S functions psi_s mass-orthonormal over the training geometry that span the same space as the 4H functions w_h [X_hat; 1]_j (the affine ones first on a free body), so W^T M W = m I and no latent direction is redundant; numerically dependent directions (Gram eigenvalue below --coordinate-tol of the largest) are dropped. handles: the 12H handle coordinates themselves, W[c][12h + 4c + j] = w_h [X_hat; 1]_j (near-dependent for smooth weights: an ill-conditioned reduced Hessian)."},
     {"coordinate-tol", O_COORDTOL, "T", "skinning: the relative eigenvalue below which a direction of the handle span is dropped (default 1e-6)."},
     {"weights", O_WEIGHTS, "KIND", "skinning: trained (default): an MLP 3 -> H trained data-free on the energy of random handle poses plus the orthogonality of the weights (Simplicits). eigen: no training, the lowest eigenvectors of the scalar stiffness (the elasticity Hessian at rest summed over the three components) against the lumped mass, pinned vertices eliminated (skinning eigenmodes; needs --mesh)."},
     {"modes", O_MODES, "MODEL", "neuralmodes (required): a crom/model of linear modes of the same mesh, from crom-modes. Its lowest --rank modes are the linear part Phi; its pins are kept, its material is the default."},
     {"steps", O_STEPS, "N", "Training steps of a data-free objective (energy, neuralmodes: default 4000 of --batch 8 samples at --lr 3e-3; field, skinning: 2000 of 32 (skinning: 16) at 1e-3). The learning rate is halved after each quarter of the steps (or of --minutes)."},
-    {"sigma", O_SIGMA, "S", "energy: isometry scale in metres: the subspace should move the body by S (RMS displacement) per unit of latent distance, |f(z) - f(z')|_M / sqrt(m) ~ S |z - z'|, z ~ N(0, I) (default 0.05 times the bounding-box diagonal). Sharp et al.'s sigma divided by sqrt(body mass). skinning: the RMS displacement in metres of the random handle poses the weights are trained on (default 0.01 times the diagonal)."},
-    {"lambda", O_LAMBDA, "L", "energy: weight of the isometry term, the squared log-ratio of mass-norm distances to S |z - z'| over all pairs of a batch, against the energy in units of E V (Young's modulus times volume) (default 0.03; field: 1). A weaker isometry lets the energy shape the subspace: 1 keeps the map near-isometric but leaves the static sag of a soft body 40-80% off."},
+    {"sigma", O_SIGMA, "S", "energy: isometry scale in metres: the subspace should move the body by S (RMS displacement) per unit of latent distance, |f(z) - f(z')|_M / sqrt(m) ~ S |z - z'|, z ~ N(0, I) (default 0.05 times the bounding-box diagonal; field --handles: 0.15). Sharp et al.'s sigma divided by sqrt(body mass). skinning: the RMS displacement in metres of the random handle poses the weights are trained on (default 0.01 times the diagonal)."},
+    {"lambda", O_LAMBDA, "L", "energy: weight of the isometry term, the squared log-ratio of mass-norm distances to S |z - z'| over all pairs of a batch, against the energy in units of E V (Young's modulus times volume) (default 0.03; field: 1, with --handles 0.03). A weaker isometry lets the energy shape the subspace: 1 keeps the map near-isometric but leaves the static sag of a soft body 40-80% off."},
     {"ramp", O_RAMP, "F", "energy: the seed-state blend rho grows linearly from 0 to 1 over the first fraction F of the steps, then stays 1 (default 0.5; Sharp et al. §4.1). The seed state is the rest shape."},
-    {"tangent-weight", O_TANW, "W", "energy, field: weight of the isometry at rest: 8 small samples z ~ N(0, 0.01 I) per step should all move the body alike per unit of |z| (the mean log-ratio of their RMS displacements to |z| is free, its spread is penalized), so that no latent direction collapses at rest, where every run starts (default 0.1; field: 0; 0: none)."},
+    {"tangent-weight", O_TANW, "W", "energy, field: weight of the isometry at rest: 8 small samples z ~ N(0, 0.01 I) per step should all move the body alike per unit of |z| (the mean log-ratio of their RMS displacements to |z| is free, its spread is penalized), so that no latent direction collapses at rest, where every run starts (default 0.1; field: 0, with --handles 0.1; 0: none)."},
     {"box", O_BOX, "A", "neuralmodes: half-width of the box the modal coordinates z are drawn from, in metres of RMS displacement: [-A, A] for the lowest mode (default 0.2 times the bounding-box diagonal; see --box-scaling)."},
     {"box-scaling", O_BOXSC, "KIND", "neuralmodes: frequency (default): mode k is drawn from [-A f_1/f_k, A f_1/f_k], the same linear energy at every edge, so that the stiff modes do not swamp the energy of the soft ones; uniform: every mode from [-A, A] (Wang et al.)."},
     {"optimizer", O_OPTIM, "KIND", "energy, neuralmodes: adam (default): Adam on a fresh batch every step. lbfgs: L-BFGS with a backtracking line search (Wang et al.), --resample iterations on each batch."},
@@ -159,7 +161,8 @@ static crom_cli_doc doc = {
     "W a neural field 3 -> 3p (--features p), phi an MLP r -> p, trained like energy with the "
     "integrals over the body taken by a random cubature of --tets tets per step; pins are a mask "
     "vanishing on the pinned faces. The model ('energy-field') stores no mesh and lays on "
-    "any mesh of the body (with --mesh).\n\n",
+    "any mesh of the body (with --mesh). With --handles H, W is the skinning eigenmodes of --mesh "
+    "and phi alone is trained ('skin-field').\n\n",
     groups,
     "crom-sample run*.h5 | crom-fitfield --rank 20 -o model.h5\n"
     "crom-fitfield --encoder pointnet --epochs 3750 -o model.h5 samples.h5\n"
@@ -364,7 +367,8 @@ static void check_datafree(crom_cli *cli, const args *a)
     const char *name = a->objective == CROM_DATAFREE_ENERGY ? "energy" : a->objective == CROM_DATAFREE_FIELD ? "field"
                        : skin ? "skinning" : "neuralmodes";
     int ngeom = !!a->mesh + !!a->surface + !!a->cloud;
-    const char *bad = !skin && GIVEN(a, O_HANDLES) ? "--handles" : !skin && a->eigen ? "--weights"
+    int over = a->objective == CROM_DATAFREE_FIELD && GIVEN(a, O_HANDLES);
+    const char *bad = !skin && !over && GIVEN(a, O_HANDLES) ? "--handles" : !skin && a->eigen ? "--weights"
                       : !skin && (a->raw_coords || a->coord_tol > 0) ? "--coordinates"
                       : skin && GIVEN(a, O_RANK) ? "--rank" : !cont && a->surface ? "--surface"
                       : !cont && a->cloud ? "--cloud" : !a->surface && a->sample_points ? "--sample-points" : NULL;
@@ -376,6 +380,13 @@ static void check_datafree(crom_cli *cli, const args *a)
     if (cont && ngeom != 1)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--objective %s trains on %s: --mesh MESH, --surface STL or --cloud FILE",
                                  name, ngeom ? "one body, give only one of" : "a body"));
+    if (over && !a->mesh)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--objective field --handles lays the field over the skinning "
+                                 "eigenmodes of a tet mesh: give --mesh MESH (or drop --handles to train W(X) "
+                                 "from %s)", a->surface ? "the surface" : "the cloud"));
+    if (over && GIVEN(a, O_FEATURES))
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--features does not apply to --objective field --handles (the "
+                                 "features are the skinning basis's coordinates)"));
     if (skin && a->eigen && !a->mesh)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--weights eigen solves an eigenproblem on a tet mesh: give --mesh MESH "
                                  "(or train the weights from %s: --weights trained)",
@@ -401,6 +412,8 @@ static crom_datafree_opts datafree_opts(const crom_cli *cli, const args *a)
 {
     crom_datafree_opts d;
     crom_datafree_defaults(&d, a->objective == OBJ_SKINNING ? CROM_DATAFREE_FIELD : a->objective);
+    if (a->objective == CROM_DATAFREE_FIELD && GIVEN(a, O_HANDLES))
+        crom_dffield_latent_defaults(&d);
     d.rank = GIVEN(a, O_RANK) ? a->fit.rank : d.rank;
     d.act = GIVEN(a, O_ACT) ? a->fit.act : d.act;
     d.width = GIVEN(a, O_WIDTH) ? a->fit.width : d.width;
@@ -531,7 +544,12 @@ static void report_map(crom_cli *cli, const args *a, const crom_body *b, const c
                        const crom_dftrain_log *log, double secs)
 {
     int j = log->nblocks - 1, r = a->df.rank, nv = b->mesh.nv, np = b->npinned;
-    if (a->objective == CROM_DATAFREE_FIELD)
+    if (a->objective == CROM_DATAFREE_FIELD && m->field == CROM_MODEL_FIELD_SKIN)
+        crom_cli_info(cli, "continuous field over %d skinning eigenmodes (%d features), rank %d, trained on %d "
+                      "vertices (%d pinned): %ld steps in %.1f s; last objective %.4g, mean potential energy %.4g J, "
+                      "mean squared log isometry ratio %.3g (sigma %.4g m)", m->handles, crom_skin_width(m), r, nv, np,
+                      log->steps, secs, log->objective[j], log->energy[j], log->penalty[j], log->sigma);
+    else if (a->objective == CROM_DATAFREE_FIELD)
         crom_cli_info(cli, "continuous field, rank %d with %d features, trained on %d vertices (%d pinned): %ld steps "
                       "in %.1f s; last objective %.4g, mean potential energy %.4g J, mean squared log isometry ratio "
                       "%.3g (sigma %.4g m)", r, a->df.features, nv, np, log->steps, secs, log->objective[j],
@@ -575,6 +593,41 @@ static void report_skin(crom_cli *cli, const args *a, const crom_body *b, const 
         crom_cli_info(cli, "skinning: model_id %s", m->model_id);
 }
 
+/* The continuous field over the skinning eigenmodes of H handles of the
+ * body's mesh (orthonormal coordinates): the eigensolve, then φ trained
+ * from the energy (crom_dffield_train_latent); out gets the skin-field. */
+static int train_over_skin(crom_cli *cli, args *a, const crom_body *b, const crom_datafree_problem *P, int H,
+                           crom_model *out, crom_dftrain_log *log, long *solves)
+{
+    crom_nn_mlp phi;
+    memset(&phi, 0, sizeof phi);
+    double t0 = crom_clock_now();
+    int rc = crom_dfskin_eigen(&b->mesh, &b->mat, b->fixed, H, out, solves);
+    if (!rc)
+        rc = crom_body_skin_coordinates(b, out, 1e-6);
+    int p = out->rank, nv = b->mesh.nv;
+    double *basis = rc ? NULL : crom_malloc(sizeof(double) * 3 * (size_t)nv * p);
+    if (!rc && !basis)
+        rc = CROM_EINTERNAL;
+    if (!rc)
+        rc = crom_skin_eval(out, (size_t)nv, b->mesh.X, basis, NULL);
+    if (!rc) {
+        crom_cli_progress prog;
+        crom_cli_progress_start(&prog, cli, "fitfield", 1000);
+        a->df.progress = on_df_progress;
+        a->df.progress_ctx = &prog;
+        rc = crom_dffield_train_latent(P, &a->df, basis, p, &phi, log);
+        crom_cli_progress_end(&prog);
+    }
+    if (!rc)
+        rc = crom_model_skin_field(out, &phi);
+    if (!rc) /* the eigensolve and the training */
+        out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
+    free(basis);
+    crom_nn_mlp_free(&phi);
+    return rc;
+}
+
 /* A data-free subspace: the body (and the modes), its pins, the training
  * (skinning eigenmodes: an eigensolve) with the progress display, the
  * coordinates of skinning weights, the model, the summary. */
@@ -599,6 +652,8 @@ static int run_datafree(crom_cli *cli, args *a)
     double t0 = crom_clock_now();
     if (!rc && skin && a->eigen) {
         rc = crom_dfskin_eigen(&b.mesh, &b.mat, b.fixed, so.handles, &out, &solves);
+    } else if (!rc && a->objective == CROM_DATAFREE_FIELD && GIVEN(a, O_HANDLES)) {
+        rc = train_over_skin(cli, a, &b, &P, so.handles, &out, &log, &solves);
     } else if (!rc) {
         crom_cli_progress prog;
         crom_cli_progress_start(&prog, cli, "fitfield", 1000);

@@ -25,7 +25,7 @@ static const crom_opt met_opts[] = {
     {"sphere", O_SPHERE, "R", "Draw q uniformly on the sphere |q| = R."},
     {"box", O_BOX, "A", "Draw q uniformly in the box [-A, A]^r (default for neuralmodes: its training box)."},
     {"normal", O_NORMAL, "S", "Draw q from N(0, S^2 I) (default for energy maps: S = 1, their training distribution)."},
-    {"sigma", O_SIGMA, "S", "Isometry scale in metres of RMS displacement per unit of q (default: the model's sigma for energy maps, 1 otherwise: q in metres)."},
+    {"sigma", O_SIGMA, "S", "Isometry scale in metres of RMS displacement per unit of q (default: the model's sigma for energy maps and continuous fields, 1 otherwise: q in metres)."},
     {"pairs-of", O_PAIRS, "N", "The isometry ratio is measured over all pairs of the first N samples (default 100)."},
     {"collapse-threshold", O_THRESH, "T", "A normalized Gram eigenvalue below T counts as a collapsed dimension (default 0.01)."},
     {NULL, 0, NULL, NULL}};
@@ -190,9 +190,8 @@ static int run(crom_cli *cli, args *a)
     if (!a->dist_given)
         crom_metrics_training_dist(&model, diag, &a->mo);
     if (!a->sigma_given)
-        a->mo.sigma = (!strcmp(model.basis, "energy") || !strcmp(model.basis, "energy-field")) && model.sigma > 0
-                          ? model.sigma
-                          : 1;
+        a->mo.sigma = (!strcmp(model.basis, "energy") || !strcmp(model.basis, "energy-field") ||
+                       !strcmp(model.basis, "skin-field")) && model.sigma > 0 ? model.sigma : 1;
     a->mo.seed = cli->seed;
     if ((rc = crom_metrics_compute(&map, &fem, a->sc.gravity, &a->mo, a->compare ? &cmap : NULL, &res)))
         goto out;

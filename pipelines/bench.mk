@@ -89,6 +89,16 @@ DF2_SCENARIO = $(DF2_MAT) $(DF_BC) --dt 0.05 --steps 100
 DF2_STATIC = $(DF2_SCENARIO) --damping 10
 DF2_ROWS = eigen-opt eigen-metis trained-opt trained-metis
 df2_kind = $(firstword $(subst -, ,$(1)))
+# the continuous fields on the soft bar, latent dim DF_RANK, stepped with
+# --model over every tet (all) or an optimized cubature of their features
+# fitted at latent samples (opt): sfield, the field over the skinning
+# eigenmodes of DF2_HANDLES handles (crom-fitfield --objective field
+# --handles, trained DF2_MINUTES), and field, the field with a trained
+# feature field W(X) (DF_MINUTES)
+DF2_MAPS = sfield-all sfield-opt field-all field-opt
+df2_map_args = --model $(OUT)/df2-map-$(call df2_kind,$(1)).h5 --mesh $(OUT)/df-mesh.h5 --max-iter 200 \
+  $(if $(filter %-opt,$(1)),--cubature $(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
+df2_map_in = $(OUT)/df2-map-$(call df2_kind,$(1)).h5 $(if $(filter %-opt,$(1)),$(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
 
 .PHONY: all fullsim tables training datafree plots micro
 all: fullsim tables training datafree plots micro
@@ -255,10 +265,36 @@ $(OUT)/df2-sdiff-%.txt: $(OUT)/df2-sred-%.h5 $(OUT)/df2-sfull.h5 $$(OUT)/df2-ski
 	  --threads 1 > $@
 $(OUT)/df2-metrics-%.txt: $(OUT)/df2-skin-%.h5 $(OUT)/df-mesh.h5
 	crom-metrics --mesh $(OUT)/df-mesh.h5 --samples $(DF_SAMPLES) --seed $(SEED) --threads 1 $< > $@
+$(eval $(call stamp_rule,df2-maps,$(DF2_MAT) $(DF2_HANDLES) $(DF2_MINUTES) $(DF_MINUTES) $(DF_RANK) $(SEED)))
+$(OUT)/df2-map-sfield.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
+	crom-fitfield --objective field --handles $(DF2_HANDLES) --rank $(DF_RANK) --mesh $< $(DF2_MAT) $(DF_BC) \
+	  --steps 1000000 --minutes $(DF2_MINUTES) --seed $(SEED) --threads 1 $(QUIET) -o $@
+$(OUT)/df2-map-field.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
+	crom-fitfield --objective field --rank $(DF_RANK) --mesh $< $(DF2_MAT) $(DF_BC) \
+	  --steps 1000000 --minutes $(DF_MINUTES) --seed $(SEED) --threads 1 $(QUIET) -o $@
+$(OUT)/df2-mcub-%.h5: $(OUT)/df2-map-%.h5 $(OUT)/df-mesh.h5 $(call stamp,df2-cubature)
+	crom-cubature --model $< --scheme optimized --count $(DF2_COUNT) --seed $(SEED) --threads 1 $(QUIET) -o $@ \
+	  $(OUT)/df-mesh.h5
+$(OUT)/df2-mred-%.h5 $(OUT)/df2-mred-%.csv &: $$(call df2_map_in,$$*) $(call stamp,df2-scenario)
+	crom-reducedstep $(call df2_map_args,$*) $(DF2_SCENARIO) --threads 1 --stats $(OUT)/df2-mred-$*.csv $(QUIET) \
+	  -o $(OUT)/df2-mred-$*.h5
+$(OUT)/df2-msred-%.h5: $$(call df2_map_in,$$*) $(call stamp,df2-static)
+	crom-reducedstep $(call df2_map_args,$*) $(DF2_STATIC) --threads 1 $(QUIET) -o $@
+$(OUT)/df2-mdiff-%.txt: $(OUT)/df2-mred-%.h5 $(OUT)/df2-full.h5 $$(OUT)/df2-map-$$(call df2_kind,$$*).h5
+	crom-diff $< $(OUT)/df2-full.h5 --model $(OUT)/df2-map-$(call df2_kind,$*).h5 --mesh $(OUT)/df-mesh.h5 \
+	  --threads 1 > $@
+$(OUT)/df2-msdiff-%.txt: $(OUT)/df2-msred-%.h5 $(OUT)/df2-sfull.h5 $$(OUT)/df2-map-$$(call df2_kind,$$*).h5
+	crom-diff $< $(OUT)/df2-sfull.h5 --model $(OUT)/df2-map-$(call df2_kind,$*).h5 --mesh $(OUT)/df-mesh.h5 \
+	  --threads 1 > $@
+$(OUT)/df2-mmetrics-%.txt: $(OUT)/df2-map-%.h5 $(OUT)/df-mesh.h5
+	crom-metrics --mesh $(OUT)/df-mesh.h5 --samples $(DF_SAMPLES) --seed $(SEED) --threads 1 $< > $@
 $(OUT)/datafree2.md: $(OUT)/df-mesh.h5 $(OUT)/df2-full.csv $(OUT)/df2-sfull.h5 \
                      $(foreach r,$(DF2_ROWS),$(OUT)/df2-red-$(r).csv $(OUT)/df2-diff-$(r).txt $(OUT)/df2-sdiff-$(r).txt \
-                       $(OUT)/df2-metrics-$(call df2_kind,$(r)).txt $(OUT)/df2-cub-$(r).h5)
-	/usr/bin/python3 $(TOP)/pipelines/benchskin.py $(OUT) "$(DF2_ROWS)" > $@.tmp && mv $@.tmp $@
+                       $(OUT)/df2-metrics-$(call df2_kind,$(r)).txt $(OUT)/df2-cub-$(r).h5) \
+                     $(foreach r,$(DF2_MAPS),$(OUT)/df2-mred-$(r).csv $(OUT)/df2-mdiff-$(r).txt \
+                       $(OUT)/df2-msdiff-$(r).txt $(OUT)/df2-mmetrics-$(call df2_kind,$(r)).txt \
+                       $(call df2_map_in,$(r)))
+	/usr/bin/python3 $(TOP)/pipelines/benchskin.py $(OUT) "$(DF2_ROWS)" "$(DF2_MAPS)" > $@.tmp && mv $@.tmp $@
 
 # ------------------------------------------------------------------ micro
 # the micro-benchmarks of lib/ (tests/unit/bench_*.c, built by `make bench`,

@@ -3,8 +3,12 @@
 (pipelines/bench.mk, issue 14): the skinning subspaces against crom-fullsim.
 Markdown on stdout, DIR/datafree2.csv beside.
 
-  benchskin.py DIR "ROWS"     ROWS: KIND-SCHEME, weights (eigen, trained) and
-                              cubature (opt: optimized, metis)
+  benchskin.py DIR "ROWS" ["MAPS"]
+      ROWS: KIND-SCHEME, weights (eigen, trained) and cubature (opt:
+            optimized, metis)
+      MAPS: KIND-SCHEME, continuous fields (sfield: over skinning eigenmodes,
+            field: a trained W(X)) stepped with --model over every tet (all)
+            or an optimized cubature of their features (opt)
 """
 import csv, re, statistics, sys
 
@@ -33,7 +37,32 @@ def collapsed(path):
     return (int(m.group(1)), int(m.group(2))) if m else (None, None)
 
 
-def main(out, rows):
+MAP_NAMES = {"sfield": "continuous field over skinning eigenmodes (skin-field)",
+             "field": "continuous field, trained W(X) (energy-field)"}
+
+
+def map_rows(out, maps, nt, fm):
+    """the continuous fields' rows, in the columns of the skinning rows"""
+    t = []
+    for r in maps:
+        kind, scheme = r.split("-")
+        model = h5py.File(f"{out}/df2-map-{kind}.h5")
+        tets = len(h5py.File(f"{out}/df2-mcub-{kind}.h5")["elements"]) if scheme == "opt" else nt
+        red = col(f"{out}/df2-mred-{r}.csv", "seconds")
+        it = col(f"{out}/df2-mred-{r}.csv", "iterations")
+        rm = statistics.median(red)
+        dyn = frames(f"{out}/df2-mdiff-{r}.txt")
+        c, d = collapsed(f"{out}/df2-mmetrics-{kind}.txt")
+        t.append(["%s, %s" % (MAP_NAMES.get(kind, kind), "optimized cubature" if scheme == "opt" else "every tet"),
+                  int(model.attrs["handles"]) if "handles" in model.attrs else None, int(model.attrs["rank"]),
+                  int(model.attrs["training_steps"]) if "training_steps" in model.attrs else None,
+                  float(model.attrs.get("training_seconds", float("nan"))), tets, 1e3 * rm, sum(it) / len(it),
+                  fm / rm, run_error(f"{out}/df2-mdiff-{r}.txt"), dyn[1] if len(dyn) > 1 else float("nan"),
+                  frames(f"{out}/df2-msdiff-{r}.txt")[-1], c, d])
+    return t
+
+
+def main(out, rows, maps):
     mesh = h5py.File(f"{out}/df-mesh.h5")
     nv, nt = len(mesh["vertices"]), len(mesh["tets"])
     full = col(f"{out}/df2-full.csv", "seconds")
@@ -57,6 +86,7 @@ def main(out, rows):
                   float(model.attrs.get("training_seconds", float("nan"))), len(cub["elements"]), 1e3 * rm,
                   sum(it) / len(it), fm / rm, run_error(f"{out}/df2-diff-{r}.txt"), dyn[1] if len(dyn) > 1 else float("nan"),
                   frames(f"{out}/df2-sdiff-{r}.txt")[-1], c, d])
+    t += map_rows(out, maps, nt, fm)
     print("### The soft bar: skinning subspaces (crom; one core, issue 14)\n")
     print(f"The bar of the table above ({nv} vertices, {nt} tets) made soft: nu = 0.45 and E such that the free end "
           f"sags {sag:.3f} m ({100 * sag:.0f}% of the length) at rest under gravity; 100 steps of 0.05 s. Each "
@@ -66,12 +96,13 @@ def main(out, rows):
           "iterations/step | speedup | dynamic error | first-step error | static sag error | collapsed dims |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for x in t:
-        print("| %s | %d | %d | %s | %.3g | %d | %.3f | %.1f | %.3g× | %.4f | %.4f | %.4f | %s |" % (
-            x[0], x[1], x[2], "—" if x[3] is None else x[3], x[4], x[5], x[6], x[7], x[8], x[9], x[10], x[11],
+        print("| %s | %s | %d | %s | %.3g | %d | %.3f | %.1f | %.3g× | %.4f | %.4f | %.4f | %s |" % (
+            x[0], "—" if x[1] is None else x[1], x[2], "—" if x[3] is None else x[3], x[4], x[5], x[6], x[7], x[8], x[9], x[10], x[11],
             "?" if x[12] is None else "%d of %d" % (x[12], x[13])))
     print("| full space (crom-fullsim), the reference | | %d | — | — | %d | %.3f | | 1× | 0 | 0 | 0 | |" % (
         3 * nv, nt, 1e3 * fm))
-    print("\nBuild: the eigensolve (eigen) or the training, stopped by the clock (trained), with the orthonormal "
+    print("\nBuild: the eigensolve (eigen) or the training, stopped by the clock (trained weights; the continuous "
+          "fields: the eigensolve and phi's training for skin-field, both networks for energy-field), with the orthonormal "
           "coordinates. Dynamic error: crom-diff against crom-fullsim over the run; first-step error: frame 1 of it; "
           "static sag error: the last frame of the same load damped (--damping 10) against the damped full run. "
           "Collapsed dims: crom-metrics, normalized Gram eigenvalues below 0.01.\n")
@@ -85,6 +116,6 @@ def main(out, rows):
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 3:
-        sys.exit("usage: benchskin.py DIR ROWS")
-    main(sys.argv[1], sys.argv[2].split())
+    if len(sys.argv) not in (3, 4):
+        sys.exit("usage: benchskin.py DIR ROWS [MAPS]")
+    main(sys.argv[1], sys.argv[2].split(), sys.argv[3].split() if len(sys.argv) == 4 else [])

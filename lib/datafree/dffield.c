@@ -65,7 +65,8 @@ static int buffers(crom_dffield_ctx *c, int maxbatch)
     c->maxrows = 4 * c->maxtets;
     /* rows of φ: the batch, the tangent samples and z = 0 */
     size_t R = (size_t)c->maxrows, B = (size_t)maxbatch + c->B0 + 1, P = (size_t)c->p;
-    if ((rc = crom_nn_ws_init(&c->wsW, c->W, c->maxrows, 1)) || (rc = crom_nn_ws_init(&c->wsP, c->phi, (int)B, 1)) ||
+    if ((c->W && (rc = crom_nn_ws_init(&c->wsW, c->W, c->maxrows, 1))) ||
+        (rc = crom_nn_ws_init(&c->wsP, c->phi, (int)B, 1)) ||
         (rc = crom_dfloss_cub_init(&c->cub, nv, c->maxrows)))
         return rc;
     c->xf = crom_malloc(sizeof(float) * 3 * R);
@@ -81,7 +82,8 @@ static int buffers(crom_dffield_ctx *c, int maxbatch)
     c->bad = crom_malloc(sizeof(int) * B);
     c->G = crom_malloc(sizeof(double) * P * P);
     c->S = crom_malloc(sizeof(double) * P * P);
-    c->tmp = crom_malloc(sizeof(double) * 3 * R * P);
+    size_t trows = 3 * R > B + 1 ? 3 * R : B + 1; /* (also the isometry's [B][p] scratch) */
+    c->tmp = crom_malloc(sizeof(double) * trows * P);
     c->xb = crom_malloc(sizeof(double) * (size_t)c->nthreads * 3 * R);
     if (!c->xf || !c->F || !c->Phi || !c->zf || !c->gu || !c->dF || !c->dPhi || !c->dFf || !c->dPf || !c->E ||
         !c->bad || !c->G || !c->S || !c->tmp || !c->xb)
@@ -90,18 +92,23 @@ static int buffers(crom_dffield_ctx *c, int maxbatch)
 }
 
 int crom_dffield_ctx_init(crom_dffield_ctx *c, const crom_datafree_problem *p, const crom_datafree_opts *o,
-                          const crom_nn_mlp *W, const crom_nn_mlp *phi, int maxbatch, int maxtets)
+                          const crom_nn_mlp *W, const double *basis, const crom_nn_mlp *phi, int maxbatch,
+                          int maxtets)
 {
     memset(c, 0, sizeof *c);
     c->P = *p;
     c->o = *o;
     c->W = W;
+    c->basis = basis;
     c->phi = phi;
-    const crom_nn_spec *ps = &phi->spec, *ws = &W->spec;
+    const crom_nn_spec *ps = &phi->spec;
     int pf = ps->width[ps->nlayers];
-    if (ws->width[0] != 3 || ws->width[ws->nlayers] != 3 * pf)
-        return crom_err(CROM_EUSAGE, "the feature field goes %d -> %d, expected 3 -> 3p = %d", ws->width[0],
-                        ws->width[ws->nlayers], 3 * pf);
+    if (!W == !basis)
+        return crom_err(CROM_EUSAGE, "the features need a field W(X) or a fixed basis, not %s",
+                        W ? "both" : "neither");
+    if (W && (W->spec.width[0] != 3 || W->spec.width[W->spec.nlayers] != 3 * pf))
+        return crom_err(CROM_EUSAGE, "the feature field goes %d -> %d, expected 3 -> 3p = %d", W->spec.width[0],
+                        W->spec.width[W->spec.nlayers], 3 * pf);
     if (maxbatch < 2 || maxtets < 1)
         return crom_err(CROM_EUSAGE, "batch of %d samples, %d tets", maxbatch, maxtets);
     if (!(o->sigma > 0))
@@ -115,7 +122,7 @@ int crom_dffield_ctx_init(crom_dffield_ctx *c, const crom_datafree_problem *p, c
     c->maxtets = maxtets;
     c->nthreads = crom_dftrain_threads(o->threads);
     int rc = crom_fem_init(&c->fem, p->mesh, &p->mat);
-    if (!rc)
+    if (!rc && W) /* (a fixed basis holds the pins itself) */
         rc = pin_mask(c, p, o);
     if (!rc)
         rc = buffers(c, maxbatch);
@@ -125,6 +132,11 @@ int crom_dffield_ctx_init(crom_dffield_ctx *c, const crom_datafree_problem *p, c
     }
     c->mass = c->fem.total_mass;
     c->Eref = p->mat.E * c->fem.volume;
+    if (basis) /* the fixed Gram matrix BᵀMB / m, upper triangle */
+        memset(c->G, 0, sizeof(double) * (size_t)c->p * c->p);
+    for (int v = 0; basis && v < p->mesh->nv; v++)
+        cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, c->p, 3, c->fem.mass[v] / c->mass,
+                    basis + (size_t)v * 3 * c->p, c->p, 1.0, c->G, c->p);
     return 0;
 }
 
@@ -136,14 +148,19 @@ static int outputs(crom_dffield_ctx *c, int B, const double *z)
 {
     int r = c->r, p = c->p, ns = c->cub.ns, Bt = B + c->B0, rc;
     const double *X = c->P.mesh->X;
-    for (int i = 0; i < ns; i++)
-        for (int d = 0; d < 3; d++)
-            c->xf[3 * i + d] = (float)X[3 * (size_t)c->cub.vs[i] + d];
-    if ((rc = crom_nn_mlp_forward(c->W, &c->wsW, ns, c->xf, NULL)))
-        return rc;
-    const float *Ff = crom_nn_ws_output(&c->wsW);
-    for (size_t i = 0; i < (size_t)3 * ns * p; i++)
-        c->F[i] = c->mask[c->cub.vs[i / (3 * (size_t)p)]] * Ff[i];
+    if (c->basis) { /* the fixed basis at the drawn vertices */
+        for (int i = 0; i < ns; i++)
+            memcpy(c->F + (size_t)i * 3 * p, c->basis + (size_t)c->cub.vs[i] * 3 * p, sizeof(double) * 3 * (size_t)p);
+    } else {
+        for (int i = 0; i < ns; i++)
+            for (int d = 0; d < 3; d++)
+                c->xf[3 * i + d] = (float)X[3 * (size_t)c->cub.vs[i] + d];
+        if ((rc = crom_nn_mlp_forward(c->W, &c->wsW, ns, c->xf, NULL)))
+            return rc;
+        const float *Ff = crom_nn_ws_output(&c->wsW);
+        for (size_t i = 0; i < (size_t)3 * ns * p; i++)
+            c->F[i] = c->mask[c->cub.vs[i / (3 * (size_t)p)]] * Ff[i];
+    }
     for (int i = 0; i < Bt * r; i++)
         c->zf[i] = (float)z[i];
     memset(c->zf + (size_t)Bt * r, 0, sizeof(float) * (size_t)r);
@@ -190,14 +207,23 @@ static void energy_term(crom_dffield_ctx *c, int B, double rho, double *obj, dou
     }
     cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, B, p, m3, rho * scale, c->gu, m3, c->F, p, 0.0, c->dPhi,
                 p);
-    cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, m3, p, B, rho * scale, c->gu, m3, c->Phi, p, 0.0, c->dF, p);
+    if (!c->basis) /* (no field to train over a fixed basis) */
+        cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, m3, p, B, rho * scale, c->gu, m3, c->Phi, p, 0.0, c->dF,
+                    p);
     memset(c->dPhi + (size_t)B * p, 0, sizeof(double) * (size_t)c->B0 * p);
 }
 
+/* 1/m̂, the factor of G in D²; over a fixed basis G is the exact mean over
+ * the whole body already (1). */
+static double gram_scale(const crom_dffield_ctx *c) { return c->basis ? 1.0 : 1.0 / c->cub.mhat; }
+
 /* The mass-weighted Gram matrix of the features G = Σ_v m̂_v F_vᵀ F_v (both
- * triangles), and S = 0 for the terms that use it to add to. */
+ * triangles), and S = 0 for the terms that use it to add to. Over a fixed
+ * basis G is fixed: BᵀMB / m over the whole body (ctx_init). */
 static void gram(crom_dffield_ctx *c)
 {
+    if (c->basis)
+        return;
     int p = c->p, m3 = 3 * c->cub.ns;
     for (int i = 0; i < m3; i++) {
         double s = sqrt(c->cub.mloc[i / 3]);
@@ -212,12 +238,15 @@ static void gram(crom_dffield_ctx *c)
 }
 
 /* The isometry over the pairs: λ mean_{b<c} ℓ², ℓ = ½ log D² − log(σ |z_b −
- * z_c|), D² = ΔΦᵀ G ΔΦ / m̂; its gradient in dΦ and (through G) in S. */
+ * z_c|), D² = ΔΦᵀ G ΔΦ / m̂; its gradient in dΦ and (through G, for a
+ * trained W) in S. GΦ_b / m̂ of every sample is formed first (one product),
+ * so a pair costs O(p) plus, for a trained W, the rank-one update of S. */
 static void isometry_term(crom_dffield_ctx *c, int B, const double *z, double *obj, double *pen)
 {
-    int r = c->r, p = c->p;
-    double npairs = 0.5 * B * (B - 1), lam = c->o.lambda, ls = log(c->o.sigma), mhat = c->cub.mhat;
-    double *dphi = c->tmp, *Gd = c->tmp + p; /* scratch: tmp is free again */
+    int r = c->r, p = c->p, Bt = B + c->B0;
+    double npairs = 0.5 * B * (B - 1), lam = c->o.lambda, ls = log(c->o.sigma), im = gram_scale(c);
+    double *dphi = c->tmp, *GP = c->tmp + p; /* scratch: tmp is free again ([Bt][p] after dphi) */
+    cblas_dsymm(CblasRowMajor, CblasRight, CblasUpper, Bt, p, im, c->G, p, c->Phi, p, 0.0, GP, p);
     for (int b = 0; b < B; b++)
         for (int e = b + 1; e < B; e++) {
             double dz = 0;
@@ -225,19 +254,27 @@ static void isometry_term(crom_dffield_ctx *c, int B, const double *z, double *o
                 double d = z[(size_t)b * r + k] - z[(size_t)e * r + k];
                 dz += d * d;
             }
-            for (int j = 0; j < p; j++)
-                dphi[j] = c->Phi[(size_t)b * p + j] - c->Phi[(size_t)e * p + j];
-            cblas_dsymv(CblasRowMajor, CblasUpper, p, 1.0 / mhat, c->G, p, dphi, 1, 0.0, Gd, 1);
-            double D2 = cblas_ddot(p, dphi, 1, Gd, 1);
+            const double *pb = c->Phi + (size_t)b * p, *pe = c->Phi + (size_t)e * p;
+            const double *gb = GP + (size_t)b * p, *ge = GP + (size_t)e * p;
+            double D2 = 0;
+            for (int j = 0; j < p; j++) {
+                dphi[j] = pb[j] - pe[j];
+                D2 += dphi[j] * (gb[j] - ge[j]);
+            }
             if (!(D2 > 0) || !(dz > 0))
                 continue;
             double l = 0.5 * log(D2) - 0.5 * log(dz) - ls;
             *pen += l * l / npairs;
             *obj += lam * l * l / npairs;
             double coef = lam * l / (npairs * D2); /* dL/dD² */
-            cblas_daxpy(p, 2 * coef, Gd, 1, c->dPhi + (size_t)b * p, 1);
-            cblas_daxpy(p, -2 * coef, Gd, 1, c->dPhi + (size_t)e * p, 1);
-            cblas_dsyr(CblasRowMajor, CblasUpper, p, coef / mhat, dphi, 1, c->S, p);
+            double *db = c->dPhi + (size_t)b * p, *de = c->dPhi + (size_t)e * p;
+            for (int j = 0; j < p; j++) {
+                double g = 2 * coef * (gb[j] - ge[j]);
+                db[j] += g;
+                de[j] -= g;
+            }
+            if (!c->basis)
+                cblas_dsyr(CblasRowMajor, CblasUpper, p, coef * im, dphi, 1, c->S, p);
         }
 }
 
@@ -247,14 +284,14 @@ static void isometry_term(crom_dffield_ctx *c, int B, const double *z, double *o
 static void tangent_term(crom_dffield_ctx *c, int B, const double *z, double *obj, double *tan)
 {
     int r = c->r, p = c->p, B0 = c->B0, ok = 1;
-    double lam0 = c->o.tangent_weight, lbar = 0, *lsb = c->E + B, mhat = c->cub.mhat; /* E has room past the batch */
+    double lam0 = c->o.tangent_weight, lbar = 0, *lsb = c->E + B, im = gram_scale(c); /* E has room past the batch */
     double *Gd = c->tmp + p;
     for (int b = B; b < B + B0; b++) {
         const double *ph = c->Phi + (size_t)b * p;
         double dz = 0;
         for (int k = 0; k < r; k++)
             dz += z[(size_t)b * r + k] * z[(size_t)b * r + k];
-        cblas_dsymv(CblasRowMajor, CblasUpper, p, 1.0 / mhat, c->G, p, ph, 1, 0.0, Gd, 1);
+        cblas_dsymv(CblasRowMajor, CblasUpper, p, im, c->G, p, ph, 1, 0.0, Gd, 1);
         double D2 = cblas_ddot(p, ph, 1, Gd, 1);
         ok &= D2 > 0 && dz > 0;
         lsb[b - B] = 0.5 * log(D2) - 0.5 * log(dz);
@@ -262,19 +299,23 @@ static void tangent_term(crom_dffield_ctx *c, int B, const double *z, double *ob
     }
     for (int b = B; ok && b < B + B0; b++) {
         const double *ph = c->Phi + (size_t)b * p;
-        cblas_dsymv(CblasRowMajor, CblasUpper, p, 1.0 / mhat, c->G, p, ph, 1, 0.0, Gd, 1);
+        cblas_dsymv(CblasRowMajor, CblasUpper, p, im, c->G, p, ph, 1, 0.0, Gd, 1);
         double D2 = cblas_ddot(p, ph, 1, Gd, 1), l = lsb[b - B] - lbar;
         *tan += l * l / B0;
         *obj += lam0 * l * l / B0;
         double coef = lam0 * l / (B0 * D2);
         cblas_daxpy(p, 2 * coef, Gd, 1, c->dPhi + (size_t)b * p, 1);
-        cblas_dsyr(CblasRowMajor, CblasUpper, p, coef / mhat, ph, 1, c->S, p);
+        if (!c->basis)
+            cblas_dsyr(CblasRowMajor, CblasUpper, p, coef * im, ph, 1, c->S, p);
     }
 }
 
-/* Through G: dL/dF_v += 2 m̂_v F_v S (S = dL/dG, symmetrized). */
+/* Through G: dL/dF_v += 2 m̂_v F_v S (S = dL/dG, symmetrized); nothing over
+ * a fixed basis. */
 static void gram_grad(crom_dffield_ctx *c)
 {
+    if (c->basis)
+        return;
     int p = c->p, m3 = 3 * c->cub.ns;
     for (int i = 0; i < p; i++)
         for (int j = 0; j < i; j++)
@@ -289,7 +330,7 @@ static void gram_grad(crom_dffield_ctx *c)
 static int backward(crom_dffield_ctx *c, int B, float *gW, float *gP)
 {
     int p = c->p, ns = c->cub.ns, rc = 0;
-    if (gW) {
+    if (gW && c->W) {
         for (size_t i = 0; i < (size_t)3 * ns * p; i++)
             c->dFf[i] = (float)(c->mask[c->cub.vs[i / (3 * (size_t)p)]] * c->dF[i]);
         memset(gW, 0, sizeof(float) * c->W->nparams);
@@ -342,26 +383,30 @@ int crom_dffield_loss(crom_dffield_ctx *c, int B, const double *z, double rho, i
 
 /* ============================================================ training */
 
-/* Scale the field's last layer so that W(X) (φ(z) − φ(0)) starts at the isometry
- * scale: RMS displacement σ over random vertices and z ~ N(0, I) (a
- * default-initialized pair of networks moves the body by metres, which
- * training would first have to undo). */
+/* Scale the last layer of the field (of φ over a fixed basis) so that
+ * W(X) (φ(z) − φ(0)) starts at the isometry scale: RMS displacement σ over
+ * random vertices and z ~ N(0, I) (a default-initialized pair of networks
+ * moves the body by metres, which training would first have to undo). */
 static int init_scale(crom_dffield_ctx *c, crom_nn_mlp *W, crom_nn_mlp *phi, crom_rng *rng)
 {
     int nv = c->P.mesh->nv, n = c->maxrows < nv ? c->maxrows : nv, B = c->maxbatch, p = c->p, rc;
     for (int i = 0; i < n; i++) {
         int v = n == nv ? i : (int)crom_rng_below(rng, (uint64_t)nv);
+        if (c->basis)
+            memcpy(c->F + (size_t)i * 3 * p, c->basis + (size_t)v * 3 * p, sizeof(double) * 3 * (size_t)p);
         for (int d = 0; d < 3; d++)
             c->xf[3 * i + d] = (float)c->P.mesh->X[3 * (size_t)v + d];
     }
     for (int i = 0; i < B * c->r; i++)
         c->zf[i] = (float)crom_rng_normal(rng);
     memset(c->zf + (size_t)B * c->r, 0, sizeof(float) * (size_t)c->r); /* the anchor */
-    if ((rc = crom_nn_mlp_forward(W, &c->wsW, n, c->xf, NULL)))
-        return rc;
-    const float *F = crom_nn_ws_output(&c->wsW);
-    for (size_t i = 0; i < (size_t)3 * n * p; i++) /* unmasked: the scale of W itself */
-        c->F[i] = F[i];
+    if (!c->basis) {
+        if ((rc = crom_nn_mlp_forward(W, &c->wsW, n, c->xf, NULL)))
+            return rc;
+        const float *F = crom_nn_ws_output(&c->wsW);
+        for (size_t i = 0; i < (size_t)3 * n * p; i++) /* unmasked: the scale of W itself */
+            c->F[i] = F[i];
+    }
     if ((rc = crom_nn_mlp_forward(phi, &c->wsP, B + 1, c->zf, NULL)))
         return rc;
     const float *P = crom_nn_ws_output(&c->wsP), *P0 = P + (size_t)B * p;
@@ -374,7 +419,7 @@ static int init_scale(crom_dffield_ctx *c, crom_nn_mlp *W, crom_nn_mlp *phi, cro
     double rms = sqrt(u2 / ((double)B * n)); /* per vertex (3 components) */
     if (!(rms > 0) || !isfinite(rms))
         return crom_err(CROM_EDATA, "the initial field is zero or not finite");
-    crom_dftrain_scale_last(W, (float)(c->o.sigma / rms));
+    crom_dftrain_scale_last(c->basis ? phi : W, (float)(c->o.sigma / rms));
     return 0;
 }
 
@@ -409,6 +454,8 @@ static int check_field(const crom_datafree_problem *p, crom_datafree_opts *o)
  * and of the samples. */
 typedef struct {
     crom_datafree_opts o;
+    const double *basis;     /* a fixed basis [nv][3][p] in place of W, or NULL */
+    int pdim;                /* its p */
     crom_nn_mlp W, phi;
     float *gW, *gP;
     crom_dffield_ctx ctx;
@@ -431,22 +478,24 @@ static void field_free(field_trainer *T)
 static int field_setup(field_trainer *T, const crom_datafree_problem *p)
 {
     const crom_datafree_opts *o = &T->o;
-    int nt = p->mesh->nt, pf = o->features, rc;
+    int nt = p->mesh->nt, pf = T->basis ? T->pdim : o->features, rc;
     T->K = o->tets < nt ? o->tets : nt;
     crom_nn_spec wspec, pspec;
-    if ((rc = crom_dftrain_spec(&wspec, 3, o->field_width, o->field_depth, 3 * pf, o->act)) ||
+    if ((!T->basis && (rc = crom_dftrain_spec(&wspec, 3, o->field_width, o->field_depth, 3 * pf, o->act))) ||
         (rc = crom_dftrain_spec(&pspec, o->rank, o->width, o->depth, pf, o->act)))
         return rc;
     crom_dftrain_seed(o->seed, &T->irng, &T->srng);
-    if ((rc = crom_nn_mlp_init(&T->W, &wspec, NULL, &T->irng)) ||
-        (rc = crom_nn_mlp_init(&T->phi, &pspec, NULL, &T->irng)) || (rc = crom_dftrain_norm_box(&T->W, p->mesh)))
+    if ((!T->basis && (rc = crom_nn_mlp_init(&T->W, &wspec, NULL, &T->irng))) ||
+        (rc = crom_nn_mlp_init(&T->phi, &pspec, NULL, &T->irng)) ||
+        (!T->basis && (rc = crom_dftrain_norm_box(&T->W, p->mesh))))
         return rc;
-    if ((rc = crom_dffield_ctx_init(&T->ctx, p, o, &T->W, &T->phi, o->batch, T->K)) ||
+    const crom_nn_mlp *W = T->basis ? NULL : &T->W;
+    if ((rc = crom_dffield_ctx_init(&T->ctx, p, o, W, T->basis, &T->phi, o->batch, T->K)) ||
         (rc = init_scale(&T->ctx, &T->W, &T->phi, &T->srng)))
         return rc;
-    T->gW = crom_malloc(sizeof(float) * T->W.nparams);
+    T->gW = W ? crom_malloc(sizeof(float) * T->W.nparams) : NULL;
     T->gP = crom_malloc(sizeof(float) * T->phi.nparams);
-    return T->gW && T->gP ? 0 : CROM_EINTERNAL;
+    return (T->gW || !W) && T->gP ? 0 : CROM_EINTERNAL;
 }
 
 static int field_loss(void *ctx, const double *z, double rho, int K, const int *tets, crom_dftrain_terms *t)
@@ -455,8 +504,8 @@ static int field_loss(void *ctx, const double *z, double rho, int K, const int *
     return crom_dffield_loss(&T->ctx, T->o.batch, z, rho, K, tets, t, T->gW, T->gP);
 }
 
-/* Train both networks with Adam: z ~ N(0, I), ρ ramped, a fresh random
- * cubature each step. */
+/* Train both networks (φ alone over a fixed basis) with Adam: z ~ N(0, I),
+ * ρ ramped, a fresh random cubature each step. */
 static int field_train(field_trainer *T, const crom_datafree_problem *p, crom_dftrain_log *log)
 {
     const crom_datafree_opts *o = &T->o;
@@ -468,6 +517,12 @@ static int field_train(field_trainer *T, const crom_datafree_problem *p, crom_df
         .r = o->rank, .tangent_radius = o->tangent_radius, .K = T->K, .nt = p->mesh->nt, .ramp = o->ramp,
         .steps = o->steps, .minutes = o->minutes, .lr = o->lr, .hint = " (try a smaller --lr)",
         .progress = o->progress, .progress_ctx = o->progress_ctx};
+    if (T->basis) { /* φ alone */
+        L.nblocks = 1;
+        L.params[0] = T->phi.params;
+        L.grad[0] = T->gP;
+        L.nparams[0] = T->phi.nparams;
+    }
     return crom_dftrain_run(&L, log);
 }
 
@@ -490,6 +545,42 @@ int crom_dffield_train(const crom_datafree_problem *p, const crom_datafree_opts 
                                        T.ctx.pin_length);
     if (!rc)
         out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
+    field_free(&T);
+    if (rc)
+        crom_dftrain_log_free(log);
+    return rc;
+}
+
+void crom_dffield_latent_defaults(crom_datafree_opts *o)
+{
+    o->lambda = 0.03;
+    o->tangent_weight = 0.1;
+    o->sigma = 0;
+}
+
+int crom_dffield_train_latent(const crom_datafree_problem *p, const crom_datafree_opts *o, const double *basis,
+                              int pdim, crom_nn_mlp *phi, crom_dftrain_log *log)
+{
+    memset(phi, 0, sizeof *phi);
+    memset(log, 0, sizeof *log);
+    if (!basis || pdim < 1)
+        return crom_err(CROM_EUSAGE, "a fixed basis of %d features", pdim);
+    field_trainer T;
+    memset(&T, 0, sizeof T);
+    T.o = *o;
+    T.basis = basis;
+    T.pdim = pdim;
+    if (!(T.o.sigma > 0)) /* (the latent's default scale, crom_dffield_latent_defaults) */
+        T.o.sigma = 0.15 * crom_dftrain_diag(p->mesh);
+    int rc = check_field(p, &T.o);
+    if (!rc)
+        rc = field_setup(&T, p);
+    if (!rc)
+        rc = field_train(&T, p, log);
+    if (!rc) { /* hand φ over */
+        *phi = T.phi;
+        memset(&T.phi, 0, sizeof T.phi);
+    }
     field_free(&T);
     if (rc)
         crom_dftrain_log_free(log);

@@ -41,7 +41,8 @@
 typedef struct {
     crom_datafree_problem P;
     crom_datafree_opts o;
-    const crom_nn_mlp *W, *phi; /* 3 -> 3p and r -> p */
+    const crom_nn_mlp *W, *phi; /* 3 -> 3p (NULL over a fixed basis) and r -> p */
+    const double *basis;     /* a fixed basis [nv][3][p] in place of W(X_v), or NULL */
     crom_fem fem;
     crom_nn_ws wsW, wsP;
     int r, p, maxbatch, maxtets, maxrows, nthreads, npins;
@@ -59,11 +60,14 @@ typedef struct {
 
 /* Set up the loss of the continuous field (objective field: o->sigma,
  * lambda, pin_length, threads) for networks W (3 -> 3p, unmasked) and phi
- * (r -> p), batches of up to maxbatch samples over up to maxtets tets.
+ * (r -> p), batches of up to maxbatch samples over up to maxtets tets; or,
+ * with W NULL, for phi over the fixed basis [nv][3][p] (borrowed; it holds
+ * the pins itself: no mask).
  * Returns 0, CROM_EUSAGE (bad sizes), CROM_EDATA (bad mesh),
  * CROM_EINTERNAL (out of memory). */
 int crom_dffield_ctx_init(crom_dffield_ctx *c, const crom_datafree_problem *p, const crom_datafree_opts *o,
-                          const crom_nn_mlp *W, const crom_nn_mlp *phi, int maxbatch, int maxtets);
+                          const crom_nn_mlp *W, const double *basis, const crom_nn_mlp *phi, int maxbatch,
+                          int maxtets);
 void crom_dffield_ctx_free(crom_dffield_ctx *c);
 
 /* The loss L of B samples at blend rho over the K tets tets [K] (repeats
@@ -81,5 +85,22 @@ int crom_dffield_loss(crom_dffield_ctx *c, int B, const double *z, double rho, i
  * under gravity), CROM_EDATA (training diverged) or CROM_EINTERNAL. */
 int crom_dffield_train(const crom_datafree_problem *p, const crom_datafree_opts *o, crom_model *out,
                        crom_dftrain_log *log);
+
+/* The defaults of φ over a fixed basis, on top of the field's
+ * (crom_datafree_defaults): a weak isometry λ = 0.03 with the isometry at
+ * rest λ_0 = 0.1 (as the energy map), and sigma 0, which
+ * crom_dffield_train_latent takes as 0.15 times the bounding-box diagonal:
+ * measured on the soft bar of issue 14 (README, "Benchmarks"), λ = 1 left
+ * the static sag 80 % off, σ = 0.05 diag 35 %, against 11 % here. */
+void crom_dffield_latent_defaults(crom_datafree_opts *o);
+
+/* Train φ alone over a FIXED linear basis of the body (basis [nv][3][pdim]
+ * at the vertices of p->mesh, e.g. skinning eigenmodes: crom-fitfield
+ * --objective field --handles H; crom/model basis "skin-field"), with the
+ * loss and the schedule of the field: x(X, z) = X + W(X) (φ(z) − φ(0)) with
+ * W the basis. o->features is not used. phi gets the network r -> pdim
+ * (freed by the caller) and log the record. Returns as crom_dffield_train. */
+int crom_dffield_train_latent(const crom_datafree_problem *p, const crom_datafree_opts *o, const double *basis,
+                              int pdim, crom_nn_mlp *phi, crom_dftrain_log *log);
 
 #endif

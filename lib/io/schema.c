@@ -104,7 +104,7 @@ static const crom_schema_dset samples_dsets[] = {
 static const crom_schema_attr model_attrs[] = {
     {"basis", "str", 1, "mlp (neural field), pod or modes (piecewise-linear field on a mesh), energy or neuralmodes "
                         "(data-free maps of one mesh), energy-field (continuous data-free map), skinning (affine skinning "
-                        "handles)", NULL},
+                        "handles), skin-field (continuous data-free map over skinning handles)", NULL},
     {"rank", "i64", 1, "r, the number of basis fields (latent dimension)", NULL},
     {"encoder", "str", 1, "pointnet, lsq or none: how full states are turned into q", NULL},
     {"model_id", "str", 1, "hex digest of the basis parameters; cubature and latent files name it", NULL},
@@ -132,6 +132,8 @@ static const crom_schema_attr model_attrs[] = {
     {"cubature_tets", "i64", 0, "tets of the random cubature drawn at every training step (energy-field)", NULL},
     {"handles", "i64", 0, "H, the affine handles of a skinning subspace (12 coordinates each)", NULL},
     {"constant_handle", "i64", 0, "1 if handle 0 is the constant weight 1 (a free body), else 0 (skinning)", NULL},
+    {"latent_activation", "str", 0, "hidden activation of the latent network phi: elu, gelu or sine (skin-field)",
+     NULL},
     {"skin_weights", "str", 0, "trained (an MLP weight field) or eigen (skinning eigenmodes on field/mesh) (skinning)",
      NULL},
     {NULL, NULL, 0, NULL, NULL}};
@@ -166,9 +168,10 @@ static const crom_schema_dset model_dsets[] = {
     {"training/penalty", "f64", "E", 0, "1", "mean unweighted penalty: squared log isometry ratio (energy, energy-field) "
                                              "or squared relative projection on the modes (neuralmodes) or the squared norm of G - I, "
                                              "G the weights' Gram matrix (skinning)", NULL},
-    {"latent/widths", "i32", "?", 0, "1", "layer widths of the latent network phi: R^r -> R^p, input first (energy-field)", NULL},
+    {"latent/widths", "i32", "?", 0, "1", "layer widths of the latent network phi: R^r -> R^p, input first (energy-field, "
+                                         "skin-field)", NULL},
     {"latent/params", "f32", "?", 0, "1", "all weights and biases of phi, layer by layer (W row-major [out][in], then b) "
-                                          "(energy-field)", NULL},
+                                          "(energy-field, skin-field)", NULL},
     {"latent/pin_points", "f64", "?,3", 0, "m", "pinned training vertices (energy-field): the field is masked by "
                                                 "smoothstep(d / pin_length), d the distance to the nearest pinned "
                                                 "vertex or triangle", NULL},

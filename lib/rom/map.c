@@ -7,6 +7,7 @@
 
 #include "base/err.h"
 #include "rom/map.h"
+#include "rom/skin.h"
 
 #define INV_SQRT2 0.70710678118654752440
 #define INV_SQRT2PI 0.39894228040143267794
@@ -122,6 +123,17 @@ static int load_field_map(crom_map *map, const crom_model *model)
     return rc;
 }
 
+/* A skin-field x = X + W(X) φ(q): φ's layers in double, B = the skinning
+ * basis at the vertices. */
+static int load_skin_field(crom_map *map, const crom_model *model)
+{
+    int p = crom_skin_width(model), rc = copy_layers(map, &model->latent, p);
+    if (rc)
+        return rc;
+    map->phi = 1;
+    return crom_skin_eval(model, (size_t)map->nv, map->mesh.X, map->B, NULL);
+}
+
 int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
 {
     memset(map, 0, sizeof *map);
@@ -156,6 +168,8 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
         rc = load_net(map, &model->mlp, model->basis_v);
     } else if (model->field == CROM_MODEL_FIELD_CMAP) {
         rc = load_field_map(map, model);
+    } else if (model->field == CROM_MODEL_FIELD_SKIN && model->latent.nparams) {
+        rc = load_skin_field(map, model);
     } else { /* a linear basis: a = q, B = W(X_v) */
         map->p = r;
         map->B = crom_malloc(sizeof(double) * (size_t)map->n * r);

@@ -4,8 +4,9 @@
  *     x(q) = X + W q + N(q),        J(q) = dx/dq = W + dN/dq,
  *
  * the common form of every model that can be laid on a mesh:
- *   - a continuous data-free map (crom/model basis "energy-field"),
- *     x = X + W(X) φ(q), on any mesh: B = W(X_v) and a = φ(q);
+ *   - a continuous data-free map (crom/model basis "energy-field", or
+ *     "skin-field" over a skinning basis), x = X + W(X) φ(q), on any mesh:
+ *     B = W(X_v) and a = φ(q);
  *   - a data-free map (crom/model basis "energy": W = 0; "neuralmodes": W the
  *     linear modes, N the learned correction y(q)) on its own mesh;
  *   - a linear basis (pod, modes, skinning, or an mlp neural field) sampled at the

@@ -57,7 +57,7 @@ typedef struct {
 void crom_metrics_defaults(crom_metrics_opts *o);
 
 /* The latent distribution a model was trained on, into o->dist and
- * o->radius: N(0, I) for an energy map, the training box for neural modes,
+ * o->radius: N(0, I) for an energy map (energy, energy-field, skin-field), the training box for neural modes,
  * else the sphere of radius 0.05 diag (diag: the mesh's bounding-box
  * diagonal). */
 void crom_metrics_training_dist(const crom_model *m, double diag, crom_metrics_opts *o);

@@ -68,6 +68,17 @@ static void fnv_i64(fnv *s, long long v)
     fnv_bytes(s, &x, 8);
 }
 
+/* The latent network φ of a continuous map: widths (int32), parameters. */
+static void fnv_latent(fnv *s, const crom_nn_mlp *phi)
+{
+    const crom_nn_spec *lp = &phi->spec;
+    for (int l = 0; l <= lp->nlayers; l++) {
+        int32_t w = lp->width[l];
+        fnv_bytes(s, &w, 4);
+    }
+    fnv_bytes(s, phi->params, sizeof(float) * phi->nparams);
+}
+
 const char *crom_model_id(const crom_model *m, char id[17])
 {
     fnv s = {0xcbf29ce484222325ULL};
@@ -77,6 +88,8 @@ const char *crom_model_id(const crom_model *m, char id[17])
         fnv_bytes(&s, "anchored", 9);
     if (m->field == CROM_MODEL_FIELD_SKIN) {
         s.h = crom_skin_digest(m, s.h);
+        if (m->latent.nparams) /* skin-field: φ after the skinning basis */
+            fnv_latent(&s, &m->latent);
     } else if (m->field == CROM_MODEL_FIELD_MLP || m->field == CROM_MODEL_FIELD_CMAP) {
         const crom_nn_spec *sp = &m->mlp.spec;
         for (int l = 0; l <= sp->nlayers; l++) {
@@ -95,12 +108,7 @@ const char *crom_model_id(const crom_model *m, char id[17])
         }
         fnv_bytes(&s, m->mlp.params, sizeof(float) * m->mlp.nparams);
         if (m->field == CROM_MODEL_FIELD_CMAP) {
-            const crom_nn_spec *lp = &m->latent.spec;
-            for (int l = 0; l <= lp->nlayers; l++) {
-                int32_t w = lp->width[l];
-                fnv_bytes(&s, &w, 4);
-            }
-            fnv_bytes(&s, m->latent.params, sizeof(float) * m->latent.nparams);
+            fnv_latent(&s, &m->latent);
             fnv_i64(&s, m->npin_points);
             if (m->npin_points)
                 fnv_bytes(&s, m->pin_points, sizeof(double) * 3 * (size_t)m->npin_points);
@@ -240,7 +248,26 @@ int crom_model_from_map(crom_model *m, const char *basis, const crom_nn_mlp *net
 
 int crom_model_is_nonlinear(const crom_model *m)
 {
-    return m->field == CROM_MODEL_FIELD_MAP || m->field == CROM_MODEL_FIELD_CMAP;
+    return m->field == CROM_MODEL_FIELD_MAP || m->field == CROM_MODEL_FIELD_CMAP ||
+           (m->field == CROM_MODEL_FIELD_SKIN && m->latent.nparams > 0);
+}
+
+int crom_model_skin_field(crom_model *m, const crom_nn_mlp *phi)
+{
+    const crom_nn_spec *ps = &phi->spec;
+    if (m->field != CROM_MODEL_FIELD_SKIN || m->latent.nparams)
+        return crom_err(CROM_EUSAGE, "model %s is not a linear skinning model", m->model_id);
+    if (ps->width[ps->nlayers] != m->rank)
+        return crom_err(CROM_EUSAGE, "the latent network gives %d features, the skinning basis has %d",
+                        ps->width[ps->nlayers], m->rank);
+    int rc = crom_nn_mlp_from_params(&m->latent, ps, phi->params, phi->nparams, NULL, NULL);
+    if (rc)
+        return rc;
+    snprintf(m->basis, sizeof m->basis, "skin-field");
+    m->rank = ps->width[0];
+    m->encoder = CROM_MODEL_ENC_NONE;
+    crom_model_id(m, m->model_id);
+    return 0;
 }
 
 double crom_model_pin_mask(const double X[3], int npin, const double *pinX, int ntri, const double *triX, double len)
@@ -373,6 +400,16 @@ static int write_map(hid_t loc, const crom_model *m)
     return rc;
 }
 
+/* The latent network φ of a continuous map: widths and parameters. */
+static int write_latent(hid_t loc, const crom_nn_mlp *phi)
+{
+    hsize_t nl = phi->nparams;
+    int rc = write_widths(loc, "latent/widths", &phi->spec);
+    if (!rc)
+        rc = crom_h5_put_f32(loc, "latent/params", 1, &nl, phi->params);
+    return rc;
+}
+
 /* CROM_MODEL_FIELD_MLP and _CMAP: the neural field with its input
  * normalization; for CMAP also the latent network and the pin mask. */
 static int write_mlp(hid_t loc, const crom_model *m)
@@ -395,10 +432,7 @@ static int write_mlp(hid_t loc, const crom_model *m)
         rc = crom_h5_put_f64(loc, "field/input_scale", 1, &d3, sc);
     if (rc || m->field != CROM_MODEL_FIELD_CMAP)
         return rc;
-    hsize_t nl = m->latent.nparams;
-    rc = write_widths(loc, "latent/widths", &m->latent.spec);
-    if (!rc)
-        rc = crom_h5_put_f32(loc, "latent/params", 1, &nl, m->latent.params);
+    rc = write_latent(loc, &m->latent);
     hsize_t dp[2] = {(hsize_t)m->npin_points, 3}, d1 = 1;
     if (!rc && m->npin_points)
         rc = crom_h5_put_f64(loc, "latent/pin_points", 2, dp, m->pin_points);
@@ -454,9 +488,13 @@ int crom_model_write(hid_t loc, crom_model *m)
     int rc = write_attrs(loc, m);
     if (rc)
         return rc;
-    if (m->field == CROM_MODEL_FIELD_SKIN)
+    if (m->field == CROM_MODEL_FIELD_SKIN) {
         rc = crom_skin_write(loc, m);
-    else if (m->field == CROM_MODEL_FIELD_MAP)
+        if (!rc && m->latent.nparams) /* skin-field: φ, with its own activation */
+            rc = crom_h5_set_str(loc, ".", "latent_activation", crom_nn_act_name(m->latent.spec.act));
+        if (!rc && m->latent.nparams)
+            rc = write_latent(loc, &m->latent);
+    } else if (m->field == CROM_MODEL_FIELD_MAP)
         rc = write_map(loc, m);
     else if (m->field == CROM_MODEL_FIELD_MLP || m->field == CROM_MODEL_FIELD_CMAP)
         rc = write_mlp(loc, m);
@@ -527,6 +565,56 @@ static int all_finite_d(const double *p, size_t n)
     return 1;
 }
 
+/* The latent network φ: r -> p of a continuous map (activation a) into
+ * m->latent, its output width into *p. */
+static int read_latent(hid_t h, crom_model *m, crom_nn_act a, int *p)
+{
+    int lw[CROM_NN_MAX_LAYERS + 1], nl, rc;
+    crom_nn_spec ls;
+    hsize_t nlp;
+    float *lpar = NULL;
+    if ((rc = read_widths(h, "latent/widths", lw, &nl)))
+        return rc;
+    if (crom_nn_spec_set(&ls, nl, lw, a))
+        return crom_err(CROM_EDATA, "latent/widths: %s", crom_errmsg());
+    if (lw[0] != m->rank)
+        return crom_err(CROM_EDATA, "latent/widths start at %d, the rank is %d", lw[0], m->rank);
+    if ((rc = crom_h5_read_f32(h, "latent/params", 1, &nlp, &lpar)))
+        return rc;
+    if (!all_finite_f(lpar, nlp)) {
+        free(lpar);
+        return crom_err(CROM_EDATA, "the latent network has non-finite parameters");
+    }
+    rc = crom_nn_mlp_from_params(&m->latent, &ls, lpar, nlp, NULL, NULL);
+    free(lpar);
+    if (rc)
+        return crom_err_ctx("latent");
+    *p = lw[nl - 1];
+    return 0;
+}
+
+/* skin-field: φ (its activation in latent_activation, elu by default), then
+ * the skinning basis it maps into, whose width must be φ's output. */
+static int read_skin_field(hid_t h, crom_model *m, const char *act)
+{
+    char *lact = NULL;
+    crom_nn_act a = CROM_NN_ELU;
+    if (crom_h5_has_attr(h, ".", "latent_activation") && !crom_h5_get_str(h, ".", "latent_activation", &lact) &&
+        (crom_nn_act_parse(lact, &a) || (a != CROM_NN_ELU && a != CROM_NN_SINE && a != CROM_NN_GELU))) {
+        int rc = crom_err(CROM_EDATA, "unknown latent_activation '%s' (elu, gelu or sine)", lact);
+        free(lact);
+        return rc;
+    }
+    free(lact);
+    int p, rc = read_latent(h, m, a, &p);
+    if (!rc)
+        rc = crom_skin_read(h, m, act);
+    if (!rc && crom_skin_width(m) != p)
+        rc = crom_err(CROM_EDATA, "the latent network gives %d features, the skinning basis has %d", p,
+                      crom_skin_width(m));
+    return rc;
+}
+
 static int read_mlp(hid_t h, crom_model *m, char *act)
 {
     int w[CROM_NN_MAX_LAYERS + 1], nw;
@@ -541,26 +629,8 @@ static int read_mlp(hid_t h, crom_model *m, char *act)
         return crom_err(CROM_EDATA, "field/widths: %s", crom_errmsg());
     int p = m->rank;
     if (m->field == CROM_MODEL_FIELD_CMAP) { /* the latent network φ: r -> p first */
-        int lw[CROM_NN_MAX_LAYERS + 1], nl;
-        crom_nn_spec ls;
-        hsize_t nlp;
-        float *lpar = NULL;
-        if ((rc = read_widths(h, "latent/widths", lw, &nl)))
+        if ((rc = read_latent(h, m, a, &p)))
             return rc;
-        if (crom_nn_spec_set(&ls, nl, lw, a))
-            return crom_err(CROM_EDATA, "latent/widths: %s", crom_errmsg());
-        if (lw[0] != m->rank)
-            return crom_err(CROM_EDATA, "latent/widths start at %d, the rank is %d", lw[0], m->rank);
-        if ((rc = crom_h5_read_f32(h, "latent/params", 1, &nlp, &lpar)))
-            return rc;
-        if (!all_finite_f(lpar, nlp)) {
-            free(lpar);
-            return crom_err(CROM_EDATA, "the latent network has non-finite parameters");
-        }
-        rc = crom_nn_mlp_from_params(&m->latent, &ls, lpar, nlp, NULL, NULL);
-        free(lpar);
-        if (rc)
-            return crom_err_ctx("latent");
         hsize_t d[2];
         double *len = NULL;
         if ((rc = crom_h5_read_f64(h, "latent/pin_length", 1, d, &len)))
@@ -584,7 +654,6 @@ static int read_mlp(hid_t h, crom_model *m, char *act)
                 return crom_err(CROM_EDATA, "latent/pin_triangles must be finite [n][3][3]");
             m->npin_triangles = (int)d3[0];
         }
-        p = lw[nl - 1];
     }
     if (w[0] != 3 || w[nw - 1] != 3 * p)
         return crom_err(CROM_EDATA, "field/widths go %d -> %d, expected 3 -> %d", w[0], w[nw - 1], 3 * p);
@@ -779,7 +848,7 @@ int crom_model_read(crom_in *in, crom_model *m)
         m->field = CROM_MODEL_FIELD_MAP;
     else if (!strcmp(basis, "energy-field"))
         m->field = CROM_MODEL_FIELD_CMAP;
-    else if (!strcmp(basis, "skinning"))
+    else if (!strcmp(basis, "skinning") || !strcmp(basis, "skin-field"))
         m->field = CROM_MODEL_FIELD_SKIN;
     else if (!strcmp(basis, "mlp") || (strcmp(basis, "pod") && strcmp(basis, "modes") &&
                                        crom_h5_has(h, "field/params")))
@@ -794,7 +863,7 @@ int crom_model_read(crom_in *in, crom_model *m)
     if (m->field == CROM_MODEL_FIELD_SKIN) {
         if (crom_h5_has_attr(h, ".", "activation"))
             crom_h5_get_str(h, ".", "activation", &act);
-        rc = crom_skin_read(h, m, act);
+        rc = strcmp(basis, "skin-field") ? crom_skin_read(h, m, act) : read_skin_field(h, m, act);
     } else if (m->field == CROM_MODEL_FIELD_MAP) {
         if (crom_h5_has_attr(h, ".", "activation"))
             crom_h5_get_str(h, ".", "activation", &act);
@@ -872,15 +941,15 @@ int crom_model_eval(const crom_model *m, size_t n, const double *X, double *W,
         crom_locate_interp(&m->loc, n, X, 3 * m->rank, m->basis_v, W, noutside);
         return 0;
     }
-    if (m->field == CROM_MODEL_FIELD_SKIN)
+    if (m->field == CROM_MODEL_FIELD_SKIN && !m->latent.nparams)
         return crom_skin_eval(m, n, X, W, noutside);
+    if (m->field == CROM_MODEL_FIELD_SKIN || m->field == CROM_MODEL_FIELD_CMAP)
+        return crom_err(CROM_EDATA, "model %s is a continuous nonlinear map x(X, q) (basis '%s'), not a basis "
+                        "field W(X): it has no encoding; simulate it with crom-reducedstep --model --mesh",
+                        m->model_id, m->basis);
     if (m->field == CROM_MODEL_FIELD_MAP)
         return crom_err(CROM_EDATA, "model %s is a nonlinear map of one mesh (basis '%s'), not a basis field "
                         "W(X): it has no encoding; simulate it with crom-reducedstep --model",
-                        m->model_id, m->basis);
-    if (m->field == CROM_MODEL_FIELD_CMAP)
-        return crom_err(CROM_EDATA, "model %s is a continuous nonlinear map x(X, q) (basis '%s'), not a basis "
-                        "field W(X): it has no encoding; simulate it with crom-reducedstep --model --mesh",
                         m->model_id, m->basis);
     if (m->field != CROM_MODEL_FIELD_MLP)
         return crom_err(CROM_EINTERNAL, "model has no basis");

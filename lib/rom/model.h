@@ -37,7 +37,12 @@
  *       12H, or 3S in orthonormal coordinates), from weights w(X) stored as an
  *       MLP 3 -> H (trained) or a piecewise-linear field on a stored mesh
  *       (eigen); lib/rom/skin.h has the layout. crom_model_eval gives its W(X)
- *       like any linear basis.
+ *       like any linear basis. With basis "skin-field" (the `latent` network
+ *       present) it is a CONTINUOUS nonlinear map instead, x(X, q) = X +
+ *       W(X) (φ(q) − φ(0)) with W the skinning basis (p = 12H or 3S features)
+ *       and φ: r -> p trained from the energy alone (crom-fitfield
+ *       --objective field --handles H); the rank is r, and crom_model_eval
+ *       refuses it as it refuses energy-field.
  *
  * model_id: 16 lowercase hex digits, the 64-bit FNV-1a digest of the basis:
  * the `basis` string (with its NUL), the rank (int64), then for an MLP the
@@ -49,7 +54,8 @@
  * map the field as for an MLP, then the latent network's widths (int32)
  * and parameters (float32), the pin point count (int64) and points, the
  * pin triangle count (int64) and corners, and the length (float64); for a
- * skinning model what crom_skin_digest adds (lib/rom/skin.h); all
+ * skinning model what crom_skin_digest adds (lib/rom/skin.h), then for
+ * a skin-field the latent network's widths and parameters; all
  * little-endian,
  * exactly as stored. The encoder and the training record are
  * not part of it: latent coordinates and cached W depend on W alone.
@@ -160,6 +166,12 @@ int crom_model_is_map_kind(const char *basis);
 int crom_model_from_field_map(crom_model *m, const crom_nn_mlp *W, const crom_nn_mlp *phi, int npin,
                               const double *pinX, int ntri, const double *triX, double len);
 
+/* Make a linear skinning model m (basis "skinning", rank p) a continuous
+ * nonlinear map, basis "skin-field": x(X, q) = X + W(X) (φ(q) − φ(0)) with
+ * W its skinning basis and phi (r -> p, copied) the latent network; the
+ * rank becomes r. CROM_EUSAGE for another model or mismatched widths. */
+int crom_model_skin_field(crom_model *m, const crom_nn_mlp *phi);
+
 /* The pin mask s(d(X)/ℓ) at X, s the smoothstep 3t² − 2t³ (1 for t >= 1)
  * and d the distance to the nearest of npin points pinX [npin][3] and ntri
  * triangles triX [ntri][3][3] (1 if there are none): what a continuous
@@ -171,7 +183,7 @@ double crom_model_pin_mask(const double X[3], int npin, const double *pinX, int 
 /* The pin mask of a continuous map at X (1 for other models). */
 double crom_model_mask(const crom_model *m, const double X[3]);
 
-/* 1 for a model nonlinear in q (CROM_MODEL_FIELD_MAP, CROM_MODEL_FIELD_CMAP): decoded
+/* 1 for a model nonlinear in q (CROM_MODEL_FIELD_MAP, CROM_MODEL_FIELD_CMAP, a skin-field): decoded
  * and simulated through lib/rom/map.h, with no basis W(X). */
 int crom_model_is_nonlinear(const crom_model *m);
 

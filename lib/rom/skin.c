@@ -259,6 +259,8 @@ int crom_skin_weights(const crom_model *m, size_t n, const double *X, double *w,
     return rc;
 }
 
+int crom_skin_width(const crom_model *m) { return m->skin_C ? 3 * m->skin_S : 12 * m->handles; }
+
 int crom_skin_eval(const crom_model *m, size_t n, const double *X, double *W, size_t *noutside)
 {
     if (n == 0) {
@@ -697,10 +699,10 @@ int crom_skin_read(hid_t h, crom_model *m, const char *act)
         m->skin_S = (int)dc[1];
         if (dc[0] != 4 * (hsize_t)H || dc[1] < 1 || dc[1] > dc[0] || !all_finite(m->skin_C, dc[0] * dc[1]))
             rc = crom_err(CROM_EDATA, "skin/coordinates must be finite [4H][S] with 1 <= S <= 4H = %lld", 4 * H);
-        else if (3 * m->skin_S != m->rank)
+        else if (!m->latent.nparams && 3 * m->skin_S != m->rank) /* (skin-field: φ's width, checked after) */
             rc = crom_err(CROM_EDATA, "%d orthonormal functions do not make rank %d (3 per function)", m->skin_S,
                           m->rank);
-    } else if (12 * H != m->rank) {
+    } else if (!m->latent.nparams && 12 * H != m->rank) {
         rc = crom_err(CROM_EDATA, "%lld handles do not make rank %d (12 per handle)", H, m->rank);
     }
     if (rc) {

@@ -117,8 +117,12 @@ double crom_skin_mask_at(const double X[3], int npin, const double *pinX, int nt
  * memory, CROM_EUSAGE for another kind of model. */
 int crom_skin_weights(const crom_model *m, size_t n, const double *X, double *w, size_t *noutside);
 
-/* W [n][3][rank] of a skinning model at n points (crom_model_eval's work
- * for this kind). Errors as crom_skin_weights. */
+/* The width of the skinning basis: 3S in orthonormal coordinates, else 12H
+ * (the rank of a linear skinning model; the features of a skin-field). */
+int crom_skin_width(const crom_model *m);
+
+/* W [n][3][width] of a skinning model at n points (crom_model_eval's work
+ * for a linear one; a skin-field's features). Errors as crom_skin_weights. */
 int crom_skin_eval(const crom_model *m, size_t n, const double *X, double *W, size_t *noutside);
 
 /* The affine handle transforms T [H][3][4] (T_h = [I|0] + Q_h F̄) of the

@@ -34,6 +34,7 @@
 #include "base/rng.h"
 #include "datafree/datafree.h"
 #include "datafree/dffield.h"
+#include "datafree/dfskin.h"
 #include "mesh/meshgen.h"
 #include "nn/nn.h"
 #include "phys/fem.h"
@@ -44,6 +45,7 @@
 #include "rom/model.h"
 #include "rom/nlsim.h"
 #include "rom/rsim.h"
+#include "rom/skin.h"
 
 #define FD_H 1e-3
 #define FD_TOL 2e-3
@@ -266,7 +268,7 @@ static void gradient_check_field(void)
         tets[k] = (int)crom_rng_below(&rng, (uint64_t)m.nt);
     tets[K - 1] = tets[0]; /* a repeat */
     crom_dffield_ctx c;
-    CHECK(crom_dffield_ctx_init(&c, &P, &o, &W, &phi, B, K) == 0);
+    CHECK(crom_dffield_ctx_init(&c, &P, &o, &W, NULL, &phi, B, K) == 0);
     int inside = 0, onpin = 1, far = 1;
     for (int v = 0; v < m.nv; v++) {
         double x = m.X[3 * v];
@@ -317,6 +319,99 @@ static void gradient_check_field(void)
     crom_nn_mlp_free(&phi);
     free(tets);
     free(gw);
+    free(gp);
+    free(ga);
+    free(gf);
+    free(x);
+    free(fixed);
+    crom_mesh_free(&m);
+}
+
+/* The same loss over a FIXED basis (a skin-field's features: W(X_v) given,
+ * zero on the pinned vertices, no mask): its gradient in φ's parameters
+ * against central differences. */
+typedef struct {
+    crom_dffield_ctx *c;
+    float *pp;
+    int np, B, K;
+    const double *z;
+    const int *tets;
+} fdb_case;
+
+static double basis_loss_at(const double *x, void *v)
+{
+    fdb_case *t = v;
+    for (int i = 0; i < t->np; i++)
+        t->pp[i] = (float)x[i];
+    crom_dftrain_terms tm;
+    if (crom_dffield_loss(t->c, t->B, t->z, 0.7, t->K, t->tets, &tm, NULL, NULL))
+        return NAN;
+    return tm.objective;
+}
+
+static void gradient_check_field_basis(void)
+{
+    crom_mesh m;
+    make_bar(&m, 0.2);
+    crom_material mat;
+    crom_material_init(&mat, 1e6, 0.3, 1000);
+    unsigned char *fixed = clamp_mask(&m);
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL};
+    crom_datafree_opts o;
+    crom_datafree_defaults(&o, CROM_DATAFREE_FIELD);
+    o.sigma = 0.04;
+    o.lambda = 0.7;
+    o.tangent_weight = 0.6;
+    o.tangent_samples = 2;
+    int r = 2, pf = 5, B = 4, pw[] = {r, 10, pf};
+    crom_nn_spec ps;
+    CHECK(crom_nn_spec_set(&ps, 3, pw, CROM_NN_ELU) == 0);
+    crom_nn_mlp phi;
+    crom_rng rng;
+    crom_rng_seed(&rng, 19);
+    CHECK(crom_nn_mlp_init(&phi, &ps, NULL, &rng) == 0);
+    double *basis = malloc(sizeof(double) * 3 * (size_t)m.nv * pf); /* smooth in X, 0 at the clamp */
+    for (int v = 0; v < m.nv; v++)
+        for (int c = 0; c < 3; c++)
+            for (int j = 0; j < pf; j++) {
+                const double *X = m.X + 3 * v;
+                double s = fixed[3 * v] ? 0 : (X[0] + 0.5) * 0.05;
+                basis[((size_t)v * 3 + c) * pf + j] = s * cos((j + 1) * X[0] + c * X[1] + 0.3 * j * X[2]);
+            }
+    int K = m.nt / 2 + 3, *tets = malloc(sizeof(int) * (size_t)K);
+    for (int k = 0; k < K; k++)
+        tets[k] = (int)crom_rng_below(&rng, (uint64_t)m.nt);
+    tets[K - 1] = tets[0];
+    crom_dffield_ctx c;
+    CHECK(crom_dffield_ctx_init(&c, &P, &o, NULL, NULL, &phi, B, K) == CROM_EUSAGE); /* neither W nor a basis */
+    CHECK(crom_dffield_ctx_init(&c, &P, &o, NULL, basis, &phi, B, K) == 0);
+    double z[12];
+    for (int i = 0; i < B * r; i++)
+        z[i] = crom_rng_normal(&rng);
+    for (int i = B * r; i < (B + c.B0) * r; i++)
+        z[i] = 0.1 * crom_rng_normal(&rng);
+    int np = (int)phi.nparams;
+    float *gp = malloc(sizeof(float) * np);
+    double *ga = malloc(sizeof(double) * np), *gf = malloc(sizeof(double) * np), *x = malloc(sizeof(double) * np);
+    crom_dftrain_terms tm;
+    int rc = crom_dffield_loss(&c, B, z, 0.7, K, tets, &tm, NULL, gp);
+    CHECK_MSG(rc == 0, "field loss over a basis: %s", crom_errmsg());
+    for (int i = 0; i < np; i++) {
+        ga[i] = gp[i];
+        x[i] = phi.params[i];
+    }
+    fdb_case fc = {&c, phi.params, np, B, K, z, tets};
+    check_fd_gradient(basis_loss_at, &fc, x, np, 1e-4, gf);
+    double e = check_relerr(ga, gf, np, 1e-12);
+    fprintf(stderr, "continuous field over a fixed basis of %d features: objective %.4g (energy %.4g J, isometry "
+                    "%.4g, tangent %.4g); gradient vs FD %.2e over %d parameters of phi\n",
+            pf, tm.objective, tm.energy, tm.penalty, tm.tangent, e, np);
+    CHECK_LT(e, FD_TOL);
+    CHECK(tm.penalty > 0 && tm.tangent > 0 && tm.energy != 0);
+    crom_dffield_ctx_free(&c);
+    crom_nn_mlp_free(&phi);
+    free(basis);
+    free(tets);
     free(gp);
     free(ga);
     free(gf);
@@ -808,6 +903,123 @@ static void test_field_subspace(bar_case *b)
     crom_dftrain_log_free(&log);
 }
 
+/* A continuous field over skinning eigenmodes (skin-field): φ trained
+ * alone over the orthonormal skinning basis of 4 handles. The model is
+ * nonlinear, refuses crom_model_eval, its id covers φ; its map matches the
+ * eigen basis times φ(q) − φ(0), has the Jacobian of differences, holds the
+ * pinned vertices to round-off and rests exactly on its mesh and a finer one;
+ * its samples have less energy than the two lowest linear modes'. */
+static void test_skin_field(bar_case *b)
+{
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL};
+    crom_model sm;
+    int rc = crom_dfskin_eigen(&b->mesh, &b->mat, b->fixed, 4, &sm, NULL);
+    CHECK_MSG(rc == 0, "eigen: %s", crom_errmsg());
+    if (rc)
+        return;
+    double *mass = malloc(sizeof(double) * b->mesh.nv);
+    for (int v = 0; v < b->mesh.nv; v++)
+        mass[v] = b->fem.mass[v];
+    CHECK(crom_skin_orthonormalize(&sm, (size_t)b->mesh.nv, b->mesh.X, mass, 1e-6) == 0);
+    free(mass);
+    int p = sm.rank, nv = b->mesh.nv;
+    double *basis = malloc(sizeof(double) * 3 * (size_t)nv * p);
+    CHECK(crom_skin_eval(&sm, (size_t)nv, b->mesh.X, basis, NULL) == 0);
+    crom_datafree_opts o;
+    crom_datafree_defaults(&o, CROM_DATAFREE_FIELD);
+    o.rank = 2;
+    o.steps = 400;
+    o.batch = 16;
+    o.width = 32;
+    o.tets = b->mesh.nt / 2;
+    o.seed = 5;
+    crom_nn_mlp phi;
+    crom_dftrain_log log;
+    rc = crom_dffield_train_latent(&P, &o, basis, p, &phi, &log);
+    CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
+    if (rc) {
+        free(basis);
+        crom_model_free(&sm);
+        return;
+    }
+    CHECK(log.steps == 400 && log.objective[log.nblocks - 1] < log.objective[0]);
+    CHECK(crom_model_skin_field(&sm, &phi) == 0);
+    CHECK(crom_model_skin_field(&sm, &phi) == CROM_EUSAGE); /* not a linear skinning model any more */
+    CHECK(!strcmp(sm.basis, "skin-field") && sm.rank == 2 && crom_model_is_nonlinear(&sm));
+    double Wx[1000];
+    CHECK(crom_model_eval(&sm, 1, b->mesh.X, Wx, NULL) == CROM_EDATA);
+    char id0[17], id1[17];
+    crom_model_id(&sm, id0);
+    sm.latent.params[3] += 1e-3f;
+    crom_model_id(&sm, id1);
+    CHECK(strcmp(id0, id1) != 0);
+    sm.latent.params[3] -= 1e-3f;
+    crom_map map, fmap;
+    CHECK(crom_map_init(&map, &sm, NULL) == 0); /* eigen weights: their own mesh */
+    /* x(q) = X + basis (φ(q) − φ(0)) with φ from the float network */
+    double q[2] = {0.8, -1.1}, *x = malloc(sizeof(double) * map.n), *J = malloc(sizeof(double) * map.n * 2);
+    double *Jfd = malloc(sizeof(double) * map.n * 2);
+    CHECK(crom_map_eval(&map, q, x, J) == 0);
+    crom_nn_ws ws;
+    CHECK(crom_nn_ws_init(&ws, &phi, 2, 1) == 0);
+    float qf[4] = {0.8f, -1.1f, 0, 0}, *a = malloc(sizeof(float) * 2 * p);
+    CHECK(crom_nn_mlp_forward(&phi, &ws, 2, qf, a) == 0);
+    double dn = 0, nn = 0, pin = 0;
+    for (int i = 0; i < map.n; i++) {
+        double u = 0;
+        for (int j = 0; j < p; j++)
+            u += basis[(size_t)i * p + j] * ((double)a[j] - a[p + j]);
+        dn += (x[i] - b->mesh.X[i] - u) * (x[i] - b->mesh.X[i] - u);
+        nn += u * u;
+        if (b->fixed[i])
+            pin = fmax(pin, fabs(x[i] - b->mesh.X[i]));
+    }
+    map_case mc = {&map, NULL};
+    check_fd_jacobian(map_at, &mc, q, 2, map.n, 1e-6, Jfd);
+    double ej = check_relerr(J, Jfd, map.n * 2, 1e-12);
+    crom_mesh fine;
+    make_bar(&fine, 0.07);
+    CHECK(crom_map_init(&fmap, &sm, &fine) == 0);
+    check_rest("skin-field on its training mesh", &map);
+    check_rest("skin-field on a finer mesh", &fmap);
+    crom_map lin;
+    crom_model lm;
+    modes_model(b, &lm);
+    CHECK(crom_map_init(&lin, &lm, NULL) == 0);
+    crom_metrics_opts mo;
+    crom_metrics_defaults(&mo);
+    mo.samples = 64;
+    mo.sigma = log.sigma;
+    crom_metrics res;
+    double g[3] = {0, -9.81, 0};
+    CHECK(crom_metrics_compute(&map, &b->fem, g, &mo, &lin, &res) == 0);
+    fprintf(stderr, "skin-field (4 eigen handles, %d features, rank 2, 400 steps): positions vs float phi %.2e, "
+                    "Jacobian vs FD %.2e, largest pinned displacement %.3g m; mean elastic energy %.4g J at RMS "
+                    "%.4g m, linear modes %.4g J; Gram eigenvalues %.3f %.3f\n",
+            p, sqrt(dn / nn), ej, pin, res.energy_mean, res.rms_mean, res.cmp_energy_mean, res.gram_eig[0],
+            res.gram_eig[1]);
+    CHECK_LT(sqrt(dn / nn), 1e-5);
+    CHECK_LT(ej, 1e-7);
+    CHECK_LT(pin, 1e-14); /* (the eigen weights are 0 there, interpolated to round-off) */
+    CHECK_LT(res.energy_mean, res.cmp_energy_mean);
+    CHECK(res.gram_eig[0] > 0.01 * res.gram_eig[1]);
+    crom_metrics_free(&res);
+    crom_map_free(&lin);
+    crom_model_free(&lm);
+    crom_map_free(&map);
+    crom_map_free(&fmap);
+    crom_mesh_free(&fine);
+    crom_nn_ws_free(&ws);
+    crom_nn_mlp_free(&phi);
+    crom_dftrain_log_free(&log);
+    crom_model_free(&sm);
+    free(basis);
+    free(x);
+    free(J);
+    free(Jfd);
+    free(a);
+}
+
 /* ------------------------------------------------------ latent dynamics */
 
 static void scenario_bar(crom_scenario *sc)
@@ -1255,12 +1467,14 @@ int main(void)
     gradient_check(CROM_DATAFREE_ENERGY);
     gradient_check(CROM_DATAFREE_NEURALMODES);
     gradient_check_field();
+    gradient_check_field_basis();
     test_map();
     bar_case b;
     bar_setup(&b, 3);
     test_energy_subspace(&b);
     test_neuralmodes_subspace(&b);
     test_field_subspace(&b);
+    test_skin_field(&b);
     test_dynamics(&b);
     test_map_cubature(&b);
     test_linear_equivalence(&b);
