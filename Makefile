@@ -109,7 +109,7 @@ $(BUILD)/tests/bench_%: $(BUILD)/tests/bench_%.o $(LIBA) | $(DEPSTAMP)
 # The whole suite: unit tests of lib/, then program and pipeline tests
 # (the fuzz harnesses replay tests/fuzz/regress/ in tests/prog/fuzz_regress.sh).
 test: $(PROGS) $(UNIT_TESTS) | $(DEPSTAMP)
-	@tests/run.sh $(BUILD) $(BINDIR)
+	@CROM_SANITIZE=$(SANITIZE) tests/run.sh $(BUILD) $(BINDIR)
 check: test
 
 man: $(MANPAGES)

@@ -8,6 +8,7 @@
 # basis through --model is the cubature run), decoding with crom-export and
 # crom-diff on the model's own mesh only; the continuous field
 # (--objective field) on another mesh; and bad input.
+# asan: skip (minutes of training under ASan; tests/unit/test_datafree.c covers the same library code there)
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 crom-mesh box --dims 1,0.2,0.2 --size 0.1 --region clamp='x<-0.49' --region tip='x>0.49' -o bar.h5

@@ -9,6 +9,7 @@
 #     POD refuses that data;
 #   - encoded on a mesh it never saw it still reconstructs the field (< 3%);
 #   - the same seed gives the same bytes; the outputs pass crom-info --check.
+# asan: skip (minutes of training under ASan; tests/unit/test_fit.c covers the same library code there)
 . "$CROM_TOP/tests/prog/common.bash"
 MK="$PY $CROM_TOP/tests/data/mktraj.py"
 cd "$TMP"
