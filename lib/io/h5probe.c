@@ -29,7 +29,7 @@
 
 /* Child exit statuses; anything else (a signal, a sanitizer's exit 1) means
  * libhdf5 failed in a way the caller must not repeat. */
-enum { PROBE_OK = 0, PROBE_NOOPEN = 40, PROBE_BAD = 41 };
+enum { PROBE_OK = 0, PROBE_NOOPEN = 40, PROBE_BAD = 41, PROBE_SYSERR = 42 };
 
 #define READ_PIECE 4096u               /* elements read per dataset, at most */
 #define ATTR_MAX ((hsize_t)64 << 20)   /* bytes an attribute may declare */
@@ -358,6 +358,23 @@ static int send_copy(walk *w, int out)
     return 0;
 }
 
+/* If a system call failed under libhdf5 (src->sys_error), exit the child
+ * with PROBE_SYSERR and its errno, in decimal, on out: a device error is
+ * no corrupt file. Else exit with status code, or return for code < 0. */
+static void leave(const crom_h5probe_src *src, int out, int code)
+{
+    int e = src->sys_error ? src->sys_error() : 0;
+    if (e > 0) {
+        char num[16];
+        int n = snprintf(num, sizeof num, "%d", e);
+        ssize_t k = write(out, num, (size_t)n);
+        (void)k;
+        _exit(PROBE_SYSERR);
+    }
+    if (code >= 0)
+        _exit(code);
+}
+
 /* The child: never returns. */
 static void child(const crom_h5probe_src *src, unsigned secs, int out, int copyfd)
 {
@@ -393,7 +410,7 @@ static void child(const crom_h5probe_src *src, unsigned secs, int out, int copyf
     walk w = {.fsize = src->len};
     w.file = src->replay(src->arg);
     if (w.file < 0)
-        _exit(PROBE_NOOPEN);
+        leave(src, out, PROBE_NOOPEN);
     w.dxpl = H5Pcreate(H5P_DATASET_XFER);
     H5Pset_buffer(w.dxpl, (size_t)READ_PIECE * 16, NULL, NULL);
     hid_t root = H5Oopen(w.file, "/", H5P_DEFAULT);
@@ -409,6 +426,7 @@ static void child(const crom_h5probe_src *src, unsigned secs, int out, int copyf
     if (r < 0) {
         if (!w.why[0])
             snprintf(w.why, sizeof w.why, "its groups cannot be walked");
+        leave(src, out, -1); /* (returns for no system error) */
         ssize_t k = write(out, w.why, strlen(w.why));
         (void)k;
         _exit(PROBE_BAD);
@@ -522,6 +540,8 @@ int crom_h5probe(const crom_h5probe_src *src, const char *name)
         return crom_err(CROM_EDATA, "%s: HDF5 file is truncated or corrupt", name);
     if (WIFEXITED(status) && WEXITSTATUS(status) == PROBE_BAD)
         return crom_err(CROM_EDATA, "%s: corrupt HDF5 file: %s", name, why);
+    if (WIFEXITED(status) && WEXITSTATUS(status) == PROBE_SYSERR && atoi(why) > 0)
+        return crom_err(CROM_EIO, "%s: %s", name, strerror(atoi(why)));
     if (WIFSIGNALED(status) && (WTERMSIG(status) == SIGALRM || WTERMSIG(status) == SIGXCPU ||
                                 WTERMSIG(status) == SIGKILL))
         return crom_err(CROM_EDATA, "%s: corrupt HDF5 file: reading it did not finish within %u s "

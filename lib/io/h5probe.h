@@ -52,11 +52,17 @@ typedef struct {
      * copied with H5Ocopy), so the caller's libhdf5 never parses the
      * untrusted bytes at all */
     crom_h5probe_copy *copy_out;
+    /* when not NULL: the errno of a system call that failed under libhdf5
+     * in this process (0 if none), asked in the child when the file fails
+     * to open or to read: a device error is not a corrupt file */
+    int (*sys_error)(void);
 } crom_h5probe_src;
 
 /* Check the file src describes; name is what messages call it. Returns 0,
- * or CROM_EDATA with a one-line message ("NAME: corrupt HDF5 file: ..."), or
- * CROM_EINTERNAL when no child process can be made. The time limit is
+ * or CROM_EDATA with a one-line message ("NAME: corrupt HDF5 file: ..."),
+ * CROM_EIO when reading it failed in the system ("NAME: Input/output
+ * error", from src->sys_error), or CROM_EINTERNAL when no child process can
+ * be made. The time limit is
  * 20 s plus 1 s per 100 MB, or CROM_PROBE_SECONDS seconds when that
  * environment variable is a positive integer. */
 int crom_h5probe(const crom_h5probe_src *src, const char *name);

@@ -891,6 +891,9 @@ static hid_t replay(void *arg)
     return in->h5;
 }
 
+/* The errno of the last system call that failed under HDF5, on any file. */
+static int any_sys_error(void) { return sys_errno; }
+
 static int probe(crom_in *in, const char *path)
 {
     replay_arg a = {in, path};
@@ -899,7 +902,9 @@ static int probe(crom_in *in, const char *path)
      * of it (copying costs about 25 ms per MB on this machine kind: larger
      * files get the check alone) */
     crom_h5probe_src src = {replay, &a, in->image_size,
-                            !path && in->image_size <= COPY_MAX ? &copy : NULL};
+                            !path && in->image_size <= COPY_MAX ? &copy : NULL, any_sys_error};
+    sys_errno = 0; /* (what the child finds is then its own) */
+    sys_file[0] = 0;
     if (path) {
         struct stat st;
         if (stat(path, &st) != 0)

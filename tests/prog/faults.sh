@@ -103,6 +103,18 @@ if cc -shared -fPIC -O1 -o "$SHIM" "$CROM_TOP/tests/prog/eio_shim.c" -ldl 2>/dev
   expect_error 74 "^crom-sample: $TMP/eio/s.h5: Input/output error\$" "$TMP/eio/s.h5" -- \
     eio crom-sample --points all traj.h5 -o "$TMP/eio/s.h5"
   no_output eio
+  # a device error while READING an input (opened by HDF5 by name here,
+  # CROM_IO_IMAGE_MAX=0): exit 74 with the system's error, not "corrupt
+  # file" (the contained check in the child reports the errno it met)
+  cp m5.h5 eio/in.h5
+  eior() { env LD_PRELOAD="$SHIM" CROM_EIO_MATCH="$TMP/eio/" CROM_EIO_READ=1 CROM_EIO_AFTER=$1 CROM_IO_IMAGE_MAX=0 \
+             ASAN_OPTIONS="${ASAN_OPTIONS:-}:verify_asan_link_order=0" "${@:2}"; }
+  for after in 0 4096; do
+    expect_error 74 "^crom-info: $TMP/eio/in.h5: Input/output error\$" - -- eior $after crom-info "$TMP/eio/in.h5"
+    expect_error 74 "^crom-info: $TMP/eio/in.h5: Input/output error\$" - -- eior $after crom-info --check "$TMP/eio/in.h5"
+    expect_error 74 "^crom-fullsim: $TMP/eio/in.h5: Input/output error\$" "$TMP/r.h5" -- \
+      eior $after crom-fullsim --steps 2 -o "$TMP/r.h5" "$TMP/eio/in.h5"
+  done
 else
   echo "skipped: no C compiler for the EIO shim"
 fi

@@ -65,7 +65,7 @@ int main(void)
         double tp[REPS], th[REPS], ti[REPS];
         for (int k = 0; k < REPS; k++) {
             double t0 = bench_now();
-            crom_h5probe_src src = {open_path, path, (size_t)(mb * 1e6 + 0.5), NULL};
+            crom_h5probe_src src = {open_path, path, (size_t)(mb * 1e6 + 0.5), NULL, NULL};
             if (crom_h5probe(&src, path)) {
                 fprintf(stderr, "bench_io: %s\n", crom_errmsg());
                 return 1;

@@ -4,6 +4,7 @@
  * Every case must come back as CROM_EDATA with a one-line message, in this
  * process, without a crash. The reproducers are built here from a small file
  * written with the HDF5 API and a few bytes changed. */
+#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -36,7 +37,10 @@ static hid_t open_source(void *arg)
                                          H5LT_FILE_IMAGE_DONT_COPY | H5LT_FILE_IMAGE_DONT_RELEASE);
 }
 
-static int probe(const char *path, void *image, size_t len, const char *name)
+/* a system call that failed under libhdf5, as crom_in_open's hook reports it */
+static int eio_errno(void) { return EIO; }
+
+static int probe_sys(const char *path, void *image, size_t len, const char *name, int (*sys_error)(void))
 {
     source s = {path, image, len};
     if (path) {
@@ -47,8 +51,13 @@ static int probe(const char *path, void *image, size_t len, const char *name)
             fclose(f);
         }
     }
-    crom_h5probe_src src = {open_source, &s, s.len, NULL};
+    crom_h5probe_src src = {open_source, &s, s.len, NULL, sys_error};
     return crom_h5probe(&src, name);
+}
+
+static int probe(const char *path, void *image, size_t len, const char *name)
+{
+    return probe_sys(path, image, len, name, NULL);
 }
 
 static void path_of(char *p, size_t n, const char *name) { snprintf(p, n, "%s/%s", dir, name); }
@@ -173,12 +182,22 @@ int main(void)
         crom_in_close(&in);
     }
 
+    /* a file that fails to open: corrupt, unless a system call failed under
+     * libhdf5 in the child (a device error: the errno, CROM_EIO) */
+    if (b) {
+        unsigned char junk[64] = "\x89HDF\r\n\x1a\n not really";
+        CHECK(probe_sys(NULL, junk, sizeof junk, "junk", NULL) == CROM_EDATA);
+        CHECK(probe_sys(NULL, junk, sizeof junk, "junk", eio_errno) == CROM_EIO);
+        CHECK(!strcmp(crom_errmsg(), "junk: Input/output error"));
+        CHECK(probe_sys(good, NULL, 0, "good.h5", eio_errno) == 0); /* asked only on failure */
+    }
+
     /* the clean copy: a new file with the same content, opened instead of
      * the bytes that came in */
     if (b) {
         source sc = {NULL, b, n};
         crom_h5probe_copy copy = {NULL, 0};
-        crom_h5probe_src src = {open_source, &sc, n, &copy};
+        crom_h5probe_src src = {open_source, &sc, n, &copy, NULL};
         CHECK_MSG(crom_h5probe(&src, "image") == 0, "probe with a copy: %s", crom_errmsg());
         hid_t f = copy.buf ? H5LTopen_file_image(copy.buf, copy.len, H5LT_FILE_IMAGE_DONT_COPY |
                                                                          H5LT_FILE_IMAGE_DONT_RELEASE)
