@@ -147,10 +147,21 @@ static int on_opt(void *ctx, int key, const char *v)
             return CROM_EUSAGE;
         a->columns = (int)n;
         return 0;
-    case O_PANEL:
-        if (sscanf(v, "%dx%d", &a->pw, &a->ph) != 2 || a->pw < 32 || a->ph < 32 || a->pw > 4096 || a->ph > 4096)
+    case O_PANEL: { /* WxH, two decimal integers (crom_parse_int: no signs, hex or trailing text) */
+        const char *x = strchr(v, 'x');
+        char w[16];
+        long pw, ph;
+        if (!x || x == v || (size_t)(x - v) >= sizeof w || !(v[0] >= '0' && v[0] <= '9') ||
+            !(x[1] >= '0' && x[1] <= '9'))
             return crom_err(CROM_EUSAGE, "--panel: '%s' is not WxH with 32..4096 pixels", v);
+        memcpy(w, v, (size_t)(x - v));
+        w[x - v] = 0;
+        if (crom_parse_int(w, "--panel", 32, 4096, &pw) || crom_parse_int(x + 1, "--panel", 32, 4096, &ph))
+            return crom_err(CROM_EUSAGE, "--panel: '%s' is not WxH with 32..4096 pixels", v);
+        a->pw = (int)pw;
+        a->ph = (int)ph;
         return 0;
+    }
     case O_RANGE: return crom_parse_positive(v, "--range", &a->range);
     case O_YOUNGS: return crom_parse_positive(v, "--youngs", &a->youngs);
     case O_POISSON: return crom_parse_double(v, "--poisson", &a->poisson);

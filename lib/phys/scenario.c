@@ -330,6 +330,43 @@ char *crom_scenario_text(const crom_scenario *s)
     return b;
 }
 
+/* The flag and region of condition k: pins 0..npins-1, then velocities. */
+static const char *cond_flag(const crom_scenario *s, int k) { return k < s->npins ? "--pin" : "--velocity"; }
+static const char *cond_ref(const crom_scenario *s, int k)
+{
+    return k < s->npins ? s->pins[k] : s->vel[k - s->npins].ref;
+}
+
+int crom_scenario_check_regions(const crom_scenario *s, const crom_mesh *m)
+{
+    if (s->nvel == 0)
+        return 0;
+    int *owner = crom_malloc(sizeof(int) * (size_t)(m->nv ? m->nv : 1)), rc = 0;
+    if (!owner)
+        return CROM_EINTERNAL;
+    for (int v = 0; v < m->nv; v++)
+        owner[v] = -1;
+    for (int k = 0; !rc && k < s->npins + s->nvel; k++) {
+        int *idx = NULL, n = 0;
+        if ((rc = crom_mesh_select(m, cond_ref(s, k), &idx, &n)))
+            break;
+        for (int i = 0; i < n; i++) {
+            int v = idx[i], o = owner[v];
+            if (o >= 0 && (k >= s->npins || o >= s->npins)) {
+                const double *X = m->X + 3 * (size_t)v;
+                rc = crom_err(CROM_EUSAGE, "%s '%s' and %s '%s' share vertex %d (at %.4g, %.4g, %.4g): each "
+                              "vertex follows one condition; make the regions disjoint", cond_flag(s, o),
+                              cond_ref(s, o), cond_flag(s, k), cond_ref(s, k), v, X[0], X[1], X[2]);
+                break;
+            }
+            owner[v] = o >= 0 ? o : k;
+        }
+        free(idx);
+    }
+    free(owner);
+    return rc;
+}
+
 void crom_scenario_initial_velocity(const crom_scenario *s, const double c[3], const double X[3], double v[3])
 {
     const double *w = s->spin;

@@ -59,6 +59,13 @@ int crom_scenario_option(crom_scenario *s, int key, const char *value);
  * dt, steps, every. Returns 0 or CROM_EUSAGE. */
 int crom_scenario_check(const crom_scenario *s);
 
+/* The pinned and the moved regions of s on mesh m share no vertex, so each
+ * vertex follows one condition (pins may overlap each other: both hold it
+ * at rest). Else CROM_EUSAGE naming both flags and a shared vertex; also
+ * the errors of crom_mesh_select for a region m lacks. What crom_sim_init,
+ * crom_rsim_init and crom_nlsim_init check on their meshes. */
+int crom_scenario_check_regions(const crom_scenario *s, const crom_mesh *m);
+
 /* Canonical flag text, one flag per line (malloc'ed). */
 char *crom_scenario_text(const crom_scenario *s);
 

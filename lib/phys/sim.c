@@ -57,6 +57,8 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
     s->sc = sc;
     s->mesh = mesh;
     int rc = crom_scenario_check(sc);
+    if (!rc)
+        rc = crom_scenario_check_regions(sc, mesh);
     if (rc)
         return rc;
     crom_material mat;

@@ -233,6 +233,8 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
 {
     memset(s, 0, sizeof *s);
     int rc = crom_scenario_check(sc);
+    if (!rc)
+        rc = crom_scenario_check_regions(sc, &map->mesh);
     if (rc)
         return rc;
     crom_material mat;

@@ -294,6 +294,8 @@ int crom_rsim_init(crom_rsim *s, const crom_cubature *cub, const crom_scenario *
 {
     memset(s, 0, sizeof *s);
     int rc = crom_scenario_check(sc);
+    if (!rc)
+        rc = crom_scenario_check_regions(sc, &cub->mesh);
     if (rc)
         return rc;
     if ((rc = crom_material_init(&s->mat, sc->youngs, sc->poisson, sc->density)))

@@ -68,6 +68,12 @@ once crom-fullsim --pin bottom "--pin: region 'bottom' is already pinned" --pin 
 once crom-fullsim --velocity top=0,1,0 "--velocity: region 'top' is already moved by --velocity" \
   --velocity top=0,-1,0@0:0.01 -o "$OUT" m.h5
 once crom-fullsim --velocity bottom=0,1,0 "--velocity: region 'bottom' is already pinned" --pin bottom -o "$OUT" m.h5
+# different regions that share vertices: full and reduced simulation say so alike
+once crom-fullsim --velocity 'x<0=0,1,0' "--velocity 'y>0.3' and --velocity 'x<0' share vertex [0-9]+ \(at .*\): each vertex follows one condition" \
+  --velocity 'y>0.3=1,0,0' -o "$OUT" m.h5
+once crom-fullsim --velocity 'y>0.3=1,0,0' "--pin 'x<0' and --velocity 'y>0.3' share vertex" --pin 'x<0' -o "$OUT" m.h5
+once crom-reducedstep --velocity 'y>0.3=1,0,0' "--pin 'x<0' and --velocity 'y>0.3' share vertex" --pin 'x<0' \
+  --cubature cub.h5 -o "$OUT"
 once crom-mesh --exponent 0 "--exponent must be in \[1, 200\], got 0" superquadric -o "$OUT"
 once crom-mesh --region top='y<0' "--region: region 'top' is given twice" box --region top='y>0' -o "$OUT"
 
@@ -82,6 +88,10 @@ for f in --frame --every --columns --range --youngs --poisson; do
   try crom-export $f X --format vtu -o "$O/out.vtu" run.h5
 done
 try crom-export --panel Xx64 --format png -o "$O/out.png" run.h5
+try crom-export --panel 64xX --format png -o "$O/out.png" run.h5
+for v in 64x64junk +64x64 64x+64 0x40x64 640X480 x64 64x 99999999999999999999x64; do
+  once crom-export --panel "$v" "--panel: '.*' is not WxH with 32..4096 pixels" --format png -o "$O/out.png" run.h5
+done
 for f in --rank --epochs --minutes --lr --batch --points-per-step --encoder-points --width --depth --tikhonov \
          --sample-points --handles --coordinate-tol --steps --sigma --lambda --tangent-weight --box --resample \
          --features --tets --pin-length --ortho-weight; do
