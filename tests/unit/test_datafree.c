@@ -235,6 +235,16 @@ static double field_loss_at(const double *x, void *v)
     return tm.objective;
 }
 
+/* The field's options in the gradient checks: every term weighted. */
+static void field_check_opts(crom_datafree_opts *o)
+{
+    crom_datafree_defaults(o, CROM_DATAFREE_FIELD);
+    o->sigma = 0.04;
+    o->lambda = 0.7;
+    o->tangent_weight = 0.6;
+    o->tangent_samples = 2;
+}
+
 static void gradient_check_field(void)
 {
     crom_mesh m;
@@ -244,12 +254,8 @@ static void gradient_check_field(void)
     unsigned char *fixed = clamp_mask(&m);
     crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL};
     crom_datafree_opts o;
-    crom_datafree_defaults(&o, CROM_DATAFREE_FIELD);
-    o.sigma = 0.04;
-    o.lambda = 0.7;
+    field_check_opts(&o);
     o.pin_length = 0.3; /* a wide mask: many vertices inside it */
-    o.tangent_weight = 0.6;
-    o.tangent_samples = 2;
     int r = 2, pf = 4, B = 4;
     int ww[] = {3, 10, 10, 3 * pf}, pw[] = {r, 10, pf};
     crom_nn_spec ws, ps;
@@ -329,26 +335,7 @@ static void gradient_check_field(void)
 
 /* The same loss over a FIXED basis (a skin-field's features: W(X_v) given,
  * zero on the pinned vertices, no mask): its gradient in φ's parameters
- * against central differences. */
-typedef struct {
-    crom_dffield_ctx *c;
-    float *pp;
-    int np, B, K;
-    const double *z;
-    const int *tets;
-} fdb_case;
-
-static double basis_loss_at(const double *x, void *v)
-{
-    fdb_case *t = v;
-    for (int i = 0; i < t->np; i++)
-        t->pp[i] = (float)x[i];
-    crom_dftrain_terms tm;
-    if (crom_dffield_loss(t->c, t->B, t->z, 0.7, t->K, t->tets, &tm, NULL, NULL))
-        return NAN;
-    return tm.objective;
-}
-
+ * against central differences (field_loss_at with no field parameters). */
 static void gradient_check_field_basis(void)
 {
     crom_mesh m;
@@ -358,11 +345,7 @@ static void gradient_check_field_basis(void)
     unsigned char *fixed = clamp_mask(&m);
     crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL};
     crom_datafree_opts o;
-    crom_datafree_defaults(&o, CROM_DATAFREE_FIELD);
-    o.sigma = 0.04;
-    o.lambda = 0.7;
-    o.tangent_weight = 0.6;
-    o.tangent_samples = 2;
+    field_check_opts(&o);
     int r = 2, pf = 5, B = 4, pw[] = {r, 10, pf};
     crom_nn_spec ps;
     CHECK(crom_nn_spec_set(&ps, 3, pw, CROM_NN_ELU) == 0);
@@ -400,8 +383,8 @@ static void gradient_check_field_basis(void)
         ga[i] = gp[i];
         x[i] = phi.params[i];
     }
-    fdb_case fc = {&c, phi.params, np, B, K, z, tets};
-    check_fd_gradient(basis_loss_at, &fc, x, np, 1e-4, gf);
+    fdf_case fc = {&c, NULL, phi.params, 0, np, B, K, z, tets};
+    check_fd_gradient(field_loss_at, &fc, x, np, 1e-4, gf);
     double e = check_relerr(ga, gf, np, 1e-12);
     fprintf(stderr, "continuous field over a fixed basis of %d features: objective %.4g (energy %.4g J, isometry "
                     "%.4g, tangent %.4g); gradient vs FD %.2e over %d parameters of phi\n",
