@@ -5,7 +5,7 @@
 #   make bench T_SIZES="0.056" FULL_SIZES="0.056"      # a quick one
 #   make -f pipelines/bench.mk datafree DF_SIZE=0.1 DF_MINUTES=0.1 DF_STEPS=10 OUT=/tmp/df
 # About 50 minutes at the defaults on this 2-core machine (datafree: about 20,
-# and about 5 more for the soft bar).
+# and about 12 more for the soft bar: its skinning and continuous-field rows).
 include $(dir $(lastword $(MAKEFILE_LIST)))common.mk
 .SECONDEXPANSION:
 

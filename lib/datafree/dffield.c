@@ -132,11 +132,12 @@ int crom_dffield_ctx_init(crom_dffield_ctx *c, const crom_datafree_problem *p, c
     }
     c->mass = c->fem.total_mass;
     c->Eref = p->mat.E * c->fem.volume;
-    if (basis) /* the fixed Gram matrix BᵀMB / m, upper triangle */
+    if (basis) { /* the fixed Gram matrix BᵀMB / m, upper triangle */
         memset(c->G, 0, sizeof(double) * (size_t)c->p * c->p);
-    for (int v = 0; basis && v < p->mesh->nv; v++)
-        cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, c->p, 3, c->fem.mass[v] / c->mass,
-                    basis + (size_t)v * 3 * c->p, c->p, 1.0, c->G, c->p);
+        for (int v = 0; v < p->mesh->nv; v++)
+            cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, c->p, 3, c->fem.mass[v] / c->mass,
+                        basis + (size_t)v * 3 * c->p, c->p, 1.0, c->G, c->p);
+    }
     return 0;
 }
 
