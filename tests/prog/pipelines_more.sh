@@ -14,6 +14,7 @@
 #   rolling: training shapes < 0.25, the interpolated shape < 0.2, every
 #            full run's reconstruction error in the basis < 0.1
 #   every row: reduced step more than 2x faster than the full one
+# asan: skip (three make pipelines of simulations and training, 170 s under ASan; their stages run under ASan in reduced.sh, remesh.sh, pipelines.sh and the export tests)
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 MK=(make --no-print-directory -j2 BINDIR="$CROM_BINDIR" SEED=1)
