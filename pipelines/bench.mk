@@ -95,7 +95,10 @@ df2_kind = $(firstword $(subst -, ,$(1)))
 # eigenmodes of DF2_HANDLES handles (crom-fitfield --objective field
 # --handles, trained DF2_MINUTES), and field, the field with a trained
 # feature field W(X) (DF_MINUTES)
-DF2_MAPS = sfield-all sfield-opt field-all field-opt
+# and, over every tet for the trade-off table on this bar, the data-free
+# maps of one mesh (energy: Sharp et al.; neuralmodes: Wang et al. on the
+# modes, both DF_MINUTES) and the linear modes (modes) stepped the same way
+DF2_MAPS = sfield-all sfield-opt field-all field-opt energy-all neuralmodes-all modes-all
 df2_map_args = --model $(OUT)/df2-map-$(call df2_kind,$(1)).h5 --mesh $(OUT)/df-mesh.h5 --max-iter 200 \
   $(if $(filter %-opt,$(1)),--cubature $(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
 df2_map_in = $(OUT)/df2-map-$(call df2_kind,$(1)).h5 $(if $(filter %-opt,$(1)),$(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
@@ -271,6 +274,14 @@ $(OUT)/df2-map-sfield.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
 	  --steps 1000000 --minutes $(DF2_MINUTES) --seed $(SEED) --threads 1 $(QUIET) -o $@
 $(OUT)/df2-map-field.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
 	crom-fitfield --objective field --rank $(DF_RANK) --mesh $< $(DF2_MAT) $(DF_BC) \
+	  --steps 1000000 --minutes $(DF_MINUTES) --seed $(SEED) --threads 1 $(QUIET) -o $@
+$(OUT)/df2-map-energy.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
+	crom-fitfield --objective energy --rank $(DF_RANK) --mesh $< $(DF2_MAT) $(DF_BC) \
+	  --steps 1000000 --minutes $(DF_MINUTES) --seed $(SEED) --threads 1 $(QUIET) -o $@
+$(OUT)/df2-map-modes.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
+	crom-modes $(DF2_MAT) --pin clamp --count $(DF_RANK) --threads 1 $(QUIET) -o $@ $<
+$(OUT)/df2-map-neuralmodes.h5: $(OUT)/df-mesh.h5 $(OUT)/df2-map-modes.h5 $(call stamp,df2-maps)
+	crom-fitfield --objective neuralmodes --mesh $< --modes $(OUT)/df2-map-modes.h5 \
 	  --steps 1000000 --minutes $(DF_MINUTES) --seed $(SEED) --threads 1 $(QUIET) -o $@
 $(OUT)/df2-mcub-%.h5: $(OUT)/df2-map-%.h5 $(OUT)/df-mesh.h5 $(call stamp,df2-cubature)
 	crom-cubature --model $< --scheme optimized --count $(DF2_COUNT) --seed $(SEED) --threads 1 $(QUIET) -o $@ \

@@ -7,8 +7,9 @@ Markdown on stdout, DIR/datafree2.csv beside.
       ROWS: KIND-SCHEME, weights (eigen, trained) and cubature (opt:
             optimized, metis)
       MAPS: KIND-SCHEME, continuous fields (sfield: over skinning eigenmodes,
-            field: a trained W(X)) stepped with --model over every tet (all)
-            or an optimized cubature of their features (opt)
+            field: a trained W(X)), maps of one mesh (energy, neuralmodes) and
+            linear modes (modes) stepped with --model over every tet (all) or
+            an optimized cubature of their features (opt)
 """
 import csv, re, statistics, sys
 
@@ -38,7 +39,9 @@ def collapsed(path):
 
 
 MAP_NAMES = {"sfield": "continuous field over skinning eigenmodes (skin-field)",
-             "field": "continuous field, trained W(X) (energy-field)"}
+             "field": "continuous field, trained W(X) (energy-field)",
+             "energy": "energy map (Sharp et al.)", "neuralmodes": "neural modes (Wang et al.)",
+             "modes": "linear modes"}
 
 
 def map_rows(out, maps, nt, fm):
