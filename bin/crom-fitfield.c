@@ -368,7 +368,7 @@ static void check_datafree(crom_cli *cli, const args *a)
                        : skin ? "skinning" : "neuralmodes";
     int ngeom = !!a->mesh + !!a->surface + !!a->cloud;
     int over = a->objective == CROM_DATAFREE_FIELD && GIVEN(a, O_HANDLES);
-    const char *bad = !skin && !over && GIVEN(a, O_HANDLES) ? "--handles" : !skin && a->eigen ? "--weights"
+    const char *bad = !skin && !over && GIVEN(a, O_HANDLES) ? "--handles" : !skin && GIVEN(a, O_WEIGHTS) ? "--weights"
                       : !skin && (a->raw_coords || a->coord_tol > 0) ? "--coordinates"
                       : skin && GIVEN(a, O_RANK) ? "--rank" : !cont && a->surface ? "--surface"
                       : !cont && a->cloud ? "--cloud" : !a->surface && a->sample_points ? "--sample-points" : NULL;

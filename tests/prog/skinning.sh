@@ -271,6 +271,9 @@ expect_error 64 "crom-fitfield: --objective field --handles lays the field over 
   out/x.h5 -- crom-fitfield --objective field --handles 4 --surface box.stl "${MAT[@]}" --pin 'x<-0.49' -o out/x.h5
 expect_error 64 "crom-fitfield: --handles 500: 6000 latent coordinates" out/x.h5 -- \
   crom-fitfield --objective field --handles 500 --mesh bar.h5 "${MAT[@]}" --pin clamp -o out/x.h5
+# (the field lays over eigen weights: --weights is the skinning objective's)
+expect_error 64 "crom-fitfield: --weights does not apply to --objective field" out/x.h5 -- \
+  crom-fitfield --objective field --handles 4 --weights trained --mesh bar.h5 "${MAT[@]}" --pin clamp -o out/x.h5
 
 # 6. bad input: one line, the right status, no output
 O=out
