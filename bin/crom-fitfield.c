@@ -593,41 +593,6 @@ static void report_skin(crom_cli *cli, const args *a, const crom_body *b, const 
         crom_cli_info(cli, "skinning: model_id %s", m->model_id);
 }
 
-/* The continuous field over the skinning eigenmodes of H handles of the
- * body's mesh (orthonormal coordinates): the eigensolve, then φ trained
- * from the energy (crom_dffield_train_latent); out gets the skin-field. */
-static int train_over_skin(crom_cli *cli, args *a, const crom_body *b, const crom_datafree_problem *P, int H,
-                           crom_model *out, crom_dftrain_log *log, long *solves)
-{
-    crom_nn_mlp phi;
-    memset(&phi, 0, sizeof phi);
-    double t0 = crom_clock_now();
-    int rc = crom_dfskin_eigen(&b->mesh, &b->mat, b->fixed, H, out, solves);
-    if (!rc)
-        rc = crom_body_skin_coordinates(b, out, 1e-6);
-    int p = out->rank, nv = b->mesh.nv;
-    double *basis = rc ? NULL : crom_malloc(sizeof(double) * 3 * (size_t)nv * p);
-    if (!rc && !basis)
-        rc = CROM_EINTERNAL;
-    if (!rc)
-        rc = crom_skin_eval(out, (size_t)nv, b->mesh.X, basis, NULL);
-    if (!rc) {
-        crom_cli_progress prog;
-        crom_cli_progress_start(&prog, cli, "fitfield", 1000);
-        a->df.progress = on_df_progress;
-        a->df.progress_ctx = &prog;
-        rc = crom_dffield_train_latent(P, &a->df, basis, p, &phi, log);
-        crom_cli_progress_end(&prog);
-    }
-    if (!rc)
-        rc = crom_model_skin_field(out, &phi);
-    if (!rc) /* the eigensolve and the training */
-        out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
-    free(basis);
-    crom_nn_mlp_free(&phi);
-    return rc;
-}
-
 /* A data-free subspace: the body (and the modes), its pins, the training
  * (skinning eigenmodes: an eigensolve) with the progress display, the
  * coordinates of skinning weights, the model, the summary. */
@@ -652,14 +617,17 @@ static int run_datafree(crom_cli *cli, args *a)
     double t0 = crom_clock_now();
     if (!rc && skin && a->eigen) {
         rc = crom_dfskin_eigen(&b.mesh, &b.mat, b.fixed, so.handles, &out, &solves);
-    } else if (!rc && a->objective == CROM_DATAFREE_FIELD && GIVEN(a, O_HANDLES)) {
-        rc = train_over_skin(cli, a, &b, &P, so.handles, &out, &log, &solves);
     } else if (!rc) {
         crom_cli_progress prog;
         crom_cli_progress_start(&prog, cli, "fitfield", 1000);
         so.progress = a->df.progress = on_df_progress;
         so.progress_ctx = a->df.progress_ctx = &prog;
-        rc = skin ? crom_body_train_skin(&b, &so, &out, &log) : crom_datafree_train(&P, &a->df, &out, &log);
+        if (skin)
+            rc = crom_body_train_skin(&b, &so, &out, &log);
+        else if (a->objective == CROM_DATAFREE_FIELD && GIVEN(a, O_HANDLES))
+            rc = crom_body_train_skin_field(&b, &P, &a->df, so.handles, &out, &log, &solves);
+        else
+            rc = crom_datafree_train(&P, &a->df, &out, &log);
         crom_cli_progress_end(&prog);
     }
     if (!rc && skin && !a->raw_coords)

@@ -190,8 +190,7 @@ static int run(crom_cli *cli, args *a)
     if (!a->dist_given)
         crom_metrics_training_dist(&model, diag, &a->mo);
     if (!a->sigma_given)
-        a->mo.sigma = (!strcmp(model.basis, "energy") || !strcmp(model.basis, "energy-field") ||
-                       !strcmp(model.basis, "skin-field")) && model.sigma > 0 ? model.sigma : 1;
+        a->mo.sigma = crom_model_latent_normal(&model) && model.sigma > 0 ? model.sigma : 1;
     a->mo.seed = cli->seed;
     if ((rc = crom_metrics_compute(&map, &fem, a->sc.gravity, &a->mo, a->compare ? &cmap : NULL, &res)))
         goto out;

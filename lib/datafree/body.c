@@ -4,8 +4,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/clock.h"
 #include "base/err.h"
 #include "datafree/body.h"
+#include "datafree/dffield.h"
 #include "io/io.h"
 #include "mesh/pred.h"
 #include "phys/modes.h"
@@ -177,6 +179,32 @@ int crom_body_skin_coordinates(const crom_body *b, crom_model *m, double tol)
     crom_mesh_vertex_volumes(&b->mesh, vv);
     int rc = crom_skin_orthonormalize(m, (size_t)b->mesh.nv, b->mesh.X, vv, tol);
     free(vv);
+    return rc;
+}
+
+int crom_body_train_skin_field(const crom_body *b, const crom_datafree_problem *P, const crom_datafree_opts *o,
+                               int H, crom_model *out, crom_dftrain_log *log, long *solves)
+{
+    crom_nn_mlp phi;
+    memset(&phi, 0, sizeof phi);
+    double t0 = crom_clock_now();
+    int rc = crom_dfskin_eigen(&b->mesh, &b->mat, b->fixed, H, out, solves);
+    if (!rc)
+        rc = crom_body_skin_coordinates(b, out, 1e-6);
+    int p = out->rank, nv = b->mesh.nv;
+    double *basis = rc ? NULL : crom_malloc(sizeof(double) * 3 * (size_t)nv * p);
+    if (!rc && !basis)
+        rc = CROM_EINTERNAL;
+    if (!rc)
+        rc = crom_skin_eval(out, (size_t)nv, b->mesh.X, basis, NULL);
+    if (!rc)
+        rc = crom_dffield_train_latent(P, o, basis, p, &phi, log);
+    if (!rc)
+        rc = crom_model_skin_field(out, &phi);
+    if (!rc) /* the eigensolve and the training */
+        out->training_seconds = crom_clock_wall(crom_clock_now() - t0);
+    free(basis);
+    crom_nn_mlp_free(&phi);
     return rc;
 }
 

@@ -98,6 +98,14 @@ int crom_body_train_skin(const crom_body *b, const crom_dfskin_opts *o, crom_mod
  * with theirs (crom_skin_orthonormalize, relative tolerance tol). */
 int crom_body_skin_coordinates(const crom_body *b, crom_model *m, double tol);
 
+/* The continuous field over the skinning eigenmodes of H handles of b's
+ * mesh (orthonormal coordinates, relative tolerance 1e-6): the eigensolve
+ * (*solves linear solves), then φ trained from the energy of P
+ * (crom_dffield_train_latent with o, its progress callback included); out
+ * gets the skin-field (crom_model_skin_field) with its training time. */
+int crom_body_train_skin_field(const crom_body *b, const crom_datafree_problem *P, const crom_datafree_opts *o,
+                               int H, crom_model *out, crom_dftrain_log *log, long *solves);
+
 /* Write a map or field m trained with o on problem P (and its record log)
  * to path (crom_out_create: cmdline and the body's history as history)
  * with what it records: the scenario flags of sc (gravity but for

@@ -286,7 +286,7 @@ int crom_metrics_compute(crom_map *map, const crom_fem *fem, const double g[3], 
 
 void crom_metrics_training_dist(const crom_model *m, double diag, crom_metrics_opts *o)
 {
-    if (!strcmp(m->basis, "energy") || !strcmp(m->basis, "energy-field") || !strcmp(m->basis, "skin-field")) {
+    if (crom_model_latent_normal(m)) {
         o->dist = CROM_METRICS_NORMAL;
         o->radius = 1;
     } else if (!strcmp(m->basis, "neuralmodes") && m->latent_box > 0) {

@@ -252,6 +252,11 @@ int crom_model_is_nonlinear(const crom_model *m)
            (m->field == CROM_MODEL_FIELD_SKIN && m->latent.nparams > 0);
 }
 
+int crom_model_latent_normal(const crom_model *m)
+{
+    return !strcmp(m->basis, "energy") || !strcmp(m->basis, "energy-field") || !strcmp(m->basis, "skin-field");
+}
+
 int crom_model_skin_field(crom_model *m, const crom_nn_mlp *phi)
 {
     const crom_nn_spec *ps = &phi->spec;
@@ -565,30 +570,45 @@ static int all_finite_d(const double *p, size_t n)
     return 1;
 }
 
+int crom_model_read_net(hid_t h, const char *params, const char *shift, const char *scale, const crom_nn_spec *spec,
+                        const char *what, crom_nn_mlp *out)
+{
+    hsize_t np;
+    float *par = NULL, fsh[3], fsc[3];
+    double sh[3], sc[3];
+    int rc = crom_h5_read_f32(h, params, 1, &np, &par);
+    if (!rc && shift && !(rc = read_vec(h, shift, 3, sh, 1)))
+        rc = read_vec(h, scale, 3, sc, 1);
+    if (!rc && (!all_finite_f(par, np) || (shift && (!all_finite_d(sh, 3) || !all_finite_d(sc, 3)))))
+        rc = crom_err(CROM_EDATA, "%s has non-finite parameters", what);
+    for (int i = 0; shift && !rc && i < 3; i++) {
+        fsh[i] = (float)sh[i];
+        fsc[i] = (float)sc[i];
+    }
+    if (!rc && crom_nn_mlp_from_params(out, spec, par, np, shift ? fsh : NULL, shift ? fsc : NULL)) {
+        char group[64];
+        size_t len = strcspn(params, "/");
+        snprintf(group, sizeof group, "%.*s", (int)(len < sizeof group ? len : sizeof group - 1), params);
+        rc = crom_err_ctx(group);
+    }
+    free(par);
+    return rc;
+}
+
 /* The latent network φ: r -> p of a continuous map (activation a) into
  * m->latent, its output width into *p. */
 static int read_latent(hid_t h, crom_model *m, crom_nn_act a, int *p)
 {
     int lw[CROM_NN_MAX_LAYERS + 1], nl, rc;
     crom_nn_spec ls;
-    hsize_t nlp;
-    float *lpar = NULL;
     if ((rc = read_widths(h, "latent/widths", lw, &nl)))
         return rc;
     if (crom_nn_spec_set(&ls, nl, lw, a))
         return crom_err(CROM_EDATA, "latent/widths: %s", crom_errmsg());
     if (lw[0] != m->rank)
         return crom_err(CROM_EDATA, "latent/widths start at %d, the rank is %d", lw[0], m->rank);
-    if ((rc = crom_h5_read_f32(h, "latent/params", 1, &nlp, &lpar)))
+    if ((rc = crom_model_read_net(h, "latent/params", NULL, NULL, &ls, "the latent network", &m->latent)))
         return rc;
-    if (!all_finite_f(lpar, nlp)) {
-        free(lpar);
-        return crom_err(CROM_EDATA, "the latent network has non-finite parameters");
-    }
-    rc = crom_nn_mlp_from_params(&m->latent, &ls, lpar, nlp, NULL, NULL);
-    free(lpar);
-    if (rc)
-        return crom_err_ctx("latent");
     *p = lw[nl - 1];
     return 0;
 }
@@ -657,27 +677,8 @@ static int read_mlp(hid_t h, crom_model *m, char *act)
     }
     if (w[0] != 3 || w[nw - 1] != 3 * p)
         return crom_err(CROM_EDATA, "field/widths go %d -> %d, expected 3 -> %d", w[0], w[nw - 1], 3 * p);
-    hsize_t np;
-    float *params = NULL;
-    double sh[3], sc[3];
-    if ((rc = crom_h5_read_f32(h, "field/params", 1, &np, &params)) ||
-        (rc = read_vec(h, "field/input_shift", 3, sh, 1)) ||
-        (rc = read_vec(h, "field/input_scale", 3, sc, 1))) {
-        free(params);
-        return rc;
-    }
-    if (!all_finite_f(params, np) || !all_finite_d(sh, 3) || !all_finite_d(sc, 3)) {
-        free(params);
-        return crom_err(CROM_EDATA, "the field has non-finite parameters");
-    }
-    float fsh[3], fsc[3];
-    for (int i = 0; i < 3; i++) {
-        fsh[i] = (float)sh[i];
-        fsc[i] = (float)sc[i];
-    }
-    rc = crom_nn_mlp_from_params(&m->mlp, &spec, params, np, fsh, fsc);
-    free(params);
-    return rc ? crom_err_ctx("field") : 0;
+    return crom_model_read_net(h, "field/params", "field/input_shift", "field/input_scale", &spec, "the field",
+                               &m->mlp);
 }
 
 int crom_model_read_field_mesh(hid_t h, crom_model *m)
@@ -737,18 +738,8 @@ static int read_map(hid_t h, crom_model *m, const char *act)
     if (w[0] != m->rank || w[nw - 1] != 3 * m->mesh.nv)
         return crom_err(CROM_EDATA, "field/widths go %d -> %d, expected r -> 3nv = %d -> %d", w[0], w[nw - 1],
                         m->rank, 3 * m->mesh.nv);
-    hsize_t np;
-    float *params = NULL;
-    if ((rc = crom_h5_read_f32(h, "field/params", 1, &np, &params)))
+    if ((rc = crom_model_read_net(h, "field/params", NULL, NULL, &spec, "the map", &m->mlp)))
         return rc;
-    if (!all_finite_f(params, np)) {
-        free(params);
-        return crom_err(CROM_EDATA, "the map has non-finite parameters");
-    }
-    rc = crom_nn_mlp_from_params(&m->mlp, &spec, params, np, NULL, NULL);
-    free(params);
-    if (rc)
-        return crom_err_ctx("field");
     if (crom_h5_has(h, "field/basis")) {
         hsize_t d[3];
         if ((rc = crom_h5_read_f64(h, "field/basis", 3, d, &m->basis_v)))

@@ -187,10 +187,22 @@ double crom_model_mask(const crom_model *m, const double X[3]);
  * and simulated through lib/rom/map.h, with no basis W(X). */
 int crom_model_is_nonlinear(const crom_model *m);
 
+/* 1 for a model trained data-free on latents q ~ N(0, I) with an isometry
+ * scale m->sigma (bases "energy", "energy-field", "skin-field"). */
+int crom_model_latent_normal(const crom_model *m);
+
 /* The mesh a field is stored on (group field/mesh of an open model file h)
  * into m->mesh: LiCROM mesh fields and skinning weights share it. Returns 0
  * or CROM_EDATA naming field/mesh. */
 int crom_model_read_field_mesh(hid_t h, crom_model *m);
+
+/* A network of the given spec from an open model file h: its float32
+ * parameters at dataset `params` (<group>/params) and, where shift is not
+ * NULL, its input normalization at datasets shift and scale (3 values
+ * each), all finite, into out. Errors name `what` ("the field") and the
+ * group. Returns 0, CROM_EDATA or CROM_EINTERNAL. */
+int crom_model_read_net(hid_t h, const char *params, const char *shift, const char *scale, const crom_nn_spec *spec,
+                        const char *what, crom_nn_mlp *out);
 
 /* Read a crom/model input (schema and version are checked here) and validate
  * it: shapes, finite parameters, a model_id that matches the parameters.

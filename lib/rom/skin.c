@@ -595,29 +595,9 @@ static int read_weight_mlp(hid_t h, crom_model *m, const char *actname)
     if (w[0] != 3 || w[nw - 1] != Ht)
         return crom_err(CROM_EDATA, "field/widths go %d -> %d, expected 3 -> %d for %d handles", w[0], w[nw - 1], Ht,
                         m->handles);
-    hsize_t np;
-    float *params = NULL;
-    double sh[3], sc[3];
-    hsize_t d3 = 3;
-    if ((rc = crom_h5_read_f32(h, "field/params", 1, &np, &params)) ||
-        (rc = read_fixed(h, "field/input_shift", 1, &d3, sh)) || (rc = read_fixed(h, "field/input_scale", 1, &d3, sc))) {
-        free(params);
+    if ((rc = crom_model_read_net(h, "field/params", "field/input_shift", "field/input_scale", &spec,
+                                  "the weight network", &m->mlp)))
         return rc;
-    }
-    for (hsize_t i = 0; i < np; i++)
-        if (!isfinite(params[i])) {
-            free(params);
-            return crom_err(CROM_EDATA, "the weight network has non-finite parameters");
-        }
-    float fsh[3], fsc[3];
-    for (int i = 0; i < 3; i++) {
-        fsh[i] = (float)sh[i];
-        fsc[i] = (float)sc[i];
-    }
-    rc = crom_nn_mlp_from_params(&m->mlp, &spec, params, np, fsh, fsc);
-    free(params);
-    if (rc)
-        return crom_err_ctx("field");
     hsize_t d1 = 1;
     if ((rc = read_fixed(h, "skin/pin_length", 1, &d1, &m->pin_length)))
         return rc;
