@@ -26,7 +26,7 @@
 
 enum { O_RANK = 300, O_ENCODER, O_BASIS, O_EPOCHS, O_MINUTES, O_LR, O_BATCH, O_PPS, O_ENCPTS,
        O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX, O_BOXSC,
-       O_ORTHO, O_STEPS, O_FEATURES, O_TETS, O_PINW, O_OPTIM, O_RESAMPLE, O_TANW, O_HANDLES, O_WEIGHTS,
+       O_ORTHO, O_STEPS, O_FEATURES, O_TETS, O_PINW, O_OPTIM, O_RESAMPLE, O_TANW, O_TANF, O_HANDLES, O_WEIGHTS,
        O_SURFACE, O_CLOUD, O_SPOINTS, O_COORDS, O_COORDTOL, O_LAST };
 
 /* --objective skinning (lib/datafree/dfskin.h), next to the CROM_DATAFREE_* codes */
@@ -54,7 +54,8 @@ static const crom_opt df_opts[] = {
     {"sigma", O_SIGMA, "S", "energy: isometry scale in metres: the subspace should move the body by S (RMS displacement) per unit of latent distance, |f(z) - f(z')|_M / sqrt(m) ~ S |z - z'|, z ~ N(0, I) (default 0.05 times the bounding-box diagonal; field --handles: 0.15). Sharp et al.'s sigma divided by sqrt(body mass). skinning: the RMS displacement in metres of the random handle poses the weights are trained on (default 0.01 times the diagonal)."},
     {"lambda", O_LAMBDA, "L", "energy: weight of the isometry term, the squared log-ratio of mass-norm distances to S |z - z'| over all pairs of a batch, against the energy in units of E V (Young's modulus times volume) (default 0.03; field: 1, with --handles 0.03). A weaker isometry lets the energy shape the subspace: 1 keeps the map near-isometric but leaves the static sag of a soft body 40-80% off."},
     {"ramp", O_RAMP, "F", "energy: the seed-state blend rho grows linearly from 0 to 1 over the first fraction F of the steps, then stays 1 (default 0.5; Sharp et al. §4.1). The seed state is the rest shape."},
-    {"tangent-weight", O_TANW, "W", "energy, field: weight of the isometry at rest: 8 small samples z ~ N(0, 0.01 I) per step should all move the body alike per unit of |z| (the mean log-ratio of their RMS displacements to |z| is free, its spread is penalized), so that no latent direction collapses at rest, where every run starts (default 0.1; field: 0, with --handles 0.1; 0: none)."},
+    {"tangent-weight", O_TANW, "W", "energy, field: weight of the collapse floor at rest (Neural Modes §4.4's mode-collapse measure made a loss): the secants z = 0.1 e_k from rest along the r latent axes give the Gram matrix G = J^T M J / m of the map at rest, and every eigenvalue mu of r G / tr G below --tangent-floor adds log^2(mu / floor), so that no latent direction collapses at rest, where every run starts (default 0.1; field: 0, with --handles 0.1; 0: none)."},
+    {"tangent-floor", O_TANF, "F", "energy, field: the floor of --tangent-weight, in (0, 1]: normalized eigenvalues above it cost nothing (default 0.1; crom-metrics counts a dimension below 0.01 as collapsed)."},
     {"box", O_BOX, "A", "neuralmodes: half-width of the box the modal coordinates z are drawn from, in metres of RMS displacement: [-A, A] for the lowest mode (default 0.2 times the bounding-box diagonal; see --box-scaling)."},
     {"box-scaling", O_BOXSC, "KIND", "neuralmodes: frequency (default): mode k is drawn from [-A f_1/f_k, A f_1/f_k], the same linear energy at every edge, so that the stiff modes do not swamp the energy of the soft ones; uniform: every mode from [-A, A] (Wang et al.)."},
     {"optimizer", O_OPTIM, "KIND", "energy, neuralmodes: adam (default): Adam on a fresh batch every step. lbfgs: L-BFGS with a backtracking line search (Wang et al.), --resample iterations on each batch."},
@@ -150,7 +151,7 @@ static crom_cli_doc doc = {
     "(stable neo-Hookean plus gravity, in units of E V) of the samples plus --lambda times the "
     "mean over all pairs of the batch of (log(|N(z) - N(z')|_M / sqrt(m) / (S |z - z'|)))^2, "
     "the isometry term that keeps the subspace from collapsing to the lowest-energy state (and "
-    "--tangent-weight, at rest). The seed-state blend X + rho (N(z) - N(0)) grows rho from 0 to 1 "
+    "--tangent-weight, its collapse floor at rest). The seed-state blend X + rho (N(z) - N(0)) grows rho from 0 to 1 "
     "over the first --ramp of the steps. A free body under gravity is refused.\n\n"
     "--objective neuralmodes (Wang et al. 2024, eq. 12-13): x(z) = X + W z + y(z) on the lowest "
     "--rank linear modes W of --modes (computed by crom-modes on the same mesh; W^T M W = m I, so z "
@@ -319,6 +320,7 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_PINW: return crom_parse_positive(v, "--pin-length", &a->df.pin_length);
     case O_OPTIM: return choice_opt(key, v, optim, &a->df.optimizer); /* CROM_DATAFREE_ADAM, _LBFGS */
     case O_TANW: return nonneg_opt(key, v, &a->df.tangent_weight);
+    case O_TANF: return crom_parse_positive(v, "--tangent-floor", &a->df.tangent_floor);
     case O_RESAMPLE: return int_opt(key, v, 1, 1000000L, &a->df.resample);
     case O_ORTHO: return nonneg_opt(key, v, &a->df.ortho_weight);
     case O_RANK: return int_opt(key, v, 1, 10000, &a->fit.rank);
@@ -436,6 +438,7 @@ static crom_datafree_opts datafree_opts(const crom_cli *cli, const args *a)
     DF_GIVEN(O_OPTIM, optimizer);
     DF_GIVEN(O_RESAMPLE, resample);
     DF_GIVEN(O_TANW, tangent_weight);
+    DF_GIVEN(O_TANF, tangent_floor);
 #undef DF_GIVEN
     d.seed = cli->seed;
     return d;

@@ -39,7 +39,7 @@ void crom_datafree_defaults(crom_datafree_opts *o, int objective)
     o->optimizer = CROM_DATAFREE_ADAM;
     o->resample = 10;
     o->tangent_weight = field ? 0 : 0.1;
-    o->tangent_samples = 8;
+    o->tangent_floor = 0.1;
     o->tangent_radius = 0.1;
     o->pin_length = 0;
     o->threads = 1;
@@ -66,6 +66,7 @@ void crom_datafree_ctx_free(crom_datafree_ctx *c)
     free(c->bad);
     free(c->cb);
     free(c->half);
+    free(c->tg);
     memset(c, 0, sizeof *c);
 }
 
@@ -116,9 +117,9 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
     c->r = r;
     c->n = n;
     c->maxbatch = maxbatch;
-    c->B0 = !nm && o->tangent_weight > 0 ? o->tangent_samples : 0;
-    if (c->B0 < 0)
-        return crom_err(CROM_EUSAGE, "%d tangent samples", c->B0);
+    c->B0 = !nm && o->tangent_weight > 0 ? r : 0; /* the secants along the r axes */
+    if (c->B0 && !(o->tangent_floor > 0 && o->tangent_floor <= 1))
+        return crom_err(CROM_EUSAGE, "the collapse floor %g is not in (0, 1]", o->tangent_floor);
     c->nthreads = crom_dftrain_threads(o->threads);
     size_t rows = (size_t)maxbatch + c->B0 + 1; /* the batch, the tangent samples, the anchor */
     int rc = crom_fem_init(&c->fem, p->mesh, &p->mat);
@@ -140,7 +141,8 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
     c->bad = crom_malloc(sizeof(int) * (size_t)maxbatch);
     c->cb = crom_malloc(sizeof(double) * (size_t)(r > c->B0 ? r : c->B0));
     c->half = crom_malloc(sizeof(double) * (size_t)r);
-    if (!c->cb || !c->half || !c->mw || (nm && !c->MWm) || !c->Y || !c->G || !c->dY || !c->E || !c->xb || !c->zf ||
+    c->tg = crom_malloc(sizeof(double) * (3 * (size_t)r * r + r));
+    if (!c->tg || !c->cb || !c->half || !c->mw || (nm && !c->MWm) || !c->Y || !c->G || !c->dY || !c->E || !c->xb || !c->zf ||
         !c->dyf || !c->bad) {
         crom_datafree_ctx_free(c);
         return CROM_EINTERNAL;
@@ -269,38 +271,32 @@ static void isometry_term(crom_datafree_ctx *c, int B, const double *z, double *
         }
 }
 
-/* The tangent at rest, conformal: λ_0 mean_s (ℓ_s − ℓ̄)², ℓ_s = ½ log D_s²
- * − log |z_s| with D_s the RMS displacement of the small sample z_s from
- * rest and ℓ̄ the mean over the samples: every direction moves the body
- * alike near rest, at a scale the map is free to choose (the gradient of
- * the mean cancels, Σ_s (ℓ_s − ℓ̄) = 0). */
-static void tangent_term(crom_datafree_ctx *c, int B, const double *z, double *obj, double *tan)
+/* The collapse floor at rest: λ_0 Σ_k h(μ_k) (crom_dfloss_rest_floor)
+ * over the Gram matrix G_kl = Σ_i (m_i/m) Y_k[i] Y_l[i] of the r tangent
+ * samples, the secants z = ε e_k from rest; dL/dY_k = 2 Σ_l A_kl M Y_l / m.
+ * It leaves the map free while every normalized eigenvalue is above the
+ * floor τ, and keeps a latent direction from collapsing at rest, where
+ * every run starts. */
+static void tangent_term(crom_datafree_ctx *c, int B, double *obj, double *tan)
 {
-    int r = c->r, n = c->n, B0 = c->B0, ok = 1;
-    double lam0 = c->o.tangent_weight, *lsb = c->cb, lbar = 0;
-    for (int b = B; b < B + B0; b++) {
-        const double *Yb = c->Y + (size_t)b * n;
-        double dz = 0, D2 = 0;
-        for (int k = 0; k < r; k++)
-            dz += z[(size_t)b * r + k] * z[(size_t)b * r + k];
+    int r = c->r, n = c->n, B0 = c->B0;
+    double *Gr = c->tg, *A = Gr + (size_t)r * r, *work = A + (size_t)r * r;
+    const double *Ys = c->Y + (size_t)B * n;
+    double *dYs = c->dY + (size_t)B * n; /* scratch first: √(m_i/m) Y_k[i] */
+    for (int k = 0; k < B0; k++)
         for (int i = 0; i < n; i++)
-            D2 += c->mw[i] * Yb[i] * Yb[i];
-        memset(c->dY + (size_t)b * n, 0, sizeof(double) * (size_t)n);
-        ok &= D2 > 0 && dz > 0;
-        lsb[b - B] = 0.5 * log(D2) - 0.5 * log(dz);
-        lbar += lsb[b - B] / B0;
-    }
-    for (int b = B; ok && b < B + B0; b++) {
-        const double *Yb = c->Y + (size_t)b * n;
-        double *dYb = c->dY + (size_t)b * n, D2 = 0, l = lsb[b - B] - lbar;
+            dYs[(size_t)k * n + i] = sqrt(c->mw[i]) * Ys[(size_t)k * n + i];
+    cblas_dsyrk(CblasRowMajor, CblasUpper, CblasNoTrans, B0, n, 1.0, dYs, n, 0.0, Gr, B0);
+    double h = crom_dfloss_rest_floor(B0, Gr, c->o.tangent_floor, c->o.tangent_weight, A, work);
+    memset(dYs, 0, sizeof(double) * (size_t)B0 * n);
+    if (!isfinite(h)) /* (no motion along an axis at all: the energy decides) */
+        return;
+    *tan += h;
+    *obj += c->o.tangent_weight * h;
+    cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, B0, n, B0, 2.0, A, B0, Ys, n, 0.0, dYs, n);
+    for (int k = 0; k < B0; k++)
         for (int i = 0; i < n; i++)
-            D2 += c->mw[i] * Yb[i] * Yb[i];
-        *tan += l * l / B0;
-        *obj += lam0 * l * l / B0;
-        double coef = lam0 / B0 * 2 * l / D2;
-        for (int i = 0; i < n; i++)
-            dYb[i] = coef * c->mw[i] * Yb[i];
-    }
+            dYs[(size_t)k * n + i] *= c->mw[i];
 }
 
 /* neuralmodes: the M-orthogonality of y(z) − y(0) to the modes, w_o/B
@@ -348,7 +344,7 @@ int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho,
     if (!nm && B >= 2)
         isometry_term(c, B, z, &obj, &pen);
     if (c->B0 > 0)
-        tangent_term(c, B, z, &obj, &tan);
+        tangent_term(c, B, &obj, &tan);
     if (nm)
         ortho_term(c, B, &obj, &pen);
     if ((rc = crom_dfloss_terms(t, obj, Em, pen, tan, "data-free")))

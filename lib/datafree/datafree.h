@@ -16,10 +16,11 @@
  *
  *   L = 1/B Σ_b E_pot(X + ρ Y_b) / (E V)
  *     + λ · mean over the pairs b < c of ( log( D_bc / (σ ‖z_b − z_c‖) ) )²
- *     + λ_0 · mean over the tangent samples s of (ℓ_s − ℓ̄)²,
+ *     + λ_0 · Σ_k h(μ_k),
  *
  *   Y_b = N(z_b) − N(0),  D_bc = sqrt( (Y_b − Y_c)ᵀ M (Y_b − Y_c) / m ),
- *   ℓ_s = log( sqrt(Y_sᵀ M Y_s / m) / ‖z_s‖ ),  ℓ̄ = mean_s ℓ_s,
+ *   μ_k the eigenvalues of r G / tr G, G_kl = Y_kᵀ M Y_l / m over the secants
+ *   Y_k = N(ε e_k) − N(0) along the r latent axes, h(μ) = log²(μ/τ) for μ < τ,
  *
  * with E_pot the stable neo-Hookean energy plus the potential of gravity
  * −Σ_v m_v g·u_v, M the lumped mass and m the body's mass (so D and σ are
@@ -29,12 +30,13 @@
  * seed: X + ρ Y, σ scaled by ρ too, which cancels in the log-ratio. ρ grows
  * linearly from 0 to 1 over the first `ramp` fraction of the steps, then
  * stays 1, so the map that is stored (ρ = 1) is the one trained last. The
- * last term is the isometry AT REST: the tangent samples z_s ~ N(0, ε² I)
- * (8 per step, ε = 0.1, energy not evaluated) should all move the body
- * alike per unit of ‖z‖, at a scale the map is free to choose; without it
- * a weak isometry (small λ) lets some latent directions collapse at rest,
- * where every run starts, and the first step of a run from rest misses
- * part of the fall. Pinned vertices are built in: their outputs are masked
+ * last term is the collapse floor AT REST (Neural Modes §4.4's measure of
+ * mode collapse made a loss; ε = 0.1, τ = 0.1, energy not evaluated at the
+ * secants): it is zero while every latent direction moves the body at rest
+ * by at least a fraction of the mean, and otherwise pushes the smallest
+ * normalized eigenvalues up; without it a weak isometry (small λ) lets some
+ * latent directions collapse at rest, where every run starts, and the first
+ * step of a run from rest misses part of the fall. Pinned vertices are built in: their outputs are masked
  * in the loss and their rows of the last layer are zero, so the stored map
  * holds them exactly at rest.
  *
@@ -71,7 +73,7 @@
  * small steps (batch 8, rate 3e-3) beat fewer large ones at equal time;
  * energy: a weak isometry (λ = 0.03: at λ = 1 the isometry swamps the
  * energy, which is ~1e-3 in units of E V, and the static sag misses by
- * 40-80 %) with the isometry at rest (λ_0 = 0.1); neuralmodes: the
+ * 40-80 %) with the collapse floor at rest (λ_0 = 0.1, τ = 0.1); neuralmodes: the
  * frequency-scaled box, half-width 0.2 × the bounding-box diagonal for
  * the lowest mode (a uniform box spends the loss on the stiff modes:
  * static sag 84 % off against 16 % at 4000 steps). The energies of the B
@@ -116,9 +118,9 @@ typedef struct {
     double lr;              /* base learning rate (3e-3; field: 1e-3); L-BFGS: the size of its first step */
     int optimizer;          /* CROM_DATAFREE_ADAM or CROM_DATAFREE_LBFGS (energy, neuralmodes) */
     int resample;           /* L-BFGS: iterations on each batch before a fresh one (10) */
-    double tangent_weight;  /* energy, field: λ_0, weight of the isometry at rest (0.1; field: 0) */
-    int tangent_samples;    /* energy, field: its samples per step (8) */
-    double tangent_radius;  /* energy, field: their scale ε, z ~ N(0, ε² I) (0.1) */
+    double tangent_weight;  /* energy, field: λ_0, weight of the collapse floor at rest (0.1; field: 0) */
+    double tangent_floor;   /* energy, field: its floor τ on the normalized Gram eigenvalues (0.1) */
+    double tangent_radius;  /* energy, field: the length ε of its r secants z = ε e_k (0.1) */
     int batch;              /* samples per step (8; field: 32) */
     double sigma;           /* energy: isometry scale, RMS metres per unit z */
     double lambda;          /* energy: isometry weight (0.03; field: 1) */
@@ -158,6 +160,7 @@ typedef struct {
     int *bad;
     double *cb;              /* [r] scratch */
     double *half;            /* neuralmodes: [r] half-widths of the box per mode */
+    double *tg;              /* [3 r r + r] the collapse floor's Gram matrix, gradient, scratch */
 } crom_datafree_ctx;
 
 /* Set up the loss of options o (objective, sigma, lambda, box, weights,

@@ -85,7 +85,8 @@ static int buffers(crom_dffield_ctx *c, int maxbatch)
     size_t trows = 3 * R > B + 1 ? 3 * R : B + 1; /* (also the isometry's [B][p] scratch) */
     c->tmp = crom_malloc(sizeof(double) * trows * P);
     c->xb = crom_malloc(sizeof(double) * (size_t)c->nthreads * 3 * R);
-    if (!c->xf || !c->F || !c->Phi || !c->zf || !c->gu || !c->dF || !c->dPhi || !c->dFf || !c->dPf || !c->E ||
+    c->tg = crom_malloc(sizeof(double) * (3 * (size_t)r * r + r));
+    if (!c->tg || !c->xf || !c->F || !c->Phi || !c->zf || !c->gu || !c->dF || !c->dPhi || !c->dFf || !c->dPf || !c->E ||
         !c->bad || !c->G || !c->S || !c->tmp || !c->xb)
         return CROM_EINTERNAL;
     return 0;
@@ -116,9 +117,9 @@ int crom_dffield_ctx_init(crom_dffield_ctx *c, const crom_datafree_problem *p, c
     c->r = ps->width[0];
     c->p = pf;
     c->maxbatch = maxbatch;
-    c->B0 = o->tangent_weight > 0 ? o->tangent_samples : 0;
-    if (c->B0 < 0)
-        return crom_err(CROM_EUSAGE, "%d tangent samples", c->B0);
+    c->B0 = o->tangent_weight > 0 ? c->r : 0; /* the secants along the r axes */
+    if (c->B0 && !(o->tangent_floor > 0 && o->tangent_floor <= 1))
+        return crom_err(CROM_EUSAGE, "the collapse floor %g is not in (0, 1]", o->tangent_floor);
     c->maxtets = maxtets;
     c->nthreads = crom_dftrain_threads(o->threads);
     int rc = crom_fem_init(&c->fem, p->mesh, &p->mat);
@@ -279,35 +280,28 @@ static void isometry_term(crom_dffield_ctx *c, int B, const double *z, double *o
         }
 }
 
-/* The tangent at rest, conformal: λ_0 mean_s (ℓ_s − ℓ̄)², ℓ_s = ½ log D_s²
- * − log |z_s|, D_s² = Φ_sᵀ G Φ_s / m̂ the displacement of a small sample
- * from rest, ℓ̄ their mean (as in datafree.c). */
-static void tangent_term(crom_dffield_ctx *c, int B, const double *z, double *obj, double *tan)
+/* The collapse floor at rest (as in datafree.c): λ_0 Σ_k h(μ_k) over the
+ * Gram matrix G_r = Φ_s G Φ_sᵀ / m̂ of the r tangent samples, the secants
+ * z = ε e_k from rest (crom_dfloss_rest_floor gives A = dL/dG_r); dL/dΦ_s =
+ * 2 A Φ_s G / m̂ and, through G for a trained W, S += Φ_sᵀ A Φ_s / m̂. */
+static void tangent_term(crom_dffield_ctx *c, int B, double *obj, double *tan)
 {
-    int r = c->r, p = c->p, B0 = c->B0, ok = 1;
-    double lam0 = c->o.tangent_weight, lbar = 0, *lsb = c->E + B, im = gram_scale(c); /* E has room past the batch */
-    double *Gd = c->tmp + p;
-    for (int b = B; b < B + B0; b++) {
-        const double *ph = c->Phi + (size_t)b * p;
-        double dz = 0;
-        for (int k = 0; k < r; k++)
-            dz += z[(size_t)b * r + k] * z[(size_t)b * r + k];
-        cblas_dsymv(CblasRowMajor, CblasUpper, p, im, c->G, p, ph, 1, 0.0, Gd, 1);
-        double D2 = cblas_ddot(p, ph, 1, Gd, 1);
-        ok &= D2 > 0 && dz > 0;
-        lsb[b - B] = 0.5 * log(D2) - 0.5 * log(dz);
-        lbar += lsb[b - B] / B0;
-    }
-    for (int b = B; ok && b < B + B0; b++) {
-        const double *ph = c->Phi + (size_t)b * p;
-        cblas_dsymv(CblasRowMajor, CblasUpper, p, im, c->G, p, ph, 1, 0.0, Gd, 1);
-        double D2 = cblas_ddot(p, ph, 1, Gd, 1), l = lsb[b - B] - lbar;
-        *tan += l * l / B0;
-        *obj += lam0 * l * l / B0;
-        double coef = lam0 * l / (B0 * D2);
-        cblas_daxpy(p, 2 * coef, Gd, 1, c->dPhi + (size_t)b * p, 1);
-        if (!c->basis)
-            cblas_dsyr(CblasRowMajor, CblasUpper, p, coef * im, ph, 1, c->S, p);
+    int p = c->p, B0 = c->B0;
+    double im = gram_scale(c), *Gr = c->tg, *A = Gr + (size_t)B0 * B0, *work = A + (size_t)B0 * B0;
+    const double *Ps = c->Phi + (size_t)B * p;
+    double *GP = c->tmp, *dPs = c->dPhi + (size_t)B * p; /* GP: Φ_s G / m̂ [B0][p] */
+    cblas_dsymm(CblasRowMajor, CblasRight, CblasUpper, B0, p, im, c->G, p, Ps, p, 0.0, GP, p);
+    cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasTrans, B0, B0, p, 1.0, Ps, p, GP, p, 0.0, Gr, B0);
+    double h = crom_dfloss_rest_floor(B0, Gr, c->o.tangent_floor, c->o.tangent_weight, A, work);
+    if (!isfinite(h)) /* (no motion along an axis at all: the energy decides) */
+        return;
+    *tan += h;
+    *obj += c->o.tangent_weight * h;
+    cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, B0, p, B0, 2.0, A, B0, GP, p, 1.0, dPs, p);
+    if (!c->basis) { /* S += im Φ_sᵀ (A Φ_s) */
+        double *AP = c->tmp; /* (GP is done with) */
+        cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, B0, p, B0, 1.0, A, B0, Ps, p, 0.0, AP, p);
+        cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, p, p, B0, im, Ps, p, AP, p, 1.0, c->S, p);
     }
 }
 
@@ -361,7 +355,7 @@ static int drawn_loss(crom_dffield_ctx *c, int B, const double *z, double rho, i
     if (c->cub.mhat > 0) {
         gram(c);
         isometry_term(c, B, z, &obj, &pen);
-        tangent_term(c, B, z, &obj, &tan);
+        tangent_term(c, B, &obj, &tan);
         gram_grad(c);
     }
     if ((rc = crom_dfloss_terms(t, obj, Em, pen, tan, "data-free")))

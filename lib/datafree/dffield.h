@@ -56,6 +56,7 @@ typedef struct {
     double *triX;            /* [ntri][3][3] their corners */
     double *mask;            /* [nv] s(d(X_v)/ℓ) */
     double *F, *Phi, *gu, *dF, *dPhi, *E, *G, *S, *tmp, *xb;
+    double *tg;              /* [3 r r + r] the collapse floor's Gram matrix, gradient, scratch */
 } crom_dffield_ctx;
 
 /* Set up the loss of the continuous field (objective field: o->sigma,

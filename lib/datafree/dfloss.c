@@ -3,6 +3,7 @@
 #include <omp.h>
 #endif
 #include <math.h>
+#include <lapacke.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -183,4 +184,32 @@ int crom_dfloss_pinned_part(const crom_mesh *m, const unsigned char *fixed, int 
     }
     free(tri);
     return 0;
+}
+
+double crom_dfloss_rest_floor(int r, const double *G, double tau, double w, double *A, double *work)
+{
+    double *V = work, *lam = work + (size_t)r * r, T = 0, val = 0, s = 0;
+    memset(A, 0, sizeof(double) * (size_t)r * r);
+    for (int k = 0; k < r; k++)
+        T += G[(size_t)k * r + k];
+    if (!(T > 0) || !isfinite(T))
+        return NAN;
+    memcpy(V, G, sizeof(double) * (size_t)r * r);
+    if (LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'V', 'U', r, V, r, lam) != 0)
+        return NAN;
+    for (int k = 0; k < r; k++) {
+        double mu = fmax(r * lam[k] / T, 1e-300);
+        if (mu >= tau)
+            continue;
+        double l = log(mu / tau), hp = 2 * l / mu; /* h(μ), h'(μ) */
+        val += l * l;
+        s += hp * lam[k];
+        double f = r / T; /* dμ_k/dλ_k */
+        for (int i = 0; i < r; i++)
+            for (int j = 0; j < r; j++)
+                A[(size_t)i * r + j] += w * f * hp * V[(size_t)i * r + k] * V[(size_t)j * r + k];
+    }
+    for (int i = 0; i < r; i++) /* through T */
+        A[(size_t)i * r + i] -= w * (r / (T * T)) * s;
+    return val;
 }

@@ -69,6 +69,18 @@ int crom_dfloss_terms(crom_dftrain_terms *t, double obj, double energy, double p
  * out_anchor = −Σ_b out_b. */
 void crom_dfloss_anchor_grad(int rows, int n, const double *d, const unsigned char *mask, float *out);
 
+/* The collapse floor at rest, the mode-collapse measure of Neural Modes
+ * §4.4 made a loss. G [r][r] is the Gram matrix of the map's secants from
+ * rest along the r latent axes (at any common scale: G_kl = Y_kᵀ M Y_l
+ * with Y_k = x(ε e_k) − X), μ_k the eigenvalues of r G / tr G. Returns
+ * Σ_k h(μ_k), h(μ) = log²(μ / τ) below the floor tau and 0 above (C¹ at τ),
+ * and A [r][r] = w dΣh/dG = w (r/T) [V diag(h'(μ)) Vᵀ − (Σ_k h'(μ_k) λ_k / T) I]
+ * (T = tr G, λ_k the eigenvalues, V the eigenvectors). Only G's upper
+ * triangle is read. work: [r r + r].
+ * Returns NAN where tr G is not positive and finite or the eigensolve fails
+ * (A then zero). */
+double crom_dfloss_rest_floor(int r, const double *G, double tau, double w, double *A, double *work);
+
 /* The thread's number inside a parallel region (0 without OpenMP). */
 int crom_dfloss_thread(void);
 

@@ -210,8 +210,9 @@ static void draw(run *R, double frac)
         R->z[i] = L->uniform ? s * (2 * crom_rng_uniform(L->rng) - 1)
                   : L->scale ? s * crom_rng_normal(L->rng) : crom_rng_normal(L->rng);
     }
-    for (int i = n; i < (L->batch + L->tangent) * r; i++) /* small samples: the tangent at rest */
-        R->z[i] = L->tangent_radius * crom_rng_normal(L->rng);
+    for (int k = 0; k < L->tangent; k++) /* the secants from rest along the axes: ε e_(k mod r) */
+        for (int j = 0; j < r; j++)
+            R->z[n + k * r + j] = j == k % r ? L->tangent_radius : 0;
     for (int i = 0; R->tets && i < L->K; i++)
         R->tets[i] = L->K == L->nt ? i : (int)crom_rng_below(L->rng, (uint64_t)L->nt);
 }

@@ -2,8 +2,8 @@
  * the field of dffield.h, the skinning weights of dfskin.h): the terms of
  * one evaluation of a loss, the record of a run, and the loop that trains.
  *
- * The loop: each step draws a fresh batch (latent samples, small tangent
- * samples at rest, the tets of a fresh random cubature), evaluates the
+ * The loop: each step draws a fresh batch (latent samples, the tangent
+ * samples (short secants from rest along the latent axes), the tets of a fresh random cubature), evaluates the
  * trainer's loss and gradient, and moves the parameters: Adam on a fresh
  * batch every step, or L-BFGS with a backtracking line search (Wang et
  * al.'s optimizer, lib/base/lbfgs.h), `resample` iterations on each batch
@@ -61,7 +61,7 @@ typedef struct {
     double energy;    /* mean energy of the samples (J): potential (energy, field), elastic (neuralmodes, skinning) */
     double penalty;   /* energy, field: mean squared log isometry ratio; neuralmodes: mean ‖WᵀMy/m‖²/a²;
                          skinning: ‖G − I‖² */
-    double tangent;   /* energy, field: mean squared log-ratio of the tangent samples */
+    double tangent;   /* energy, field: the collapse floor at rest, Σ_k h(μ_k) (dfloss.h) */
 } crom_dftrain_terms;
 
 /* The record of a run: per block of steps, the mean terms and the wall
@@ -96,7 +96,7 @@ typedef struct {
     int batch, tangent, r;      /* samples, tangent samples after them, coordinates of each */
     const double *scale;        /* [r]: coordinate k is scale[k] N(0, 1) (NULL: N(0, 1)) */
     int uniform;                /* 1: coordinate k is scale[k] U(−1, 1) instead */
-    double tangent_radius;      /* ε: the tangent samples are ε N(0, I) */
+    double tangent_radius;      /* ε: tangent sample k is ε e_(k mod r), a secant from rest */
     int K, nt;                  /* K of the nt tets, every one in order if K = nt (0: none) */
     double ramp;                /* ρ = min(1, frac / ramp) (0: ρ = 1) */
     /* the schedule */

@@ -8,8 +8,8 @@
  *    and fraction 1, a non-finite loss stops the run with CROM_EDATA
  *    "training diverged at step k" and frees the record, and a time budget
  *    stops a long run early;
- *  - the draw: box-uniform samples within ±scale_k, tangent samples of
- *    scale ε, every tet in order when K = nt (else tets in range), and ρ =
+ *  - the draw: box-uniform samples within ±scale_k, tangent samples
+ *    exactly ε e_(k mod r), every tet in order when K = nt (else tets in range), and ρ =
  *    min(1, frac / ramp) at fraction frac = k / steps, to the last bit;
  *  - the cubature: every tet drawn once gives the mesh's lumped masses and
  *    its mass; repeats weigh nt/K each; a tet out of range or more vertices
@@ -74,9 +74,10 @@ static int quad_loss(void *ctx, const double *z, double rho, int K, const int *t
         if (Q->uniform && !(fabs(z[i]) <= s))
             Q->draws_ok = 0;
     }
-    for (int i = Q->batch * Q->r; i < (Q->batch + Q->tangent) * Q->r; i++)
-        if (!(fabs(z[i]) < 8 * Q->eps))
-            Q->draws_ok = 0;
+    for (int k = 0; k < Q->tangent; k++) /* exactly ε e_(k mod r) */
+        for (int j = 0; j < Q->r; j++)
+            if (z[(Q->batch + k) * Q->r + j] != (j == k % Q->r ? Q->eps : 0))
+                Q->draws_ok = 0;
     if ((K > 0) != (tets != NULL) || K != Q->K)
         Q->draws_ok = 0;
     for (int i = 0; tets && i < K; i++)
@@ -414,6 +415,77 @@ static void test_pinned_part(void)
     crom_mesh_free(&m);
 }
 
+/* The collapse floor: Σ_k log²(μ_k / τ) over the normalized eigenvalues
+ * μ_k of r G / tr G below τ. G = Y Yᵀ of r secants Y [r][n]; the gradient
+ * 2 A Y (A = w dh/dG) against central differences in Y, with one row
+ * nearly a combination of the others (a collapsed direction) and without;
+ * zero for an isotropic G and for a G whose eigenvalues are all above τ; an
+ * exact value for a diagonal G. */
+typedef struct {
+    int r, n;
+    double tau, w;
+} floor_case;
+
+static void gram_of(const floor_case *f, const double *Y, double *G)
+{
+    for (int k = 0; k < f->r; k++)
+        for (int l = 0; l < f->r; l++) {
+            double s = 0;
+            for (int i = 0; i < f->n; i++)
+                s += Y[k * f->n + i] * Y[l * f->n + i];
+            G[k * f->r + l] = s;
+        }
+}
+
+static double floor_at(const double *Y, void *v)
+{
+    floor_case *f = v;
+    double G[16], A[16], work[20];
+    gram_of(f, Y, G);
+    return f->w * crom_dfloss_rest_floor(f->r, G, f->tau, f->w, A, work);
+}
+
+static void test_rest_floor(void)
+{
+    floor_case f = {4, 6, 0.3, 0.7};
+    crom_rng rng;
+    crom_rng_seed(&rng, 23);
+    double Y[24], G[16], A[16], work[20], ga[24], gf[24];
+    for (int pass = 0; pass < 2; pass++) {
+        for (int i = 0; i < 24; i++)
+            Y[i] = crom_rng_normal(&rng);
+        if (pass == 1) /* row 3 nearly row 0 + row 1: a collapsed direction */
+            for (int i = 0; i < 6; i++)
+                Y[18 + i] = Y[i] + Y[6 + i] + 0.01 * crom_rng_normal(&rng);
+        gram_of(&f, Y, G);
+        double h = crom_dfloss_rest_floor(f.r, G, f.tau, f.w, A, work);
+        for (int k = 0; k < f.r; k++)
+            for (int i = 0; i < f.n; i++) {
+                double s = 0;
+                for (int l = 0; l < f.r; l++)
+                    s += 2 * A[k * f.r + l] * Y[l * f.n + i];
+                ga[k * f.n + i] = s;
+            }
+        check_fd_gradient(floor_at, &f, Y, 24, 1e-6, gf);
+        double e = check_relerr(ga, gf, 24, 1e-12);
+        printf("collapse floor (%s): %.4g, gradient vs FD %.2e\n", pass ? "near-collapsed" : "random", h, e);
+        CHECK(h > 0 && isfinite(h));
+        CHECK_LT(e, 1e-5);
+    }
+    /* isotropic: 0; diagonal (1, 1, 1, 0.01): μ = 4 · 0.01 / 3.01 below τ = 0.3 */
+    double D[16] = {0};
+    for (int k = 0; k < 4; k++)
+        D[k * 5] = 1;
+    CHECK(crom_dfloss_rest_floor(4, D, 0.3, 1, A, work) == 0);
+    D[15] = 0.01;
+    double mu = 4 * 0.01 / 3.01, want = log(mu / 0.3) * log(mu / 0.3);
+    CHECK_REL(crom_dfloss_rest_floor(4, D, 0.3, 1, A, work), want, 1e-12);
+    D[15] = 0.5; /* μ = 2 / 3.5 = 0.57 > 0.3: nothing */
+    CHECK(crom_dfloss_rest_floor(4, D, 0.3, 1, A, work) == 0);
+    double Z[16] = {0};
+    CHECK(isnan(crom_dfloss_rest_floor(4, Z, 0.3, 1, A, work)));
+}
+
 int main(void)
 {
     check_begin("test_dftrain");
@@ -424,5 +496,6 @@ int main(void)
     test_cubature();
     test_anchor();
     test_pinned_part();
+    test_rest_floor();
     return check_done();
 }
