@@ -38,8 +38,8 @@ void crom_datafree_defaults(crom_datafree_opts *o, int objective)
     o->tets = field ? 512 : 0;
     o->optimizer = CROM_DATAFREE_ADAM;
     o->resample = 10;
-    o->tangent_weight = field ? 0 : 0.1;
-    o->tangent_floor = 0.1;
+    o->tangent_weight = field ? 0 : 0.03;
+    o->tangent_floor = 0.03;
     o->tangent_radius = 0.1;
     o->pin_length = 0;
     o->threads = 1;
@@ -119,7 +119,7 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
     c->maxbatch = maxbatch;
     c->B0 = !nm && o->tangent_weight > 0 ? r : 0; /* the secants along the r axes */
     if (c->B0 && !(o->tangent_floor > 0 && o->tangent_floor <= 1))
-        return crom_err(CROM_EUSAGE, "the collapse floor %g is not in (0, 1]", o->tangent_floor);
+        return crom_err(CROM_EUSAGE, "--tangent-floor %g: the collapse floor must be in (0, 1]", o->tangent_floor);
     c->nthreads = crom_dftrain_threads(o->threads);
     size_t rows = (size_t)maxbatch + c->B0 + 1; /* the batch, the tangent samples, the anchor */
     int rc = crom_fem_init(&c->fem, p->mesh, &p->mat);

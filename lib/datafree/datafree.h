@@ -31,7 +31,7 @@
  * linearly from 0 to 1 over the first `ramp` fraction of the steps, then
  * stays 1, so the map that is stored (ρ = 1) is the one trained last. The
  * last term is the collapse floor AT REST (Neural Modes §4.4's measure of
- * mode collapse made a loss; ε = 0.1, τ = 0.1, energy not evaluated at the
+ * mode collapse made a loss; ε = 0.1, τ = 0.03, energy not evaluated at the
  * secants): it is zero while every latent direction moves the body at rest
  * by at least a fraction of the mean, and otherwise pushes the smallest
  * normalized eigenvalues up; without it a weak isometry (small λ) lets some
@@ -73,7 +73,7 @@
  * small steps (batch 8, rate 3e-3) beat fewer large ones at equal time;
  * energy: a weak isometry (λ = 0.03: at λ = 1 the isometry swamps the
  * energy, which is ~1e-3 in units of E V, and the static sag misses by
- * 40-80 %) with the collapse floor at rest (λ_0 = 0.1, τ = 0.1); neuralmodes: the
+ * 40-80 %) with the collapse floor at rest (λ_0 = 0.03, τ = 0.03); neuralmodes: the
  * frequency-scaled box, half-width 0.2 × the bounding-box diagonal for
  * the lowest mode (a uniform box spends the loss on the stiff modes:
  * static sag 84 % off against 16 % at 4000 steps). The energies of the B
@@ -118,8 +118,8 @@ typedef struct {
     double lr;              /* base learning rate (3e-3; field: 1e-3); L-BFGS: the size of its first step */
     int optimizer;          /* CROM_DATAFREE_ADAM or CROM_DATAFREE_LBFGS (energy, neuralmodes) */
     int resample;           /* L-BFGS: iterations on each batch before a fresh one (10) */
-    double tangent_weight;  /* energy, field: λ_0, weight of the collapse floor at rest (0.1; field: 0) */
-    double tangent_floor;   /* energy, field: its floor τ on the normalized Gram eigenvalues (0.1) */
+    double tangent_weight;  /* energy, field: λ_0, weight of the collapse floor at rest (0.03; field: 0) */
+    double tangent_floor;   /* energy, field: its floor τ on the normalized Gram eigenvalues (0.03) */
     double tangent_radius;  /* energy, field: the length ε of its r secants z = ε e_k (0.1) */
     int batch;              /* samples per step (8; field: 32) */
     double sigma;           /* energy: isometry scale, RMS metres per unit z */

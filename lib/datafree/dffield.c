@@ -119,7 +119,7 @@ int crom_dffield_ctx_init(crom_dffield_ctx *c, const crom_datafree_problem *p, c
     c->maxbatch = maxbatch;
     c->B0 = o->tangent_weight > 0 ? c->r : 0; /* the secants along the r axes */
     if (c->B0 && !(o->tangent_floor > 0 && o->tangent_floor <= 1))
-        return crom_err(CROM_EUSAGE, "the collapse floor %g is not in (0, 1]", o->tangent_floor);
+        return crom_err(CROM_EUSAGE, "--tangent-floor %g: the collapse floor must be in (0, 1]", o->tangent_floor);
     c->maxtets = maxtets;
     c->nthreads = crom_dftrain_threads(o->threads);
     int rc = crom_fem_init(&c->fem, p->mesh, &p->mat);

@@ -93,7 +93,7 @@ for v in 64x64junk +64x64 64x+64 0x40x64 640X480 x64 64x 99999999999999999999x64
   once crom-export --panel "$v" "--panel: '.*' is not WxH with 32..4096 pixels" --format png -o "$O/out.png" run.h5
 done
 for f in --rank --epochs --minutes --lr --batch --points-per-step --encoder-points --width --depth --tikhonov \
-         --sample-points --handles --coordinate-tol --steps --sigma --lambda --tangent-weight --box --resample \
+         --sample-points --handles --coordinate-tol --steps --sigma --lambda --tangent-weight --tangent-floor --box --resample \
          --features --tets --pin-length --ortho-weight; do
   try crom-fitfield $f X --rank 2 --epochs 2 -o "$OUT" s.h5
 done
