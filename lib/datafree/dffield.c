@@ -22,7 +22,7 @@ void crom_dffield_ctx_free(crom_dffield_ctx *c)
     crom_nn_ws_free(&c->wsP);
     crom_dfloss_cub_free(&c->cub);
     void *bufs[] = {c->xf, c->F, c->Phi, c->zf, c->gu, c->dF, c->dPhi, c->dFf, c->dPf, c->E, c->bad, c->G, c->S,
-                    c->tmp, c->xb, c->pinX, c->mask, c->triX};
+                    c->tmp, c->xb, c->pinX, c->mask, c->triX, c->tg};
     for (size_t i = 0; i < sizeof bufs / sizeof *bufs; i++)
         free(bufs[i]);
     memset(c, 0, sizeof *c);
@@ -355,7 +355,8 @@ static int drawn_loss(crom_dffield_ctx *c, int B, const double *z, double rho, i
     if (c->cub.mhat > 0) {
         gram(c);
         isometry_term(c, B, z, &obj, &pen);
-        tangent_term(c, B, &obj, &tan);
+        if (c->B0 > 0)
+            tangent_term(c, B, &obj, &tan);
         gram_grad(c);
     }
     if ((rc = crom_dfloss_terms(t, obj, Em, pen, tan, "data-free")))
