@@ -38,7 +38,7 @@ void crom_datafree_defaults(crom_datafree_opts *o, int objective)
     o->tets = field ? 512 : 0;
     o->optimizer = CROM_DATAFREE_ADAM;
     o->resample = 10;
-    o->tangent_weight = field ? 0 : 0.03;
+    o->tangent_weight = 0.03;
     o->tangent_floor = 0.03;
     o->tangent_radius = 0.1;
     o->pin_length = 0;

@@ -54,7 +54,7 @@ static int copy_layers(crom_map *map, const crom_nn_mlp *net, int p)
         if (l < L && sp->width[l] > maxw)
             maxw = sp->width[l];
     }
-    map->p = p;
+    map->p = map->p_model = p;
     size_t wr = (size_t)maxw * (size_t)(map->r + 1);
     map->mem = crom_malloc(sizeof(double) * net->nparams);
     map->a0 = crom_malloc(sizeof(double) * (size_t)maxw);
@@ -134,6 +134,37 @@ static int load_skin_field(crom_map *map, const crom_model *model)
     return crom_skin_eval(model, (size_t)map->nv, map->mesh.X, map->B, NULL);
 }
 
+/* A continuous map x = X + B (φ(q) − φ(0)) with φ's last layer W_L h + b_L
+ * of fan-in nh < p − 1 is the same map over the last hidden layer:
+ * B (φ(q) − φ(0)) = (B W_L) (h(q) − h(0)), so B becomes [B W_L | B b_L]
+ * ([n][nh + 1], laid out as load_net's, the last feature anchored to 0)
+ * and a reduced step touches nh + 1 features instead of p (the p x r
+ * products of the Jacobian rows and the quadratic forms shrink with it). */
+static int fold_last_layer(crom_map *map)
+{
+    int L = map->nlayers, nh = map->width[L - 1], p = map->p, q = nh + 1, n = map->n;
+    if (!map->phi || q >= p)
+        return 0;
+    double *Bq = crom_malloc(sizeof(double) * (size_t)n * q), *Wb = crom_malloc(sizeof(double) * (size_t)p * q);
+    if (!Bq || !Wb) {
+        free(Bq);
+        free(Wb);
+        return CROM_EINTERNAL;
+    }
+    for (int i = 0; i < p; i++) { /* [W_L | b_L], [p][nh + 1] */
+        memcpy(Wb + (size_t)i * q, map->w[L - 1] + (size_t)i * nh, sizeof(double) * (size_t)nh);
+        Wb[(size_t)i * q + nh] = map->b[L - 1][i];
+    }
+    cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, n, q, p, 1.0, map->B, p, Wb, q, 0.0, Bq, q);
+    free(Wb);
+    free(map->B);
+    map->B = Bq;
+    map->p = q;
+    map->rl = 0;
+    map->phi = 0;
+    return 0;
+}
+
 int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
 {
     memset(map, 0, sizeof *map);
@@ -167,11 +198,13 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
     if (model->field == CROM_MODEL_FIELD_MAP) {
         rc = load_net(map, &model->mlp, model->basis_v);
     } else if (model->field == CROM_MODEL_FIELD_CMAP) {
-        rc = load_field_map(map, model);
+        if (!(rc = load_field_map(map, model)))
+            rc = fold_last_layer(map);
     } else if (model->field == CROM_MODEL_FIELD_SKIN && model->latent.nparams) {
-        rc = load_skin_field(map, model);
+        if (!(rc = load_skin_field(map, model)))
+            rc = fold_last_layer(map);
     } else { /* a linear basis: a = q, B = W(X_v) */
-        map->p = r;
+        map->p = map->p_model = r;
         map->B = crom_malloc(sizeof(double) * (size_t)map->n * r);
         rc = map->B ? crom_model_eval(model, (size_t)map->nv, map->mesh.X, map->B, NULL) : CROM_EINTERNAL;
     }

@@ -45,11 +45,16 @@ typedef struct crom_map_s {
      *     x(q) = X + B a(q),   J(q) = B T(q),  T = da/dq [p][r],
      * a = [q (if W) | the last hidden layer h of N | 1 (if N)] less its
      * value at 0, i.e. [q | h(q) − h(0) | 0], and B = [W | W_L | b_L]
-     * ([n][p] row-major; a continuous map: a = φ(q) − φ(0)), so that everything a reduced
+     * ([n][p] row-major; a continuous map: a = φ(q) − φ(0), or, when φ's last
+     * hidden layer h is narrower than its output, a = [h(q) − h(0) | 0] over
+     * B = [W(X_v) W_L | W(X_v) b_L]), so that everything a reduced
      * simulation needs from a few vertices costs p flops per row and
      * quadratic forms over all vertices are p x p (lib/rom/nlsim.h). A linear
      * basis has a = q, T = I, B = W. */
     int p;
+    int p_model;         /* p as the model defines it (φ's outputs), before fold_last_layer in
+                          * map.c re-expresses a continuous map over φ's last hidden layer
+                          * when that is narrower; cubatures made before it record this one */
     double *B;           /* [n][p] */
     int rl;              /* leading features equal to q: r with a linear part, else 0 */
     int phi;             /* 1: the features are the network's output, a = φ(q) − φ(0)

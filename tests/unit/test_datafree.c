@@ -944,6 +944,8 @@ static void test_skin_field(bar_case *b)
     sm.latent.params[3] -= 1e-3f;
     crom_map map, fmap;
     CHECK(crom_map_init(&map, &sm, NULL) == 0); /* eigen weights: their own mesh */
+    /* over φ's last hidden layer (width 32) when that is narrower than the basis */
+    CHECK(map.p_model == p && map.p == (p > 33 ? 33 : p));
     /* x(q) = X + basis (φ(q) − φ(0)) with φ from the float network */
     double q[2] = {0.8, -1.1}, *x = malloc(sizeof(double) * map.n), *J = malloc(sizeof(double) * map.n * 2);
     double *Jfd = malloc(sizeof(double) * map.n * 2);
