@@ -23,7 +23,7 @@ static const crom_opt met_opts[] = {
     {"compare", O_COMPARE, "MODEL", "Also measure a LINEAR basis of the same mesh (e.g. crom-modes) at the same displacement magnitudes: for each sample, a random direction of MODEL scaled to the sample's RMS displacement from rest."},
     {"samples", O_SAMPLES, "N", "Random latent samples (default 256)."},
     {"sphere", O_SPHERE, "R", "Draw q uniformly on the sphere |q| = R."},
-    {"box", O_BOX, "A", "Draw q uniformly in the box [-A, A]^r (default for neuralmodes: its training box)."},
+    {"box", O_BOX, "A", "Draw q uniformly in the box [-A, A]^r (default for neuralmodes: its training box, whose half-width is A f_1/f_k for mode k when it was trained with --box-scaling frequency)."},
     {"normal", O_NORMAL, "S", "Draw q from N(0, S^2 I) (default for energy maps: S = 1, their training distribution)."},
     {"sigma", O_SIGMA, "S", "Isometry scale in metres of RMS displacement per unit of q (default: the model's sigma for energy maps and continuous fields, 1 otherwise: q in metres)."},
     {"pairs-of", O_PAIRS, "N", "The isometry ratio is measured over all pairs of the first N samples (default 100)."},
@@ -200,7 +200,8 @@ static int run(crom_cli *cli, args *a)
     printf("material: E %.6g Pa, nu %.6g, rho %.6g kg/m^3 (%s); gravity %.6g,%.6g,%.6g m/s^2; mass %.6g kg\n",
            a->sc.youngs, a->sc.poisson, a->sc.density, matsrc, a->sc.gravity[0], a->sc.gravity[1], a->sc.gravity[2],
            fem.total_mass);
-    printf("samples: %d, %s %.6g\n", res.samples, dn[a->mo.dist], a->mo.radius);
+    printf("samples: %d, %s %.6g%s\n", res.samples, dn[a->mo.dist], a->mo.radius,
+           a->mo.box_freq ? " for the lowest mode, A f_1/f_k for mode k (the training box)" : "");
     printf("elastic_energy: mean %.6g J, min %.6g J, max %.6g J\n", res.energy_mean, res.energy_min, res.energy_max);
     printf("potential_energy: mean %.6g J (elastic + gravity)\n", res.potential_mean);
     printf("rms_displacement: mean %.6g m, max %.6g m\n", res.rms_mean, res.rms_max);

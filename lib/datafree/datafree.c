@@ -540,6 +540,8 @@ int crom_datafree_write_record(hid_t loc, const crom_datafree_opts *o, const cro
         if (!rc)
             rc = crom_h5_set_f64(loc, ".", "latent_box", &log->box, 1);
         if (!rc)
+            rc = crom_h5_set_str(loc, ".", "latent_box_scaling", o->box_scaled ? "frequency" : "uniform");
+        if (!rc)
             rc = crom_h5_set_f64(loc, ".", "ortho_weight", &o->ortho_weight, 1);
         if (!rc && modes_id)
             rc = crom_h5_set_str(loc, ".", "modes_id", modes_id);

@@ -51,9 +51,15 @@ static double quantile(const double *sorted, long n, double p)
 
 void crom_metrics_sample(crom_rng *rng, const crom_metrics_opts *o, int r, double *q)
 {
-    double s = 0;
+    double s = 0, fmin = INFINITY;
+    for (int k = 0; o->box_freq && k < r; k++)
+        if (o->box_freq[k] > 0 && o->box_freq[k] < fmin)
+            fmin = o->box_freq[k];
     for (int k = 0; k < r; k++) {
-        q[k] = o->dist == CROM_METRICS_BOX ? o->radius * (2 * crom_rng_uniform(rng) - 1) : crom_rng_normal(rng);
+        double a = o->radius;
+        if (o->box_freq && isfinite(fmin) && o->box_freq[k] > 0)
+            a *= fmin / o->box_freq[k];
+        q[k] = o->dist == CROM_METRICS_BOX ? a * (2 * crom_rng_uniform(rng) - 1) : crom_rng_normal(rng);
         s += q[k] * q[k];
     }
     if (o->dist == CROM_METRICS_NORMAL)
@@ -292,6 +298,7 @@ void crom_metrics_training_dist(const crom_model *m, double diag, crom_metrics_o
     } else if (!strcmp(m->basis, "neuralmodes") && m->latent_box > 0) {
         o->dist = CROM_METRICS_BOX;
         o->radius = m->latent_box;
+        o->box_freq = m->latent_box_scaled ? m->frequencies : NULL;
     } else {
         o->dist = CROM_METRICS_SPHERE;
         o->radius = 0.05 * diag;

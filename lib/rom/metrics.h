@@ -37,6 +37,8 @@ typedef struct {
     int samples;     /* latent samples (256) */
     int dist;        /* CROM_METRICS_*: q ~ N(0, R² I), |q| = R, or q in [-R, R]^r */
     double radius;   /* R */
+    const double *box_freq; /* BOX: frequencies f_k [r], coordinate k drawn from [-R f_1/f_k, R f_1/f_k]
+                             * (f_1 the lowest positive one; NULL: [-R, R] for every k) */
     double sigma;    /* isometry scale: RMS metres per unit of q (1 for q in metres) */
     int pairs_of;    /* isometry over all pairs of the first pairs_of samples (100) */
     uint64_t seed;
@@ -57,7 +59,8 @@ typedef struct {
 void crom_metrics_defaults(crom_metrics_opts *o);
 
 /* The latent distribution a model was trained on, into o->dist and
- * o->radius: N(0, I) for an energy map (energy, energy-field, skin-field), the training box for neural modes,
+ * o->radius: N(0, I) for an energy map (energy, energy-field, skin-field), the training box for neural modes
+ * (o->box_freq pointing into the model's frequencies when that box was scaled by them),
  * else the sphere of radius 0.05 diag (diag: the mesh's bounding-box
  * diagonal). */
 void crom_metrics_training_dist(const crom_model *m, double diag, crom_metrics_opts *o);

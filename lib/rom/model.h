@@ -127,6 +127,7 @@ typedef struct {
      * absent): read by crom_model_read, written by the trainers */
     double sigma;        /* energy maps: isometry scale (m per unit z) */
     double latent_box;   /* neuralmodes: half-width of the training box (m) */
+    int latent_box_scaled; /* neuralmodes: 1 if mode k's half-width is latent_box f_1 / f_k */
     double gravity[3];   /* the training gravity (m/s²) */
     int has_gravity;
 } crom_model;

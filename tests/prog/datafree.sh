@@ -110,6 +110,8 @@ if not ("--pin clamp" in s(f.attrs["scenario"]) and "gravity" not in s(f.attrs["
     raise SystemExit("check failed: \"--pin clamp\" in s(f.attrs[\"scenario\"]) and \"gravity\" not in s(f.attrs[\"scenario\"])")
 if not (abs(f.attrs["latent_box"] - 0.2 * np.sqrt(1.08)) < 1e-12):
     raise SystemExit("check failed: abs(f.attrs[\"latent_box\"] - 0.2 * np.sqrt(1.08)) < 1e-12")
+if not (s(f.attrs["latent_box_scaling"]) == "frequency"):
+    raise SystemExit("check failed: s(f.attrs[\"latent_box_scaling\"]) == \"frequency\"")
 PYEOF
 ok
 # no collapsed dimension (Wang et al. §4.4): J = W + dy/dz at 0 with y
@@ -117,6 +119,8 @@ ok
 # these 300 steps; the paper's collapsed dimensions are 0.0)
 crom-metrics --compare modes.h5 --samples 128 nm.h5 >met_nm.txt
 cat met_nm.txt
+grep -q "^samples: 128, q in the box .*A f_1/f_k for mode k (the training box)" met_nm.txt \
+  || fail "crom-metrics does not sample neural modes from their training box"; ok
 low=$(sed -n 's/^collapse: 0 of 3 dimensions below 0.01 (smallest normalized eigenvalue \([0-9.e+-]*\);.*/\1/p' met_nm.txt)
 [ -n "$low" ] || fail "neuralmodes collapsed: $(grep collapse met_nm.txt)"
 $PY -c "import sys; sys.exit(0 if $low > 0.5 else 1)" || fail "smallest normalized Gram eigenvalue $low <= 0.5"; ok

@@ -1451,9 +1451,43 @@ static void test_lbfgs(bar_case *bc)
     crom_dftrain_log_free(&log);
 }
 
+/* crom-metrics' and crom-cubature's samples of a neural-modes model come
+ * from its training box: [-A f_1/f_k, A f_1/f_k] for mode k when it was
+ * scaled by the frequencies (latent_box_scaling frequency), else [-A, A]. */
+static void test_metrics_box(void)
+{
+    crom_model m;
+    crom_model_clear(&m);
+    strcpy(m.basis, "neuralmodes");
+    m.latent_box = 0.2;
+    double freq[3] = {2, 4, 8};
+    m.frequencies = freq;
+    for (int scaled = 0; scaled < 2; scaled++) {
+        m.latent_box_scaled = scaled;
+        crom_metrics_opts o;
+        crom_metrics_defaults(&o);
+        crom_metrics_training_dist(&m, 1.0, &o);
+        CHECK(o.dist == CROM_METRICS_BOX && o.radius == 0.2 && (o.box_freq != NULL) == scaled);
+        crom_rng rng;
+        crom_rng_seed(&rng, 3);
+        double big[3] = {0, 0, 0};
+        for (int s = 0; s < 4000; s++) {
+            double q[3];
+            crom_metrics_sample(&rng, &o, 3, q);
+            for (int k = 0; k < 3; k++)
+                big[k] = fmax(big[k], fabs(q[k]));
+        }
+        for (int k = 0; k < 3; k++) {
+            double a = scaled ? 0.2 * 2 / freq[k] : 0.2;
+            CHECK_MSG(big[k] <= a && big[k] > 0.99 * a, "mode %d: largest |q| %g, half-width %g", k, big[k], a);
+        }
+    }
+}
+
 int main(void)
 {
     check_begin("test_datafree");
+    test_metrics_box();
     gradient_check(CROM_DATAFREE_ENERGY);
     gradient_check(CROM_DATAFREE_NEURALMODES);
     gradient_check_field();
