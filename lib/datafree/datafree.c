@@ -13,6 +13,7 @@
 #include "datafree/dffield.h"
 #include "datafree/dfloss.h"
 #include "io/io.h"
+#include "phys/modes.h"
 
 void crom_datafree_defaults(crom_datafree_opts *o, int objective)
 {
@@ -87,7 +88,7 @@ static void modes_box(crom_datafree_ctx *c, const crom_datafree_problem *p, cons
     }
     int scaled = o->box_scaled && isfinite(fmin);
     for (int k = 0; k < r; k++)
-        c->half[k] = scaled && p->freq[k] > 0 ? o->box * fmin / p->freq[k] : o->box;
+        c->half[k] = scaled ? crom_modes_box_half(p->freq, r, o->box, k) : o->box;
     double w = 2 * M_PI * (scaled ? fmin : fmax);
     c->Eref = 0.5 * c->mass * w * w * o->box * o->box;
     if (!(c->Eref > 0) || !isfinite(c->Eref))

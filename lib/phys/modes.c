@@ -1081,3 +1081,12 @@ out:
     free(P.h);
     return rc;
 }
+
+double crom_modes_box_half(const double *freq, int r, double A, int k)
+{
+    double fmin = INFINITY;
+    for (int j = 0; j < r; j++)
+        if (freq[j] > 0 && freq[j] < fmin)
+            fmin = freq[j];
+    return isfinite(fmin) && freq[k] > 0 ? A * fmin / freq[k] : A;
+}

@@ -135,4 +135,11 @@ int crom_modes_pins(const crom_mesh *m, int n, const char *const *refs,
 int crom_modes_lowest(const crom_sym *K, const double *m, int nr, const double *R, int nev, double sigma,
                       const crom_modes_opts *o, double *lam, double *Y, long *solves);
 
+/* The half-width of modal coordinate k in a box scaled by frequency (the
+ * neural modes' training box with --box-scaling frequency, and the samples
+ * crom-metrics and crom-cubature draw from it): A f_1 / f_k, f_1 the lowest
+ * positive of freq[0..r-1], so that every mode's edge has the same linear
+ * energy; A where f_k is not positive, or none is. */
+double crom_modes_box_half(const double *freq, int r, double A, int k);
+
 #endif

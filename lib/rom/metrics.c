@@ -9,6 +9,7 @@
 
 #include "base/err.h"
 #include "base/rng.h"
+#include "phys/modes.h"
 #include "rom/metrics.h"
 
 void crom_metrics_defaults(crom_metrics_opts *o)
@@ -51,14 +52,9 @@ static double quantile(const double *sorted, long n, double p)
 
 void crom_metrics_sample(crom_rng *rng, const crom_metrics_opts *o, int r, double *q)
 {
-    double s = 0, fmin = INFINITY;
-    for (int k = 0; o->box_freq && k < r; k++)
-        if (o->box_freq[k] > 0 && o->box_freq[k] < fmin)
-            fmin = o->box_freq[k];
+    double s = 0;
     for (int k = 0; k < r; k++) {
-        double a = o->radius;
-        if (o->box_freq && isfinite(fmin) && o->box_freq[k] > 0)
-            a *= fmin / o->box_freq[k];
+        double a = o->box_freq ? crom_modes_box_half(o->box_freq, r, o->radius, k) : o->radius;
         q[k] = o->dist == CROM_METRICS_BOX ? a * (2 * crom_rng_uniform(rng) - 1) : crom_rng_normal(rng);
         s += q[k] * q[k];
     }
