@@ -126,7 +126,7 @@ static const crom_schema_attr model_attrs[] = {
     {"isometry_weight", "f64", 0, "weight lambda of the isometry term (energy, energy-field)", NULL},
     {"gravity", "f64[3]", 0, "gravity of the training energy (m/s^2) (energy, energy-field)", NULL},
     {"latent_box", "f64", 0, "half-width a of the training box of modal coordinates (m) (neuralmodes)", NULL},
-    {"latent_box_scaling", "str", 0, "frequency: mode k's half-width is latent_box f_1/f_k; uniform: latent_box for every mode (neuralmodes; absent: uniform)", NULL},
+    {"latent_box_scaling", "str", 0, "frequency: mode k's half-width is latent_box f_1/f_k; uniform: latent_box for every mode; any other value is refused (neuralmodes; absent: uniform)", NULL},
     {"ortho_weight", "f64", 0, "weight w_o of the M-orthogonality penalty (neuralmodes)", NULL},
     {"origin_weight", "f64", 0, "weight w_0 of the penalty on y(0) (neuralmodes written before the maps were anchored; no longer written)", NULL},
     {"modes_id", "str", 0, "model_id of the crom-modes model whose modes are the linear part (neuralmodes)", NULL},

@@ -888,11 +888,14 @@ int crom_model_read(crom_in *in, crom_model *m)
         crom_h5_get_f64(h, ".", "sigma", &m->sigma, 1);
     if (crom_h5_has_attr(h, ".", "latent_box"))
         crom_h5_get_f64(h, ".", "latent_box", &m->latent_box, 1);
-    if (crom_h5_has_attr(h, ".", "latent_box_scaling")) {
+    if (crom_h5_has_attr(h, ".", "latent_box_scaling")) { /* it decides where crom-metrics samples */
         char *s = NULL;
-        if (!crom_h5_get_str(h, ".", "latent_box_scaling", &s))
-            m->latent_box_scaled = !strcmp(s, "frequency");
+        if (!crom_h5_get_str(h, ".", "latent_box_scaling", &s) && strcmp(s, "frequency") && strcmp(s, "uniform"))
+            rc = crom_err(CROM_EDATA, "%s: unknown latent_box_scaling '%s' (frequency or uniform)", in->name, s);
+        m->latent_box_scaled = s && !strcmp(s, "frequency");
         free(s);
+        if (rc)
+            goto out;
     }
     if (crom_h5_has_attr(h, ".", "gravity") && !crom_h5_get_f64(h, ".", "gravity", m->gravity, 3))
         m->has_gravity = 1;

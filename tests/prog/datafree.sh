@@ -121,6 +121,10 @@ crom-metrics --compare modes.h5 --samples 128 nm.h5 >met_nm.txt
 cat met_nm.txt
 grep -q "^samples: 128, q in the box .*A f_1/f_k for mode k (the training box)" met_nm.txt \
   || fail "crom-metrics does not sample neural modes from their training box"; ok
+# a box scaling the readers do not know is refused, not taken for uniform
+cp nm.h5 nm_badbox.h5
+$PY -c "import h5py, sys; h5py.File(sys.argv[1], 'r+').attrs['latent_box_scaling'] = 'log'" nm_badbox.h5
+expect_error 65 "unknown latent_box_scaling 'log' \(frequency or uniform\)" - -- crom-metrics --samples 8 nm_badbox.h5
 low=$(sed -n 's/^collapse: 0 of 3 dimensions below 0.01 (smallest normalized eigenvalue \([0-9.e+-]*\);.*/\1/p' met_nm.txt)
 [ -n "$low" ] || fail "neuralmodes collapsed: $(grep collapse met_nm.txt)"
 $PY -c "import sys; sys.exit(0 if $low > 0.5 else 1)" || fail "smallest normalized Gram eigenvalue $low <= 0.5"; ok
