@@ -27,6 +27,8 @@ void crom_map_free(crom_map *map)
     free(map->z1);
     free(map->t0);
     free(map->t1);
+    free(map->zs);
+    free(map->ts);
     memset(map, 0, sizeof *map);
 }
 
@@ -46,6 +48,7 @@ static int copy_layers(crom_map *map, const crom_nn_mlp *net, int p)
 {
     const crom_nn_spec *sp = &net->spec;
     int L = sp->nlayers, maxw = 1; /* widest input of a layer: the latent and the hidden layers */
+    size_t hsum = 0;               /* the hidden units */
     map->nlayers = L;
     map->act = sp->act;
     map->omega0 = sp->omega0;
@@ -53,6 +56,8 @@ static int copy_layers(crom_map *map, const crom_nn_mlp *net, int p)
         map->width[l] = sp->width[l];
         if (l < L && sp->width[l] > maxw)
             maxw = sp->width[l];
+        if (l > 0 && l < L)
+            hsum += (size_t)sp->width[l];
     }
     map->p = map->p_model = p;
     size_t wr = (size_t)maxw * (size_t)(map->r + 1);
@@ -62,8 +67,10 @@ static int copy_layers(crom_map *map, const crom_nn_mlp *net, int p)
     map->z1 = crom_malloc(sizeof(double) * (size_t)maxw);
     map->t0 = crom_malloc(sizeof(double) * wr);
     map->t1 = crom_malloc(sizeof(double) * wr);
+    map->zs = crom_malloc(sizeof(double) * (hsum ? hsum : 1));
+    map->ts = crom_malloc(sizeof(double) * (hsum ? hsum : 1) * (size_t)map->r);
     map->B = crom_malloc(sizeof(double) * (size_t)map->n * p);
-    if (!map->mem || !map->a0 || !map->a1 || !map->z1 || !map->t0 || !map->t1 || !map->B)
+    if (!map->mem || !map->a0 || !map->a1 || !map->z1 || !map->t0 || !map->t1 || !map->zs || !map->ts || !map->B)
         return CROM_EINTERNAL;
     for (size_t i = 0; i < net->nparams; i++)
         map->mem[i] = net->params[i];
@@ -333,6 +340,94 @@ int crom_map_features(crom_map *map, const double *q, double *a, double *T)
         memcpy(T + (size_t)rl * r, t, sizeof(double) * (size_t)nh * r);
         memset(T + (size_t)(p - 1) * r, 0, sizeof(double) * (size_t)r);
     }
+    return 0;
+}
+
+/* second derivative of the activation at pre-activation v */
+static inline double act_f2(crom_nn_act a, double om, double v)
+{
+    switch (a) {
+    case CROM_NN_ELU:
+        return v > 0 ? 0 : exp(v);
+    case CROM_NN_SINE:
+        return -om * om * sin(om * v);
+    case CROM_NN_GELU: /* d²/dv² vΦ(v) = 2φ(v) + vφ'(v) = φ(v)(2 − v²) */
+        return INV_SQRT2PI * exp(-0.5 * v * v) * (2 - v * v);
+    default:
+        return 0;
+    }
+}
+
+/* With z_l = W_l h_{l−1} + b_l, h_l = σ(z_l), h_0 = q and ψ = gᵀa linear in
+ * the last hidden layer, every operation but the activations is linear, so
+ * ∇²ψ = Σ_l (dz_l/dq)ᵀ diag(σ''(z_l) ⊙ ∂ψ/∂h_l) (dz_l/dq): the forward pass
+ * keeps z_l and dz_l/dq, the adjoint pass ∂ψ/∂h_l, from the last layer down. */
+int crom_map_curvature(crom_map *map, const double *q, const double *g, double *C)
+{
+    int r = map->r, L = map->nlayers;
+    size_t rr = (size_t)r * r;
+    memset(C, 0, sizeof(double) * rr);
+    if (!map->nonlinear)
+        return 0;
+    size_t off[CROM_NN_MAX_LAYERS + 1];
+    off[0] = 0;
+    for (int l = 0; l < L - 1; l++)
+        off[l + 1] = off[l] + (size_t)map->width[l + 1];
+    double *h = map->a0, *hn = map->a1, *t = map->t0, *tn = map->t1;
+    memcpy(h, q, sizeof(double) * (size_t)r);
+    memset(t, 0, sizeof(double) * rr);
+    for (int i = 0; i < r; i++)
+        t[i * r + i] = 1;
+    for (int l = 0; l < L - 1; l++) { /* forward: z_l and dz_l/dq kept */
+        int in = map->width[l], out = map->width[l + 1];
+        double *z = map->zs + off[l], *tz = map->ts + off[l] * r;
+        memcpy(z, map->b[l], sizeof(double) * (size_t)out);
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, out, in, 1.0, map->w[l], in, h, 1, 1.0, z, 1);
+        cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, out, r, in, 1.0, map->w[l], in, t, r, 0.0, tz, r);
+        for (int j = 0; j < out; j++) {
+            double dv;
+            hn[j] = act_f(map->act, map->omega0, z[j], &dv);
+            if (!isfinite(hn[j]))
+                return crom_err(CROM_EDATA, "the map's network is not finite at this latent");
+            for (int k = 0; k < r; k++)
+                tn[j * r + k] = tz[j * r + k] * dv;
+        }
+        double *s = h;
+        h = hn;
+        hn = s;
+        s = t;
+        t = tn;
+        tn = s;
+    }
+    /* u = ∂ψ/∂h of the last hidden layer: W_Lᵀ g through φ's output layer,
+     * else g's entries at the features h */
+    int nh = map->width[L - 1];
+    double *u = map->a0, *un = map->a1, *S = map->t0;
+    if (map->phi)
+        cblas_dgemv(CblasRowMajor, CblasTrans, map->p, nh, 1.0, map->w[L - 1], nh, g, 1, 0.0, u, 1);
+    else
+        memcpy(u, g + map->rl, sizeof(double) * (size_t)nh);
+    for (int l = L - 2; l >= 0; l--) {
+        int in = map->width[l], out = map->width[l + 1];
+        const double *z = map->zs + off[l], *tz = map->ts + off[l] * r;
+        for (int j = 0; j < out; j++) { /* S = diag(u σ''(z)) dz/dq; u ← u σ'(z) */
+            double dv, c = u[j] * act_f2(map->act, map->omega0, z[j]);
+            act_f(map->act, map->omega0, z[j], &dv);
+            for (int k = 0; k < r; k++)
+                S[j * r + k] = c * tz[j * r + k];
+            u[j] *= dv;
+        }
+        cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, r, out, 1.0, tz, r, S, r, 1.0, C, r);
+        if (l > 0) { /* ∂ψ/∂h_{l−1} = W_lᵀ (σ'(z_l) ⊙ ∂ψ/∂h_l) */
+            cblas_dgemv(CblasRowMajor, CblasTrans, out, in, 1.0, map->w[l], in, u, 1, 0.0, un, 1);
+            double *s = u;
+            u = un;
+            un = s;
+        }
+    }
+    for (int a = 0; a < r; a++) /* exactly symmetric */
+        for (int b = 0; b < a; b++)
+            C[a * r + b] = C[b * r + a] = 0.5 * (C[a * r + b] + C[b * r + a]);
     return 0;
 }
 

@@ -67,6 +67,7 @@ typedef struct crom_map_s {
     double *mem;
     /* scratch: activations and tangents of the widest hidden layer */
     double *a0, *a1, *z1, *t0, *t1;
+    double *zs, *ts;     /* crom_map_curvature: every hidden layer's z and dz/dq */
     double *fa, *fT;     /* crom_map_eval's features and their Jacobian */
     double *anchor;      /* [p] a(0), subtracted from the features of a nonlinear map (NULL: linear) */
 } crom_map;
@@ -91,6 +92,12 @@ int crom_map_eval(crom_map *map, const double *q, double *x, double *J);
  * anchored, a(q) − a(0), so a = 0 at q = 0). Returns 0 or CROM_EDATA when
  * a feature is not finite. */
 int crom_map_features(crom_map *map, const double *q, double *a, double *T);
+
+/* The curvature of the features along a covector: C [r][r] = Σ_k g_k
+ * ∂²a_k/∂q∂q at q, for g [p] (the Hessian of gᵀa(q), exact: one forward
+ * pass with tangents and one adjoint pass; zero for a linear map). Returns
+ * 0 or CROM_EDATA when the network is not finite at q. */
+int crom_map_curvature(crom_map *map, const double *q, const double *g, double *C);
 
 /* Positions x [nidx][3] = X_v + B_v a of the vertices idx [nidx] (all
  * vertices when idx is NULL, nidx then ignored) at features a [p], and

@@ -34,7 +34,7 @@ void crom_nlsim_free(crom_nlsim *s)
     crom_fem_free(&s->fem);
     double **bufs[] = {&s->q,  &s->qd, &s->va, &s->Bg, &s->qn, &s->fa, &s->gx, &s->J,  &s->Jt,
                        &s->g,  &s->H,  &s->d,  &s->qt, &s->Gm, &s->lam,  &s->zero, &s->tw, &s->tH,
-                       &s->tg, &s->tE, &s->a,  &s->T,  &s->an, &s->Tp, &s->ga,   &s->A0, &s->Aq, &s->bq,
+                       &s->tg, &s->tE, &s->a,  &s->T,  &s->an, &s->ga,   &s->A0, &s->Aq, &s->bq,
                        &s->AT, &s->xc, &s->Jc, &s->gc, &s->ew, &s->xt, &s->wd, &s->Bc, &s->Xc};
     for (size_t i = 0; i < sizeof bufs / sizeof *bufs; i++)
         free(*bufs[i]);
@@ -254,8 +254,8 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
     double **vr[] = {&s->q, &s->qd, &s->qn, &s->g, &s->d, &s->qt, &s->zero};
     double **vn[] = {&s->xt, &s->wd, &s->gx};
     double **vrr[] = {&s->H, &s->Gm};
-    double **vp[] = {&s->a, &s->an, &s->va, &s->fa, &s->ga, &s->bq, &s->Bg, &s->T, &s->Tp, &s->AT, &s->A0, &s->Aq};
-    size_t np[] = {p, p, p, p, p, p, 3 * (size_t)p, pr, pr, pr, pp, pp};
+    double **vp[] = {&s->a, &s->an, &s->va, &s->fa, &s->ga, &s->bq, &s->Bg, &s->T, &s->AT, &s->A0, &s->Aq};
+    size_t np[] = {p, p, p, p, p, p, 3 * (size_t)p, pr, pr, pp, pp};
     for (size_t i = 0; i < sizeof vp / sizeof *vp; i++)
         *vp[i] = crom_calloc(np[i], sizeof(double));
     for (size_t i = 0; i < sizeof vr / sizeof *vr; i++)
@@ -539,18 +539,17 @@ int crom_nlsim_objective(crom_nlsim *s, const double *q, double *Eout, double *g
 }
 
 /* The map's curvature term of the Hessian of Φ at q, C_ab = Σ_k (∇_aΦ)_k
- * ∂²a_k/∂q_a∂q_b (x is linear in the features a), by central differences
- * of T(q)ᵀ∇_aΦ with ∇_aΦ held fixed (2r evaluations of the network's
- * features; step 1e-5 (1 + |q|_∞), so C is good to about 1e-10 relative).
+ * ∂²a_k/∂q_a∂q_b (x is linear in the features a), exactly, by
+ * crom_map_curvature with ∇_aΦ held fixed.
  * Must follow crom_nlsim_objective at the same q with g or H requested
  * (its ∇_aΦ of the non-elastic terms and the elastic vertices' positions). */
 int crom_nlsim_curvature(crom_nlsim *s, const double *q, double *C)
 {
-    int r = s->r, p = s->p, rc;
+    int p = s->p, rc;
     const crom_fem *f = &s->fem;
     /* ∇_aΦ = ga + Σ_e w_e B_eᵀ ∇_x E_e (the elastic gradient scattered to
      * the elastic vertices first) */
-    double *gt = crom_malloc(sizeof(double) * (size_t)p), *qp = s->qt;
+    double *gt = crom_malloc(sizeof(double) * (size_t)p);
     if (!gt)
         return CROM_EINTERNAL;
     memset(s->gc, 0, sizeof(double) * 3 * (size_t)s->ncv);
@@ -570,29 +569,9 @@ int crom_nlsim_curvature(crom_nlsim *s, const double *q, double *C)
     }
     memcpy(gt, s->ga, sizeof(double) * (size_t)p);
     cblas_dgemv(CblasRowMajor, CblasTrans, 3 * s->ncv, p, 1.0, s->cv ? s->Bc : s->map->B, p, s->gc, 1, 1.0, gt, 1);
-    double qmax = 0;
-    for (int a = 0; a < r; a++)
-        qmax = fmax(qmax, fabs(q[a]));
-    double eps = 1e-5 * (1 + qmax);
-    rc = 0;
-    for (int b = 0; b < r && !rc; b++) {
-        memcpy(qp, q, sizeof(double) * (size_t)r);
-        qp[b] = q[b] + eps;
-        if ((rc = crom_map_features(s->map, qp, NULL, s->Tp)))
-            break;
-        cblas_dgemv(CblasRowMajor, CblasTrans, p, r, 1.0 / (2 * eps), s->Tp, r, gt, 1, 0.0, C + (size_t)b * r, 1);
-        qp[b] = q[b] - eps;
-        if ((rc = crom_map_features(s->map, qp, NULL, s->Tp)))
-            break;
-        cblas_dgemv(CblasRowMajor, CblasTrans, p, r, -1.0 / (2 * eps), s->Tp, r, gt, 1, 1.0, C + (size_t)b * r, 1);
-    }
+    rc = crom_map_curvature(s->map, q, gt, C);
     free(gt);
-    if (rc)
-        return rc;
-    for (int a = 0; a < r; a++) /* symmetric (second derivatives) */
-        for (int b = 0; b < a; b++)
-            C[a * r + b] = C[b * r + a] = 0.5 * (C[a * r + b] + C[b * r + a]);
-    return 0;
+    return rc;
 }
 
 /* RMS displacement ‖J d‖_M / sqrt(m) relative to the size (Gm of the last

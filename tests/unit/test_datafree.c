@@ -421,8 +421,50 @@ static void map_at(const double *q, void *v, double *out)
     crom_map_eval(t->map, q, out, NULL);
 }
 
+/* T(q)ᵀ g, the gradient of gᵀa(q) (for the curvature's FD check) */
+typedef struct {
+    crom_map *map;
+    const double *g;
+} curv_case;
+
+static void curv_grad(const double *q, void *v, double *out)
+{
+    curv_case *c = v;
+    int p = c->map->p, r = c->map->r;
+    double *T = malloc(sizeof(double) * (size_t)p * r);
+    if (T && crom_map_features(c->map, q, NULL, T) == 0)
+        for (int a = 0; a < r; a++) {
+            out[a] = 0;
+            for (int k = 0; k < p; k++)
+                out[a] += T[(size_t)k * r + a] * c->g[k];
+        }
+    free(T);
+}
+
+/* crom_map_curvature (the exact Hessian of gᵀa(q), a random g) against
+ * central differences of T(q)ᵀg; returns the relative error */
+static double check_map_curvature(crom_map *map, double *q, unsigned seed)
+{
+    int p = map->p, r = map->r;
+    crom_rng rng;
+    crom_rng_seed(&rng, seed);
+    double *g = malloc(sizeof(double) * (size_t)p), *C = malloc(sizeof(double) * (size_t)r * r);
+    double *Cfd = malloc(sizeof(double) * (size_t)r * r), e = 1;
+    for (int i = 0; g && i < p; i++)
+        g[i] = crom_rng_normal(&rng);
+    curv_case cc = {map, g};
+    if (g && C && Cfd && crom_map_curvature(map, q, g, C) == 0) {
+        check_fd_jacobian(curv_grad, &cc, q, r, r, 1e-5, Cfd);
+        e = check_relerr(C, Cfd, r * r, 1e-12);
+    }
+    free(g);
+    free(C);
+    free(Cfd);
+    return e;
+}
+
 /* A map model with a random network (and modes for neuralmodes): its
- * double Jacobian against differences, its positions against the float
+ * double Jacobian against differences, the curvature of its features, its positions against the float
  * network, pins exactly at rest after zeroing their rows. */
 static void test_map(void)
 {
@@ -433,6 +475,7 @@ static void test_map(void)
     for (int kind = 0; kind < 2; kind++) {
         crom_nn_spec spec;
         CHECK(crom_nn_spec_set(&spec, 4, widths, kind ? CROM_NN_GELU : CROM_NN_ELU) == 0);
+        spec.omega0 = 1;
         crom_nn_mlp net;
         crom_rng rng;
         crom_rng_seed(&rng, 11 + kind);
@@ -476,9 +519,19 @@ static void test_map(void)
         CHECK(crom_map_eval(&map, q0, x, NULL) == 0);
         for (int i = 0; i < n; i++)
             rest = fmax(rest, fabs(x[i] - m.X[i]));
-        fprintf(stderr, "%s map: Jacobian vs FD %.2e, positions vs float network %.2e, largest |x(0) - X| %.3g m\n",
-                kind ? "neuralmodes" : "energy", ej, sqrt(dn / nn), rest);
+        /* the curvature of the features, and of the sine activation's on
+         * the same network */
+        double ec = check_map_curvature(&map, q, 5), es;
+        crom_nn_act act = map.act;
+        map.act = CROM_NN_SINE;
+        es = check_map_curvature(&map, q, 6);
+        map.act = act;
+        fprintf(stderr, "%s map: Jacobian vs FD %.2e, positions vs float network %.2e, largest |x(0) - X| %.3g m, "
+                "feature curvature vs FD %.2e (sine %.2e)\n", kind ? "neuralmodes" : "energy", ej, sqrt(dn / nn),
+                rest, ec, es);
         CHECK_LT(ej, 1e-7);
+        CHECK_LT(ec, 1e-6);
+        CHECK_LT(es, 1e-6);
         CHECK_LT(sqrt(dn / nn), 1e-5);
         CHECK(rest == 0);
         /* a map decodes only on its own mesh */
@@ -859,6 +912,10 @@ static void test_field_subspace(bar_case *b)
     CHECK(res.iso_median > 0.7 && res.iso_median < 1.3);
     /* pinned vertices of the training mesh exactly at rest for any z */
     double q[2] = {1.7, -2.3}, *x = malloc(sizeof(double) * map.n), dmax = 0;
+    double ecf = check_map_curvature(&map, q, 8); /* φ's outputs as features (not folded: p = 8) */
+    fprintf(stderr, "continuous field: %d features, curvature vs FD %.2e\n", map.p, ecf);
+    CHECK(map.p == 8);
+    CHECK_LT(ecf, 1e-6);
     CHECK(crom_map_eval(&map, q, x, NULL) == 0);
     for (int i = 0; i < map.n; i++)
         if (b->fixed[i])
@@ -967,6 +1024,9 @@ static void test_skin_field(bar_case *b)
     map_case mc = {&map, NULL};
     check_fd_jacobian(map_at, &mc, q, 2, map.n, 1e-6, Jfd);
     double ej = check_relerr(J, Jfd, map.n * 2, 1e-12);
+    double ecs = check_map_curvature(&map, q, 9); /* over φ's last hidden layer */
+    fprintf(stderr, "skin-field: %d features, curvature vs FD %.2e\n", map.p, ecs);
+    CHECK_LT(ecs, 1e-6);
     crom_mesh fine;
     make_bar(&fine, 0.07);
     CHECK(crom_map_init(&fmap, &sm, &fine) == 0);
