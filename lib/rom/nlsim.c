@@ -35,7 +35,7 @@ void crom_nlsim_free(crom_nlsim *s)
     double **bufs[] = {&s->q,  &s->qd, &s->va, &s->Bg, &s->qn, &s->fa, &s->gx, &s->J,  &s->Jt,
                        &s->g,  &s->H,  &s->d,  &s->qt, &s->Gm, &s->lam,  &s->zero, &s->tw, &s->tH,
                        &s->tg, &s->tE, &s->a,  &s->T,  &s->an, &s->ga,   &s->A0, &s->Aq, &s->bq,
-                       &s->AT, &s->xc, &s->Jc, &s->gc, &s->ew, &s->xt, &s->wd, &s->Bc, &s->Xc};
+                       &s->AT, &s->xc, &s->Jc, &s->gc, &s->ge, &s->ew, &s->xt, &s->wd, &s->Bc, &s->Xc};
     for (size_t i = 0; i < sizeof bufs / sizeof *bufs; i++)
         free(*bufs[i]);
     free(s->surf);
@@ -142,7 +142,7 @@ static int set_elastic(crom_nlsim *s, int k, const int *elem, const double *weig
         cv = NULL;
     }
     free(s->eidx), free(s->eloc), free(s->ew), free(s->cv), free(s->xc), free(s->Jc), free(s->gc), free(s->Bc),
-        free(s->Xc);
+        free(s->Xc), free(s->ge);
     s->Bc = s->Xc = NULL;
     s->eidx = eidx;
     s->eloc = eloc;
@@ -153,7 +153,8 @@ static int set_elastic(crom_nlsim *s, int k, const int *elem, const double *weig
     s->xc = crom_malloc(sizeof(double) * 3 * (size_t)(ncv ? ncv : 1));
     s->gc = crom_malloc(sizeof(double) * 3 * (size_t)(ncv ? ncv : 1));
     s->Jc = crom_malloc(sizeof(double) * 3 * (size_t)(ncv ? ncv : 1) * r);
-    if (!s->xc || !s->gc || !s->Jc)
+    s->ge = crom_malloc(sizeof(double) * 12 * (size_t)(k ? k : 1));
+    if (!s->xc || !s->gc || !s->Jc || !s->ge)
         return CROM_EINTERNAL;
     if (cv) { /* the rows of B and X at the elastic vertices, contiguous: two BLAS calls per evaluation */
         int p = s->p;
@@ -404,6 +405,41 @@ void crom_nlsim_begin_step(crom_nlsim *s)
                 sc->contact_stiffness * m[s->surf[k]] * crom_contact_depth(&sc->plane[pl], s->xs + 3 * (size_t)k);
 }
 
+/* The elastic energy at the vertex positions in s->xc and its gradient in
+ * x at the elastic vertices, s->gc = Σ_e w_e ∇_x E_e (per-tet gradients
+ * over the threads, scattered in order). */
+static int elastic_xgrad(crom_nlsim *s, double *E)
+{
+    const crom_fem *f = &s->fem;
+    int ne = s->ne, bad = 0;
+    double Es = 0;
+#pragma omp parallel for num_threads(s->nthreads) schedule(static) reduction(| : bad) reduction(+ : Es)
+    for (int j = 0; j < ne; j++) {
+        int t = s->eidx[j];
+        const int *e = s->eloc + 4 * (size_t)j;
+        double xe[12], Ee, *ge = s->ge + 12 * (size_t)j;
+        for (int a = 0; a < 4; a++)
+            memcpy(xe + 3 * a, s->xc + 3 * (size_t)e[a], 3 * sizeof(double));
+        if (crom_fem_tet_eval(&f->mat, xe, f->Dminv + 9 * (size_t)t, f->vol[t], 0, &Ee, ge, NULL) || !isfinite(Ee))
+            bad = 1;
+        else
+            Es += s->ew[j] * Ee;
+    }
+    if (bad) {
+        crom_err_clear();
+        return crom_err(CROM_EDATA, "non-finite elastic energy");
+    }
+    memset(s->gc, 0, sizeof(double) * 3 * (size_t)s->ncv);
+    for (int j = 0; j < ne; j++) {
+        const int *e = s->eloc + 4 * (size_t)j;
+        for (int a = 0; a < 4; a++)
+            for (int c = 0; c < 3; c++)
+                s->gc[3 * (size_t)e[a] + c] += s->ew[j] * s->ge[12 * (size_t)j + 3 * a + c];
+    }
+    *E = Es;
+    return 0;
+}
+
 /* Elastic energy at the features in s->a, and (g, H non-NULL) its reduced
  * gradient and Hessian Σ_e w_e J_eᵀ H_e J_e, over the elastic tets, split
  * over the threads. The positions (and with g or H the Jacobian rows) of
@@ -413,14 +449,25 @@ static int elastic(crom_nlsim *s, double *E, double *g, double *H, int project)
     int r = s->r, T = s->nthreads, bad = 0, ne = s->ne;
     size_t rr = (size_t)r * r;
     const crom_fem *f = &s->fem;
+    int jac = H != NULL; /* the gradient alone goes through x: g += Tᵀ Bᵀ Σ w_e ∇_x E_e */
     if (s->cv) { /* xc = Xc + Bc a, Jc = Bc T */
         int m3 = 3 * s->ncv, p = s->p;
         memcpy(s->xc, s->Xc, sizeof(double) * (size_t)m3);
         cblas_dgemv(CblasRowMajor, CblasNoTrans, m3, p, 1.0, s->Bc, p, s->a, 1, 1.0, s->xc, 1);
-        if (g || H)
+        if (jac)
             cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, m3, r, p, 1.0, s->Bc, p, s->T, r, 0.0, s->Jc, r);
     } else {
-        crom_map_rows(s->map, NULL, 0, s->a, s->T, s->xc, g || H ? s->Jc : NULL);
+        crom_map_rows(s->map, NULL, 0, s->a, s->T, s->xc, jac ? s->Jc : NULL);
+    }
+    if (g && !jac) {
+        int rc, p = s->p;
+        if ((rc = elastic_xgrad(s, E)))
+            return rc;
+        double *gf = s->AT; /* scratch [p]: Bᵀ gc, then g += Tᵀ gf */
+        cblas_dgemv(CblasRowMajor, CblasTrans, 3 * s->ncv, p, 1.0, s->cv ? s->Bc : s->map->B, p, s->gc, 1, 0.0, gf,
+                    1);
+        cblas_dgemv(CblasRowMajor, CblasTrans, p, r, 1.0, s->T, r, gf, 1, 1.0, g, 1);
+        return 0;
     }
 #pragma omp parallel num_threads(T) reduction(| : bad)
     {
@@ -546,26 +593,14 @@ int crom_nlsim_objective(crom_nlsim *s, const double *q, double *Eout, double *g
 int crom_nlsim_curvature(crom_nlsim *s, const double *q, double *C)
 {
     int p = s->p, rc;
-    const crom_fem *f = &s->fem;
     /* ∇_aΦ = ga + Σ_e w_e B_eᵀ ∇_x E_e (the elastic gradient scattered to
      * the elastic vertices first) */
-    double *gt = crom_malloc(sizeof(double) * (size_t)p);
+    double *gt = crom_malloc(sizeof(double) * (size_t)p), Ee;
     if (!gt)
         return CROM_EINTERNAL;
-    memset(s->gc, 0, sizeof(double) * 3 * (size_t)s->ncv);
-    for (int j = 0; j < s->ne; j++) {
-        int t = s->eidx[j];
-        const int *e = s->eloc + 4 * (size_t)j;
-        double xe[12], ge[12], Ee;
-        for (int a = 0; a < 4; a++)
-            memcpy(xe + 3 * a, s->xc + 3 * (size_t)e[a], 3 * sizeof(double));
-        if (crom_fem_tet_eval(&f->mat, xe, f->Dminv + 9 * (size_t)t, f->vol[t], 0, &Ee, ge, NULL)) {
-            free(gt);
-            return crom_err(CROM_EDATA, "non-finite elastic energy");
-        }
-        for (int a = 0; a < 4; a++)
-            for (int c = 0; c < 3; c++)
-                s->gc[3 * (size_t)e[a] + c] += s->ew[j] * ge[3 * a + c];
+    if ((rc = elastic_xgrad(s, &Ee))) {
+        free(gt);
+        return rc;
     }
     memcpy(gt, s->ga, sizeof(double) * (size_t)p);
     cblas_dgemv(CblasRowMajor, CblasTrans, 3 * s->ncv, p, 1.0, s->cv ? s->Bc : s->map->B, p, s->gc, 1, 1.0, gt, 1);

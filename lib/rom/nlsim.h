@@ -89,7 +89,7 @@ typedef struct {
     double *ew;
     /* private */
     double *qn, *xt, *wd, *gx, *J, *Jt, *g, *H, *d, *qt, *Gm, *lam, *zero, *tw, *tH, *tg, *tE;
-    double *a, *T, *ga, *A0, *Aq, *bq, *AT, *xc, *Jc, *gc, *Bc, *Xc, *Bg, *fa, c0;
+    double *a, *T, *ga, *A0, *Aq, *bq, *AT, *xc, *Jc, *gc, *ge, *Bc, *Xc, *Bg, *fa, c0;
     int nbc, nforce, nsurf, *surf;
     double *xs;         /* [nsurf][3] the surface vertices at the step's start */
     crom_nlsim_bc *bc, *force;
