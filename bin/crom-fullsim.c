@@ -94,7 +94,7 @@ static int run(crom_cli *cli, args *a)
 {
     crom_mesh m;
     char *hist = NULL;
-    int rc = crom_mesh_load(a->input, 0, &m, &hist);
+    int rc = crom_mesh_load(a->input, CROM_MESH_SURFACES, &m, &hist);
     if (rc)
         return rc;
     crom_sim s;
@@ -166,10 +166,10 @@ static int run(crom_cli *cli, args *a)
         goto out_sim;
     if (cli->verbose && a->sc.steps > 0) {
         int ns = a->sc.steps;
-        crom_cli_info(cli, "%d vertices, %d tets: %d steps, %.3f s/step (assembly %.3f, factorization %.3f, "
+        crom_cli_info(cli, "%d vertices, %d %s: %d steps, %.3f s/step (assembly %.3f, factorization %.3f, "
                            "solves %.3f, line search %.3f), %.2f Newton and %.1f CG iterations and %.2f "
                            "factorizations per step",
-                      m.nv, m.nt, ns, sum.t_total / ns, sum.t_assemble / ns, sum.t_factor / ns,
+                      m.nv, m.ntri ? m.ntri : m.nt, m.ntri ? "triangles" : "tets", ns, sum.t_total / ns, sum.t_assemble / ns, sum.t_factor / ns,
                       sum.t_solve / ns, sum.t_linesearch / ns, (double)sum.newton / ns,
                       (double)sum.cg / ns, (double)sum.factorizations / ns);
     }

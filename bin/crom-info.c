@@ -69,18 +69,34 @@ static int on_opt(void *ctx, int key, const char *v)
 static void print_mesh(hid_t loc, const char *indent)
 {
     crom_mesh m;
-    if (crom_mesh_read(loc, &m)) {
+    if (crom_mesh_read_any(loc, &m)) {
         printf("%smesh: INVALID: %s\n", indent, crom_errmsg());
         return;
     }
     double lo[3], hi[3], worst, mean;
     int wt;
     crom_mesh_bbox(&m, lo, hi);
-    crom_mesh_quality(&m, &worst, &mean, &wt);
-    printf("%s%d vertices, %d tets, volume %.6g m^3\n", indent, m.nv, m.nt, crom_mesh_volume(&m));
+    if (crom_mesh_is_surface(&m)) {
+        double area = 0;
+        for (int t = 0; t < m.ntri; t++) {
+            const double *p0 = m.X + 3 * (size_t)m.tris[3 * t], *p1 = m.X + 3 * (size_t)m.tris[3 * t + 1],
+                         *p2 = m.X + 3 * (size_t)m.tris[3 * t + 2];
+            double u[3], v[3];
+            for (int k = 0; k < 3; k++)
+                u[k] = p1[k] - p0[k], v[k] = p2[k] - p0[k];
+            area += 0.5 * sqrt(pow(u[1] * v[2] - u[2] * v[1], 2) + pow(u[2] * v[0] - u[0] * v[2], 2) +
+                               pow(u[0] * v[1] - u[1] * v[0], 2));
+        }
+        printf("%s%d vertices, %d triangles (a shell), thickness %.6g m, area %.6g m^2\n", indent, m.nv, m.ntri,
+               m.thickness, area);
+    } else {
+        crom_mesh_quality(&m, &worst, &mean, &wt);
+        printf("%s%d vertices, %d tets, volume %.6g m^3\n", indent, m.nv, m.nt, crom_mesh_volume(&m));
+    }
     printf("%sbounding box [%.4g, %.4g] x [%.4g, %.4g] x [%.4g, %.4g] m\n", indent, lo[0], hi[0],
            lo[1], hi[1], lo[2], hi[2]);
-    printf("%squality (mean ratio) worst %.3f, mean %.3f\n", indent, worst, mean);
+    if (!crom_mesh_is_surface(&m))
+        printf("%squality (mean ratio) worst %.3f, mean %.3f\n", indent, worst, mean);
     for (int r = 0; r < m.nregions; r++)
         printf("%sregion %-12s %6d vertices  (%s)\n", indent, m.regions[r].name, m.regions[r].n,
                m.regions[r].source);

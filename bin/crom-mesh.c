@@ -1,4 +1,5 @@
-/* crom-mesh — make a tetrahedral mesh (crom/mesh) of a shape or a file. */
+/* crom-mesh — make a tetrahedral mesh (crom/mesh) of a shape or a file, or a
+ * shell surface (a sheet). */
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -11,12 +12,13 @@
 #include "mesh/meshgen.h"
 
 enum { O_SIZE = 'S' + 256, O_DIMS, O_RADIUS, O_HEIGHT, O_EXP, O_REGION, O_ALGO, O_NOOPT,
-       O_REMESH, O_KEEP, O_TIMEOUT };
+       O_REMESH, O_KEEP, O_TIMEOUT, O_THICK };
 
 static const crom_opt mesh_opts[] = {
     {"output", 'o', "OUT", "Write the mesh to OUT (default: stdout, which must not be a terminal)."},
     {"size", O_SIZE, "H", "Target edge length in metres (default 0.1)."},
-    {"dims", O_DIMS, "X,Y,Z", "Extents of box, plate and superquadric, centred at the origin (default 1,1,1; plate 1,0.05,1)."},
+    {"dims", O_DIMS, "X,Y,Z", "Extents of box, plate and superquadric, centred at the origin (default 1,1,1; plate 1,0.05,1). sheet: X by Y in the xy-plane (Z is not used)."},
+    {"thickness", O_THICK, "T", "sheet: the shell's thickness in metres (default 0.001)."},
     {"radius", O_RADIUS, "R", "Radius of sphere and cylinder (default 0.5)."},
     {"height", O_HEIGHT, "H", "Height of the cylinder along y (default 1)."},
     {"exponent", O_EXP, "P", "Superquadric exponent: |x/a|^P+|y/b|^P+|z/c|^P <= 1; 2 is an ellipsoid, large P approaches the box (default 4)."},
@@ -32,20 +34,26 @@ static const crom_cli_optgroup groups[] = {{"Options", mesh_opts}, {NULL, NULL}}
 
 static const crom_cli_doc doc = {
     "crom-mesh",
-    "make a tetrahedral mesh of a shape or a surface/volume file",
+    "make a tetrahedral mesh of a shape or a surface/volume file, or a shell sheet",
     "crom-mesh box|plate|sphere|cylinder|superquadric [options] [-o OUT]\n"
-    "crom-mesh import FILE [options] [-o OUT]",
+    "crom-mesh import FILE [options] [-o OUT]\n"
+    "crom-mesh sheet [--dims X,Y,Z] [--size H] [--thickness T] [options] [-o OUT]",
     "Meshes a shape centred at the origin, or the inside of a closed .stl/.obj surface, or "
     "a .msh/.geo volume, with gmsh, and writes a crom/mesh file: rest positions, positively "
     "oriented tetrahedra and named vertex regions.\n\n"
     "The superquadric family |x/a|^p+|y/b|^p+|z/c|^p <= 1 spans sphere (p = 2) to cube (large "
     "p); LiCROM's five training shapes are superquadrics in the bounding cube [-0.5,0.5]^3.\n\n"
+    "sheet makes a thin shell instead (crom-fullsim simulates it with a StVK membrane and "
+    "discrete-shell bending): the rectangle X by Y in the xy-plane, in rows of near-equilateral "
+    "triangles of edge about --size (straight sides: each row ends in half-triangles), with "
+    "--thickness stored in the mesh.\n\n"
     "Nothing but the mesh goes to stdout. With --verbose the vertex and tet counts, the volume "
     "and the worst element quality (mean ratio, 1 = regular) are printed on stderr.",
     groups,
     "crom-mesh box --size 0.05 --region top='y>0.45' --region bottom='y<-0.45' -o box.h5\n"
     "crom-mesh superquadric --exponent 3 --size 0.05 | crom-info -\n"
-    "crom-mesh import bunny.stl --size 0.02 -o bunny.h5",
+    "crom-mesh import bunny.stl --size 0.02 -o bunny.h5\n"
+    "crom-mesh sheet --dims 1,1,1 --size 0.02 --thickness 0.002 --region top='y>0.49' -o sheet.h5",
     "crom-info(1), crom-export(1), crom-fullsim(1), crom-remesh(1)"};
 
 typedef struct {
@@ -53,7 +61,7 @@ typedef struct {
     const char *shape, *file, *out;
     char **regions;
     int nregions;
-    double size, dims[3], radius, height, exponent, timeout;
+    double size, dims[3], radius, height, exponent, timeout, thickness;
     int exponent_given;
     int algorithm, no_optimize, remesh;
 } args;
@@ -107,6 +115,7 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_REMESH: a->remesh = 1; return 0;
     case O_KEEP: a->remesh = 0; return 0;
     case O_TIMEOUT: return crom_parse_positive(v, "--timeout", &a->timeout);
+    case O_THICK: return crom_parse_positive(v, "--thickness", &a->thickness);
     }
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
@@ -119,9 +128,12 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     crom_cli_parse(cli, &doc, argc, argv, on_opt, a);
     int shape = a->shape ? crom_meshgen_shape(a->shape) : -1;
     if (!a->shape)
-        crom_err(CROM_EUSAGE, "no shape given (box, plate, sphere, cylinder, superquadric, import FILE)");
+        crom_err(CROM_EUSAGE, "no shape given (box, plate, sphere, cylinder, superquadric, import FILE, sheet)");
     else if (shape < 0)
-        crom_err(CROM_EUSAGE, "unknown shape '%s' (box, plate, sphere, cylinder, superquadric, import)", a->shape);
+        crom_err(CROM_EUSAGE, "unknown shape '%s' (box, plate, sphere, cylinder, superquadric, import, sheet)",
+                 a->shape);
+    else if (a->thickness > 0 && shape != CROM_MESHGEN_SHEET)
+        crom_err(CROM_EUSAGE, "--thickness is for a sheet (a shell); %s makes a solid", a->shape);
     else if (shape == CROM_MESHGEN_IMPORT && !a->file)
         crom_err(CROM_EUSAGE, "import needs a FILE operand");
     else
@@ -141,6 +153,8 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
         a->gen.height = a->height;
     if (a->exponent_given)
         a->gen.exponent = a->exponent;
+    if (a->thickness > 0)
+        a->gen.thickness = a->thickness;
     if (a->algorithm)
         a->gen.algorithm = a->algorithm;
     a->gen.optimize = !a->no_optimize;
@@ -189,7 +203,13 @@ static int run(crom_cli *cli, args *a)
         crom_mesh_free(&m);
         return rc;
     }
-    if (cli->verbose) {
+    if (cli->verbose && crom_mesh_is_surface(&m)) {
+        crom_cli_info(cli, "%d vertices, %d triangles, thickness %g m, %.2f s", m.nv, m.ntri, m.thickness,
+                      crom_clock_now() - t0);
+        for (int r = 0; r < m.nregions; r++)
+            crom_cli_info(cli, "region %s: %d vertices (%s)", m.regions[r].name, m.regions[r].n,
+                          m.regions[r].source);
+    } else if (cli->verbose) {
         double worst, mean;
         int wt;
         crom_mesh_quality(&m, &worst, &mean, &wt);
@@ -202,7 +222,7 @@ static int run(crom_cli *cli, args *a)
     crom_out o;
     if (!(rc = crom_out_create(&o, a->out, CROM_MESH_SCHEMA, CROM_MESH_VERSION, cli->cmdline, NULL,
                                CROM_OUT_PLAIN))) {
-        static const char *shape_names[] = {"box", "plate", "sphere", "cylinder", "superquadric", "import"};
+        static const char *shape_names[] = {"box", "plate", "sphere", "cylinder", "superquadric", "import", "sheet"};
         rc = crom_mesh_write(o.h5, &m);
         if (!rc)
             rc = crom_h5_set_str(o.h5, ".", "generator", shape_names[a->gen.shape]);

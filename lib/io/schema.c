@@ -20,6 +20,8 @@ static const crom_schema_attr common_attrs[] = {
 #define REGION_SOURCE "how the region was made: the predicate text (y<-0.45), or gmsh:GROUP for a gmsh physical group"
 #define VERTICES_DESC "rest positions X of the vertices"
 #define TETS_DESC "0-based vertex indices of each tetrahedron, positively oriented"
+#define TRIS_DESC "0-based vertex indices of each triangle of a shell surface (no tets then), consistently oriented"
+#define THICKNESS_DESC "the shell's thickness (m)"
 #define FIELDS_DESC "the frame field names, comma-separated, in the order a frame stream packs them"
 
 static const crom_schema_attr mesh_attrs[] = {
@@ -30,11 +32,13 @@ static const crom_schema_attr mesh_attrs[] = {
 
 static const crom_schema_attr mesh_objattrs[] = {
     {"source", "str", 1, REGION_SOURCE, "regions/*"},
+    {"thickness", "f64", 1, THICKNESS_DESC, "triangles"},
     {NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_dset mesh_dsets[] = {
     {"vertices", "f64", "nv,3", 1, "m", VERTICES_DESC, NULL},
-    {"tets", "i32", "nt,4", 1, "1", TETS_DESC, NULL},
+    {"tets", "i32", "nt,4", 0, "1", TETS_DESC, NULL},
+    {"triangles", "i32", "ntri,3", 0, "1", TRIS_DESC, NULL},
     {"regions/*", "i32", "?", 0, "1", REGION_DESC, NULL},
     {NULL, NULL, NULL, 0, NULL, NULL, NULL}};
 
@@ -62,11 +66,13 @@ static const crom_schema_attr traj_attrs[] = {
 static const crom_schema_attr traj_objattrs[] = {
     {"fields", "str", 1, FIELDS_DESC, "frames"},
     {"source", "str", 1, REGION_SOURCE, "mesh/regions/*"},
+    {"thickness", "f64", 1, THICKNESS_DESC, "mesh/triangles"},
     {NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_dset traj_dsets[] = {
     {"mesh/vertices", "f64", "nv,3", 1, "m", VERTICES_DESC, NULL},
-    {"mesh/tets", "i32", "nt,4", 1, "1", TETS_DESC, NULL},
+    {"mesh/tets", "i32", "nt,4", 0, "1", TETS_DESC, NULL},
+    {"mesh/triangles", "i32", "ntri,3", 0, "1", TRIS_DESC, NULL},
     {"mesh/regions/*", "i32", "?", 0, "1", REGION_DESC, NULL},
     {"frames/time", "f64", "F", 1, "s", "simulated time of each frame", NULL},
     {"frames/step", "f64", "F", 1, "1", "time-step index of each frame (0 = initial state)", NULL},
@@ -266,7 +272,7 @@ static const crom_schema_dset cub_dsets[] = {
     {NULL, NULL, NULL, 0, NULL, NULL, NULL}};
 
 static const crom_schema specs[] = {
-    {"crom/mesh", 1, "tetrahedral mesh with named vertex regions", mesh_attrs, mesh_objattrs, mesh_dsets, 0},
+    {"crom/mesh", 1, "tetrahedral mesh or shell surface with named vertex regions", mesh_attrs, mesh_objattrs, mesh_dsets, 0},
     {"crom/trajectory", 1, "full-space simulation: mesh, scenario and frames", traj_attrs, traj_objattrs, traj_dsets, 1},
     {"crom/samples", 1, "point samples (X, u) of trajectories, for training", samples_attrs, samples_objattrs,
      samples_dsets, 0},

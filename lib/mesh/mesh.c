@@ -142,6 +142,8 @@ int crom_mesh_compact(crom_mesh *m)
         map[i] = -1;
     for (size_t k = 0; k < 4 * (size_t)m->nt; k++)
         map[m->tets[k]] = 0;
+    for (size_t k = 0; k < 3 * (size_t)m->ntri; k++)
+        map[m->tris[k]] = 0;
     int n = 0;
     for (int i = 0; i < m->nv; i++)
         if (map[i] == 0) {
@@ -151,6 +153,8 @@ int crom_mesh_compact(crom_mesh *m)
         }
     for (size_t k = 0; k < 4 * (size_t)m->nt; k++)
         m->tets[k] = map[m->tets[k]];
+    for (size_t k = 0; k < 3 * (size_t)m->ntri; k++)
+        m->tris[k] = map[m->tris[k]];
     for (int r = 0; r < m->nregions; r++) {
         crom_mesh_region *g = &m->regions[r];
         int k = 0;
@@ -164,8 +168,41 @@ int crom_mesh_compact(crom_mesh *m)
     return 0;
 }
 
+static int validate_surface(const crom_mesh *m)
+{
+    if (m->nt)
+        return crom_err(CROM_EDATA, "mesh has both tets (%d) and triangles (%d)", m->nt, m->ntri);
+    if (m->nv < 3)
+        return crom_err(CROM_EDATA, "surface mesh has %d vertices; a shell needs at least 3", m->nv);
+    if (!isfinite(m->thickness) || !(m->thickness > 0))
+        return crom_err(CROM_EDATA, "shell thickness %g m: it must be positive and finite", m->thickness);
+    for (int t = 0; t < m->ntri; t++) {
+        const int *e = m->tris + 3 * (size_t)t;
+        for (int k = 0; k < 3; k++) {
+            if (e[k] < 0 || e[k] >= m->nv)
+                return crom_err(CROM_EDATA, "triangle %d refers to vertex %d, but there are %d vertices", t, e[k],
+                                m->nv);
+            if (e[k] == e[(k + 1) % 3])
+                return crom_err(CROM_EDATA, "triangle %d repeats vertex %d", t, e[k]);
+        }
+    }
+    return 0;
+}
+
 int crom_mesh_validate(const crom_mesh *m)
 {
+    if (m->ntri > 0 || m->tris) {
+        for (size_t i = 0; i < 3 * (size_t)m->nv; i++)
+            if (!isfinite(m->X[i]))
+                return crom_err(CROM_EDATA, "vertex %zu has a non-finite coordinate", i / 3);
+        int rc = validate_surface(m);
+        for (int r = 0; !rc && r < m->nregions; r++)
+            for (int j = 0; j < m->regions[r].n; j++)
+                if (m->regions[r].idx[j] < 0 || m->regions[r].idx[j] >= m->nv)
+                    return crom_err(CROM_EDATA, "region '%s' refers to vertex %d, but there are %d vertices",
+                                    m->regions[r].name, m->regions[r].idx[j], m->nv);
+        return rc;
+    }
     if (m->nv < 4 || m->nt < 1)
         return crom_err(CROM_EDATA, "mesh has %d vertices and %d tets; a solid needs at least 4 and 1",
                         m->nv, m->nt);
@@ -348,6 +385,7 @@ void crom_mesh_free(crom_mesh *m)
 {
     free(m->X);
     free(m->tets);
+    free(m->tris);
     free_regions(m->regions, m->nregions);
     memset(m, 0, sizeof *m);
 }
@@ -357,14 +395,20 @@ int crom_mesh_copy(const crom_mesh *s, crom_mesh *d)
     memset(d, 0, sizeof *d);
     d->nv = s->nv;
     d->nt = s->nt;
+    d->ntri = s->ntri;
+    d->thickness = s->thickness;
     d->X = crom_malloc(sizeof(double) * 3 * (size_t)s->nv);
-    d->tets = crom_malloc(sizeof(int) * 4 * (size_t)s->nt);
-    if (!d->X || !d->tets) {
+    d->tets = crom_malloc(sizeof(int) * 4 * (size_t)(s->nt ? s->nt : 1));
+    d->tris = s->ntri ? crom_malloc(sizeof(int) * 3 * (size_t)s->ntri) : NULL;
+    if (!d->X || !d->tets || (s->ntri && !d->tris)) {
         crom_mesh_free(d);
         return CROM_EINTERNAL;
     }
     memcpy(d->X, s->X, sizeof(double) * 3 * (size_t)s->nv);
-    memcpy(d->tets, s->tets, sizeof(int) * 4 * (size_t)s->nt);
+    if (s->nt)
+        memcpy(d->tets, s->tets, sizeof(int) * 4 * (size_t)s->nt);
+    if (s->ntri)
+        memcpy(d->tris, s->tris, sizeof(int) * 3 * (size_t)s->ntri);
     for (int r = 0; r < s->nregions; r++) {
         int rc = crom_mesh_add_region(d, s->regions[r].name, s->regions[r].source,
                                       s->regions[r].idx, s->regions[r].n);
@@ -513,10 +557,15 @@ int crom_mesh_select(const crom_mesh *m, const char *ref, int **idx, int *n)
 
 int crom_mesh_write(hid_t loc, const crom_mesh *m)
 {
-    hsize_t dv[2] = {(hsize_t)m->nv, 3}, dt[2] = {(hsize_t)m->nt, 4};
+    hsize_t dv[2] = {(hsize_t)m->nv, 3}, dt[2] = {(hsize_t)m->nt, 4}, dtri[2] = {(hsize_t)m->ntri, 3};
     int rc = crom_h5_put_f64(loc, "vertices", 2, dv, m->X);
-    if (!rc)
+    if (!rc && crom_mesh_is_surface(m)) {
+        rc = crom_h5_put_i32(loc, "triangles", 2, dtri, m->tris);
+        if (!rc)
+            rc = crom_h5_set_f64(loc, "triangles", "thickness", &m->thickness, 1);
+    } else if (!rc) {
         rc = crom_h5_put_i32(loc, "tets", 2, dt, m->tets);
+    }
     if (rc)
         return rc;
     hid_t g = crom_h5_group(loc, "regions");
@@ -534,23 +583,53 @@ int crom_mesh_write(hid_t loc, const crom_mesh *m)
 
 int crom_mesh_read(hid_t loc, crom_mesh *m)
 {
+    int rc = crom_mesh_read_any(loc, m);
+    if (!rc && crom_mesh_is_surface(m)) {
+        rc = crom_err(CROM_EUSAGE, "the mesh is a shell surface (%d triangles); this program takes tet meshes "
+                      "(shells: crom-fullsim, crom-info, crom-export)", m->ntri);
+        crom_mesh_free(m);
+    }
+    return rc;
+}
+
+int crom_mesh_read_any(hid_t loc, crom_mesh *m)
+{
     memset(m, 0, sizeof *m);
     hsize_t dv[2], dt[2];
     int rc = crom_h5_read_f64(loc, "vertices", 2, dv, &m->X);
     if (!rc && dv[1] != 3)
         rc = crom_err(CROM_EDATA, "'vertices' has %llu columns, expected 3", (unsigned long long)dv[1]);
-    if (!rc)
+    int surface = !rc && !crom_h5_has(loc, "tets") && crom_h5_has(loc, "triangles");
+    if (!rc && surface) { /* a shell: triangles and their thickness */
+        rc = crom_h5_read_i32(loc, "triangles", 2, dt, &m->tris);
+        if (!rc && dt[1] != 3)
+            rc = crom_err(CROM_EDATA, "'triangles' has %llu columns, expected 3", (unsigned long long)dt[1]);
+        if (!rc && dt[0] == 0)
+            rc = crom_err(CROM_EDATA, "'triangles' is empty");
+        if (!rc && !crom_h5_has_attr(loc, "triangles", "thickness"))
+            rc = crom_err(CROM_EDATA, "'triangles' has no thickness attribute (a shell's thickness, m)");
+        if (!rc)
+            rc = crom_h5_get_f64(loc, "triangles", "thickness", &m->thickness, 1);
+        if (!rc && (dv[0] > INT32_MAX / 3 || dt[0] > INT32_MAX / 3))
+            rc = crom_err(CROM_EDATA, "mesh too large");
+        if (!rc)
+            m->tets = crom_malloc(sizeof(int) * 4);
+    } else if (!rc) {
         rc = crom_h5_read_i32(loc, "tets", 2, dt, &m->tets);
-    if (!rc && dt[1] != 4)
-        rc = crom_err(CROM_EDATA, "'tets' has %llu columns, expected 4", (unsigned long long)dt[1]);
-    if (!rc && (dv[0] > INT32_MAX / 3 || dt[0] > INT32_MAX / 4))
-        rc = crom_err(CROM_EDATA, "mesh too large");
+        if (!rc && dt[1] != 4)
+            rc = crom_err(CROM_EDATA, "'tets' has %llu columns, expected 4", (unsigned long long)dt[1]);
+        if (!rc && (dv[0] > INT32_MAX / 3 || dt[0] > INT32_MAX / 4))
+            rc = crom_err(CROM_EDATA, "mesh too large");
+    }
     if (rc) {
         crom_mesh_free(m);
         return rc;
     }
     m->nv = (int)dv[0];
-    m->nt = (int)dt[0];
+    if (surface)
+        m->ntri = (int)dt[0];
+    else
+        m->nt = (int)dt[0];
     if (crom_h5_has(loc, "regions")) {
         char **names = crom_h5_list(loc, "regions");
         if (!names)
@@ -579,8 +658,9 @@ int crom_mesh_read(hid_t loc, crom_mesh *m)
     return rc;
 }
 
-int crom_mesh_load(const char *path, int carriers, crom_mesh *m, char **history)
+int crom_mesh_load(const char *path, int flags, crom_mesh *m, char **history)
 {
+    int carriers = flags & CROM_MESH_CARRIERS;
     crom_in in;
     int rc = crom_in_open(&in, path);
     if (rc)
@@ -595,13 +675,18 @@ int crom_mesh_load(const char *path, int carriers, crom_mesh *m, char **history)
                       in.schema, in.version);
     if (!rc) {
         hid_t g = H5Gopen2(in.h5, group, H5P_DEFAULT);
-        rc = g < 0 ? crom_err(CROM_EDATA, "%s has no mesh", in.name) : crom_mesh_read(g, m);
+        rc = g < 0 ? crom_err(CROM_EDATA, "%s has no mesh", in.name) : crom_mesh_read_any(g, m);
         if (g >= 0)
             H5Gclose(g);
         if (rc && g >= 0 && strcmp(group, "/"))
             crom_err_ctx("/%s", group);
         if (rc && g >= 0)
             crom_err_ctx("%s", in.name);
+    }
+    if (!rc && crom_mesh_is_surface(m) && !(flags & CROM_MESH_SURFACES)) {
+        rc = crom_err(CROM_EUSAGE, "%s is a shell surface (%d triangles); this program takes tet meshes (shells: "
+                      "crom-fullsim, crom-info, crom-export)", in.name, m->ntri);
+        crom_mesh_free(m);
     }
     if (!rc && history) {
         *history = in.history;

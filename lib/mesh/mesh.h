@@ -1,7 +1,10 @@
-/* mesh.h — tetrahedral meshes with named vertex regions (crom/mesh).
+/* mesh.h — tetrahedral meshes and triangle surfaces (thin shells) with named
+ * vertex regions (crom/mesh).
  *
  * Positions are rest positions X in metres, row-major [nv][3]; tets are 0-based
  * vertex indices [nt][4], positively oriented: det[x1-x0, x2-x0, x3-x0] > 0.
+ * A surface mesh (a shell or cloth, lib/phys/shell.h) has no tets (nt = 0)
+ * but triangles [ntri][3], consistently oriented, and a thickness (m).
  * Regions are named, sorted vertex-index sets (from predicates or gmsh physical
  * groups).
  */
@@ -25,7 +28,13 @@ typedef struct {
     int *tets;    /* [nt][4] vertex indices, positively oriented */
     int nregions;
     crom_mesh_region *regions;
+    int ntri;         /* a surface mesh: triangles instead of tets (nt = 0) */
+    int *tris;        /* [ntri][3] vertex indices, consistently oriented */
+    double thickness; /* of the shell (m); 0 for a solid */
 } crom_mesh;
+
+/* 1 for a surface (shell) mesh: triangles, no tets */
+static inline int crom_mesh_is_surface(const crom_mesh *m) { return m->ntri > 0; }
 
 
 #include <hdf5.h>
@@ -60,7 +69,8 @@ int crom_mesh_orient(crom_mesh *m, int *nflipped);
 int crom_mesh_compact(crom_mesh *m);
 
 /* Check a mesh read from anywhere: finite coordinates, indices in range,
- * positive volumes, region indices in range. Returns 0 or CROM_EDATA with
+ * positive volumes (a surface: no repeated vertex in a triangle, a positive
+ * finite thickness), region indices in range. Returns 0 or CROM_EDATA with
  * the first problem named. */
 int crom_mesh_validate(const crom_mesh *m);
 
@@ -108,18 +118,27 @@ int crom_mesh_select(const crom_mesh *m, const char *ref, int **idx, int *n);
 
 /* ------------------------------------------------------------ files */
 
-/* Write vertices, tets and regions under loc (the root of a crom/mesh file,
- * or the /mesh group of a trajectory). */
+/* Write vertices, tets (a surface: triangles with their thickness) and
+ * regions under loc (the root of a crom/mesh file, or the /mesh group of a
+ * trajectory). */
 int crom_mesh_write(hid_t loc, const crom_mesh *m);
 
-/* Read and validate a mesh stored under loc. */
+/* Read and validate a tet mesh stored under loc; a surface mesh is refused
+ * (CROM_EUSAGE, "the mesh is a shell surface ..."). crom_mesh_read_any
+ * takes both. */
 int crom_mesh_read(hid_t loc, crom_mesh *m);
+int crom_mesh_read_any(hid_t loc, crom_mesh *m);
 
-/* Read the crom/mesh at path (NULL or "-": stdin) or, when carriers is set,
- * also the /mesh of a crom/trajectory or crom/cubature. When history is not
- * NULL it takes over the input's history attribute (malloc'ed; NULL if it
- * had none), for the output's provenance. */
-int crom_mesh_load(const char *path, int carriers, crom_mesh *m, char **history);
+/* Read the crom/mesh at path (NULL or "-": stdin) or, when flags has
+ * CROM_MESH_CARRIERS (1), also the /mesh of a crom/trajectory or
+ * crom/cubature. A surface mesh is refused (CROM_EUSAGE, "... is a shell
+ * surface; this program takes tet meshes") unless flags has
+ * CROM_MESH_SURFACES. When history is not NULL it takes over the input's
+ * history attribute (malloc'ed; NULL if it had none), for the output's
+ * provenance. */
+#define CROM_MESH_CARRIERS 1
+#define CROM_MESH_SURFACES 2
+int crom_mesh_load(const char *path, int flags, crom_mesh *m, char **history);
 
 #define CROM_MESH_SCHEMA "crom/mesh"
 #define CROM_MESH_VERSION 1

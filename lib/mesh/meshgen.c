@@ -26,6 +26,7 @@ void crom_meshgen_defaults(crom_meshgen_opts *o, int shape)
     o->height = 1.0;
     o->exponent = 4.0;
     o->size = 0.1;
+    o->thickness = shape == CROM_MESHGEN_SHEET ? 0.001 : 0;
     o->algorithm = 1;
     o->optimize = 1;
     o->remesh = CROM_MESHGEN_REMESH_AUTO;
@@ -33,8 +34,8 @@ void crom_meshgen_defaults(crom_meshgen_opts *o, int shape)
 
 int crom_meshgen_shape(const char *s)
 {
-    static const char *names[] = {"box", "plate", "sphere", "cylinder", "superquadric", "import"};
-    for (int i = 0; i < 6; i++)
+    static const char *names[] = {"box", "plate", "sphere", "cylinder", "superquadric", "import", "sheet"};
+    for (int i = 0; i < 7; i++)
         if (!strcmp(s, names[i]))
             return i;
     return -1;
@@ -468,8 +469,71 @@ static int have_tets(void)
     return found;
 }
 
+int crom_meshgen_sheet(const crom_meshgen_opts *o, crom_mesh *m)
+{
+    memset(m, 0, sizeof *m);
+    double W = o->dims[0], Hh = o->dims[1], h = o->size;
+    if (!(W > 0 && Hh > 0 && h > 0 && isfinite(W) && isfinite(Hh)))
+        return crom_err(CROM_EUSAGE, "sheet: the extents and --size must be positive");
+    if (!(o->thickness > 0) || !isfinite(o->thickness))
+        return crom_err(CROM_EUSAGE, "sheet: --thickness must be positive (got %g)", o->thickness);
+    double nxd = fmax(1, round(W / h)), nyd = fmax(1, round(Hh / (h * sqrt(3) / 2)));
+    if (nxd * nyd > 2e7)
+        return crom_err(CROM_EUSAGE, "sheet: %.0f x %.0f rows of triangles is too many; raise --size", nxd, nyd);
+    int nx = (int)nxd, ny = (int)nyd; /* nx triangles' bases per row, ny rows */
+    double dx = W / nx, dy = Hh / ny;
+    /* row j: even rows have nx + 1 vertices at i dx, odd rows nx + 2 at 0, (i + ½) dx, W */
+    int *start = crom_malloc(sizeof(int) * (size_t)(ny + 2));
+    if (!start)
+        return CROM_EINTERNAL;
+    start[0] = 0;
+    for (int j = 0; j <= ny; j++)
+        start[j + 1] = start[j] + (j % 2 ? nx + 2 : nx + 1);
+    m->nv = start[ny + 1];
+    m->ntri = 2 * nx * ny + ny; /* per row: 2 nx − 1 whole triangles and two halves */
+    m->X = crom_malloc(sizeof(double) * 3 * (size_t)m->nv);
+    m->tris = crom_malloc(sizeof(int) * 3 * (size_t)m->ntri);
+    m->tets = crom_malloc(sizeof(int) * 4);
+    if (!m->X || !m->tris || !m->tets) {
+        free(start);
+        crom_mesh_free(m);
+        return CROM_EINTERNAL;
+    }
+    m->thickness = o->thickness;
+    for (int j = 0; j <= ny; j++)
+        for (int k = 0; k < start[j + 1] - start[j]; k++) {
+            double *p = m->X + 3 * (size_t)(start[j] + k);
+            p[0] = (j % 2 == 0 ? k * dx : k == 0 ? 0 : k == nx + 1 ? W : (k - 0.5) * dx) - 0.5 * W;
+            p[1] = j * dy - 0.5 * Hh;
+            p[2] = 0;
+        }
+    int t = 0;
+#define TRI(a, b, c) (m->tris[3 * t] = (a), m->tris[3 * t + 1] = (b), m->tris[3 * t + 2] = (c), t++)
+    for (int j = 0; j < ny; j++) {
+        int lo = start[j], up = start[j + 1];
+        if (j % 2 == 0) { /* E below (nx + 1), O above (nx + 2) */
+            TRI(lo, up + 1, up);
+            for (int i = 0; i < nx; i++) {
+                TRI(lo + i, lo + i + 1, up + i + 1);
+                TRI(lo + i + 1, up + i + 2, up + i + 1);
+            }
+        } else { /* O below, E above */
+            TRI(lo, lo + 1, up);
+            for (int i = 0; i < nx; i++) {
+                TRI(lo + i + 1, up + i + 1, up + i);
+                TRI(lo + i + 1, lo + i + 2, up + i + 1);
+            }
+        }
+    }
+#undef TRI
+    free(start);
+    return crom_mesh_validate(m);
+}
+
 int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m)
 {
+    if (o->shape == CROM_MESHGEN_SHEET)
+        return crom_meshgen_sheet(o, m);
     memset(m, 0, sizeof *m);
     int rc = check_opts(o), ierr = 0;
     if (rc)

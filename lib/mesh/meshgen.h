@@ -14,7 +14,7 @@
 #include "mesh/mesh.h"
 
 enum { CROM_MESHGEN_BOX, CROM_MESHGEN_PLATE, CROM_MESHGEN_SPHERE, CROM_MESHGEN_CYLINDER,
-       CROM_MESHGEN_SUPERQUADRIC, CROM_MESHGEN_IMPORT };
+       CROM_MESHGEN_SUPERQUADRIC, CROM_MESHGEN_IMPORT, CROM_MESHGEN_SHEET };
 
 typedef struct {
     int shape;
@@ -23,6 +23,7 @@ typedef struct {
     double height;       /* cylinder (m) */
     double exponent;     /* superquadric p >= 1 */
     double size;         /* target edge length (m) */
+    double thickness;    /* sheet: the shell's thickness (m) */
     const char *file;    /* import */
     int algorithm;       /* gmsh Mesh.Algorithm3D: 1 Delaunay (default, repeatable), 10 HXT */
     int optimize;        /* run gmsh's tet optimizer (default 1) */
@@ -63,7 +64,14 @@ void crom_meshgen_defaults(crom_meshgen_opts *o, int shape);
 /* Shape name ("box") to CROM_MESHGEN_BOX ..., or -1. */
 int crom_meshgen_shape(const char *name);
 
-/* Mesh the shape or file. Tets come out positively oriented and compacted;
+/* A sheet (a shell surface, no gmsh): the rectangle dims[0] × dims[1] in
+ * the xy-plane centred at the origin, in rows of near-equilateral triangles
+ * of edge about o->size (rows alternate between n + 1 vertices and n + 2
+ * with half-triangles at the ends, so the sides are straight), normals
+ * towards +z, thickness o->thickness. */
+int crom_meshgen_sheet(const crom_meshgen_opts *o, crom_mesh *m);
+
+/* Mesh the shape or file (a sheet: crom_meshgen_sheet). Tets come out positively oriented and compacted;
  * gmsh physical groups (imports) become regions. Returns 0, CROM_EUSAGE for
  * bad parameters, CROM_ENOINPUT for a missing file, CROM_EDATA for a surface
  * that is open or a file gmsh cannot mesh. */

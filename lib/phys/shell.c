@@ -90,11 +90,16 @@ void crom_shell_tri_F(const double x[9], const double Dminv[4], double F[6])
     }
 }
 
-/* Clamp the negative eigenvalues of a symmetric n×n matrix (n <= 12) to 0.
- * Returns 0, or 1 when the eigensolver fails. */
+/* Clamp the negative eigenvalues of a symmetric n×n matrix (n <= 12) to 0
+ * (a matrix that has a Cholesky factor is left as it is: most are, and the
+ * factorization is far cheaper than the eigensolver). Returns 0, or 1 when
+ * the eigensolver fails. */
 static int project_psd(double *M, int n)
 {
     double w[12], Q[144];
+    memcpy(Q, M, sizeof(double) * (size_t)n * n);
+    if (LAPACKE_dpotrf(LAPACK_ROW_MAJOR, 'U', n, Q, n) == 0)
+        return 0;
     memcpy(Q, M, sizeof(double) * (size_t)n * n);
     if (LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'V', 'U', n, Q, n, w) != 0)
         return 1;
@@ -266,25 +271,20 @@ int crom_shell_hinge_angle(const double x[12], double *theta, double g[12], doub
         for (int k = 0; k < 12; k++)
             sum += g[k];
     }
-    if (H) {
-        for (int v = 0; v < 4; v++)
-            for (int w = 0; w < 4; w++)
-                for (int i = 0; i < 3; i++)
-                    for (int j = 0; j < 3; j++) {
-                        double h = 0;
-                        for (int p = 0; p < 3; p++) {
-                            double sp = v == 0 ? -1 : (p == v - 1);
-                            if (sp == 0)
-                                continue;
-                            for (int q = 0; q < 3; q++) {
-                                double sq = w == 0 ? -1 : (q == w - 1);
-                                if (sq != 0)
-                                    h += sp * sq * Hy[(3 * p + i) * 9 + 3 * q + j];
-                            }
-                        }
-                        H[(3 * v + i) * 12 + 3 * w + j] = h;
-                        sum += h;
-                    }
+    if (H) { /* blocks (v, w) >= 1 are Hy's; row and column 0 minus the sums of the others */
+        for (int i = 0; i < 9; i++)
+            for (int j = 0; j < 9; j++)
+                H[(3 + i) * 12 + 3 + j] = Hy[i * 9 + j];
+        for (int i = 0; i < 9; i++)
+            for (int k = 0; k < 3; k++) {
+                double h = -(Hy[i * 9 + k] + Hy[i * 9 + 3 + k] + Hy[i * 9 + 6 + k]);
+                H[(3 + i) * 12 + k] = H[k * 12 + 3 + i] = h;
+            }
+        for (int r = 0; r < 3; r++)
+            for (int k = 0; k < 3; k++)
+                H[r * 12 + k] = -(H[r * 12 + 3 + k] + H[r * 12 + 6 + k] + H[r * 12 + 9 + k]);
+        for (int i = 0; i < 144; i++)
+            sum += H[i];
     }
     return isfinite(sum) ? CROM_OK : CROM_EDATA;
 }
@@ -592,8 +592,13 @@ static void gather(const double *x, const int *vs, int m, double *xe)
         memcpy(xe + 3 * i, x + 3 * (size_t)vs[i], sizeof(double) * 3);
 }
 
-int crom_shell_assemble(const crom_shell *s, const double *x, int project, double *E, double *grad, double *Hval)
+int crom_shell_assemble(const crom_shell *s, const double *x, const crom_fem_opts *opt, double *E, double *grad,
+                        double *Hval)
 {
+    static const crom_fem_opts none = {0, 0, NULL, 0};
+    if (!opt)
+        opt = &none;
+    int project = opt->project;
     double Et = 0;
     if (grad)
         memset(grad, 0, sizeof(double) * (size_t)s->n);
@@ -632,6 +637,18 @@ int crom_shell_assemble(const crom_shell *s, const double *x, int project, doubl
                     Hval[sc[k++]] += H[12 * p + q];
         }
     }
+    const unsigned char *fx = opt->fixed;
+    for (int i = 0; grad && fx && i < s->n; i++)
+        if (fx[i])
+            grad[i] = 0;
+    for (int c = 0; Hval && c < s->n; c++)
+        for (int k = s->colptr[c]; k < s->colptr[c + 1]; k++) {
+            int r = s->rowind[k];
+            if (fx && (fx[r] || fx[c]))
+                Hval[k] = r == c;
+            else if (r == c)
+                Hval[k] += opt->mass_scale * s->mass[c / 3];
+        }
     if (E)
         *E = Et;
     return CROM_OK;

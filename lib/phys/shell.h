@@ -37,6 +37,8 @@
 #ifndef CROM_SHELL_H
 #define CROM_SHELL_H
 
+#include "phys/fem.h"
+
 /* A shell material: Young's modulus Y (Pa), Poisson ratio nu in (-1, 0.5],
  * thickness t (m) and density rho (kg/m³), with the derived membrane Lamé
  * parameters and the bending stiffness. */
@@ -129,9 +131,12 @@ void crom_shell_free(crom_shell *s);
 
 /* Assemble at positions x[nv][3]: total energy *E, gradient grad[3nv] and
  * upper-CSC Hessian values Hval[nnz] (any may be NULL; overwritten, not
- * accumulated); project != 0 projects every element Hessian to SPD.
- * Returns CROM_OK or CROM_EDATA naming the first element with a non-finite
- * result. */
-int crom_shell_assemble(const crom_shell *s, const double *x, int project, double *E, double *grad, double *Hval);
+ * accumulated), with the options of crom_fem_assemble (fem.h; NULL: none):
+ * SPD-projected element Hessians, mass_scale·m_v added to the diagonal,
+ * fixed DOFs with zero gradient, zero off-diagonal entries and a diagonal
+ * of 1 (serial: nthreads is ignored). Returns CROM_OK or CROM_EDATA naming
+ * the first element with a non-finite result. */
+int crom_shell_assemble(const crom_shell *s, const double *x, const crom_fem_opts *opt, double *E, double *grad,
+                        double *Hval);
 
 #endif

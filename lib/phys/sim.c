@@ -61,11 +61,23 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
         rc = crom_scenario_check_regions(sc, mesh);
     if (rc)
         return rc;
-    crom_material mat;
-    if ((rc = crom_material_init(&mat, sc->youngs, sc->poisson, sc->density)))
-        return rc;
-    if ((rc = crom_fem_init(&s->fem, mesh, &mat)))
-        return rc;
+    if (crom_mesh_is_surface(mesh)) { /* a shell: the mesh's thickness */
+        crom_shell_material sm;
+        if ((rc = crom_shell_material_init(&sm, sc->youngs, sc->poisson, mesh->thickness, sc->density)) ||
+            (rc = crom_shell_init(&s->shell, mesh->nv, mesh->X, mesh->ntri, mesh->tris, &sm)))
+            return rc;
+        s->surface = 1;
+        s->mass = s->shell.mass;
+        s->total_mass = s->shell.total_mass;
+    } else {
+        crom_material mat;
+        if ((rc = crom_material_init(&mat, sc->youngs, sc->poisson, sc->density)))
+            return rc;
+        if ((rc = crom_fem_init(&s->fem, mesh, &mat)))
+            return rc;
+        s->mass = s->fem.mass;
+        s->total_mass = s->fem.total_mass;
+    }
     s->nv = mesh->nv;
     s->n = 3 * mesh->nv;
     size_t n = (size_t)s->n;
@@ -83,7 +95,7 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
     s->m3 = crom_malloc(sizeof(double) * n);
     s->fext = crom_malloc(sizeof(double) * n);
     s->work = crom_malloc(sizeof(double) * 4 * n);
-    s->H = crom_malloc(sizeof(double) * (size_t)s->fem.nnz);
+    s->H = crom_malloc(sizeof(double) * (size_t)(s->surface ? s->shell.nnz : s->fem.nnz));
     s->fixed = crom_calloc(n, 1);
     s->lam = crom_calloc((size_t)(sc->nplanes ? sc->nplanes : 1) * (size_t)s->nv, sizeof(double));
     if (!s->x || !s->v || !s->xn || !s->xhat || !s->g || !s->d || !s->xt || !s->m3 || !s->fext ||
@@ -91,7 +103,8 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
         crom_sim_free(s);
         return CROM_EINTERNAL;
     }
-    crom_fem_mass_diag(&s->fem, s->m3);
+    for (int v = 0; v < s->nv; v++)
+        s->m3[3 * v] = s->m3[3 * v + 1] = s->m3[3 * v + 2] = s->mass[v];
     /* boundary conditions */
     const char *refs[CROM_SCENARIO_MAX];
     int *pin_ptr = NULL;
@@ -124,7 +137,7 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
     }
     for (int b = 0; b < s->nforce; b++)
         for (int k = s->force_ptr[b]; k < s->force_ptr[b + 1]; k++)
-            s->force_mass[b] += s->fem.mass[s->force_idx[k]];
+            s->force_mass[b] += s->mass[s->force_idx[k]];
     for (int k = 0; k < s->npin; k++)
         memset(s->fixed + 3 * (size_t)s->pin[k], 1, 3);
     for (int k = 0; s->nvel && k < s->vel_ptr[s->nvel]; k++)
@@ -134,7 +147,7 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
     double c[3] = {0, 0, 0};
     for (int i = 0; i < s->nv; i++)
         for (int k = 0; k < 3; k++)
-            c[k] += s->fem.mass[i] * mesh->X[3 * i + k] / s->fem.total_mass;
+            c[k] += s->mass[i] * mesh->X[3 * i + k] / s->total_mass;
     for (int i = 0; i < s->nv; i++)
         crom_scenario_initial_velocity(sc, c, mesh->X + 3 * i, s->v + 3 * i);
     for (int b = 0; b < s->nvel; b++) {
@@ -146,7 +159,8 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
     for (int k = 0; k < s->npin; k++)
         memset(s->v + 3 * (size_t)s->pin[k], 0, 3 * sizeof(double));
     /* symbolic factorization, once per mesh */
-    s->chol = crom_chol_analyze(s->n, s->fem.colptr, s->fem.rowind, 3);
+    s->chol = s->surface ? crom_chol_analyze(s->n, s->shell.colptr, s->shell.rowind, 3)
+                       : crom_chol_analyze(s->n, s->fem.colptr, s->fem.rowind, 3);
     if (!s->chol) {
         crom_sim_free(s);
         return crom_errcode() ? crom_errcode() : CROM_EINTERNAL;
@@ -157,6 +171,7 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
 void crom_sim_free(crom_sim *s)
 {
     crom_fem_free(&s->fem);
+    crom_shell_free(&s->shell);
     crom_chol_free(s->chol);
     free(s->x);
     free(s->v);
@@ -186,16 +201,22 @@ static void external_force(crom_sim *s, double t, double *f)
     const crom_scenario *sc = s->sc;
     for (int i = 0; i < s->nv; i++)
         for (int k = 0; k < 3; k++)
-            f[3 * i + k] = s->fem.mass[i] * sc->gravity[k];
+            f[3 * i + k] = s->mass[i] * sc->gravity[k];
     for (int b = 0; b < s->nforce; b++) {
         double F[3];
         crom_bc_force(&sc->force[b], t, F);
         for (int k = s->force_ptr[b]; k < s->force_ptr[b + 1]; k++) {
             int i = s->force_idx[k];
             for (int c = 0; c < 3; c++)
-                f[3 * i + c] += F[c] * s->fem.mass[i] / s->force_mass[b];
+                f[3 * i + c] += F[c] * s->mass[i] / s->force_mass[b];
         }
     }
+}
+
+/* The elastic energy of the solid or the shell at x */
+static int elastic_energy(const crom_sim *s, const double *x, double *E)
+{
+    return s->surface ? crom_shell_assemble(&s->shell, x, NULL, E, NULL, NULL) : crom_fem_energy(&s->fem, x, E);
 }
 
 /* Incremental potential at x (J), up to a constant: the external work is
@@ -208,7 +229,7 @@ static int potential(crom_sim *s, const double *x, double E, double *ip, double 
 {
     const crom_scenario *sc = s->sc;
     double h = sc->dt;
-    int rc = isnan(E) ? crom_fem_energy(&s->fem, x, &E) : 0;
+    int rc = isnan(E) ? elastic_energy(s, x, &E) : 0;
     if (rc)
         return rc;
     double kin = 0, damp = 0, ext = 0, extabs = 0, con = 0;
@@ -221,7 +242,7 @@ static int potential(crom_sim *s, const double *x, double E, double *ip, double 
     }
     for (int p = 0; p < sc->nplanes; p++)
         for (int i = 0; i < s->nv; i++)
-            con += crom_contact_eval(&sc->plane[p], sc->contact_stiffness, s->fem.mass[i], x + 3 * i,
+            con += crom_contact_eval(&sc->plane[p], sc->contact_stiffness, s->mass[i], x + 3 * i,
                                      s->xn + 3 * i, s->lam[(size_t)p * s->nv + i],
                                      sc->friction_eps * h, NULL, NULL);
     *ip = kin / (2 * h * h) + sc->damping * damp / (2 * h) + E - ext + con;
@@ -234,7 +255,7 @@ static int potential(crom_sim *s, const double *x, double E, double *ip, double 
 static void add_contact(crom_sim *s, const double *x, double *g, double *H)
 {
     const crom_scenario *sc = s->sc;
-    const int *cp = s->fem.colptr;
+    const int *cp = s->surface ? s->shell.colptr : s->fem.colptr;
     for (int p = 0; p < sc->nplanes; p++)
         for (int i = 0; i < s->nv; i++) {
             if (s->fixed[3 * i])
@@ -243,7 +264,7 @@ static void add_contact(crom_sim *s, const double *x, double *g, double *H)
             double lam = s->lam[(size_t)p * s->nv + i];
             if (crom_contact_depth(&sc->plane[p], x + 3 * i) <= 0 && !(lam > 0 && sc->plane[p].mu > 0))
                 continue;
-            crom_contact_eval(&sc->plane[p], sc->contact_stiffness, s->fem.mass[i], x + 3 * i,
+            crom_contact_eval(&sc->plane[p], sc->contact_stiffness, s->mass[i], x + 3 * i,
                               s->xn + 3 * i, lam, sc->friction_eps * sc->dt, gi, H ? Hi : NULL);
             for (int c = 0; c < 3; c++) {
                 g[3 * i + c] += gi[c];
@@ -262,7 +283,7 @@ static int ip_gradient(crom_sim *s, const double *x, const crom_fem_opts *fo, do
 {
     const crom_scenario *sc = s->sc;
     double h = sc->dt;
-    int rc = crom_fem_assemble(&s->fem, x, fo, E, g, H);
+    int rc = s->surface ? crom_shell_assemble(&s->shell, x, fo, E, g, H) : crom_fem_assemble(&s->fem, x, fo, E, g, H);
     if (rc)
         return rc;
     for (int i = 0; i < s->n; i++)
@@ -301,7 +322,7 @@ static void step_begin(crom_sim *s, double t1)
     for (int p = 0; p < sc->nplanes; p++)
         for (int i = 0; i < s->nv; i++)
             s->lam[(size_t)p * s->nv + i] =
-                sc->contact_stiffness * s->fem.mass[i] * crom_contact_depth(&sc->plane[p], s->xn + 3 * i);
+                sc->contact_stiffness * s->mass[i] * crom_contact_depth(&sc->plane[p], s->xn + 3 * i);
     external_force(s, t1, s->fext);
     memcpy(s->x, s->xhat, sizeof(double) * n);
     const double *X = s->mesh->X;
@@ -486,7 +507,8 @@ static int newton_solve(crom_sim *s, crom_sim_stats *st)
     double h = sc->dt;
     size_t n = (size_t)s->n;
     newton nw = {{0, 1.0 / (h * h) + sc->damping / h, s->fixed, 0},
-                 {s->n, s->fem.colptr, s->fem.rowind, s->H},
+                 {s->n, s->surface ? s->shell.colptr : s->fem.colptr, s->surface ? s->shell.rowind : s->fem.rowind,
+                  s->H},
                  CG_RTOL, INFINITY, 0, 0, 0, -1};
     st->residual = INFINITY;
     int rc = 0, converged = 0, retry;
@@ -573,7 +595,7 @@ int crom_sim_energies(crom_sim *s, double *kinetic, double *elastic, double *ext
     }
     *kinetic = K;
     *external = W;
-    return crom_fem_energy(&s->fem, s->x, elastic);
+    return elastic_energy(s, s->x, elastic);
 }
 
 void crom_sim_displacement(const crom_sim *s, double *u)

@@ -1,4 +1,5 @@
-/* sim.h — full-space implicit Euler for stable neo-Hookean solids.
+/* sim.h — full-space implicit Euler for stable neo-Hookean solids and thin
+ * shells (a surface mesh: StVK membrane and hinge bending, shell.h).
  *
  * Each step minimizes the incremental potential (LiCROM eq. 5 in full space)
  *   IP(x) = 1/(2h²) ‖x − x̂‖²_M + A/(2h) ‖x − x_n‖²_M + E(x) − f_ext·x + C(x),
@@ -17,6 +18,7 @@
 
 #include "phys/fem.h"
 #include "phys/scenario.h"
+#include "phys/shell.h"
 #include "phys/chol.h"
 
 typedef struct {
@@ -31,7 +33,11 @@ typedef struct {
 typedef struct {
     const crom_scenario *sc;
     const crom_mesh *mesh;
-    crom_fem fem;
+    crom_fem fem;         /* a solid (tet mesh) */
+    crom_shell shell;     /* or a shell (surface mesh: surface = 1) */
+    int surface;
+    const double *mass;   /* [nv] lumped masses of whichever it is (kg) */
+    double total_mass;
     int nv, n;
     double L;             /* bounding-box diagonal (m) */
     double t;             /* time of the current state (s) */

@@ -1,0 +1,99 @@
+#!/usr/bin/env bash
+# shell.sh — thin shells through the programs (issue 16): crom-mesh sheet
+# (exact area, consistent orientation, the thickness stored), crom-fullsim on
+# a sheet (a pinned sheet swinging out of plane; free fall of an unpinned
+# one, which implicit Euler moves by exactly g h² N(N+1)/2 with no strain),
+# crom-info, and the one-line refusals: shell flags on a solid, a shell
+# given to a tet-only program, a surface that is inconsistently oriented,
+# non-manifold or without a positive thickness.
+. "$CROM_TOP/tests/prog/common.bash"
+
+crom-mesh sheet --dims 0.8,0.4,1 --size 0.05 --thickness 0.003 --region top='y>0.19' -o "$TMP/sheet.h5"
+crom-info --check "$TMP/sheet.h5" >/dev/null || fail "crom-info --check on a sheet"
+ok
+$PY - "$TMP/sheet.h5" <<'EOF' || fail "the sheet's mesh"
+import sys, h5py, numpy as np
+f = h5py.File(sys.argv[1], 'r')
+assert 'tets' not in f, 'a sheet has no tets'
+X, T = f['vertices'][...], f['triangles'][...]
+t = f['triangles'].attrs['thickness']
+assert abs(t - 0.003) < 1e-15, t
+assert np.all(X[:, 2] == 0) and abs(X[:, 0].min() + 0.4) < 1e-12 and abs(X[:, 1].max() - 0.2) < 1e-12
+e1, e2 = X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]]
+nz = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+assert np.all(nz > 0), 'every triangle faces +z'
+assert abs(0.5 * nz.sum() - 0.32) < 1e-12, 0.5 * nz.sum()
+# interior edges are shared by two triangles running along them in opposite directions
+edges = {}
+for tri in T:
+    for k in range(3):
+        a, b = int(tri[k]), int(tri[(k + 1) % 3])
+        assert (a, b) not in edges, 'an edge runs twice the same way'
+        edges[(a, b)] = 1
+l = np.sqrt((e1 ** 2).sum(1))
+assert 0.02 < np.median(l) < 0.06, np.median(l)
+print(f"sheet: {len(X)} vertices, {len(T)} triangles, area {0.5 * nz.sum():.12g} m^2, thickness {t} m")
+EOF
+ok
+crom-info "$TMP/sheet.h5" | grep -q "triangles (a shell), thickness 0.003 m, area 0.32 m^2" || fail "crom-info's summary"
+ok
+
+# a pinned sheet swinging out of plane
+crom-fullsim --pin top --youngs 2e5 --poisson 0.3 --density 400 --gravity 0,-9.81,4 --dt 0.02 --steps 10 \
+  -o "$TMP/swing.h5" "$TMP/sheet.h5"
+crom-info --check "$TMP/swing.h5" >/dev/null || fail "crom-info --check on a shell trajectory"
+ok
+$PY - "$TMP/swing.h5" <<'EOF' || fail "the swinging sheet"
+import sys, h5py, numpy as np
+f = h5py.File(sys.argv[1], 'r')
+u = f['frames/displacement'][...]
+top = f['mesh/regions/top'][...]
+assert 'triangles' in f['mesh'] and f['mesh/triangles'].attrs['thickness'] == 0.003
+assert np.abs(u[0]).max() == 0 and np.abs(u[:, top]).max() == 0, 'the pinned edge stays'
+assert u[-1][:, 2].max() > 1e-3, 'it swings out of plane'
+for k in ('kinetic_energy', 'elastic_energy', 'total_energy'):
+    assert np.all(np.isfinite(f['frames/' + k][...])), k
+assert f['frames/elastic_energy'][-1] > 0
+print(f"swing: largest out-of-plane displacement {u[-1][:, 2].max():.4g} m after 10 steps")
+EOF
+ok
+
+# free fall: no strain, every vertex moves by g h^2 N(N+1)/2
+crom-fullsim --youngs 2e5 --poisson 0.3 --density 400 --gravity 0,0,-9.81 --dt 0.01 --steps 7 --tol 1e-12 \
+  -o "$TMP/fall.h5" "$TMP/sheet.h5"
+$PY - "$TMP/fall.h5" <<'EOF' || fail "free fall of a sheet"
+import sys, h5py, numpy as np
+f = h5py.File(sys.argv[1], 'r')
+u = f['frames/displacement'][-1]
+expect = -9.81 * 0.01 ** 2 * 7 * 8 / 2
+assert np.abs(u[:, 2] - expect).max() < 1e-12, np.abs(u[:, 2] - expect).max()
+assert np.abs(u[:, :2]).max() < 1e-12
+assert np.abs(f['frames/elastic_energy'][...]).max() < 1e-18
+print(f"free fall: {u[0, 2]:.15g} m, implicit Euler's {expect:.15g} m")
+EOF
+ok
+
+# refusals, one line each, nothing written
+expect_error 64 "thickness is for a sheet" "$TMP/x.h5" -- crom-mesh box --thickness 0.01 -o "$TMP/x.h5"
+expect_error 64 "thickness" "$TMP/x.h5" -- crom-mesh sheet --thickness 0 -o "$TMP/x.h5"
+expect_error 64 "shell surface.*tet meshes" "$TMP/x.h5" -- crom-modes --count 4 -o "$TMP/x.h5" "$TMP/sheet.h5"
+expect_error 64 "shell surface.*tet meshes" "$TMP/x.h5" -- crom-remesh refine -o "$TMP/x.h5" "$TMP/sheet.h5"
+$PY - "$TMP" <<'EOF' || fail "making bad surfaces"
+import sys, h5py, numpy as np
+d = sys.argv[1]
+X = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, -1, 0], [0.5, 0, 1]], float)
+def write(name, T, t):
+    with h5py.File(f"{d}/{name}.h5", 'w') as f:
+        f.attrs['schema'] = 'crom/mesh'
+        f.attrs['schema_version'] = np.int64(1)
+        f['vertices'] = X
+        f['triangles'] = np.array(T, np.int32)
+        f['triangles'].attrs['thickness'] = t
+write('flipped', [[0, 1, 2], [0, 1, 3]], 0.01)
+write('nonmanifold', [[0, 1, 2], [1, 0, 3], [0, 1, 4]], 0.01)
+write('thin', [[0, 1, 2], [1, 0, 3]], 0.0)
+EOF
+expect_error 65 "not consistently oriented" "$TMP/x.h5" -- crom-fullsim --steps 1 -o "$TMP/x.h5" "$TMP/flipped.h5"
+expect_error 65 "not manifold" "$TMP/x.h5" -- crom-fullsim --steps 1 -o "$TMP/x.h5" "$TMP/nonmanifold.h5"
+expect_error 65 "thickness" "$TMP/x.h5" -- crom-fullsim --steps 1 -o "$TMP/x.h5" "$TMP/thin.h5"
+done_checks
