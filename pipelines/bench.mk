@@ -103,9 +103,10 @@ df2_map_args = --model $(OUT)/df2-map-$(call df2_kind,$(1)).h5 --mesh $(OUT)/df-
   $(if $(filter %-opt,$(1)),--cubature $(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
 df2_map_in = $(OUT)/df2-map-$(call df2_kind,$(1)).h5 $(if $(filter %-opt,$(1)),$(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
 
-.PHONY: all fullsim tables training datafree plots micro
-all: fullsim tables training datafree plots micro
-	@cat $(OUT)/fullsim.md $(OUT)/tables.md $(OUT)/training.md $(OUT)/datafree.md $(OUT)/datafree2.md $(OUT)/micro.md
+.PHONY: all fullsim sheets tables training datafree plots micro
+all: fullsim sheets tables training datafree plots micro
+	@cat $(OUT)/fullsim.md $(OUT)/sheets.md $(OUT)/tables.md $(OUT)/training.md $(OUT)/datafree.md $(OUT)/datafree2.md \
+	  $(OUT)/micro.md
 	@echo "plots: $(OUT)/steps.png $(OUT)/training.png"
 
 # ---------------------------------------------------------------- fullsim
@@ -118,6 +119,23 @@ $(OUT)/fullsim-%.csv: $(OUT)/mesh-%.h5
 $(OUT)/fullsim.md: $(foreach s,$(FULL_SIZES),$(OUT)/fullsim-$(s).csv)
 	( echo "### crom-fullsim: compression of a unit cube (issue 3)"; echo; \
 	  $(TOP)/tests/benchtab.sh fullsim $(OUT) $(FULL_SIZES) ) > $@.tmp && mv $@.tmp $@
+
+# ----------------------------------------------------------------- sheets
+# crom-fullsim on a thin shell (issue 16): a 1 x 1 m sheet (crom-mesh sheet,
+# edge SHEET_SIZES, 2 mm thick) hanging from its top edge, swinging out of
+# plane under a slanted gravity, one core
+SHEET_SIZES ?= 0.0212 0.0106
+SHEET_STEPS ?= 20
+SHEET_SCENARIO = --pin top --youngs 1e6 --poisson 0.3 --density 500 --gravity 0,-9.81,3 --dt 0.02 --threads 1
+sheets: $(OUT)/sheets.md
+$(OUT)/sheet-%.h5:
+	@mkdir -p $(@D)
+	crom-mesh sheet --dims 1,1,1 --size $* --thickness 0.002 --region top='y>0.499' -o $@
+$(OUT)/sheetsim-%.csv: $(OUT)/sheet-%.h5
+	crom-fullsim $(SHEET_SCENARIO) --steps $(SHEET_STEPS) --stats $@ $(QUIET) -o /dev/null $<
+$(OUT)/sheets.md: $(foreach s,$(SHEET_SIZES),$(OUT)/sheetsim-$(s).csv)
+	( echo "### crom-fullsim on a thin shell: a hanging sheet swinging out of plane (issue 16)"; echo; \
+	  $(TOP)/tests/benchtab.sh sheets $(OUT) $(SHEET_SIZES) ) > $@.tmp && mv $@.tmp $@
 
 # ----------------------------------------------------------------- tables
 tables: $(OUT)/tables.md
