@@ -16,6 +16,7 @@
 #include "base/err.h"
 #include "base/rng.h"
 #include "phys/modes.h"
+#include "phys/system.h"
 #include "phys/chol.h"
 
 void crom_modes_defaults(crom_modes_opts *o)
@@ -89,7 +90,7 @@ static int uf_root(int *parent, int v)
     return v;
 }
 
-/* The connected pieces of a mesh (vertices joined by tets) and the rigid
+/* The connected pieces of a mesh (vertices joined by elements) and the rigid
  * motions the pins leave each of them. */
 typedef struct {
     int np;             /* pieces */
@@ -108,9 +109,9 @@ static void pieces_free(pieces *pc)
     free(pc->first);
 }
 
-/* The pieces, by union-find over the tets; piece[v] numbered at the
- * piece's root, in vertex order. */
-static int find_pieces(const crom_mesh *mesh, const crom_fem *fem, pieces *pc)
+/* The pieces, by union-find over the elements (tets, or a shell's
+ * triangles); piece[v] numbered at the piece's root, in vertex order. */
+static int find_pieces(const crom_mesh *mesh, const crom_system *fem, pieces *pc)
 {
     int nv = fem->nv;
     int *root = crom_malloc(sizeof(int) * (size_t)nv);
@@ -121,9 +122,10 @@ static int find_pieces(const crom_mesh *mesh, const crom_fem *fem, pieces *pc)
     }
     for (int v = 0; v < nv; v++)
         root[v] = v;
-    for (int t = 0; t < mesh->nt; t++)
-        for (int a = 1; a < 4; a++) {
-            int r0 = uf_root(root, mesh->tets[4 * (size_t)t]), r1 = uf_root(root, mesh->tets[4 * (size_t)t + a]);
+    int pe = fem->per_elem;
+    for (int t = 0; t < fem->nelem; t++)
+        for (int a = 1; a < pe; a++) {
+            int r0 = uf_root(root, fem->elem[pe * (size_t)t]), r1 = uf_root(root, fem->elem[pe * (size_t)t + a]);
             if (r0 != r1)
                 root[r1] = r0;
         }
@@ -143,7 +145,7 @@ static int find_pieces(const crom_mesh *mesh, const crom_fem *fem, pieces *pc)
 
 /* Per piece: its centre of mass, radius of gyration (the rotations'
  * scale) and mass into c. */
-static int piece_frames(const crom_mesh *mesh, const crom_fem *fem, pieces *pc)
+static int piece_frames(const crom_mesh *mesh, const crom_system *fem, pieces *pc)
 {
     int nv = fem->nv, np = pc->np;
     const int *piece = pc->piece;
@@ -239,7 +241,7 @@ static int m_orthonormalize(double *R, int n, const double *mf, const pieces *pc
 
 /* The rigid motions the pins leave free, as nr M-orthonormal columns R
  * [nr][n] on the n free DOFs (dof[j] their global index, mf their masses).
- * Each connected piece of the mesh (vertices joined by tets) moves as
+ * Each connected piece of the mesh (vertices joined by elements) moves as
  * u(X) = t + ω × (X − c), c its centre of mass: the six parameters (t, ω)
  * that make u vanish on the piece's fixed DOFs are the null space of the
  * 6×6 matrix Gᵀ G, G holding the six generators' values at those DOFs (its
@@ -247,7 +249,7 @@ static int m_orthonormalize(double *R, int n, const double *mf, const pieces *pc
  * free DOFs are M-orthonormalized by Gram–Schmidt, twice. A free body gets
  * six, one pinned at a vertex the three rotations about it, one pinned
  * along a line the rotation about the line, each further free piece six. */
-static int rigid_basis(const crom_mesh *mesh, const crom_fem *fem, const unsigned char *fixed, int n,
+static int rigid_basis(const crom_mesh *mesh, const crom_system *fem, const unsigned char *fixed, int n,
                        const int *dof, const double *mf, double **Rout, int *nrout)
 {
     pieces pc;
@@ -656,7 +658,7 @@ static int lowest_modes(eigprob *P, const crom_sym *K, const crom_modes_opts *o,
  * DOFs. */
 typedef struct {
     crom_modes_opts o;
-    crom_fem fem;
+    crom_system fem;  /* the solid or shell */
     int nf, nnz;      /* free DOFs; entries of K_ff */
     int whole;        /* each vertex has all of its DOFs free or none */
     int *dof, *comp;  /* [nf] global index and coordinate of each free DOF */
@@ -692,7 +694,7 @@ static void modesrun_free(modesrun *M)
     free(M->mf);
     free(M->X3);
     free(M->comp);
-    crom_fem_free(&M->fem);
+    crom_system_free(&M->fem);
 }
 
 /* K_ff (upper CSC: cp, ri, Kf) of the nf free DOFs from the full Hessian
@@ -702,7 +704,7 @@ static void modesrun_free(modesrun *M)
  * rigid_threshold. CROM_EDATA for a non-positive diagonal. */
 static int gather_free(modesrun *M, const crom_mesh *mesh, const int *map, const double *Hval, crom_modes *out)
 {
-    const crom_fem *fem = &M->fem;
+    const crom_system *fem = &M->fem;
     int N = fem->n, nf = M->nf;
     M->dof = crom_malloc(sizeof(int) * (size_t)nf);
     M->cp = crom_calloc((size_t)nf + 1, sizeof(int));
@@ -771,7 +773,7 @@ static int free_system(modesrun *M, const crom_mesh *mesh, const unsigned char *
         goto out;
     }
     crom_fem_opts fo = {0, 0, NULL, M->o.nthreads};
-    if ((rc = crom_fem_assemble(&M->fem, mesh->X, &fo, NULL, NULL, Hval)))
+    if ((rc = crom_system_assemble(&M->fem, mesh->X, &fo, NULL, NULL, Hval)))
         goto out;
     int nf = 0, whole = 1;
     for (int d = 0; d < N; d++) {
@@ -997,7 +999,7 @@ int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const un
         return crom_err(CROM_EUSAGE, "the shift must be negative, got %g", o->shift);
 
     double t0 = crom_clock_now();
-    int rc = crom_fem_init(&M.fem, mesh, mat);
+    int rc = crom_system_init(&M.fem, mesh, mat->E, mat->nu, mat->rho);
     if (rc)
         return rc;
     if ((rc = free_system(&M, mesh, fixed, out)))

@@ -61,23 +61,10 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
         rc = crom_scenario_check_regions(sc, mesh);
     if (rc)
         return rc;
-    if (crom_mesh_is_surface(mesh)) { /* a shell: the mesh's thickness */
-        crom_shell_material sm;
-        if ((rc = crom_shell_material_init(&sm, sc->youngs, sc->poisson, mesh->thickness, sc->density)) ||
-            (rc = crom_shell_init(&s->shell, mesh->nv, mesh->X, mesh->ntri, mesh->tris, &sm)))
-            return rc;
-        s->surface = 1;
-        s->mass = s->shell.mass;
-        s->total_mass = s->shell.total_mass;
-    } else {
-        crom_material mat;
-        if ((rc = crom_material_init(&mat, sc->youngs, sc->poisson, sc->density)))
-            return rc;
-        if ((rc = crom_fem_init(&s->fem, mesh, &mat)))
-            return rc;
-        s->mass = s->fem.mass;
-        s->total_mass = s->fem.total_mass;
-    }
+    if ((rc = crom_system_init(&s->sys, mesh, sc->youngs, sc->poisson, sc->density)))
+        return rc;
+    s->mass = s->sys.mass;
+    s->total_mass = s->sys.total_mass;
     s->nv = mesh->nv;
     s->n = 3 * mesh->nv;
     size_t n = (size_t)s->n;
@@ -95,7 +82,7 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
     s->m3 = crom_malloc(sizeof(double) * n);
     s->fext = crom_malloc(sizeof(double) * n);
     s->work = crom_malloc(sizeof(double) * 4 * n);
-    s->H = crom_malloc(sizeof(double) * (size_t)(s->surface ? s->shell.nnz : s->fem.nnz));
+    s->H = crom_malloc(sizeof(double) * (size_t)s->sys.nnz);
     s->fixed = crom_calloc(n, 1);
     s->lam = crom_calloc((size_t)(sc->nplanes ? sc->nplanes : 1) * (size_t)s->nv, sizeof(double));
     if (!s->x || !s->v || !s->xn || !s->xhat || !s->g || !s->d || !s->xt || !s->m3 || !s->fext ||
@@ -159,8 +146,7 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
     for (int k = 0; k < s->npin; k++)
         memset(s->v + 3 * (size_t)s->pin[k], 0, 3 * sizeof(double));
     /* symbolic factorization, once per mesh */
-    s->chol = s->surface ? crom_chol_analyze(s->n, s->shell.colptr, s->shell.rowind, 3)
-                       : crom_chol_analyze(s->n, s->fem.colptr, s->fem.rowind, 3);
+    s->chol = crom_chol_analyze(s->n, s->sys.colptr, s->sys.rowind, 3);
     if (!s->chol) {
         crom_sim_free(s);
         return crom_errcode() ? crom_errcode() : CROM_EINTERNAL;
@@ -170,8 +156,7 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
 
 void crom_sim_free(crom_sim *s)
 {
-    crom_fem_free(&s->fem);
-    crom_shell_free(&s->shell);
+    crom_system_free(&s->sys);
     crom_chol_free(s->chol);
     free(s->x);
     free(s->v);
@@ -213,12 +198,6 @@ static void external_force(crom_sim *s, double t, double *f)
     }
 }
 
-/* The elastic energy of the solid or the shell at x */
-static int elastic_energy(const crom_sim *s, const double *x, double *E)
-{
-    return s->surface ? crom_shell_assemble(&s->shell, x, NULL, E, NULL, NULL) : crom_fem_energy(&s->fem, x, E);
-}
-
 /* Incremental potential at x (J), up to a constant: the external work is
  * taken relative to the start of the step, f·(x − x_n), so that large
  * f·x terms do not cancel each other in floating point. E is the elastic
@@ -229,7 +208,7 @@ static int potential(crom_sim *s, const double *x, double E, double *ip, double 
 {
     const crom_scenario *sc = s->sc;
     double h = sc->dt;
-    int rc = isnan(E) ? elastic_energy(s, x, &E) : 0;
+    int rc = isnan(E) ? crom_system_energy(&s->sys, x, &E) : 0;
     if (rc)
         return rc;
     double kin = 0, damp = 0, ext = 0, extabs = 0, con = 0;
@@ -255,7 +234,7 @@ static int potential(crom_sim *s, const double *x, double E, double *ip, double 
 static void add_contact(crom_sim *s, const double *x, double *g, double *H)
 {
     const crom_scenario *sc = s->sc;
-    const int *cp = s->surface ? s->shell.colptr : s->fem.colptr;
+    const int *cp = s->sys.colptr;
     for (int p = 0; p < sc->nplanes; p++)
         for (int i = 0; i < s->nv; i++) {
             if (s->fixed[3 * i])
@@ -283,7 +262,7 @@ static int ip_gradient(crom_sim *s, const double *x, const crom_fem_opts *fo, do
 {
     const crom_scenario *sc = s->sc;
     double h = sc->dt;
-    int rc = s->surface ? crom_shell_assemble(&s->shell, x, fo, E, g, H) : crom_fem_assemble(&s->fem, x, fo, E, g, H);
+    int rc = crom_system_assemble(&s->sys, x, fo, E, g, H);
     if (rc)
         return rc;
     for (int i = 0; i < s->n; i++)
@@ -507,8 +486,7 @@ static int newton_solve(crom_sim *s, crom_sim_stats *st)
     double h = sc->dt;
     size_t n = (size_t)s->n;
     newton nw = {{0, 1.0 / (h * h) + sc->damping / h, s->fixed, 0},
-                 {s->n, s->surface ? s->shell.colptr : s->fem.colptr, s->surface ? s->shell.rowind : s->fem.rowind,
-                  s->H},
+                 {s->n, s->sys.colptr, s->sys.rowind, s->H},
                  CG_RTOL, INFINITY, 0, 0, 0, -1};
     st->residual = INFINITY;
     int rc = 0, converged = 0, retry;
@@ -595,7 +573,7 @@ int crom_sim_energies(crom_sim *s, double *kinetic, double *elastic, double *ext
     }
     *kinetic = K;
     *external = W;
-    return elastic_energy(s, s->x, elastic);
+    return crom_system_energy(&s->sys, s->x, elastic);
 }
 
 void crom_sim_displacement(const crom_sim *s, double *u)

@@ -16,9 +16,8 @@
 #ifndef CROM_SIM_H
 #define CROM_SIM_H
 
-#include "phys/fem.h"
 #include "phys/scenario.h"
-#include "phys/shell.h"
+#include "phys/system.h"
 #include "phys/chol.h"
 
 typedef struct {
@@ -33,10 +32,8 @@ typedef struct {
 typedef struct {
     const crom_scenario *sc;
     const crom_mesh *mesh;
-    crom_fem fem;         /* a solid (tet mesh) */
-    crom_shell shell;     /* or a shell (surface mesh: surface = 1) */
-    int surface;
-    const double *mass;   /* [nv] lumped masses of whichever it is (kg) */
+    crom_system sys;      /* a solid (tet mesh) or a shell (surface mesh) */
+    const double *mass;   /* [nv] its lumped masses (kg) */
     double total_mass;
     int nv, n;
     double L;             /* bounding-box diagonal (m) */

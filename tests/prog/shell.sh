@@ -13,25 +13,29 @@ crom-info --check "$TMP/sheet.h5" >/dev/null || fail "crom-info --check on a she
 ok
 $PY - "$TMP/sheet.h5" <<'EOF' || fail "the sheet's mesh"
 import sys, h5py, numpy as np
+def need(c, what):
+    if not c:
+        sys.exit(f"{what}")
 f = h5py.File(sys.argv[1], 'r')
-assert 'tets' not in f, 'a sheet has no tets'
+need('tets' not in f, 'a sheet has no tets')
 X, T = f['vertices'][...], f['triangles'][...]
 t = f['triangles'].attrs['thickness']
-assert abs(t - 0.003) < 1e-15, t
-assert np.all(X[:, 2] == 0) and abs(X[:, 0].min() + 0.4) < 1e-12 and abs(X[:, 1].max() - 0.2) < 1e-12
+need(abs(t - 0.003) < 1e-15, t)
+need(np.all(X[:, 2] == 0) and abs(X[:, 0].min() + 0.4) < 1e-12 and abs(X[:, 1].max() - 0.2) < 1e-12,
+     'the sheet is not the 0.8 x 0.4 rectangle in the xy-plane centred at the origin')
 e1, e2 = X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]]
 nz = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-assert np.all(nz > 0), 'every triangle faces +z'
-assert abs(0.5 * nz.sum() - 0.32) < 1e-12, 0.5 * nz.sum()
+need(np.all(nz > 0), 'every triangle faces +z')
+need(abs(0.5 * nz.sum() - 0.32) < 1e-12, 0.5 * nz.sum())
 # interior edges are shared by two triangles running along them in opposite directions
 edges = {}
 for tri in T:
     for k in range(3):
         a, b = int(tri[k]), int(tri[(k + 1) % 3])
-        assert (a, b) not in edges, 'an edge runs twice the same way'
+        need((a, b) not in edges, 'an edge runs twice the same way')
         edges[(a, b)] = 1
 l = np.sqrt((e1 ** 2).sum(1))
-assert 0.02 < np.median(l) < 0.06, np.median(l)
+need(0.02 < np.median(l) < 0.06, np.median(l))
 print(f"sheet: {len(X)} vertices, {len(T)} triangles, area {0.5 * nz.sum():.12g} m^2, thickness {t} m")
 EOF
 ok
@@ -45,15 +49,18 @@ crom-info --check "$TMP/swing.h5" >/dev/null || fail "crom-info --check on a she
 ok
 $PY - "$TMP/swing.h5" <<'EOF' || fail "the swinging sheet"
 import sys, h5py, numpy as np
+def need(c, what):
+    if not c:
+        sys.exit(f"{what}")
 f = h5py.File(sys.argv[1], 'r')
 u = f['frames/displacement'][...]
 top = f['mesh/regions/top'][...]
-assert 'triangles' in f['mesh'] and f['mesh/triangles'].attrs['thickness'] == 0.003
-assert np.abs(u[0]).max() == 0 and np.abs(u[:, top]).max() == 0, 'the pinned edge stays'
-assert u[-1][:, 2].max() > 1e-3, 'it swings out of plane'
+need('triangles' in f['mesh'] and f['mesh/triangles'].attrs['thickness'] == 0.003, "'triangles' in f['mesh'] and f['mesh/triangles'].attrs['thickness'] == 0.003")
+need(np.abs(u[0]).max() == 0 and np.abs(u[:, top]).max() == 0, 'the pinned edge stays')
+need(u[-1][:, 2].max() > 1e-3, 'it swings out of plane')
 for k in ('kinetic_energy', 'elastic_energy', 'total_energy'):
-    assert np.all(np.isfinite(f['frames/' + k][...])), k
-assert f['frames/elastic_energy'][-1] > 0
+    need(np.all(np.isfinite(f['frames/' + k][...])), k)
+need(f['frames/elastic_energy'][-1] > 0, "f['frames/elastic_energy'][-1] > 0")
 print(f"swing: largest out-of-plane displacement {u[-1][:, 2].max():.4g} m after 10 steps")
 EOF
 ok
@@ -63,12 +70,15 @@ crom-fullsim --youngs 2e5 --poisson 0.3 --density 400 --gravity 0,0,-9.81 --dt 0
   -o "$TMP/fall.h5" "$TMP/sheet.h5"
 $PY - "$TMP/fall.h5" <<'EOF' || fail "free fall of a sheet"
 import sys, h5py, numpy as np
+def need(c, what):
+    if not c:
+        sys.exit(f"{what}")
 f = h5py.File(sys.argv[1], 'r')
 u = f['frames/displacement'][-1]
 expect = -9.81 * 0.01 ** 2 * 7 * 8 / 2
-assert np.abs(u[:, 2] - expect).max() < 1e-12, np.abs(u[:, 2] - expect).max()
-assert np.abs(u[:, :2]).max() < 1e-12
-assert np.abs(f['frames/elastic_energy'][...]).max() < 1e-18
+need(np.abs(u[:, 2] - expect).max() < 1e-12, np.abs(u[:, 2] - expect).max())
+need(np.abs(u[:, :2]).max() < 1e-12, 'np.abs(u[:, :2]).max() < 1e-12')
+need(np.abs(f['frames/elastic_energy'][...]).max() < 1e-18, "np.abs(f['frames/elastic_energy'][...]).max() < 1e-18")
 print(f"free fall: {u[0, 2]:.15g} m, implicit Euler's {expect:.15g} m")
 EOF
 ok
@@ -80,6 +90,9 @@ expect_error 64 "shell surface.*tet meshes" "$TMP/x.h5" -- crom-modes --count 4 
 expect_error 64 "shell surface.*tet meshes" "$TMP/x.h5" -- crom-remesh refine -o "$TMP/x.h5" "$TMP/sheet.h5"
 $PY - "$TMP" <<'EOF' || fail "making bad surfaces"
 import sys, h5py, numpy as np
+def need(c, what):
+    if not c:
+        sys.exit(f"{what}")
 d = sys.argv[1]
 X = np.array([[0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, -1, 0], [0.5, 0, 1]], float)
 def write(name, T, t):
