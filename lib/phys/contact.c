@@ -3,18 +3,31 @@
 
 #include "phys/contact.h"
 
+static double dist(const double a[3], const double b[3])
+{
+    return hypot(hypot(a[0] - b[0], a[1] - b[1]), a[2] - b[2]);
+}
+
+void crom_contact_normal(const crom_contact_plane *p, const double x[3], double n[3])
+{
+    double rho = p->sphere ? dist(x, p->c) : 0;
+    for (int i = 0; i < 3; i++)
+        n[i] = !p->sphere ? p->n[i] : rho > 0 ? (x[i] - p->c[i]) / rho : i == 1;
+}
+
 double crom_contact_depth(const crom_contact_plane *p, const double x[3])
 {
-    double phi = p->d - (p->n[0] * x[0] + p->n[1] * x[1] + p->n[2] * x[2]);
+    double phi = p->sphere ? p->r - dist(x, p->c) : p->d - (p->n[0] * x[0] + p->n[1] * x[1] + p->n[2] * x[2]);
     return phi > 0 ? phi : 0;
 }
 
 double crom_contact_eval(const crom_contact_plane *p, double k, double m, const double x[3],
                          const double xprev[3], double lam, double eps, double g[3], double H[9])
 {
-    const double *n = p->n;
+    double n[3];
     double E = 0;
     double phi = crom_contact_depth(p, x);
+    crom_contact_normal(p, x, n);
     if (phi > 0) {
         /* E_n = ½ k m φ², ∇ = −k m φ n, H = k m n nᵀ */
         E += 0.5 * k * m * phi * phi;
@@ -27,6 +40,8 @@ double crom_contact_eval(const crom_contact_plane *p, double k, double m, const 
         }
     }
     if (p->mu > 0 && lam > 0 && eps > 0) {
+        if (p->sphere) /* the tangent plane at the step's start */
+            crom_contact_normal(p, xprev, n);
         /* tangential displacement of the step */
         double dx[3] = {x[0] - xprev[0], x[1] - xprev[1], x[2] - xprev[2]};
         double dn = n[0] * dx[0] + n[1] * dx[1] + n[2] * dx[2];

@@ -16,7 +16,7 @@
 enum {
     SC_YOUNGS = 0x1000, SC_POISSON, SC_DENSITY, SC_DT, SC_STEPS, SC_EVERY, SC_GRAVITY,
     SC_PIN, SC_VELOCITY, SC_FORCE, SC_PLANE, SC_DAMPING, SC_CONTACT_K, SC_FRICTION_EPS,
-    SC_TOL, SC_MAXIT, SC_V0, SC_SPIN
+    SC_TOL, SC_MAXIT, SC_V0, SC_SPIN, SC_SPHERE
 };
 
 const crom_opt crom_scenario_opts[] = {
@@ -31,8 +31,9 @@ const crom_opt crom_scenario_opts[] = {
     {"velocity", SC_VELOCITY, "REGION=VX,VY,VZ[@T0:T1]", "Move REGION at the given velocity (m/s) during [T0, T1] (default: always) and hold it still outside (repeatable, once per region). LiCROM's compression: --velocity 'y>0.45=0,-2,0' --pin 'y<-0.45'."},
     {"force", SC_FORCE, "REGION=FX,FY,FZ[@T0:T1]", "Apply a total force (N) to REGION, spread over its vertices by mass, during [T0, T1] (repeatable: forces on one region add up)."},
     {"plane", SC_PLANE, "NX,NY,NZ,D[,MU]", "Collision half-space: keep n.x >= D (n is normalized), with Coulomb friction coefficient MU (default 0) (repeatable)."},
+    {"sphere", SC_SPHERE, "CX,CY,CZ,R[,MU]", "Collision sphere (a fixed ball): keep vertices outside |x - c| >= R, with the planes' penalty and Coulomb friction coefficient MU (default 0) (repeatable; planes and spheres together at most 32)."},
     {"damping", SC_DAMPING, "A", "Mass-proportional damping rate in 1/s (default 0): a drag force A m v."},
-    {"contact-stiffness", SC_CONTACT_K, "K", "Penalty rate of the collision planes in 1/s^2: a vertex of mass m at depth d feels K m d (default 1e5)."},
+    {"contact-stiffness", SC_CONTACT_K, "K", "Penalty rate of the collision planes and spheres in 1/s^2: a vertex of mass m at depth d feels K m d (default 1e5)."},
     {"friction-eps", SC_FRICTION_EPS, "V", "Tangential speed in m/s below which friction is smoothed (default 1e-3)."},
     {"tol", SC_TOL, "TOL", "Newton stops when its correction to any vertex position is below TOL times the bounding-box diagonal (default 1e-7); near convergence crom-fullsim first tries a cheaper simplified Newton correction with its reused factor, accepted below TOL/2."},
     {"max-iter", SC_MAXIT, "N", "Newton iterations allowed per step before the run fails (default 50)."},
@@ -155,6 +156,7 @@ static int parse_option(crom_scenario *s, int key, const char *v)
         if (!(nn > 0))
             return crom_err(CROM_EUSAGE, "--plane '%s': the normal is zero", v);
         crom_contact_plane *p = &s->plane[s->nplanes++];
+        memset(p, 0, sizeof *p);
         if (fabs(nn - 1) < 8 * DBL_EPSILON)
             nn = 1; /* already unit: keep the bits, so the text round-trips */
         for (int i = 0; i < 3; i++)
@@ -170,6 +172,23 @@ static int parse_option(crom_scenario *s, int key, const char *v)
         p->mu = k == 5 ? d[4] : 0;
         if (p->mu < 0)
             return crom_err(CROM_EUSAGE, "--plane '%s': friction coefficient must be >= 0", v);
+        return 0;
+    }
+    case SC_SPHERE: {
+        if (s->nplanes == CROM_SCENARIO_MAX)
+            return crom_err(CROM_EUSAGE, "--sphere: at most %d planes and spheres", CROM_SCENARIO_MAX);
+        if (crom_parse_doubles_var(v, "--sphere", 4, 5, d, &k))
+            return CROM_EUSAGE;
+        if (!(d[3] > 0))
+            return crom_err(CROM_EUSAGE, "--sphere '%s': the radius must be positive", v);
+        if (k == 5 && d[4] < 0)
+            return crom_err(CROM_EUSAGE, "--sphere '%s': friction coefficient must be >= 0", v);
+        crom_contact_plane *p = &s->plane[s->nplanes++];
+        memset(p, 0, sizeof *p);
+        p->sphere = 1;
+        memcpy(p->c, d, sizeof p->c);
+        p->r = d[3];
+        p->mu = k == 5 ? d[4] : 0;
         return 0;
     }
     case SC_DAMPING:
@@ -317,8 +336,12 @@ char *crom_scenario_text(const crom_scenario *s)
     for (int i = 0; i < s->nforce; i++)
         bc_text(&b, &l, &c, "--force", &s->force[i]);
     for (int i = 0; i < s->nplanes; i++)
-        appendf(&b, &l, &c, "--plane %.17g,%.17g,%.17g,%.17g,%.17g\n", s->plane[i].n[0],
-                s->plane[i].n[1], s->plane[i].n[2], s->plane[i].d, s->plane[i].mu);
+        if (s->plane[i].sphere)
+            appendf(&b, &l, &c, "--sphere %.17g,%.17g,%.17g,%.17g,%.17g\n", s->plane[i].c[0], s->plane[i].c[1],
+                    s->plane[i].c[2], s->plane[i].r, s->plane[i].mu);
+        else
+            appendf(&b, &l, &c, "--plane %.17g,%.17g,%.17g,%.17g,%.17g\n", s->plane[i].n[0],
+                    s->plane[i].n[1], s->plane[i].n[2], s->plane[i].d, s->plane[i].mu);
     if (s->damping)
         appendf(&b, &l, &c, "--damping %.17g\n", s->damping);
     appendf(&b, &l, &c, "--contact-stiffness %.17g\n--friction-eps %.17g\n--tol %.17g\n--max-iter %d\n",

@@ -28,7 +28,7 @@ typedef struct {
     crom_bc vel[CROM_SCENARIO_MAX];        /* prescribed velocities (held still outside [t0, t1]) */
     int nforce;
     crom_bc force[CROM_SCENARIO_MAX];      /* total forces, spread over the region by mass */
-    int nplanes;
+    int nplanes;                     /* collision planes and spheres (--plane, --sphere), in order */
     crom_contact_plane plane[CROM_SCENARIO_MAX];
     double damping;                  /* mass-proportional damping rate (1/s) */
     double contact_stiffness;        /* penalty rate k (1/s²): force k·m_v·depth */

@@ -10,6 +10,7 @@
 #include "base/err.h"
 #include "base/rng.h"
 #include "mesh/meshgen.h"
+#include "phys/contact.h"
 #include "phys/modes.h"
 #include "phys/shell.h"
 #include "phys/sim.h"
@@ -650,6 +651,63 @@ static void test_strip_modes(void)
     }
 }
 
+/* Cloth on a ball: a free sheet dropped onto a fixed sphere with friction
+ * (--sphere; frictionless, the draped sheet slides off), damped until it
+ * rests. At rest the sphere carries the cloth's weight: its contact forces
+ * (penalty and friction) add up to M g, and the sheet drapes
+ * (its corners hang below its centre, which rests on the top). */
+static void test_cloth_ball(void)
+{
+    crom_meshgen_opts o;
+    crom_meshgen_defaults(&o, CROM_MESHGEN_SHEET);
+    o.size = 0.08;
+    o.thickness = 0.002;
+    crom_mesh m;
+    CHECK(crom_meshgen_sheet(&o, &m) == 0);
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    sc.youngs = 2e5;
+    sc.poisson = 0.3;
+    sc.density = 300;
+    sc.gravity[1] = 0;
+    sc.gravity[2] = -9.81;
+    sc.dt = 0.02;
+    sc.damping = 8;
+    sc.nplanes = 1;
+    sc.plane[0] = (crom_contact_plane){.sphere = 1, .c = {0, 0, -0.31}, .r = 0.3, .mu = 0.6};
+    sc.tol = 1e-6;
+    crom_sim s;
+    CHECK(crom_sim_init(&s, &m, &sc) == 0);
+    int rc = 0, k;
+    for (k = 0; k < 300 && !rc; k++) {
+        crom_sim_stats st;
+        rc = crom_sim_step(&s, &st);
+    }
+    CHECK_MSG(rc == 0, "cloth on a ball: %s", crom_errmsg());
+    double F = 0, zc = 0, zcorner = INFINITY, vmax = 0;
+    for (int v = 0; v < m.nv; v++) {
+        /* the contact force of the last step: penalty and (lagged) friction */
+        double gc[3] = {0, 0, 0};
+        crom_contact_eval(&sc.plane[0], sc.contact_stiffness, s.mass[v], s.x + 3 * v, s.xn + 3 * v, s.lam[v],
+                          sc.friction_eps * sc.dt, gc, NULL);
+        F -= gc[2];
+        if (fabs(m.X[3 * v]) + fabs(m.X[3 * v + 1]) < 1e-9)
+            zc = s.x[3 * v + 2];
+        if (fabs(m.X[3 * v]) > 0.49 && fabs(m.X[3 * v + 1]) > 0.49)
+            zcorner = fmin(zcorner, -s.x[3 * v + 2]);
+        vmax = fmax(vmax, fabs(s.v[3 * v + 2]));
+    }
+    double W = s.total_mass * 9.81;
+    fprintf(stderr, "cloth on a ball (%d vertices, %d steps): contact force %.6g N against the weight %.6g N; centre "
+                    "at z = %.4g m (sphere top %.4g), corners %.3g m lower, largest speed %.2g m/s\n",
+            m.nv, k, F, W, zc, -0.01, zc + zcorner, vmax);
+    CHECK_LT(fabs(F - W), 0.01 * W);
+    CHECK(zc < -0.01 && zc > -0.02);  /* resting on the top, a penalty depth in */
+    CHECK_LT(-zcorner, zc - 0.1);     /* draped: the corners hang well below the centre */
+    crom_sim_free(&s);
+    crom_mesh_free(&m);
+}
+
 int main(void)
 {
     check_begin("test_shell");
@@ -659,5 +717,6 @@ int main(void)
     test_mesh();
     test_plate();
     test_strip_modes();
+    test_cloth_ball();
     return check_done();
 }

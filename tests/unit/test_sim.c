@@ -39,7 +39,7 @@ static void c_grad(const double *x, void *ctx, double *g)
 
 static void test_contact_derivatives(void)
 {
-    cctx c = {{{0, 0.6, 0.8}, 0.1, 0.5}, 1e5, 0.3, {0.01, 0.02, -0.03}, 40, 1e-3};
+    cctx c = {{.n = {0, 0.6, 0.8}, .d = 0.1, .mu = 0.5}, 1e5, 0.3, {0.01, 0.02, -0.03}, 40, 1e-3};
     /* points: penetrating and sliding fast, penetrating and sliding slowly
      * (smoothed zone), outside the plane, tangentially at rest */
     double pts[4][3] = {{0.05, 0.04, 0.02}, {0.0103, 0.05, 0.0306}, {0.3, 0.4, 0.5}, {0.01, 0.02 - 0.0032, -0.03 + 0.0024}};
@@ -70,6 +70,40 @@ static void test_contact_derivatives(void)
     for (int i = 0; i < 3; i++)
         gt[i] = g[i] - gn * c.p.n[i];
     CHECK_NEAR(sqrt(gt[0] * gt[0] + gt[1] * gt[1] + gt[2] * gt[2]), c.p.mu * c.lam, 1e-9);
+}
+
+/* A sphere obstacle: the gradient against differences, the Hessian against
+ * differences once the negative term it leaves out, −k m (φ/ρ)(I − n nᵀ),
+ * is added back, and positive semidefinite as returned */
+static void test_sphere_derivatives(void)
+{
+    cctx c = {{.mu = 0.4, .sphere = 1, .c = {0.1, -0.2, 0.3}, .r = 0.5}, 1e4, 0.3, {0.12, 0.31, 0.35}, 20, 1e-3};
+    double pts[3][3] = {{0.15, 0.25, 0.4}, {0.1, 0.28, 0.3}, {0.9, 0.9, 0.9}};
+    for (int k = 0; k < 3; k++) {
+        double x[3], g[3] = {0}, H[9] = {0}, gfd[3], Hfd[9], n[3];
+        memcpy(x, pts[k], sizeof x);
+        crom_contact_eval(&c.p, c.k, c.m, x, c.xprev, c.lam, c.eps, g, H);
+        double phi = crom_contact_depth(&c.p, x), rho = 0, lo = 1e300;
+        crom_contact_normal(&c.p, x, n);
+        for (int i = 0; i < 3; i++)
+            rho += (x[i] - c.p.c[i]) * (x[i] - c.p.c[i]);
+        rho = sqrt(rho);
+        double Hx[9];
+        for (int i = 0; i < 9; i++)
+            Hx[i] = H[i] - c.k * c.m * phi / rho * ((i % 4 == 0) - n[i / 3] * n[i % 3]);
+        check_fd_gradient(c_energy, &c, x, 3, 1e-7, gfd);
+        check_fd_jacobian(c_grad, &c, x, 3, 3, 1e-7, Hfd);
+        double eg = check_relerr(g, gfd, 3, 1e-3), eh = check_relerr(Hx, Hfd, 9, 1);
+        double a = H[0], dd = H[0] * H[4] - H[1] * H[3];
+        for (int i = 0; i < 3; i++) /* smallest leading-minor test of PSD via x^T H x on a few vectors */
+            lo = fmin(lo, H[4 * i]);
+        fprintf(stderr, "sphere contact, point %d (depth %.3g m): gradient vs FD %.2e, Hessian (with the dropped "
+                        "term) vs FD %.2e\n", k, phi, eg, eh);
+        CHECK_LT(eg, 1e-6);
+        CHECK_LT(eh, 1e-5);
+        CHECK(lo >= -1e-9 && a >= -1e-9 && dd >= -1e-6 * (1 + fabs(a * H[4])));
+        CHECK(k < 2 ? phi > 0 : phi == 0);
+    }
 }
 
 /* ---------------------------------------------------------- helpers */
@@ -245,7 +279,7 @@ static void test_prescribed_and_contact(void)
     sc.dt = 0.01;
     sc.damping = 20;
     sc.nplanes = 1;
-    sc.plane[0] = (crom_contact_plane){{0, 1, 0}, -0.5, 0.5};
+    sc.plane[0] = (crom_contact_plane){.n = {0, 1, 0}, .d = -0.5, .mu = 0.5};
     CHECK(crom_sim_init(&s, &m, &sc) == 0);
     for (int k = 0; k < 60; k++)
         CHECK(crom_sim_step(&s, &st) == 0);
@@ -351,12 +385,16 @@ static void test_bad_scenarios(void)
     CHECK(crom_scenario_option(&sc, 0x1000 + 8, "top=1,2") == CROM_EUSAGE); /* --velocity */
     CHECK(crom_scenario_option(&sc, 0x1000 + 8, "top=1,2,3@0.5:0.1") == CROM_EUSAGE);
     CHECK(crom_scenario_option(&sc, 0x1000 + 10, "0,0,0,1") == CROM_EUSAGE); /* --plane */
+    CHECK(crom_scenario_option(&sc, 0x1000 + 18, "0,0,0,0") == CROM_EUSAGE); /* --sphere: radius 0 */
+    CHECK(crom_scenario_option(&sc, 0x1000 + 18, "0,0,0,1,-1") == CROM_EUSAGE);
     /* the canonical text parses back to the same scenario */
     crom_scenario a, b;
     crom_scenario_defaults(&a);
     crom_scenario_option(&a, 0x1000 + 8, "y>0.45=0,-2,0@0:0.1");
     crom_scenario_option(&a, 0x1000 + 9, "tip=0,0,5@0.2:");
     crom_scenario_option(&a, 0x1000 + 10, "0,1,1,-0.5,0.3");
+    crom_scenario_option(&a, 0x1000 + 18, "0.1,0.2,-0.3,0.25,0.4"); /* --sphere */
+    crom_scenario_option(&a, 0x1000 + 10, "0,0,1,0");
     strcpy(a.pins[a.npins++], "bottom");
     char *text = crom_scenario_text(&a);
     crom_scenario_defaults(&b);
@@ -384,6 +422,7 @@ int main(void)
 {
     check_begin("test_sim");
     test_contact_derivatives();
+    test_sphere_derivatives();
     test_free_fall();
     test_momentum_and_energy();
     test_prescribed_and_contact();
