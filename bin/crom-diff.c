@@ -31,7 +31,9 @@ static const crom_cli_doc doc = {
     "mesh. B is the reference. Frames are matched by time; frames of one that the other lacks "
     "are skipped and counted.\n\n"
     "The error of a frame is ||u_A - u_B||_M / ||u_B||_M with the lumped-mass norm of the mesh "
-    "(a discretization-independent L2 norm over the body); over the run it is "
+    "(a discretization-independent L2 norm over the body; for a shell surface, whose trajectories "
+    "compare the same way, the lumped mass of its triangles, thickness x area / 3 per corner); "
+    "over the run it is "
     "sqrt(sum ||u_A - u_B||^2_M / sum ||u_B||^2_M). The table goes to stdout, one line per frame "
     "(frame, time, relative error, largest vertex distance in m), then a one-line summary; with "
     "--quiet only the summary.",
@@ -114,13 +116,7 @@ static int run(crom_cli *cli, args *a)
         rc = CROM_EINTERNAL;
         goto out2;
     }
-    for (int t = 0; t < A.mesh.nt; t++) { /* lumped volumes: the M-norm per unit density */
-        const int *e = A.mesh.tets + 4 * (size_t)t;
-        double V = crom_mesh_tet_volume(A.mesh.X + 3 * (size_t)e[0], A.mesh.X + 3 * (size_t)e[1],
-                                        A.mesh.X + 3 * (size_t)e[2], A.mesh.X + 3 * (size_t)e[3]);
-        for (int k = 0; k < 4; k++)
-            m[e[k]] += V / 4;
-    }
+    crom_mesh_vertex_volumes(&A.mesh, m); /* the M-norm per unit density (a shell: t A / 3 per corner) */
     if (a->csv && (rc = crom_fileout_open(&csv, a->csv, 0)))
         goto out2;
     if (csv.f)

@@ -1,6 +1,7 @@
-/* crom-export — write meshes and trajectories as files other tools open:
- * VTU (+ PVD for a series) and XDMF+HDF5 for ParaView and meshio, MSH for
- * gmsh, surface OBJ, PLY and STL, PNG pictures and strips. */
+/* crom-export — write meshes and trajectories (of solids and of shell
+ * surfaces) as files other tools open: VTU (+ PVD for a series) and
+ * XDMF+HDF5 for ParaView and meshio, MSH for gmsh, surface OBJ, PLY and STL,
+ * PNG pictures and strips. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -22,7 +23,7 @@ static const crom_opt export_opts[] = {
     {"frame", O_FRAME, "K", "Which frame of a series to write for vtu/obj/ply/stl/png: an index (negative counts from the end; default -1, the last) or 'all' for one file per frame."},
     {"every", O_EVERY, "K", "With pvd, xdmf, msh, strip or --frame all: keep every K-th frame (default 1)."},
     {"name", O_NAME, "BASE", "File name stem inside an output directory (default 'frame': frame.pvd, frame_00000.vtu, ...); -o OUT.pvd and -o OUT.xdmf name their files themselves."},
-    {"mesh", O_MESH, "MESH", "For a crom/latent: the mesh to decode onto (any mesh: the training mesh, a finer one for display, another shape; a trajectory or cubature carrying a mesh will do). For a trajectory: a mesh with the same vertices, e.g. to add regions."},
+    {"mesh", O_MESH, "MESH", "For a crom/latent: the mesh to decode onto (any tet mesh: the training mesh, a finer one for display, another shape; a trajectory or cubature carrying a mesh will do; not a shell surface). For a trajectory: a mesh of the same kind (tets or a shell) with the same vertices, e.g. to add regions."},
     {"model", O_MODEL, "MODEL", "The crom/model that decodes a crom/latent: u(X) = W(X) q."},
     {"follow-schedule", O_FOLLOW, NULL, "For a crom/latent run with a --schedule (cuts, punches, swaps): decode each frame on the mesh of the cubature in use at that frame, read from the latent's 'cubatures' record (the files must still be there); --mesh, if given, stands in for the first. The latent must be a file (it is read once per mesh). Applies to --compare latents too."},
     {"compare", O_COMPARE, "RESULT", "strip: another result (trajectory, or latent decoded with --model/--mesh) drawn as a further row (repeatable), e.g. the full run under the reduced one."},
@@ -73,6 +74,15 @@ static const crom_cli_doc doc = {
     "png, strip: pictures rendered without a display: the deformed boundary surface, shaded and "
     "coloured by |u| on one colour scale, from a fixed camera. strip puts several results side by "
     "side (rows) at the same times (columns) for a quick look without ParaView.\n\n"
+    "Shells: a shell surface (a crom/mesh of triangles, crom-mesh sheet) and its trajectories "
+    "(crom-fullsim) export to every format as their triangles: vtu cells are VTK_TRIANGLE (5), "
+    "xdmf grids a Triangle topology (/mesh/triangles), msh one discrete surface, obj/ply/stl and "
+    "png the triangles themselves, both sides drawn. Their cell data per triangle: 'area' (rest "
+    "area, m^2; in place of 'volume'), 'J' (the deformed over the rest area) and "
+    "'energy_density' (the membrane stretching energy per rest volume, thickness x area, J/m^3, "
+    "from the membrane kernel crom-fullsim uses; bending lives on edges and is left out); "
+    "'von_mises_stress' is left out. A crom/latent is decoded onto tet meshes only: a shell "
+    "--mesh is refused.\n\n"
     "Every output appears only when complete (written to a temporary file and renamed).",
     groups,
     "crom-mesh box | crom-export --format vtu -o box.vtu\n"
@@ -253,7 +263,7 @@ static int export_mesh(crom_cli *cli, args *a, crom_in *probe)
     int rc = crom_in_expect(probe, "crom/mesh", 1);
     crom_mesh m;
     hid_t root = rc ? -1 : H5Gopen2(probe->h5, "/", H5P_DEFAULT);
-    if (!rc && (rc = crom_mesh_read(root, &m)))
+    if (!rc && (rc = crom_mesh_read_any(root, &m)))
         crom_err_ctx("%s", probe->name);
     if (root >= 0)
         H5Gclose(root);
@@ -330,7 +340,10 @@ static int export_series(crom_cli *cli, args *a, crom_follow *s, crom_export_cel
     }
     if (s->res[0].in.complete != 1)
         crom_cli_warn(cli, "%s is incomplete (the run stopped early): exported its %d frames", s->res[0].in.name, k.n);
-    if (cells && cells->degenerate)
+    if (cells && cells->degenerate && crom_mesh_is_surface(&s->res[0].mesh))
+        crom_cli_warn(cli, "%ld degenerate triangles (over all frames): NaN in their J and energy density",
+                      cells->degenerate);
+    else if (cells && cells->degenerate)
         crom_cli_warn(cli, "%ld degenerate tets (over all frames): NaN in their J, energy density and stress",
                       cells->degenerate);
     int n = k.n;
@@ -405,8 +418,9 @@ static int run(crom_cli *cli, args *a)
         if (!(rc = crom_export_material(&mat, &known, &s.res[0].in, a->youngs, a->poisson)) && known)
             cells.mat = &mat;
         else if (!rc)
-            crom_cli_info(cli, "%s records no material: cell data without energy_density and von_mises_stress "
-                          "(give --youngs and --poisson)", s.res[0].in.name);
+            crom_cli_info(cli, "%s records no material: cell data without energy_density%s (give --youngs and "
+                          "--poisson)", s.res[0].in.name,
+                          crom_mesh_is_surface(&s.res[0].mesh) ? "" : " and von_mises_stress");
     }
     if (!rc && (series_kind(a) != CROM_EXPORT_SERIES_FILES || a->all))
         rc = export_series(cli, a, &s, cp);

@@ -77,18 +77,8 @@ static void print_mesh(hid_t loc, const char *indent)
     int wt;
     crom_mesh_bbox(&m, lo, hi);
     if (crom_mesh_is_surface(&m)) {
-        double area = 0;
-        for (int t = 0; t < m.ntri; t++) {
-            const double *p0 = m.X + 3 * (size_t)m.tris[3 * t], *p1 = m.X + 3 * (size_t)m.tris[3 * t + 1],
-                         *p2 = m.X + 3 * (size_t)m.tris[3 * t + 2];
-            double u[3], v[3];
-            for (int k = 0; k < 3; k++)
-                u[k] = p1[k] - p0[k], v[k] = p2[k] - p0[k];
-            area += 0.5 * sqrt(pow(u[1] * v[2] - u[2] * v[1], 2) + pow(u[2] * v[0] - u[0] * v[2], 2) +
-                               pow(u[0] * v[1] - u[1] * v[0], 2));
-        }
         printf("%s%d vertices, %d triangles (a shell), thickness %.6g m, area %.6g m^2\n", indent, m.nv, m.ntri,
-               m.thickness, area);
+               m.thickness, crom_mesh_volume(&m) / m.thickness);
     } else {
         crom_mesh_quality(&m, &worst, &mean, &wt);
         printf("%s%d vertices, %d tets, volume %.6g m^3\n", indent, m.nv, m.nt, crom_mesh_volume(&m));

@@ -42,9 +42,22 @@ double crom_mesh_tet_quality(const double *a, const double *b, const double *c, 
 
 #define VX(m, i) ((m)->X + 3 * (size_t)(i))
 
+/* Area of triangle (a, b, c). */
+static double tri_area(const double *a, const double *b, const double *c)
+{
+    double u[3], v[3];
+    for (int k = 0; k < 3; k++)
+        u[k] = b[k] - a[k], v[k] = c[k] - a[k];
+    return 0.5 * hypot(hypot(u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2]), u[0] * v[1] - u[1] * v[0]);
+}
+
 double crom_mesh_volume(const crom_mesh *m)
 {
     double V = 0;
+    for (int t = 0; t < m->ntri; t++) {
+        const int *e = m->tris + 3 * (size_t)t;
+        V += m->thickness * tri_area(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]));
+    }
     for (int t = 0; t < m->nt; t++) {
         const int *e = m->tets + 4 * (size_t)t;
         V += crom_mesh_tet_volume(VX(m, e[0]), VX(m, e[1]), VX(m, e[2]), VX(m, e[3]));
@@ -93,6 +106,13 @@ double crom_mesh_vertex_volumes(const crom_mesh *m, double *w)
 {
     double total = 0;
     memset(w, 0, sizeof(double) * (size_t)m->nv);
+    for (int t = 0; t < m->ntri; t++) { /* a shell: thickness x area / 3 per corner */
+        const int *v = m->tris + 3 * (size_t)t;
+        double V = m->thickness * tri_area(VX(m, v[0]), VX(m, v[1]), VX(m, v[2]));
+        total += V;
+        for (int k = 0; k < 3; k++)
+            w[v[k]] += V / 3;
+    }
     for (int t = 0; t < m->nt; t++) {
         const int *v = m->tets + 4 * (size_t)t;
         double V = crom_mesh_tet_volume(m->X + 3 * (size_t)v[0], m->X + 3 * (size_t)v[1],
@@ -586,7 +606,7 @@ int crom_mesh_read(hid_t loc, crom_mesh *m)
     int rc = crom_mesh_read_any(loc, m);
     if (!rc && crom_mesh_is_surface(m)) {
         rc = crom_err(CROM_EUSAGE, "the mesh is a shell surface (%d triangles); this program takes tet meshes "
-                      "(shells: crom-fullsim, crom-info, crom-export)", m->ntri);
+                      "(shells: crom-fullsim, crom-info, crom-export, crom-diff)", m->ntri);
         crom_mesh_free(m);
     }
     return rc;
@@ -685,7 +705,7 @@ int crom_mesh_load(const char *path, int flags, crom_mesh *m, char **history)
     }
     if (!rc && crom_mesh_is_surface(m) && !(flags & CROM_MESH_SURFACES)) {
         rc = crom_err(CROM_EUSAGE, "%s is a shell surface (%d triangles); this program takes tet meshes (shells: "
-                      "crom-fullsim, crom-info, crom-export)", in.name, m->ntri);
+                      "crom-fullsim, crom-info, crom-export, crom-diff)", in.name, m->ntri);
         crom_mesh_free(m);
     }
     if (!rc && history) {

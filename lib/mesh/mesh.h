@@ -48,7 +48,7 @@ double crom_mesh_tet_volume(const double *a, const double *b, const double *c, c
  * negated for inverted tets. */
 double crom_mesh_tet_quality(const double *a, const double *b, const double *c, const double *d);
 
-/* Sum of the signed tet volumes (m³). */
+/* Sum of the signed tet volumes (m³); a shell: thickness × area. */
 double crom_mesh_volume(const crom_mesh *m);
 
 /* Worst and mean quality; *worst_tet gets the index of the worst one. */
@@ -57,8 +57,9 @@ void crom_mesh_quality(const crom_mesh *m, double *worst, double *mean, int *wor
 /* Axis-aligned bounding box of the vertices. */
 void crom_mesh_bbox(const crom_mesh *m, double lo[3], double hi[3]);
 
-/* Lumped vertex volumes: w[v] = sum over the tets t using v of V_t / 4 (m^3),
- * so the lumped mass is rho w. Returns the total volume. */
+/* Lumped vertex volumes: w[v] = sum over the tets t using v of V_t / 4 (m^3)
+ * (a shell: thickness × area / 3 over its triangles), so the lumped mass is
+ * rho w. Returns the total volume. */
 double crom_mesh_vertex_volumes(const crom_mesh *m, double *w);
 
 /* Make every tet positively oriented (swap two vertices of negative ones).

@@ -21,6 +21,20 @@ int crom_result_open(crom_result *res, const char *path, const char *mesh_path, 
     return crom_result_adopt(res, &in, mesh_path, model_path);
 }
 
+/* The tet mesh a latent is decoded onto, from mesh_path (or a file carrying
+ * a mesh): a shell surface is refused with a one-line CROM_EUSAGE (the models
+ * are fields over solids). */
+static int latent_mesh(const char *mesh_path, crom_mesh *m)
+{
+    int rc = crom_mesh_load(mesh_path, CROM_MESH_CARRIERS | CROM_MESH_SURFACES, m, NULL);
+    if (!rc && crom_mesh_is_surface(m)) {
+        rc = crom_err(CROM_EUSAGE, "%s holds a shell surface (%d triangles): a crom/latent is decoded onto tet "
+                      "meshes only", mesh_path, m->ntri);
+        crom_mesh_free(m);
+    }
+    return rc;
+}
+
 /* A latent decoded by a nonlinear map: x(q) on the map's own mesh, or
  * (continuous) on the one at mesh_path; J its Jacobian's buffer. */
 static int latent_map(crom_result *res, const crom_model *model, const char *mesh_path)
@@ -32,7 +46,7 @@ static int latent_map(crom_result *res, const crom_model *model, const char *mes
     if (!res->map)
         rc = CROM_EINTERNAL;
     if (!rc && mesh_path)
-        rc = crom_mesh_load(mesh_path, 1, &given, NULL);
+        rc = latent_mesh(mesh_path, &given);
     if (!rc) {
         rc = crom_map_init(res->map, model, mesh_path ? &given : NULL);
         if (rc && mesh_path)
@@ -53,7 +67,7 @@ static int latent_basis(crom_result *res, const crom_model *model, const char *m
 {
     if (!mesh_path)
         return crom_err(CROM_EUSAGE, "%s is a crom/latent: decoding it needs --model and --mesh", res->in.name);
-    int rc = crom_mesh_load(mesh_path, 1, &res->mesh, NULL);
+    int rc = latent_mesh(mesh_path, &res->mesh);
     if (rc)
         return rc;
     res->W = crom_malloc(sizeof(double) * 3 * (size_t)res->r * (size_t)res->mesh.nv);
@@ -107,8 +121,8 @@ static int adopt_latent(crom_result *res, const char *mesh_path, const char *mod
     return rc;
 }
 
-/* A crom/trajectory: its fields and its own mesh, or the one at mesh_path
- * when that has the same vertices. */
+/* A crom/trajectory: its fields and its own mesh (tets or a shell), or the
+ * one at mesh_path when that has the same vertices and is of the same kind. */
 static int adopt_trajectory(crom_result *res, const char *mesh_path)
 {
     crom_in *in = &res->in;
@@ -123,7 +137,7 @@ static int adopt_trajectory(crom_result *res, const char *mesh_path)
     crom_err_clear();
     hid_t g = H5Gopen2(in->h5, "mesh", H5P_DEFAULT);
     crom_mesh own;
-    rc = g < 0 ? crom_err(CROM_EDATA, "%s has no mesh", in->name) : crom_mesh_read(g, &own);
+    rc = g < 0 ? crom_err(CROM_EDATA, "%s has no mesh", in->name) : crom_mesh_read_any(g, &own);
     if (g >= 0)
         H5Gclose(g);
     if (rc) {
@@ -133,9 +147,15 @@ static int adopt_trajectory(crom_result *res, const char *mesh_path)
         return rc;
     }
     if (mesh_path) {
-        if ((rc = crom_mesh_load(mesh_path, 1, &res->mesh, NULL))) {
+        if ((rc = crom_mesh_load(mesh_path, CROM_MESH_CARRIERS | CROM_MESH_SURFACES, &res->mesh, NULL))) {
             crom_mesh_free(&own);
             return rc;
+        }
+        int kind = crom_mesh_is_surface(&own);
+        if (crom_mesh_is_surface(&res->mesh) != kind) {
+            crom_mesh_free(&own);
+            return crom_err(CROM_EDATA, "%s holds a %s, but %s was computed on a %s", mesh_path,
+                            kind ? "tet mesh" : "shell surface", in->name, kind ? "shell surface" : "tet mesh");
         }
         int same = res->mesh.nv == own.nv;
         for (int i = 0; same && i < 3 * own.nv; i++)

@@ -1,5 +1,6 @@
 /* result.h — any simulation result as displacement frames on a mesh: a
- * crom/trajectory (its own mesh, or a given mesh with the same vertices), or a
+ * crom/trajectory (its own mesh, a tet mesh or a shell surface, or a given
+ * mesh of the same kind with the same vertices), or a
  * crom/latent decoded through a model's basis, u = W(X) q, onto any mesh
  * (the training mesh, a finer display mesh, another shape), or through a
  * nonlinear one-mesh map (data-free models: u = x(q) − X, velocity J(q) q̇)
@@ -30,7 +31,9 @@ typedef struct {
  * model_id must match the model's), except for a map model (energy,
  * neuralmodes), which brings its mesh and accepts only a mesh with the same
  * vertices; a trajectory needs neither, and a given mesh must have its
- * vertices. Returns 0 or an error naming the problem. */
+ * vertices. A trajectory may live on a shell surface (res->mesh then has
+ * triangles, mesh.h); a latent is decoded onto tet meshes only (a shell
+ * --mesh: CROM_EUSAGE). Returns 0 or an error naming the problem. */
 int crom_result_open(crom_result *res, const char *path, const char *mesh_path,
                      const char *model_path);
 

@@ -12,6 +12,7 @@
 #include "base/err.h"
 #include "io/io.h"
 #include "mesh/gmsh.h"
+#include "phys/shell.h"
 #include "view/export.h"
 
 static void xml_text(FILE *f, const char *s);
@@ -77,14 +78,18 @@ void crom_export_number(char *buf, size_t n, double x)
     }
 }
 
+/* The cells of m: a shell's triangles (3 vertices each), else the tets (4). */
+static int cell_count(const crom_mesh *m) { return crom_mesh_is_surface(m) ? m->ntri : m->nt; }
+
 int crom_export_vtu(FILE *f, const crom_export_frame *fr)
 {
     const crom_mesh *m = fr->mesh;
     const crom_export_cells *c = fr->cells;
-    size_t nt = (size_t)m->nt, nv = (size_t)m->nv;
-    if (4 * nt * sizeof(int32_t) > UINT32_MAX || 3 * nv * sizeof(double) > UINT32_MAX)
+    int shell = crom_mesh_is_surface(m);
+    size_t nt = (size_t)cell_count(m), nv = (size_t)m->nv, per = shell ? 3 : 4;
+    if (per * nt * sizeof(int32_t) > UINT32_MAX || 3 * nv * sizeof(double) > UINT32_MAX)
         return crom_err(CROM_EDATA, "mesh too large for a VTU with 32-bit headers");
-    int32_t *off = crom_malloc(sizeof(int32_t) * nt);
+    int32_t *off = crom_malloc(sizeof(int32_t) * (nt ? nt : 1));
     uint8_t *types = crom_malloc(nt ? nt : 1);
     uint8_t *mask = crom_malloc(nv ? nv : 1);
     if (!off || !types || !mask) {
@@ -94,8 +99,8 @@ int crom_export_vtu(FILE *f, const crom_export_frame *fr)
         return CROM_EINTERNAL;
     }
     for (size_t t = 0; t < nt; t++) {
-        off[t] = (int32_t)(4 * (t + 1));
-        types[t] = 10; /* VTK_TETRA */
+        off[t] = (int32_t)(per * (t + 1));
+        types[t] = shell ? 5 : 10; /* VTK_TRIANGLE, VTK_TETRA */
     }
     fprintf(f, "<?xml version=\"1.0\"?>\n"
                "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt32\">\n"
@@ -111,7 +116,7 @@ int crom_export_vtu(FILE *f, const crom_export_frame *fr)
     fprintf(f, "      <Points>\n");
     data_array(f, "Float64", "Points", 3, m->X, 3 * nv * sizeof(double));
     fprintf(f, "      </Points>\n      <Cells>\n");
-    data_array(f, "Int32", "connectivity", 1, m->tets, 4 * nt * sizeof(int32_t));
+    data_array(f, "Int32", "connectivity", 1, shell ? m->tris : m->tets, per * nt * sizeof(int32_t));
     data_array(f, "Int32", "offsets", 1, off, nt * sizeof(int32_t));
     data_array(f, "UInt8", "types", 1, types, nt);
     fprintf(f, "      </Cells>\n      <PointData>\n");
@@ -130,13 +135,13 @@ int crom_export_vtu(FILE *f, const crom_export_frame *fr)
     fprintf(f, "      </PointData>\n");
     if (c) {
         fprintf(f, "      <CellData>\n");
-        data_array(f, "Float64", "volume", 1, c->volume, nt * sizeof(double));
+        data_array(f, "Float64", shell ? "area" : "volume", 1, c->measure, nt * sizeof(double));
         if (fr->u) {
             data_array(f, "Float64", "J", 1, c->J, nt * sizeof(double));
-            if (c->mat) {
+            if (c->mat)
                 data_array(f, "Float64", "energy_density", 1, c->psi, nt * sizeof(double));
+            if (c->mat && !shell)
                 data_array(f, "Float64", "von_mises_stress", 1, c->mises, nt * sizeof(double));
-            }
         }
         fprintf(f, "      </CellData>\n");
     }
@@ -163,10 +168,23 @@ int crom_export_pvd(FILE *f, const double *time, const char *const *file, int n)
     return crom_fileout_error(f);
 }
 
-/* Boundary triangles and the compact list of the vertices they use. */
+int crom_export_surface(const crom_mesh *m, int *ntri, int **tris)
+{
+    if (!crom_mesh_is_surface(m))
+        return crom_mesh_boundary(m, ntri, tris, NULL);
+    *tris = crom_malloc(sizeof(int) * 3 * (size_t)m->ntri);
+    if (!*tris)
+        return CROM_EINTERNAL;
+    memcpy(*tris, m->tris, sizeof(int) * 3 * (size_t)m->ntri);
+    *ntri = m->ntri;
+    return 0;
+}
+
+/* The surface's triangles (crom_export_surface) and the compact list of the
+ * vertices they use. */
 static int surface(const crom_mesh *m, int *ntri, int **tris, int *nsv, int **sv, int **map)
 {
-    int rc = crom_mesh_boundary(m, ntri, tris, NULL);
+    int rc = crom_export_surface(m, ntri, tris);
     if (rc)
         return rc;
     *map = crom_malloc(sizeof(int) * (size_t)m->nv);
@@ -248,24 +266,27 @@ int crom_export_ply(FILE *f, const crom_mesh *m, const double *disp)
 int crom_export_xdmf_write_mesh(hid_t loc, const char *group, const crom_mesh *m)
 {
     char name[160];
+    int shell = crom_mesh_is_surface(m), nc = cell_count(m);
     hsize_t d[2] = {(hsize_t)m->nv, 3};
     snprintf(name, sizeof name, "%s/vertices", group);
     int rc = crom_h5_write_f64(loc, name, 2, d, m->X, "m", "rest positions X of the vertices");
-    d[0] = (hsize_t)m->nt;
-    d[1] = 4;
-    snprintf(name, sizeof name, "%s/tets", group);
+    d[0] = (hsize_t)nc;
+    d[1] = shell ? 3 : 4;
+    snprintf(name, sizeof name, "%s/%s", group, shell ? "triangles" : "tets");
     if (!rc)
-        rc = crom_h5_write_i32(loc, name, 2, d, m->tets, NULL, "vertex indices of the tetrahedra (0-based)");
-    double *vol = rc ? NULL : crom_malloc(sizeof(double) * (size_t)(m->nt ? m->nt : 1));
-    if (!rc && !vol)
-        rc = CROM_EINTERNAL;
+        rc = crom_h5_write_i32(loc, name, 2, d, shell ? m->tris : m->tets, NULL,
+                               shell ? "vertex indices of the shell's triangles (0-based)"
+                                     : "vertex indices of the tetrahedra (0-based)");
+    crom_export_cells rest = {0};
+    if (!rc)
+        rc = crom_export_cells_eval(&rest, m, NULL);
     if (!rc) {
-        crom_fem_tet_measures(m, NULL, NULL, vol, NULL, NULL, NULL);
-        d[0] = (hsize_t)m->nt;
-        snprintf(name, sizeof name, "%s/volume", group);
-        rc = crom_h5_write_f64(loc, name, 1, d, vol, "m^3", "rest volume of each tetrahedron");
+        d[0] = (hsize_t)nc;
+        snprintf(name, sizeof name, "%s/%s", group, shell ? "area" : "volume");
+        rc = crom_h5_write_f64(loc, name, 1, d, rest.measure, shell ? "m^2" : "m^3",
+                               shell ? "rest area of each triangle" : "rest volume of each tetrahedron");
     }
-    free(vol);
+    crom_export_cells_free(&rest);
     if (rc || m->nregions == 0)
         return rc;
     int *mask = crom_malloc(sizeof(int) * (size_t)(m->nv ? m->nv : 1));
@@ -352,9 +373,10 @@ static void xdmf_grid(FILE *f, const char *in, const char *h5name, const crom_me
         crom_export_number(tv, sizeof tv, t);
         fprintf(f, "%s<Grid Name=\"frame_%05d\" GridType=\"Uniform\">\n%s<Time Value=\"%s\"/>\n", in, k, sub, tv);
     }
-    fprintf(f, "%s<Topology TopologyType=\"Tetrahedron\" NumberOfElements=\"%d\" NodesPerElement=\"4\">\n", sub,
-            m->nt);
-    xdmf_item(f, sub2, "Int", 4, m->nt, 4, h5name, group, "tets");
+    int shell = crom_mesh_is_surface(m), nc = cell_count(m);
+    fprintf(f, "%s<Topology TopologyType=\"%s\" NumberOfElements=\"%d\" NodesPerElement=\"%d\">\n", sub,
+            shell ? "Triangle" : "Tetrahedron", nc, shell ? 3 : 4);
+    xdmf_item(f, sub2, "Int", 4, nc, shell ? 3 : 4, h5name, group, shell ? "triangles" : "tets");
     fprintf(f, "%s</Topology>\n%s<Geometry GeometryType=\"XYZ\">\n", sub, sub);
     xdmf_item(f, sub2, "Float", 8, m->nv, 3, h5name, group, "vertices");
     fprintf(f, "%s</Geometry>\n", sub);
@@ -366,9 +388,10 @@ static void xdmf_grid(FILE *f, const char *in, const char *h5name, const crom_me
         snprintf(rname, sizeof rname, "region_%s", m->regions[r].name);
         xdmf_attribute(f, sub, rname, 0, 0, "Int", 4, m->nv, h5name, group, rname);
     }
-    xdmf_attribute(f, sub, "volume", 0, 1, "Float", 8, m->nt, h5name, group, "volume");
+    const char *measure = shell ? "area" : "volume";
+    xdmf_attribute(f, sub, measure, 0, 1, "Float", 8, nc, h5name, group, measure);
     for (int i = 0; i < ncfields && k >= 0; i++)
-        xdmf_attribute(f, sub, cfields[i], 0, 1, "Float", 8, m->nt, h5name, cfields[i], name);
+        xdmf_attribute(f, sub, cfields[i], 0, 1, "Float", 8, nc, h5name, cfields[i], name);
     fprintf(f, "%s</Grid>\n", in);
 }
 
@@ -649,12 +672,16 @@ int crom_export_xdmf_series_frame(crom_export_xdmf_series *x, int mi, const crom
         (rc = crom_export_xdmf_write_frame(x->o.h5, "displacement", x->n, m->nv, 3, fr->u, "m")) ||
         (rc = crom_export_xdmf_write_frame(x->o.h5, "velocity", x->n, m->nv, 3, fr->v, "m/s")))
         return rc;
-    x->ncells = c ? (c->mat ? 3 : 1) : 0;
-    if (c && (rc = crom_export_xdmf_write_frame(x->o.h5, "J", x->n, m->nt, 1, c->J, "1")))
+    int shell = crom_mesh_is_surface(m), nc = cell_count(m);
+    /* J, energy density, stress: a prefix of the XML's cell fields (a shell
+     * has no stress) */
+    x->ncells = c ? (c->mat ? (shell ? 2 : 3) : 1) : 0;
+    if (c && (rc = crom_export_xdmf_write_frame(x->o.h5, "J", x->n, nc, 1, c->J, "1")))
         return rc;
-    if (c && c->mat &&
-        ((rc = crom_export_xdmf_write_frame(x->o.h5, "energy_density", x->n, m->nt, 1, c->psi, "J/m^3")) ||
-         (rc = crom_export_xdmf_write_frame(x->o.h5, "von_mises_stress", x->n, m->nt, 1, c->mises, "Pa"))))
+    if (c && c->mat && (rc = crom_export_xdmf_write_frame(x->o.h5, "energy_density", x->n, nc, 1, c->psi, "J/m^3")))
+        return rc;
+    if (c && c->mat && !shell &&
+        (rc = crom_export_xdmf_write_frame(x->o.h5, "von_mises_stress", x->n, nc, 1, c->mises, "Pa")))
         return rc;
     if ((rc = crom_array_reserve((void **)&x->time, &x->tcap, (size_t)x->n + 1, sizeof *x->time)) ||
         (rc = crom_array_reserve((void **)&x->mesh_of, &x->mcap, (size_t)x->n + 1, sizeof *x->mesh_of)))
@@ -705,13 +732,51 @@ int crom_export_xdmf_series_finish(crom_export_xdmf_series *x)
 
 /* ------------------------------------------------------- cell fields */
 
+/* The cells of a shell: rest area A, J = A'/A (the deformed over the rest
+ * area: sqrt det(FᵀF) of the 3×2 F = Ds Dm⁻¹) and, with a material, the
+ * membrane energy of shell.h per rest volume t A (J/m³). A degenerate rest
+ * triangle gets NaN for J and psi and is counted. */
+static long shell_measures(const crom_mesh *m, const double *u, const crom_material *mat, double *A, double *J,
+                           double *psi)
+{
+    crom_shell_material sm;
+    int have = mat && crom_shell_material_init(&sm, mat->E, mat->nu, m->thickness, 1000) == CROM_OK;
+    long bad = 0;
+    if (mat && !have) /* cannot happen for a material and mesh that passed their checks: no psi then */
+        crom_err_clear();
+    for (int t = 0; t < m->ntri; t++) {
+        double X[9], x[9], Dminv[4], F[6], n[3];
+        for (int k = 0; k < 3; k++)
+            for (int c = 0; c < 3; c++) {
+                size_t i = 3 * (size_t)m->tris[3 * (size_t)t + k] + c;
+                X[3 * k + c] = m->X[i];
+                x[3 * k + c] = m->X[i] + (u ? u[i] : 0);
+            }
+        int ok = crom_shell_tri_rest(X, Dminv, &A[t]) == CROM_OK;
+        bad += !ok;
+        J[t] = psi[t] = NAN;
+        if (!ok)
+            continue;
+        crom_shell_tri_F(x, Dminv, F); /* F[2i + a]: columns F e1, F e2 */
+        n[0] = F[2] * F[5] - F[4] * F[3];
+        n[1] = F[4] * F[1] - F[0] * F[5];
+        n[2] = F[0] * F[3] - F[2] * F[1];
+        J[t] = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        double E;
+        if (have && crom_shell_tri_eval(&sm, x, Dminv, A[t], 0, &E, NULL, NULL) == CROM_OK)
+            psi[t] = E / (m->thickness * A[t]);
+    }
+    return bad;
+}
+
 int crom_export_cells_eval(crom_export_cells *c, const crom_mesh *m, const double *u)
 {
-    if (m->nt > c->cap) {
-        int cap = m->nt;
-        double *b[4] = {crom_realloc(c->volume, sizeof(double) * (size_t)cap), NULL, NULL, NULL};
+    int nc = cell_count(m);
+    if (nc > c->cap) {
+        int cap = nc;
+        double *b[4] = {crom_realloc(c->measure, sizeof(double) * (size_t)cap), NULL, NULL, NULL};
         if (b[0])
-            c->volume = b[0];
+            c->measure = b[0];
         if (b[0] && (b[1] = crom_realloc(c->J, sizeof(double) * (size_t)cap)))
             c->J = b[1];
         if (b[1] && (b[2] = crom_realloc(c->psi, sizeof(double) * (size_t)cap)))
@@ -722,13 +787,16 @@ int crom_export_cells_eval(crom_export_cells *c, const crom_mesh *m, const doubl
             return CROM_EINTERNAL;
         c->cap = cap;
     }
-    c->degenerate += crom_fem_tet_measures(m, u, c->mat, c->volume, c->J, c->psi, c->mises);
+    if (crom_mesh_is_surface(m))
+        c->degenerate += shell_measures(m, u, c->mat, c->measure, c->J, c->psi);
+    else
+        c->degenerate += crom_fem_tet_measures(m, u, c->mat, c->measure, c->J, c->psi, c->mises);
     return 0;
 }
 
 void crom_export_cells_free(crom_export_cells *c)
 {
-    free(c->volume);
+    free(c->measure);
     free(c->J);
     free(c->psi);
     free(c->mises);
@@ -870,11 +938,15 @@ int crom_export_stl(FILE *f, const crom_mesh *m, const double *disp)
     return rc;
 }
 
+/* one discrete volume of tets (gmsh element type 4, our vertex order) or,
+ * for a shell, one discrete surface of its triangles (type 2) */
 static int msh_model(crom_export_msh *w, const crom_mesh *m)
 {
-    size_t nt = (size_t)m->nt, nv = (size_t)m->nv;
+    int shell = crom_mesh_is_surface(m), dim = shell ? 2 : 3, per = shell ? 3 : 4;
+    size_t nt = (size_t)cell_count(m), nv = (size_t)m->nv;
+    const int *cells = shell ? m->tris : m->tets;
     size_t *etag = crom_malloc(sizeof(size_t) * (nt ? nt : 1));
-    size_t *enode = crom_malloc(sizeof(size_t) * 4 * (nt ? nt : 1));
+    size_t *enode = crom_malloc(sizeof(size_t) * (size_t)per * (nt ? nt : 1));
     int rc = 0, ierr = 0;
     if (!w->tags || !etag || !enode) {
         rc = CROM_EINTERNAL;
@@ -883,14 +955,14 @@ static int msh_model(crom_export_msh *w, const crom_mesh *m)
             w->tags[i] = i + 1;
         for (size_t t = 0; t < nt; t++) {
             etag[t] = t + 1;
-            for (int k = 0; k < 4; k++)
-                enode[4 * t + k] = (size_t)m->tets[4 * t + k] + 1;
+            for (int k = 0; k < per; k++)
+                enode[per * t + k] = (size_t)cells[per * t + k] + 1;
         }
-        gmshModelAddDiscreteEntity(3, 1, NULL, 0, &ierr);
+        gmshModelAddDiscreteEntity(dim, 1, NULL, 0, &ierr);
         if (!ierr)
-            gmshModelMeshAddNodes(3, 1, w->tags, nv, m->X, 3 * nv, NULL, 0, &ierr);
-        if (!ierr) /* element type 4: the 4-node tetrahedron, our vertex order */
-            gmshModelMeshAddElementsByType(1, 4, etag, nt, enode, 4 * nt, &ierr);
+            gmshModelMeshAddNodes(dim, 1, w->tags, nv, m->X, 3 * nv, NULL, 0, &ierr);
+        if (!ierr)
+            gmshModelMeshAddElementsByType(1, shell ? 2 : 4, etag, nt, enode, per * nt, &ierr);
         if (ierr)
             rc = crom_gmsh_fail(ierr, "take the mesh");
     }

@@ -1,7 +1,9 @@
 /* export.h — writers of files other tools open: VTK XML unstructured grids
  * (.vtu) and collections (.pvd) for ParaView and meshio, XDMF 3 (XML + HDF5)
  * series, gmsh MSH files, surface meshes as OBJ, PLY and STL, with per-tet
- * cell data (volume, J, energy density, stress). The writers of one format
+ * cell data (volume, J, energy density, stress). A shell (a surface mesh,
+ * mesh.h) is written as its triangles, with per-triangle cell data (area,
+ * area ratio J, membrane energy density; no stress). The writers of one format
  * write to an open FILE (the caller makes it atomic: crom_fileout, crom_out);
  * the whole-file functions below them (crom_export_write, series, sinks)
  * are atomic themselves. Nothing here prints. */
@@ -16,20 +18,25 @@
 #include "mesh/mesh.h"
 #include "phys/fem.h"
 
-/* Per-tet fields of a frame (cell data), recomputed for each frame by
- * crom_export_cells_eval from its mesh and displacement with the element
- * kernel of fem.h: rest volume (m³), J = det F, strain-energy density Ψ(F)
- * (J/m³) and von Mises Cauchy stress (Pa); the last two only with a
- * material. */
+/* Per-cell fields of a frame (cell data), recomputed for each frame by
+ * crom_export_cells_eval from its mesh and displacement. Per tet, with the
+ * element kernel of fem.h: rest volume (m³), J = det F, strain-energy
+ * density Ψ(F) (J/m³) and von Mises Cauchy stress (Pa); the last two only
+ * with a material. Per triangle of a shell, with the membrane kernel of
+ * shell.h: rest area (m²), J = deformed over rest area, and with a material
+ * (its E and ν, the mesh's thickness) the membrane (stretching) energy per
+ * rest volume t A (J/m³); no stress (mises is left unset), and bending,
+ * which lives on edges, is not a cell field. */
 typedef struct {
-    double *volume, *J, *psi, *mises; /* [cap] */
+    double *measure, *J, *psi, *mises; /* [cap]: measure the rest volume (tets) or area (triangles) */
     int cap;
-    const crom_material *mat;         /* NULL: no psi, no mises */
-    long degenerate;                  /* degenerate rest tets met (NaN fields) */
+    const crom_material *mat;          /* NULL: no psi, no mises */
+    long degenerate;                   /* degenerate rest cells met (NaN fields) */
 } crom_export_cells;
 
-/* Evaluate the cell fields of mesh m displaced by u (NULL: at rest) into c
- * (buffers grown as needed). Returns 0 or CROM_EINTERNAL. */
+/* Evaluate the cell fields of mesh m (tets, or a shell's triangles)
+ * displaced by u (NULL: at rest) into c (buffers grown as needed). Returns
+ * 0 or CROM_EINTERNAL. */
 int crom_export_cells_eval(crom_export_cells *c, const crom_mesh *m, const double *u);
 /* Free the buffers (c can be evaluated again). */
 void crom_export_cells_free(crom_export_cells *c);
@@ -56,10 +63,11 @@ int crom_export_material(crom_material *m, int *known, const crom_in *in, double
  * "%.16g" or "%.17g", the first that does. */
 void crom_export_number(char *buf, size_t n, double x);
 
-/* A VTU of fr: the mesh on its rest positions; point data 'displacement'
- * and 'velocity' (when given) and one UInt8 mask per named region
- * ("region_NAME"); cell data 'volume', and with a displacement 'J',
- * 'energy_density', 'von_mises_stress' (those of fr->cells that exist); the
+/* A VTU of fr: the mesh on its rest positions (cells: VTK_TETRA, or
+ * VTK_TRIANGLE for a shell); point data 'displacement' and 'velocity' (when
+ * given) and one UInt8 mask per named region ("region_NAME"); cell data
+ * 'volume' (a shell: 'area'), and with a displacement 'J', 'energy_density',
+ * 'von_mises_stress' (those of fr->cells that exist; a shell has no stress); the
  * frame's time as field data 'TimeValue' (when not NaN). Arrays binary,
  * base64-encoded inline. Returns 0, CROM_EDATA (too large for 32-bit
  * headers) or CROM_EIO. */
@@ -69,8 +77,14 @@ int crom_export_vtu(FILE *f, const crom_export_frame *fr);
  * Returns 0 or CROM_EIO. */
 int crom_export_pvd(FILE *f, const double *time, const char *const *file, int n);
 
-/* Boundary surface, deformed by disp ([nv][3] or NULL), as Wavefront OBJ.
- * Returns 0, CROM_EINTERNAL or CROM_EIO. */
+/* The surface a picture or a surface file shows, as triangles [ntri][3]
+ * (malloc'ed into *tris): the boundary of a tet mesh, outward oriented
+ * (crom_mesh_boundary), or a copy of a shell's own triangles. Returns 0 or
+ * CROM_EINTERNAL. */
+int crom_export_surface(const crom_mesh *m, int *ntri, int **tris);
+
+/* The surface (crom_export_surface), deformed by disp ([nv][3] or NULL), as
+ * Wavefront OBJ. Returns 0, CROM_EINTERNAL or CROM_EIO. */
 int crom_export_obj(FILE *f, const crom_mesh *m, const double *disp);
 
 /* The same as binary little-endian PLY, with the per-vertex float property
@@ -78,7 +92,8 @@ int crom_export_obj(FILE *f, const crom_mesh *m, const double *disp);
  * for a texture coordinate). Returns as crom_export_obj. */
 int crom_export_ply(FILE *f, const crom_mesh *m, const double *disp);
 
-/* The same as an STL (ASCII, written by gmsh), outward oriented. Returns 0,
+/* The same as an STL (ASCII, written by gmsh), outward oriented (a shell:
+ * as its triangles are). Returns 0,
  * CROM_EDATA (gmsh failed, its message kept), CROM_ECANTCREAT (no temporary
  * file) or CROM_EIO. Uses gmsh's one global session: not reentrant. */
 int crom_export_stl(FILE *f, const crom_mesh *m, const double *disp);
@@ -86,7 +101,7 @@ int crom_export_stl(FILE *f, const crom_mesh *m, const double *disp);
 /* ----------------------------------------------------------------- MSH
  * A gmsh MSH 4.1 file (ASCII, written by gmsh through its API): the mesh as
  * one discrete volume of linear tetrahedra (node tags 1..nv, element tags
- * 1..nt) and, for a series, the views "displacement" (m) and "velocity"
+ * 1..nt; a shell: one discrete surface of its triangles) and, for a series, the views "displacement" (m) and "velocity"
  * (m/s) as NodeData, one step per frame with its time. gmsh has one global
  * session, so one crom_export_msh at a time. */
 typedef struct {
@@ -113,18 +128,21 @@ void crom_export_msh_abort(crom_export_msh *w);
 /* ------------------------------------------------------------------ XDMF
  * An XDMF 3 file is light XML describing grids whose arrays (heavy data) live
  * in an HDF5 file beside it. crom's layout of that HDF5 file:
- *   /mesh/vertices [nv,3] f64, /mesh/tets [nt,4] i32, /mesh/region_NAME [nv]
- *   i32 (0/1); further meshes of a run that switches meshes in /mesh_1, ...
+ *   /mesh/vertices [nv,3] f64, /mesh/tets [nt,4] i32 and /mesh/volume [nt]
+ *   f64 (a shell: /mesh/triangles [ntri,3] and /mesh/area [ntri]),
+ *   /mesh/region_NAME [nv] i32 (0/1); further meshes of a run that switches
+ *   meshes in /mesh_1, ...
  *   /time [F] f64; /displacement/00000 [nv,3] f64 (and /velocity/00000)
  *   per frame: one dataset per frame, so that every reader (ParaView's
  *   Xdmf3 reader, meshio's TimeSeriesReader) can reference it whole. */
 
 /* Write mesh m as the group `group` ("mesh", "mesh_1") of the heavy-data
- * file: vertices, tets, rest volumes of the tets and one 0/1 int32 mask per
- * region. Returns 0 or an HDF5 error naming the dataset. */
+ * file: vertices, tets and their rest volumes (a shell: triangles and their
+ * rest areas) and one 0/1 int32 mask per region. Returns 0 or an HDF5 error
+ * naming the dataset. */
 int crom_export_xdmf_write_mesh(hid_t loc, const char *group, const crom_mesh *m);
 
-/* Write frame k's field `name` ([n][ncomp], per vertex or per tet) as
+/* Write frame k's field `name` ([n][ncomp], per vertex or per cell) as
  * /NAME/%05d with its units. Returns 0 or an HDF5 error. */
 int crom_export_xdmf_write_frame(hid_t loc, const char *name, int k, int n, int ncomp, const double *data,
                                  const char *units);
@@ -133,9 +151,10 @@ int crom_export_xdmf_write_frame(hid_t loc, const char *name, int k, int n, int 
  * otherwise a Temporal collection of nframes Uniform grids, frame k at
  * time[k] on meshes[mesh_of[k]] (group groups[mesh_of[k]]), with Node
  * attributes fields[0..nfields) (3-vectors, datasets /NAME/%05d), Cell
- * attributes cfields[0..ncfields) (scalars per tet, /NAME/%05d), and in
- * every grid the region masks and the Cell attribute 'volume' of its mesh
- * group. h5name is the heavy-data file name relative to the XML. Returns
+ * attributes cfields[0..ncfields) (scalars per cell, /NAME/%05d), and in
+ * every grid the region masks and the Cell attribute 'volume' (a shell:
+ * 'area') of its mesh group. A tet mesh is a Tetrahedron topology, a shell a
+ * Triangle one. h5name is the heavy-data file name relative to the XML. Returns
  * 0 or CROM_EIO. */
 int crom_export_xdmf(FILE *f, const char *h5name, const crom_mesh *const *meshes,
                      const char *const *groups, const double *time, const int *mesh_of, int nframes,
@@ -214,7 +233,7 @@ typedef struct {
     int *mesh_of;              /* [n] */
     int n;
     size_t tcap, mcap;         /* room in time and mesh_of (base/array.h) */
-    int ncells;                /* per-frame cell fields written: 0, 1 (J) or 3 */
+    int ncells;                /* per-frame cell fields written: 0, 1 (J), 2 (and energy density: a shell) or 3 */
 } crom_export_xdmf_series;
 
 /* Start an XDMF export to out: OUT.xdmf (heavy data in OUT.xdmf.h5 beside
@@ -235,7 +254,8 @@ int crom_export_xdmf_series_mesh(crom_export_xdmf_series *x, int mi, const crom_
 
 /* Append frame fr on mesh number mi (fr->mesh, written if new): its time,
  * displacement and velocity, and its cell fields J, energy density and
- * stress (those fr->cells has; the same for every frame of a series).
+ * stress (those fr->cells has, a shell no stress; the same for every frame
+ * of a series).
  * Returns 0 or an error. */
 int crom_export_xdmf_series_frame(crom_export_xdmf_series *x, int mi, const crom_export_frame *fr);
 
@@ -247,8 +267,9 @@ int crom_export_xdmf_series_finish(crom_export_xdmf_series *x);
 /* Give up: remove the heavy data (nothing is left) and free x. */
 void crom_export_xdmf_series_abort(crom_export_xdmf_series *x);
 
-/* Write a bare mesh m (cell data: the rest volumes) in format to out, laid
- * out as kind says: CROM_EXPORT_SERIES_XDMF an XDMF grid (crom_export_xdmf_series_open
+/* Write a bare mesh m (cell data: the rest volumes, a shell's rest areas)
+ * in format to out, laid out as kind says: CROM_EXPORT_SERIES_XDMF an XDMF
+ * grid (crom_export_xdmf_series_open
  * with name, dir, inputs, cli, history); CROM_EXPORT_SERIES_PVD_FILE a collection
  * of one dataset at t = 0; CROM_EXPORT_SERIES_PVD_DIR, or in_dir != 0, the file
  * NAME.EXT (vtu for pvd) in the directory out; else the file out ("-":

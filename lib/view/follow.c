@@ -5,6 +5,7 @@
 
 #include "base/array.h"
 #include "base/err.h"
+#include "view/export.h"
 #include "view/follow.h"
 
 void crom_follow_close(crom_follow *s)
@@ -267,7 +268,7 @@ int crom_follow_load(crom_follow_frames *r, crom_follow *src, int every)
     if (r->nf == 0)
         return crom_err(CROM_EDATA, "%s has no frames", r->src.res[0].in.name);
     for (int i = 0; i < r->src.n; i++)
-        if ((rc = crom_mesh_boundary(&r->src.res[i].mesh, &r->ntri[i], &r->tris[i], NULL)))
+        if ((rc = crom_export_surface(&r->src.res[i].mesh, &r->ntri[i], &r->tris[i])))
             return rc;
     return 0;
 }

@@ -54,11 +54,12 @@ typedef struct {
     double *t, *u;     /* [nf] times; frames one after another: frame f at u + off[f] */
     size_t *off;       /* [nf] */
     int *mi;           /* [nf] mesh of frame f */
-    int *ntri, **tris; /* per mesh: the boundary surface */
+    int *ntri, **tris; /* per mesh: the surface drawn (export.h: crom_export_surface) */
 } crom_follow_frames;
 
 /* Take over src (left zeroed) and read every every-th frame of it into
- * memory, with the boundary surface of each of its meshes. Returns 0,
+ * memory, with the surface of each of its meshes (the boundary of a tet
+ * mesh, a shell's triangles). Returns 0,
  * CROM_EDATA when it has no frames, CROM_EINTERNAL (out of memory) or a read
  * error; r is to be freed with crom_follow_frames_free either way. */
 int crom_follow_load(crom_follow_frames *r, crom_follow *src, int every);

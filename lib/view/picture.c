@@ -94,7 +94,7 @@ int crom_picture_mesh(crom_image *im, const crom_mesh *m, int pw, int ph)
     im->z = NULL;
     crom_mesh_bbox(m, lo, hi);
     crom_render_camera_fit(&cam, lo, hi, pw, ph, 1.12);
-    if (!work || (rc = crom_image_init(im, pw, ph)) || (rc = crom_mesh_boundary(m, &ntri, &tris, NULL))) {
+    if (!work || (rc = crom_image_init(im, pw, ph)) || (rc = crom_export_surface(m, &ntri, &tris))) {
         free(work);
         crom_image_free(im);
         return rc ? rc : CROM_EINTERNAL;

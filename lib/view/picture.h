@@ -36,8 +36,9 @@ int crom_picture_write(const crom_follow_frames *r, int all, long frame, const c
 int crom_picture_strip(crom_image *im, const crom_follow_frames *rows, const char *const *labels, int nrows,
                        int columns, int pw, int ph, double range, int *ncols);
 
-/* A bare mesh at rest, grey, filling a pw × ph image (allocated into im).
- * Returns 0, CROM_EINTERNAL, or an error of crom_mesh_boundary. */
+/* A bare mesh at rest (its surface: the boundary of a tet mesh, a shell's
+ * triangles), grey, filling a pw × ph image (allocated into im). Returns 0
+ * or CROM_EINTERNAL. */
 int crom_picture_mesh(crom_image *im, const crom_mesh *m, int pw, int ph);
 
 #endif

@@ -23,7 +23,8 @@ void crom_render_camera_fit(crom_render_camera *cam, const double lo[3], const d
 /* Draw the triangles tris [nt][3] of the points x [n][3] into the viewport
  * starting at column x0, row y0 of size vw × vh: flat Lambert shading,
  * colour from s [n] mapped over [smin, smax] (a blue-to-yellow ramp); s may
- * be NULL (grey). */
+ * be NULL (grey). Two-sided: no triangle is culled for facing away, and the
+ * shading uses |n·l|, so an open surface (a shell) shows both its sides. */
 void crom_render_mesh(crom_image *im, const crom_render_camera *cam, int x0, int y0, int vw, int vh,
                       const double *x, int nt, const int *tris, const double *s, double smin,
                       double smax);
@@ -32,9 +33,10 @@ void crom_render_mesh(crom_image *im, const crom_render_camera *cam, int x0, int
 void crom_render_colorbar(crom_image *im, int x, int y, int w, int h, double smin, double smax,
                           const char *unit);
 
-/* One panel: the boundary surface tris [nt][3] of rest positions X [n][3]
- * displaced by u [n][3] (NULL: at rest), coloured by |u| over [0, umax],
- * with an optional label at the panel's top-left. */
+/* One panel: the surface tris [nt][3] (a tet mesh's boundary, a shell's
+ * triangles) of rest positions X [n][3] displaced by u [n][3] (NULL: at
+ * rest), coloured by |u| over [0, umax], with an optional label at the
+ * panel's top-left. */
 void crom_render_panel(crom_image *im, const crom_render_camera *cam, int x0, int y0, int vw, int vh,
                        int n, const double *X, const double *u, int nt, const int *tris, double umax,
                        const char *label, double *work);
