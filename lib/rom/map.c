@@ -262,6 +262,47 @@ static inline double act_f(crom_nn_act a, double om, double v, double *d)
     }
 }
 
+/* Forward through the hidden layers at q: the last hidden layer's
+ * activations in *hout and, with J, their Jacobian dh/dq [w][r] in *tout
+ * (the map's scratch); with keep, every hidden layer's pre-activation z_l
+ * and dz_l/dq stay in map->zs and map->ts (crom_map_curvature). */
+static void hidden_forward(crom_map *map, const double *q, int J, int keep, double **hout, double **tout)
+{
+    int r = map->r, L = map->nlayers;
+    double *h = map->a0, *hn = map->a1, *t = map->t0, *tn = map->t1;
+    size_t off = 0;
+    memcpy(h, q, sizeof(double) * (size_t)r);
+    if (J) {
+        memset(t, 0, sizeof(double) * (size_t)r * r);
+        for (int i = 0; i < r; i++)
+            t[i * r + i] = 1;
+    }
+    for (int l = 0; l < L - 1; l++) {
+        int in = map->width[l], out = map->width[l + 1];
+        double *z = keep ? map->zs + off : map->z1, *tz = keep ? map->ts + off * (size_t)r : tn;
+        memcpy(z, map->b[l], sizeof(double) * (size_t)out);
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, out, in, 1.0, map->w[l], in, h, 1, 1.0, z, 1);
+        if (J)
+            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, out, r, in, 1.0, map->w[l], in, t, r, 0.0, tz, r);
+        for (int j = 0; j < out; j++) {
+            double dv;
+            hn[j] = act_f(map->act, map->omega0, z[j], &dv);
+            if (J)
+                for (int k = 0; k < r; k++)
+                    tn[j * r + k] = tz[j * r + k] * dv;
+        }
+        off += (size_t)out;
+        double *s = h;
+        h = hn;
+        hn = s;
+        s = t;
+        t = tn;
+        tn = s;
+    }
+    *hout = h;
+    *tout = t;
+}
+
 int crom_map_features(crom_map *map, const double *q, double *a, double *T)
 {
     int r = map->r, p = map->p;
@@ -275,36 +316,9 @@ int crom_map_features(crom_map *map, const double *q, double *a, double *T)
         }
         return 0;
     }
-    /* forward through the hidden layers: h activations [w], t tangents
-     * [w][r] (dh/dq) */
-    double *h = map->a0, *hn = map->a1, *z = map->z1, *t = map->t0, *tn = map->t1;
-    int J = T != NULL, L = map->nlayers;
-    memcpy(h, q, sizeof(double) * (size_t)r);
-    if (J) {
-        memset(t, 0, sizeof(double) * (size_t)r * r);
-        for (int i = 0; i < r; i++)
-            t[i * r + i] = 1;
-    }
-    for (int l = 0; l < L - 1; l++) {
-        int in = map->width[l], out = map->width[l + 1];
-        memcpy(z, map->b[l], sizeof(double) * (size_t)out);
-        cblas_dgemv(CblasRowMajor, CblasNoTrans, out, in, 1.0, map->w[l], in, h, 1, 1.0, z, 1);
-        if (J)
-            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, out, r, in, 1.0, map->w[l], in, t, r, 0.0, tn, r);
-        for (int j = 0; j < out; j++) {
-            double dv;
-            hn[j] = act_f(map->act, map->omega0, z[j], &dv);
-            if (J)
-                for (int k = 0; k < r; k++)
-                    tn[j * r + k] *= dv;
-        }
-        double *s = h;
-        h = hn;
-        hn = s;
-        s = t;
-        t = tn;
-        tn = s;
-    }
+    double *h, *t;
+    int L = map->nlayers;
+    hidden_forward(map, q, T != NULL, 0, &h, &t);
     int nh = map->width[L - 1], rl = map->rl;
     if (map->phi) { /* a = W_L h + b_L, T = W_L t */
         if (a) {
@@ -373,32 +387,8 @@ int crom_map_curvature(crom_map *map, const double *q, const double *g, double *
     off[0] = 0;
     for (int l = 0; l < L - 1; l++)
         off[l + 1] = off[l] + (size_t)map->width[l + 1];
-    double *h = map->a0, *hn = map->a1, *t = map->t0, *tn = map->t1;
-    memcpy(h, q, sizeof(double) * (size_t)r);
-    memset(t, 0, sizeof(double) * rr);
-    for (int i = 0; i < r; i++)
-        t[i * r + i] = 1;
-    for (int l = 0; l < L - 1; l++) { /* forward: z_l and dz_l/dq kept */
-        int in = map->width[l], out = map->width[l + 1];
-        double *z = map->zs + off[l], *tz = map->ts + off[l] * r;
-        memcpy(z, map->b[l], sizeof(double) * (size_t)out);
-        cblas_dgemv(CblasRowMajor, CblasNoTrans, out, in, 1.0, map->w[l], in, h, 1, 1.0, z, 1);
-        cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, out, r, in, 1.0, map->w[l], in, t, r, 0.0, tz, r);
-        for (int j = 0; j < out; j++) {
-            double dv;
-            hn[j] = act_f(map->act, map->omega0, z[j], &dv);
-            if (!isfinite(hn[j]))
-                return crom_err(CROM_EDATA, "the map's network is not finite at this latent");
-            for (int k = 0; k < r; k++)
-                tn[j * r + k] = tz[j * r + k] * dv;
-        }
-        double *s = h;
-        h = hn;
-        hn = s;
-        s = t;
-        t = tn;
-        tn = s;
-    }
+    double *hl, *tl;
+    hidden_forward(map, q, 1, 1, &hl, &tl); /* z_l and dz_l/dq kept */
     /* u = ∂ψ/∂h of the last hidden layer: W_Lᵀ g through φ's output layer,
      * else g's entries at the features h */
     int nh = map->width[L - 1];
@@ -425,10 +415,13 @@ int crom_map_curvature(crom_map *map, const double *q, const double *g, double *
             un = s;
         }
     }
+    double sum = 0;
     for (int a = 0; a < r; a++) /* exactly symmetric */
-        for (int b = 0; b < a; b++)
+        for (int b = 0; b <= a; b++) {
             C[a * r + b] = C[b * r + a] = 0.5 * (C[a * r + b] + C[b * r + a]);
-    return 0;
+            sum += C[a * r + b];
+        }
+    return isfinite(sum) ? 0 : crom_err(CROM_EDATA, "the map's network is not finite at this latent");
 }
 
 void crom_map_rows(const crom_map *map, const int *idx, int nidx, const double *a, const double *T, double *x,

@@ -15,6 +15,22 @@
 #include "base/rng.h"
 #include "rom/samples.h"
 
+/* Uniformly random rotation from a normalized Gaussian quaternion. */
+static inline void fx_random_rotation(crom_rng *r, double R[9])
+{
+    double q[4], n = 0;
+    for (int i = 0; i < 4; i++) {
+        q[i] = crom_rng_normal(r);
+        n += q[i] * q[i];
+    }
+    n = sqrt(n);
+    double w = q[0] / n, x = q[1] / n, y = q[2] / n, z = q[3] / n;
+    double M[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+                   2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                   2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)};
+    memcpy(R, M, sizeof M);
+}
+
 /* nx x ny x nz boxes of sides h [3] from lo [3] (lo NULL: the origin),
  * each split into 6 tets along its main diagonal (Kuhn subdivision), vertex
  * (i, j, k) at index (k (ny+1) + j)(nx+1) + i. Interior vertices are moved

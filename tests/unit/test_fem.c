@@ -24,28 +24,12 @@ static double det3(const double A[9])
            A[2] * (A[3] * A[7] - A[4] * A[6]);
 }
 
-/* Uniformly random rotation from a normalized Gaussian quaternion. */
-static void random_rotation(crom_rng *r, double R[9])
-{
-    double q[4], n = 0;
-    for (int i = 0; i < 4; i++) {
-        q[i] = crom_rng_normal(r);
-        n += q[i] * q[i];
-    }
-    n = sqrt(n);
-    double w = q[0] / n, x = q[1] / n, y = q[2] / n, z = q[3] / n;
-    double M[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-                   2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                   2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)};
-    memcpy(R, M, sizeof M);
-}
-
 /* F = R1 diag(s) R2 */
 static void F_from_sigma(crom_rng *r, const double s[3], double F[9])
 {
     double R1[9], R2[9], D[9] = {s[0], 0, 0, 0, s[1], 0, 0, 0, s[2]}, T[9];
-    random_rotation(r, R1);
-    random_rotation(r, R2);
+    fx_random_rotation(r, R1);
+    fx_random_rotation(r, R2);
     matmul3(R1, D, T);
     matmul3(T, R2, F);
 }
@@ -494,8 +478,8 @@ static void test_tet(void)
         case 2: A[0] = 0.5; A[4] = 0.7; A[8] = 0.6; break;
         case 3: A[1] = 0.8; A[5] = -0.4; break;
         case 4: A[8] = -0.7; break;
-        case 5: random_rotation(&r, A); noise = 0.3; break;
-        case 6: random_rotation(&r, A); for (int k = 6; k < 9; k++) A[k] = -A[k]; noise = 0.3; break;
+        case 5: fx_random_rotation(&r, A); noise = 0.3; break;
+        case 6: fx_random_rotation(&r, A); for (int k = 6; k < 9; k++) A[k] = -A[k]; noise = 0.3; break;
         case 7: A[8] = 0.01; break;
         }
         double x[12];
@@ -536,7 +520,7 @@ static void test_tet(void)
                   names[cfg], me);
         /* rotation invariance: E(Rx + t) = E(x), g → R g, H → R H Rᵀ */
         double R[9], xr[12], gr[12], Hr[144], Er;
-        random_rotation(&r, R);
+        fx_random_rotation(&r, R);
         for (int k = 0; k < 4; k++)
             for (int a = 0; a < 3; a++)
                 xr[3 * k + a] = R[3 * a] * x[3 * k] + R[3 * a + 1] * x[3 * k + 1] +

@@ -7,6 +7,7 @@
 #include <lapacke.h>
 
 #include "check.h"
+#include "fixtures.h"
 #include "base/err.h"
 #include "base/rng.h"
 #include "mesh/meshgen.h"
@@ -14,21 +15,6 @@
 #include "phys/modes.h"
 #include "phys/shell.h"
 #include "phys/sim.h"
-
-static void random_rotation(crom_rng *r, double R[9])
-{
-    double q[4], n = 0;
-    for (int i = 0; i < 4; i++) {
-        q[i] = crom_rng_normal(r);
-        n += q[i] * q[i];
-    }
-    n = sqrt(n);
-    double w = q[0] / n, x = q[1] / n, y = q[2] / n, z = q[3] / n;
-    double M[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-                   2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-                   2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)};
-    memcpy(R, M, sizeof M);
-}
 
 /* y = R x + t for every point of x[n][3] */
 static void rigid(const double R[9], const double t[3], const double *x, double *y, int n)
@@ -94,7 +80,7 @@ static void test_membrane(void)
     crom_rng_seed(&rng, 3);
     /* a triangle in the plane z = 0 with known area, then rotated anywhere */
     double X2[9] = {0, 0, 0, 0.3, 0.05, 0, 0.1, 0.2, 0}, R[9], t0[3] = {0.4, -1, 2}, X[9], Dminv[4], A;
-    random_rotation(&rng, R);
+    fx_random_rotation(&rng, R);
     rigid(R, t0, X2, X, 3);
     CHECK(crom_shell_tri_rest(X, Dminv, &A) == CROM_OK);
     CHECK_REL(A, 0.5 * (0.3 * 0.2 - 0.05 * 0.1), 1e-13);
@@ -109,7 +95,7 @@ static void test_membrane(void)
         x2[3 * v + 1] = G[2] * X2[3 * v] + G[3] * X2[3 * v + 1];
         x2[3 * v + 2] = 0;
     }
-    random_rotation(&rng, R2);
+    fx_random_rotation(&rng, R2);
     rigid(R2, t2, x2, x, 3);
     double C[4] = {G[0] * G[0] + G[2] * G[2], G[0] * G[1] + G[2] * G[3], 0, G[1] * G[1] + G[3] * G[3]};
     C[2] = C[1];
@@ -209,7 +195,7 @@ static void test_hinge(void)
         CHECK(crom_shell_hinge_angle(x, &th, NULL, NULL) == CROM_OK);
         CHECK_NEAR(fabs(th), fabs(phis[k]), 1e-13);
         double R[9], t[3] = {crom_rng_normal(&rng), crom_rng_normal(&rng), crom_rng_normal(&rng)}, y[12], thr;
-        random_rotation(&rng, R);
+        fx_random_rotation(&rng, R);
         rigid(R, t, x, y, 4);
         CHECK(crom_shell_hinge_angle(y, &thr, NULL, NULL) == CROM_OK);
         CHECK_NEAR(thr, th, 1e-12);
@@ -480,6 +466,24 @@ static void test_mesh(void)
     free(x);
 }
 
+/* A sheet W × 1 m, 1 cm thick, of edge about size, and its row spacing dy
+ * (crom-mesh sheet's rows run along x from y = −½) */
+static int strip_mesh(double W, double size, crom_mesh *m, double *dy)
+{
+    crom_meshgen_opts o;
+    crom_meshgen_defaults(&o, CROM_MESHGEN_SHEET);
+    o.dims[0] = W;
+    o.dims[1] = 1;
+    o.size = size;
+    o.thickness = 0.01;
+    int rc = crom_meshgen_sheet(&o, m);
+    *dy = 1;
+    for (int v = 0; !rc && v < m->nv; v++)
+        if (m->X[3 * v + 1] + 0.5 > 1e-9)
+            *dy = fmin(*dy, m->X[3 * v + 1] + 0.5);
+    return rc;
+}
+
 /* A cantilever plate under its own weight, solved statically by crom_sim
  * (one implicit step of 1000 s: inertia negligible): the sheet W × L in the
  * xy-plane, clamped along y = −L/2 (its first two rows of vertices pinned:
@@ -489,22 +493,10 @@ static void test_mesh(void)
  * span, at ν = 0 (D = E t³ / 12, a strip and a wide plate alike). */
 static double plate_ratio(double W, double size, int *nv, double *ell)
 {
-    crom_meshgen_opts o;
-    crom_meshgen_defaults(&o, CROM_MESHGEN_SHEET);
-    o.dims[0] = W;
-    o.dims[1] = 1;
-    o.size = size;
-    o.thickness = 0.01;
     crom_mesh m;
-    if (crom_meshgen_sheet(&o, &m))
+    double dy, ymax = 0.5;
+    if (strip_mesh(W, size, &m, &dy))
         return NAN;
-    double dy = 1, ymax = -INFINITY;
-    for (int v = 0; v < m.nv; v++) {
-        double y = m.X[3 * v + 1] + 0.5;
-        if (y > 1e-9)
-            dy = fmin(dy, y);
-        ymax = fmax(ymax, m.X[3 * v + 1]);
-    }
     char clamp[64];
     snprintf(clamp, sizeof clamp, "clamp=y<%.17g", -0.5 + 1.5 * dy);
     crom_scenario sc;
@@ -532,7 +524,7 @@ static double plate_ratio(double W, double size, int *nv, double *ell)
                         w -= s.x[3 * v + 2];
                         k++;
                     }
-                double span = 1 - dy, q = sc.density * o.thickness * 9.81, D = sc.youngs * pow(o.thickness, 3) / 12;
+                double span = 1 - dy, q = sc.density * m.thickness * 9.81, D = sc.youngs * pow(m.thickness, 3) / 12;
                 ratio = (w / k) / (q * pow(span, 4) / (8 * D));
                 *ell = span;
             } else {
@@ -578,19 +570,10 @@ static void test_plate(void)
  * the cantilever's f₁ = (1.8751² / 2π ℓ²) √(D / ρt) at ν = 0. */
 static double strip_ratio(double W, double size, int *nv)
 {
-    crom_meshgen_opts o;
-    crom_meshgen_defaults(&o, CROM_MESHGEN_SHEET);
-    o.dims[0] = W;
-    o.dims[1] = 1;
-    o.size = size;
-    o.thickness = 0.01;
     crom_mesh m;
-    if (crom_meshgen_sheet(&o, &m))
+    double dy;
+    if (strip_mesh(W, size, &m, &dy))
         return NAN;
-    double dy = 1;
-    for (int v = 0; v < m.nv; v++)
-        if (m.X[3 * v + 1] + 0.5 > 1e-9)
-            dy = fmin(dy, m.X[3 * v + 1] + 0.5);
     char clamp[64];
     snprintf(clamp, sizeof clamp, "y<%.17g", -0.5 + 1.5 * dy);
     const char *refs[1] = {clamp};
