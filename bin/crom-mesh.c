@@ -18,7 +18,7 @@ static const crom_opt mesh_opts[] = {
     {"output", 'o', "OUT", "Write the mesh to OUT (default: stdout, which must not be a terminal)."},
     {"size", O_SIZE, "H", "Target edge length in metres (default 0.1)."},
     {"dims", O_DIMS, "X,Y,Z", "Extents of box, plate and superquadric, centred at the origin (default 1,1,1; plate 1,0.05,1). sheet: X by Y in the xy-plane (Z is not used)."},
-    {"thickness", O_THICK, "T", "sheet: the shell's thickness in metres (default 0.001)."},
+    {"thickness", O_THICK, "T", "Make a thin shell of this thickness in metres: sheet (default 0.001), or import of an .stl/.obj surface, open or closed, whose triangles become the shell's (subdivided until no edge exceeds --size)."},
     {"radius", O_RADIUS, "R", "Radius of sphere and cylinder (default 0.5)."},
     {"height", O_HEIGHT, "H", "Height of the cylinder along y (default 1)."},
     {"exponent", O_EXP, "P", "Superquadric exponent: |x/a|^P+|y/b|^P+|z/c|^P <= 1; 2 is an ellipsoid, large P approaches the box (default 4)."},
@@ -37,7 +37,8 @@ static const crom_cli_doc doc = {
     "make a tetrahedral mesh of a shape or a surface/volume file, or a shell sheet",
     "crom-mesh box|plate|sphere|cylinder|superquadric [options] [-o OUT]\n"
     "crom-mesh import FILE [options] [-o OUT]\n"
-    "crom-mesh sheet [--dims X,Y,Z] [--size H] [--thickness T] [options] [-o OUT]",
+    "crom-mesh sheet [--dims X,Y,Z] [--size H] [--thickness T] [options] [-o OUT]\n"
+    "crom-mesh import FILE.obj|FILE.stl --thickness T [--size H] [options] [-o OUT]",
     "Meshes a shape centred at the origin, or the inside of a closed .stl/.obj surface, or "
     "a .msh/.geo volume, with gmsh, and writes a crom/mesh file: rest positions, positively "
     "oriented tetrahedra and named vertex regions.\n\n"
@@ -46,7 +47,9 @@ static const crom_cli_doc doc = {
     "sheet makes a thin shell instead (crom-fullsim simulates it with a StVK membrane and "
     "discrete-shell bending): the rectangle X by Y in the xy-plane, in rows of near-equilateral "
     "triangles of edge about --size (straight sides: each row ends in half-triangles), with "
-    "--thickness stored in the mesh.\n\n"
+    "--thickness stored in the mesh. import with --thickness makes a shell of the triangles of "
+    "an .stl/.obj surface, open or closed (consistently oriented, each edge shared by at most two "
+    "triangles).\n\n"
     "Nothing but the mesh goes to stdout. With --verbose the vertex and tet counts, the volume "
     "and the worst element quality (mean ratio, 1 = regular) are printed on stderr.",
     groups,
@@ -132,8 +135,9 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     else if (shape < 0)
         crom_err(CROM_EUSAGE, "unknown shape '%s' (box, plate, sphere, cylinder, superquadric, import, sheet)",
                  a->shape);
-    else if (a->thickness > 0 && shape != CROM_MESHGEN_SHEET)
-        crom_err(CROM_EUSAGE, "--thickness is for a sheet (a shell); %s makes a solid", a->shape);
+    else if (a->thickness > 0 && shape != CROM_MESHGEN_SHEET && shape != CROM_MESHGEN_IMPORT)
+        crom_err(CROM_EUSAGE, "--thickness is for a shell (sheet, or import of a surface); %s makes a solid",
+                 a->shape);
     else if (shape == CROM_MESHGEN_IMPORT && !a->file)
         crom_err(CROM_EUSAGE, "import needs a FILE operand");
     else
@@ -179,8 +183,8 @@ static int run(crom_cli *cli, args *a)
     signal(SIGALRM, on_alarm);
     alarm((unsigned)(a->timeout + 0.999));
     double t0 = crom_clock_now();
-    crom_meshgen_plan_info plan;
-    int rc = crom_meshgen_plan(&a->gen, &plan);
+    crom_meshgen_plan_info plan = {0};
+    int rc = a->gen.thickness > 0 ? 0 : crom_meshgen_plan(&a->gen, &plan); /* a shell keeps its triangles */
     if (rc)
         return rc;
     if (plan.finer && plan.automatic)

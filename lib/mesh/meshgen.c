@@ -530,10 +530,50 @@ int crom_meshgen_sheet(const crom_meshgen_opts *o, crom_mesh *m)
     return crom_mesh_validate(m);
 }
 
+int crom_meshgen_shell_import(const crom_meshgen_opts *o, crom_mesh *m)
+{
+    memset(m, 0, sizeof *m);
+    if (!o->file)
+        return crom_err(CROM_EUSAGE, "import needs a file");
+    if (!(o->thickness > 0) || !isfinite(o->thickness))
+        return crom_err(CROM_EUSAGE, "a shell import needs a positive --thickness (got %g)", o->thickness);
+    if (!(ends_with(o->file, ".stl") || ends_with(o->file, ".obj")))
+        return crom_err(CROM_EUSAGE, "%s: a shell is imported from the triangles of an .stl or .obj surface", o->file);
+    crom_surface s = {0};
+    int rc = crom_surface_read(o->file, &s);
+    if (!rc)
+        rc = crom_surface_check_oriented(&s, o->file);
+    if (!rc)
+        rc = crom_surface_refine(&s, o->size);
+    if (!rc) {
+        m->nv = s.nv;
+        m->ntri = s.nt;
+        m->thickness = o->thickness;
+        m->X = crom_malloc(sizeof(double) * 3 * (size_t)s.nv);
+        m->tris = crom_malloc(sizeof(int) * 3 * (size_t)s.nt);
+        m->tets = crom_malloc(sizeof(int) * 4);
+        if (!m->X || !m->tris || !m->tets)
+            rc = CROM_EINTERNAL;
+    }
+    if (!rc) {
+        memcpy(m->X, s.V, sizeof(double) * 3 * (size_t)s.nv);
+        memcpy(m->tris, s.T, sizeof(int) * 3 * (size_t)s.nt);
+        rc = crom_mesh_compact(m);
+    }
+    if (!rc)
+        rc = crom_mesh_validate(m);
+    crom_surface_free(&s);
+    if (rc)
+        crom_mesh_free(m);
+    return rc;
+}
+
 int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m)
 {
     if (o->shape == CROM_MESHGEN_SHEET)
         return crom_meshgen_sheet(o, m);
+    if (o->shape == CROM_MESHGEN_IMPORT && o->thickness > 0)
+        return crom_meshgen_shell_import(o, m);
     memset(m, 0, sizeof *m);
     int rc = check_opts(o), ierr = 0;
     if (rc)

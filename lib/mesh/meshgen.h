@@ -71,7 +71,14 @@ int crom_meshgen_shape(const char *name);
  * towards +z, thickness o->thickness. */
 int crom_meshgen_sheet(const crom_meshgen_opts *o, crom_mesh *m);
 
-/* Mesh the shape or file (a sheet: crom_meshgen_sheet). Tets come out positively oriented and compacted;
+/* A shell from the triangles of an .stl/.obj surface (open or closed, o->file):
+ * welded, subdivided until no edge exceeds o->size, thickness o->thickness.
+ * CROM_EDATA when it is not an oriented manifold (an edge shared by more
+ * than two triangles, or by two running the same way). */
+int crom_meshgen_shell_import(const crom_meshgen_opts *o, crom_mesh *m);
+
+/* Mesh the shape or file (a sheet: crom_meshgen_sheet; an import with a
+ * thickness: crom_meshgen_shell_import). Tets come out positively oriented and compacted;
  * gmsh physical groups (imports) become regions. Returns 0, CROM_EUSAGE for
  * bad parameters, CROM_ENOINPUT for a missing file, CROM_EDATA for a surface
  * that is open or a file gmsh cannot mesh. */

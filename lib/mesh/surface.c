@@ -238,12 +238,16 @@ static int hedge_cmp(const void *x, const void *y)
     return (p->b > q->b) - (p->b < q->b);
 }
 
-int crom_surface_check_closed(const crom_surface *s, const char *name)
+/* Edges shared by two triangles in opposite directions, and (closed) no
+ * boundary edge. */
+static int check_edges(const crom_surface *s, const char *name, int closed)
 {
     int nt = s->nt;
     const int *T = s->T;
-    if (nt < 4)
+    if (closed && nt < 4)
         return crom_err(CROM_EDATA, "%s: %d triangles cannot close a volume", name, nt);
+    if (nt < 1)
+        return crom_err(CROM_EDATA, "%s: the surface has no triangles", name);
     size_t ne = 3 * (size_t)nt;
     hedge *e = crom_malloc(sizeof(hedge) * ne);
     if (!e)
@@ -274,7 +278,7 @@ int crom_surface_check_closed(const crom_surface *s, const char *name)
             flipped++;
         i = j;
     }
-    if (open)
+    if (open && closed)
         rc = crom_err(CROM_EDATA, "%s: surface is not closed (%d boundary edges); crom meshes the inside of a closed surface",
                       name, open);
     else if (nonmanifold)
@@ -285,6 +289,10 @@ int crom_surface_check_closed(const crom_surface *s, const char *name)
     free(e);
     return rc;
 }
+
+int crom_surface_check_closed(const crom_surface *s, const char *name) { return check_edges(s, name, 1); }
+
+int crom_surface_check_oriented(const crom_surface *s, const char *name) { return check_edges(s, name, 0); }
 
 /* ------------------------------------------------- surface subdivision */
 

@@ -34,6 +34,9 @@ int crom_surface_read(const char *path, crom_surface *out);
  * the problem, with name (the file) in front. */
 int crom_surface_check_closed(const crom_surface *s, const char *name);
 
+/* The same, but boundary edges are allowed (an open surface: a shell's). */
+int crom_surface_check_oriented(const crom_surface *s, const char *name);
+
 /* Subdivide every triangle 1-to-4 at its edge midpoints until no edge is
  * longer than h (at most 8 times); CROM_EUSAGE when that would take more
  * than 4M triangles. */

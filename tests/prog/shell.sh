@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # shell.sh — thin shells through the programs (issue 16): crom-mesh sheet
-# (exact area, consistent orientation, the thickness stored), crom-fullsim on
+# (exact area, consistent orientation, the thickness stored) and import of
+# an .obj surface as a shell (round trip, subdivision), crom-fullsim on
 # a sheet (a pinned sheet swinging out of plane; free fall of an unpinned
 # one, which implicit Euler moves by exactly g h² N(N+1)/2 with no strain),
 # crom-info, and the one-line refusals: shell flags on a solid, a shell
 # given to a tet-only program, a surface that is inconsistently oriented,
-# non-manifold or without a positive thickness.
+# non-manifold or without a positive thickness, an open surface imported as
+# a solid.
 . "$CROM_TOP/tests/prog/common.bash"
 
 crom-mesh sheet --dims 0.8,0.4,1 --size 0.05 --thickness 0.003 --region top='y>0.19' -o "$TMP/sheet.h5"
@@ -40,6 +42,29 @@ print(f"sheet: {len(X)} vertices, {len(T)} triangles, area {0.5 * nz.sum():.12g}
 EOF
 ok
 crom-info "$TMP/sheet.h5" | grep -q "triangles (a shell), thickness 0.003 m, area 0.32 m^2" || fail "crom-info's summary"
+ok
+
+# import of a surface as a shell: the sheet's own triangles through an OBJ come back as they were, and
+# --size subdivides them 1-to-4
+crom-export --format obj -o "$TMP/sheet.obj" "$TMP/sheet.h5"
+crom-mesh import "$TMP/sheet.obj" --thickness 0.003 -o "$TMP/imported.h5"
+crom-mesh import "$TMP/sheet.obj" --thickness 0.003 --size 0.03 -o "$TMP/fine.h5"
+$PY - "$TMP/sheet.h5" "$TMP/imported.h5" "$TMP/fine.h5" <<'EOF' || fail "the imported shells"
+import sys, h5py, numpy as np
+def need(c, what):
+    if not c:
+        sys.exit(f"{what}")
+def area(f):
+    X, T = f['vertices'][...], f['triangles'][...]
+    e1, e2 = X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]]
+    return 0.5 * np.sqrt((np.cross(e1, e2) ** 2).sum(1)).sum()
+a, b, c = (h5py.File(p, 'r') for p in sys.argv[1:4])
+need(len(b['vertices']) == len(a['vertices']) and len(b['triangles']) == len(a['triangles']), 'counts')
+need(abs(area(b) - 0.32) < 1e-12 and abs(area(c) - 0.32) < 1e-12, f"areas {area(b)} {area(c)}")
+need(len(c['triangles']) == 4 * len(a['triangles']), f"{len(c['triangles'])} triangles after subdivision")
+need(b['triangles'].attrs['thickness'] == 0.003, 'thickness')
+print(f"import: {len(b['triangles'])} triangles back, {len(c['triangles'])} after --size 0.03, area kept")
+EOF
 ok
 
 # a pinned sheet swinging out of plane
@@ -84,7 +109,7 @@ EOF
 ok
 
 # refusals, one line each, nothing written
-expect_error 64 "thickness is for a sheet" "$TMP/x.h5" -- crom-mesh box --thickness 0.01 -o "$TMP/x.h5"
+expect_error 64 "thickness is for a shell" "$TMP/x.h5" -- crom-mesh box --thickness 0.01 -o "$TMP/x.h5"
 expect_error 64 "thickness" "$TMP/x.h5" -- crom-mesh sheet --thickness 0 -o "$TMP/x.h5"
 expect_error 64 "shell surface.*tet meshes" "$TMP/x.h5" -- crom-modes --count 4 -o "$TMP/x.h5" "$TMP/sheet.h5"
 expect_error 64 "shell surface.*tet meshes" "$TMP/x.h5" -- crom-remesh refine -o "$TMP/x.h5" "$TMP/sheet.h5"
@@ -106,6 +131,12 @@ write('flipped', [[0, 1, 2], [0, 1, 3]], 0.01)
 write('nonmanifold', [[0, 1, 2], [1, 0, 3], [0, 1, 4]], 0.01)
 write('thin', [[0, 1, 2], [1, 0, 3]], 0.0)
 EOF
+printf 'v 0 0 0\nv 1 0 0\nv 0.5 1 0\nv 0.5 -1 0\nv 0.5 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n' >"$TMP/fan.obj"
+printf 'v 0 0 0\nv 1 0 0\nv 0.5 1 0\nv 0.5 -1 0\nf 1 2 3\nf 1 2 4\n' >"$TMP/flip.obj"
+expect_error 65 "non-manifold" "$TMP/x.h5" -- crom-mesh import "$TMP/fan.obj" --thickness 0.01 -o "$TMP/x.h5"
+expect_error 65 "not consistently oriented" "$TMP/x.h5" -- crom-mesh import "$TMP/flip.obj" --thickness 0.01 -o "$TMP/x.h5"
+expect_error 65 "not closed" "$TMP/x.h5" -- crom-mesh import "$TMP/sheet.obj" -o "$TMP/x.h5"
+expect_error 64 "stl or .obj" "$TMP/x.h5" -- crom-mesh import "$TMP/x.msh" --thickness 0.01 -o "$TMP/x.h5"
 expect_error 65 "not consistently oriented" "$TMP/x.h5" -- crom-fullsim --steps 1 -o "$TMP/x.h5" "$TMP/flipped.h5"
 expect_error 65 "not manifold" "$TMP/x.h5" -- crom-fullsim --steps 1 -o "$TMP/x.h5" "$TMP/nonmanifold.h5"
 expect_error 65 "thickness" "$TMP/x.h5" -- crom-fullsim --steps 1 -o "$TMP/x.h5" "$TMP/thin.h5"
