@@ -18,8 +18,8 @@ static const crom_opt mesh_opts[] = {
     {"output", 'o', "OUT", "Write the mesh to OUT (default: stdout, which must not be a terminal)."},
     {"size", O_SIZE, "H", "Target edge length in metres (default 0.1)."},
     {"dims", O_DIMS, "X,Y,Z", "Extents of box, plate and superquadric, centred at the origin (default 1,1,1; plate 1,0.05,1). sheet: X by Y in the xy-plane (Z is not used)."},
-    {"thickness", O_THICK, "T", "Make a thin shell of this thickness in metres: sheet (default 0.001), or import of an .stl/.obj surface, open or closed, whose triangles become the shell's (subdivided until no edge exceeds --size)."},
-    {"radius", O_RADIUS, "R", "Radius of sphere and cylinder (default 0.5)."},
+    {"thickness", O_THICK, "T", "Make a thin shell of this thickness in metres: sheet, disk (default 0.001), or import of an .stl/.obj surface, open or closed, whose triangles become the shell's (subdivided until no edge exceeds --size)."},
+    {"radius", O_RADIUS, "R", "Radius of sphere, cylinder and disk (default 0.5)."},
     {"height", O_HEIGHT, "H", "Height of the cylinder along y (default 1)."},
     {"exponent", O_EXP, "P", "Superquadric exponent: |x/a|^P+|y/b|^P+|z/c|^P <= 1; 2 is an ellipsoid, large P approaches the box (default 4)."},
     {"region", O_REGION, "NAME=PRED", "Store the vertices selected by PRED as region NAME (repeatable). PRED: x<V, y>=V, box:X0,Y0,Z0,X1,Y1,Z1, sphere:CX,CY,CZ,R, plane:NX,NY,NZ,D, all, joined by '&'. Imported gmsh physical groups become regions of their own name."},
@@ -38,6 +38,7 @@ static const crom_cli_doc doc = {
     "crom-mesh box|plate|sphere|cylinder|superquadric [options] [-o OUT]\n"
     "crom-mesh import FILE [options] [-o OUT]\n"
     "crom-mesh sheet [--dims X,Y,Z] [--size H] [--thickness T] [options] [-o OUT]\n"
+    "crom-mesh disk [--radius R] [--size H] [--thickness T] [options] [-o OUT]\n"
     "crom-mesh import FILE.obj|FILE.stl --thickness T [--size H] [options] [-o OUT]",
     "Meshes a shape centred at the origin, or the inside of a closed .stl/.obj surface, or "
     "a .msh/.geo volume, with gmsh, and writes a crom/mesh file: rest positions, positively "
@@ -47,7 +48,8 @@ static const crom_cli_doc doc = {
     "sheet makes a thin shell instead (crom-fullsim simulates it with a StVK membrane and "
     "discrete-shell bending): the rectangle X by Y in the xy-plane, in rows of near-equilateral "
     "triangles of edge about --size (straight sides: each row ends in half-triangles), with "
-    "--thickness stored in the mesh. import with --thickness makes a shell of the triangles of "
+    "--thickness stored in the mesh; disk makes a round one of --radius in the xy-plane, meshed by "
+    "gmsh. import with --thickness makes a shell of the triangles of "
     "an .stl/.obj surface, open or closed (consistently oriented, each edge shared by at most two "
     "triangles).\n\n"
     "Nothing but the mesh goes to stdout. With --verbose the vertex and tet counts, the volume "
@@ -131,12 +133,13 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     crom_cli_parse(cli, &doc, argc, argv, on_opt, a);
     int shape = a->shape ? crom_meshgen_shape(a->shape) : -1;
     if (!a->shape)
-        crom_err(CROM_EUSAGE, "no shape given (box, plate, sphere, cylinder, superquadric, import FILE, sheet)");
+        crom_err(CROM_EUSAGE, "no shape given (box, plate, sphere, cylinder, superquadric, import FILE, sheet, disk)");
     else if (shape < 0)
-        crom_err(CROM_EUSAGE, "unknown shape '%s' (box, plate, sphere, cylinder, superquadric, import, sheet)",
+        crom_err(CROM_EUSAGE, "unknown shape '%s' (box, plate, sphere, cylinder, superquadric, import, sheet, disk)",
                  a->shape);
-    else if (a->thickness > 0 && shape != CROM_MESHGEN_SHEET && shape != CROM_MESHGEN_IMPORT)
-        crom_err(CROM_EUSAGE, "--thickness is for a shell (sheet, or import of a surface); %s makes a solid",
+    else if (a->thickness > 0 && shape != CROM_MESHGEN_SHEET && shape != CROM_MESHGEN_DISK &&
+             shape != CROM_MESHGEN_IMPORT)
+        crom_err(CROM_EUSAGE, "--thickness is for a shell (sheet, disk, or import of a surface); %s makes a solid",
                  a->shape);
     else if (shape == CROM_MESHGEN_IMPORT && !a->file)
         crom_err(CROM_EUSAGE, "import needs a FILE operand");
@@ -226,7 +229,8 @@ static int run(crom_cli *cli, args *a)
     crom_out o;
     if (!(rc = crom_out_create(&o, a->out, CROM_MESH_SCHEMA, CROM_MESH_VERSION, cli->cmdline, NULL,
                                CROM_OUT_PLAIN))) {
-        static const char *shape_names[] = {"box", "plate", "sphere", "cylinder", "superquadric", "import", "sheet"};
+        static const char *shape_names[] = {"box",    "plate", "sphere", "cylinder", "superquadric",
+                                            "import", "sheet", "disk"};
         rc = crom_mesh_write(o.h5, &m);
         if (!rc)
             rc = crom_h5_set_str(o.h5, ".", "generator", shape_names[a->gen.shape]);

@@ -26,7 +26,7 @@ void crom_meshgen_defaults(crom_meshgen_opts *o, int shape)
     o->height = 1.0;
     o->exponent = 4.0;
     o->size = 0.1;
-    o->thickness = shape == CROM_MESHGEN_SHEET ? 0.001 : 0;
+    o->thickness = shape == CROM_MESHGEN_SHEET || shape == CROM_MESHGEN_DISK ? 0.001 : 0;
     o->algorithm = 1;
     o->optimize = 1;
     o->remesh = CROM_MESHGEN_REMESH_AUTO;
@@ -34,8 +34,8 @@ void crom_meshgen_defaults(crom_meshgen_opts *o, int shape)
 
 int crom_meshgen_shape(const char *s)
 {
-    static const char *names[] = {"box", "plate", "sphere", "cylinder", "superquadric", "import", "sheet"};
-    for (int i = 0; i < 7; i++)
+    static const char *names[] = {"box", "plate", "sphere", "cylinder", "superquadric", "import", "sheet", "disk"};
+    for (int i = 0; i < 8; i++)
         if (!strcmp(s, names[i]))
             return i;
     return -1;
@@ -568,10 +568,85 @@ int crom_meshgen_shell_import(const crom_meshgen_opts *o, crom_mesh *m)
     return rc;
 }
 
+int crom_meshgen_disk(const crom_meshgen_opts *o, crom_mesh *m)
+{
+    memset(m, 0, sizeof *m);
+    if (!(o->radius > 0) || !isfinite(o->radius) || !(o->size > 0) || !isfinite(o->size))
+        return crom_err(CROM_EUSAGE, "disk: --radius and --size must be positive");
+    if (!(o->thickness > 0) || !isfinite(o->thickness))
+        return crom_err(CROM_EUSAGE, "disk: --thickness must be positive (got %g)", o->thickness);
+    if (o->radius / o->size > 3000)
+        return crom_err(CROM_EUSAGE, "disk: --radius / --size = %g is too many triangles; raise --size",
+                        o->radius / o->size);
+    int rc = crom_gmsh_begin(o->log), ierr = 0;
+    if (rc)
+        return rc;
+    size_t *ntags = NULL, nn = 0, nc = 0, np = 0, *etags = NULL, ne = 0, *enodes = NULL, nen = 0, maxtag = 0;
+    double *coord = NULL, *param = NULL;
+    int *map = NULL;
+    gmshModelAdd("crom", &ierr);
+    gmshOptionSetNumber("Mesh.MeshSizeMax", o->size, &ierr);
+    gmshOptionSetNumber("Mesh.MeshSizeMin", o->size * 0.25, &ierr);
+    gmshOptionSetNumber("Mesh.MeshSizeFromCurvature", 0, &ierr);
+    gmshOptionSetNumber("Mesh.MeshSizeFromPoints", 0, &ierr);
+    G(gmshModelOccAddDisk(0, 0, 0, o->radius, o->radius, -1, &ierr), "make the disk");
+    G(gmshModelOccSynchronize(&ierr), "synchronize");
+    G(gmshModelMeshGenerate(2, &ierr), "mesh the disk");
+    G(gmshModelMeshGetNodes(&ntags, &nn, &coord, &nc, &param, &np, -1, -1, 0, 0, &ierr), "read the nodes");
+    G(gmshModelMeshGetElementsByType(2, &etags, &ne, &enodes, &nen, -1, 0, 1, &ierr), "read the triangles");
+    for (size_t i = 0; i < nn; i++)
+        maxtag = ntags[i] > maxtag ? ntags[i] : maxtag;
+    map = crom_malloc(sizeof(int) * (maxtag + 1));
+    m->nv = (int)nn;
+    m->ntri = (int)ne;
+    m->thickness = o->thickness;
+    m->X = crom_malloc(sizeof(double) * 3 * (nn ? nn : 1));
+    m->tris = crom_malloc(sizeof(int) * 3 * (ne ? ne : 1));
+    m->tets = crom_malloc(sizeof(int) * 4);
+    if (!map || !m->X || !m->tris || !m->tets) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    if (ne == 0) {
+        rc = crom_err(CROM_EDATA, "gmsh produced no triangles for the disk");
+        goto out;
+    }
+    for (size_t i = 0; i < nn; i++) {
+        map[ntags[i]] = (int)i;
+        memcpy(m->X + 3 * i, coord + 3 * i, 3 * sizeof(double));
+        m->X[3 * i + 2] = 0;
+    }
+    for (size_t t = 0; t < ne; t++) { /* every triangle facing +z */
+        int v[3];
+        for (int k = 0; k < 3; k++)
+            v[k] = map[enodes[3 * t + k]];
+        const double *a = m->X + 3 * (size_t)v[0], *b = m->X + 3 * (size_t)v[1], *c = m->X + 3 * (size_t)v[2];
+        double nz = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+        m->tris[3 * t] = v[0];
+        m->tris[3 * t + 1] = nz >= 0 ? v[1] : v[2];
+        m->tris[3 * t + 2] = nz >= 0 ? v[2] : v[1];
+    }
+    if (!(rc = crom_mesh_compact(m)))
+        rc = crom_mesh_validate(m);
+out:
+    gmshFree(ntags);
+    gmshFree(coord);
+    gmshFree(param);
+    gmshFree(etags);
+    gmshFree(enodes);
+    free(map);
+    crom_gmsh_end(o->log, o->log_ctx);
+    if (rc)
+        crom_mesh_free(m);
+    return rc;
+}
+
 int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m)
 {
     if (o->shape == CROM_MESHGEN_SHEET)
         return crom_meshgen_sheet(o, m);
+    if (o->shape == CROM_MESHGEN_DISK)
+        return crom_meshgen_disk(o, m);
     if (o->shape == CROM_MESHGEN_IMPORT && o->thickness > 0)
         return crom_meshgen_shell_import(o, m);
     memset(m, 0, sizeof *m);

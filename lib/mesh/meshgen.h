@@ -14,7 +14,7 @@
 #include "mesh/mesh.h"
 
 enum { CROM_MESHGEN_BOX, CROM_MESHGEN_PLATE, CROM_MESHGEN_SPHERE, CROM_MESHGEN_CYLINDER,
-       CROM_MESHGEN_SUPERQUADRIC, CROM_MESHGEN_IMPORT, CROM_MESHGEN_SHEET };
+       CROM_MESHGEN_SUPERQUADRIC, CROM_MESHGEN_IMPORT, CROM_MESHGEN_SHEET, CROM_MESHGEN_DISK };
 
 typedef struct {
     int shape;
@@ -71,13 +71,19 @@ int crom_meshgen_shape(const char *name);
  * towards +z, thickness o->thickness. */
 int crom_meshgen_sheet(const crom_meshgen_opts *o, crom_mesh *m);
 
+/* A disk (a shell surface): radius o->radius in the xy-plane centred at
+ * the origin, meshed by gmsh (2-D, edges about o->size), normals towards
+ * +z, thickness o->thickness. */
+int crom_meshgen_disk(const crom_meshgen_opts *o, crom_mesh *m);
+
 /* A shell from the triangles of an .stl/.obj surface (open or closed, o->file):
  * welded, subdivided until no edge exceeds o->size, thickness o->thickness.
  * CROM_EDATA when it is not an oriented manifold (an edge shared by more
  * than two triangles, or by two running the same way). */
 int crom_meshgen_shell_import(const crom_meshgen_opts *o, crom_mesh *m);
 
-/* Mesh the shape or file (a sheet: crom_meshgen_sheet; an import with a
+/* Mesh the shape or file (a sheet: crom_meshgen_sheet; a disk:
+ * crom_meshgen_disk; an import with a
  * thickness: crom_meshgen_shell_import). Tets come out positively oriented and compacted;
  * gmsh physical groups (imports) become regions. Returns 0, CROM_EUSAGE for
  * bad parameters, CROM_ENOINPUT for a missing file, CROM_EDATA for a surface

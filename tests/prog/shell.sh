@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # shell.sh — thin shells through the programs (issue 16): crom-mesh sheet
-# (exact area, consistent orientation, the thickness stored) and import of
+# (exact area, consistent orientation, the thickness stored), disk (gmsh;
+# area converging to pi R^2) and import of
 # an .obj surface as a shell (round trip, subdivision), crom-fullsim on
 # a sheet (a pinned sheet swinging out of plane; free fall of an unpinned
 # one, which implicit Euler moves by exactly g h² N(N+1)/2 with no strain),
@@ -64,6 +65,34 @@ need(abs(area(b) - 0.32) < 1e-12 and abs(area(c) - 0.32) < 1e-12, f"areas {area(
 need(len(c['triangles']) == 4 * len(a['triangles']), f"{len(c['triangles'])} triangles after subdivision")
 need(b['triangles'].attrs['thickness'] == 0.003, 'thickness')
 print(f"import: {len(b['triangles'])} triangles back, {len(c['triangles'])} after --size 0.03, area kept")
+EOF
+ok
+
+# a disk meshed by gmsh: area towards pi R^2 as the edge shrinks, facing +z, consistently oriented
+crom-mesh disk --radius 0.3 --size 0.03 --thickness 0.002 -o "$TMP/disk.h5"
+crom-mesh disk --radius 0.3 --size 0.015 --thickness 0.002 | cat >"$TMP/disk2.h5"
+$PY - "$TMP/disk.h5" "$TMP/disk2.h5" <<'EOF' || fail "the disks"
+import sys, h5py, numpy as np
+def need(c, what):
+    if not c:
+        sys.exit(f"{what}")
+errs = []
+for p in sys.argv[1:3]:
+    f = h5py.File(p, 'r')
+    X, T = f['vertices'][...], f['triangles'][...]
+    e1, e2 = X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]]
+    nz = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    need(np.all(nz > 0), f"{p}: a triangle faces -z")
+    need(np.abs(np.hypot(X[:, 0], X[:, 1])).max() < 0.3 + 1e-9 and np.all(X[:, 2] == 0), f"{p}: outside the disk")
+    seen = set()
+    for tri in T:
+        for k in range(3):
+            e = (int(tri[k]), int(tri[(k + 1) % 3]))
+            need(e not in seen, f"{p}: edge {e} runs twice the same way")
+            seen.add(e)
+    errs.append(abs(0.5 * nz.sum() - np.pi * 0.09) / (np.pi * 0.09))
+need(errs[1] < errs[0] < 0.01, f"area errors {errs}")
+print(f"disks: area {errs[0]:.2e} and {errs[1]:.2e} off pi R^2")
 EOF
 ok
 
