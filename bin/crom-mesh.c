@@ -12,12 +12,13 @@
 #include "mesh/meshgen.h"
 
 enum { O_SIZE = 'S' + 256, O_DIMS, O_RADIUS, O_HEIGHT, O_EXP, O_REGION, O_ALGO, O_NOOPT,
-       O_REMESH, O_KEEP, O_TIMEOUT, O_THICK };
+       O_REMESH, O_KEEP, O_TIMEOUT, O_THICK, O_UNSTRUCT };
 
 static const crom_opt mesh_opts[] = {
     {"output", 'o', "OUT", "Write the mesh to OUT (default: stdout, which must not be a terminal)."},
     {"size", O_SIZE, "H", "Target edge length in metres (default 0.1)."},
     {"dims", O_DIMS, "X,Y,Z", "Extents of box, plate and superquadric, centred at the origin (default 1,1,1; plate 1,0.05,1). sheet: X by Y in the xy-plane (Z is not used)."},
+    {"unstructured", O_UNSTRUCT, NULL, "sheet: mesh the rectangle with gmsh (unstructured triangles of edge about --size) instead of regular rows."},
     {"thickness", O_THICK, "T", "Make a thin shell of this thickness in metres: sheet, disk (default 0.001), or import of an .stl/.obj surface, open or closed, whose triangles become the shell's (subdivided until no edge exceeds --size)."},
     {"radius", O_RADIUS, "R", "Radius of sphere, cylinder and disk (default 0.5)."},
     {"height", O_HEIGHT, "H", "Height of the cylinder along y (default 1)."},
@@ -37,7 +38,7 @@ static const crom_cli_doc doc = {
     "make a tetrahedral mesh of a shape or a surface/volume file, or a shell sheet",
     "crom-mesh box|plate|sphere|cylinder|superquadric [options] [-o OUT]\n"
     "crom-mesh import FILE [options] [-o OUT]\n"
-    "crom-mesh sheet [--dims X,Y,Z] [--size H] [--thickness T] [options] [-o OUT]\n"
+    "crom-mesh sheet [--dims X,Y,Z] [--size H] [--thickness T] [--unstructured] [options] [-o OUT]\n"
     "crom-mesh disk [--radius R] [--size H] [--thickness T] [options] [-o OUT]\n"
     "crom-mesh import FILE.obj|FILE.stl --thickness T [--size H] [options] [-o OUT]",
     "Meshes a shape centred at the origin, or the inside of a closed .stl/.obj surface, or "
@@ -68,7 +69,7 @@ typedef struct {
     int nregions;
     double size, dims[3], radius, height, exponent, timeout, thickness;
     int exponent_given;
-    int algorithm, no_optimize, remesh;
+    int algorithm, no_optimize, remesh, unstructured;
 } args;
 
 static int on_opt(void *ctx, int key, const char *v)
@@ -121,6 +122,7 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_KEEP: a->remesh = 0; return 0;
     case O_TIMEOUT: return crom_parse_positive(v, "--timeout", &a->timeout);
     case O_THICK: return crom_parse_positive(v, "--thickness", &a->thickness);
+    case O_UNSTRUCT: a->unstructured = 1; return 0;
     }
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
@@ -137,6 +139,8 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     else if (shape < 0)
         crom_err(CROM_EUSAGE, "unknown shape '%s' (box, plate, sphere, cylinder, superquadric, import, sheet, disk)",
                  a->shape);
+    else if (a->unstructured && shape != CROM_MESHGEN_SHEET)
+        crom_err(CROM_EUSAGE, "--unstructured is for a sheet");
     else if (a->thickness > 0 && shape != CROM_MESHGEN_SHEET && shape != CROM_MESHGEN_DISK &&
              shape != CROM_MESHGEN_IMPORT)
         crom_err(CROM_EUSAGE, "--thickness is for a shell (sheet, disk, or import of a surface); %s makes a solid",
@@ -162,6 +166,7 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
         a->gen.exponent = a->exponent;
     if (a->thickness > 0)
         a->gen.thickness = a->thickness;
+    a->gen.unstructured = a->unstructured;
     if (a->algorithm)
         a->gen.algorithm = a->algorithm;
     a->gen.optimize = !a->no_optimize;

@@ -568,16 +568,21 @@ int crom_meshgen_shell_import(const crom_meshgen_opts *o, crom_mesh *m)
     return rc;
 }
 
-int crom_meshgen_disk(const crom_meshgen_opts *o, crom_mesh *m)
+/* A flat shell meshed by gmsh in the xy-plane: a disk of o->radius, or
+ * (rect) the rectangle dims[0] × dims[1], both centred at the origin */
+static int gmsh_shell(const crom_meshgen_opts *o, int rect, crom_mesh *m)
 {
     memset(m, 0, sizeof *m);
-    if (!(o->radius > 0) || !isfinite(o->radius) || !(o->size > 0) || !isfinite(o->size))
-        return crom_err(CROM_EUSAGE, "disk: --radius and --size must be positive");
+    const char *what = rect ? "sheet" : "disk";
+    double extent = rect ? fmax(o->dims[0], o->dims[1]) : o->radius;
+    if (!(extent > 0) || !isfinite(extent) || (rect && !(o->dims[0] > 0 && o->dims[1] > 0)) || !(o->size > 0) ||
+        !isfinite(o->size))
+        return crom_err(CROM_EUSAGE, "%s: the %s and --size must be positive", what, rect ? "extents" : "radius");
     if (!(o->thickness > 0) || !isfinite(o->thickness))
-        return crom_err(CROM_EUSAGE, "disk: --thickness must be positive (got %g)", o->thickness);
-    if (o->radius / o->size > 3000)
-        return crom_err(CROM_EUSAGE, "disk: --radius / --size = %g is too many triangles; raise --size",
-                        o->radius / o->size);
+        return crom_err(CROM_EUSAGE, "%s: --thickness must be positive (got %g)", what, o->thickness);
+    if (extent / o->size > 3000)
+        return crom_err(CROM_EUSAGE, "%s: %g / --size = %g is too many triangles; raise --size", what, extent,
+                        extent / o->size);
     int rc = crom_gmsh_begin(o->log), ierr = 0;
     if (rc)
         return rc;
@@ -589,9 +594,13 @@ int crom_meshgen_disk(const crom_meshgen_opts *o, crom_mesh *m)
     gmshOptionSetNumber("Mesh.MeshSizeMin", o->size * 0.25, &ierr);
     gmshOptionSetNumber("Mesh.MeshSizeFromCurvature", 0, &ierr);
     gmshOptionSetNumber("Mesh.MeshSizeFromPoints", 0, &ierr);
-    G(gmshModelOccAddDisk(0, 0, 0, o->radius, o->radius, -1, &ierr), "make the disk");
+    if (rect)
+        G(gmshModelOccAddRectangle(-o->dims[0] / 2, -o->dims[1] / 2, 0, o->dims[0], o->dims[1], -1, 0, &ierr),
+          "make the rectangle");
+    else
+        G(gmshModelOccAddDisk(0, 0, 0, o->radius, o->radius, -1, &ierr), "make the disk");
     G(gmshModelOccSynchronize(&ierr), "synchronize");
-    G(gmshModelMeshGenerate(2, &ierr), "mesh the disk");
+    G(gmshModelMeshGenerate(2, &ierr), "mesh the surface");
     G(gmshModelMeshGetNodes(&ntags, &nn, &coord, &nc, &param, &np, -1, -1, 0, 0, &ierr), "read the nodes");
     G(gmshModelMeshGetElementsByType(2, &etags, &ne, &enodes, &nen, -1, 0, 1, &ierr), "read the triangles");
     for (size_t i = 0; i < nn; i++)
@@ -608,7 +617,7 @@ int crom_meshgen_disk(const crom_meshgen_opts *o, crom_mesh *m)
         goto out;
     }
     if (ne == 0) {
-        rc = crom_err(CROM_EDATA, "gmsh produced no triangles for the disk");
+        rc = crom_err(CROM_EDATA, "gmsh produced no triangles for the %s", what);
         goto out;
     }
     for (size_t i = 0; i < nn; i++) {
@@ -641,8 +650,12 @@ out:
     return rc;
 }
 
+int crom_meshgen_disk(const crom_meshgen_opts *o, crom_mesh *m) { return gmsh_shell(o, 0, m); }
+
 int crom_meshgen(const crom_meshgen_opts *o, crom_mesh *m)
 {
+    if (o->shape == CROM_MESHGEN_SHEET && o->unstructured)
+        return gmsh_shell(o, 1, m);
     if (o->shape == CROM_MESHGEN_SHEET)
         return crom_meshgen_sheet(o, m);
     if (o->shape == CROM_MESHGEN_DISK)

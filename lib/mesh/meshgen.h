@@ -23,7 +23,8 @@ typedef struct {
     double height;       /* cylinder (m) */
     double exponent;     /* superquadric p >= 1 */
     double size;         /* target edge length (m) */
-    double thickness;    /* sheet: the shell's thickness (m) */
+    double thickness;    /* sheet, disk, shell import: the shell's thickness (m) */
+    int unstructured;    /* sheet: gmsh's 2-D mesh of the rectangle instead of rows */
     const char *file;    /* import */
     int algorithm;       /* gmsh Mesh.Algorithm3D: 1 Delaunay (default, repeatable), 10 HXT */
     int optimize;        /* run gmsh's tet optimizer (default 1) */
@@ -82,7 +83,8 @@ int crom_meshgen_disk(const crom_meshgen_opts *o, crom_mesh *m);
  * than two triangles, or by two running the same way). */
 int crom_meshgen_shell_import(const crom_meshgen_opts *o, crom_mesh *m);
 
-/* Mesh the shape or file (a sheet: crom_meshgen_sheet; a disk:
+/* Mesh the shape or file (a sheet: crom_meshgen_sheet, or gmsh's with
+ * unstructured; a disk:
  * crom_meshgen_disk; an import with a
  * thickness: crom_meshgen_shell_import). Tets come out positively oriented and compacted;
  * gmsh physical groups (imports) become regions. Returns 0, CROM_EUSAGE for

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # shell.sh — thin shells through the programs (issue 16): crom-mesh sheet
-# (exact area, consistent orientation, the thickness stored), disk (gmsh;
+# (exact area, consistent orientation, the thickness stored; regular rows or
+# gmsh's), disk (gmsh;
 # area converging to pi R^2) and import of
 # an .obj surface as a shell (round trip, subdivision), crom-fullsim on
 # a sheet (a pinned sheet swinging out of plane; free fall of an unpinned
@@ -95,6 +96,20 @@ need(errs[1] < errs[0] < 0.01, f"area errors {errs}")
 print(f"disks: area {errs[0]:.2e} and {errs[1]:.2e} off pi R^2")
 EOF
 ok
+# the sheet meshed by gmsh instead of rows: the exact area, facing +z
+crom-mesh sheet --dims 1,0.5,1 --size 0.05 --unstructured --thickness 0.002 -o "$TMP/usheet.h5"
+$PY - "$TMP/usheet.h5" <<'EOF' || fail "the unstructured sheet"
+import sys, h5py, numpy as np
+f = h5py.File(sys.argv[1], 'r')
+X, T = f['vertices'][...], f['triangles'][...]
+e1, e2 = X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]]
+nz = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+if not (np.all(nz > 0) and abs(0.5 * nz.sum() - 0.5) < 1e-12 and abs(X[:, 0]).max() <= 0.5 + 1e-12):
+    sys.exit(f"unstructured sheet: area {0.5 * nz.sum()}, {np.sum(nz <= 0)} triangles not facing +z")
+print(f"unstructured sheet: {len(X)} vertices, {len(T)} triangles, area {0.5 * nz.sum():.15g}")
+EOF
+ok
+expect_error 64 "unstructured is for a sheet" "$TMP/x.h5" -- crom-mesh box --unstructured -o "$TMP/x.h5"
 
 # a pinned sheet swinging out of plane
 crom-fullsim --pin top --youngs 2e5 --poisson 0.3 --density 400 --gravity 0,-9.81,4 --dt 0.02 --steps 10 \
