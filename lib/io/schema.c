@@ -25,7 +25,7 @@ static const crom_schema_attr common_attrs[] = {
 #define FIELDS_DESC "the frame field names, comma-separated, in the order a frame stream packs them"
 
 static const crom_schema_attr mesh_attrs[] = {
-    {"generator", "str", 0, "what made the mesh: box, plate, sphere, cylinder, superquadric or import (crom-mesh); "
+    {"generator", "str", 0, "what made the mesh: box, plate, sphere, cylinder, superquadric, import, sheet or disk (crom-mesh); "
                             "remesh cut, punch, swap or refine with its parameters (crom-remesh)", NULL},
     {"target_size", "f64", 0, "target edge length given to the mesher (m)", NULL},
     {NULL, NULL, 0, NULL, NULL}};
