@@ -39,6 +39,7 @@ once() {
 # ---- the scenario, in every program that takes it
 SC=(--youngs X --poisson X --density X --dt X --steps X --every X --gravity X,0,0 --gravity 0,X,0
     --velocity top=X,0,0 --velocity top=0,0,0@X:1 --force top=0,X,0 --plane 0,1,0,X --plane 0,1,0,0,X
+    --sphere X,0,0,1 --sphere 0,0,0,X --sphere 0,0,0,1,X
     --damping X --contact-stiffness X --friction-eps X --tol X --max-iter X --initial-velocity X,0,0
     --spin 0,0,X)
 for ((i = 0; i < ${#SC[@]}; i += 2)); do
