@@ -127,6 +127,13 @@ static int on_opt(void *ctx, int key, const char *v)
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
 
+/* The first option given that only a tet mesh uses, or NULL */
+static const char *solid_flag(const args *a)
+{
+    return a->algorithm ? "--algorithm" : a->no_optimize ? "--no-optimize" : a->exponent_given ? "--exponent"
+         : a->remesh == 1 ? "--remesh" : a->remesh == 0 ? "--keep-surface" : NULL;
+}
+
 static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
 {
     memset(a, 0, sizeof *a);
@@ -147,6 +154,14 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
                  a->shape);
     else if (shape == CROM_MESHGEN_IMPORT && !a->file)
         crom_err(CROM_EUSAGE, "import needs a FILE operand");
+    else if (solid_flag(a) && (shape == CROM_MESHGEN_SHEET || shape == CROM_MESHGEN_DISK ||
+                               (shape == CROM_MESHGEN_IMPORT && a->thickness > 0)))
+        crom_err(CROM_EUSAGE, "%s is for a tet mesh; a shell (%s%s) has no volume to mesh", solid_flag(a), a->shape,
+                 shape == CROM_MESHGEN_IMPORT ? " --thickness" : "");
+    else if ((shape == CROM_MESHGEN_SHEET && (a->radius > 0 || a->height > 0)) ||
+             (shape == CROM_MESHGEN_DISK && (a->dims[0] > 0 || a->height > 0)))
+        crom_err(CROM_EUSAGE, "%s takes %s", a->shape, shape == CROM_MESHGEN_SHEET ? "--dims, not --radius or --height"
+                                                                                  : "--radius, not --dims or --height");
     else
         shape = shape + 1000;
     if (shape < 1000) {
