@@ -63,8 +63,6 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
         return rc;
     if ((rc = crom_system_init(&s->sys, mesh, sc->youngs, sc->poisson, sc->density)))
         return rc;
-    s->mass = s->sys.mass;
-    s->total_mass = s->sys.total_mass;
     s->nv = mesh->nv;
     s->n = 3 * mesh->nv;
     size_t n = (size_t)s->n;
@@ -91,7 +89,7 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
         return CROM_EINTERNAL;
     }
     for (int v = 0; v < s->nv; v++)
-        s->m3[3 * v] = s->m3[3 * v + 1] = s->m3[3 * v + 2] = s->mass[v];
+        s->m3[3 * v] = s->m3[3 * v + 1] = s->m3[3 * v + 2] = s->sys.mass[v];
     /* boundary conditions */
     const char *refs[CROM_SCENARIO_MAX];
     int *pin_ptr = NULL;
@@ -124,7 +122,7 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
     }
     for (int b = 0; b < s->nforce; b++)
         for (int k = s->force_ptr[b]; k < s->force_ptr[b + 1]; k++)
-            s->force_mass[b] += s->mass[s->force_idx[k]];
+            s->force_mass[b] += s->sys.mass[s->force_idx[k]];
     for (int k = 0; k < s->npin; k++)
         memset(s->fixed + 3 * (size_t)s->pin[k], 1, 3);
     for (int k = 0; s->nvel && k < s->vel_ptr[s->nvel]; k++)
@@ -134,7 +132,7 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
     double c[3] = {0, 0, 0};
     for (int i = 0; i < s->nv; i++)
         for (int k = 0; k < 3; k++)
-            c[k] += s->mass[i] * mesh->X[3 * i + k] / s->total_mass;
+            c[k] += s->sys.mass[i] * mesh->X[3 * i + k] / s->sys.total_mass;
     for (int i = 0; i < s->nv; i++)
         crom_scenario_initial_velocity(sc, c, mesh->X + 3 * i, s->v + 3 * i);
     for (int b = 0; b < s->nvel; b++) {
@@ -186,14 +184,14 @@ static void external_force(crom_sim *s, double t, double *f)
     const crom_scenario *sc = s->sc;
     for (int i = 0; i < s->nv; i++)
         for (int k = 0; k < 3; k++)
-            f[3 * i + k] = s->mass[i] * sc->gravity[k];
+            f[3 * i + k] = s->sys.mass[i] * sc->gravity[k];
     for (int b = 0; b < s->nforce; b++) {
         double F[3];
         crom_bc_force(&sc->force[b], t, F);
         for (int k = s->force_ptr[b]; k < s->force_ptr[b + 1]; k++) {
             int i = s->force_idx[k];
             for (int c = 0; c < 3; c++)
-                f[3 * i + c] += F[c] * s->mass[i] / s->force_mass[b];
+                f[3 * i + c] += F[c] * s->sys.mass[i] / s->force_mass[b];
         }
     }
 }
@@ -221,7 +219,7 @@ static int potential(crom_sim *s, const double *x, double E, double *ip, double 
     }
     for (int p = 0; p < sc->nplanes; p++)
         for (int i = 0; i < s->nv; i++)
-            con += crom_contact_eval(&sc->plane[p], sc->contact_stiffness, s->mass[i], x + 3 * i,
+            con += crom_contact_eval(&sc->plane[p], sc->contact_stiffness, s->sys.mass[i], x + 3 * i,
                                      s->xn + 3 * i, s->lam[(size_t)p * s->nv + i],
                                      sc->friction_eps * h, NULL, NULL);
     *ip = kin / (2 * h * h) + sc->damping * damp / (2 * h) + E - ext + con;
@@ -243,7 +241,7 @@ static void add_contact(crom_sim *s, const double *x, double *g, double *H)
             double lam = s->lam[(size_t)p * s->nv + i];
             if (crom_contact_depth(&sc->plane[p], x + 3 * i) <= 0 && !(lam > 0 && sc->plane[p].mu > 0))
                 continue;
-            crom_contact_eval(&sc->plane[p], sc->contact_stiffness, s->mass[i], x + 3 * i,
+            crom_contact_eval(&sc->plane[p], sc->contact_stiffness, s->sys.mass[i], x + 3 * i,
                               s->xn + 3 * i, lam, sc->friction_eps * sc->dt, gi, H ? Hi : NULL);
             for (int c = 0; c < 3; c++) {
                 g[3 * i + c] += gi[c];
@@ -301,7 +299,7 @@ static void step_begin(crom_sim *s, double t1)
     for (int p = 0; p < sc->nplanes; p++)
         for (int i = 0; i < s->nv; i++)
             s->lam[(size_t)p * s->nv + i] =
-                sc->contact_stiffness * s->mass[i] * crom_contact_depth(&sc->plane[p], s->xn + 3 * i);
+                sc->contact_stiffness * s->sys.mass[i] * crom_contact_depth(&sc->plane[p], s->xn + 3 * i);
     external_force(s, t1, s->fext);
     memcpy(s->x, s->xhat, sizeof(double) * n);
     const double *X = s->mesh->X;

@@ -32,9 +32,7 @@ typedef struct {
 typedef struct {
     const crom_scenario *sc;
     const crom_mesh *mesh;
-    crom_system sys;      /* a solid (tet mesh) or a shell (surface mesh) */
-    const double *mass;   /* [nv] its lumped masses (kg) */
-    double total_mass;
+    crom_system sys;      /* a solid (tet mesh) or a shell (surface mesh): its masses, pattern, energy */
     int nv, n;
     double L;             /* bounding-box diagonal (m) */
     double t;             /* time of the current state (s) */

@@ -15,6 +15,20 @@
 #include "base/rng.h"
 #include "rom/samples.h"
 
+#ifdef _LAPACKE_H_ /* for the tests that include <lapacke.h> (its complex.h defines I) */
+/* smallest eigenvalue of a symmetric n×n matrix (NAN when LAPACK fails) */
+static inline double fx_min_eig(const double *M, int n)
+{
+    double *A = malloc(sizeof(double) * (size_t)n * n), *w = malloc(sizeof(double) * (size_t)n), e = NAN;
+    memcpy(A, M, sizeof(double) * (size_t)n * n);
+    if (LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'N', 'U', n, A, n, w) == 0)
+        e = w[0];
+    free(A);
+    free(w);
+    return e;
+}
+#endif
+
 /* Uniformly random rotation from a normalized Gaussian quaternion. */
 static inline void fx_random_rotation(crom_rng *r, double R[9])
 {

@@ -85,17 +85,6 @@ static double lapack_project(const double A[81], double Ap[81])
     return w[0];
 }
 
-static double min_eig(double *A, int n)
-{
-    double *Z = malloc(sizeof(double) * n * n), *w = malloc(sizeof(double) * n);
-    memcpy(Z, A, sizeof(double) * n * n);
-    LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'N', 'U', n, Z, n, w);
-    double m = w[0];
-    free(Z);
-    free(w);
-    return m;
-}
-
 static double norm(const double *a, int n)
 {
     double s = 0;
@@ -341,7 +330,7 @@ static void test_projection(void)
             worst_proj = fmax(worst_proj, e);
             CHECK_MSG(e < 1e-9, "nu %g F case %d: analytic vs LAPACK projection %.3g",
                       nus[in], i, e);
-            double mp = min_eig(Ap, 9);
+            double mp = fx_min_eig(Ap, 9);
             CHECK_MSG(mp >= -1e-12 * nA, "nu %g F case %d: projected min eig %.3g",
                       nus[in], i, mp);
 
@@ -515,7 +504,7 @@ static void test_tet(void)
                         Href[12 * i + j] += V * B[12 * a + i] * Aref[9 * a + b] * B[12 * b + j];
         double e = maxdiff(Hp, Href, 144) / maxabs(H, 144);
         CHECK_MSG(e < 1e-9, "tet %s: projected Hessian vs LAPACK %.3g", names[cfg], e);
-        double me = min_eig(Hp, 12);
+        double me = fx_min_eig(Hp, 12);
         CHECK_MSG(me >= -1e-11 * maxabs(H, 144), "tet %s: projected min eig %.3g",
                   names[cfg], me);
         /* rotation invariance: E(Rx + t) = E(x), g → R g, H → R H Rᵀ */
@@ -769,11 +758,11 @@ static void test_mesh(void)
         double *Hu = malloc(sizeof(double) * nnz), *Du = malloc(sizeof(double) * n * n);
         crom_fem_assemble(&fem, x, NULL, NULL, NULL, Hu);
         csc_to_dense(&fem, Hu, Du);
-        me_unproj = min_eig(Du, n);
+        me_unproj = fx_min_eig(Du, n);
         free(Hu);
         free(Du);
     }
-    me_proj = min_eig(D, n);
+    me_proj = fx_min_eig(D, n);
     CHECK_LT(me_unproj, 0);
     CHECK(me_proj >= -1e-12 * maxabs(D, n * n));
     printf("assembled Hessian min eigenvalue: %.3g unprojected, %.3g projected\n",

@@ -24,18 +24,6 @@ static void rigid(const double R[9], const double t[3], const double *x, double 
             y[3 * v + i] = R[3 * i] * x[3 * v] + R[3 * i + 1] * x[3 * v + 1] + R[3 * i + 2] * x[3 * v + 2] + t[i];
 }
 
-/* smallest eigenvalue of a symmetric n×n matrix */
-static double min_eig(const double *M, int n)
-{
-    double *A = malloc(sizeof(double) * (size_t)n * n), *w = malloc(sizeof(double) * (size_t)n), e = NAN;
-    memcpy(A, M, sizeof(double) * (size_t)n * n);
-    if (LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'N', 'U', n, A, n, w) == 0)
-        e = w[0];
-    free(A);
-    free(w);
-    return e;
-}
-
 static double max_abs(const double *a, int n)
 {
     double m = 0;
@@ -123,7 +111,7 @@ static void test_membrane(void)
         double eg = check_relerr(g, gfd, 9, 1e-12), eh = check_relerr(H, Hfd, 81, 1e-12);
         double Hp[81];
         CHECK(crom_shell_tri_eval(&m, y, Dminv, A, 1, NULL, NULL, Hp) == CROM_OK);
-        double lmin = min_eig(H, 9), lpmin = min_eig(Hp, 9), scale = max_abs(H, 81);
+        double lmin = fx_min_eig(H, 9), lpmin = fx_min_eig(Hp, 9), scale = max_abs(H, 81);
         fprintf(stderr, "membrane case %d: gradient vs FD %.2e, Hessian vs FD %.2e; smallest eigenvalue %.3g, "
                         "projected %.3g (scale %.3g)\n", k, eg, eh, lmin, lpmin, scale);
         CHECK_LT(eg, 1e-7);
@@ -221,7 +209,7 @@ static void test_hinge(void)
         check_fd_gradient(hinge_E, &hc, y, 12, 1e-6, gfd);
         check_fd_jacobian(hinge_g, &hc, y, 12, 12, 1e-6, Hfd);
         double eeg = check_relerr(ge, gfd, 12, 1e-12), eeh = check_relerr(He, Hfd, 144, 1e-12);
-        double lp = min_eig(Hp, 12), sc = max_abs(Hp, 144);
+        double lp = fx_min_eig(Hp, 12), sc = max_abs(Hp, 144);
         fprintf(stderr, "  hinge energy: gradient vs FD %.2e, Hessian vs FD %.2e, projected smallest eigenvalue "
                         "%.2e (scale %.2e)\n", eeg, eeh, lp, sc);
         CHECK_LT(eeg, 1e-8);
@@ -430,7 +418,7 @@ static void test_mesh(void)
     crom_fem_opts proj = {1, 0, NULL, 1};
     CHECK(crom_shell_assemble(&s, x, &proj, NULL, NULL, H) == CROM_OK);
     dense(&s, H, Hd);
-    double lp = min_eig(Hd, s.n), sc = max_abs(Hd, s.n * s.n);
+    double lp = fx_min_eig(Hd, s.n), sc = max_abs(Hd, s.n * s.n);
     fprintf(stderr, "sheet of %d vertices, %d triangles, %d hinges, %d stored Hessian entries: gradient vs FD "
                     "%.2e, Hessian vs FD %.2e, projected smallest eigenvalue %.2e (scale %.2e)\n",
             s.nv, s.nt, s.nh, s.nnz, eg, eh, lp, sc);
@@ -671,7 +659,7 @@ static void test_cloth_ball(void)
     for (int v = 0; v < m.nv; v++) {
         /* the contact force of the last step: penalty and (lagged) friction */
         double gc[3] = {0, 0, 0};
-        crom_contact_eval(&sc.plane[0], sc.contact_stiffness, s.mass[v], s.x + 3 * v, s.xn + 3 * v, s.lam[v],
+        crom_contact_eval(&sc.plane[0], sc.contact_stiffness, s.sys.mass[v], s.x + 3 * v, s.xn + 3 * v, s.lam[v],
                           sc.friction_eps * sc.dt, gc, NULL);
         F -= gc[2];
         if (fabs(m.X[3 * v]) + fabs(m.X[3 * v + 1]) < 1e-9)
@@ -680,7 +668,7 @@ static void test_cloth_ball(void)
             zcorner = fmin(zcorner, -s.x[3 * v + 2]);
         vmax = fmax(vmax, fabs(s.v[3 * v + 2]));
     }
-    double W = s.total_mass * 9.81;
+    double W = s.sys.total_mass * 9.81;
     fprintf(stderr, "cloth on a ball (%d vertices, %d steps): contact force %.6g N against the weight %.6g N; centre "
                     "at z = %.4g m (sphere top %.4g), corners %.3g m lower, largest speed %.2g m/s\n",
             m.nv, k, F, W, zc, -0.01, zc + zcorner, vmax);

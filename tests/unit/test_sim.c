@@ -113,7 +113,7 @@ static void momentum(const crom_sim *s, double P[3])
     P[0] = P[1] = P[2] = 0;
     for (int i = 0; i < s->nv; i++)
         for (int k = 0; k < 3; k++)
-            P[k] += s->mass[i] * s->v[3 * i + k];
+            P[k] += s->sys.mass[i] * s->v[3 * i + k];
 }
 
 /* ------------------------------------------- momentum and dissipation */
@@ -287,12 +287,12 @@ static void test_prescribed_and_contact(void)
     for (int i = 0; i < s.nv; i++)
         if (m.X[3 * i + 1] < -0.499) {
             depth += -0.5 - s.x[3 * i + 1];
-            mbottom += s.mass[i];
+            mbottom += s.sys.mass[i];
             n++;
         }
     depth /= n;
     /* the bottom layer carries the whole weight: k d Σ m_bottom = M g */
-    double expect = 9.81 * s.total_mass / (sc.contact_stiffness * mbottom);
+    double expect = 9.81 * s.sys.total_mass / (sc.contact_stiffness * mbottom);
     fprintf(stderr, "resting depth %.4e m, expected about %.4e m\n", depth, expect);
     CHECK(depth > 0.7 * expect && depth < 1.3 * expect);
     /* at rest: velocities nearly zero */
