@@ -41,12 +41,14 @@ crom-modes --youngs 1e6 --pin clamp --count 4 -q -o modes.h5 box.h5
 crom-fitfield --objective skinning --weights eigen --handles 2 --mesh box.h5 --youngs 1e6 --pin clamp -q -o skin.h5
 crom-cubature --model pod.h5 --scheme random --count 4 -q -o cub.h5 box.h5
 crom-cubature --model modes.h5 --scheme all -q -o cub_modes.h5 box.h5
-cp box.h5 sphere.h5 run.h5 run1.h5 cub.h5 "$OUT/mesh/"
-cp run.h5 run1.h5 "$OUT/traj/"
+crom-mesh sheet --dims 0.4,0.4,1 --size 0.2 --thickness 0.01 --region top='y>0.15' -q -o sheet.h5
+crom-fullsim --pin top --gravity 0,-9.81,1 --steps 2 -q -o sheetrun.h5 sheet.h5
+cp box.h5 sphere.h5 run.h5 run1.h5 cub.h5 sheet.h5 sheetrun.h5 "$OUT/mesh/"
+cp run.h5 run1.h5 sheetrun.h5 "$OUT/traj/"
 cp samples.h5 samples_all.h5 samples_two.h5 "$OUT/samples/"
 cp pod.h5 mlp.h5 modes.h5 skin.h5 "$OUT/model/"
 cp cub.h5 cub_modes.h5 "$OUT/cubature/"
-cp box.h5 run.h5 samples.h5 pod.h5 latent.h5 modes.h5 cub.h5 "$OUT/check/"
+cp box.h5 run.h5 samples.h5 pod.h5 latent.h5 modes.h5 cub.h5 sheet.h5 sheetrun.h5 "$OUT/check/"
 cp run.stream latent.stream "$OUT/stream/"
 
 # ---- frame records after the fuzz_frames header (crom/latent: time, q[3],

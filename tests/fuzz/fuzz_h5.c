@@ -57,6 +57,11 @@ __attribute__((unused)) static void mesh_use(const crom_mesh *m)
             fprintf(stderr, "a mesh that was read has tet vertex %d of %d\n", m->tets[j], m->nv);
             abort();
         }
+    for (size_t j = 0; j < 3 * (size_t)m->ntri; j++)
+        if (m->tris[j] < 0 || m->tris[j] >= m->nv) {
+            fprintf(stderr, "a mesh that was read has triangle vertex %d of %d\n", m->tris[j], m->nv);
+            abort();
+        }
     (void)crom_mesh_volume(m);
     int ntri = 0, *tris = NULL, *tri_tet = NULL;
     if (crom_mesh_boundary(m, &ntri, &tris, &tri_tet) == 0) {
@@ -71,7 +76,7 @@ static void run(const char *path)
     crom_mesh m;
     memset(&m, 0, sizeof m);
     char *history = NULL;
-    if (crom_mesh_load(path, 1, &m, &history) == 0)
+    if (crom_mesh_load(path, CROM_MESH_CARRIERS | CROM_MESH_SURFACES, &m, &history) == 0)
         mesh_use(&m);
     crom_mesh_free(&m);
     free(history);
