@@ -496,7 +496,8 @@ static void on_df_progress(void *ctx, long step, double frac, double obj)
  * is announced. */
 static int load_body(crom_cli *cli, const args *a, crom_body *b)
 {
-    crom_body_source src = {a->mesh, a->surface, a->cloud, a->sample_points, cli->seed};
+    int shells = a->objective == CROM_DATAFREE_ENERGY || a->objective == CROM_DATAFREE_NEURALMODES;
+    crom_body_source src = {a->mesh, a->surface, a->cloud, a->sample_points, cli->seed, shells};
     int rc = crom_body_load(b, &src, &a->sc);
     if (!rc && b->cloud.n)
         crom_cli_info(cli, "%s: %d points standing for %.6g m^3, integrated through virtual tets",

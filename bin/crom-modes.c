@@ -44,7 +44,10 @@ static const crom_cli_doc doc = {
     "Computes the lowest natural frequencies and mode shapes of the generalized eigenproblem "
     "K phi = omega^2 M phi at rest: K is the stiffness of the stable neo-Hookean energy at the rest "
     "state (the same element code as crom-fullsim, unprojected; at rest it is linear elasticity "
-    "with the given E and nu), M the lumped mass. The vertices of --pin regions are eliminated, "
+    "with the given E and nu), M the lumped mass. A shell surface (crom-mesh sheet, disk, import "
+    "--thickness) gets the modes of its StVK membrane and hinge bending with its thickness (M: rho t A "
+    "/ 3 per triangle corner), and the model keeps its triangles: it decodes onto that shell only. "
+    "The vertices of --pin regions are eliminated, "
     "not penalized: the problem is solved on the free degrees of freedom only. Regions given by "
     "--velocity are not held here.\n\n"
     "The lowest pairs come from ARPACK's implicitly restarted Lanczos iteration (dsaupd, M inner "
@@ -243,7 +246,7 @@ static int run(crom_cli *cli, args *a)
     crom_mesh m;
     char *hist = NULL;
     const char *name = !a->input || !strcmp(a->input, "-") ? "stdin" : a->input; /* as crom_in names it */
-    if ((rc = crom_mesh_load(a->input, 0, &m, &hist)))
+    if ((rc = crom_mesh_load(a->input, CROM_MESH_SURFACES, &m, &hist)))
         return rc;
     unsigned char *fixed = NULL;
     int npinned = 0;

@@ -245,7 +245,7 @@ static int run_map(crom_cli *cli, args *a)
         free(hist);
         return rc;
     }
-    if (a->mesh && (rc = crom_mesh_load(a->mesh, 1, &mesh, NULL)))
+    if (a->mesh && (rc = crom_mesh_load(a->mesh, CROM_MESH_CARRIERS | CROM_MESH_SURFACES, &mesh, NULL)))
         goto out;
     if ((rc = crom_map_init(&map, &model, a->mesh ? &mesh : NULL)))
         goto out;
@@ -308,9 +308,10 @@ static int run_map(crom_cli *cli, args *a)
     if (rc)
         goto out;
     if (!rc && cli->verbose && a->sc.steps > 0)
-        crom_cli_info(cli, "%d steps, %s map of rank %d on %d vertices, %d of %d tets: %.3f ms/step, %.2f "
-                      "Gauss-Newton iterations/step", a->sc.steps, model.basis, r, map.nv, s.ne, map.mesh.nt,
-                      1e3 * tsum / a->sc.steps, (double)iters / a->sc.steps);
+        crom_cli_info(cli, "%d steps, %s map of rank %d on %d vertices, %d of %d %s: %.3f ms/step, %.2f "
+                      "Gauss-Newton iterations/step", a->sc.steps, model.basis, r, map.nv, s.ne, s.sys.nenergy,
+                      s.sys.shell ? "triangles and hinges" : "tets", 1e3 * tsum / a->sc.steps,
+                      (double)iters / a->sc.steps);
 out:
     if (have_out)
         crom_out_fail(&o);

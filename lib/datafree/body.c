@@ -20,8 +20,15 @@ int crom_body_load(crom_body *b, const crom_body_source *src, const crom_scenari
 {
     memset(b, 0, sizeof *b);
     crom_model_clear(&b->modes);
-    if (src->mesh)
-        return crom_mesh_load(src->mesh, 0, &b->mesh, &b->history) ? crom_err_ctx("--mesh") : 0;
+    if (src->mesh) {
+        if (crom_mesh_load(src->mesh, CROM_MESH_SURFACES, &b->mesh, &b->history))
+            return crom_err_ctx("--mesh");
+        if (crom_mesh_is_surface(&b->mesh) && !src->shells)
+            return crom_err(CROM_EUSAGE, "--mesh %s is a shell surface (%d triangles): this objective trains on "
+                            "solids; a shell's data-free subspace is --objective energy or neuralmodes",
+                            strcmp(src->mesh, "-") ? src->mesh : "stdin", b->mesh.ntri);
+        return 0;
+    }
     for (int i = 0; i < sc->npins; i++) /* before the sampling reports anything */
         if (!crom_pred_is(sc->pins[i]))
             return crom_err(CROM_EUSAGE, "--pin %s: a surface or point cloud has no named regions; give a predicate "

@@ -2,7 +2,8 @@
  * --objective energy|neuralmodes|field|skinning), set up from the files and
  * the scenario it is given, and what the model records of it.
  *
- * The geometry is a tet mesh (a crom/mesh file), or the virtual tets of a
+ * The geometry is a tet mesh (a crom/mesh file; for the one-mesh maps also
+ * a shell surface, lib/phys/system.h), or the virtual tets of a
  * point sampling (lib/mesh/cloud.h) of a closed triangle surface or of a
  * point cloud with volumes; a sampled body's pins must be predicates
  * ('x<-0.49'), and for skinning the points and surface triangles they hold
@@ -35,6 +36,8 @@ typedef struct {
     const char *cloud;       /* a point cloud with volumes */
     int sample_points;       /* surface: about this many points (0: 8192) */
     uint64_t seed;           /* of the sampling and of the stencils' rotations */
+    int shells;              /* 1: the mesh may be a shell surface (the one-mesh maps, energy and
+                              * neuralmodes, integrate any system's energy elements) */
 } crom_body_source;
 
 typedef struct {

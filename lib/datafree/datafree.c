@@ -53,7 +53,7 @@ void crom_datafree_ctx_free(crom_datafree_ctx *c)
 {
     if (!c)
         return;
-    crom_fem_free(&c->fem);
+    crom_system_free(&c->sys);
     crom_nn_ws_free(&c->ws);
     free(c->mw);
     free(c->MWm);
@@ -123,7 +123,10 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
         return crom_err(CROM_EUSAGE, "--tangent-floor %g: the collapse floor must be in (0, 1]", o->tangent_floor);
     c->nthreads = crom_dftrain_threads(o->threads);
     size_t rows = (size_t)maxbatch + c->B0 + 1; /* the batch, the tangent samples, the anchor */
-    int rc = crom_fem_init(&c->fem, p->mesh, &p->mat);
+    int rc = crom_mesh_is_surface(p->mesh) && o->tets > 0
+                 ? crom_err(CROM_EUSAGE, "--tets %d: a random cubature of tets applies to solids; a shell's map "
+                                         "integrates every triangle and hinge", o->tets)
+                 : crom_system_init(&c->sys, p->mesh, p->mat.E, p->mat.nu, p->mat.rho);
     if (!rc)
         rc = crom_nn_ws_init(&c->ws, net, (int)rows, 1);
     if (rc) {
@@ -148,10 +151,10 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
         crom_datafree_ctx_free(c);
         return CROM_EINTERNAL;
     }
-    c->mass = c->fem.total_mass;
+    c->mass = c->sys.total_mass;
     for (int i = 0; i < n; i++)
-        c->mw[i] = c->fem.mass[i / 3] / c->mass;
-    double EV = p->mat.E * c->fem.volume;
+        c->mw[i] = c->sys.mass[i / 3] / c->mass;
+    double EV = p->mat.E * c->sys.volume;
     c->Eref = EV;
     if (nm)
         modes_box(c, p, o, EV);
@@ -193,7 +196,8 @@ static int sample_energy(crom_datafree_ctx *c, int b, const double *zb, double r
     int r = c->r, n = c->n, nm = c->o.objective == CROM_DATAFREE_NEURALMODES, bad;
     const unsigned char *fixed = c->P.fixed;
     const double *X = c->P.mesh->X, *Y = c->Y + (size_t)b * n, *g = c->P.gravity, *Wm = c->P.modes;
-    const crom_fem *fem = &c->fem;
+    const crom_system *sys = &c->sys;
+    const crom_fem *fem = &sys->fem;
     double *G = c->G + (size_t)b * n, Eb = 0;
     for (int i = 0; i < n; i++) {
         double u = rho * Y[i];
@@ -204,7 +208,7 @@ static int sample_energy(crom_datafree_ctx *c, int b, const double *zb, double r
     }
     if (!tets) {
         crom_fem_opts fo = {0, 0, fixed, 1};
-        bad = crom_fem_assemble(fem, x, &fo, &Eb, G, NULL);
+        bad = crom_system_assemble(sys, x, &fo, &Eb, G, NULL);
     } else { /* K random tets, each standing for nt/K of them */
         memset(G, 0, sizeof(double) * (size_t)n);
         bad = crom_dfloss_tets(fem, K, tets, (double)fem->nt / K, NULL, x, NULL, &Eb, G);
@@ -216,7 +220,7 @@ static int sample_energy(crom_datafree_ctx *c, int b, const double *zb, double r
         for (int i = 0; i < n; i++) {
             if (fixed && fixed[i])
                 continue;
-            double mg = fem->mass[i / 3] * g[i % 3];
+            double mg = sys->mass[i / 3] * g[i % 3];
             Eb -= mg * (x[i] - X[i]);
             G[i] -= mg;
         }
@@ -328,7 +332,7 @@ int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho,
     if (B < 1 || B > c->maxbatch)
         return crom_err(CROM_EUSAGE, "batch of %d samples (at most %d)", B, c->maxbatch);
     for (int k = 0; tets && k < K; k++)
-        if (tets[k] < 0 || tets[k] >= c->fem.nt)
+        if (tets[k] < 0 || tets[k] >= c->sys.fem.nt)
             return crom_err(CROM_EUSAGE, "tet %d out of range", tets[k]);
     if (tets && K < 1)
         return crom_err(CROM_EUSAGE, "a cubature of %d tets", K);

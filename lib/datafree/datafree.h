@@ -92,6 +92,7 @@
 #include "mesh/mesh.h"
 #include "nn/nn.h"
 #include "phys/fem.h"
+#include "phys/system.h"
 #include "phys/scenario.h"
 #include "rom/model.h"
 
@@ -148,7 +149,7 @@ typedef struct {
     crom_datafree_problem P;
     crom_datafree_opts o;
     const crom_nn_mlp *net;  /* r -> 3nv */
-    crom_fem fem;            /* rest shapes, volumes, lumped masses */
+    crom_system sys;         /* the mesh's system (a solid or a shell): elements, lumped masses */
     crom_nn_ws ws;
     int r, n, maxbatch, nthreads;
     int B0;                  /* tangent samples after the batch (0: none) */

@@ -147,6 +147,7 @@ static const crom_schema_attr model_attrs[] = {
 
 static const crom_schema_attr model_objattrs[] = {
     {"source", "str", 1, REGION_SOURCE, "field/mesh/regions/*"},
+    {"thickness", "f64", 1, THICKNESS_DESC, "field/mesh/triangles"},
     {NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_dset model_dsets[] = {
@@ -158,6 +159,8 @@ static const crom_schema_dset model_dsets[] = {
     {"field/mesh/vertices", "f64", "nv,3", 0, "m", "rest positions X of the mesh of a piecewise-linear basis (pod, modes) "
                                                    "or of a map (energy, neuralmodes)", NULL},
     {"field/mesh/tets", "i32", "nt,4", 0, "1", "tetrahedra of that mesh: 0-based vertex indices, positively oriented", NULL},
+    {"field/mesh/triangles", "i32", "ntri,3", 0, "1", "a shell's triangles instead of tets (modes, energy, neuralmodes on a "
+                                                     "surface mesh), as crom/mesh", NULL},
     {"field/mesh/regions/*", "i32", "?", 0, "1", REGION_DESC, NULL},
     {"field/basis", "f64", "nv,3,r", 0, "1", "basis W at the mesh vertices, [nv][3][r] (pod, modes); the linear part W "
                                              "of the map (neuralmodes)", NULL},

@@ -38,7 +38,11 @@ double crom_contact_depth(const crom_contact_plane *p, const double x[3]);
 
 /* Energy of one vertex (mass m) at x against plane p, with penalty rate k,
  * lagged normal force lam (N) and smoothing length eps (m; ε_v h). Adds the
- * gradient to g[3] and the Hessian to H[9] when they are non-NULL. */
+ * gradient to g[3] and the Hessian to H[9] when they are non-NULL. The
+ * normal penalty's Hessian is k m n nᵀ: exact for a plane; for a sphere the
+ * Gauss–Newton part, dropping the term −k m (φ/ρ)(I − n nᵀ) of its
+ * curvature (ρ = |x − c|), which is negative in the tangent plane, so that
+ * the Hessian stays positive semidefinite. */
 double crom_contact_eval(const crom_contact_plane *p, double k, double m, const double x[3],
                          const double xprev[3], double lam, double eps, double g[3],
                          double H[9]);

@@ -1,4 +1,5 @@
 /* system.c — a solid or a shell behind one interface (system.h). */
+#include <math.h>
 #include <string.h>
 
 #include "base/err.h"
@@ -22,9 +23,11 @@ int crom_system_init(crom_system *s, const crom_mesh *mesh, double E, double nu,
         s->rowind = s->sh.rowind;
         s->mass = s->sh.mass;
         s->total_mass = s->sh.total_mass;
+        s->volume = s->sh.total_area * sm.thickness;
         s->nelem = s->sh.nt;
         s->per_elem = 3;
         s->elem = s->sh.tris;
+        s->nenergy = s->sh.nt + s->sh.nh;
         return CROM_OK;
     }
     crom_material mat;
@@ -37,9 +40,11 @@ int crom_system_init(crom_system *s, const crom_mesh *mesh, double E, double nu,
     s->rowind = s->fem.rowind;
     s->mass = s->fem.mass;
     s->total_mass = s->fem.total_mass;
+    s->volume = s->fem.volume;
     s->nelem = s->fem.nt;
     s->per_elem = 4;
     s->elem = s->fem.tets;
+    s->nenergy = s->fem.nt;
     return CROM_OK;
 }
 
@@ -61,4 +66,54 @@ int crom_system_assemble(const crom_system *s, const double *x, const crom_fem_o
 int crom_system_energy(const crom_system *s, const double *x, double *E)
 {
     return s->shell ? crom_shell_assemble(&s->sh, x, NULL, E, NULL, NULL) : crom_fem_energy(&s->fem, x, E);
+}
+
+int crom_system_elem_vertices(const crom_system *s, int e, int v[4])
+{
+    if (!s->shell) {
+        memcpy(v, s->fem.tets + 4 * (size_t)e, 4 * sizeof(int));
+        return 4;
+    }
+    if (e < s->sh.nt) {
+        memcpy(v, s->sh.tris + 3 * (size_t)e, 3 * sizeof(int));
+        return 3;
+    }
+    memcpy(v, s->sh.hinges + 4 * (size_t)(e - s->sh.nt), 4 * sizeof(int));
+    return 4;
+}
+
+int crom_system_elem_eval(const crom_system *s, int e, const double *xe, int project, double *E, double *g,
+                          double *H)
+{
+    int rc;
+    if (!s->shell) {
+        const crom_fem *f = &s->fem;
+        rc = crom_fem_tet_eval(&f->mat, xe, f->Dminv + 9 * (size_t)e, f->vol[e], project, E, g, H);
+        if (rc)
+            crom_err_clear(); /* the caller names the element */
+        return rc ? CROM_EDATA : CROM_OK;
+    }
+    const crom_shell *sh = &s->sh;
+    if (e < sh->nt)
+        rc = crom_shell_tri_eval(&sh->mat, xe, sh->Dminv + 4 * (size_t)e, sh->area[e], project, E, g, H);
+    else
+        rc = crom_shell_hinge_eval(sh->hk[e - sh->nt], sh->theta0[e - sh->nt], xe, project, E, g, H);
+    return rc ? CROM_EDATA : CROM_OK;
+}
+
+double crom_system_elem_energy(const crom_system *s, int e, const double *xe)
+{
+    if (!s->shell) {
+        const crom_fem *f = &s->fem;
+        return crom_fem_tet_energy(&f->mat, xe, f->Dminv + 9 * (size_t)e, f->vol[e]);
+    }
+    double E;
+    return crom_system_elem_eval(s, e, xe, 0, &E, NULL, NULL) ? NAN : E;
+}
+
+double crom_system_elem_measure(const crom_system *s, int e)
+{
+    if (!s->shell)
+        return s->fem.vol[e];
+    return e < s->sh.nt ? s->sh.area[e] : 0;
 }

@@ -21,8 +21,10 @@ typedef struct {
     const int *colptr, *rowind; /* the upper-CSC pattern, the diagonal last in each column */
     const double *mass;   /* [nv] lumped masses (kg) */
     double total_mass;
+    double volume;        /* m³: the solid's, or a shell's area times its thickness */
     int nelem, per_elem;  /* elements (tets or triangles) and their vertices (4 or 3) */
     const int *elem;      /* [nelem][per_elem] */
+    int nenergy;          /* energy elements: the tets, or the triangles then the hinges */
 } crom_system;
 
 /* The system of mesh (borrowed only during the call) with Young's modulus
@@ -42,5 +44,32 @@ int crom_system_assemble(const crom_system *s, const double *x, const crom_fem_o
 
 /* The elastic energy at x. */
 int crom_system_energy(const crom_system *s, const double *x, double *E);
+
+/* ---- Energy elements ----------------------------------------------------
+ * The elastic energy is a sum over nenergy elements, each a function of the
+ * positions of 3 or 4 vertices: a solid's tets (fem.h), or a shell's
+ * membrane triangles (indices 0 … nt−1) then its hinges (nt … nt+nh−1,
+ * shell.h). Reduced simulation and data-free training integrate the energy
+ * element by element, over all of them or a weighted cubature of them,
+ * through these three calls, whatever the system. */
+
+/* The vertices of energy element e into v[4]; returns their count k (3 or
+ * 4). */
+int crom_system_elem_vertices(const crom_system *s, int e, int v[4]);
+
+/* Energy, gradient g[3k] and Hessian H[3k][3k] (row-major; any of E, g, H
+ * may be NULL) of energy element e at the positions xe[3k] of its vertices
+ * in the order of crom_system_elem_vertices; project != 0: the element
+ * Hessian projected to SPD. Returns CROM_OK or CROM_EDATA (no message) when
+ * a result is not finite. */
+int crom_system_elem_eval(const crom_system *s, int e, const double *xe, int project, double *E, double *g,
+                          double *H);
+
+/* The energy of element e alone at xe[3k] (NaN when not finite). */
+double crom_system_elem_energy(const crom_system *s, int e, const double *xe);
+
+/* The rest measure of element e: a tet's volume or a triangle's area (m³,
+ * m²); 0 for a hinge. */
+double crom_system_elem_measure(const crom_system *s, int e);
 
 #endif

@@ -34,12 +34,14 @@ void crom_map_free(crom_map *map)
 
 int crom_map_same_mesh(const crom_mesh *a, const crom_mesh *b)
 {
-    if (a->nv != b->nv || a->nt != b->nt)
+    if (a->nv != b->nv || a->nt != b->nt || a->ntri != b->ntri)
         return 1;
     for (size_t i = 0; i < 3 * (size_t)a->nv; i++)
         if (fabs(a->X[i] - b->X[i]) > 1e-9 * (1 + fabs(a->X[i])))
             return 1;
-    return memcmp(a->tets, b->tets, sizeof(int) * 4 * (size_t)a->nt) != 0;
+    if (a->ntri && (memcmp(a->tris, b->tris, sizeof(int) * 3 * (size_t)a->ntri) || a->thickness != b->thickness))
+        return 1;
+    return a->nt && memcmp(a->tets, b->tets, sizeof(int) * 4 * (size_t)a->nt) != 0;
 }
 
 /* The layers of a network in double (map->mem, w, b), the scratch of a

@@ -109,7 +109,7 @@ void crom_map_rows(const crom_map *map, const int *idx, int nidx, const double *
 void crom_map_free(crom_map *map);
 
 /* 0 if meshes a and b have the same vertices (within 1e-9 relative) and
- * tets; else 1. */
+ * tets (or triangles and thickness); else 1. */
 int crom_map_same_mesh(const crom_mesh *a, const crom_mesh *b);
 
 #endif

@@ -79,6 +79,17 @@ static void fnv_latent(fnv *s, const crom_nn_mlp *phi)
     fnv_bytes(s, phi->params, sizeof(float) * phi->nparams);
 }
 
+/* A shell's triangles and thickness (nothing for a tet mesh, whose ids
+ * stay what they were). */
+static void surface_id(fnv *s, const crom_mesh *m)
+{
+    if (!crom_mesh_is_surface(m))
+        return;
+    fnv_i64(s, m->ntri);
+    fnv_bytes(s, m->tris, sizeof(int) * 3 * (size_t)m->ntri);
+    fnv_bytes(s, &m->thickness, sizeof m->thickness);
+}
+
 const char *crom_model_id(const crom_model *m, char id[17])
 {
     fnv s = {0xcbf29ce484222325ULL};
@@ -130,6 +141,7 @@ const char *crom_model_id(const crom_model *m, char id[17])
         fnv_i64(&s, m->mesh.nt);
         fnv_bytes(&s, m->mesh.X, sizeof(double) * 3 * (size_t)m->mesh.nv);
         fnv_bytes(&s, m->mesh.tets, sizeof(int) * 4 * (size_t)m->mesh.nt);
+        surface_id(&s, &m->mesh);
         if (m->basis_v)
             fnv_bytes(&s, m->basis_v, sizeof(double) * 3 * (size_t)m->rank * m->mesh.nv);
     } else if (m->field == CROM_MODEL_FIELD_MESH) {
@@ -137,6 +149,7 @@ const char *crom_model_id(const crom_model *m, char id[17])
         fnv_i64(&s, m->mesh.nt);
         fnv_bytes(&s, m->mesh.X, sizeof(double) * 3 * (size_t)m->mesh.nv);
         fnv_bytes(&s, m->mesh.tets, sizeof(int) * 4 * (size_t)m->mesh.nt);
+        surface_id(&s, &m->mesh);
         fnv_bytes(&s, m->basis_v, sizeof(double) * 3 * (size_t)m->rank * m->mesh.nv);
     }
     snprintf(id, 17, "%016llx", (unsigned long long)s.h);
@@ -188,18 +201,24 @@ int crom_model_from_mesh(crom_model *m, const char *basis, const crom_mesh *mesh
     m->encoder = CROM_MODEL_ENC_LSQ;
     m->mesh.nv = mesh->nv;
     m->mesh.nt = mesh->nt;
+    m->mesh.ntri = mesh->ntri;
+    m->mesh.thickness = mesh->thickness;
     size_t nb = (size_t)mesh->nv * 3 * rank;
     m->mesh.X = crom_malloc(sizeof(double) * 3 * (size_t)mesh->nv);
-    m->mesh.tets = crom_malloc(sizeof(int) * 4 * (size_t)mesh->nt);
+    m->mesh.tets = crom_malloc(sizeof(int) * 4 * (size_t)(mesh->nt ? mesh->nt : 1));
+    m->mesh.tris = mesh->ntri ? crom_malloc(sizeof(int) * 3 * (size_t)mesh->ntri) : NULL;
     m->basis_v = crom_malloc(sizeof(double) * nb);
-    if (!m->mesh.X || !m->mesh.tets || !m->basis_v) {
+    if (!m->mesh.X || !m->mesh.tets || (mesh->ntri && !m->mesh.tris) || !m->basis_v) {
         crom_model_free(m);
         return CROM_EINTERNAL;
     }
     memcpy(m->mesh.X, mesh->X, sizeof(double) * 3 * (size_t)mesh->nv);
-    memcpy(m->mesh.tets, mesh->tets, sizeof(int) * 4 * (size_t)mesh->nt);
+    if (mesh->nt)
+        memcpy(m->mesh.tets, mesh->tets, sizeof(int) * 4 * (size_t)mesh->nt);
+    if (mesh->ntri)
+        memcpy(m->mesh.tris, mesh->tris, sizeof(int) * 3 * (size_t)mesh->ntri);
     memcpy(m->basis_v, basis_v, sizeof(double) * nb);
-    int rc = crom_locate_init(&m->loc, &m->mesh);
+    int rc = crom_mesh_is_surface(&m->mesh) ? 0 : crom_locate_init(&m->loc, &m->mesh);
     if (rc)
         crom_model_free(m);
     else
@@ -455,9 +474,15 @@ static int write_mesh_field(hid_t loc, const crom_model *m)
 {
     hsize_t dv[2] = {(hsize_t)m->mesh.nv, 3}, dt[2] = {(hsize_t)m->mesh.nt, 4};
     hsize_t db[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)m->rank}, dr = (hsize_t)m->rank;
+    hsize_t dtri[2] = {(hsize_t)m->mesh.ntri, 3};
     int rc = crom_h5_put_f64(loc, "field/mesh/vertices", 2, dv, m->mesh.X);
-    if (!rc)
+    if (!rc && crom_mesh_is_surface(&m->mesh)) { /* a shell: its triangles and thickness, as crom/mesh */
+        rc = crom_h5_put_i32(loc, "field/mesh/triangles", 2, dtri, m->mesh.tris);
+        if (!rc)
+            rc = crom_h5_set_f64(loc, "field/mesh/triangles", "thickness", &m->mesh.thickness, 1);
+    } else if (!rc) {
         rc = crom_h5_put_i32(loc, "field/mesh/tets", 2, dt, m->mesh.tets);
+    }
     if (!rc)
         rc = crom_h5_put_f64(loc, "field/basis", 3, db, m->basis_v);
     if (!rc && m->frequencies)
@@ -686,7 +711,7 @@ int crom_model_read_field_mesh(hid_t h, crom_model *m)
     hid_t g = H5Gopen2(h, "field/mesh", H5P_DEFAULT);
     if (g < 0)
         return crom_err(CROM_EDATA, "missing group field/mesh");
-    int rc = crom_mesh_read(g, &m->mesh);
+    int rc = crom_mesh_read_any(g, &m->mesh);
     H5Gclose(g);
     return rc ? crom_err_ctx("field/mesh") : 0;
 }
@@ -712,7 +737,7 @@ static int read_mesh_field(hid_t h, crom_model *m)
         if ((rc = read_vec(h, "frequencies", m->rank, m->frequencies, 1)))
             return rc;
     }
-    return crom_locate_init(&m->loc, &m->mesh);
+    return crom_mesh_is_surface(&m->mesh) ? 0 : crom_locate_init(&m->loc, &m->mesh);
 }
 
 /* A map: the network r -> 3nv, its mesh (with regions), the linear part
@@ -722,7 +747,7 @@ static int read_map(hid_t h, crom_model *m, const char *act)
     hid_t g = H5Gopen2(h, "field/mesh", H5P_DEFAULT);
     if (g < 0)
         return crom_err(CROM_EDATA, "missing group field/mesh");
-    int rc = crom_mesh_read(g, &m->mesh);
+    int rc = crom_mesh_read_any(g, &m->mesh);
     H5Gclose(g);
     if (rc)
         return crom_err_ctx("field/mesh");
@@ -937,6 +962,17 @@ int crom_model_eval(const crom_model *m, size_t n, const double *X, double *W,
         *noutside = 0;
     if (n == 0)
         return 0;
+    if (m->field == CROM_MODEL_FIELD_MESH && crom_mesh_is_surface(&m->mesh)) {
+        /* a shell's basis lives at its own vertices only */
+        int same = n == (size_t)m->mesh.nv;
+        for (size_t i = 0; same && i < 3 * n; i++)
+            same = fabs(X[i] - m->mesh.X[i]) <= 1e-9 * (1 + fabs(X[i]));
+        if (!same)
+            return crom_err(CROM_EDATA, "model %s (basis '%s') was made on a shell surface of %d vertices and is "
+                            "evaluated only at them, got %zu other points", m->model_id, m->basis, m->mesh.nv, n);
+        memcpy(W, m->basis_v, sizeof(double) * 3 * (size_t)m->rank * n);
+        return 0;
+    }
     if (m->field == CROM_MODEL_FIELD_MESH) {
         crom_locate_interp(&m->loc, n, X, 3 * m->rank, m->basis_v, W, noutside);
         return 0;

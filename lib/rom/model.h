@@ -15,7 +15,9 @@
  *       a stored tet mesh: W at the mesh vertices, [nv][3][r], interpolated
  *       barycentrically inside each tet. A point outside the mesh takes the
  *       value at the closest point of the nearest tet (lib/mesh/locate.h),
- *       i.e. W is extended constantly along the normal direction.
+ *       i.e. W is extended constantly along the normal direction. A
+ *       basis made on a shell surface (crom-modes on a shell; its
+ *       field/mesh has triangles) is evaluated at its own vertices only.
  *   CROM_MODEL_FIELD_MAP (basis "energy", "neuralmodes"): a NONLINEAR map of
  *       the latent to the positions of every vertex of ONE stored mesh (the
  *       data-free subspaces, lib/datafree/datafree.h): x(q) = X + W q + N(q),

@@ -31,7 +31,7 @@ void crom_nlsim_free(crom_nlsim *s)
 {
     if (!s)
         return;
-    crom_fem_free(&s->fem);
+    crom_system_free(&s->sys);
     double **bufs[] = {&s->q,  &s->qd, &s->va, &s->Bg, &s->qn, &s->fa, &s->gx, &s->J,  &s->Jt,
                        &s->g,  &s->H,  &s->d,  &s->qt, &s->Gm, &s->lam,  &s->zero, &s->tw, &s->tH,
                        &s->tg, &s->tE, &s->a,  &s->T,  &s->an, &s->ga,   &s->A0, &s->Aq, &s->bq,
@@ -55,7 +55,7 @@ static int region(crom_nlsim *s, const char *ref, const crom_bc *bc, crom_nlsim_
         return rc;
     b->bc = bc;
     for (int k = 0; k < b->n; k++)
-        b->mass += s->fem.mass[b->idx[k]];
+        b->mass += s->sys.mass[b->idx[k]];
     return 0;
 }
 
@@ -65,7 +65,7 @@ static void mass_gram(crom_nlsim *s)
 {
     int r = s->r, n = s->n;
     for (int i = 0; i < n; i++) {
-        double sq = sqrt(s->fem.mass[i / 3]);
+        double sq = sqrt(s->sys.mass[i / 3]);
         for (int k = 0; k < r; k++)
             s->Jt[(size_t)i * r + k] = sq * s->J[(size_t)i * r + k];
     }
@@ -82,9 +82,9 @@ static int initial_velocity(crom_nlsim *s)
     double c[3] = {0, 0, 0}, m = 0;
     const double *X = s->map->mesh.X;
     for (int v = 0; v < s->map->nv; v++) {
-        m += s->fem.mass[v];
+        m += s->sys.mass[v];
         for (int k = 0; k < 3; k++)
-            c[k] += s->fem.mass[v] * X[3 * v + k];
+            c[k] += s->sys.mass[v] * X[3 * v + k];
     }
     for (int k = 0; k < 3; k++)
         c[k] /= m;
@@ -92,7 +92,7 @@ static int initial_velocity(crom_nlsim *s)
         double vv[3];
         crom_scenario_initial_velocity(sc, c, X + 3 * v, vv);
         for (int k = 0; k < 3; k++)
-            s->gx[3 * v + k] = s->fem.mass[v] * vv[k];
+            s->gx[3 * v + k] = s->sys.mass[v] * vv[k];
     }
     int rc = crom_map_eval(s->map, s->q, NULL, s->J);
     if (rc)
@@ -109,7 +109,6 @@ static int initial_velocity(crom_nlsim *s)
 static int set_elastic(crom_nlsim *s, int k, const int *elem, const double *weight)
 {
     int nv = s->map->nv, r = s->r;
-    const int *tets = s->map->mesh.tets;
     int *eidx = crom_malloc(sizeof(int) * (size_t)(k ? k : 1)), *eloc = crom_malloc(sizeof(int) * 4 * (size_t)(k ? k : 1));
     double *ew = crom_malloc(sizeof(double) * (size_t)(k ? k : 1));
     int *loc = crom_malloc(sizeof(int) * (size_t)nv), *cv = crom_malloc(sizeof(int) * (size_t)nv), ncv = 0;
@@ -122,8 +121,9 @@ static int set_elastic(crom_nlsim *s, int k, const int *elem, const double *weig
     for (int j = 0; j < k; j++) {
         eidx[j] = elem ? elem[j] : j;
         ew[j] = weight ? weight[j] : 1;
-        for (int c = 0; c < 4; c++) {
-            int v = tets[4 * (size_t)eidx[j] + c];
+        int ev[4], ke = crom_system_elem_vertices(&s->sys, eidx[j], ev);
+        for (int c = 0; c < ke; c++) {
+            int v = ev[c];
             if (loc[v] < 0) {
                 loc[v] = ncv;
                 cv[ncv++] = v;
@@ -131,11 +131,11 @@ static int set_elastic(crom_nlsim *s, int k, const int *elem, const double *weig
         }
     }
     int every = ncv == nv;
-    for (int j = 0; j < k; j++)
-        for (int c = 0; c < 4; c++) {
-            int v = tets[4 * (size_t)eidx[j] + c];
-            eloc[4 * j + c] = every ? v : loc[v];
-        }
+    for (int j = 0; j < k; j++) {
+        int ev[4], ke = crom_system_elem_vertices(&s->sys, eidx[j], ev);
+        for (int c = 0; c < 4; c++)
+            eloc[4 * j + c] = c >= ke ? -1 : every ? ev[c] : loc[ev[c]];
+    }
     free(loc);
     if (every) {
         free(cv);
@@ -173,10 +173,11 @@ static int set_elastic(crom_nlsim *s, int k, const int *elem, const double *weig
 int crom_nlsim_use_cubature(crom_nlsim *s, int k, const int *elem, const double *weight)
 {
     if (k < 1)
-        return crom_err(CROM_EDATA, "the cubature has no tets");
+        return crom_err(CROM_EDATA, "the cubature has no elements");
     for (int j = 0; j < k; j++) {
-        if (elem[j] < 0 || elem[j] >= s->fem.nt)
-            return crom_err(CROM_EDATA, "cubature tet %d is not a tet of the map's mesh (%d tets)", elem[j], s->fem.nt);
+        if (elem[j] < 0 || elem[j] >= s->sys.nenergy)
+            return crom_err(CROM_EDATA, "cubature element %d is not an element of the map's mesh (%d %s)", elem[j],
+                            s->sys.nenergy, s->sys.shell ? "triangles and hinges" : "tets");
         if (!(isfinite(weight[j]) && weight[j] >= 0))
             return crom_err(CROM_EDATA, "cubature weight %d is %g: weights must be finite and >= 0", j, weight[j]);
     }
@@ -200,7 +201,7 @@ static int quadratic_setup(crom_nlsim *s)
     if (!Bs)
         return CROM_EINTERNAL;
     for (int i = 0; i < n; i++) {
-        double sq = sqrt(s->fem.mass[i / 3]);
+        double sq = sqrt(s->sys.mass[i / 3]);
         for (int k = 0; k < p; k++)
             Bs[(size_t)i * p + k] = sq * map->B[(size_t)i * p + k];
     }
@@ -209,7 +210,7 @@ static int quadratic_setup(crom_nlsim *s)
     /* Bg [c][p] = Bᵀ M 1_c: the features' share of a uniform acceleration */
     memset(s->Bg, 0, sizeof(double) * 3 * (size_t)p);
     for (int i = 0; i < n; i++)
-        cblas_daxpy(p, s->fem.mass[i / 3], map->B + (size_t)i * p, 1, s->Bg + (size_t)(i % 3) * p, 1);
+        cblas_daxpy(p, s->sys.mass[i / 3], map->B + (size_t)i * p, 1, s->Bg + (size_t)(i % 3) * p, 1);
     for (int i = 0; i < p; i++)
         for (int j = 0; j < i; j++)
             s->A0[i * p + j] = s->A0[j * p + i];
@@ -219,7 +220,7 @@ static int quadratic_setup(crom_nlsim *s)
         const crom_nlsim_bc *b = &s->bc[k];
         for (int j = 0; j < b->n; j++) {
             int v = b->idx[j];
-            cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, p, 3, s->kappa * s->fem.mass[v],
+            cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, p, 3, s->kappa * s->sys.mass[v],
                         map->B + (size_t)v * 3 * p, p, 1.0, s->Aq, p);
         }
     }
@@ -238,9 +239,6 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
         rc = crom_scenario_check_regions(sc, &map->mesh);
     if (rc)
         return rc;
-    crom_material mat;
-    if ((rc = crom_material_init(&mat, sc->youngs, sc->poisson, sc->density)))
-        return rc;
     s->sc = sc;
     s->map = map;
     s->r = map->r;
@@ -248,7 +246,7 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
     s->p = map->p;
     s->nthreads = nthreads < 1 ? 1 : nthreads > 256 ? 256 : nthreads;
     s->kappa = kappa > 0 ? kappa : 1e4 / (sc->dt * sc->dt);
-    if ((rc = crom_fem_init(&s->fem, &map->mesh, &mat)))
+    if ((rc = crom_system_init(&s->sys, &map->mesh, sc->youngs, sc->poisson, sc->density)))
         return rc;
     int r = s->r, n = s->n, p = s->p, T = s->nthreads;
     size_t rr = (size_t)r * r, nr = (size_t)n * r, pp = (size_t)p * p, pr = (size_t)p * r;
@@ -301,14 +299,16 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
         crom_nlsim_free(s);
         return CROM_EUSAGE;
     }
-    if ((rc = quadratic_setup(s)) || (rc = set_elastic(s, s->fem.nt, NULL, NULL))) {
+    if ((rc = quadratic_setup(s)) || (rc = set_elastic(s, s->sys.nenergy, NULL, NULL))) {
         crom_nlsim_free(s);
         return rc;
     }
-    if (sc->nplanes) { /* contact points: the boundary vertices */
-        int ntri, *tris = NULL;
+    if (sc->nplanes) { /* contact points: the boundary vertices (every vertex of a shell) */
+        int ntri = 0, *tris = NULL;
         unsigned char *on = crom_calloc((size_t)map->nv, 1);
-        if (!on || (rc = crom_mesh_boundary(&map->mesh, &ntri, &tris, NULL))) {
+        if (on && s->sys.shell)
+            memset(on, 1, (size_t)map->nv);
+        else if (!on || (rc = crom_mesh_boundary(&map->mesh, &ntri, &tris, NULL))) {
             free(on);
             crom_nlsim_free(s);
             return rc ? rc : CROM_EINTERNAL;
@@ -359,7 +359,7 @@ static void feature_loads(crom_nlsim *s, double t, double *fa)
         crom_bc_force(fb->bc, t, F);
         for (int k = 0; k < fb->n; k++) {
             int v = fb->idx[k];
-            rows_t(s->map, v, s->fem.mass[v] / fb->mass, F, fa);
+            rows_t(s->map, v, s->sys.mass[v] / fb->mass, F, fa);
         }
     }
 }
@@ -370,7 +370,7 @@ void crom_nlsim_begin_step(crom_nlsim *s)
     const crom_map *map = s->map;
     int p = s->p;
     double h = sc->dt, t1 = (double)(s->step + 1) * h; /* step * dt, not a running sum */
-    const double *m = s->fem.mass;
+    const double *m = s->sys.mass;
     memcpy(s->qn, s->q, sizeof(double) * (size_t)s->r);
     /* the linear term b and constant of the quadratic in δ = a − a_n:
      * inertia ½/h² ‖Bδ − h B va‖²_M, external −f·Bδ, penalty
@@ -410,34 +410,51 @@ void crom_nlsim_begin_step(crom_nlsim *s)
  * over the threads, scattered in order). */
 static int elastic_xgrad(crom_nlsim *s, double *E)
 {
-    const crom_fem *f = &s->fem;
     int ne = s->ne, bad = 0;
     double Es = 0;
 #pragma omp parallel for num_threads(s->nthreads) schedule(static) reduction(| : bad) reduction(+ : Es)
     for (int j = 0; j < ne; j++) {
-        int t = s->eidx[j];
         const int *e = s->eloc + 4 * (size_t)j;
+        int ke = e[3] < 0 ? 3 : 4;
         double xe[12], Ee, *ge = s->ge + 12 * (size_t)j;
-        for (int a = 0; a < 4; a++)
+        for (int a = 0; a < ke; a++)
             memcpy(xe + 3 * a, s->xc + 3 * (size_t)e[a], 3 * sizeof(double));
-        if (crom_fem_tet_eval(&f->mat, xe, f->Dminv + 9 * (size_t)t, f->vol[t], 0, &Ee, ge, NULL) || !isfinite(Ee))
+        if (crom_system_elem_eval(&s->sys, s->eidx[j], xe, 0, &Ee, ge, NULL) || !isfinite(Ee))
             bad = 1;
         else
             Es += s->ew[j] * Ee;
     }
-    if (bad) {
-        crom_err_clear();
+    if (bad)
         return crom_err(CROM_EDATA, "non-finite elastic energy");
-    }
     memset(s->gc, 0, sizeof(double) * 3 * (size_t)s->ncv);
     for (int j = 0; j < ne; j++) {
         const int *e = s->eloc + 4 * (size_t)j;
-        for (int a = 0; a < 4; a++)
+        for (int a = 0; a < (e[3] < 0 ? 3 : 4); a++)
             for (int c = 0; c < 3; c++)
                 s->gc[3 * (size_t)e[a] + c] += s->ew[j] * s->ge[12 * (size_t)j + 3 * a + c];
     }
     *E = Es;
     return 0;
+}
+
+/* A shell element's energy, and its reduced gradient tg += w J_eᵀ g_e and
+ * Hessian tH += w J_eᵀ H_e J_e (tH NULL: none) with J_e = J4 [3ke][r] the
+ * map's Jacobian rows at its vertices; work holds 156 + 12 r doubles.
+ * Returns the element's energy, or NaN when it is not finite. */
+static double elem_reduced(const crom_system *sys, int t, int ke, const double *xe, const double *J4, int r,
+                           double w, int project, double *tg, double *tH, double *work)
+{
+    int m = 3 * ke;
+    double Ee, *He = work, *ge = work + 144, *HJ = work + 156;
+    if (crom_system_elem_eval(sys, t, xe, project, &Ee, ge, tH ? He : NULL))
+        return NAN;
+    if (tg)
+        cblas_dgemv(CblasRowMajor, CblasTrans, m, r, w, J4, r, ge, 1, 1.0, tg, 1);
+    if (tH) {
+        cblas_dsymm(CblasRowMajor, CblasLeft, CblasUpper, m, r, 1.0, He, m, J4, r, 0.0, HJ, r);
+        cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, r, m, w, J4, r, HJ, r, 1.0, tH, r);
+    }
+    return Ee;
 }
 
 /* Elastic energy at the features in s->a, and (g, H non-NULL) its reduced
@@ -448,7 +465,8 @@ static int elastic(crom_nlsim *s, double *E, double *g, double *H, int project)
 {
     int r = s->r, T = s->nthreads, bad = 0, ne = s->ne;
     size_t rr = (size_t)r * r;
-    const crom_fem *f = &s->fem;
+    const crom_system *sys = &s->sys;
+    const crom_fem *f = &sys->fem;
     int jac = H != NULL; /* the gradient alone goes through x: g += Tᵀ Bᵀ Σ w_e ∇_x E_e */
     if (s->cv) { /* xc = Xc + Bc a, Jc = Bc T */
         int m3 = 3 * s->ncv, p = s->p;
@@ -485,14 +503,20 @@ static int elastic(crom_nlsim *s, double *E, double *g, double *H, int project)
         for (int j = 0; j < ne; j++) {
             int t = s->eidx[j];
             const int *e = s->eloc + 4 * (size_t)j;
-            for (int a = 0; a < 4; a++) {
+            int ke = e[3] < 0 ? 3 : 4;
+            for (int a = 0; a < ke; a++) {
                 memcpy(xe + 3 * a, s->xc + 3 * (size_t)e[a], 3 * sizeof(double));
                 if (g || H)
                     memcpy(J4 + (size_t)a * 3 * r, s->Jc + (size_t)e[a] * 3 * r, 3 * (size_t)r * sizeof(double));
             }
-            double Ee = (g || H) ? crom_cubature_tet(&f->mat, xe, J4, r, f->Dminv + 9 * (size_t)t, f->vol[t], s->ew[j],
-                                                s->zero, project, tg, tH, w)
-                                 : crom_fem_tet_energy(&f->mat, xe, f->Dminv + 9 * (size_t)t, f->vol[t]);
+            double Ee;
+            if (!(g || H))
+                Ee = crom_system_elem_energy(sys, t, xe);
+            else if (!sys->shell) /* in F-space: G = ∂F/∂q, Gᵀ (∂P/∂F) G */
+                Ee = crom_cubature_tet(&f->mat, xe, J4, r, f->Dminv + 9 * (size_t)t, f->vol[t], s->ew[j], s->zero,
+                                       project, tg, tH, w);
+            else
+                Ee = elem_reduced(sys, t, ke, xe, J4, r, s->ew[j], project, tg, tH, w);
             if (!isfinite(Ee))
                 bad = 1;
             Et += s->ew[j] * Ee;
@@ -530,7 +554,7 @@ int crom_nlsim_objective(crom_nlsim *s, const double *q, double *Eout, double *g
     int r = s->r, p = s->p, rc;
     size_t rr = (size_t)r * r;
     double h = sc->dt;
-    const double *m = s->fem.mass;
+    const double *m = s->sys.mass;
     if ((rc = crom_map_features(s->map, q, s->a, g || H ? s->T : NULL)))
         return rc;
     /* the quadratic: ½ δᵀAδ + bᵀδ + c; ga = Aδ + b, its gradient in a */
@@ -574,7 +598,7 @@ int crom_nlsim_objective(crom_nlsim *s, const double *q, double *Eout, double *g
         cblas_dgemv(CblasRowMajor, CblasTrans, p, r, 1.0, s->T, r, s->ga, 1, 1.0, g, 1);
     if (H) { /* H += Tᵀ A T; Gm = Tᵀ A0 T / m */
         sandwich(s, s->Aq, H, 1.0, 1.0);
-        sandwich(s, s->A0, s->Gm, 1 / s->fem.total_mass, 0.0);
+        sandwich(s, s->A0, s->Gm, 1 / s->sys.total_mass, 0.0);
         for (int i = 0; i < r; i++) /* exactly symmetric */
             for (int j = 0; j < i; j++) {
                 H[i * r + j] = H[j * r + i] = 0.5 * (H[i * r + j] + H[j * r + i]);

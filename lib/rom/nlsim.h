@@ -12,8 +12,9 @@
  *
  * the full-space incremental potential restricted to the map: inertia with
  * the full-space velocity (so momentum is that of the body, not of q), the
- * elastic energy E over every tet of the mesh or over the weighted tets of
- * a cubature (crom_nlsim_use_cubature; LiCROM eq. 8 on the map's features),
+ * elastic energy E over every energy element of the mesh's system (the tets
+ * of a solid; the membrane triangles and hinges of a shell, system.h) or
+ * over the weighted elements of a cubature (crom_nlsim_use_cubature; LiCROM eq. 8 on the map's features),
  * gravity and scheduled forces, pinned and prescribed-velocity regions as a
  * stiff mass-weighted penalty (a data-free map holds its training pins by
  * construction, so the penalty only matters for other regions), and the
@@ -61,6 +62,7 @@
 #define CROM_NLSIM_H
 
 #include "phys/fem.h"
+#include "phys/system.h"
 #include "phys/scenario.h"
 #include "rom/map.h"
 #include "rom/rsim.h"
@@ -75,7 +77,7 @@ typedef struct {
 typedef struct {
     const crom_scenario *sc;
     crom_map *map;      /* borrowed */
-    crom_fem fem;       /* the map's mesh with the scenario's material */
+    crom_system sys;    /* the map's mesh (a solid or a shell) with the scenario's material */
     int r, n, p, nthreads;
     double L, kappa;
     double t;
@@ -83,8 +85,10 @@ typedef struct {
     double *q, *qd;     /* latent state and velocity */
     double *an, *va;    /* features a(q) of the state and their velocity (v = B va): full-space
                          * positions and velocities on demand, crom_nlsim_positions */
-    /* the elastic energy: ne tets (every tet, or a cubature) with weights,
-     * over ncv vertices (cv NULL: all of them, in order) */
+    /* the elastic energy: ne energy elements (every one, or a cubature) with
+     * weights, over ncv vertices (cv NULL: all of them, in order); eloc
+     * [ne][4] their vertices' places in that list, −1 after a triangle's
+     * three */
     int ne, ncv, *eidx, *cv, *eloc;
     double *ew;
     /* private */
@@ -105,8 +109,9 @@ typedef struct {
 int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, double kappa, const double *q0,
                     const double *qd0, int nthreads);
 
-/* Integrate the elastic energy over k tets elem [k] (indices into the
- * map's mesh) with weights weight [k] instead of every tet (a crom/cubature
+/* Integrate the elastic energy over k energy elements elem [k] (indices
+ * into the system of the map's mesh: tets, or a shell's triangles then
+ * hinges) with weights weight [k] instead of every element (a crom/cubature
  * of the map, lib/rom/cubature.h). Call after init, before stepping.
  * CROM_EDATA for an index out of range or a weight not finite and >= 0. */
 int crom_nlsim_use_cubature(crom_nlsim *s, int k, const int *elem, const double *weight);

@@ -21,17 +21,24 @@ int crom_result_open(crom_result *res, const char *path, const char *mesh_path, 
     return crom_result_adopt(res, &in, mesh_path, model_path);
 }
 
-/* The tet mesh a latent is decoded onto, from mesh_path (or a file carrying
- * a mesh): a shell surface is refused with a one-line CROM_EUSAGE (the models
- * are fields over solids). */
-static int latent_mesh(const char *mesh_path, crom_mesh *m)
+/* The mesh a latent of model is decoded onto, from mesh_path (or a file
+ * carrying a mesh): a tet mesh, or the model's own shell surface (a model
+ * made on a shell lives on that shell only; fields over solids do not lay
+ * on shells): anything else is refused with a one-line message. */
+static int latent_mesh(const char *mesh_path, const crom_model *model, crom_mesh *m)
 {
     int rc = crom_mesh_load(mesh_path, CROM_MESH_CARRIERS | CROM_MESH_SURFACES, m, NULL);
-    if (!rc && crom_mesh_is_surface(m)) {
-        rc = crom_err(CROM_EUSAGE, "%s holds a shell surface (%d triangles): a crom/latent is decoded onto tet "
-                      "meshes only", mesh_path, m->ntri);
+    int shell_model = crom_mesh_is_surface(&model->mesh);
+    if (!rc && crom_mesh_is_surface(m) && !shell_model)
+        rc = crom_err(CROM_EUSAGE, "%s holds a shell surface (%d triangles): model %s is a field over solids and "
+                      "is decoded onto tet meshes only", mesh_path, m->ntri, model->model_id);
+    else if (!rc && shell_model && crom_map_same_mesh(m, &model->mesh))
+        rc = crom_err(CROM_EDATA, "model %s was made on a shell surface (%d vertices, %d triangles) and decodes only "
+                      "onto it; %s has %d vertices, %d %s", model->model_id, model->mesh.nv, model->mesh.ntri,
+                      mesh_path, m->nv, crom_mesh_is_surface(m) ? m->ntri : m->nt,
+                      crom_mesh_is_surface(m) ? "triangles" : "tets");
+    if (rc && m->X)
         crom_mesh_free(m);
-    }
     return rc;
 }
 
@@ -46,7 +53,7 @@ static int latent_map(crom_result *res, const crom_model *model, const char *mes
     if (!res->map)
         rc = CROM_EINTERNAL;
     if (!rc && mesh_path)
-        rc = latent_mesh(mesh_path, &given);
+        rc = latent_mesh(mesh_path, model, &given);
     if (!rc) {
         rc = crom_map_init(res->map, model, mesh_path ? &given : NULL);
         if (rc && mesh_path)
@@ -67,10 +74,14 @@ static int latent_basis(crom_result *res, const crom_model *model, const char *m
 {
     if (!mesh_path)
         return crom_err(CROM_EUSAGE, "%s is a crom/latent: decoding it needs --model and --mesh", res->in.name);
-    int rc = latent_mesh(mesh_path, &res->mesh);
+    int rc = latent_mesh(mesh_path, model, &res->mesh);
     if (rc)
         return rc;
     res->W = crom_malloc(sizeof(double) * 3 * (size_t)res->r * (size_t)res->mesh.nv);
+    if (res->W && crom_mesh_is_surface(&model->mesh)) { /* its own shell: W at its vertices */
+        memcpy(res->W, model->basis_v, sizeof(double) * 3 * (size_t)res->r * (size_t)res->mesh.nv);
+        return 0;
+    }
     double *P = crom_mesh_field_points(&res->mesh, CROM_MESH_CRACK_OFFSET, NULL);
     rc = res->W && P ? crom_model_eval(model, (size_t)res->mesh.nv, P, res->W, &res->outside) : CROM_EINTERNAL;
     free(P);

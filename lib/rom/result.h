@@ -32,8 +32,9 @@ typedef struct {
  * neuralmodes), which brings its mesh and accepts only a mesh with the same
  * vertices; a trajectory needs neither, and a given mesh must have its
  * vertices. A trajectory may live on a shell surface (res->mesh then has
- * triangles, mesh.h); a latent is decoded onto tet meshes only (a shell
- * --mesh: CROM_EUSAGE). Returns 0 or an error naming the problem. */
+ * triangles, mesh.h); a latent is decoded onto tet meshes, or onto the
+ * shell surface its model was made on (modes, energy, neuralmodes on a
+ * shell; any other shell --mesh: CROM_EUSAGE or CROM_EDATA). Returns 0 or an error naming the problem. */
 int crom_result_open(crom_result *res, const char *path, const char *mesh_path,
                      const char *model_path);
 

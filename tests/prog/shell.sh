@@ -158,7 +158,6 @@ expect_error 64 "thickness" "$TMP/x.h5" -- crom-mesh sheet --thickness 0 -o "$TM
 expect_error 64 "algorithm is for a tet mesh" "$TMP/x.h5" -- crom-mesh sheet --algorithm hxt -o "$TMP/x.h5"
 expect_error 64 "keep-surface is for a tet mesh" "$TMP/x.h5" -- crom-mesh import "$TMP/sheet.obj" --thickness 0.01 --keep-surface -o "$TMP/x.h5"
 expect_error 64 "disk takes --radius" "$TMP/x.h5" -- crom-mesh disk --dims 1,1,1 -o "$TMP/x.h5"
-expect_error 64 "shell surface.*tet meshes" "$TMP/x.h5" -- crom-modes --count 4 -o "$TMP/x.h5" "$TMP/sheet.h5"
 expect_error 64 "shell surface.*tet meshes" "$TMP/x.h5" -- crom-remesh refine -o "$TMP/x.h5" "$TMP/sheet.h5"
 $PY - "$TMP" <<'EOF' || fail "making bad surfaces"
 import sys, h5py, numpy as np

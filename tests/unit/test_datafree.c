@@ -1162,31 +1162,31 @@ static void test_dynamics(bar_case *b)
         CHECK(x && crom_map_eval(&map, q, x, NULL) == 0);
         crom_nlsim_positions(&s, xn, vn);
         for (int i = 0; i < n; i++) /* gravity, and the force spread by mass over its region */
-            fext[i] = s.fem.mass[i / 3] * sc.gravity[i % 3];
+            fext[i] = s.sys.mass[i / 3] * sc.gravity[i % 3];
         for (int k = 0; k < s.nforce; k++) {
             double F[3];
             crom_bc_force(s.force[k].bc, s.t + h, F);
             for (int j = 0; j < s.force[k].n; j++) {
                 int v = s.force[k].idx[j];
                 for (int c = 0; c < 3; c++)
-                    fext[3 * v + c] += F[c] * s.fem.mass[v] / s.force[k].mass;
+                    fext[3 * v + c] += F[c] * s.sys.mass[v] / s.force[k].mass;
             }
         }
         sc.nplanes = 0; /* contact is checked by differences above */
         CHECK(crom_nlsim_objective(&s, q, &E, NULL, NULL, 0) == 0);
         double Eref = 0, Eel;
         crom_fem_opts fo = {0, 0, NULL, 1};
-        CHECK(crom_fem_assemble(&s.fem, x, &fo, &Eel, NULL, NULL) == 0);
+        CHECK(crom_fem_assemble(&s.sys.fem, x, &fo, &Eel, NULL, NULL) == 0);
         Eref += Eel;
         for (int i = 0; i < n; i++) {
-            double mi = s.fem.mass[i / 3], a = x[i] - xn[i] - h * vn[i], bb = x[i] - xn[i];
+            double mi = s.sys.mass[i / 3], a = x[i] - xn[i] - h * vn[i], bb = x[i] - xn[i];
             Eref += 0.5 * mi * (cin * a * a + cd * bb * bb) - fext[i] * bb;
         }
         for (int j = 0; j < s.bc[0].n; j++) { /* the pin */
             int v = s.bc[0].idx[j];
             for (int c = 0; c < 3; c++) {
                 double e = x[3 * v + c] - map.mesh.X[3 * v + c];
-                Eref += 0.5 * s.kappa * s.fem.mass[v] * e * e;
+                Eref += 0.5 * s.kappa * s.sys.mass[v] * e * e;
             }
         }
         fprintf(stderr, "energy map: objective in feature space %.12g J, summed over vertices and tets %.12g J\n", E,
@@ -1202,7 +1202,7 @@ static void test_dynamics(bar_case *b)
      * gradient and Newton matrix against differences again, and the
      * elastic energy is that weighted sum */
     {
-        int k = (s.fem.nt + 1) / 2;
+        int k = (s.sys.fem.nt + 1) / 2;
         int *elem = malloc(sizeof(int) * (size_t)k);
         double *w = malloc(sizeof(double) * (size_t)k);
         for (int j = 0; j < k; j++) {
@@ -1210,7 +1210,7 @@ static void test_dynamics(bar_case *b)
             w[j] = 2;
         }
         CHECK(crom_nlsim_use_cubature(&s, k, elem, w) == 0);
-        int bad[1] = {s.fem.nt};
+        int bad[1] = {s.sys.fem.nt};
         double wbad[1] = {-1};
         CHECK(crom_nlsim_use_cubature(&s, 1, bad, w) == CROM_EDATA);
         CHECK(crom_nlsim_use_cubature(&s, 1, elem, wbad) == CROM_EDATA);
@@ -1224,7 +1224,7 @@ static void test_dynamics(bar_case *b)
         check_fd_jacobian(nl_grad, NULL, q, r, r, 1e-6, Hfd);
         double eg = check_relerr(g, gfd, r, 1e-9), eh = check_relerr(Hn, Hfd, 4, 1e-9);
         fprintf(stderr, "energy map over a cubature of %d of %d tets: gradient vs FD %.2e, Newton matrix vs FD %.2e\n",
-                k, s.fem.nt, eg, eh);
+                k, s.sys.fem.nt, eg, eh);
         CHECK_LT(eg, 1e-6);
         CHECK_LT(eh, 1e-5);
         free(elem);
@@ -1252,6 +1252,148 @@ static void test_dynamics(bar_case *b)
     CHECK_LT(rb.worst, 1e-6 * rb.scale);
     crom_nlsim_free(&s);
     crom_map_free(&map);
+}
+
+/* A shell's energy map (the map integrates the sheet's membrane triangles
+ * and hinges, lib/phys/system.h): trained briefly on a small sheet clamped
+ * along one edge under gravity, its reduced objective (inertia, damping,
+ * gravity, a pin penalty on a region the map moves, a frictional sphere the
+ * sheet touches) has the gradient and Newton matrix of its differences and
+ * equals the incremental potential summed over the vertices and elements
+ * directly; a free run from rest moves and dissipates. */
+static void test_shell_map(void)
+{
+    crom_meshgen_opts go;
+    crom_meshgen_defaults(&go, CROM_MESHGEN_SHEET);
+    go.dims[0] = go.dims[1] = 0.6;
+    go.size = 0.1;
+    go.thickness = 0.01;
+    crom_mesh mesh;
+    CHECK(crom_meshgen_sheet(&go, &mesh) == 0);
+    const char *clamp[1] = {"y<-0.2"};
+    unsigned char *fixed = NULL;
+    int npinned = 0;
+    CHECK(crom_modes_pins(&mesh, 1, clamp, &fixed, &npinned) == 0 && npinned > 0);
+    crom_material mat;
+    crom_material_init(&mat, 1e7, 0.3, 500);
+    crom_datafree_problem P = {&mesh, mat, {0, 0, -9.81}, fixed, NULL, NULL};
+    crom_datafree_opts o;
+    crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
+    o.rank = 2;
+    o.steps = 200;
+    o.width = 16;
+    o.seed = 5;
+    crom_model model;
+    crom_dftrain_log log;
+    int rc = crom_datafree_train(&P, &o, &model, &log);
+    CHECK_MSG(rc == 0, "shell map: %s", crom_errmsg());
+    o.tets = 16;
+    crom_model bad;
+    crom_dftrain_log blog;
+    memset(&blog, 0, sizeof blog);
+    CHECK(crom_datafree_train(&P, &o, &bad, &blog) == CROM_EUSAGE); /* no random tets on a shell */
+    crom_dftrain_log_free(&blog);
+    crom_map map;
+    CHECK(rc == 0 && crom_map_init(&map, &model, NULL) == 0);
+    CHECK(crom_mesh_is_surface(&map.mesh) && map.mesh.ntri == mesh.ntri);
+    int r = map.r, n = map.n;
+    crom_scenario sc;
+    scenario_bar(&sc);
+    sc.youngs = 1e7;
+    sc.density = 500;
+    sc.damping = 2;
+    sc.gravity[0] = sc.gravity[1] = 0;
+    sc.gravity[2] = -9.81;
+    strcpy(sc.pins[sc.npins++], "x>0.25");
+    double q[2] = {0.6, -0.4}, *x = malloc(sizeof(double) * (size_t)n);
+    CHECK(x && crom_map_eval(&map, q, x, NULL) == 0);
+    int vlow = 0; /* a sphere of radius 0.1 under the lowest vertex at q, 5 mm into it */
+    for (int v = 0; v < map.nv; v++)
+        if (x[3 * v + 2] < x[3 * vlow + 2])
+            vlow = v;
+    sc.plane[0].sphere = 1;
+    sc.plane[0].r = 0.1;
+    sc.plane[0].mu = 0.3;
+    for (int c = 0; c < 3; c++)
+        sc.plane[0].c[c] = x[3 * vlow + c] - (c == 2 ? 0.095 : 0);
+    sc.nplanes = 1;
+    crom_nlsim s;
+    double q0[2] = {0.5, -0.3}, qd0[2] = {1, 0.5};
+    rc = crom_nlsim_init(&s, &map, &sc, 1e5, q0, qd0, 1);
+    CHECK_MSG(rc == 0, "shell nlsim: %s", crom_errmsg());
+    CHECK(s.ne == s.sys.sh.nt + s.sys.sh.nh && s.nsurf == map.nv);
+    crom_nlsim_begin_step(&s);
+    g_nl = &s;
+    for (g_nlproject = 0; g_nlproject <= 1; g_nlproject++) {
+        double g[2], H[4], gfd[2], E;
+        CHECK(crom_nlsim_objective(&s, q, &E, g, H, g_nlproject) == 0);
+        check_fd_gradient(nl_obj, NULL, q, r, 1e-6, gfd);
+        double eg = check_relerr(g, gfd, r, 1e-9);
+        CHECK_LT(eg, 1e-6);
+        CHECK(H[0] > 0 && H[0] * H[3] - H[1] * H[2] > 0 && fabs(H[1] - H[2]) <= 1e-12 * H[0]);
+        double C[4], Hn[4], Hfd[4], eh = 0;
+        if (!g_nlproject) { /* the sphere's Hessian is Gauss-Newton (contact.h): checked without it */
+            sc.nplanes = 0;
+            CHECK(crom_nlsim_objective(&s, q, &E, g, H, 0) == 0);
+            CHECK(crom_nlsim_curvature(&s, q, C) == 0);
+            for (int i = 0; i < 4; i++)
+                Hn[i] = H[i] + C[i];
+            check_fd_jacobian(nl_grad, NULL, q, r, r, 1e-6, Hfd);
+            eh = check_relerr(Hn, Hfd, 4, 1e-9);
+            CHECK_LT(eh, 1e-5);
+            sc.nplanes = 1;
+        }
+        fprintf(stderr, "shell energy map (%d vertices, %d triangles, %d hinges): reduced gradient vs FD %.2e "
+                        "(project %d)", map.nv, s.sys.sh.nt, s.sys.sh.nh, eg, g_nlproject);
+        if (!g_nlproject)
+            fprintf(stderr, ", Gauss-Newton + curvature vs FD Hessian %.2e (no contact)", eh);
+        fputc('\n', stderr);
+    }
+    { /* the objective against the incremental potential summed directly (no contact) */
+        double E, h = sc.dt, cin = 1 / (h * h), cd = sc.damping / h, Eel, Eref = 0;
+        double *xn = malloc(sizeof(double) * (size_t)n), *vn = malloc(sizeof(double) * (size_t)n);
+        crom_nlsim_positions(&s, xn, vn);
+        sc.nplanes = 0;
+        CHECK(crom_nlsim_objective(&s, q, &E, NULL, NULL, 0) == 0);
+        CHECK(crom_system_energy(&s.sys, x, &Eel) == 0);
+        Eref += Eel;
+        for (int i = 0; i < n; i++) {
+            double mi = s.sys.mass[i / 3], a = x[i] - xn[i] - h * vn[i], bb = x[i] - xn[i];
+            Eref += 0.5 * mi * (cin * a * a + cd * bb * bb) - mi * sc.gravity[i % 3] * bb;
+        }
+        for (int j = 0; j < s.bc[0].n; j++)
+            for (int c = 0; c < 3; c++) {
+                int v = s.bc[0].idx[j];
+                double e = x[3 * v + c] - map.mesh.X[3 * v + c];
+                Eref += 0.5 * s.kappa * s.sys.mass[v] * e * e;
+            }
+        fprintf(stderr, "shell energy map: objective in feature space %.12g J, summed over vertices and elements "
+                        "%.12g J\n", E, Eref);
+        CHECK_LT(fabs(E - Eref), 1e-10 * (fabs(Eref) + 1));
+        sc.nplanes = 1;
+        free(xn);
+        free(vn);
+    }
+    crom_nlsim_free(&s);
+    crom_scenario fr;
+    scenario_bar(&fr);
+    fr.youngs = 1e7;
+    fr.density = 500;
+    fr.gravity[0] = fr.gravity[1] = 0;
+    fr.gravity[2] = -9.81;
+    CHECK(crom_nlsim_init(&s, &map, &fr, 0, NULL, NULL, 1) == 0);
+    run_budget rb = run_steps(&s, 40);
+    fprintf(stderr, "shell energy map, free run of 40 steps under gravity: largest rise of the total energy %.3g J "
+                    "(scale %.4g J, largest kinetic energy %.4g J)\n", rb.worst, rb.scale, rb.tmax);
+    CHECK(rb.tmax > 1e-3 * rb.scale);
+    CHECK_LT(rb.worst, 1e-6 * rb.scale);
+    crom_nlsim_free(&s);
+    crom_map_free(&map);
+    crom_model_free(&model);
+    crom_dftrain_log_free(&log);
+    free(x);
+    free(fixed);
+    crom_mesh_free(&mesh);
 }
 
 /* A cubature of the energy map through its features (crom-cubature
@@ -1563,6 +1705,7 @@ int main(void)
     test_map_cubature(&b);
     test_linear_equivalence(&b);
     test_lbfgs(&b);
+    test_shell_map();
     crom_model_free(&g_energy_model);
     bar_free(&b);
     return check_done();

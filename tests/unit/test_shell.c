@@ -15,6 +15,7 @@
 #include "phys/modes.h"
 #include "phys/shell.h"
 #include "phys/sim.h"
+#include "phys/system.h"
 
 /* y = R x + t for every point of x[n][3] */
 static void rigid(const double R[9], const double t[3], const double *x, double *y, int n)
@@ -679,6 +680,80 @@ static void test_cloth_ball(void)
     crom_mesh_free(&m);
 }
 
+/* The energy elements of a system (system.h) add up to its assembled
+ * energy, gradient and Hessian: on a displaced sheet (triangles then
+ * hinges) and on a displaced box of tets. */
+static void elems_vs_assembly(const crom_mesh *m, double E, double nu, double rho, const char *what)
+{
+    crom_system s;
+    if (crom_system_init(&s, m, E, nu, rho)) {
+        CHECK_MSG(0, "%s: system: %s", what, crom_errmsg());
+        return;
+    }
+    crom_rng rng;
+    crom_rng_seed(&rng, 17);
+    double *x = malloc(sizeof(double) * (size_t)s.n), *ga = malloc(sizeof(double) * (size_t)s.n);
+    double *gs = calloc((size_t)s.n, sizeof(double)), *Ha = malloc(sizeof(double) * (size_t)s.nnz);
+    double *Hs = calloc((size_t)s.nnz, sizeof(double));
+    for (int i = 0; i < s.n; i++)
+        x[i] = m->X[i] + 0.02 * (crom_rng_uniform(&rng) - 0.5);
+    double Ea = 0, Es = 0, Ee, ge[12], He[144];
+    crom_fem_opts fo = {0, 0, NULL, 1};
+    crom_system_assemble(&s, x, &fo, &Ea, ga, Ha);
+    int bad = 0, ntri = 0;
+    for (int e = 0; e < s.nenergy; e++) {
+        int v[4], k = crom_system_elem_vertices(&s, e, v);
+        double xe[12];
+        ntri += k == 3;
+        for (int a = 0; a < k; a++)
+            memcpy(xe + 3 * a, x + 3 * (size_t)v[a], sizeof xe[0] * 3);
+        if (crom_system_elem_eval(&s, e, xe, 0, &Ee, ge, He) ||
+            fabs(crom_system_elem_energy(&s, e, xe) - Ee) > 1e-12 * fabs(Ee)) {
+            bad++;
+            continue;
+        }
+        Es += Ee;
+        for (int a = 0; a < 3 * k; a++) {
+            gs[3 * v[a / 3] + a % 3] += ge[a];
+            for (int b = 0; b < 3 * k; b++) { /* the upper-CSC entry (row i <= col j) */
+                int i = 3 * v[a / 3] + a % 3, j = 3 * v[b / 3] + b % 3;
+                if (i > j)
+                    continue;
+                for (int l = s.colptr[j]; l < s.colptr[j + 1]; l++)
+                    if (s.rowind[l] == i)
+                        Hs[l] += He[3 * k * a + b];
+            }
+        }
+    }
+    double dg = 0, dH = 0;
+    for (int i = 0; i < s.n; i++)
+        dg = fmax(dg, fabs(gs[i] - ga[i]));
+    for (int l = 0; l < s.nnz; l++)
+        dH = fmax(dH, fabs(Hs[l] - Ha[l]));
+    CHECK_MSG(bad == 0, "%s: %d elements failed", what, bad);
+    CHECK_MSG(s.shell ? ntri == s.sh.nt && s.nenergy == s.sh.nt + s.sh.nh : ntri == 0, "%s: element kinds", what);
+    CHECK_MSG(fabs(Es - Ea) <= 1e-12 * fabs(Ea), "%s: element energies %.17g vs assembled %.17g", what, Es, Ea);
+    CHECK_MSG(dg <= 1e-10 * max_abs(ga, s.n), "%s: element gradients off the assembled by %g", what, dg);
+    CHECK_MSG(dH <= 1e-10 * max_abs(Ha, s.nnz), "%s: element Hessians off the assembled by %g", what, dH);
+    free(x), free(ga), free(gs), free(Ha), free(Hs);
+    crom_system_free(&s);
+}
+
+static void test_system_elements(void)
+{
+    crom_mesh m;
+    double dy;
+    if (strip_mesh(0.5, 0.1, &m, &dy) == 0) {
+        elems_vs_assembly(&m, 1e6, 0.3, 500, "sheet");
+        crom_mesh_free(&m);
+    }
+    crom_rng rng;
+    crom_rng_seed(&rng, 5);
+    fx_box_mesh(&m, 3, 2, 2, NULL, 0.1, 0.2, &rng, NULL);
+    elems_vs_assembly(&m, 1e6, 0.3, 500, "box");
+    crom_mesh_free(&m);
+}
+
 int main(void)
 {
     check_begin("test_shell");
@@ -686,6 +761,7 @@ int main(void)
     test_hinge();
     test_cylinder();
     test_mesh();
+    test_system_elements();
     test_plate();
     test_strip_modes();
     test_cloth_ball();
