@@ -11,15 +11,18 @@
 #include "io/io.h"
 #include "mesh/mesh.h"
 #include "phys/fem.h"
+#include "phys/mderiv.h"
 #include "phys/modes.h"
+#include "phys/system.h"
 #include "phys/scenario.h"
 #include "rom/model.h"
 
-enum { O_COUNT = 300, O_KEEP, O_SHIFT, O_TOL, O_RIGID_TOL };
+enum { O_COUNT = 300, O_KEEP, O_SHIFT, O_TOL, O_RIGID_TOL, O_DERIV };
 
 static const crom_opt modes_opts[] = {
     {"count", O_COUNT, "K", "Number of modes in the basis (default 20): deformation modes, plus the rigid ones in front with --keep-rigid (then K counts them too)."},
     {"keep-rigid", O_KEEP, NULL, "Keep the rigid-body modes that were detected (zero frequency) at the front of the basis, as translations x, y, z then rotations about x, y, z through the centre of mass, as far as the pins allow them. Default: drop them, so the basis holds K deformation modes. A free body that must move as a whole in crom-reducedstep (a falling or thrown body) needs them: translations are then exact, rotations linearized (good for small angles)."},
+    {"derivatives", O_DERIV, NULL, "Append the modal derivatives of the K modes (Barbic and James 2005: K Psi_ij = -(dK/du . phi_j) phi_i at rest, i <= j): a linear basis of K + K(K+1)/2 fields (fewer where a derivative depends on the others), M-orthonormal, that follows larger deflections than the modes alone (the in-plane shortening a bent beam or shell needs not to lock). The body must be pinned. /frequencies then holds each field's Rayleigh frequency, and the attribute 'derivatives' their count."},
     {"shift", O_SHIFT, "SIGMA", "Shift of the shift-invert Lanczos iteration in rad^2/s^2, negative (default -0.01 E / (rho D^2), D the bounding-box diagonal): K - SIGMA M is factored once."},
     {"tol", O_TOL, "T", "Convergence tolerance on the Ritz residuals, relative (default 1e-10)."},
     {"rigid-tol", O_RIGID_TOL, "T", "A mode is rigid when omega^2 <= T times the mean eigenvalue of M^-1 K (default 1e-12: rigid modes come out near 1e-17 of it, the first deformation mode of a rod 100 times longer than thick, meshed 4 tets across, near 6e-9)."},
@@ -40,7 +43,7 @@ static const crom_cli_doc doc = {
     "crom-modes",
     "linear vibration modes of a mesh with its pins (crom/mesh to crom/model)",
     "crom-modes [--youngs E] [--poisson NU] [--density RHO] [--pin REGION ...] [--count K]\n"
-    "           [--keep-rigid] [-o OUT] [MESH|-]",
+    "           [--keep-rigid] [--derivatives] [-o OUT] [MESH|-]",
     "Computes the lowest natural frequencies and mode shapes of the generalized eigenproblem "
     "K phi = omega^2 M phi at rest: K is the stiffness of the stable neo-Hookean energy at the rest "
     "state (the same element code as crom-fullsim, unprojected; at rest it is linear elasticity "
@@ -77,6 +80,7 @@ typedef struct {
     crom_scenario sc;
     const char *input, *out;
     crom_modes_opts mo;
+    int derivatives;
 } args;
 
 /* Scenario options crom-modes uses; the others are accepted and ignored. */
@@ -121,6 +125,7 @@ static int on_opt(void *ctx, int key, const char *v)
         a->mo.count = (int)n;
         return 0;
     case O_KEEP: a->mo.keep_rigid = 1; return 0;
+    case O_DERIV: a->derivatives = 1; return 0;
     case O_SHIFT:
         if (crom_parse_double(v, "--shift", &a->mo.shift))
             return CROM_EUSAGE;
@@ -146,17 +151,19 @@ static char *scenario_text(const crom_scenario *s)
     return t;
 }
 
-static int write_model(crom_cli *cli, const args *a, const crom_mesh *m, const crom_modes *r,
-                       double mass, const char *hist)
+/* Write the basis phi [n][k] (M-orthonormal) with its frequencies freq [k]
+ * (nderiv of the fields modal derivatives) as a modes model. */
+static int write_model(crom_cli *cli, const args *a, const crom_mesh *m, const crom_modes *r, const double *phi,
+                       int k, const double *freq, int nderiv, double mass, const char *hist)
 {
-    int k = r->k, rc;
+    int rc;
     /* W = Phi sqrt(mass): orthonormal in the mass mean, dimensionless */
     double *W = crom_malloc(sizeof(double) * (size_t)r->n * k);
     if (!W)
         return CROM_EINTERNAL;
     double s = sqrt(mass);
     for (size_t i = 0; i < (size_t)r->n * k; i++)
-        W[i] = r->phi[i] * s;
+        W[i] = phi[i] * s;
     crom_model model;
     rc = crom_model_from_mesh(&model, "modes", m, W, k);
     free(W);
@@ -169,7 +176,7 @@ static int write_model(crom_cli *cli, const args *a, const crom_mesh *m, const c
         crom_model_free(&model);
         return CROM_EINTERNAL;
     }
-    memcpy(model.frequencies, r->freq, sizeof(double) * (size_t)k);
+    memcpy(model.frequencies, freq, sizeof(double) * (size_t)k);
     crom_out o;
     if ((rc = crom_out_create(&o, a->out, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cli->cmdline, hist, CROM_OUT_PLAIN))) {
         free(text);
@@ -191,6 +198,8 @@ static int write_model(crom_cli *cli, const args *a, const crom_mesh *m, const c
         rc = crom_h5_set_i64(o.h5, ".", "rigid_modes", r->nrigid);
     if (!rc)
         rc = crom_h5_set_i64(o.h5, ".", "rigid_kept", r->rigid_kept);
+    if (!rc && nderiv)
+        rc = crom_h5_set_i64(o.h5, ".", "derivatives", nderiv);
     if (!rc)
         rc = crom_out_commit(&o);
     else
@@ -267,9 +276,31 @@ static int run(crom_cli *cli, args *a)
         }
         goto out;
     }
+    if (a->derivatives && r.nrigid) {
+        rc = crom_err(CROM_EDATA, "--derivatives: %s moves rigidly (%d rigid mode%s) and its stiffness is singular; "
+                      "pin it so that it cannot", name, r.nrigid, r.nrigid > 1 ? "s" : "");
+        goto out;
+    }
     report(cli, &m, npinned, &r);
     double mass = mat.rho * crom_mesh_volume(&m);
-    rc = write_model(cli, a, &m, &r, mass, hist);
+    if (a->derivatives) { /* the modes and their derivatives, one linear basis */
+        crom_system sys;
+        double *B = NULL, *f = NULL;
+        int kb = 0;
+        if ((rc = crom_system_init(&sys, &m, a->sc.youngs, a->sc.poisson, a->sc.density)))
+            goto out;
+        rc = crom_mderiv_basis(&sys, m.X, fixed, r.phi, r.k, &B, &kb, &f);
+        crom_system_free(&sys);
+        if (!rc) {
+            crom_cli_info(cli, "%d modal derivatives appended (%d of %d independent): a basis of %d fields",
+                          kb - r.k, kb - r.k, r.k * (r.k + 1) / 2, kb);
+            rc = write_model(cli, a, &m, &r, B, kb, f, kb - r.k, mass, hist);
+        }
+        free(B);
+        free(f);
+        goto out;
+    }
+    rc = write_model(cli, a, &m, &r, r.phi, r.k, r.freq, 0, mass, hist);
 out:
     crom_modes_free(&r);
     free(fixed);

@@ -127,6 +127,8 @@ static const crom_schema_attr model_attrs[] = {
                        "mesh (energy, neuralmodes, energy-field)", NULL},
     {"rigid_modes", "i64", 0, "rigid-body (zero-frequency) modes detected (modes)", NULL},
     {"rigid_kept", "i64", 0, "1 if they lead the basis, 0 if dropped (modes)", NULL},
+    {"derivatives", "i64", 0, "fields of the basis that are modal derivatives, after the modes (modes --derivatives)",
+     NULL},
     {"training_steps", "i64", 0, "training steps taken (energy, neuralmodes, energy-field)", NULL},
     {"sigma", "f64", 0, "isometry scale: metres of RMS displacement per unit of latent distance (energy, energy-field)", NULL},
     {"isometry_weight", "f64", 0, "weight lambda of the isometry term (energy, energy-field)", NULL},

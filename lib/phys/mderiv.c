@@ -1,0 +1,193 @@
+/* mderiv.c — modal derivatives as a linear basis (mderiv.h). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/err.h"
+#include "phys/chol.h"
+#include "phys/mderiv.h"
+#include "phys/sym.h"
+
+/* The bounding-box diagonal of X [n]. */
+static double diagonal(const double *X, int n)
+{
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, d2 = 0;
+    for (int i = 0; i < n; i++) {
+        lo[i % 3] = fmin(lo[i % 3], X[i]);
+        hi[i % 3] = fmax(hi[i % 3], X[i]);
+    }
+    for (int c = 0; c < 3; c++)
+        d2 += (hi[c] - lo[c]) * (hi[c] - lo[c]);
+    return sqrt(d2);
+}
+
+/* M-orthonormalize the columns of V [ncol][n] (column-major) in place by
+ * modified Gram–Schmidt, twice; a column whose norm falls below 1e-8 of
+ * its norm before is dropped (unless it is one of the first keep). Returns
+ * the number of columns kept (moved to the front). */
+static int orthonormalize(double *V, int n, int ncol, const double *m, int keep)
+{
+    int kept = 0;
+    for (int c = 0; c < ncol; c++) {
+        double *v = V + (size_t)c * n, before = 0, after = 0;
+        for (int d = 0; d < n; d++)
+            before += m[d] * v[d] * v[d];
+        for (int pass = 0; pass < 2; pass++)
+            for (int j = 0; j < kept; j++) {
+                const double *u = V + (size_t)j * n;
+                double dot = 0;
+                for (int d = 0; d < n; d++)
+                    dot += m[d] * u[d] * v[d];
+                for (int d = 0; d < n; d++)
+                    v[d] -= dot * u[d];
+            }
+        for (int d = 0; d < n; d++)
+            after += m[d] * v[d] * v[d];
+        if (c >= keep && !(after > 1e-16 * before))
+            continue;
+        double s = 1 / sqrt(after);
+        double *dst = V + (size_t)kept * n;
+        for (int d = 0; d < n; d++)
+            dst[d] = s * v[d];
+        kept++;
+    }
+    return kept;
+}
+
+/* The factor of K at rest (the fixed DOFs decoupled: identity rows and
+ * columns) in *ch, and K's values in K [nnz]. */
+static int factor_rest(const crom_system *s, const double *X, const unsigned char *fixed, double *K, crom_chol **ch)
+{
+    crom_fem_opts fk = {0, 0, fixed, 1};
+    int rc = crom_system_assemble(s, X, &fk, NULL, NULL, K);
+    if (rc)
+        return rc;
+    if (!(*ch = crom_chol_analyze(s->n, s->colptr, s->rowind, 3)))
+        return crom_errcode() ? crom_errcode() : CROM_EINTERNAL;
+    if ((rc = crom_chol_factor(*ch, K)) == CROM_EDATA)
+        rc = crom_err(CROM_EDATA, "modal derivatives: the stiffness at rest is singular on the free degrees of "
+                                  "freedom (pin the body so that it cannot move rigidly)");
+    return rc;
+}
+
+/* The right-hand sides −(∂K/∂u · φ_j) φ_i, i >= j, into B [nd][n]
+ * (column-major, in the order of mderiv.h). */
+static int rhs(const crom_system *s, const double *X, const unsigned char *fixed, const double *phi, int k,
+               double *B, double *Hp, double *Hm, double *x, double *y)
+{
+    int n = s->n, col = 0, rc;
+    double L = diagonal(X, n);
+    crom_fem_opts fh = {0, 0, NULL, 1};
+    for (int j = 0; j < k; j++) {
+        double amax = 0;
+        for (int d = 0; d < n; d++)
+            amax = fmax(amax, fabs(phi[(size_t)d * k + j]));
+        if (!(amax > 0))
+            return crom_err(CROM_EDATA, "modal derivatives: mode %d is zero", j + 1);
+        double eps = 1e-5 * L / amax;
+        for (int sg = 0; sg < 2; sg++) {
+            for (int d = 0; d < n; d++)
+                x[d] = X[d] + (sg ? -eps : eps) * phi[(size_t)d * k + j];
+            if ((rc = crom_system_assemble(s, x, &fh, NULL, NULL, sg ? Hm : Hp)))
+                return rc;
+        }
+        for (int l = 0; l < s->nnz; l++)
+            Hp[l] = (Hp[l] - Hm[l]) / (2 * eps);
+        crom_sym D = {n, s->colptr, s->rowind, Hp};
+        for (int i = j; i < k; i++, col++) {
+            for (int d = 0; d < n; d++)
+                x[d] = phi[(size_t)d * k + i];
+            crom_sym_matvec(&D, x, y);
+            double *b = B + (size_t)col * n;
+            for (int d = 0; d < n; d++)
+                b[d] = fixed && fixed[d] ? 0 : -y[d];
+        }
+    }
+    return 0;
+}
+
+/* The derivatives into B [nd][n] (column-major), and the stiffness at
+ * rest into K [nnz]. */
+static int derivatives(const crom_system *s, const double *X, const unsigned char *fixed, const double *phi, int k,
+                       double *B, double *K)
+{
+    int n = s->n, nd = k * (k + 1) / 2, rc;
+    double *Hp = malloc(sizeof(double) * (size_t)s->nnz), *Hm = malloc(sizeof(double) * (size_t)s->nnz);
+    double *x = malloc(sizeof(double) * (size_t)n), *y = malloc(sizeof(double) * (size_t)n);
+    crom_chol *ch = NULL;
+    if (!Hp || !Hm || !x || !y)
+        rc = CROM_EINTERNAL;
+    else if (!(rc = factor_rest(s, X, fixed, K, &ch)) && !(rc = rhs(s, X, fixed, phi, k, B, Hp, Hm, x, y)))
+        rc = crom_chol_solve_many(ch, nd, B, B);
+    for (size_t i = 0; !rc && i < (size_t)n * nd; i++)
+        if (!isfinite(B[i]))
+            rc = crom_err(CROM_EDATA, "modal derivatives: a derivative is not finite");
+    crom_chol_free(ch);
+    free(Hp), free(Hm), free(x), free(y);
+    return rc;
+}
+
+int crom_mderiv_compute(const crom_system *s, const double *X, const unsigned char *fixed, const double *phi, int k,
+                        double *psi)
+{
+    if (k < 1)
+        return crom_err(CROM_EUSAGE, "modal derivatives of %d modes", k);
+    int n = s->n, nd = k * (k + 1) / 2;
+    double *B = malloc(sizeof(double) * (size_t)n * nd), *K = malloc(sizeof(double) * (size_t)s->nnz);
+    int rc = B && K ? derivatives(s, X, fixed, phi, k, B, K) : CROM_EINTERNAL;
+    for (int c = 0; !rc && c < nd; c++)
+        for (int d = 0; d < n; d++)
+            psi[(size_t)d * nd + c] = B[(size_t)c * n + d];
+    free(B), free(K);
+    return rc;
+}
+
+int crom_mderiv_basis(const crom_system *s, const double *X, const unsigned char *fixed, const double *phi, int k,
+                      double **out, int *kout, double **freq)
+{
+    *out = *freq = NULL;
+    *kout = 0;
+    if (k < 1)
+        return crom_err(CROM_EUSAGE, "modal derivatives of %d modes", k);
+    int n = s->n, nd = k * (k + 1) / 2, ncol = k + nd, rc;
+    double *K = malloc(sizeof(double) * (size_t)s->nnz), *V = malloc(sizeof(double) * (size_t)n * ncol);
+    double *m = malloc(sizeof(double) * (size_t)n), *y = malloc(sizeof(double) * (size_t)n);
+    double *W = NULL, *f = NULL;
+    if (!K || !V || !m || !y) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    /* the modes first, then the derivatives */
+    for (int i = 0; i < k; i++)
+        for (int d = 0; d < n; d++)
+            V[(size_t)i * n + d] = phi[(size_t)d * k + i];
+    if ((rc = derivatives(s, X, fixed, phi, k, V + (size_t)k * n, K)))
+        goto out;
+    for (int d = 0; d < n; d++)
+        m[d] = s->mass[d / 3];
+    int kept = orthonormalize(V, n, ncol, m, k);
+    W = malloc(sizeof(double) * (size_t)n * kept);
+    f = malloc(sizeof(double) * (size_t)kept);
+    if (!W || !f) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    crom_sym Ks = {n, s->colptr, s->rowind, K}; /* K at rest (identity at the fixed DOFs, where v = 0) */
+    for (int c = 0; c < kept; c++) {
+        const double *v = V + (size_t)c * n;
+        crom_sym_matvec(&Ks, v, y);
+        double w2 = 0;
+        for (int d = 0; d < n; d++) {
+            W[(size_t)d * kept + c] = v[d];
+            w2 += v[d] * y[d];
+        }
+        f[c] = sqrt(fmax(w2, 0)) / (2 * M_PI);
+    }
+    *out = W;
+    *freq = f;
+    *kout = kept;
+    W = f = NULL;
+out:
+    free(K), free(V), free(m), free(y), free(W), free(f);
+    return rc;
+}
