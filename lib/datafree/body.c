@@ -12,6 +12,8 @@
 #include "mesh/pred.h"
 #include "phys/modes.h"
 #include "rom/map.h"
+#include "phys/mderiv.h"
+#include "phys/system.h"
 #include "rom/skin.h"
 
 /* ============================================================ geometry */
@@ -46,6 +48,7 @@ void crom_body_free(crom_body *b)
     crom_mesh_free(&b->mesh);
     crom_cloud_free(&b->cloud);
     crom_model_free(&b->modes);
+    free(b->deriv);
     free(b->history);
     free(b->fixed);
     free(b->pinX);
@@ -161,10 +164,24 @@ int crom_body_map_problem(crom_body *b, const crom_scenario *sc, int objective, 
     if (nm && (rc = take_modes(b, rank)))
         return rc;
     *P = (crom_datafree_problem){&b->mesh, b->mat, {sc->gravity[0], sc->gravity[1], sc->gravity[2]}, b->fixed, b->W,
-                                 b->freq};
+                                 b->freq, NULL};
     if (nm) /* nonlinear modes are equilibria of the elastic energy alone */
         P->gravity[0] = P->gravity[1] = P->gravity[2] = 0;
     return 0;
+}
+
+int crom_body_derivatives(crom_body *b, crom_datafree_problem *P, int rank)
+{
+    crom_system sys;
+    int rc = crom_system_init(&sys, &b->mesh, b->mat.E, b->mat.nu, b->mat.rho);
+    if (rc)
+        return rc;
+    free(b->deriv);
+    b->deriv = crom_malloc(sizeof(double) * 3 * (size_t)b->mesh.nv * ((size_t)rank * (rank + 1) / 2));
+    rc = b->deriv ? crom_mderiv_compute(&sys, b->mesh.X, b->fixed, b->W, rank, b->deriv) : CROM_EINTERNAL;
+    crom_system_free(&sys);
+    P->deriv = rc ? NULL : b->deriv;
+    return rc;
 }
 
 int crom_body_train_skin(const crom_body *b, const crom_dfskin_opts *o, crom_model *out, crom_dftrain_log *log)

@@ -52,6 +52,7 @@ typedef struct {
     const char *modes_path;  /* neuralmodes: where the modes came from (for messages) */
     crom_model modes;        /* neuralmodes: the linear modes */
     double *W, *freq;        /* neuralmodes: the lowest r of them [3nv][r], their frequencies [r] */
+    double *deriv;           /* neuralmodes with derivatives: Ψ [3nv][r(r+1)/2] (crom_body_derivatives) */
 } crom_body;
 
 /* Load the geometry of src into b (cleared first; free it with
@@ -91,6 +92,12 @@ int crom_body_pins(crom_body *b, const crom_scenario *sc, int cloud_pins);
  * CROM_EDATA (a mode moves a pinned DOF), CROM_EINTERNAL. */
 int crom_body_map_problem(crom_body *b, const crom_scenario *sc, int objective, int rank,
                           crom_datafree_problem *P);
+
+/* The modal derivatives of the modes of a neuralmodes problem P (after
+ * crom_body_map_problem): Ψ of b's first rank modes on its system at rest
+ * with its pins (lib/phys/mderiv.h), into b->deriv and P->deriv. Returns
+ * 0, CROM_EDATA (the pins do not hold the body), CROM_EINTERNAL. */
+int crom_body_derivatives(crom_body *b, crom_datafree_problem *P, int rank);
 
 /* Train skinning weights on b (after crom_body_pins with cloud_pins):
  * crom_dfskin_train, after checking the handle count of a sampled body. */

@@ -199,11 +199,15 @@ static int sample_energy(crom_datafree_ctx *c, int b, const double *zb, double r
     const crom_system *sys = &c->sys;
     const crom_fem *fem = &sys->fem;
     double *G = c->G + (size_t)b * n, Eb = 0;
+    const double *Psi = nm ? c->P.deriv : NULL;
     for (int i = 0; i < n; i++) {
         double u = rho * Y[i];
         if (nm)
             for (int k = 0; k < r; k++)
                 u += Wm[(size_t)i * r + k] * zb[k];
+        for (int k = 0, cq = 0; Psi && k < r; k++) /* ½ Σ_{k<=l} Ψ_kl z_k z_l */
+            for (int l = k; l < r; l++, cq++)
+                u += 0.5 * Psi[((size_t)i * r * (r + 1)) / 2 + cq] * zb[k] * zb[l];
         x[i] = X[i] + u;
     }
     if (!tets) {
@@ -483,6 +487,15 @@ static int map_store(const map_trainer *T, const crom_datafree_problem *p, crom_
 {
     int nm = T->o.objective == CROM_DATAFREE_NEURALMODES, r = T->o.rank;
     int rc = crom_model_from_map(out, nm ? "neuralmodes" : "energy", &T->net, p->mesh, nm ? p->modes : NULL);
+    if (!rc && nm && p->deriv) {
+        size_t nd = (size_t)p->mesh->nv * 3 * ((size_t)r * (r + 1) / 2);
+        if (!(out->deriv_v = crom_malloc(sizeof(double) * nd))) {
+            crom_model_free(out);
+            return CROM_EINTERNAL;
+        }
+        memcpy(out->deriv_v, p->deriv, sizeof(double) * nd);
+        crom_model_id(out, out->model_id);
+    }
     if (rc || !nm || !p->freq)
         return rc;
     out->frequencies = crom_malloc(sizeof(double) * (size_t)r);

@@ -55,7 +55,11 @@
  * linear energy ½ m ω_k² a_k² at every edge) or a_k = a (Wang et al.);
  * E_ref = ½ m ω² a² with ω the lowest (scaled) or highest (uniform) mode's
  * (E V if that is zero). The default w_o = 1e4 holds the projection of y
- * onto the modes to about 1 % of the box. The last layer starts at zero:
+ * onto the modes to about 1 % of the box. With modal derivatives Ψ of the
+ * modes (Barbič and James 2005; crom-fitfield --derivatives) the map is
+ * seeded with the second-order term, x = X + W z + ½ Σ_{i<=j} Ψ_ij z_i z_j
+ * + y(z): the in-plane shortening that keeps bent modes of a shell or a
+ * slender body from stretching (locking), which y is slow to learn alone. The last layer starts at zero:
  * training starts from the linear modes.
  *
  * field (beyond both papers): a CONTINUOUS data-free subspace x(X, z) = X
@@ -107,6 +111,9 @@ typedef struct {
     const unsigned char *fixed;  /* [3nv] pinned DOFs, or NULL */
     const double *modes;         /* neuralmodes: W [nv][3][r] */
     const double *freq;          /* neuralmodes: [r] frequencies (Hz), or NULL */
+    const double *deriv;         /* neuralmodes: the modal derivatives Ψ [nv][3][r(r+1)/2] of W
+                                  * (lib/phys/mderiv.h, in m⁻¹), or NULL: the map is then
+                                  * X + W z + ½ Σ_{i<=j} Ψ_ij z_i z_j + y(z) */
 } crom_datafree_problem;
 
 typedef struct {

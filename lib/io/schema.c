@@ -161,6 +161,9 @@ static const crom_schema_dset model_dsets[] = {
     {"field/mesh/vertices", "f64", "nv,3", 0, "m", "rest positions X of the mesh of a piecewise-linear basis (pod, modes) "
                                                    "or of a map (energy, neuralmodes)", NULL},
     {"field/mesh/tets", "i32", "nt,4", 0, "1", "tetrahedra of that mesh: 0-based vertex indices, positively oriented", NULL},
+    {"field/derivatives", "f64", "nv,3,D", 0, "1/m", "modal derivatives Psi_ij (i <= j, D = r(r+1)/2) of a neuralmodes "
+                                                     "map's quadratic part 1/2 sum Psi_ij z_i z_j (fitfield --derivatives)",
+     NULL},
     {"field/mesh/triangles", "i32", "ntri,3", 0, "1", "a shell's triangles instead of tets (modes, energy, neuralmodes on a "
                                                      "surface mesh), as crom/mesh", NULL},
     {"field/mesh/regions/*", "i32", "?", 0, "1", REGION_DESC, NULL},

@@ -87,24 +87,44 @@ static int copy_layers(crom_map *map, const crom_nn_mlp *net, int p)
 /* A map of one mesh: the hidden layers of its network, and its last layer
  * and linear part W (basis_v, [n][r] or NULL) laid out as the feature
  * basis B = [W | W_L | b_L]. */
-static int load_net(crom_map *map, const crom_nn_mlp *net, const double *basis_v)
+static int load_net(crom_map *map, const crom_nn_mlp *net, const double *basis_v, const double *deriv_v)
 {
     const crom_nn_spec *sp = &net->spec;
     int L = sp->nlayers, r = map->r, n = map->n, h = sp->width[L - 1];
     if (sp->width[L] != n)
         return crom_err(CROM_EDATA, "the map's network has %d outputs for %d vertices", sp->width[L], map->nv);
     map->rl = basis_v ? r : 0;
-    int rc = copy_layers(map, net, map->rl + h + 1);
+    map->rq = basis_v && deriv_v ? r * (r + 1) / 2 : 0;
+    int rc = copy_layers(map, net, map->rl + map->rq + h + 1), o = map->rl + map->rq;
     if (rc)
         return rc;
     for (int i = 0; i < n; i++) {
         double *Bi = map->B + (size_t)i * map->p;
         if (basis_v)
             memcpy(Bi, basis_v + (size_t)i * r, sizeof(double) * (size_t)r);
-        memcpy(Bi + map->rl, map->w[L - 1] + (size_t)i * h, sizeof(double) * (size_t)h);
+        if (map->rq)
+            memcpy(Bi + map->rl, deriv_v + (size_t)i * map->rq, sizeof(double) * (size_t)map->rq);
+        memcpy(Bi + o, map->w[L - 1] + (size_t)i * h, sizeof(double) * (size_t)h);
         Bi[map->p - 1] = map->b[L - 1][i];
     }
     return 0;
+}
+
+/* The quadratic features ½ q_i q_j (i <= j, in the order of mderiv.h) into
+ * a [rq], and their Jacobian rows into T [rq][r] (either may be NULL). */
+static void quadratic(int r, const double *q, double *a, double *T)
+{
+    for (int i = 0, c = 0; i < r; i++)
+        for (int j = i; j < r; j++, c++) {
+            if (a)
+                a[c] = 0.5 * q[i] * q[j];
+            if (T) {
+                double *row = T + (size_t)c * r;
+                memset(row, 0, sizeof(double) * (size_t)r);
+                row[i] += 0.5 * q[j];
+                row[j] += 0.5 * q[i];
+            }
+        }
 }
 
 /* A continuous map x = X + W(X) φ(q): φ's layers in double (its last one
@@ -205,7 +225,7 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
     map->nv = map->mesh.nv;
     map->n = 3 * map->nv;
     if (model->field == CROM_MODEL_FIELD_MAP) {
-        rc = load_net(map, &model->mlp, model->basis_v);
+        rc = load_net(map, &model->mlp, model->basis_v, model->deriv_v);
     } else if (model->field == CROM_MODEL_FIELD_CMAP) {
         if (!(rc = load_field_map(map, model)))
             rc = fold_last_layer(map);
@@ -338,9 +358,11 @@ int crom_map_features(crom_map *map, const double *q, double *a, double *T)
                         r);
         return 0;
     }
+    int o = rl + map->rq; /* the network's features start here */
     if (a) {
         memcpy(a, q, sizeof(double) * (size_t)rl);
-        memcpy(a + rl, h, sizeof(double) * (size_t)nh);
+        quadratic(map->rq ? r : 0, q, a + rl, NULL);
+        memcpy(a + o, h, sizeof(double) * (size_t)nh);
         a[p - 1] = 1;
         for (int i = 0; i < p; i++) {
             if (!isfinite(a[i]))
@@ -353,7 +375,8 @@ int crom_map_features(crom_map *map, const double *q, double *a, double *T)
         memset(T, 0, sizeof(double) * (size_t)rl * r);
         for (int i = 0; i < rl; i++)
             T[i * r + i] = 1;
-        memcpy(T + (size_t)rl * r, t, sizeof(double) * (size_t)nh * r);
+        quadratic(map->rq ? r : 0, q, NULL, T + (size_t)rl * r);
+        memcpy(T + (size_t)o * r, t, sizeof(double) * (size_t)nh * r);
         memset(T + (size_t)(p - 1) * r, 0, sizeof(double) * (size_t)r);
     }
     return 0;
@@ -398,7 +421,14 @@ int crom_map_curvature(crom_map *map, const double *q, const double *g, double *
     if (map->phi)
         cblas_dgemv(CblasRowMajor, CblasTrans, map->p, nh, 1.0, map->w[L - 1], nh, g, 1, 0.0, u, 1);
     else
-        memcpy(u, g + map->rl, sizeof(double) * (size_t)nh);
+        memcpy(u, g + map->rl + map->rq, sizeof(double) * (size_t)nh);
+    /* the quadratic features: ∂²(½ q_i q_j) = ½ (e_i e_jᵀ + e_j e_iᵀ) */
+    for (int i = 0, c = 0; map->rq && i < r; i++)
+        for (int j = i; j < r; j++, c++) {
+            double gc = g[map->rl + c];
+            C[i * r + j] += 0.5 * gc;
+            C[j * r + i] += 0.5 * gc;
+        }
     for (int l = L - 2; l >= 0; l--) {
         int in = map->width[l], out = map->width[l + 1];
         const double *z = map->zs + off[l], *tz = map->ts + off[l] * r;

@@ -3,6 +3,8 @@
  *
  *     x(q) = X + W q + N(q),        J(q) = dx/dq = W + dN/dq,
  *
+ * (a neuralmodes map with modal derivatives adds ½ Σ_{i<=j} Ψ_ij q_i q_j,
+ * lib/phys/mderiv.h),
  * the common form of every model that can be laid on a mesh:
  *   - a continuous data-free map (crom/model basis "energy-field", or
  *     "skin-field" over a skinning basis), x = X + W(X) φ(q), on any mesh:
@@ -43,8 +45,9 @@ typedef struct crom_map_s {
     crom_mesh mesh;      /* the mesh (owned copy, with regions) */
     /* The map as a linear basis over features a(q) in R^p:
      *     x(q) = X + B a(q),   J(q) = B T(q),  T = da/dq [p][r],
-     * a = [q (if W) | the last hidden layer h of N | 1 (if N)] less its
-     * value at 0, i.e. [q | h(q) − h(0) | 0], and B = [W | W_L | b_L]
+     * a = [q (if W) | ½ q_i q_j (if Ψ) | the last hidden layer h of N | 1 (if
+     * N)] less its value at 0, i.e. [q | ½ q_i q_j | h(q) − h(0) | 0], and
+     * B = [W | Ψ | W_L | b_L]
      * ([n][p] row-major; a continuous map: a = φ(q) − φ(0), or, when φ's last
      * hidden layer h is narrower than its output, a = [h(q) − h(0) | 0] over
      * B = [W(X_v) W_L | W(X_v) b_L]), so that everything a reduced
@@ -57,6 +60,8 @@ typedef struct crom_map_s {
                           * when that is narrower; cubatures made before it record this one */
     double *B;           /* [n][p] */
     int rl;              /* leading features equal to q: r with a linear part, else 0 */
+    int rq;              /* then the quadratic features ½ q_i q_j (i <= j) of a neuralmodes map
+                          * with modal derivatives (B's columns Ψ_ij): r(r+1)/2, else 0 */
     int phi;             /* 1: the features are the network's output, a = φ(q) − φ(0)
                           * (a continuous map, x = X + W(X) (φ(q) − φ(0)): B = W(X_v)) */
     /* the hidden layers of N in double: layer l maps width[l] to width[l+1] */

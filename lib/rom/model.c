@@ -29,6 +29,7 @@ void crom_model_free(crom_model *m)
     crom_locate_free(&m->loc);
     crom_mesh_free(&m->mesh);
     free(m->basis_v);
+    free(m->deriv_v);
     free(m->frequencies);
     free(m->skin_w);
     free(m->skin_eig);
@@ -90,6 +91,11 @@ static void surface_id(fnv *s, const crom_mesh *m)
     fnv_bytes(s, &m->thickness, sizeof m->thickness);
 }
 
+int crom_model_nderiv(const crom_model *m)
+{
+    return m->rank * (m->rank + 1) / 2;
+}
+
 const char *crom_model_id(const crom_model *m, char id[17])
 {
     fnv s = {0xcbf29ce484222325ULL};
@@ -144,6 +150,8 @@ const char *crom_model_id(const crom_model *m, char id[17])
         surface_id(&s, &m->mesh);
         if (m->basis_v)
             fnv_bytes(&s, m->basis_v, sizeof(double) * 3 * (size_t)m->rank * m->mesh.nv);
+        if (m->deriv_v)
+            fnv_bytes(&s, m->deriv_v, sizeof(double) * 3 * (size_t)crom_model_nderiv(m) * m->mesh.nv);
     } else if (m->field == CROM_MODEL_FIELD_MESH) {
         fnv_i64(&s, m->mesh.nv);
         fnv_i64(&s, m->mesh.nt);
@@ -418,6 +426,10 @@ static int write_map(hid_t loc, const crom_model *m)
     if (!rc && m->basis_v) {
         hsize_t db[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)m->rank};
         rc = crom_h5_put_f64(loc, "field/basis", 3, db, m->basis_v);
+    }
+    if (!rc && m->deriv_v) {
+        hsize_t dd[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)crom_model_nderiv(m)};
+        rc = crom_h5_put_f64(loc, "field/derivatives", 3, dd, m->deriv_v);
     }
     if (!rc && m->frequencies)
         rc = crom_h5_put_f64(loc, "frequencies", 1, &dr, m->frequencies);
@@ -777,6 +789,20 @@ static int read_map(hid_t h, crom_model *m, const char *act)
             return crom_err(CROM_EDATA, "field/basis has non-finite values");
     } else if (!strcmp(m->basis, "neuralmodes")) {
         return crom_err(CROM_EDATA, "a neuralmodes map needs its linear modes field/basis");
+    }
+    if (crom_h5_has(h, "field/derivatives")) {
+        hsize_t d[3];
+        int nd = crom_model_nderiv(m);
+        if (strcmp(m->basis, "neuralmodes"))
+            return crom_err(CROM_EDATA, "field/derivatives belongs to a neuralmodes map, not to basis '%s'", m->basis);
+        if ((rc = crom_h5_read_f64(h, "field/derivatives", 3, d, &m->deriv_v)))
+            return rc;
+        if (d[0] != (hsize_t)m->mesh.nv || d[1] != 3 || d[2] != (hsize_t)nd)
+            return crom_err(CROM_EDATA, "field/derivatives is [%llu, %llu, %llu], expected [%d, 3, %d]",
+                            (unsigned long long)d[0], (unsigned long long)d[1], (unsigned long long)d[2],
+                            m->mesh.nv, nd);
+        if (!all_finite_d(m->deriv_v, (size_t)m->mesh.nv * 3 * nd))
+            return crom_err(CROM_EDATA, "field/derivatives has non-finite values");
     }
     if (crom_h5_has(h, "frequencies")) {
         m->frequencies = crom_malloc(sizeof(double) * (size_t)m->rank);

@@ -111,6 +111,8 @@ typedef struct {
     /* CROM_MODEL_FIELD_MESH (and CROM_MODEL_FIELD_MAP: its mesh, with regions) */
     crom_mesh mesh;      /* vertices and tets */
     double *basis_v;     /* [nv][3][r] W at the vertices (MAP: linear part or NULL) */
+    double *deriv_v;     /* neuralmodes: [nv][3][r(r+1)/2] the modal derivatives Ψ_ij (i <= j) of
+                          * the quadratic part ½ Σ Ψ_ij q_i q_j, or NULL (lib/phys/mderiv.h) */
     crom_locator loc;    /* point location on mesh */
     double *frequencies; /* [r] natural frequencies (modes), or NULL */
     /* encoder (CROM_MODEL_ENC_POINTNET): maps points (X, u) [n][6] to q in metres */
@@ -158,6 +160,9 @@ int crom_model_from_map(crom_model *m, const char *basis, const crom_nn_mlp *net
                         const crom_mesh *mesh, const double *basis_v);
 
 /* 1 if `basis` names a map kind (energy, neuralmodes). */
+/* The modal derivatives of a rank-r map's quadratic part: r(r+1)/2. */
+int crom_model_nderiv(const crom_model *m);
+
 int crom_model_is_map_kind(const char *basis);
 
 /* Make a continuous map model ("energy-field") from its feature field W

@@ -108,6 +108,8 @@ static double loss_at(const double *x, void *v)
     return tm.objective;
 }
 
+static int g_quadratic; /* gradient_check: neuralmodes with a quadratic part ½ Σ Ψ z z */
+
 static void gradient_check(int objective)
 {
     crom_mesh m;
@@ -117,9 +119,17 @@ static void gradient_check(int objective)
     unsigned char *fixed = clamp_mask(&m);
     int r = 3, B = 5;
     double *freq = NULL, *W = NULL;
+    double *Psi = NULL;
     if (objective == CROM_DATAFREE_NEURALMODES)
         W = bar_modes(&m, &mat, fixed, r, &freq);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, W, freq};
+    if (g_quadratic) { /* a small random quadratic part, zero at the pins */
+        crom_rng qr;
+        crom_rng_seed(&qr, 23);
+        Psi = malloc(sizeof(double) * 3 * m.nv * 6);
+        for (int i = 0; i < 3 * m.nv * 6; i++)
+            Psi[i] = fixed[i / 6] ? 0 : 0.2 * crom_rng_normal(&qr);
+    }
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, W, freq, Psi};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, objective);
     o.rank = r;
@@ -188,7 +198,7 @@ static void gradient_check(int objective)
         double e = check_relerr(ga, gf, n, 1e-12);
         fprintf(stderr, "%s loss (rho %.1f, %s): objective %.4g (energy %.4g J, penalty %.4g, tangent %.4g); "
                         "gradient vs FD %.2e over %d parameters\n",
-                objective == CROM_DATAFREE_ENERGY ? "energy+isometry" : "neuralmodes", rhos[k],
+                objective == CROM_DATAFREE_ENERGY ? "energy+isometry" : g_quadratic ? "neuralmodes + derivatives" : "neuralmodes", rhos[k],
                 Ks[k] ? "random cubature" : "every tet", tm.objective, tm.energy, tm.penalty, tm.tangent, e, n);
         CHECK_LT(e, FD_TOL);
         CHECK(tm.penalty > 0);
@@ -210,6 +220,7 @@ static void gradient_check(int objective)
     free(x);
     free(W);
     free(freq);
+    free(Psi);
     free(tets);
     free(fixed);
     crom_mesh_free(&m);
@@ -257,7 +268,7 @@ static void gradient_check_field(void)
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
     unsigned char *fixed = clamp_mask(&m);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL};
     crom_datafree_opts o;
     field_check_opts(&o);
     o.pin_length = 0.3; /* a wide mask: many vertices inside it */
@@ -348,7 +359,7 @@ static void gradient_check_field_basis(void)
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
     unsigned char *fixed = clamp_mask(&m);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL};
     crom_datafree_opts o;
     field_check_opts(&o);
     int r = 2, pf = 5, B = 4, pw[] = {r, 10, pf};
@@ -472,7 +483,7 @@ static void test_map(void)
     make_bar(&m, 0.2);
     int r = 3, n = 3 * m.nv;
     int widths[] = {r, 10, 10, n};
-    for (int kind = 0; kind < 2; kind++) {
+    for (int kind = 0; kind < 3; kind++) { /* energy, neuralmodes, neuralmodes with modal derivatives */
         crom_nn_spec spec;
         CHECK(crom_nn_spec_set(&spec, 4, widths, kind ? CROM_NN_GELU : CROM_NN_ELU) == 0);
         spec.omega0 = 1;
@@ -491,6 +502,13 @@ static void test_map(void)
         }
         crom_model model;
         CHECK(crom_model_from_map(&model, kind ? "neuralmodes" : "energy", &net, &m, W) == 0);
+        int nd = r * (r + 1) / 2;
+        if (kind == 2) { /* the quadratic part ½ Σ Ψ_ij q_i q_j */
+            model.deriv_v = malloc(sizeof(double) * n * nd);
+            for (int i = 0; i < n * nd; i++)
+                model.deriv_v[i] = crom_rng_normal(&rng);
+            crom_model_id(&model, model.model_id);
+        }
         crom_map map;
         int rc = crom_map_init(&map, &model, NULL);
         CHECK_MSG(rc == 0, "map: %s", crom_errmsg());
@@ -510,6 +528,9 @@ static void test_map(void)
             double lin = 0, yi = (double)y[i] - y[n + i];
             for (int k = 0; W && k < r; k++)
                 lin += W[i * r + k] * q[k];
+            for (int k = 0, c = 0; model.deriv_v && k < r; k++)
+                for (int l = k; l < r; l++, c++)
+                    lin += 0.5 * model.deriv_v[(size_t)i * nd + c] * q[k] * q[l];
             double d = x[i] - m.X[i] - lin - yi;
             dn += d * d;
             nn += yi * yi;
@@ -527,8 +548,10 @@ static void test_map(void)
         es = check_map_curvature(&map, q, 6);
         map.act = act;
         fprintf(stderr, "%s map: Jacobian vs FD %.2e, positions vs float network %.2e, largest |x(0) - X| %.3g m, "
-                "feature curvature vs FD %.2e (sine %.2e)\n", kind ? "neuralmodes" : "energy", ej, sqrt(dn / nn),
-                rest, ec, es);
+                "feature curvature vs FD %.2e (sine %.2e)\n",
+                kind == 2 ? "neuralmodes + derivatives" : kind ? "neuralmodes" : "energy", ej, sqrt(dn / nn), rest, ec,
+                es);
+        CHECK(map.rq == (kind == 2 ? nd : 0) && map.p == (kind ? r : 0) + map.rq + 10 + 1);
         CHECK_LT(ej, 1e-7);
         CHECK_LT(ec, 1e-6);
         CHECK_LT(es, 1e-6);
@@ -553,6 +576,12 @@ static void test_map(void)
             crom_model_id(&model, id1);
             CHECK(strcmp(id0, id1) != 0);
             model.basis_v[5] -= 1;
+        }
+        if (model.deriv_v) {
+            model.deriv_v[3] += 1;
+            crom_model_id(&model, id1);
+            CHECK(strcmp(id0, id1) != 0);
+            model.deriv_v[3] -= 1;
         }
         crom_nn_ws_free(&ws);
         crom_map_free(&map);
@@ -674,7 +703,7 @@ static crom_model g_energy_model; /* trained once, used by the dynamics tests */
  * pins stay exactly at rest, and so does a run with no load. */
 static void test_energy_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -735,7 +764,7 @@ static void test_energy_subspace(bar_case *b)
  * load stays at rest. */
 static void test_neuralmodes_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_NEURALMODES);
     o.rank = b->nmodes;
@@ -857,7 +886,7 @@ static void scenario_bar(crom_scenario *sc);
  * hold the clamp. */
 static void test_field_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_FIELD);
     o.rank = 2;
@@ -956,7 +985,7 @@ static void test_field_subspace(bar_case *b)
  * its samples have less energy than the two lowest linear modes'. */
 static void test_skin_field(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL};
     crom_model sm;
     int rc = crom_dfskin_eigen(&b->mesh, &b->mat, b->fixed, 4, &sm, NULL);
     CHECK_MSG(rc == 0, "eigen: %s", crom_errmsg());
@@ -1276,7 +1305,7 @@ static void test_shell_map(void)
     CHECK(crom_modes_pins(&mesh, 1, clamp, &fixed, &npinned) == 0 && npinned > 0);
     crom_material mat;
     crom_material_init(&mat, 1e7, 0.3, 500);
-    crom_datafree_problem P = {&mesh, mat, {0, 0, -9.81}, fixed, NULL, NULL};
+    crom_datafree_problem P = {&mesh, mat, {0, 0, -9.81}, fixed, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -1625,7 +1654,7 @@ static void test_lbfgs(bar_case *bc)
     CHECK_LT(errs[0], 1e-6);
     CHECK_LT(errs[0], 1e-4 * errs[1]);
 
-    crom_datafree_problem P = {&bc->mesh, bc->mat, {0, -9.81, 0}, bc->fixed, NULL, NULL};
+    crom_datafree_problem P = {&bc->mesh, bc->mat, {0, -9.81, 0}, bc->fixed, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -1692,6 +1721,9 @@ int main(void)
     test_metrics_box();
     gradient_check(CROM_DATAFREE_ENERGY);
     gradient_check(CROM_DATAFREE_NEURALMODES);
+    g_quadratic = 1;
+    gradient_check(CROM_DATAFREE_NEURALMODES);
+    g_quadratic = 0;
     gradient_check_field();
     gradient_check_field_basis();
     test_map();
