@@ -87,7 +87,7 @@ DF2_POSE_PARTS ?= 1000
 DF2_MAT = --youngs $(DF2_YOUNGS) --poisson 0.45 --density 1000
 DF2_SCENARIO = $(DF2_MAT) $(DF_BC) --dt 0.05 --steps 100
 DF2_STATIC = $(DF2_SCENARIO) --damping 10
-DF2_ROWS = eigen-opt eigen-metis trained-opt trained-metis
+DF2_ROWS = eigen-opt eigen-metis trained-opt trained-metis mderiv-metis
 df2_kind = $(firstword $(subst -, ,$(1)))
 # the continuous fields on the soft bar, latent dim DF_RANK, stepped with
 # --model over every tet (all) or an optimized cubature of their features
@@ -98,7 +98,10 @@ df2_kind = $(firstword $(subst -, ,$(1)))
 # and, over every tet for the trade-off table on this bar, the data-free
 # maps of one mesh (energy: Sharp et al.; neuralmodes: Wang et al. on the
 # modes, both DF_MINUTES) and the linear modes (modes) stepped the same way
-DF2_MAPS = sfield-all sfield-opt field-all field-opt energy-all neuralmodes-all modes-all
+DF2_MAPS = sfield-all sfield-opt field-all field-opt energy-all neuralmodes-all modes-all mderiv-all
+# mderiv: DF2_DMODES linear modes and their modal derivatives (crom-modes --derivatives;
+# 5: modes 4 and 5 are a pair of equal frequency, both or neither)
+DF2_DMODES ?= 5
 df2_map_args = --model $(OUT)/df2-map-$(call df2_kind,$(1)).h5 --mesh $(OUT)/df-mesh.h5 --max-iter 200 \
   $(if $(filter %-opt,$(1)),--cubature $(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
 df2_map_in = $(OUT)/df2-map-$(call df2_kind,$(1)).h5 $(if $(filter %-opt,$(1)),$(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
@@ -257,6 +260,9 @@ $(OUT)/df2-full.h5 $(OUT)/df2-full.csv &: $(OUT)/df-mesh.h5 $(call stamp,df2-sce
 	crom-fullsim $(DF2_SCENARIO) --threads 1 --stats $(OUT)/df2-full.csv $(QUIET) -o $(OUT)/df2-full.h5 $<
 $(OUT)/df2-sfull.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-static)
 	crom-fullsim $(DF2_STATIC) --threads 1 $(QUIET) -o $@ $<
+# (mderiv-metis: the modes and their modal derivatives through the same linear path)
+$(OUT)/df2-skin-mderiv.h5: $(OUT)/df2-map-mderiv.h5
+	cp $< $@
 $(OUT)/df2-skin-%.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-train)
 	crom-fitfield --objective skinning --weights $* --handles $(DF2_HANDLES) --mesh $< $(DF2_MAT) --pin clamp \
 	  $(if $(filter trained,$*),--steps 1000000 --minutes $(DF2_MINUTES)) --seed $(SEED) --threads 1 $(QUIET) -o $@
@@ -286,7 +292,7 @@ $(OUT)/df2-sdiff-%.txt: $(OUT)/df2-sred-%.h5 $(OUT)/df2-sfull.h5 $$(OUT)/df2-ski
 	  --threads 1 > $@
 $(OUT)/df2-metrics-%.txt: $(OUT)/df2-skin-%.h5 $(OUT)/df-mesh.h5
 	crom-metrics --mesh $(OUT)/df-mesh.h5 --samples $(DF_SAMPLES) --seed $(SEED) --threads 1 $< > $@
-$(eval $(call stamp_rule,df2-maps,$(DF2_MAT) $(DF2_HANDLES) $(DF2_MINUTES) $(DF_MINUTES) $(DF_RANK) $(SEED)))
+$(eval $(call stamp_rule,df2-maps,$(DF2_MAT) $(DF2_HANDLES) $(DF2_MINUTES) $(DF_MINUTES) $(DF_RANK) $(DF2_DMODES) $(SEED)))
 $(OUT)/df2-map-sfield.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
 	crom-fitfield --objective field --handles $(DF2_HANDLES) --rank $(DF_RANK) --mesh $< $(DF2_MAT) $(DF_BC) \
 	  --steps 1000000 --minutes $(DF2_MINUTES) --seed $(SEED) --threads 1 $(QUIET) -o $@
@@ -298,6 +304,8 @@ $(OUT)/df2-map-energy.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
 	  --steps 1000000 --minutes $(DF_MINUTES) --seed $(SEED) --threads 1 $(QUIET) -o $@
 $(OUT)/df2-map-modes.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
 	crom-modes $(DF2_MAT) --pin clamp --count $(DF_RANK) --threads 1 $(QUIET) -o $@ $<
+$(OUT)/df2-map-mderiv.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
+	crom-modes $(DF2_MAT) --pin clamp --count $(DF2_DMODES) --derivatives --threads 1 $(QUIET) -o $@ $<
 $(OUT)/df2-map-neuralmodes.h5: $(OUT)/df-mesh.h5 $(OUT)/df2-map-modes.h5 $(call stamp,df2-maps)
 	crom-fitfield --objective neuralmodes --mesh $< --modes $(OUT)/df2-map-modes.h5 \
 	  --steps 1000000 --minutes $(DF_MINUTES) --seed $(SEED) --threads 1 $(QUIET) -o $@

@@ -4,12 +4,14 @@
 Markdown on stdout, DIR/datafree2.csv beside.
 
   benchskin.py DIR "ROWS" ["MAPS"]
-      ROWS: KIND-SCHEME, weights (eigen, trained) and cubature (opt:
+      ROWS: KIND-SCHEME, weights (eigen, trained; mderiv: modes and their
+            modal derivatives, a linear basis) and cubature (opt:
             optimized, metis)
       MAPS: KIND-SCHEME, continuous fields (sfield: over skinning eigenmodes,
             field: a trained W(X)), maps of one mesh (energy, neuralmodes) and
             linear modes (modes) stepped with --model over every tet (all) or
-            an optimized cubature of their features (opt)
+            an optimized cubature of their features (opt); mderiv: modes with
+            their modal derivatives
 """
 import csv, re, statistics, sys
 
@@ -41,7 +43,8 @@ def collapsed(path):
 MAP_NAMES = {"sfield": "continuous field over skinning eigenmodes (skin-field)",
              "field": "continuous field, trained W(X) (energy-field)",
              "energy": "energy map (Sharp et al.)", "neuralmodes": "neural modes (Wang et al.)",
-             "modes": "linear modes"}
+             "modes": "linear modes",
+             "mderiv": "linear modes and their modal derivatives (Barbic and James)"}
 
 
 def map_rows(out, maps, nt, fm):
@@ -85,7 +88,9 @@ def main(out, rows, maps):
         dyn = frames(f"{out}/df2-diff-{r}.txt")
         c, d = collapsed(f"{out}/df2-metrics-{kind}.txt")
         steps = int(model.attrs["training_steps"]) if "training_steps" in model.attrs else None
-        t.append(["%s, %s cubature" % (kind, "optimized" if scheme == "opt" else "METIS"), int(model.attrs["handles"]), int(model.attrs["rank"]), steps,
+        name = "modes and modal derivatives" if kind == "mderiv" else kind
+        handles = int(model.attrs["handles"]) if "handles" in model.attrs else None
+        t.append(["%s, %s cubature" % (name, "optimized" if scheme == "opt" else "METIS"), handles, int(model.attrs["rank"]), steps,
                   float(model.attrs.get("training_seconds", float("nan"))), len(cub["elements"]), 1e3 * rm,
                   sum(it) / len(it), fm / rm, run_error(f"{out}/df2-diff-{r}.txt"), dyn[1] if len(dyn) > 1 else float("nan"),
                   frames(f"{out}/df2-sdiff-{r}.txt")[-1], c, d])
