@@ -135,7 +135,7 @@ static int read_mesh(const char *path, crom_mesh *m, char **hist)
         return rc;
     }
     hid_t g = H5Gopen2(in.h5, traj ? "mesh" : "/", H5P_DEFAULT);
-    rc = crom_mesh_read(g, m);
+    rc = crom_mesh_read_any(g, m);
     H5Gclose(g);
     if (rc)
         crom_err_ctx("%s", in.name);
@@ -317,7 +317,10 @@ static int run(crom_cli *cli, args *a)
         W = crom_malloc(sizeof(double) * 3 * (size_t)r * (size_t)m.nv);
         size_t outside = 0;
         int nshift = 0;
-        double *P = crom_mesh_field_points(&m, a->crack_offset, &nshift); /* see --crack-offset */
+        double *P = crom_mesh_is_surface(&m) ? crom_malloc(sizeof(double) * 3 * (size_t)m.nv) /* a shell: its vertices */
+                                             : crom_mesh_field_points(&m, a->crack_offset, &nshift); /* see --crack-offset */
+        if (P && crom_mesh_is_surface(&m))
+            memcpy(P, m.X, sizeof(double) * 3 * (size_t)m.nv);
         if (!W || !P) {
             free(P);
             rc = CROM_EINTERNAL;
@@ -347,8 +350,9 @@ static int run(crom_cli *cli, args *a)
         goto out;
     c.map_rank = is_map ? r : 0;
     double tsel = crom_clock_now() - t0;
-    crom_cli_info(cli, "%s: %d of %d tets (%.1f%%), W on %d vertices in %.1f ms, selection in %.1f ms",
-                  c.scheme, c.k, m.nt, 100.0 * c.k / m.nt, m.nv, 1e3 * tW, 1e3 * tsel);
+    crom_cli_info(cli, "%s: %d of %d %s (%.1f%%), W on %d vertices in %.1f ms, selection in %.1f ms",
+                  c.scheme, c.k, c.ne, crom_mesh_is_surface(&m) ? "triangles and hinges" : "tets",
+                  100.0 * c.k / c.ne, m.nv, 1e3 * tW, 1e3 * tsel);
     if (poses) {
         crom_material mat;
         double eE, eF;

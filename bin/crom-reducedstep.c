@@ -264,7 +264,7 @@ static int run_map(crom_cli *cli, args *a)
         crom_cubature cub;
         if ((rc = crom_cubature_load(a->cub, &cub, NULL)))
             goto out;
-        if (strcmp(cub.model_id, model.model_id) || cub.map_rank != r || (cub.r != map.p && cub.r != map.p_model) ||
+        if (strcmp(cub.model_id, model.model_id) || cub.map_rank != (map.nonlinear ? r : 0) || (cub.r != map.p && cub.r != map.p_model) ||
             crom_map_same_mesh(&cub.mesh, &map.mesh))
             rc = crom_err(CROM_EDATA, "--cubature %s is not a cubature of this map (model %s, rank %d, %d vertices): "
                           "make one with crom-cubature --model %s", a->cub, cub.model_id, cub.map_rank, cub.mesh.nv,

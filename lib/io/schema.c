@@ -262,18 +262,21 @@ static const crom_schema_attr cub_attrs[] = {
 
 static const crom_schema_attr cub_objattrs[] = {
     {"source", "str", 1, REGION_SOURCE, "mesh/regions/*"},
+    {"thickness", "f64", 1, THICKNESS_DESC, "mesh/triangles"},
     {NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_dset cub_dsets[] = {
     {"mesh/vertices", "f64", "nv,3", 1, "m", VERTICES_DESC, NULL},
-    {"mesh/tets", "i32", "nt,4", 1, "1", TETS_DESC, NULL},
+    {"mesh/tets", "i32", "nt,4", 0, "1", TETS_DESC, NULL},
+    {"mesh/triangles", "i32", "ntri,3", 0, "1", TRIS_DESC, NULL},
     {"mesh/regions/*", "i32", "?", 0, "1", REGION_DESC, NULL},
     {"W", "f64", "nv,3,r", 1, "1", "basis W(X) at every mesh vertex, [vertex][component][field]", NULL},
     {"lumped_volume", "f64", "nv", 1, "m^3", "sum of V_t/4 over the tets of each vertex (mass / density)", NULL},
-    {"elements", "i32", "k", 1, "1", "cubature tets: indices into mesh/tets", NULL},
+    {"elements", "i32", "k", 1, "1", "cubature tets: indices into mesh/tets (a shell: its energy elements, the "
+                                     "triangles then the hinges)", NULL},
     {"weights", "f64", "k", 1, "1", "non-negative cubature weight of each tet", NULL},
-    {"Dminv", "f64", "k,3,3", 1, "1/m", "inverse rest edge matrix [X1-X0, X2-X0, X3-X0]^-1 of each cubature tet, row-major", NULL},
-    {"volume", "f64", "k", 1, "m^3", "rest volume of each cubature tet", NULL},
+    {"Dminv", "f64", "k,3,3", 0, "1/m", "inverse rest edge matrix [X1-X0, X2-X0, X3-X0]^-1 of each cubature tet, row-major (solids)", NULL},
+    {"volume", "f64", "k", 0, "m^3", "rest volume of each cubature tet (solids)", NULL},
     {"WtVW", "f64", "r,r", 1, "m^3", "sum over vertices of V_v W_v^T W_v: times density, the reduced mass matrix", NULL},
     {"WtV", "f64", "r,3", 1, "m^3", "sum over vertices of V_v W_v^T: times density and gravity, the reduced gravity force", NULL},
     {"surface", "i32", "s", 1, "1", "boundary vertices: the contact points checked against collision planes", NULL},

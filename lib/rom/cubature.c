@@ -113,7 +113,7 @@ void crom_cubature_gather(const crom_cubature *c, int k, double Xe[12], double *
 
 static int scheme_all(crom_cubature *c)
 {
-    c->k = c->mesh.nt;
+    c->k = c->ne;
     c->elem = crom_malloc(sizeof(int) * (size_t)c->k);
     c->weight = crom_malloc(sizeof(double) * (size_t)c->k);
     if (!c->elem || !c->weight)
@@ -332,21 +332,62 @@ static int nnls_normal(int s, const double *G, const double *h, double *w, doubl
     return 0;
 }
 
-/* One column of the fitting matrix for tet t: per pose its reduced force
- * (ro rows: r, or rout projected by the pose's T) and its energy (1 row),
- * each scaled by the pose's row scale. */
-static int tet_column(const crom_cubature *c, const crom_cubature_opts *o, const crom_material *mat, int t,
-                      const double *fscale, const double *escale, double *col, double *work)
+/* The scratch of elem_force: crom_cubature_tet's, or a shell element's
+ * positions, gradient and W block. */
+#define ELEM_WORK(r) (168 + 24 * (size_t)(r) + 12)
+
+/* Element e of c at latent q: its energy (NaN when not finite), and its
+ * reduced force g_r += w Σ_a W_aᵀ ∂E_e/∂x_a. A solid's tet through
+ * crom_cubature_tet with material mat; a shell's element through its system
+ * sys. work holds ELEM_WORK(r) doubles. */
+static double elem_force(const crom_cubature *c, const crom_material *mat, const crom_system *sys, int e,
+                         double w, const double *q, double *g_r, double *work)
+{
+    int r = c->r;
+    if (!sys) {
+        double Xe[12], Dm[9], V, *W4 = work, *kw = work + 12 * (size_t)r;
+        gather(c, e, Xe, W4);
+        if (crom_fem_tet_rest(Xe, Dm, &V)) {
+            crom_err_clear();
+            return NAN;
+        }
+        return crom_cubature_tet(mat, Xe, W4, r, Dm, V, w, q, 0, g_r, NULL, kw);
+    }
+    int v[4], k = crom_system_elem_vertices(sys, e, v);
+    double xe[12], ge[12], E, *We = work;
+    size_t blk = 3 * (size_t)r;
+    for (int a = 0; a < k; a++) {
+        memcpy(We + a * blk, c->W + (size_t)v[a] * blk, blk * sizeof(double));
+        memcpy(xe + 3 * a, c->mesh.X + 3 * (size_t)v[a], 3 * sizeof(double));
+    }
+    cblas_dgemv(CblasRowMajor, CblasNoTrans, 3 * k, r, 1.0, We, r, q, 1, 1.0, xe, 1);
+    if (crom_system_elem_eval(sys, e, xe, 0, &E, ge, NULL))
+        return NAN;
+    if (g_r)
+        cblas_dgemv(CblasRowMajor, CblasTrans, 3 * k, r, w, We, r, ge, 1, 1.0, g_r, 1);
+    return E;
+}
+
+/* The system of a shell cubature's mesh with the material's E and ν (the
+ * density does not enter elastic forces). */
+static int shell_system(const crom_cubature *c, const crom_material *mat, crom_system *sys)
+{
+    return crom_system_init(sys, &c->mesh, mat->E, mat->nu, mat->rho);
+}
+
+/* One column of the fitting matrix for element t: per pose its reduced
+ * force (ro rows: r, or rout projected by the pose's T) and its energy (1
+ * row), each scaled by the pose's row scale. */
+static int tet_column(const crom_cubature *c, const crom_cubature_opts *o, const crom_material *mat,
+                      const crom_system *sys, int t, const double *fscale, const double *escale, double *col,
+                      double *work)
 {
     int r = c->r, ro = o->proj ? o->rout : r;
-    double Xe[12], *W4 = work, *gf = work + 12 * (size_t)r, *kw = gf + r, Dm[9], V;
-    gather(c, t, Xe, W4);
-    if (crom_fem_tet_rest(Xe, Dm, &V))
-        return CROM_EDATA;
+    double *gf = work, *kw = work + r;
     for (int j = 0; j < o->npose; j++) {
         double *g = col + (size_t)j * (ro + 1);
         memset(gf, 0, sizeof(double) * (size_t)r);
-        double E = crom_cubature_tet(mat, Xe, W4, r, Dm, V, 1.0, o->poses + (size_t)j * r, 0, gf, NULL, kw);
+        double E = elem_force(c, mat, sys, t, 1.0, o->poses + (size_t)j * r, gf, kw);
         if (!isfinite(E))
             return CROM_EDATA;
         if (o->proj)
@@ -367,7 +408,8 @@ typedef struct {
     const crom_cubature *c;
     const crom_cubature_opts *o;
     crom_material mat;
-    int nt, ro, m, K;   /* tets, rows per pose but one, rows, tet budget */
+    crom_system sys, *shell; /* a shell's system (shell = &sys), else NULL */
+    int nt, ro, m, K;   /* elements, rows per pose but one, rows, element budget */
     double *b;          /* [m] targets: the exact forces and energies, per pose normalized */
     double *fscale, *escale; /* [P] the poses' row scales */
     double *col, *work; /* [m] one column; tet_column's scratch */
@@ -382,6 +424,7 @@ typedef struct {
 
 static void greedy_free(greedy *g)
 {
+    crom_system_free(&g->sys);
     free(g->b);
     free(g->col);
     free(g->fscale);
@@ -408,7 +451,12 @@ static int greedy_init(greedy *g, const crom_cubature *c, const crom_cubature_op
         return rc;
     if (!o->poses || P < 1)
         return crom_err(CROM_EUSAGE, "the optimized scheme needs training poses (--poses LATENT)");
-    g->nt = c->mesh.nt;
+    if (crom_mesh_is_surface(&c->mesh)) {
+        if ((rc = shell_system(c, &g->mat, &g->sys)))
+            return rc;
+        g->shell = &g->sys;
+    }
+    g->nt = c->ne;
     g->ro = o->proj ? o->rout : r;
     g->m = P * (g->ro + 1);
     g->K = o->count > g->nt ? g->nt : o->count;
@@ -417,7 +465,7 @@ static int greedy_init(greedy *g, const crom_cubature *c, const crom_cubature_op
     g->col = crom_malloc(sizeof(double) * m);
     g->fscale = crom_malloc(sizeof(double) * (size_t)P);
     g->escale = crom_malloc(sizeof(double) * (size_t)P);
-    g->work = crom_malloc(sizeof(double) * (size_t)(12 * r + r + 168 + 12 * r));
+    g->work = crom_malloc(sizeof(double) * ((size_t)r + ELEM_WORK(r)));
     g->A = crom_malloc(sizeof(double) * m * K);
     g->G = crom_calloc(K * K, sizeof(double));
     g->hv = crom_calloc(K, sizeof(double));
@@ -444,7 +492,7 @@ static int greedy_targets(greedy *g)
     for (int j = 0; j < P; j++)
         g->fscale[j] = g->escale[j] = 1;
     for (int t = 0; t < g->nt && !rc; t++) {
-        rc = tet_column(g->c, g->o, &g->mat, t, g->fscale, g->escale, g->col, g->work);
+        rc = tet_column(g->c, g->o, &g->mat, g->shell, t, g->fscale, g->escale, g->col, g->work);
         for (int i = 0; !rc && i < g->m; i++)
             g->b[i] += g->col[i];
     }
@@ -479,7 +527,7 @@ static int greedy_pick(greedy *g, crom_rng *rng, int ncand)
         if (g->taken[t])
             continue;
         tried++;
-        if (tet_column(g->c, g->o, &g->mat, t, g->fscale, g->escale, g->col, g->work))
+        if (tet_column(g->c, g->o, &g->mat, g->shell, t, g->fscale, g->escale, g->col, g->work))
             continue;
         double dot = cblas_ddot(g->m, g->col, 1, g->res, 1), nrm = cblas_dnrm2(g->m, g->col, 1);
         if (nrm > 0 && dot / nrm > bests) {
@@ -497,7 +545,7 @@ static int greedy_add(greedy *g, int s, int t, double *err)
 {
     int m = g->m, K = g->K;
     g->taken[t] = 1;
-    tet_column(g->c, g->o, &g->mat, t, g->fscale, g->escale, g->A + (size_t)s * m, g->work);
+    tet_column(g->c, g->o, &g->mat, g->shell, t, g->fscale, g->escale, g->A + (size_t)s * m, g->work);
     g->sel[s] = t;
     for (int i = 0; i <= s; i++) {
         double v = cblas_ddot(m, g->A + (size_t)i * m, 1, g->A + (size_t)s * m, 1);
@@ -581,8 +629,9 @@ int crom_cubature_build(crom_cubature *c, const crom_mesh *mesh, const double *W
     int rc = crom_mesh_copy(mesh, &c->mesh);
     if (rc)
         return rc;
-    int nv = mesh->nv, nt = mesh->nt;
+    int nv = mesh->nv, nt = mesh->nt, shell = crom_mesh_is_surface(mesh);
     c->r = r;
+    c->ne = nt;
     snprintf(c->model_id, sizeof c->model_id, "%s", model_id);
     snprintf(c->scheme, sizeof c->scheme, "%s", scheme_name(o->scheme));
     size_t nw = (size_t)nv * 3 * r;
@@ -610,6 +659,23 @@ int crom_cubature_build(crom_cubature *c, const crom_mesh *mesh, const double *W
         for (int a = 0; a < 4; a++)
             c->vvol[e[a]] += V / 4;
     }
+    if (shell) { /* t A / 3 per triangle corner; the elements: the system's */
+        crom_system sys;
+        crom_material unit;
+        crom_material_init(&unit, 1, 0.3, 1);
+        if ((rc = crom_system_init(&sys, mesh, unit.E, unit.nu, unit.rho)))
+            goto fail;
+        c->ne = sys.nenergy;
+        crom_system_free(&sys);
+        crom_mesh_vertex_volumes(mesh, c->vvol);
+        for (int v = 0; v < nv; v++)
+            c->mesh_volume += c->vvol[v];
+        if (o->scheme == CROM_CUBATURE_RANDOM || o->scheme == CROM_CUBATURE_METIS) {
+            rc = crom_err(CROM_EUSAGE, "--scheme %s picks tets; a shell's cubature is --scheme optimized or all",
+                          scheme_name(o->scheme));
+            goto fail;
+        }
+    }
     /* WᵀVW = BᵀB with B = V^½ W (rows 3v+c scaled by sqrt(V_v)); WᵀV */
     for (int v = 0; v < nv; v++) {
         double s = sqrt(c->vvol[v]);
@@ -623,10 +689,19 @@ int crom_cubature_build(crom_cubature *c, const crom_mesh *mesh, const double *W
     for (int i = 0; i < r; i++)
         for (int j = 0; j < i; j++)
             c->WtVW[i * r + j] = c->WtVW[j * r + i];
-    /* contact points: the boundary vertices */
+    /* contact points: the boundary vertices (a shell's: all of them) */
     int ntri, *tri;
-    if ((rc = crom_mesh_boundary(mesh, &ntri, &tri, NULL)))
+    if (shell) {
+        ntri = mesh->ntri;
+        tri = crom_malloc(sizeof(int) * 3 * (size_t)ntri);
+        if (!tri) {
+            rc = CROM_EINTERNAL;
+            goto fail;
+        }
+        memcpy(tri, mesh->tris, sizeof(int) * 3 * (size_t)ntri);
+    } else if ((rc = crom_mesh_boundary(mesh, &ntri, &tri, NULL))) {
         goto fail;
+    }
     qsort(tri, 3 * (size_t)ntri, sizeof(int), cmp_int);
     c->surf = crom_malloc(sizeof(int) * 3 * (size_t)(ntri ? ntri : 1));
     if (!c->surf) {
@@ -654,6 +729,11 @@ int crom_cubature_build(crom_cubature *c, const crom_mesh *mesh, const double *W
     }
     if (rc)
         goto fail;
+    if (shell) { /* no rest shapes of tets: crom-reducedstep --model integrates the system's elements */
+        free(tetvol);
+        free(B);
+        return 0;
+    }
     c->Dminv = crom_malloc(sizeof(double) * 9 * (size_t)c->k);
     c->vol = crom_malloc(sizeof(double) * (size_t)c->k);
     if (!c->Dminv || !c->vol) {
@@ -681,29 +761,29 @@ fail:
 int crom_cubature_error(const crom_cubature *c, const crom_material *mat, const double *poses, int npose,
                         const double *proj, int rout, double *energy_err, double *force_err)
 {
-    int r = c->r, nt = c->mesh.nt, ro = proj ? rout : r;
+    int r = c->r, ro = proj ? rout : r;
+    crom_system sys, *shell = NULL;
+    memset(&sys, 0, sizeof sys);
     double *fe = crom_calloc((size_t)r, sizeof(double)), *fc = crom_calloc((size_t)r, sizeof(double));
     double *pe = crom_calloc((size_t)ro, sizeof(double)), *pc = crom_calloc((size_t)ro, sizeof(double));
-    double *W4 = crom_malloc(sizeof(double) * 12 * (size_t)r), *work = crom_malloc(sizeof(double) * (168 + 12 * (size_t)r));
-    int rc = fe && fc && pe && pc && W4 && work ? 0 : CROM_EINTERNAL;
+    double *work = crom_malloc(sizeof(double) * ELEM_WORK(r));
+    int rc = fe && fc && pe && pc && work ? 0 : CROM_EINTERNAL;
+    if (!rc && crom_mesh_is_surface(&c->mesh) && !(rc = shell_system(c, mat, &sys)))
+        shell = &sys;
     double dE = 0, sE = 0, df = 0, sf = 0;
     for (int j = 0; j < npose && !rc; j++) {
         const double *q = poses + (size_t)j * r;
-        double Ee = 0, Ec = 0, Xe[12], Dm[9], V;
+        double Ee = 0, Ec = 0;
         memset(fe, 0, sizeof(double) * (size_t)r);
         memset(fc, 0, sizeof(double) * (size_t)r);
-        for (int t = 0; t < nt && !rc; t++) {
-            gather(c, t, Xe, W4);
-            crom_fem_tet_rest(Xe, Dm, &V);
-            double E = crom_cubature_tet(mat, Xe, W4, r, Dm, V, 1.0, q, 0, fe, NULL, work);
+        for (int t = 0; t < c->ne && !rc; t++) {
+            double E = elem_force(c, mat, shell, t, 1.0, q, fe, work);
             if (!isfinite(E))
                 rc = CROM_EDATA;
             Ee += E;
         }
         for (int k = 0; k < c->k && !rc; k++) {
-            double Dk[9];
-            crom_cubature_gather(c, k, Xe, W4, Dk);
-            double E = crom_cubature_tet(mat, Xe, W4, r, Dk, c->vol[k], c->weight[k], q, 0, fc, NULL, work);
+            double E = elem_force(c, mat, shell, c->elem[k], c->weight[k], q, fc, work);
             if (!isfinite(E))
                 rc = CROM_EDATA;
             Ec += c->weight[k] * E;
@@ -726,11 +806,11 @@ int crom_cubature_error(const crom_cubature *c, const crom_material *mat, const 
         *energy_err = sE > 0 ? dE / sE : 0;
         *force_err = sf > 0 ? sqrt(df / sf) : 0;
     }
+    crom_system_free(&sys);
     free(fe);
     free(fc);
     free(pe);
     free(pc);
-    free(W4);
     free(work);
     return rc == CROM_EDATA ? crom_err(CROM_EDATA, "a pose gives a non-finite elastic energy") : rc;
 }
@@ -765,9 +845,9 @@ int crom_cubature_write(hid_t loc, const crom_cubature *c)
         rc = crom_h5_put_i32(loc, "elements", 1, &k, c->elem);
     if (!rc)
         rc = crom_h5_put_f64(loc, "weights", 1, &k, c->weight);
-    if (!rc)
+    if (!rc && c->Dminv)
         rc = crom_h5_put_f64(loc, "Dminv", 3, d9, c->Dminv);
-    if (!rc)
+    if (!rc && c->vol)
         rc = crom_h5_put_f64(loc, "volume", 1, &k, c->vol);
     if (!rc)
         rc = crom_h5_put_f64(loc, "WtVW", 2, drr, c->WtVW);
@@ -819,12 +899,16 @@ int crom_cubature_read(crom_in *in, crom_cubature *c)
         rc = crom_err(CROM_EDATA, "no /mesh group");
         goto fail;
     }
-    rc = crom_mesh_read(g, &c->mesh);
+    rc = crom_mesh_read_any(g, &c->mesh);
     H5Gclose(g);
     if (rc) {
         crom_err_ctx("/mesh");
         goto fail;
     }
+    int shell = crom_mesh_is_surface(&c->mesh);
+    /* the elements a shell's cubature may name: its triangles, then at most one hinge per edge (checked
+     * exactly against the system by crom_nlsim_use_cubature) */
+    c->ne = shell ? c->mesh.ntri + 3 * c->mesh.ntri / 2 : c->mesh.nt;
     size_t nv = (size_t)c->mesh.nv;
     if ((rc = crom_h5_read_f64(in->h5, "W", 3, d, &c->W)))
         goto fail;
@@ -846,8 +930,8 @@ int crom_cubature_read(crom_in *in, crom_cubature *c)
     }
     hsize_t k = d[0];
     if ((rc = crom_h5_read_f64(in->h5, "weights", 1, d, &c->weight)) || d[0] != k ||
-        (rc = crom_h5_read_f64(in->h5, "Dminv", 3, d, &c->Dminv)) || d[0] != k ||
-        (rc = crom_h5_read_f64(in->h5, "volume", 1, d, &c->vol)) || d[0] != k) {
+        (!shell && ((rc = crom_h5_read_f64(in->h5, "Dminv", 3, d, &c->Dminv)) || d[0] != k ||
+                    (rc = crom_h5_read_f64(in->h5, "volume", 1, d, &c->vol)) || d[0] != k))) {
         rc = rc ? rc : crom_err(CROM_EDATA, "weights, Dminv and volume must have one entry per cubature tet");
         goto fail;
     }
@@ -860,12 +944,12 @@ int crom_cubature_read(crom_in *in, crom_cubature *c)
         goto fail;
     c->nsurf = (int)d[0];
     for (int j = 0; j < c->k && !rc; j++)
-        if (c->elem[j] < 0 || c->elem[j] >= c->mesh.nt)
-            rc = crom_err(CROM_EDATA, "/elements[%d] = %d is not a tet of the mesh (0..%d)", j, c->elem[j],
-                          c->mesh.nt - 1);
+        if (c->elem[j] < 0 || c->elem[j] >= c->ne)
+            rc = crom_err(CROM_EDATA, "/elements[%d] = %d is not %s of the mesh (0..%d)", j, c->elem[j],
+                          shell ? "an energy element" : "a tet", c->ne - 1);
         else if (!(c->weight[j] >= 0) || !isfinite(c->weight[j]))
             rc = crom_err(CROM_EDATA, "/weights[%d] = %g is not a non-negative finite weight", j, c->weight[j]);
-        else if (!(c->vol[j] > 0) || !isfinite(c->vol[j]))
+        else if (!shell && (!(c->vol[j] > 0) || !isfinite(c->vol[j])))
             rc = crom_err(CROM_EDATA, "/volume[%d] = %g is not a positive finite volume", j, c->vol[j]);
     for (int j = 0; j < c->nsurf && !rc; j++)
         if (c->surf[j] < 0 || c->surf[j] >= c->mesh.nv)

@@ -22,6 +22,7 @@
 #include "io/io.h"
 #include "mesh/mesh.h"
 #include "phys/fem.h"
+#include "phys/system.h"
 
 #define CROM_CUBATURE_SCHEMA "crom/cubature"
 #define CROM_CUBATURE_VERSION 1
@@ -46,6 +47,8 @@ typedef struct {
     int map_rank;          /* > 0: W is the feature basis B of a nonlinear map
                             * of this latent rank (crom-reducedstep --model
                             * --cubature); 0: a linear basis */
+    int ne;                /* elements the cubature chooses from: the mesh's tets, or a
+                            * shell's energy elements (triangles, then hinges: system.h) */
 } crom_cubature;
 
 enum { CROM_CUBATURE_ALL, CROM_CUBATURE_RANDOM, CROM_CUBATURE_METIS, CROM_CUBATURE_OPTIMIZED };
@@ -70,8 +73,13 @@ typedef struct {
 int crom_cubature_scheme(const char *name);
 
 /* Build a cubature for mesh (copied) with W [nv][3][r] at its vertices
- * (copied). Returns 0, CROM_EUSAGE (bad count, optimized without poses),
- * CROM_EDATA (degenerate mesh, non-finite W) or CROM_EINTERNAL. */
+ * (copied). On a shell surface the elements are the energy elements of its
+ * system (membrane triangles, then hinges: lib/phys/system.h), the
+ * schemes all and optimized (the fitted forces are the shell's, with the
+ * mesh's thickness), and the cubature has no Dminv or volume: it serves
+ * crom-reducedstep --model only (crom_nlsim_use_cubature). Returns 0,
+ * CROM_EUSAGE (bad count, optimized without poses, random or metis on a
+ * shell), CROM_EDATA (degenerate mesh, non-finite W) or CROM_EINTERNAL. */
 int crom_cubature_build(crom_cubature *c, const crom_mesh *mesh, const double *W, int r,
                         const char *model_id, const crom_cubature_opts *o, crom_rng *rng);
 

@@ -289,11 +289,23 @@ static int initial_velocity(crom_rsim *s)
     return 0;
 }
 
+/* The linear path integrates tets; a shell's cubature serves the map path. */
+static int solid_cubature(const crom_cubature *cub)
+{
+    return crom_mesh_is_surface(&cub->mesh)
+               ? crom_err(CROM_EUSAGE, "the cubature integrates a shell surface: run it with crom-reducedstep "
+                                       "--model MODEL --cubature CUB (model %s)", cub->model_id)
+               : 0;
+}
+
 int crom_rsim_init(crom_rsim *s, const crom_cubature *cub, const crom_scenario *sc, int solver,
                    double kappa, const double *q0, const double *qd0)
 {
     memset(s, 0, sizeof *s);
-    int rc = crom_scenario_check(sc);
+    int rc = solid_cubature(cub);
+    if (rc)
+        return rc;
+    rc = crom_scenario_check(sc);
     if (!rc)
         rc = crom_scenario_check_regions(sc, &cub->mesh);
     if (rc)
@@ -327,6 +339,9 @@ int crom_rsim_init(crom_rsim *s, const crom_cubature *cub, const crom_scenario *
 
 int crom_rsim_set_cubature(crom_rsim *s, const crom_cubature *cub)
 {
+    int rc = solid_cubature(cub);
+    if (rc)
+        return rc;
     if (cub->r != s->r || strcmp(cub->model_id, s->cub->model_id))
         return crom_err(CROM_EDATA, "the cubature belongs to model %s (rank %d), the run uses model %s (rank %d)",
                         cub->model_id, cub->r, s->cub->model_id, s->r);
