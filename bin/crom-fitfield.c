@@ -50,7 +50,7 @@ static const crom_opt df_opts[] = {
     {"coordinate-tol", O_COORDTOL, "T", "skinning: the relative eigenvalue below which a direction of the handle span is dropped (default 1e-6)."},
     {"weights", O_WEIGHTS, "KIND", "skinning: trained (default): an MLP 3 -> H trained data-free on the energy of random handle poses plus the orthogonality of the weights (Simplicits). eigen: no training, the lowest eigenvectors of the scalar stiffness (the elasticity Hessian at rest summed over the three components) against the lumped mass, pinned vertices eliminated (skinning eigenmodes; needs --mesh)."},
     {"modes", O_MODES, "MODEL", "neuralmodes (required): a crom/model of linear modes of the same mesh, from crom-modes. Its lowest --rank modes are the linear part Phi; its pins are kept, its material is the default."},
-    {"steps", O_STEPS, "N", "Training steps of a data-free objective (energy, neuralmodes: default 4000 of --batch 8 samples at --lr 3e-3; field, skinning: 2000 of 32 (skinning: 16) at 1e-3). The learning rate is halved after each quarter of the steps (or of --minutes)."},
+    {"steps", O_STEPS, "N", "Training steps of a data-free objective (energy, neuralmodes: default 4000 of --batch 8 samples at --lr 3e-3; field, skinning: 2000 of 32 (skinning: 16) at 1e-3). The learning rate is halved after each quarter of the steps (or of --minutes). neuralmodes takes 0: no training, y = 0 (with --derivatives: the quadratic manifold X + Phi z + 1/2 sum Psi_ij z_i z_j of Barbic and James)."},
     {"sigma", O_SIGMA, "S", "energy: isometry scale in metres: the subspace should move the body by S (RMS displacement) per unit of latent distance, |f(z) - f(z')|_M / sqrt(m) ~ S |z - z'|, z ~ N(0, I) (default 0.05 times the bounding-box diagonal; field --handles: 0.15). Sharp et al.'s sigma divided by sqrt(body mass). skinning: the RMS displacement in metres of the random handle poses the weights are trained on (default 0.01 times the diagonal)."},
     {"lambda", O_LAMBDA, "L", "energy: weight of the isometry term, the squared log-ratio of mass-norm distances to S |z - z'| over all pairs of a batch, against the energy in units of E V (Young's modulus times volume) (default 0.03; field: 1, with --handles 0.03). A weaker isometry lets the energy shape the subspace: 1 keeps the map near-isometric but leaves the static sag of a soft body 40-80% off."},
     {"ramp", O_RAMP, "F", "energy: the seed-state blend rho grows linearly from 0 to 1 over the first fraction F of the steps, then stays 1 (default 0.5; Sharp et al. §4.1). The seed state is the rest shape."},
@@ -308,7 +308,7 @@ static int on_opt(void *ctx, int key, const char *v)
             return crom_err(CROM_EUSAGE, "--coordinate-tol must be in [0, 1), got %s", v);
         return 0;
     case O_WEIGHTS: return choice_opt(key, v, weights, &a->eigen);
-    case O_STEPS: return int_opt(key, v, 1, 1000000000L, &a->df.steps);
+    case O_STEPS: return int_opt(key, v, 0, 1000000000L, &a->df.steps);
     case O_SIGMA: return crom_parse_positive(v, "--sigma", &a->df.sigma);
     case O_LAMBDA: return nonneg_opt(key, v, &a->df.lambda);
     case O_RAMP:
@@ -410,6 +410,8 @@ static void check_datafree(crom_cli *cli, const args *a)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--modes applies to --objective neuralmodes"));
     if (a->objective != CROM_DATAFREE_NEURALMODES && a->derivatives)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--derivatives applies to --objective neuralmodes"));
+    if (a->objective != CROM_DATAFREE_NEURALMODES && GIVEN(a, O_STEPS) && a->df.steps == 0)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--steps 0 (no training) applies to --objective neuralmodes"));
 }
 
 /* The data-free options: those given, the objective's defaults for the
@@ -552,6 +554,11 @@ static void report_map(crom_cli *cli, const args *a, const crom_body *b, const c
                        const crom_dftrain_log *log, double secs)
 {
     int j = log->nblocks - 1, r = a->df.rank, nv = b->mesh.nv, np = b->npinned;
+    if (j < 0) { /* neuralmodes --steps 0 */
+        crom_cli_info(cli, "neuralmodes map, rank %d on %d vertices (%d pinned): no training, y = 0: the linear modes%s",
+                      r, nv, np, m->deriv_v ? " and their modal derivatives, X + Phi z + 1/2 sum Psi_ij z_i z_j" : "");
+        return;
+    }
     if (a->objective == CROM_DATAFREE_FIELD && m->field == CROM_MODEL_FIELD_SKIN)
         crom_cli_info(cli, "continuous field over %d skinning eigenmodes (%d features), rank %d, trained on %d "
                       "vertices (%d pinned): %ld steps in %.1f s; last objective %.4g, mean potential energy %.4g J, "

@@ -390,8 +390,9 @@ static int check_map(const crom_datafree_problem *p, crom_datafree_opts *o)
     if (!nm && gn > 0 && nfree == n)
         return crom_err(CROM_EUSAGE, "a free body under gravity has no lowest energy (it falls forever): pin a "
                         "region (--pin) or train with --gravity 0,0,0");
-    if (o->steps < 1 || o->batch < 1 || o->depth < 2 || o->width < 1)
-        return crom_err(CROM_EUSAGE, "steps, batch, depth and width must be positive (depth >= 2)");
+    if ((o->steps < 1 && !(nm && o->steps == 0)) || o->batch < 1 || o->depth < 2 || o->width < 1)
+        return crom_err(CROM_EUSAGE, "steps, batch, depth and width must be positive (depth >= 2; neuralmodes: "
+                                     "steps may be 0)");
     if (!nm && o->batch < 2)
         return crom_err(CROM_EUSAGE, "--batch %d: the isometry term needs pairs (at least 2 samples)", o->batch);
     double diag = crom_dftrain_diag(mesh);
@@ -472,6 +473,8 @@ static int map_train(map_trainer *T, const crom_datafree_problem *p, crom_dftrai
     log->sigma = o->sigma;
     log->box = o->box;
     log->Eref = T->ctx.Eref;
+    if (nm && o->steps == 0) /* no training: y = 0, the map is its linear (and quadratic) part */
+        return 0;
     crom_dftrain_loop L = {
         .loss = map_loss, .ctx = T, .nblocks = 1, .params = {T->params}, .grad = {T->grad}, .nparams = {T->np},
         .rng = &T->srng, .batch = o->batch, .tangent = T->ctx.B0, .r = o->rank, .scale = nm ? T->ctx.half : NULL,

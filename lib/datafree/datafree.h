@@ -121,7 +121,9 @@ typedef struct {
     int rank;               /* r */
     int depth, width;       /* dense layers (6: 5 hidden) and hidden width (64) */
     crom_nn_act act;        /* ELU (energy) or GELU (neuralmodes) */
-    int steps;              /* training steps (4000; field: 2000) */
+    int steps;              /* training steps (4000; field: 2000); neuralmodes may take 0: y = 0, the map
+                             * is its linear part (and, with modal derivatives, the quadratic manifold
+                             * X + W z + ½ Σ Ψ_ij z_i z_j of Barbič and James) */
     double minutes;         /* wall-time budget (0: none) */
     double lr;              /* base learning rate (3e-3; field: 1e-3); L-BFGS: the size of its first step */
     int optimizer;          /* CROM_DATAFREE_ADAM or CROM_DATAFREE_LBFGS (energy, neuralmodes) */

@@ -114,6 +114,20 @@ if not (en > 0.3 and eq < 0.1):
     raise SystemExit("check failed: the derivatives hold the sag (neural modes > 30%, with derivatives < 10%)")
 PYEOF
 ok
+# with --steps 0 (no training, y = 0) it is the quadratic manifold of
+# Barbic and James alone: measured 1.0%
+crom-fitfield --objective neuralmodes --derivatives --mesh t.h5 --modes tm3.h5 --rank 3 --steps 0 -q -o tz3.h5
+crom-reducedstep --model tz3.h5 --mesh t.h5 "${G[@]}" -q -o rtz3.h5
+crom-diff --csv tz3.csv rtz3.h5 tfg.h5 --model tz3.h5 >/dev/null
+$PY - tz3.csv <<'PYEOF' || fail "the quadratic manifold"
+import sys, numpy as np
+e = np.genfromtxt(sys.argv[1], delimiter=",", names=True)["relative_error"][-1]
+print("the quadratic manifold of 3 modes (--steps 0): %.2f%% from crom-fullsim" % (100 * e))
+if not e < 0.03:
+    raise SystemExit("check failed: the untrained quadratic manifold holds the sag (< 3%)")
+PYEOF
+ok
+expect_error 64 "steps 0 .*applies to --objective neuralmodes" x.h5 -- crom-fitfield --objective energy --steps 0 --mesh t.h5 "${MAT9[@]}" --pin clamp -o x.h5
 expect_error 64 "derivatives applies to --objective neuralmodes" x.h5 -- crom-fitfield --objective energy --derivatives --mesh t.h5 "${MAT9[@]}" --pin clamp -o x.h5
 # a cubature of the shell's elements (crom-cubature --scheme optimized,
 # fitted to the poses of the basis's own run over every element): the run
@@ -174,15 +188,15 @@ crom-mesh box --size 0.2 -o box.h5
 expect_error 65 "decodes only onto it" x.vtu -- crom-export --format vtu --model tm.h5 --mesh box.h5 -o x.vtu tr.h5
 expect_error 65 "only onto its own mesh" x.h5 -- crom-reducedstep --model te.h5 --mesh other.h5 "${MAT[@]}" --steps 1 -o x.h5
 # 5. the hanging-sheet experiment (pipelines/sheet.mk), small: its table
-#    has the six runs, the derivatives ahead of the modes; a second
+#    has the seven runs, the derivatives ahead of the modes; a second
 #    make has nothing to redo
 SHEET=(make --no-print-directory -f "$CROM_TOP/pipelines/sheet.mk" BINDIR="$CROM_BINDIR" OUT=hang SIZE=0.1 STEPS_DF=100 QUIET=-q)
 "${SHEET[@]}" >hang.log 2>&1 || fail "sheet.mk: $(tail -5 hang.log)"
 $PY - hang/table.md <<'PYEOF' || fail "sheet.mk table: $(cat hang/table.md)"
 import sys, re
-rows = {l.split("|")[1].strip(): l.split("|") for l in open(sys.argv[1]) if re.match(r"\| (modes|mderiv|neural|nmderiv|energy|mderiv-cub) ", l)}
-if sorted(rows) != ["energy", "mderiv", "mderiv-cub", "modes", "neural", "nmderiv"]:
-    raise SystemExit("check failed: six runs, got %s" % sorted(rows))
+rows = {l.split("|")[1].strip(): l.split("|") for l in open(sys.argv[1]) if re.match(r"\| (modes|mderiv|neural|nmderiv|quadratic|energy|mderiv-cub) ", l)}
+if sorted(rows) != ["energy", "mderiv", "mderiv-cub", "modes", "neural", "nmderiv", "quadratic"]:
+    raise SystemExit("check failed: seven runs, got %s" % sorted(rows))
 err = {k: float(v[3].strip().rstrip("%")) for k, v in rows.items()}
 print("sheet.mk at SIZE=0.1: static errors %s" % err)
 if not (err["mderiv"] < 5 and err["modes"] > 30):
