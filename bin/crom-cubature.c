@@ -52,7 +52,11 @@ static const crom_cli_doc doc = {
     "the latent forces T(q)^T B_e^T f_e(x(q)), T = da/dq, at latent samples of the model's training "
     "distribution (N(0, I) for an energy map, its box for neural modes; or --poses), with the "
     "material the model records. crom-reducedstep --model MODEL --cubature CUB then integrates the "
-    "elastic energy over these tets only.",
+    "elastic energy over these tets only.\n\n"
+    "On a shell surface (a model made on that shell: crom-modes, crom-fitfield --objective "
+    "energy|neuralmodes) the elements are the shell's membrane triangles and bending hinges, "
+    "--scheme is all or optimized (fitted to the shell's element forces, with the mesh's "
+    "thickness), and the cubature serves crom-reducedstep --model MODEL --cubature CUB.",
     groups,
     "crom-cubature --model model.h5 --scheme metis --count 200 -o cub.h5 box.h5\n"
     "crom-encode --model model.h5 < train.h5 > poses.h5\n"
