@@ -338,7 +338,8 @@ static int nnls_normal(int s, const double *G, const double *h, double *w, doubl
 
 /* Element e of c at latent q: its energy (NaN when not finite), and its
  * reduced force g_r += w Σ_a W_aᵀ ∂E_e/∂x_a. A solid's tet through
- * crom_cubature_tet with material mat; a shell's element through its system
+ * crom_cubature_tet with material mat (its rest shape recomputed: cheap
+ * beside the kernel); a shell's element through its system
  * sys. work holds ELEM_WORK(r) doubles. */
 static double elem_force(const crom_cubature *c, const crom_material *mat, const crom_system *sys, int e,
                          double w, const double *q, double *g_r, double *work)
@@ -378,7 +379,7 @@ static int shell_system(const crom_cubature *c, const crom_material *mat, crom_s
 /* One column of the fitting matrix for element t: per pose its reduced
  * force (ro rows: r, or rout projected by the pose's T) and its energy (1
  * row), each scaled by the pose's row scale. */
-static int tet_column(const crom_cubature *c, const crom_cubature_opts *o, const crom_material *mat,
+static int elem_column(const crom_cubature *c, const crom_cubature_opts *o, const crom_material *mat,
                       const crom_system *sys, int t, const double *fscale, const double *escale, double *col,
                       double *work)
 {
@@ -412,7 +413,7 @@ typedef struct {
     int nt, ro, m, K;   /* elements, rows per pose but one, rows, element budget */
     double *b;          /* [m] targets: the exact forces and energies, per pose normalized */
     double *fscale, *escale; /* [P] the poses' row scales */
-    double *col, *work; /* [m] one column; tet_column's scratch */
+    double *col, *work; /* [m] one column; elem_column's scratch */
     double *A;          /* [K][m] the selected columns */
     double *G, *hv;     /* [K][K] AᵀA and [K] Aᵀb of the selected columns */
     double *w, *res;    /* [K] weights; [m] residual b − A w */
@@ -492,7 +493,7 @@ static int greedy_targets(greedy *g)
     for (int j = 0; j < P; j++)
         g->fscale[j] = g->escale[j] = 1;
     for (int t = 0; t < g->nt && !rc; t++) {
-        rc = tet_column(g->c, g->o, &g->mat, g->shell, t, g->fscale, g->escale, g->col, g->work);
+        rc = elem_column(g->c, g->o, &g->mat, g->shell, t, g->fscale, g->escale, g->col, g->work);
         for (int i = 0; !rc && i < g->m; i++)
             g->b[i] += g->col[i];
     }
@@ -527,7 +528,7 @@ static int greedy_pick(greedy *g, crom_rng *rng, int ncand)
         if (g->taken[t])
             continue;
         tried++;
-        if (tet_column(g->c, g->o, &g->mat, g->shell, t, g->fscale, g->escale, g->col, g->work))
+        if (elem_column(g->c, g->o, &g->mat, g->shell, t, g->fscale, g->escale, g->col, g->work))
             continue;
         double dot = cblas_ddot(g->m, g->col, 1, g->res, 1), nrm = cblas_dnrm2(g->m, g->col, 1);
         if (nrm > 0 && dot / nrm > bests) {
@@ -545,7 +546,7 @@ static int greedy_add(greedy *g, int s, int t, double *err)
 {
     int m = g->m, K = g->K;
     g->taken[t] = 1;
-    tet_column(g->c, g->o, &g->mat, g->shell, t, g->fscale, g->escale, g->A + (size_t)s * m, g->work);
+    elem_column(g->c, g->o, &g->mat, g->shell, t, g->fscale, g->escale, g->A + (size_t)s * m, g->work);
     g->sel[s] = t;
     for (int i = 0; i <= s; i++) {
         double v = cblas_ddot(m, g->A + (size_t)i * m, 1, g->A + (size_t)s * m, 1);
