@@ -80,8 +80,9 @@ static const crom_cli_doc doc = {
     "png the triangles themselves, both sides drawn. Their cell data per triangle: 'area' (rest "
     "area, m^2; in place of 'volume'), 'J' (the deformed over the rest area) and "
     "'energy_density' (the membrane stretching energy per rest volume, thickness x area, J/m^3, "
-    "from the membrane kernel crom-fullsim uses; bending lives on edges and is left out); "
-    "'von_mises_stress' is left out. A crom/latent is decoded onto tet meshes, or onto the "
+    "from the membrane kernel crom-fullsim uses; bending lives on edges and is left out) and "
+    "'von_mises_stress' (of the membrane stress F S F^T / J in the deformed plane, Pa; the "
+    "bending stresses at the faces are left out). A crom/latent is decoded onto tet meshes, or onto the "
     "shell its model (modes, energy, neuralmodes) was made on.\n\n"
     "Every output appears only when complete (written to a temporary file and renamed).",
     groups,

@@ -116,6 +116,33 @@ static int project_psd(double *M, int n)
     return 0;
 }
 
+/* The right Cauchy–Green tensor C = FᵀF [2][2] of F [3][2]. */
+static void cauchy_green(const double F[6], double C2[4])
+{
+    for (int a = 0; a < 2; a++)
+        for (int b = 0; b < 2; b++) {
+            C2[2 * a + b] = 0;
+            for (int i = 0; i < 3; i++)
+                C2[2 * a + b] += F[2 * i + a] * F[2 * i + b];
+        }
+}
+
+double crom_shell_tri_mises(const crom_shell_material *m, const double x[9], const double Dminv[4])
+{
+    double F[6], C2[4], S[4];
+    crom_shell_tri_F(x, Dminv, F);
+    cauchy_green(F, C2);
+    double e0 = 0.5 * (C2[0] - 1), e1 = 0.5 * C2[1], e3 = 0.5 * (C2[3] - 1), tr = e0 + e3;
+    S[0] = 2 * m->mu * e0 + m->lambda_ps * tr;
+    S[1] = S[2] = 2 * m->mu * e1;
+    S[3] = 2 * m->mu * e3 + m->lambda_ps * tr;
+    double detC = C2[0] * C2[3] - C2[1] * C2[2], J = sqrt(detC);
+    /* σ = F S Fᵀ / J has the nonzero eigenvalues of S C / J: tr σ = tr(S C) / J, σ1 σ2 = det S */
+    double trSC = S[0] * C2[0] + S[1] * C2[2] + S[2] * C2[1] + S[3] * C2[3];
+    double I1 = trSC / J, I2 = S[0] * S[3] - S[1] * S[2], v = I1 * I1 - 3 * I2;
+    return J > 0 ? sqrt(v > 0 ? v : 0) : NAN;
+}
+
 int crom_shell_tri_eval(const crom_shell_material *m, const double x[9], const double Dminv[4], double A,
                         int project, double *E, double g[9], double H[81])
 {

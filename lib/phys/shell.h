@@ -71,6 +71,14 @@ void crom_shell_tri_F(const double x[9], const double Dminv[4], double F[6]);
 int crom_shell_tri_eval(const crom_shell_material *m, const double x[9], const double Dminv[4], double A,
                         int project, double *E, double g[9], double H[81]);
 
+/* The membrane's stress at positions x[9]: the second Piola–Kirchhoff
+ * stress S pushed forward to the deformed triangle, σ = F S Fᵀ / J with J
+ * the area ratio (plane stress; the change of thickness neglected), and
+ * its von Mises equivalent sqrt(σ1² − σ1σ2 + σ2²) in Pa (NaN for a
+ * collapsed triangle). The bending stresses (± 6 M / t² at the faces) are
+ * not included. */
+double crom_shell_tri_mises(const crom_shell_material *m, const double x[9], const double Dminv[4]);
+
 /* ---- One bending hinge ------------------------------------------------- */
 
 /* The signed angle between the normals of (x0, x1, x2) and (x1, x0, x3) at

@@ -140,7 +140,7 @@ int crom_export_vtu(FILE *f, const crom_export_frame *fr)
             data_array(f, "Float64", "J", 1, c->J, nt * sizeof(double));
             if (c->mat)
                 data_array(f, "Float64", "energy_density", 1, c->psi, nt * sizeof(double));
-            if (c->mat && !shell)
+            if (c->mat)
                 data_array(f, "Float64", "von_mises_stress", 1, c->mises, nt * sizeof(double));
         }
         fprintf(f, "      </CellData>\n");
@@ -672,15 +672,14 @@ int crom_export_xdmf_series_frame(crom_export_xdmf_series *x, int mi, const crom
         (rc = crom_export_xdmf_write_frame(x->o.h5, "displacement", x->n, m->nv, 3, fr->u, "m")) ||
         (rc = crom_export_xdmf_write_frame(x->o.h5, "velocity", x->n, m->nv, 3, fr->v, "m/s")))
         return rc;
-    int shell = crom_mesh_is_surface(m), nc = cell_count(m);
-    /* J, energy density, stress: a prefix of the XML's cell fields (a shell
-     * has no stress) */
-    x->ncells = c ? (c->mat ? (shell ? 2 : 3) : 1) : 0;
+    int nc = cell_count(m);
+    /* J, energy density, stress: a prefix of the XML's cell fields */
+    x->ncells = c ? (c->mat ? 3 : 1) : 0;
     if (c && (rc = crom_export_xdmf_write_frame(x->o.h5, "J", x->n, nc, 1, c->J, "1")))
         return rc;
     if (c && c->mat && (rc = crom_export_xdmf_write_frame(x->o.h5, "energy_density", x->n, nc, 1, c->psi, "J/m^3")))
         return rc;
-    if (c && c->mat && !shell &&
+    if (c && c->mat &&
         (rc = crom_export_xdmf_write_frame(x->o.h5, "von_mises_stress", x->n, nc, 1, c->mises, "Pa")))
         return rc;
     if ((rc = crom_array_reserve((void **)&x->time, &x->tcap, (size_t)x->n + 1, sizeof *x->time)) ||
@@ -734,10 +733,11 @@ int crom_export_xdmf_series_finish(crom_export_xdmf_series *x)
 
 /* The cells of a shell: rest area A, J = A'/A (the deformed over the rest
  * area: sqrt det(FᵀF) of the 3×2 F = Ds Dm⁻¹) and, with a material, the
- * membrane energy of shell.h per rest volume t A (J/m³). A degenerate rest
- * triangle gets NaN for J and psi and is counted. */
+ * membrane energy of shell.h per rest volume t A (J/m³) and the von Mises
+ * equivalent of the membrane stress (crom_shell_tri_mises, Pa). A
+ * degenerate rest triangle gets NaN for J, psi and mises and is counted. */
 static long shell_measures(const crom_mesh *m, const double *u, const crom_material *mat, double *A, double *J,
-                           double *psi)
+                           double *psi, double *mises)
 {
     crom_shell_material sm;
     int have = mat && crom_shell_material_init(&sm, mat->E, mat->nu, m->thickness, 1000) == CROM_OK;
@@ -754,7 +754,7 @@ static long shell_measures(const crom_mesh *m, const double *u, const crom_mater
             }
         int ok = crom_shell_tri_rest(X, Dminv, &A[t]) == CROM_OK;
         bad += !ok;
-        J[t] = psi[t] = NAN;
+        J[t] = psi[t] = mises[t] = NAN;
         if (!ok)
             continue;
         crom_shell_tri_F(x, Dminv, F); /* F[2i + a]: columns F e1, F e2 */
@@ -765,6 +765,8 @@ static long shell_measures(const crom_mesh *m, const double *u, const crom_mater
         double E;
         if (have && crom_shell_tri_eval(&sm, x, Dminv, A[t], 0, &E, NULL, NULL) == CROM_OK)
             psi[t] = E / (m->thickness * A[t]);
+        if (have)
+            mises[t] = crom_shell_tri_mises(&sm, x, Dminv);
     }
     return bad;
 }
@@ -788,7 +790,7 @@ int crom_export_cells_eval(crom_export_cells *c, const crom_mesh *m, const doubl
         c->cap = cap;
     }
     if (crom_mesh_is_surface(m))
-        c->degenerate += shell_measures(m, u, c->mat, c->measure, c->J, c->psi);
+        c->degenerate += shell_measures(m, u, c->mat, c->measure, c->J, c->psi, c->mises);
     else
         c->degenerate += crom_fem_tet_measures(m, u, c->mat, c->measure, c->J, c->psi, c->mises);
     return 0;

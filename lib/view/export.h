@@ -3,7 +3,7 @@
  * series, gmsh MSH files, surface meshes as OBJ, PLY and STL, with per-tet
  * cell data (volume, J, energy density, stress). A shell (a surface mesh,
  * mesh.h) is written as its triangles, with per-triangle cell data (area,
- * area ratio J, membrane energy density; no stress). The writers of one format
+ * area ratio J, membrane energy density and stress). The writers of one format
  * write to an open FILE (the caller makes it atomic: crom_fileout, crom_out);
  * the whole-file functions below them (crom_export_write, series, sinks)
  * are atomic themselves. Nothing here prints. */
@@ -25,8 +25,9 @@
  * with a material. Per triangle of a shell, with the membrane kernel of
  * shell.h: rest area (m²), J = deformed over rest area, and with a material
  * (its E and ν, the mesh's thickness) the membrane (stretching) energy per
- * rest volume t A (J/m³); no stress (mises is left unset), and bending,
- * which lives on edges, is not a cell field. */
+ * rest volume t A (J/m³) and the von Mises equivalent of its membrane
+ * stress (crom_shell_tri_mises, Pa); bending, which lives on edges, is not
+ * a cell field. */
 typedef struct {
     double *measure, *J, *psi, *mises; /* [cap]: measure the rest volume (tets) or area (triangles) */
     int cap;
@@ -67,7 +68,7 @@ void crom_export_number(char *buf, size_t n, double x);
  * VTK_TRIANGLE for a shell); point data 'displacement' and 'velocity' (when
  * given) and one UInt8 mask per named region ("region_NAME"); cell data
  * 'volume' (a shell: 'area'), and with a displacement 'J', 'energy_density',
- * 'von_mises_stress' (those of fr->cells that exist; a shell has no stress); the
+ * 'von_mises_stress' (those of fr->cells that exist; a shell's is its membrane's); the
  * frame's time as field data 'TimeValue' (when not NaN). Arrays binary,
  * base64-encoded inline. Returns 0, CROM_EDATA (too large for 32-bit
  * headers) or CROM_EIO. */
@@ -254,7 +255,7 @@ int crom_export_xdmf_series_mesh(crom_export_xdmf_series *x, int mi, const crom_
 
 /* Append frame fr on mesh number mi (fr->mesh, written if new): its time,
  * displacement and velocity, and its cell fields J, energy density and
- * stress (those fr->cells has, a shell no stress; the same for every frame
+ * stress (those fr->cells has; the same for every frame
  * of a series).
  * Returns 0 or an error. */
 int crom_export_xdmf_series_frame(crom_export_xdmf_series *x, int mi, const crom_export_frame *fr);

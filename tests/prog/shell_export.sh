@@ -3,7 +3,7 @@
 # out of its plane by crom-fullsim exports as its triangles to VTU
 # (VTK_TRIANGLE cells, read back with xml.etree: points, connectivity,
 # displacement of the HDF5 frame, per-triangle area, area ratio J and
-# membrane energy density against a numpy evaluation of the StVK membrane
+# membrane energy density and von Mises stress against a numpy evaluation of the StVK membrane
 # law), PVD, XDMF (a Triangle topology, through meshio), MSH, OBJ, PLY, STL
 # and PNG (not blank, and the same picture with the triangles' orientation
 # reversed: both sides are drawn); crom-diff compares shell runs with the
@@ -84,7 +84,20 @@ def membrane(u):
     trE = np.trace(Em, axis1=1, axis2=2); trE2 = np.einsum("tij,tji->t", Em, Em)
     return A, J, mu * trE2 + 0.5 * lam * trE ** 2
 
+def mises(u):
+    """von Mises of the membrane's Cauchy stress: principal stresses = eigenvalues of S C / J."""
+    a0, b0 = X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]]
+    a1, b1 = (X + u)[T[:, 1]] - (X + u)[T[:, 0]], (X + u)[T[:, 2]] - (X + u)[T[:, 0]]
+    g = lambda a, b: np.stack([np.stack([(a * a).sum(1), (a * b).sum(1)], 1), np.stack([(a * b).sum(1), (b * b).sum(1)], 1)], 1)
+    C = np.linalg.solve(g(a0, b0), g(a1, b1))
+    Em = 0.5 * (C - np.eye(2))
+    S = 2 * mu * Em + lam * np.trace(Em, axis1=1, axis2=2)[:, None, None] * np.eye(2)
+    J = np.sqrt(np.linalg.det(C))
+    s = np.real(np.linalg.eigvals(S @ C)) / J[:, None]
+    return np.sqrt(s[:, 0] ** 2 - s[:, 0] * s[:, 1] + s[:, 1] ** 2)
+
 PSI = membrane(U[-1])[2].max()   # the scale of the energy densities (0 at rest)
+SIG = mises(U[-1]).max()         # and of the stresses
 def close(a, b, what, rel=1e-9, scale=0.0):
     a, b = np.asarray(a, float), np.asarray(b, float)
     if a.shape != b.shape or not np.all(np.abs(a - b) <= rel * max(np.abs(b).max(), scale, 1e-300)):
@@ -107,12 +120,13 @@ for path, k in (("last.vtu", len(U) - 1), ("f5.vtu", 5)):
         bad("%s: displacement/velocity differ from frame %d of traj.h5" % (path, k))
     if not np.array_equal(pd["region_top"] == 1, np.isin(np.arange(nv), h["mesh/regions/top"][()])):
         bad(path + ": region_top mask")
-    if sorted(cd) != ["J", "area", "energy_density"]:
-        bad("%s: cell data %s, expected area, J, energy_density" % (path, sorted(cd)))
+    if sorted(cd) != ["J", "area", "energy_density", "von_mises_stress"]:
+        bad("%s: cell data %s, expected area, J, energy_density, von_mises_stress" % (path, sorted(cd)))
     A, J, psi = membrane(U[k])
     close(cd["area"], A, path + " area", 1e-12)
     close(cd["J"], J, path + " J", 1e-9)
     close(cd["energy_density"], psi, path + " energy density", 1e-7, PSI)
+    close(cd["von_mises_stress"], mises(U[k]), path + " von Mises stress", 1e-7, SIG)
     tv = float(root.find("UnstructuredGrid/FieldData/DataArray").text)
     if tv != times[k]:
         bad("%s: TimeValue %r, frame time %r" % (path, tv, times[k]))
@@ -161,8 +175,9 @@ with meshio.xdmf.TimeSeriesReader("run.xdmf") as r:
         A, J, psi = membrane(U[k])
         close(cdk["area"][0], A, "xdmf area", 1e-12); close(cdk["J"][0], J, "xdmf J")
         close(cdk["energy_density"][0], psi, "xdmf energy density", 1e-7, PSI)
-        if "von_mises_stress" in cdk or "volume" in cdk:
-            bad("xdmf: a shell has no stress or volume: %s" % sorted(cdk))
+        close(cdk["von_mises_stress"][0], mises(U[k]), "xdmf von Mises stress", 1e-7, SIG)
+        if "volume" in cdk:
+            bad("xdmf: a shell has no volume: %s" % sorted(cdk))
 x = h5py.File("run.xdmf.h5")
 if x["mesh/triangles"].shape != (ntri, 3) or x["mesh/area"].attrs["units"] not in ("m^2", b"m^2") or "mesh/tets" in x:
     bad("xdmf heavy data: %s" % list(x["mesh"]))

@@ -94,12 +94,31 @@ static void test_membrane(void)
     fprintf(stderr, "membrane: energy of a stretched, rotated triangle %.12g J, exact %.12g J\n", E,
             m.thickness * A * psi);
     CHECK_REL(E, m.thickness * A * psi, 1e-12);
-    /* rigid motion: zero energy and zero force */
+    /* its stress: σ = G S Gᵀ / det G in the plane, S = 2μE + λ̃ tr(E) I, von
+     * Mises from σ's entries (plane stress) */
+    {
+        double S[4] = {2 * m.mu * Eg[0] + m.lambda_ps * tr, 2 * m.mu * Eg[1], 2 * m.mu * Eg[2],
+                       2 * m.mu * Eg[3] + m.lambda_ps * tr};
+        double GS[4], sg[4], dG = G[0] * G[3] - G[1] * G[2];
+        for (int i = 0; i < 2; i++)
+            for (int j = 0; j < 2; j++)
+                GS[2 * i + j] = G[2 * i] * S[j] + G[2 * i + 1] * S[2 + j];
+        for (int i = 0; i < 2; i++)
+            for (int j = 0; j < 2; j++)
+                sg[2 * i + j] = (GS[2 * i] * G[2 * j] + GS[2 * i + 1] * G[2 * j + 1]) / dG;
+        double vm = sqrt(sg[0] * sg[0] - sg[0] * sg[3] + sg[3] * sg[3] + 3 * sg[1] * sg[2]);
+        double got = crom_shell_tri_mises(&m, x, Dminv);
+        fprintf(stderr, "membrane: von Mises stress of the stretched, rotated triangle %.12g Pa, exact %.12g Pa\n", got,
+                vm);
+        CHECK_REL(got, vm, 1e-12);
+    }
+    /* rigid motion: zero energy, force and stress */
     double xr[9], g[9], H[81], Hfd[81], gfd[9];
     rigid(R2, t2, X, xr, 3);
     CHECK(crom_shell_tri_eval(&m, xr, Dminv, A, 0, &E, g, NULL) == CROM_OK);
     CHECK_LT(fabs(E), 1e-18);
     CHECK_LT(max_abs(g, 9), 1e-12 * m.E * m.thickness * sqrt(A));
+    CHECK_LT(crom_shell_tri_mises(&m, xr, Dminv), 1e-9 * m.E);
     /* derivatives against differences: stretched, compressed, random */
     tri_case tc = {&m, Dminv, A};
     for (int k = 0; k < 4; k++) { /* x; compressed; random; stretched */
