@@ -87,7 +87,7 @@ DF2_POSE_PARTS ?= 1000
 DF2_MAT = --youngs $(DF2_YOUNGS) --poisson 0.45 --density 1000
 DF2_SCENARIO = $(DF2_MAT) $(DF_BC) --dt 0.05 --steps 100
 DF2_STATIC = $(DF2_SCENARIO) --damping 10
-DF2_ROWS = eigen-opt eigen-metis trained-opt trained-metis mderiv-metis
+DF2_ROWS = eigen-opt eigen-metis trained-opt trained-metis mderiv-opt mderiv-metis
 df2_kind = $(firstword $(subst -, ,$(1)))
 # the continuous fields on the soft bar, latent dim DF_RANK, stepped with
 # --model over every tet (all) or an optimized cubature of their features
