@@ -17,12 +17,13 @@
 #include "phys/scenario.h"
 #include "rom/model.h"
 
-enum { O_COUNT = 300, O_KEEP, O_SHIFT, O_TOL, O_RIGID_TOL, O_DERIV };
+enum { O_COUNT = 300, O_KEEP, O_SHIFT, O_TOL, O_RIGID_TOL, O_DERIV, O_FIELDS };
 
 static const crom_opt modes_opts[] = {
     {"count", O_COUNT, "K", "Number of modes in the basis (default 20): deformation modes, plus the rigid ones in front with --keep-rigid (then K counts them too)."},
     {"keep-rigid", O_KEEP, NULL, "Keep the rigid-body modes that were detected (zero frequency) at the front of the basis, as translations x, y, z then rotations about x, y, z through the centre of mass, as far as the pins allow them. Default: drop them, so the basis holds K deformation modes. A free body that must move as a whole in crom-reducedstep (a falling or thrown body) needs them: translations are then exact, rotations linearized (good for small angles)."},
     {"derivatives", O_DERIV, NULL, "Append the modal derivatives of the K modes (Barbic and James 2005: K Psi_ij = -(dK/du . phi_j) phi_i at rest, i <= j): a linear basis of K + K(K+1)/2 fields (fewer where a derivative depends on the others), M-orthonormal, that follows larger deflections than the modes alone (the in-plane shortening a bent beam or shell needs not to lock). The body must be pinned. /frequencies then holds each field's Rayleigh frequency, and the attribute 'derivatives' their count."},
+    {"fields", O_FIELDS, "R", "With --derivatives: keep the first R fields of the basis, the K modes then the derivatives in the order (1,1), (1,2) ... (1,K), (2,2) ... (default: all of them)."},
     {"shift", O_SHIFT, "SIGMA", "Shift of the shift-invert Lanczos iteration in rad^2/s^2, negative (default -0.01 E / (rho D^2), D the bounding-box diagonal): K - SIGMA M is factored once."},
     {"tol", O_TOL, "T", "Convergence tolerance on the Ritz residuals, relative (default 1e-10)."},
     {"rigid-tol", O_RIGID_TOL, "T", "A mode is rigid when omega^2 <= T times the mean eigenvalue of M^-1 K (default 1e-12: rigid modes come out near 1e-17 of it, the first deformation mode of a rod 100 times longer than thick, meshed 4 tets across, near 6e-9)."},
@@ -43,7 +44,7 @@ static const crom_cli_doc doc = {
     "crom-modes",
     "linear vibration modes of a mesh with its pins (crom/mesh to crom/model)",
     "crom-modes [--youngs E] [--poisson NU] [--density RHO] [--pin REGION ...] [--count K]\n"
-    "           [--keep-rigid] [--derivatives] [-o OUT] [MESH|-]",
+    "           [--keep-rigid] [--derivatives [--fields R]] [-o OUT] [MESH|-]",
     "Computes the lowest natural frequencies and mode shapes of the generalized eigenproblem "
     "K phi = omega^2 M phi at rest: K is the stiffness of the stable neo-Hookean energy at the rest "
     "state (the same element code as crom-fullsim, unprojected; at rest it is linear elasticity "
@@ -80,7 +81,7 @@ typedef struct {
     crom_scenario sc;
     const char *input, *out;
     crom_modes_opts mo;
-    int derivatives;
+    int derivatives, fields;
 } args;
 
 /* Scenario options crom-modes uses; the others are accepted and ignored. */
@@ -126,6 +127,11 @@ static int on_opt(void *ctx, int key, const char *v)
         return 0;
     case O_KEEP: a->mo.keep_rigid = 1; return 0;
     case O_DERIV: a->derivatives = 1; return 0;
+    case O_FIELDS:
+        if (crom_parse_int(v, "--fields", 1, 1000000L, &n))
+            return CROM_EUSAGE;
+        a->fields = (int)n;
+        return 0;
     case O_SHIFT:
         if (crom_parse_double(v, "--shift", &a->mo.shift))
             return CROM_EUSAGE;
@@ -276,6 +282,14 @@ static int run(crom_cli *cli, args *a)
         }
         goto out;
     }
+    if (a->fields && !a->derivatives) {
+        rc = crom_err(CROM_EUSAGE, "--fields applies to --derivatives (the modes alone: --count)");
+        goto out;
+    }
+    if (a->fields && a->fields < r.k) {
+        rc = crom_err(CROM_EUSAGE, "--fields %d keeps fewer fields than the %d modes (use --count)", a->fields, r.k);
+        goto out;
+    }
     if (a->derivatives && r.nrigid) {
         rc = crom_err(CROM_EDATA, "--derivatives: %s moves rigidly (%d rigid mode%s) and its stiffness is singular; "
                       "pin it so that it cannot", name, r.nrigid, r.nrigid > 1 ? "s" : "");
@@ -291,9 +305,16 @@ static int run(crom_cli *cli, args *a)
             goto out;
         rc = crom_mderiv_basis(&sys, m.X, fixed, r.phi, r.k, &B, &kb, &f);
         crom_system_free(&sys);
+        int independent = kb - r.k;
+        if (!rc && a->fields && a->fields < kb) { /* the first fields: B is [n][kb] row-major */
+            for (int i = 0; i < r.n; i++)
+                memmove(B + (size_t)i * a->fields, B + (size_t)i * kb, sizeof(double) * (size_t)a->fields);
+            kb = a->fields;
+        }
         if (!rc) {
-            crom_cli_info(cli, "%d modal derivatives appended (%d of %d independent): a basis of %d fields",
-                          kb - r.k, kb - r.k, r.k * (r.k + 1) / 2, kb);
+            crom_cli_info(cli, "%d modal derivatives appended (%d of %d independent%s): a basis of %d fields",
+                          kb - r.k, independent, r.k * (r.k + 1) / 2,
+                          kb - r.k < independent ? ", the first kept by --fields" : "", kb);
             rc = write_model(cli, a, &m, &r, B, kb, f, kb - r.k, mass, hist);
         }
         free(B);

@@ -5,7 +5,8 @@
 # crom-fullsim; the subspaces, each of about 8 dimensions, run with
 # crom-reducedstep --model over every triangle and hinge:
 #   modes     the 8 lowest linear modes (crom-modes)
-#   mderiv    3 modes and their 6 modal derivatives (crom-modes --derivatives, d = 9)
+#   mderiv    3 modes and the first 5 of their 6 modal derivatives (crom-modes
+#             --derivatives --fields 8, d = 8; MDFIELDS= keeps all 9)
 #   neural    neural modes on the 8 linear modes (crom-fitfield --objective neuralmodes)
 #   nmderiv   the same seeded with the modes' modal derivatives (--derivatives):
 #             x = X + Phi z + 1/2 sum Psi_ij z_i z_j + y(z), d = 8
@@ -22,15 +23,15 @@
 #
 # Measured (make -j2 on the 2-core machine, about a minute each; 795
 # vertices, 1479 triangles, 2164 hinges), static error at YOUNGS=1e9 | 1e8:
-# modes 88.8% | 96.6%, mderiv 1.8% | 28.8% (DMODES=5, 5 modes + 15
-# derivatives: 0.7% | 13.5%), neural 88.7% | 96.3%, nmderiv 30.1% | 73.0%,
-# energy 99.8% | 99.6%, mderiv-cub 1.7% | 28.8% at 0.06 | 0.20 ms per step
-# (median; 42 elements at 1e9) against crom-fullsim's 8.4 | 21 ms, where
-# the runs over every element take 3-14 ms. Bending modes lock: deflected,
-# they stretch the membrane, (L/t)^2 = 4e4 times stiffer than bending; modal
-# derivatives add the in-plane shortening a bent sheet needs. quadratic,
-# nmderiv untrained, ends 4.3% | 64% from crom-fullsim: the training (6000
-# steps over the box) costs accuracy at this sag.
+# modes 88.8% | 96.6%, mderiv (d = 8) 1.9% | 28.9% (MDFIELDS= , d = 9: 1.8%
+# | 28.8%; DMODES=5 MDFIELDS= , 5 modes + 15 derivatives: 0.7% | 13.5%),
+# neural 88.7% | 96.3%, nmderiv 30.1% | 73.0%, quadratic 4.3% | 64%, energy
+# 99.8% | 99.6%, mderiv-cub 1.6% | 28.9% at 0.05 | 0.11 ms per step (median)
+# against crom-fullsim's 8.4 | 21 ms, where the runs over every element take
+# 3-24 ms. Bending modes lock: deflected, they stretch the membrane, (L/t)^2
+# = 4e4 times stiffer than bending; modal derivatives add the in-plane
+# shortening a bent sheet needs. quadratic is nmderiv untrained: the
+# training (6000 steps over the box) costs accuracy at this sag.
 include $(dir $(lastword $(MAKEFILE_LIST)))common.mk
 
 OUT ?= runs/sheet
@@ -43,6 +44,7 @@ MAT = --youngs $(YOUNGS) --poisson 0.3 --density 200
 SCENARIO = $(MAT) --pin clamp --gravity 0,0,-9.81 --dt 0.05 --steps 60 --damping 4
 D ?= 8
 DMODES ?= 3
+MDFIELDS ?= $(D)
 STEPS_DF ?= 6000
 BOX ?= 0.05
 CUB_COUNT ?= 200
@@ -50,7 +52,7 @@ RUNS = modes mderiv neural nmderiv quadratic energy mderiv-cub
 $(eval $(call stamp_rule,mesh,$(SIZE) $(THICKNESS) $(CLAMP)))
 $(eval $(call stamp_rule,scenario,$(SCENARIO)))
 $(eval $(call stamp_rule,modes,$(D)))
-$(eval $(call stamp_rule,mderiv,$(DMODES)))
+$(eval $(call stamp_rule,mderiv,$(DMODES) $(MDFIELDS)))
 $(eval $(call stamp_rule,datafree,$(D) $(STEPS_DF) $(SEED) $(BOX)))
 
 .PHONY: all
@@ -67,7 +69,8 @@ $(OUT)/full.h5: $(OUT)/mesh.h5 $(call stamp,scenario)
 $(OUT)/model-modes.h5: $(OUT)/mesh.h5 $(call stamp,scenario) $(call stamp,modes)
 	crom-modes $(MAT) --pin clamp --count $(D) $(QUIET) -o $@ $<
 $(OUT)/model-mderiv.h5: $(OUT)/mesh.h5 $(call stamp,scenario) $(call stamp,mderiv)
-	crom-modes $(MAT) --pin clamp --count $(DMODES) --derivatives $(QUIET) -o $@ $<
+	crom-modes $(MAT) --pin clamp --count $(DMODES) --derivatives $(if $(MDFIELDS),--fields $(MDFIELDS)) $(QUIET) \
+	  -o $@ $<
 $(OUT)/model-neural.h5: $(OUT)/mesh.h5 $(OUT)/model-modes.h5 $(call stamp,datafree)
 	crom-fitfield --objective neuralmodes --mesh $< --modes $(OUT)/model-modes.h5 --rank $(D) \
 	  --box $(BOX) --steps $(STEPS_DF) --seed $(SEED) $(QUIET) -o $@

@@ -77,6 +77,10 @@ crom-modes "${MAT9[@]}" --pin clamp --count 9 -q -o tm9.h5 t.h5
 crom-modes "${MAT9[@]}" --pin clamp --count 3 --derivatives -o tmd.h5 t.h5 2>tmd.log
 grep -q "6 modal derivatives appended (6 of 6 independent): a basis of 9 fields" tmd.log || fail "$(cat tmd.log)"; ok
 crom-info --check tmd.h5 >/dev/null || fail "crom-info --check tmd.h5"; ok
+crom-modes "${MAT9[@]}" --pin clamp --count 3 --derivatives --fields 8 -o tmd8.h5 t.h5 2>tmd8.log
+grep -q "5 modal derivatives appended (6 of 6 independent, the first kept by --fields): a basis of 8 fields" tmd8.log \
+  || fail "--fields: $(cat tmd8.log)"; ok
+expect_error 64 "fields applies to --derivatives" x.h5 -- crom-modes "${MAT9[@]}" --pin clamp --count 3 --fields 8 -o x.h5 t.h5
 for m in tm9 tmd; do
   crom-reducedstep --model $m.h5 --mesh t.h5 "${G[@]}" -q -o r$m.h5
   crom-diff --csv $m.csv r$m.h5 tfg.h5 --model $m.h5 >/dev/null
