@@ -43,12 +43,18 @@ crom-cubature --model pod.h5 --scheme random --count 4 -q -o cub.h5 box.h5
 crom-cubature --model modes.h5 --scheme all -q -o cub_modes.h5 box.h5
 crom-mesh sheet --dims 0.4,0.4,1 --size 0.2 --thickness 0.01 --region top='y>0.15' -q -o sheet.h5
 crom-fullsim --pin top --gravity 0,-9.81,1 --steps 2 -q -o sheetrun.h5 sheet.h5
+# a shell's models (modes with their derivatives; a neural-modes map with a
+# quadratic part, untrained and narrow) and its cubature of triangles and hinges
+crom-modes --youngs 1e6 --pin 'y>-0.1' --count 2 --derivatives -q -o sheetmodes.h5 sheet.h5
+crom-fitfield --objective neuralmodes --derivatives --mesh sheet.h5 --modes sheetmodes.h5 --rank 2 --steps 0 \
+  --width 4 --depth 2 -q -o sheetnm.h5
+crom-cubature --model sheetmodes.h5 --scheme all -q -o sheetcub.h5 sheet.h5
 cp box.h5 sphere.h5 run.h5 run1.h5 cub.h5 sheet.h5 sheetrun.h5 "$OUT/mesh/"
 cp run.h5 run1.h5 sheetrun.h5 "$OUT/traj/"
 cp samples.h5 samples_all.h5 samples_two.h5 "$OUT/samples/"
-cp pod.h5 mlp.h5 modes.h5 skin.h5 "$OUT/model/"
-cp cub.h5 cub_modes.h5 "$OUT/cubature/"
-cp box.h5 run.h5 samples.h5 pod.h5 latent.h5 modes.h5 cub.h5 sheet.h5 sheetrun.h5 "$OUT/check/"
+cp pod.h5 mlp.h5 modes.h5 skin.h5 sheetmodes.h5 sheetnm.h5 "$OUT/model/"
+cp cub.h5 cub_modes.h5 sheetcub.h5 "$OUT/cubature/"
+cp box.h5 run.h5 samples.h5 pod.h5 latent.h5 modes.h5 cub.h5 sheet.h5 sheetrun.h5 sheetnm.h5 sheetcub.h5 "$OUT/check/"
 cp run.stream latent.stream "$OUT/stream/"
 
 # ---- frame records after the fuzz_frames header (crom/latent: time, q[3],

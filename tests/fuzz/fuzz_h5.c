@@ -10,7 +10,7 @@
  *   fuzz_samples   crom_samples_read (crom-fitfield's training data)
  *   fuzz_model     crom_model_load (every basis: mlp, pod, modes, skinning,
  *                  data-free maps), then W at a few points
- *   fuzz_cubature  crom_cubature_load, then every cubature tet gathered
+ *   fuzz_cubature  crom_cubature_load, then every cubature tet gathered (a shell's: its elements checked)
  *   fuzz_check     crom_validate_file (crom-info --check) on any crom file
  */
 #include <math.h>
@@ -130,12 +130,14 @@ static void run(const char *path)
     if (crom_cubature_load(path, &c, NULL) == 0) {
         mesh_use(&c.mesh);
         double Xe[12], Dminv[9], *W4 = malloc(12 * (size_t)(c.r > 0 ? c.r : 1) * sizeof *W4);
+        int shell = crom_mesh_is_surface(&c.mesh), ne = shell ? c.ne : c.mesh.nt; /* a shell: its energy elements */
         for (int k = 0; W4 && k < c.k; k++) {
-            if (c.elem[k] < 0 || c.elem[k] >= c.mesh.nt) {
-                fprintf(stderr, "cubature tet %d is %d of %d\n", k, c.elem[k], c.mesh.nt);
+            if (c.elem[k] < 0 || c.elem[k] >= ne) {
+                fprintf(stderr, "cubature element %d is %d of %d\n", k, c.elem[k], ne);
                 abort();
             }
-            crom_cubature_gather(&c, k, Xe, W4, Dminv);
+            if (!shell) /* a shell's cubature has no rest shapes of tets */
+                crom_cubature_gather(&c, k, Xe, W4, Dminv);
         }
         free(W4);
     }
