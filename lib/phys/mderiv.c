@@ -112,8 +112,8 @@ static int derivatives(const crom_system *s, const double *X, const unsigned cha
                        double *B, double *K)
 {
     int n = s->n, nd = k * (k + 1) / 2, rc;
-    double *Hp = malloc(sizeof(double) * (size_t)s->nnz), *Hm = malloc(sizeof(double) * (size_t)s->nnz);
-    double *x = malloc(sizeof(double) * (size_t)n), *y = malloc(sizeof(double) * (size_t)n);
+    double *Hp = crom_malloc(sizeof(double) * (size_t)s->nnz), *Hm = crom_malloc(sizeof(double) * (size_t)s->nnz);
+    double *x = crom_malloc(sizeof(double) * (size_t)n), *y = crom_malloc(sizeof(double) * (size_t)n);
     crom_chol *ch = NULL;
     if (!Hp || !Hm || !x || !y)
         rc = CROM_EINTERNAL;
@@ -133,7 +133,7 @@ int crom_mderiv_compute(const crom_system *s, const double *X, const unsigned ch
     if (k < 1)
         return crom_err(CROM_EUSAGE, "modal derivatives of %d modes", k);
     int n = s->n, nd = k * (k + 1) / 2;
-    double *B = malloc(sizeof(double) * (size_t)n * nd), *K = malloc(sizeof(double) * (size_t)s->nnz);
+    double *B = crom_malloc(sizeof(double) * (size_t)n * nd), *K = crom_malloc(sizeof(double) * (size_t)s->nnz);
     int rc = B && K ? derivatives(s, X, fixed, phi, k, B, K) : CROM_EINTERNAL;
     for (int c = 0; !rc && c < nd; c++)
         for (int d = 0; d < n; d++)
@@ -150,8 +150,8 @@ int crom_mderiv_basis(const crom_system *s, const double *X, const unsigned char
     if (k < 1)
         return crom_err(CROM_EUSAGE, "modal derivatives of %d modes", k);
     int n = s->n, nd = k * (k + 1) / 2, ncol = k + nd, rc;
-    double *K = malloc(sizeof(double) * (size_t)s->nnz), *V = malloc(sizeof(double) * (size_t)n * ncol);
-    double *m = malloc(sizeof(double) * (size_t)n), *y = malloc(sizeof(double) * (size_t)n);
+    double *K = crom_malloc(sizeof(double) * (size_t)s->nnz), *V = crom_malloc(sizeof(double) * (size_t)n * ncol);
+    double *m = crom_malloc(sizeof(double) * (size_t)n), *y = crom_malloc(sizeof(double) * (size_t)n);
     double *W = NULL, *f = NULL;
     if (!K || !V || !m || !y) {
         rc = CROM_EINTERNAL;
@@ -166,8 +166,8 @@ int crom_mderiv_basis(const crom_system *s, const double *X, const unsigned char
     for (int d = 0; d < n; d++)
         m[d] = s->mass[d / 3];
     int kept = orthonormalize(V, n, ncol, m, k);
-    W = malloc(sizeof(double) * (size_t)n * kept);
-    f = malloc(sizeof(double) * (size_t)kept);
+    W = crom_malloc(sizeof(double) * (size_t)n * kept);
+    f = crom_malloc(sizeof(double) * (size_t)kept);
     if (!W || !f) {
         rc = CROM_EINTERNAL;
         goto out;
