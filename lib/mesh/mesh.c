@@ -86,20 +86,37 @@ void crom_mesh_quality(const crom_mesh *m, double *worst, double *mean, int *wor
         *worst_tet = wt;
 }
 
-void crom_mesh_bbox(const crom_mesh *m, double lo[3], double hi[3])
+/* The bounding box of nv points. */
+static void points_bbox(const double *X, int nv, double lo[3], double hi[3])
 {
     for (int k = 0; k < 3; k++) {
         lo[k] = INFINITY;
         hi[k] = -INFINITY;
     }
-    for (int i = 0; i < m->nv; i++)
+    for (int i = 0; i < nv; i++)
         for (int k = 0; k < 3; k++) {
-            double x = m->X[3 * (size_t)i + k];
+            double x = X[3 * (size_t)i + k];
             if (x < lo[k])
                 lo[k] = x;
             if (x > hi[k])
                 hi[k] = x;
         }
+}
+
+void crom_mesh_bbox(const crom_mesh *m, double lo[3], double hi[3])
+{
+    points_bbox(m->X, m->nv, lo, hi);
+}
+
+double crom_mesh_points_diagonal(const double *X, int nv)
+{
+    double lo[3], hi[3], d2 = 0;
+    if (nv < 1)
+        return 0;
+    points_bbox(X, nv, lo, hi);
+    for (int k = 0; k < 3; k++)
+        d2 += (hi[k] - lo[k]) * (hi[k] - lo[k]);
+    return sqrt(d2);
 }
 
 double crom_mesh_vertex_volumes(const crom_mesh *m, double *w)

@@ -57,6 +57,10 @@ void crom_mesh_quality(const crom_mesh *m, double *worst, double *mean, int *wor
 /* Axis-aligned bounding box of the vertices. */
 void crom_mesh_bbox(const crom_mesh *m, double lo[3], double hi[3]);
 
+/* The bounding-box diagonal of nv points X[nv][3] (m; 0 when nv < 1): the
+ * body size that tolerances and default scales are relative to. */
+double crom_mesh_points_diagonal(const double *X, int nv);
+
 /* Lumped vertex volumes: w[v] = sum over the tets t using v of V_t / 4 (m^3)
  * (a shell: thickness × area / 3 over its triangles), so the lumped mass is
  * rho w. Returns the total volume. */

@@ -4,22 +4,10 @@
 #include <string.h>
 
 #include "base/err.h"
+#include "mesh/mesh.h"
 #include "phys/chol.h"
 #include "phys/mderiv.h"
 #include "phys/sym.h"
-
-/* The bounding-box diagonal of X [n]. */
-static double diagonal(const double *X, int n)
-{
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, d2 = 0;
-    for (int i = 0; i < n; i++) {
-        lo[i % 3] = fmin(lo[i % 3], X[i]);
-        hi[i % 3] = fmax(hi[i % 3], X[i]);
-    }
-    for (int c = 0; c < 3; c++)
-        d2 += (hi[c] - lo[c]) * (hi[c] - lo[c]);
-    return sqrt(d2);
-}
 
 /* M-orthonormalize the columns of V [ncol][n] (column-major) in place by
  * modified Gram–Schmidt, twice; a column whose norm falls below 1e-8 of
@@ -76,7 +64,7 @@ static int rhs(const crom_system *s, const double *X, const unsigned char *fixed
                double *B, double *Hp, double *Hm, double *x, double *y)
 {
     int n = s->n, col = 0, rc;
-    double L = diagonal(X, n);
+    double L = crom_mesh_points_diagonal(X, n / 3);
     crom_fem_opts fh = {0, 0, NULL, 1};
     for (int j = 0; j < k; j++) {
         double amax = 0;
