@@ -8,10 +8,15 @@
 #include "cli/cli.h"
 #include "io/io.h"
 #include "mesh/mesh.h"
+#include "base/rng.h"
+#include "phys/cequil.h"
+#include "phys/modes.h"
 #include "phys/scenario.h"
 #include "phys/sim.h"
+#include "rom/map.h"
+#include "rom/model.h"
 
-enum { O_STREAM = 300, O_HDF5, O_STATS };
+enum { O_STREAM = 300, O_HDF5, O_STATS, O_EQUIL, O_GRID, O_RANDOM, O_BOX, O_BOXSC };
 
 static const crom_opt out_opts[] = {
     {"output", 'o', "OUT", "Write the trajectory to OUT (default: stdout; a frame stream into a pipe, HDF5 when redirected to a file)."},
@@ -20,9 +25,18 @@ static const crom_opt out_opts[] = {
     {"stats", O_STATS, "CSV", "Write one line per step to CSV: Newton and CG iterations, factorizations, residual, and the wall-time split (total, assembly, factorization, solves, line search) in seconds."},
     {NULL, 0, NULL, NULL}};
 
+static const crom_opt eq_opts[] = {
+    {"equilibria", O_EQUIL, "MODEL", "Instead of a run: the constrained equilibria in the linear modes of MODEL (crom-modes, or the modes of a neuralmodes map), the ground truth of Neural Modes: frame k is argmin E(x) subject to W^T M (x - X) / m = z_k, for modal coordinates z_k on a grid or drawn at random in a box. The elastic energy alone: no gravity, forces, planes or velocities; --pin as the modes had it."},
+    {"grid", O_GRID, "N", "--equilibria: N points per modal axis, N^r equilibria in the box (Wang et al.: 9 for training, 11 for testing)."},
+    {"random", O_RANDOM, "N", "--equilibria: N equilibria at z uniform in the box (--seed)."},
+    {"box", O_BOX, "A", "--equilibria: the box's half-width in metres of RMS displacement (default: a neuralmodes map's training box, else 0.2 times the bounding-box diagonal)."},
+    {"box-scaling", O_BOXSC, "KIND", "--equilibria: uniform ([-A, A] for every mode; the default but for a neuralmodes map trained with frequency scaling) or frequency ([-A f_1/f_k, A f_1/f_k] for mode k)."},
+    {NULL, 0, NULL, NULL}};
+
 static const crom_cli_optgroup groups[] = {
     {"Scenario options (the same in crom-reducedstep)", crom_scenario_opts},
     {"Output options", out_opts},
+    {"Constrained equilibria", eq_opts},
     {NULL, NULL}};
 
 static const crom_cli_doc doc = {
@@ -48,21 +62,32 @@ static const crom_cli_doc doc = {
     groups,
     "crom-mesh box --size 0.05 | crom-fullsim --velocity 'y>0.45=0,-2,0@0:0.1' --pin 'y<-0.45' \\\n"
     "    --gravity 0,0,0 --dt 0.005 --steps 60 | crom-export --format pvd -o out/\n"
-    "crom-fullsim @compress.flags -o traj.h5 box.h5",
+    "crom-fullsim @compress.flags -o traj.h5 box.h5\n"
+    "crom-fullsim --equilibria modes.h5 --grid 9 --box 0.1 --youngs 1e9 -o eq.h5 square.h5",
     "crom-mesh(1), crom-export(1), crom-info(1), crom-sample(1), crom-reducedstep(1)"};
 
 typedef struct {
     crom_scenario sc;
-    const char *input, *out, *stats;
-    int kind;
+    const char *input, *out, *stats, *equilibria;
+    int kind, grid, random, box_scaling; /* box_scaling: -1 unset, 0 uniform, 1 frequency */
+    int tol_given, iter_given, gravity_given;
+    double box;
 } args;
 
 static int on_opt(void *ctx, int key, const char *v)
 {
     args *a = ctx;
+    const char *scn = crom_scenario_opt_name(key);
+    if (scn) {
+        a->tol_given |= !strcmp(scn, "tol");
+        a->iter_given |= !strcmp(scn, "max-iter");
+        a->gravity_given |= !strcmp(scn, "gravity");
+    }
     int rc = crom_scenario_option(&a->sc, key, v);
     if (rc >= 0)
         return rc;
+    long n;
+    static const char *const boxsc[] = {"uniform", "frequency"};
     switch (key) {
     case 0:
         if (a->input)
@@ -73,6 +98,22 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_STREAM: a->kind = CROM_OUT_SERIES_STREAM; return 0;
     case O_HDF5: a->kind = CROM_OUT_SERIES_H5; return 0;
     case O_STATS: a->stats = v; return 0;
+    case O_EQUIL: a->equilibria = v; return 0;
+    case O_GRID: case O_RANDOM:
+        if (a->grid || a->random)
+            return crom_err(CROM_EUSAGE, "give one of --grid and --random");
+        if (crom_parse_int(v, key == O_GRID ? "--grid" : "--random", key == O_GRID ? 2 : 1, 1000000L, &n))
+            return CROM_EUSAGE;
+        *(key == O_GRID ? &a->grid : &a->random) = (int)n;
+        return 0;
+    case O_BOX: return crom_parse_positive(v, "--box", &a->box);
+    case O_BOXSC:
+        for (int i = 0; i < 2; i++)
+            if (!strcmp(v, boxsc[i])) {
+                a->box_scaling = i;
+                return 0;
+            }
+        return crom_err(CROM_EUSAGE, "--box-scaling '%s': uniform or frequency", v);
     }
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
@@ -90,6 +131,196 @@ static int put_frame(crom_out *o, crom_sim *s, const crom_sim_stats *st, double 
     return crom_out_frame(o, vals);
 }
 
+/* ------------------------------------------------------------ equilibria */
+
+/* The modes W [n][r] of the model laid on mesh m (its linear part), and the
+ * half-widths of the box. */
+static int eq_modes(args *a, const crom_mesh *m, crom_model *model, crom_map *map, double **W, double *half,
+                    double *box)
+{
+    int rc = crom_model_load(a->equilibria, model);
+    if (rc)
+        return crom_err_ctx("--equilibria");
+    int nm = !strcmp(model->basis, "neuralmodes");
+    if (!nm && strcmp(model->basis, "modes"))
+        return crom_err(CROM_EUSAGE, "--equilibria %s is a '%s' model; the constrained equilibria are taken in "
+                        "linear vibration modes (crom-modes, or a neuralmodes map)", a->equilibria, model->basis);
+    if ((rc = crom_map_init(map, model, nm ? NULL : m)))
+        return rc;
+    if (nm && crom_map_same_mesh(&map->mesh, m))
+        return crom_err(CROM_EUSAGE, "--equilibria %s: the neuralmodes map lives on another mesh than %s",
+                        a->equilibria, a->input ? a->input : "stdin");
+    int r = map->r, n = map->n;
+    if (map->nonlinear ? map->rl != r : map->p != r)
+        return crom_err(CROM_EINTERNAL, "the model's map has no linear part");
+    *W = crom_malloc(sizeof(double) * (size_t)n * r);
+    if (!*W)
+        return CROM_EINTERNAL;
+    for (int i = 0; i < n; i++)
+        for (int k = 0; k < r; k++)
+            (*W)[(size_t)i * r + k] = map->B[(size_t)i * map->p + k];
+    double A = a->box > 0 ? a->box : nm && model->latent_box > 0 ? model->latent_box
+                                                                 : 0.2 * crom_mesh_points_diagonal(m->X, m->nv);
+    int scaled = a->box_scaling >= 0 ? a->box_scaling : nm && model->latent_box_scaled;
+    if (scaled && !model->frequencies)
+        return crom_err(CROM_EUSAGE, "--box-scaling frequency: %s records no frequencies", a->equilibria);
+    for (int k = 0; k < r; k++)
+        half[k] = scaled ? crom_modes_box_half(model->frequencies, r, A, k) : A;
+    a->box_scaling = scaled;
+    *box = A;
+    return 0;
+}
+
+/* Modal coordinates of equilibrium k: the grid's point k (the last axis
+ * fastest) or a uniform draw. */
+static void eq_point(const args *a, int r, const double *half, long k, crom_rng *rng, double *z)
+{
+    for (int d = r - 1; d >= 0; d--) {
+        if (a->grid) {
+            long i = k % a->grid;
+            k /= a->grid;
+            z[d] = half[d] * (-1 + 2.0 * (double)i / (a->grid - 1));
+        } else {
+            z[d] = half[d] * (2 * crom_rng_uniform(rng) - 1);
+        }
+    }
+}
+
+static int run_equilibria(crom_cli *cli, args *a, crom_mesh *m, char *hist)
+{
+    crom_scenario *sc = &a->sc;
+    if (sc->nvel || sc->nforce || sc->nplanes || a->gravity_given || sc->v0[0] || sc->v0[1] || sc->v0[2] ||
+        sc->spin[0] || sc->spin[1] || sc->spin[2])
+        return crom_err(CROM_EUSAGE, "--equilibria minimizes the elastic energy alone: --gravity, --velocity, "
+                                     "--force, --plane, --sphere and initial velocities do not apply");
+    if (!a->grid && !a->random)
+        return crom_err(CROM_EUSAGE, "--equilibria needs --grid N or --random N");
+    sc->gravity[0] = sc->gravity[1] = sc->gravity[2] = 0;
+    crom_model model;
+    crom_model_clear(&model);
+    crom_map map;
+    memset(&map, 0, sizeof map);
+    crom_system sys;
+    memset(&sys, 0, sizeof sys);
+    crom_cequil ce;
+    memset(&ce, 0, sizeof ce);
+    unsigned char *fixed = NULL;
+    double *W = NULL, *x = NULL, *xprev = NULL, *u = NULL, *zero = NULL, half[64], z[64], lam[64], A = 0;
+    int npinned = 0, r = 0, n = 3 * m->nv, have_prev = 0;
+    const char *refs[CROM_SCENARIO_MAX];
+    for (int i = 0; i < sc->npins; i++)
+        refs[i] = sc->pins[i];
+    int rc = crom_modes_pins(m, sc->npins, refs, &fixed, &npinned);
+    if (!rc)
+        rc = crom_system_init(&sys, m, sc->youngs, sc->poisson, sc->density);
+    if (!rc && (rc = eq_modes(a, m, &model, &map, &W, half, &A)) == 0 && map.r > 64)
+        rc = crom_err(CROM_EUSAGE, "--equilibria: %d modes (at most 64)", map.r);
+    if (rc)
+        goto out;
+    r = map.r;
+    long count = a->random;
+    if (a->grid) {
+        double c = pow(a->grid, r);
+        if (c > 1e6) {
+            rc = crom_err(CROM_EUSAGE, "--grid %d over %d modes is %.3g equilibria (at most 1e6)", a->grid, r, c);
+            goto out;
+        }
+        count = (long)c;
+    }
+    crom_cequil_opts co;
+    crom_cequil_defaults(&co);
+    if (a->tol_given)
+        co.tol = sc->tol;
+    if (a->iter_given)
+        co.max_iter = sc->max_iter;
+    if ((rc = crom_cequil_init(&ce, &sys, m, fixed, r, W, &co)))
+        goto out;
+    x = crom_malloc(sizeof(double) * (size_t)n);
+    xprev = crom_malloc(sizeof(double) * (size_t)n);
+    u = crom_malloc(sizeof(double) * (size_t)n);
+    zero = crom_calloc((size_t)n, sizeof(double));
+    if (!x || !xprev || !u || !zero) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    crom_out o;
+    if ((rc = crom_out_create(&o, a->out, "crom/trajectory", 1, cli->cmdline, hist, a->kind)))
+        goto out;
+    hid_t g = crom_h5_group(o.h5, "mesh");
+    rc = g < 0 ? CROM_EINTERNAL : crom_mesh_write(g, m);
+    if (g >= 0)
+        H5Gclose(g);
+    sc->steps = (int)(count - 1 < 0 ? 0 : count - 1);
+    if (!rc)
+        rc = crom_scenario_write_attrs(o.h5, sc);
+    if (!rc)
+        rc = crom_h5_set_str(o.h5, ".", "equilibria_model", model.model_id);
+    if (!rc)
+        rc = crom_h5_set_f64(o.h5, ".", "latent_box", &A, 1);
+    if (!rc)
+        rc = crom_h5_set_str(o.h5, ".", "latent_box_scaling", a->box_scaling ? "frequency" : "uniform");
+    hsize_t dims[2] = {(hsize_t)m->nv, 3}, rd[1] = {(hsize_t)r};
+    static const char *const f[] = {"time", "step", "displacement", "velocity", "kinetic_energy", "elastic_energy",
+                                    "external_energy", "total_energy", "newton_iterations", "residual",
+                                    "step_seconds", "modal_coordinates", "modal_forces"};
+    for (int i = 0; i < 13 && !rc; i++)
+        rc = crom_out_field(&o, f[i], (i == 2 || i == 3) ? 2 : i >= 11 ? 1 : 0, i >= 11 ? rd : dims, NULL);
+    if (!rc)
+        rc = crom_out_begin(&o);
+    crom_rng rng;
+    crom_rng_seed(&rng, (uint64_t)cli->seed);
+    crom_cli_progress prog;
+    crom_cli_progress_start(&prog, cli, "equilibria", count);
+    long newton = 0;
+    for (long k = 0; k < count && !rc; k++) {
+        eq_point(a, r, half, k, &rng, z);
+        crom_cequil_stats st;
+        double t0 = crom_clock_now();
+        for (int i = 0; i < n; i++) { /* from X + W z, else from the previous equilibrium */
+            x[i] = m->X[i];
+            for (int d = 0; d < r; d++)
+                x[i] += W[(size_t)i * r + d] * z[d];
+        }
+        rc = crom_cequil_solve(&ce, z, x, lam, &st);
+        if (rc == CROM_EDATA && have_prev) {
+            char first[400];
+            snprintf(first, sizeof first, "%s", crom_errmsg());
+            crom_err_clear();
+            memcpy(x, xprev, sizeof(double) * (size_t)n);
+            if ((rc = crom_cequil_solve(&ce, z, x, lam, &st)))
+                crom_err(rc, "equilibrium %ld: from X + W z: %s; from the previous equilibrium: %s", k, first,
+                         crom_errmsg());
+        } else if (rc) {
+            crom_err_ctx("equilibrium %ld", k);
+        }
+        if (rc)
+            break;
+        memcpy(xprev, x, sizeof(double) * (size_t)n);
+        have_prev = 1;
+        newton += st.newton;
+        for (int i = 0; i < n; i++)
+            u[i] = x[i] - m->X[i];
+        double t = (double)k, it = st.newton, res = st.residual, secs = crom_clock_wall(crom_clock_now() - t0), zk = 0;
+        const double *vals[] = {&t, &t, u, zero, &zk, &st.energy, &zk, &st.energy, &it, &res, &secs, z, lam};
+        rc = crom_out_frame(&o, vals);
+        char extra[64];
+        snprintf(extra, sizeof extra, "%d Newton, E %.3g J", st.newton, st.energy);
+        crom_cli_progress_update(&prog, k + 1, extra);
+    }
+    crom_cli_progress_end(&prog);
+    rc = crom_out_finish_run(&o, NULL, rc);
+    if (!rc && cli->verbose)
+        crom_cli_info(cli, "%ld constrained equilibria in %d modes of %s (%d vertices, %d pinned): %.1f Newton "
+                           "iterations each", count, r, a->equilibria, m->nv, npinned, (double)newton / count);
+out:
+    crom_cequil_free(&ce);
+    crom_system_free(&sys);
+    crom_map_free(&map);
+    crom_model_free(&model);
+    free(fixed), free(W), free(x), free(xprev), free(u), free(zero);
+    return rc;
+}
+
 static int run(crom_cli *cli, args *a)
 {
     crom_mesh m;
@@ -97,6 +328,17 @@ static int run(crom_cli *cli, args *a)
     int rc = crom_mesh_load(a->input, CROM_MESH_SURFACES, &m, &hist);
     if (rc)
         return rc;
+    if (a->equilibria) {
+        rc = run_equilibria(cli, a, &m, hist);
+        free(hist);
+        crom_mesh_free(&m);
+        return rc;
+    }
+    if (a->grid || a->random || a->box > 0 || a->box_scaling >= 0) {
+        free(hist);
+        crom_mesh_free(&m);
+        return crom_err(CROM_EUSAGE, "--grid, --random, --box and --box-scaling apply to --equilibria");
+    }
     crom_sim s;
     if ((rc = crom_sim_init(&s, &m, &a->sc))) {
         crom_mesh_free(&m);
@@ -186,6 +428,7 @@ int main(int argc, char **argv)
     memset(&a, 0, sizeof a);
     crom_scenario_defaults(&a.sc);
     a.kind = CROM_OUT_SERIES;
+    a.box_scaling = -1;
     crom_cli_parse(&cli, &doc, argc, argv, on_opt, &a);
     return crom_cli_exit(&cli, run(&cli, &a));
 }

@@ -10,13 +10,15 @@
 #include "cli/cli.h"
 #include "io/io.h"
 #include "mesh/mesh.h"
-#include "phys/fem.h"
+#include "phys/system.h"
 #include "phys/scenario.h"
 #include "rom/map.h"
 #include "rom/metrics.h"
 #include "rom/model.h"
+#include "rom/result.h"
+#include "phys/modes.h"
 
-enum { O_MESH = 300, O_COMPARE, O_SAMPLES, O_SPHERE, O_BOX, O_NORMAL, O_SIGMA, O_PAIRS, O_THRESH };
+enum { O_MESH = 300, O_COMPARE, O_SAMPLES, O_SPHERE, O_BOX, O_NORMAL, O_SIGMA, O_PAIRS, O_THRESH, O_EQUIL };
 
 static const crom_opt met_opts[] = {
     {"mesh", O_MESH, "MESH", "The mesh to lay the subspace on: required for a neural field (mlp); for pod and modes another mesh interpolates them; a data-free map (energy, neuralmodes) lives on its own mesh, which is the default and the only mesh accepted."},
@@ -28,6 +30,7 @@ static const crom_opt met_opts[] = {
     {"sigma", O_SIGMA, "S", "Isometry scale in metres of RMS displacement per unit of q (default: the model's sigma for energy maps and continuous fields, 1 otherwise: q in metres)."},
     {"pairs-of", O_PAIRS, "N", "The isometry ratio is measured over all pairs of the first N samples (default 100)."},
     {"collapse-threshold", O_THRESH, "T", "A normalized Gram eigenvalue below T counts as a collapsed dimension (default 0.01)."},
+    {"equilibria", O_EQUIL, "EQ", "Instead: measure the modal subspace MODEL (linear modes, or a neuralmodes map, on their own mesh) against the constrained equilibria of EQ (crom-fullsim --equilibria, in the same modes) at their modal coordinates: elastic energy, von Mises stress, nodal forces and displacement (Wang et al., Neural Modes, Table 2). Material and pins come from EQ."},
     {NULL, 0, NULL, NULL}};
 
 static const crom_cli_optgroup groups[] = {
@@ -57,16 +60,25 @@ static const crom_cli_doc doc = {
     "the body). correlation_eigenvalues: the same for the correlation matrix D^-1/2 G D^-1/2. "
     "collapse: how many fall below --collapse-threshold.\n\n"
     "The material comes from the model (data-free maps and modes record it) unless given; gravity "
-    "from the model's scenario (energy maps), else 0.",
+    "from the model's scenario (energy maps), else 0.\n\n"
+    "With --equilibria EQ it measures instead a modal subspace (x(z) = X + W z, or a neuralmodes map) "
+    "against the constrained equilibria x*(z_k) of crom-fullsim --equilibria, at their modal "
+    "coordinates z_k (Wang et al., Neural Modes, Table 2 and A1), one per line: elastic_energy (the "
+    "subspace's mean and largest, and the equilibria's: a subspace cannot go below them), "
+    "von_mises_stress (mean over samples of the area- or volume-weighted mean element stress, a "
+    "shell's membrane stress; largest element stress; and the relative weighted error), "
+    "nodal_force_error (mean over samples of the RMS over free vertices of |f - f*|, f = -grad E), "
+    "displacement_error (mean |u - u*|_M / |u*|_M).",
     groups,
     "crom-metrics df.h5\n"
     "crom-metrics --compare modes.h5 --samples 512 df.h5\n"
     "crom-metrics --box 0.1 nm.h5\n"
-    "crom-metrics --mesh bar.h5 --youngs 1e6 --sphere 0.05 model.h5",
+    "crom-metrics --mesh bar.h5 --youngs 1e6 --sphere 0.05 model.h5\n"
+    "crom-metrics --equilibria eq-test.h5 nm.h5",
     "crom-fitfield(1), crom-modes(1), crom-reducedstep(1), crom-info(1)"};
 
 typedef struct {
-    const char *model, *mesh, *compare;
+    const char *model, *mesh, *compare, *equilibria;
     crom_metrics_opts mo;
     int dist_given, sigma_given, material_given, gravity_given;
     double threshold;
@@ -112,6 +124,7 @@ static int on_opt(void *ctx, int key, const char *v)
                                    &a->mo.radius);
     case O_SIGMA: a->sigma_given = 1; return crom_parse_positive(v, "--sigma", &a->mo.sigma);
     case O_THRESH: return crom_parse_positive(v, "--collapse-threshold", &a->threshold);
+    case O_EQUIL: a->equilibria = v; return 0;
     }
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
@@ -124,6 +137,94 @@ static void print_eigs(const char *name, const double *e, int r)
     printf("\n");
 }
 
+/* --equilibria: the subspace against constrained equilibria */
+static int run_equilibria(args *a, crom_model *model)
+{
+    if (a->mesh || a->compare || a->dist_given || a->sigma_given || a->material_given || a->gravity_given)
+        return crom_err(CROM_EUSAGE, "--equilibria measures the model on the equilibria's mesh with their material: "
+                                     "--mesh, --compare, the sampling flags and the scenario flags do not apply");
+    crom_result res;
+    crom_map map;
+    memset(&map, 0, sizeof map);
+    crom_system sys;
+    memset(&sys, 0, sizeof sys);
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    unsigned char *fixed = NULL;
+    double *Z = NULL, *U = NULL;
+    char *scen = NULL;
+    long K = 0, cap = 0;
+    int rc = crom_result_open(&res, a->equilibria, NULL, NULL);
+    if (rc)
+        return rc;
+    int fz = -1, r = 0, n = 3 * res.mesh.nv, npinned = 0;
+    if (res.latent || !crom_h5_has_attr(res.in.h5, ".", "equilibria_model") || (fz = crom_in_field(&res.in, "modal_coordinates")) < 0) {
+        rc = crom_err(CROM_EUSAGE, "--equilibria %s holds no constrained equilibria (crom-fullsim --equilibria)",
+                      a->equilibria);
+        goto out;
+    }
+    r = (int)res.in.fields[fz].count;
+    if ((rc = crom_h5_get_str(res.in.h5, ".", "scenario", &scen)) || (rc = crom_scenario_parse_text(scen, &sc)))
+        goto out;
+    const char *refs[CROM_SCENARIO_MAX];
+    for (int i = 0; i < sc.npins; i++)
+        refs[i] = sc.pins[i];
+    if ((rc = crom_modes_pins(&res.mesh, sc.npins, refs, &fixed, &npinned)) ||
+        (rc = crom_map_init(&map, model, NULL)))
+        goto out;
+    if (map.r != r || crom_map_same_mesh(&map.mesh, &res.mesh)) {
+        rc = crom_err(CROM_EUSAGE, "%s (rank %d) does not live on the mesh of %s or has not its %d modal coordinates",
+                      a->model, map.r, a->equilibria, r);
+        goto out;
+    }
+    for (;;) {
+        if (K == cap) {
+            cap = cap ? 2 * cap : 64;
+            double *z2 = crom_realloc(Z, sizeof(double) * (size_t)cap * r), *u2 = z2 ? crom_realloc(U, sizeof(double) * (size_t)cap * n) : NULL;
+            if (z2)
+                Z = z2;
+            if (u2)
+                U = u2;
+            if (!z2 || !u2) {
+                rc = CROM_EINTERNAL;
+                goto out;
+            }
+        }
+        double t;
+        int got = crom_result_next(&res, &t, U + (size_t)K * n, NULL);
+        if (got < 0 || got > 1) {
+            rc = got < 0 ? -got : got;
+            goto out;
+        }
+        if (!got)
+            break;
+        memcpy(Z + (size_t)K * r, crom_in_get(&res.in, fz), sizeof(double) * (size_t)r);
+        K++;
+    }
+    crom_material mat;
+    if ((rc = crom_material_init(&mat, sc.youngs, sc.poisson, sc.density)) ||
+        (rc = crom_system_init(&sys, &res.mesh, sc.youngs, sc.poisson, sc.density)))
+        goto out;
+    crom_metrics_eq e;
+    if ((rc = crom_metrics_equilibria(&map, &sys, &mat, fixed, (int)K, Z, U, &e)))
+        goto out;
+    printf("model: %s, basis %s, rank %d, model_id %s\n", a->model, model->basis, model->rank, model->model_id);
+    printf("equilibria: %s, %d in %d modal coordinates, %d vertices (%d pinned), E %.6g Pa, nu %.6g; the modes "
+           "agree to %.2g m\n", a->equilibria, e.count, r, res.mesh.nv, npinned, sc.youngs, sc.poisson, e.zmax_dev);
+    printf("elastic_energy: mean %.6g J, max %.6g J; equilibria mean %.6g J, max %.6g J; ratio %.4g\n", e.energy,
+           e.energy_max, e.energy_gt, e.energy_gt_max, e.energy_gt > 0 ? e.energy / e.energy_gt : NAN);
+    printf("von_mises_stress: mean %.6g Pa, max %.6g Pa; equilibria mean %.6g Pa, max %.6g Pa; relative error "
+           "%.4g\n", e.stress, e.stress_max, e.stress_gt, e.stress_gt_max, e.stress_err);
+    printf("nodal_force_error: %.6g N RMS (the equilibria's forces: %.6g N RMS)\n", e.force_err, e.force_gt);
+    printf("displacement_error: %.4g\n", e.disp_err);
+out:
+    crom_result_close(&res);
+    crom_map_free(&map);
+    crom_system_free(&sys);
+    free(fixed), free(Z), free(U), free(scen);
+    return rc;
+}
+
 static int run(crom_cli *cli, args *a)
 {
     crom_model model, cmpm;
@@ -134,13 +235,17 @@ static int run(crom_cli *cli, args *a)
     crom_map map, cmap;
     memset(&map, 0, sizeof map);
     memset(&cmap, 0, sizeof cmap);
-    crom_fem fem;
+    crom_system fem;
     memset(&fem, 0, sizeof fem);
     crom_metrics res;
     memset(&res, 0, sizeof res);
     int rc;
     if ((rc = crom_model_load(a->model, &model)))
         goto out;
+    if (a->equilibria) {
+        rc = run_equilibria(a, &model);
+        goto out;
+    }
     if (a->mesh && (rc = crom_mesh_load(a->mesh, 1, &mesh, NULL)))
         goto out;
     if ((rc = crom_map_init(&map, &model, a->mesh ? &mesh : NULL)))
@@ -180,7 +285,7 @@ static int run(crom_cli *cli, args *a)
     crom_material mat;
     if ((rc = crom_scenario_check(&a->sc)) || (rc = crom_material_init(&mat, a->sc.youngs, a->sc.poisson, a->sc.density)))
         goto out;
-    if ((rc = crom_fem_init(&fem, &map.mesh, &mat)))
+    if ((rc = crom_system_init(&fem, &map.mesh, mat.E, mat.nu, mat.rho)))
         goto out;
     /* the latent distribution and the isometry scale */
     double lo[3], hi[3];
@@ -195,8 +300,8 @@ static int run(crom_cli *cli, args *a)
     if ((rc = crom_metrics_compute(&map, &fem, a->sc.gravity, &a->mo, a->compare ? &cmap : NULL, &res)))
         goto out;
     static const char *dn[] = {"q ~ N(0, S^2 I), S", "q on the sphere |q| =", "q in the box [-A, A]^r, A"};
-    printf("model: %s, basis %s, rank %d, model_id %s, %d vertices, %d tets\n", a->model, model.basis, model.rank,
-           model.model_id, map.nv, map.mesh.nt);
+    printf("model: %s, basis %s, rank %d, model_id %s, %d vertices, %d %s\n", a->model, model.basis, model.rank,
+           model.model_id, map.nv, map.mesh.ntri ? map.mesh.ntri : map.mesh.nt, map.mesh.ntri ? "triangles" : "tets");
     printf("material: E %.6g Pa, nu %.6g, rho %.6g kg/m^3 (%s); gravity %.6g,%.6g,%.6g m/s^2; mass %.6g kg\n",
            a->sc.youngs, a->sc.poisson, a->sc.density, matsrc, a->sc.gravity[0], a->sc.gravity[1], a->sc.gravity[2],
            fem.total_mass);
@@ -223,7 +328,7 @@ static int run(crom_cli *cli, args *a)
         crom_cli_info(cli, "material %s", matsrc);
 out:
     crom_metrics_free(&res);
-    crom_fem_free(&fem);
+    crom_system_free(&fem);
     crom_map_free(&map);
     crom_map_free(&cmap);
     crom_model_free(&model);

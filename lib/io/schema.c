@@ -61,6 +61,12 @@ static const crom_schema_dset mesh_dsets[] = {
 static const crom_schema_attr traj_attrs[] = {
     SERIES_ATTRS,
     SCENARIO_ATTRS(1),
+    {"equilibria_model", "str", 0, "constrained equilibria (crom-fullsim --equilibria): the model_id of the modes W they "
+                                   "are taken in; frame k is argmin E(x) subject to W^T M (x - X) / m = z_k, and time and "
+                                   "step hold k", NULL},
+    {"latent_box", "f64", 0, "constrained equilibria: the half-width A of the box of modal coordinates (m)", NULL},
+    {"latent_box_scaling", "str", 0, "constrained equilibria: uniform ([-A, A] for every mode) or frequency ([-A f_1/f_k, "
+                                     "A f_1/f_k] for mode k)", NULL},
     {NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_attr traj_objattrs[] = {
@@ -85,6 +91,10 @@ static const crom_schema_dset traj_dsets[] = {
     {"frames/newton_iterations", "f64", "F", 1, "1", "Newton iterations of the step that produced the frame (0 for frame 0)", NULL},
     {"frames/residual", "f64", "F", 1, "1", "last Newton correction of that step, max-norm, relative to the bounding-box diagonal", NULL},
     {"frames/step_seconds", "f64", "F", 1, "s", "wall time of that step (0 when SOURCE_DATE_EPOCH is set)", NULL},
+    {"frames/modal_coordinates", "f64", "F,r", 0, "m", "constrained equilibria: the modal coordinates z = W^T M u / m "
+                                                       "of the frame", NULL},
+    {"frames/modal_forces", "f64", "F,r", 0, "N", "constrained equilibria: the generalized forces -W^T grad E that "
+                                                  "hold the body at z", NULL},
     {NULL, NULL, NULL, 0, NULL, NULL, NULL}};
 
 static const crom_schema_attr samples_attrs[] = {

@@ -11,11 +11,12 @@
 #include "base/linesearch.h"
 #include "mesh/mesh.h"
 #include "phys/cequil.h"
+#include "phys/modes.h"
 
 void crom_cequil_defaults(crom_cequil_opts *o)
 {
     o->max_iter = 200;
-    o->tol = 1e-9;
+    o->tol = 1e-8;
     o->mu = 0;
 }
 
@@ -25,6 +26,7 @@ void crom_cequil_free(crom_cequil *c)
         return;
     crom_chol_free(c->chol);
     free(c->B);
+    free(c->V);
     free(c->H);
     free(c->g);
     free(c->d);
@@ -37,59 +39,83 @@ void crom_cequil_free(crom_cequil *c)
     memset(c, 0, sizeof *c);
 }
 
-int crom_cequil_init(crom_cequil *c, const crom_system *sys, const double *X, const unsigned char *fixed, int r,
-                     const double *W, const crom_cequil_opts *o)
+int crom_cequil_init(crom_cequil *c, const crom_system *sys, const crom_mesh *mesh, const unsigned char *fixed,
+                     int r, const double *W, const crom_cequil_opts *o)
 {
     memset(c, 0, sizeof *c);
     int n = sys->n;
     if (r < 1 || r > n)
         return crom_err(CROM_EUSAGE, "%d modal coordinates for %d degrees of freedom", r, n);
+    if (mesh->nv != sys->nv)
+        return crom_err(CROM_EUSAGE, "the mesh has %d vertices, the system %d", mesh->nv, sys->nv);
     if (o->max_iter < 1 || !(o->tol > 0) || !isfinite(o->tol) || !(o->mu >= 0) || !isfinite(o->mu))
         return crom_err(CROM_EUSAGE, "constrained equilibria: bad options (max_iter %d, tol %g, mu %g)", o->max_iter,
                         o->tol, o->mu);
+    double *R = NULL;
+    int nr = 0, rc = crom_modes_rigid(mesh, sys, fixed, &R, &nr);
+    if (rc)
+        return rc;
+    const double *X = mesh->X;
     c->sys = sys;
     c->fixed = fixed;
     c->X = X;
     c->n = n;
     c->r = r;
+    c->nc = r + nr;
     c->o = *o;
     c->L = crom_mesh_points_diagonal(X, n / 3);
-    size_t nr = (size_t)n * r;
-    c->B = crom_malloc(sizeof(double) * nr);
+    size_t nr_ = (size_t)n * c->nc;
+    int nc = c->nc;
+    c->B = crom_malloc(sizeof(double) * nr_);
+    c->V = crom_malloc(sizeof(double) * nr_);
     c->H = crom_malloc(sizeof(double) * (size_t)sys->nnz);
     c->g = crom_malloc(sizeof(double) * (size_t)n);
     c->d = crom_malloc(sizeof(double) * (size_t)n);
     c->a = crom_malloc(sizeof(double) * (size_t)n);
-    c->Y = crom_malloc(sizeof(double) * nr);
-    c->S = crom_malloc(sizeof(double) * (size_t)r * r);
+    c->Y = crom_malloc(sizeof(double) * nr_);
+    c->S = crom_malloc(sizeof(double) * (size_t)nc * nc);
     c->xt = crom_malloc(sizeof(double) * (size_t)n);
     c->work = crom_malloc(sizeof(double) * (size_t)n);
-    c->lam = crom_malloc(sizeof(double) * (size_t)r);
-    if (!c->B || !c->H || !c->g || !c->d || !c->a || !c->Y || !c->S || !c->xt || !c->work || !c->lam) {
+    c->lam = crom_malloc(sizeof(double) * (size_t)nc);
+    if (!c->B || !c->V || !c->H || !c->g || !c->d || !c->a || !c->Y || !c->S || !c->xt || !c->work || !c->lam) {
+        free(R);
         crom_cequil_free(c);
         return CROM_EINTERNAL;
     }
-    /* B = M W / m, column-major [r][n] (the solves' layout); check W */
+    /* B = [M W / m | M R] and V = [W | R], column-major [nc][n] (the solves'
+     * layout), so that Bᵀ V = I; check W */
     double m = sys->total_mass;
-    for (int i = 0; i < n; i++)
+    for (int i = 0; i < n; i++) {
         for (int k = 0; k < r; k++) {
             double w = W[(size_t)i * r + k];
             if (fixed && fixed[i] && w != 0) {
+                free(R);
                 crom_cequil_free(c);
                 return crom_err(CROM_EUSAGE, "mode %d moves pinned degree of freedom %d (vertex %d)", k + 1, i,
                                 i / 3);
             }
+            c->V[(size_t)k * n + i] = w;
             c->B[(size_t)k * n + i] = sys->mass[i / 3] * w / m;
         }
-    for (int k = 0; k < r; k++)
-        for (int l = 0; l < r; l++) {
+        for (int k = 0; k < nr; k++) {
+            c->V[(size_t)(r + k) * n + i] = R[(size_t)i * nr + k];
+            c->B[(size_t)(r + k) * n + i] = sys->mass[i / 3] * R[(size_t)i * nr + k];
+        }
+    }
+    free(R);
+    for (int k = 0; k < nc; k++)
+        for (int l = 0; l < nc; l++) {
             double s = 0;
             for (int i = 0; i < n; i++)
-                s += W[(size_t)i * r + l] * c->B[(size_t)k * n + i];
+                s += c->V[(size_t)l * n + i] * c->B[(size_t)k * n + i];
             if (!(fabs(s - (k == l)) <= 1e-6)) {
                 crom_cequil_free(c);
-                return crom_err(CROM_EUSAGE, "the modes are not M-orthonormal (W^T M W / m entry (%d, %d) is %.3g): "
-                                             "give crom-modes' modes", k + 1, l + 1, s);
+                return k < r && l < r
+                           ? crom_err(CROM_EUSAGE, "the modes are not M-orthonormal (W^T M W / m entry (%d, %d) is "
+                                                   "%.3g): give crom-modes' modes", k + 1, l + 1, s)
+                           : crom_err(CROM_EUSAGE, "the modes are not M-orthogonal to the rigid motions the pins "
+                                                   "leave free (entry %.3g): give crom-modes' modes of this mesh "
+                                                   "with these pins", s);
             }
         }
     c->chol = crom_chol_analyze(n, sys->colptr, sys->rowind, 3);
@@ -100,7 +126,7 @@ int crom_cequil_init(crom_cequil *c, const crom_system *sys, const double *X, co
     c->mu = o->mu;
     if (!(c->mu > 0)) { /* 1e-8 of the mean K_ii / m_i at rest over the free DOFs */
         crom_fem_opts fo = {0, 0, fixed, 1};
-        int rc = crom_system_assemble(sys, X, &fo, NULL, NULL, c->H);
+        rc = crom_system_assemble(sys, X, &fo, NULL, NULL, c->H);
         if (rc) {
             crom_cequil_free(c);
             return rc;
@@ -130,19 +156,19 @@ static int energy_fn(void *ctx, const double *x, double *f, double *g)
  * factored H: a = −H⁻¹g, Y = H⁻¹B, (BᵀY)λ = Bᵀa, Δ = a − Yλ. */
 static int kkt_direction(crom_cequil *c)
 {
-    int n = c->n, r = c->r, rc;
+    int n = c->n, nc = c->nc, rc;
     for (int i = 0; i < n; i++)
         c->work[i] = -c->g[i];
     if ((rc = crom_chol_solve(c->chol, c->work, c->a)) ||
-        (rc = crom_chol_solve_many(c->chol, r, c->B, c->Y)))
+        (rc = crom_chol_solve_many(c->chol, nc, c->B, c->Y)))
         return rc;
-    /* S = Bᵀ Y (r×r, SPD), λ = S⁻¹ Bᵀ a */
-    cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, r, r, n, 1.0, c->B, n, c->Y, n, 0.0, c->S, r);
-    cblas_dgemv(CblasColMajor, CblasTrans, n, r, 1.0, c->B, n, c->a, 1, 0.0, c->lam, 1);
-    if (LAPACKE_dposv(LAPACK_COL_MAJOR, 'U', r, 1, c->S, r, c->lam, r) != 0)
+    /* S = Bᵀ Y (nc×nc, SPD), λ = S⁻¹ Bᵀ a */
+    cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, nc, nc, n, 1.0, c->B, n, c->Y, n, 0.0, c->S, nc);
+    cblas_dgemv(CblasColMajor, CblasTrans, n, nc, 1.0, c->B, n, c->a, 1, 0.0, c->lam, 1);
+    if (LAPACKE_dposv(LAPACK_COL_MAJOR, 'U', nc, 1, c->S, nc, c->lam, nc) != 0)
         return crom_err(CROM_EDATA, "the modal constraint's Schur complement is not positive definite");
     memcpy(c->d, c->a, sizeof(double) * (size_t)n);
-    cblas_dgemv(CblasColMajor, CblasNoTrans, n, r, -1.0, c->Y, n, c->lam, 1, 1.0, c->d, 1);
+    cblas_dgemv(CblasColMajor, CblasNoTrans, n, nc, -1.0, c->Y, n, c->lam, 1, 1.0, c->d, 1);
     return 0;
 }
 
@@ -165,23 +191,20 @@ int crom_cequil_solve(crom_cequil *c, const double *z, double *x, double *lambda
             x[i] = c->X[i];
         c->work[i] = x[i] - c->X[i];
     }
-    double m = sys->total_mass;
-    for (int k = 0; k < r; k++) {
+    for (int k = 0; k < c->nc; k++) { /* the rigid motions' targets are 0 */
         double zk = 0;
         for (int i = 0; i < n; i++)
             zk += c->B[(size_t)k * n + i] * c->work[i];
-        c->lam[k] = z[k] - zk;
+        c->lam[k] = (k < r ? z[k] : 0) - zk;
     }
-    /* W = B m / M per DOF (mass 0 vertices carry no mode) */
-    for (int i = 0; i < n; i++) {
-        double mi = sys->mass[i / 3];
-        if (!(mi > 0))
-            continue;
-        for (int k = 0; k < r; k++)
-            x[i] += c->B[(size_t)k * n + i] * m / mi * c->lam[k];
-    }
-    crom_fem_opts fo = {1, c->mu, c->fixed, 1};
-    double E = NAN;
+    for (int k = 0; k < c->nc; k++)
+        for (int i = 0; i < n; i++)
+            x[i] += c->V[(size_t)k * n + i] * c->lam[k];
+    /* Newton on the true Hessian while it is definite (quadratic
+     * convergence), else, for the rest of the solve, on SPD-projected element
+     * Hessians (as crom-fullsim's steps) */
+    crom_fem_opts fo = {0, c->mu, c->fixed, 1};
+    double E = NAN, shift = 0;
     for (int it = 0;; it++) {
         if ((rc = crom_system_assemble(sys, x, &fo, &E, c->g, c->H)))
             return crom_err(CROM_EDATA, "the energy is not defined at the start or along the solve (an inverted "
@@ -189,15 +212,20 @@ int crom_cequil_solve(crom_cequil *c, const double *z, double *x, double *lambda
         if (it == c->o.max_iter)
             break;
         int tries = 0;
-        while ((rc = crom_chol_factor(c->chol, c->H)) == CROM_EDATA && tries++ < 8) {
+        double added = 0, tau = shift;
+        for (;;) {
+            if (tau > added) { /* shift by τ M (Levenberg) */
+                for (int j = 0; j < n; j++)
+                    if (!(c->fixed && c->fixed[j]))
+                        c->H[sys->colptr[j + 1] - 1] += (tau - added) * sys->mass[j / 3];
+                added = tau;
+            }
+            if ((rc = crom_chol_factor(c->chol, c->H)) != CROM_EDATA || tries++ >= 30)
+                break;
             crom_err_clear();
-            /* not definite: a larger share of M (the diagonal's mass part is μ m_v) */
-            double add = 99 * c->mu;
-            for (int j = 0; j < n; j++)
-                if (!(c->fixed && c->fixed[j]))
-                    c->H[sys->colptr[j + 1] - 1] += add * sys->mass[j / 3];
-            c->mu *= 100;
+            tau = tau > 0 ? 10 * tau : 1e-2 * c->mu * 1e8; /* 1e-2 of the mean K_ii / m_i */
         }
+        shift = added / 4;
         if (rc)
             return rc;
         if ((rc = kkt_direction(c)))
@@ -211,7 +239,11 @@ int crom_cequil_solve(crom_cequil *c, const double *z, double *x, double *lambda
         st->residual = dmax / c->L;
         if (!isfinite(st->residual))
             return crom_err(CROM_EDATA, "the constrained solve became non-finite");
-        if (st->residual <= c->o.tol) {
+        /* converged: the correction is below tol of the body size, or the
+         * energy it could still gain, −gᵀΔ, is below 1e-12 of E (a thin
+         * shell's nearly isometric bendings leave directions so flat that
+         * the configuration is fixed only to the round-off of its energy) */
+        if (st->residual <= c->o.tol || -slope <= 1e-12 * fabs(E)) {
             for (int i = 0; i < n; i++)
                 x[i] += c->d[i];
             if ((rc = crom_system_assemble(sys, x, &fo, &E, c->g, NULL)))
@@ -221,14 +253,17 @@ int crom_cequil_solve(crom_cequil *c, const double *z, double *x, double *lambda
                 for (int k = 0; k < r; k++) { /* −Wᵀ g */
                     double s = 0;
                     for (int i = 0; i < n; i++)
-                        if (sys->mass[i / 3] > 0)
-                            s += c->B[(size_t)k * n + i] * m / sys->mass[i / 3] * c->g[i];
+                        s += c->V[(size_t)k * n + i] * c->g[i];
                     lambda[k] = -s;
                 }
             return 0;
         }
-        if (!(slope < 0)) /* H is SPD and Δ feasible: only round-off gives this */
-            break;
+        if (!(slope < 0)) {
+            if (fo.project) /* H is SPD and Δ feasible: only round-off gives this */
+                break;
+            fo.project = 1; /* the true Hessian is definite but the direction does not descend */
+            continue;
+        }
         double noise = 64 * DBL_EPSILON * fabs(E);
         int tiny = -slope < 1e-8 * fabs(E);
         double alpha = crom_linesearch(energy_fn, c, (size_t)n, x, c->d, E, slope, noise, tiny, c->xt, c->work,

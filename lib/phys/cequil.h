@@ -11,15 +11,26 @@
  * reaches these configurations exactly when it is trained to convergence;
  * linear modes give X + W z, whose energy is higher.
  *
- * Newton's method on the KKT system of the linear constraint, staying
- * feasible: with g = ∇E, H the SPD-projected Hessian plus μM (μ > 0 keeps H
- * definite along a free body's rigid motions, which the energy does not
- * see) and B = M W / m,
+ * A body the pins leave free to move rigidly has its rigid motions R (the
+ * translations and infinitesimal rotations about its centre of mass that the
+ * modes are M-orthogonal to, crom_modes_rigid) held by Rᵀ M (x − X) = 0 as
+ * well: the energy does not see them, and the equilibrium is defined up to a
+ * rigid motion; this picks the one whose mean linearized rotation is zero.
+ *
+ * Newton's method on the KKT system of the linear constraints, staying
+ * feasible: with g = ∇E, H the Hessian plus μM (μ > 0 keeps H definite
+ * along the rigid motions) and B = [M W / m | M R],
  *     H Δ + B λ = −g,   Bᵀ Δ = 0,
  * solved by a Schur complement: a = −H⁻¹ g, Y = H⁻¹ B (one CHOLMOD factor,
  * r + 1 solves), (Bᵀ Y) λ = Bᵀ a, Δ = a − Y λ; then an Armijo line search
  * on E along Δ (lib/base/linesearch.h). Converged when ‖Δ‖∞ is below tol
- * times the bounding-box diagonal, as crom-fullsim's steps are.
+ * times the bounding-box diagonal, as crom-fullsim's steps are, or when the
+ * energy the step could still gain, −gᵀΔ, is below 1e-12 of E (a thin
+ * shell's nearly isometric bendings are so flat that the configuration is
+ * fixed only as far as the round-off of its energy resolves it). The
+ * Hessian: the true one plus μM while its Cholesky factorization succeeds,
+ * else shifted by τM with τ grown tenfold until it does and relaxed fourfold
+ * per iteration after (Levenberg).
  */
 #ifndef CROM_CEQUIL_H
 #define CROM_CEQUIL_H
@@ -29,7 +40,7 @@
 
 typedef struct {
     int max_iter;   /* Newton iterations (default 200) */
-    double tol;     /* ‖Δ‖∞ <= tol · L ends the solve (default 1e-9) */
+    double tol;     /* ‖Δ‖∞ <= tol · L ends the solve (default 1e-8) */
     double mu;      /* μ of H + μM (1/s²); 0 (default): 1e-8 times the mean of K_ii / m_i at rest */
 } crom_cequil_opts;
 
@@ -45,26 +56,27 @@ typedef struct {
     const unsigned char *fixed;
     const double *X;
     int n, r;
+    int nc;           /* constraints: the r modes, then the rigid motions the pins leave free */
     double L, mu;
     crom_cequil_opts o;
     /* private */
-    double *B, *H, *g, *d, *a, *Y, *S, *xt, *work, *lam;
+    double *B, *V, *H, *g, *d, *a, *Y, *S, *xt, *work, *lam; /* V: the constrained motions, Bᵀ V = I */
     crom_chol *chol;
 } crom_cequil;
 
 void crom_cequil_defaults(crom_cequil_opts *o);
 
-/* Set up the solver for system sys (borrowed), rest positions X[n] of its
- * vertices, the pinned DOFs fixed[n] (or NULL) and the r modes W[n][r]
- * (row-major, borrowed). Returns CROM_OK, CROM_EUSAGE (r < 1, a mode that
- * moves a pinned DOF, modes that are not M-orthonormal to 1e-6, bad
- * options) or CROM_EINTERNAL. */
-int crom_cequil_init(crom_cequil *c, const crom_system *sys, const double *X, const unsigned char *fixed, int r,
-                     const double *W, const crom_cequil_opts *o);
+/* Set up the solver for the system sys (borrowed) of mesh (borrowed: its
+ * rest positions and pieces), the pinned DOFs fixed[n] (or NULL) and the r
+ * modes W[n][r] (row-major, borrowed). Returns CROM_OK, CROM_EUSAGE (r < 1,
+ * a mode that moves a pinned DOF, modes that are not M-orthonormal to
+ * 1e-6, bad options) or CROM_EINTERNAL. */
+int crom_cequil_init(crom_cequil *c, const crom_system *sys, const crom_mesh *mesh, const unsigned char *fixed,
+                     int r, const double *W, const crom_cequil_opts *o);
 
 /* Solve at modal coordinates z[r]. x[n] holds a start on entry (any
  * configuration: it is first made feasible, x ← x + W (z − Wᵀ M (x − X) /
- * m), with pinned DOFs at rest; X + W z is a good one) and the equilibrium
+ * m) − R Rᵀ M (x − X), with pinned DOFs at rest; X + W z is a good one) and the equilibrium
  * on return; lambda[r] (may be NULL) the generalized forces −Wᵀ ∇E(x*)
  * (N) that hold the body at z (0 where z is itself at rest). Returns
  * CROM_OK, or CROM_EDATA when Newton does not converge within max_iter or

@@ -287,6 +287,37 @@ static int rigid_basis(const crom_mesh *mesh, const crom_system *fem, const unsi
     return 0;
 }
 
+int crom_modes_rigid(const crom_mesh *mesh, const crom_system *sys, const unsigned char *fixed, double **R,
+                     int *nr)
+{
+    int n = sys->n, nf = 0, rc;
+    *R = NULL;
+    *nr = 0;
+    int *dof = crom_malloc(sizeof(int) * (size_t)n);
+    double *mf = crom_malloc(sizeof(double) * (size_t)n), *Rf = NULL;
+    if (!dof || !mf) {
+        free(dof), free(mf);
+        return CROM_EINTERNAL;
+    }
+    for (int i = 0; i < n; i++)
+        if (!(fixed && fixed[i]) && sys->mass[i / 3] > 0) {
+            dof[nf] = i;
+            mf[nf++] = sys->mass[i / 3];
+        }
+    int k = 0;
+    if (!(rc = rigid_basis(mesh, sys, fixed, nf, dof, mf, &Rf, &k)) && k > 0) {
+        if (!(*R = crom_calloc((size_t)n * k, sizeof(double))))
+            rc = CROM_EINTERNAL;
+        for (int q = 0; !rc && q < k; q++) /* Rf: column q over the free DOFs at Rf[q nf + j] */
+            for (int j = 0; j < nf; j++)
+                (*R)[(size_t)dof[j] * k + q] = Rf[(size_t)q * nf + j];
+        if (!rc)
+            *nr = k;
+    }
+    free(dof), free(mf), free(Rf);
+    return rc;
+}
+
 /* Re-express the r0 M-orthonormal rigid modes P (columns of length n,
  * stride ld, at P[j]) in their span as translations x, y, z and rotations
  * about x, y, z (about xc), as far as those lie in it, M-orthonormal. X3 are

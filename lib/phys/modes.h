@@ -47,6 +47,7 @@
 #include "mesh/mesh.h"
 #include "phys/fem.h"
 #include "phys/chol.h"
+#include "phys/system.h"
 
 typedef struct {
     int count;         /* modes wanted in the result (>= 1); see keep_rigid */
@@ -118,6 +119,14 @@ void crom_modes_free(crom_modes *m);
  * holds. CROM_EUSAGE for an unknown region or an empty selection. */
 int crom_modes_pins(const crom_mesh *m, int n, const char *const *refs,
                     unsigned char **fixed, int *npinned);
+
+/* The rigid motions the pins leave free (those crom_modes_compute keeps
+ * its modes M-orthogonal to): *nr M-orthonormal columns (RᵀMR = I, M the
+ * lumped masses of sys) in *R [3nv][nr] row-major (malloc'ed; NULL when nr
+ * is 0), zero on fixed DOFs and on vertices without mass. sys must be the
+ * system of mesh. Returns 0 or CROM_EINTERNAL. */
+int crom_modes_rigid(const crom_mesh *mesh, const crom_system *sys, const unsigned char *fixed, double **R,
+                     int *nr);
 
 /* The nev lowest eigenpairs of another generalized problem K y = λ M y by
  * the same machinery: K symmetric positive semidefinite (upper CSC over n

@@ -67,11 +67,11 @@ void crom_metrics_sample(crom_rng *rng, const crom_metrics_opts *o, int r, doubl
 }
 
 /* elastic energy, and potential of gravity -Σ m g·u, of positions x */
-static int energies(const crom_fem *fem, const double *X, const double *x, const double g[3], double *Eel,
+static int energies(const crom_system *fem, const double *X, const double *x, const double g[3], double *Eel,
                     double *Egr, double *rms)
 {
     crom_fem_opts fo = {0, 0, NULL, 1};
-    int rc = crom_fem_assemble(fem, x, &fo, Eel, NULL, NULL);
+    int rc = crom_system_assemble(fem, x, &fo, Eel, NULL, NULL);
     if (rc)
         return rc;
     double pg = 0, u2 = 0;
@@ -90,7 +90,7 @@ static int energies(const crom_fem *fem, const double *X, const double *x, const
  * samples, kept for the pairs. */
 typedef struct {
     crom_map *map, *compare;
-    const crom_fem *fem;
+    const crom_system *fem;
     const double *g;
     const crom_metrics_opts *o;
     int P;           /* samples kept */
@@ -103,7 +103,7 @@ typedef struct {
  * random direction of it at the same RMS displacement. */
 static int energy_samples(measure *M, crom_metrics *out)
 {
-    const crom_fem *fem = M->fem;
+    const crom_system *fem = M->fem;
     const crom_metrics_opts *o = M->o;
     crom_map *map = M->map, *compare = M->compare;
     int r = map->r, n = map->n, S = out->samples, P = M->P, rc = 0;
@@ -173,7 +173,7 @@ done:
  * squared log-ratio. */
 static int isometry(const measure *M, crom_metrics *out)
 {
-    const crom_fem *fem = M->fem;
+    const crom_system *fem = M->fem;
     int r = M->map->r, n = M->map->n, P = M->P;
     long np = (long)P * (P - 1) / 2, k = 0;
     double *ratio = crom_malloc(sizeof(double) * (size_t)(np > 0 ? np : 1));
@@ -212,7 +212,7 @@ static int isometry(const measure *M, crom_metrics *out)
  * r G / tr G and of the correlation matrix D^-1/2 G D^-1/2. */
 static int collapse(const measure *M, crom_metrics *out)
 {
-    const crom_fem *fem = M->fem;
+    const crom_system *fem = M->fem;
     int r = M->map->r, n = M->map->n, rc = 0;
     double *q = crom_calloc((size_t)r, sizeof(double)), *J = crom_malloc(sizeof(double) * (size_t)n * r);
     double *G = crom_malloc(sizeof(double) * (size_t)r * r), *C = crom_malloc(sizeof(double) * (size_t)r * r);
@@ -253,7 +253,7 @@ done:
     return rc;
 }
 
-int crom_metrics_compute(crom_map *map, const crom_fem *fem, const double g[3], const crom_metrics_opts *o,
+int crom_metrics_compute(crom_map *map, const crom_system *fem, const double g[3], const crom_metrics_opts *o,
                          crom_map *compare, crom_metrics *out)
 {
     memset(out, 0, sizeof *out);
@@ -299,4 +299,126 @@ void crom_metrics_training_dist(const crom_model *m, double diag, crom_metrics_o
         o->dist = CROM_METRICS_SPHERE;
         o->radius = 0.05 * diag;
     }
+}
+
+/* ============================================== against constrained equilibria */
+
+/* Per-element von Mises stress (Pa) of the displacement u and the
+ * elements' rest measures: a solid's tets, a shell's membrane triangles. */
+static int element_stress(const crom_system *sys, const crom_mesh *mesh, const crom_material *mat, const double *u,
+                          double *x, double *w, double *s)
+{
+    int n = sys->n;
+    if (!sys->shell) {
+        crom_fem_tet_measures(mesh, u, mat, w, NULL, NULL, s);
+        return 0;
+    }
+    for (int i = 0; i < n; i++)
+        x[i] = mesh->X[i] + u[i];
+    const crom_shell *sh = &sys->sh;
+    for (int t = 0; t < sh->nt; t++) {
+        double xe[9];
+        for (int a = 0; a < 3; a++)
+            memcpy(xe + 3 * a, x + 3 * (size_t)sh->tris[3 * t + a], sizeof(double) * 3);
+        w[t] = sh->area[t];
+        s[t] = crom_shell_tri_mises(&sh->mat, xe, sh->Dminv + 4 * (size_t)t);
+    }
+    return 0;
+}
+
+int crom_metrics_equilibria(crom_map *map, const crom_system *sys, const crom_material *mat,
+                            const unsigned char *fixed, int K, const double *Z, const double *U, crom_metrics_eq *out)
+{
+    memset(out, 0, sizeof *out);
+    int r = map->r, n = map->n, ne = sys->shell ? sys->sh.nt : sys->fem.nt;
+    if (sys->nv != map->nv)
+        return crom_err(CROM_EUSAGE, "the system has %d vertices, the map %d", sys->nv, map->nv);
+    if (K < 1)
+        return crom_err(CROM_EUSAGE, "no equilibria to measure");
+    if (map->nonlinear ? map->rl != r : map->p != r)
+        return crom_err(CROM_EUSAGE, "the subspace has no linear modal part W (it is not linear modes or a "
+                                     "neuralmodes map): its latent is not the modal coordinates z");
+    double *x = crom_malloc(sizeof(double) * (size_t)n), *u = crom_malloc(sizeof(double) * (size_t)n);
+    double *g = crom_malloc(sizeof(double) * (size_t)n), *gs = crom_malloc(sizeof(double) * (size_t)n);
+    double *w = crom_malloc(sizeof(double) * (size_t)ne), *s = crom_malloc(sizeof(double) * (size_t)ne);
+    double *sg = crom_malloc(sizeof(double) * (size_t)ne), *xt = crom_malloc(sizeof(double) * (size_t)n);
+    int rc = 0;
+    if (!x || !u || !g || !gs || !w || !s || !sg || !xt)
+        rc = CROM_EINTERNAL;
+    double m = sys->total_mass, zscale = 0;
+    for (size_t i = 0; i < (size_t)K * r; i++)
+        zscale = fmax(zscale, fabs(Z[i]));
+    crom_fem_opts fo = {0, 0, fixed, 1};
+    for (int k = 0; k < K && !rc; k++) {
+        const double *zk = Z + (size_t)k * r, *us = U + (size_t)k * n;
+        /* do the map's modes give the equilibrium's z? */
+        for (int a = 0; a < r; a++) {
+            double za = 0;
+            for (int i = 0; i < n; i++)
+                za += sys->mass[i / 3] * map->B[(size_t)i * map->p + a] * us[i];
+            out->zmax_dev = fmax(out->zmax_dev, fabs(za / m - zk[a]));
+        }
+        if (!(out->zmax_dev <= 1e-6 * zscale + 1e-15)) {
+            rc = crom_err(CROM_EUSAGE, "the subspace's modes are not those of the equilibria: W^T M u* / m is %.3g m "
+                                       "from z (equilibrium %d)", out->zmax_dev, k);
+            break;
+        }
+        if ((rc = crom_map_eval(map, zk, x, NULL)))
+            break;
+        /* energies and forces, of the subspace and of the equilibrium */
+        double E, Es, f2 = 0, fs2 = 0, d2 = 0, s2 = 0;
+        int nfree = 0;
+        if ((rc = crom_system_assemble(sys, x, &fo, &E, g, NULL)))
+            break;
+        for (int i = 0; i < n; i++)
+            xt[i] = map->mesh.X[i] + us[i];
+        if ((rc = crom_system_assemble(sys, xt, &fo, &Es, gs, NULL)))
+            break;
+        for (int v = 0; v < sys->nv; v++) {
+            int fr = 0;
+            for (int c = 0; c < 3; c++) {
+                int i = 3 * v + c;
+                double du = x[i] - xt[i];
+                d2 += sys->mass[v] * du * du;
+                s2 += sys->mass[v] * us[i] * us[i];
+                if (fixed && fixed[i])
+                    continue;
+                fr = 1;
+                f2 += (g[i] - gs[i]) * (g[i] - gs[i]);
+                fs2 += gs[i] * gs[i];
+            }
+            nfree += fr;
+        }
+        out->energy += E / K;
+        out->energy_gt += Es / K;
+        out->energy_max = fmax(out->energy_max, E);
+        out->energy_gt_max = fmax(out->energy_gt_max, Es);
+        out->force_err += (nfree ? sqrt(f2 / nfree) : 0) / K;
+        out->force_gt += (nfree ? sqrt(fs2 / nfree) : 0) / K;
+        out->disp_err += (s2 > 0 ? sqrt(d2 / s2) : 0) / K;
+        /* stresses */
+        for (int i = 0; i < n; i++)
+            u[i] = x[i] - map->mesh.X[i];
+        element_stress(sys, &map->mesh, mat, u, xt, w, s);
+        element_stress(sys, &map->mesh, mat, us, xt, w, sg);
+        double W0 = 0, S = 0, Sg = 0, Sd = 0;
+        for (int e = 0; e < ne; e++) {
+            if (!isfinite(s[e]) || !isfinite(sg[e])) {
+                rc = crom_err(CROM_EDATA, "equilibrium %d: the stress of element %d is not defined (inverted)", k, e);
+                break;
+            }
+            W0 += w[e];
+            S += w[e] * s[e];
+            Sg += w[e] * sg[e];
+            Sd += w[e] * fabs(s[e] - sg[e]);
+            out->stress_max = fmax(out->stress_max, s[e]);
+            out->stress_gt_max = fmax(out->stress_gt_max, sg[e]);
+        }
+        out->stress += S / W0 / K;
+        out->stress_gt += Sg / W0 / K;
+        out->stress_err += (Sg > 0 ? Sd / Sg : 0) / K;
+        out->count = k + 1;
+    }
+    free(x), free(u), free(g), free(gs), free(w), free(s), free(sg), free(xt);
+    return rc;
 }

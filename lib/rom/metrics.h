@@ -27,7 +27,8 @@
 #include <stdint.h>
 
 #include "base/rng.h"
-#include "phys/fem.h"
+#include "phys/material.h"
+#include "phys/system.h"
 #include "rom/map.h"
 #include "rom/model.h"
 
@@ -68,14 +69,43 @@ void crom_metrics_training_dist(const crom_model *m, double diag, crom_metrics_o
 /* One latent sample q [r] of the distribution of o. */
 void crom_metrics_sample(crom_rng *rng, const crom_metrics_opts *o, int r, double *q);
 
-/* Measure map on the mesh operator fem (same mesh: its material gives the
- * energy, its lumped masses M) under gravity g [3]. compare (may be NULL)
+/* Measure map on the system fem of its mesh (a solid or a shell: its
+ * material gives the energy, its lumped masses M) under gravity g [3]. compare (may be NULL)
  * must be a linear map of the same mesh (CROM_EUSAGE otherwise). Returns 0,
  * CROM_EDATA for a non-finite sample, CROM_EINTERNAL. out->gram_eig and
  * corr_eig are allocated (crom_metrics_free). */
-int crom_metrics_compute(crom_map *map, const crom_fem *fem, const double g[3], const crom_metrics_opts *o,
+int crom_metrics_compute(crom_map *map, const crom_system *fem, const double g[3], const crom_metrics_opts *o,
                          crom_map *compare, crom_metrics *out);
 
 void crom_metrics_free(crom_metrics *m);
+
+/* ---- Against constrained equilibria (crom-fullsim --equilibria) ---------
+ * Wang et al.'s measures of a modal subspace (Neural Modes §4, Table 2 and
+ * A1): at the modal coordinates z_k of K ground-truth equilibria u*_k, the
+ * subspace's configuration x(z_k) against X + u*_k. Stress is the von Mises
+ * stress per element (a tet's Cauchy stress, a shell triangle's membrane
+ * stress), weighted by the elements' rest volumes or areas; nodal forces
+ * are the internal elastic forces f = −∇E at the free vertices. */
+typedef struct {
+    int count;                          /* equilibria measured */
+    double energy, energy_gt;           /* mean elastic energy of the subspace, of the equilibria (J) */
+    double energy_max, energy_gt_max;   /* their largest (J) */
+    double stress, stress_gt;           /* mean over samples of the weighted mean von Mises stress (Pa) */
+    double stress_max, stress_gt_max;   /* largest element stress over all samples (Pa) */
+    double stress_err;                  /* mean over samples of Σ_e w_e |σ_e − σ*_e| / Σ_e w_e σ*_e */
+    double force_err;                   /* mean over samples of the RMS over vertices of |f − f*| (N) */
+    double force_gt;                    /* mean over samples of the RMS over vertices of |f*| (N) */
+    double disp_err;                    /* mean over samples of |u − u*|_M / |u*|_M */
+    double zmax_dev;                    /* largest |Wᵀ M u*_k / m − z_k| (m): do the files' modes agree */
+} crom_metrics_eq;
+
+/* Measure map (a modal subspace, q = z: linear modes or a neuralmodes map;
+ * CROM_EUSAGE otherwise, and when its modes do not reproduce the z_k of
+ * the equilibria to 1e-6 of the box) on the system sys of its mesh with
+ * material mat, the pinned DOFs fixed (or NULL), at K equilibria: modal
+ * coordinates Z [K][r] and displacements U [K][3nv]. Returns 0,
+ * CROM_EDATA (a non-finite configuration), CROM_EUSAGE or CROM_EINTERNAL. */
+int crom_metrics_equilibria(crom_map *map, const crom_system *sys, const crom_material *mat,
+                            const unsigned char *fixed, int K, const double *Z, const double *U, crom_metrics_eq *out);
 
 #endif

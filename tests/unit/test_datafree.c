@@ -606,6 +606,7 @@ typedef struct {
     crom_material mat;
     unsigned char *fixed;
     crom_fem fem;
+    crom_system sys; /* the same solid through the system interface (crom-metrics) */
     double *modes, *freq;
     int nmodes;
 } bar_case;
@@ -616,6 +617,7 @@ static void bar_setup(bar_case *b, int nmodes)
     crom_material_init(&b->mat, 1e6, 0.3, 1000);
     b->fixed = clamp_mask(&b->mesh);
     CHECK(crom_fem_init(&b->fem, &b->mesh, &b->mat) == 0);
+    CHECK(crom_system_init(&b->sys, &b->mesh, b->mat.E, b->mat.nu, b->mat.rho) == 0);
     b->nmodes = nmodes;
     b->modes = bar_modes(&b->mesh, &b->mat, b->fixed, nmodes, &b->freq);
 }
@@ -623,6 +625,7 @@ static void bar_setup(bar_case *b, int nmodes)
 static void bar_free(bar_case *b)
 {
     crom_fem_free(&b->fem);
+    crom_system_free(&b->sys);
     free(b->fixed);
     free(b->modes);
     free(b->freq);
@@ -730,7 +733,7 @@ static void test_energy_subspace(bar_case *b)
     mo.sigma = log.sigma;
     crom_metrics res;
     double g[3] = {0, -9.81, 0};
-    rc = crom_metrics_compute(&map, &b->fem, g, &mo, &lin, &res);
+    rc = crom_metrics_compute(&map, &b->sys, g, &mo, &lin, &res);
     CHECK_MSG(rc == 0, "metrics: %s", crom_errmsg());
     fprintf(stderr, "energy map (rank 2, 400 steps): mean elastic energy %.4g J at mean RMS displacement %.4g m; "
                     "linear modes at the same displacements %.4g J (ratio %.3g); isometry ratio q05 %.3f median "
@@ -792,8 +795,8 @@ static void test_neuralmodes_subspace(bar_case *b)
     mo.radius = 0.1;
     crom_metrics res, rl;
     double g[3] = {0, 0, 0};
-    CHECK(crom_metrics_compute(&map, &b->fem, g, &mo, NULL, &res) == 0);
-    CHECK(crom_metrics_compute(&lin, &b->fem, g, &mo, NULL, &rl) == 0);
+    CHECK(crom_metrics_compute(&map, &b->sys, g, &mo, NULL, &res) == 0);
+    CHECK(crom_metrics_compute(&lin, &b->sys, g, &mo, NULL, &rl) == 0);
     /* orthogonality and origin: |W^T M y / m| and |y(0)|_M / sqrt(m) relative to the box */
     int n = map.n, r = map.r;
     double *x = malloc(sizeof(double) * n), leak = 0, y0 = 0;
@@ -908,8 +911,8 @@ static void test_field_subspace(bar_case *b)
     CHECK(log.objective[log.nblocks - 1] < log.objective[0]);
     crom_mesh fine;
     make_bar(&fine, 0.07);
-    crom_fem ffem;
-    CHECK(crom_fem_init(&ffem, &fine, &b->mat) == 0);
+    crom_system ffem;
+    CHECK(crom_system_init(&ffem, &fine, b->mat.E, b->mat.nu, b->mat.rho) == 0);
     crom_map map, lin, fmap;
     crom_model lm;
     modes_model(b, &lm);
@@ -925,7 +928,7 @@ static void test_field_subspace(bar_case *b)
     mo.sigma = log.sigma;
     crom_metrics res, fres;
     double g[3] = {0, -9.81, 0};
-    CHECK(crom_metrics_compute(&map, &b->fem, g, &mo, &lin, &res) == 0);
+    CHECK(crom_metrics_compute(&map, &b->sys, g, &mo, &lin, &res) == 0);
     CHECK(crom_metrics_compute(&fmap, &ffem, g, &mo, NULL, &fres) == 0);
     double rel = fabs(fres.energy_mean - res.energy_mean) / res.energy_mean;
     fprintf(stderr, "continuous field (rank 2, 8 features, 600 steps on %d of %d tets per step): mean elastic energy "
@@ -972,7 +975,7 @@ static void test_field_subspace(bar_case *b)
     crom_map_free(&lin);
     crom_model_free(&lm);
     crom_model_free(&fm);
-    crom_fem_free(&ffem);
+    crom_system_free(&ffem);
     crom_mesh_free(&fine);
     crom_dftrain_log_free(&log);
 }
@@ -1071,7 +1074,7 @@ static void test_skin_field(bar_case *b)
     mo.sigma = log.sigma;
     crom_metrics res;
     double g[3] = {0, -9.81, 0};
-    CHECK(crom_metrics_compute(&map, &b->fem, g, &mo, &lin, &res) == 0);
+    CHECK(crom_metrics_compute(&map, &b->sys, g, &mo, &lin, &res) == 0);
     fprintf(stderr, "skin-field (4 eigen handles, %d features, rank 2, 400 steps): positions vs float phi %.2e, "
                     "Jacobian vs FD %.2e, largest pinned displacement %.3g m; mean elastic energy %.4g J at RMS "
                     "%.4g m, linear modes %.4g J; Gram eigenvalues %.3f %.3f\n",

@@ -1,0 +1,93 @@
+#!/usr/bin/env bash
+# equilibria.sh — constrained equilibria in modal coordinates (crom-fullsim
+# --equilibria, Neural Modes eq. 9) and the measures of a modal subspace
+# against them (crom-metrics --equilibria): on a clamped square sheet, a
+# grid of equilibria holds its modal coordinates exactly, keeps the clamp at
+# rest, is at rest at z = 0 and mirror-symmetric (a flat plate bent by -z
+# stores what it stores at z); linear modes store many times the
+# equilibria's energy (membrane locking), a trained neural-modes map less;
+# and what is refused.
+. "$CROM_TOP/tests/prog/common.bash"
+cd "$TMP"
+
+MAT=(--youngs 1e9 --poisson 0.3 --density 200)
+crom-mesh sheet --dims 1,1,1 --size 0.1 --thickness 0.01 --region clamp='y<-0.45' -o sq.h5
+crom-modes "${MAT[@]}" --pin clamp --count 3 -o modes.h5 sq.h5 2>/dev/null
+crom-fullsim --equilibria modes.h5 --pin clamp "${MAT[@]}" --grid 3 --box 0.04 -v -o eq.h5 sq.h5 2>eq.log
+grep -q "27 constrained equilibria in 3 modes" eq.log || fail "summary: $(cat eq.log)"; ok
+crom-info --check eq.h5 >/dev/null || fail "crom-info --check eq.h5: $(crom-info --check eq.h5)"; ok
+$PY - eq.h5 modes.h5 <<'PYEOF' || fail "the equilibria"
+import sys, h5py, numpy as np
+e, m = h5py.File(sys.argv[1]), h5py.File(sys.argv[2])
+def need(c, what):
+    if not c:
+        raise SystemExit("check failed: " + what)
+X, T = e["mesh/vertices"][()], e["mesh/triangles"][()]
+P = X[T]; A = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+mv = np.zeros(len(X)); np.add.at(mv, T.ravel(), np.repeat(200 * 0.01 * A / 3, 3))
+W = m["field/basis"][()]
+U, Z, E = e["frames/displacement"][()], e["frames/modal_coordinates"][()], e["frames/elastic_energy"][()]
+need(U.shape == (27, len(X), 3) and Z.shape == (27, 3), "27 frames of 3 modal coordinates")
+need(e.attrs["equilibria_model"].decode() if isinstance(e.attrs["equilibria_model"], bytes) else
+     e.attrs["equilibria_model"] == m.attrs["model_id"], "the modes' model_id")
+g = np.array([-0.04, 0, 0.04])
+grid = np.array([[a, b, c] for a in g for b in g for c in g])
+need(np.abs(Z - grid).max() < 1e-15, "the grid, last axis fastest")
+zu = np.einsum("v,vcr,kvc->kr", mv, W, U) / mv.sum()
+print("equilibria: |W^T M u / m - z| %.2e, clamp %.2e, energies %.4g .. %.4g J"
+      % (np.abs(zu - Z).max(), np.abs(U[:, e["mesh/regions/clamp"][()]]).max(), E.min(), E.max()))
+need(np.abs(zu - Z).max() < 1e-12, "the modal coordinates are held")
+need(np.abs(U[:, e["mesh/regions/clamp"][()]]).max() == 0, "the clamp stays at rest")
+need(np.abs(U[13]).max() < 1e-12 and E[13] < 1e-20, "z = 0 is the rest state (to round-off)")
+# mirror symmetry: frame k is at -z of frame 26 - k
+sym = np.abs(E - E[::-1]).max() / E.max()
+print("mirror symmetry: |E(z) - E(-z)| / max E = %.2e" % sym)
+need(sym < 1e-6, "E(-z) = E(z) on a flat plate")
+need(np.all(e["frames/newton_iterations"][()][E > 0] >= 1), "Newton iterations recorded")
+F = e["frames/modal_forces"][()]
+need(np.all(np.sum(F * Z, axis=1) <= 1e-9), "the holding forces oppose z (work -F.z >= 0 into the body)")
+PYEOF
+ok
+
+# crom-metrics --equilibria: linear modes lock (many times the energy), the
+# untrained quadratic manifold of the modal derivatives and a trained
+# neural-modes map store less; the equilibria are the floor
+crom-metrics --equilibria eq.h5 modes.h5 >lin.txt
+crom-fitfield --objective neuralmodes --mesh sq.h5 --modes modes.h5 --rank 3 --box 0.04 --box-scaling uniform \
+  --steps 6000 -q -o nm.h5
+crom-metrics --equilibria eq.h5 nm.h5 >nm.txt
+ratio() { awk '$1 == "elastic_energy:" {print $NF}' "$1"; }
+lin=$(ratio lin.txt) nm=$(ratio nm.txt)
+echo "energy over the equilibria's: linear modes $lin, neural modes $nm"
+$PY -c "import sys; l, n = float(sys.argv[1]), float(sys.argv[2]); sys.exit(0 if l > 20 and 1 <= n < l / 4 else 1)" \
+  "$lin" "$nm" || fail "linear modes lock (ratio $lin > 20); neural modes store less ($nm < $lin/4), never below 1"; ok
+grep -q "the modes agree to [0-9.e-]*" lin.txt || fail "modes check: $(cat lin.txt)"; ok
+for f in von_mises_stress nodal_force_error displacement_error; do
+  grep -q "^$f: " nm.txt || fail "no $f line: $(cat nm.txt)"; ok
+done
+# the equilibria against themselves through their modes at small z: the
+# stress error is that of linear modes, finite and positive
+$PY - lin.txt <<'PYEOF' || fail "metrics values"
+import sys, re
+t = open(sys.argv[1]).read()
+err = float(re.search(r"relative error ([0-9.e+-]+)", t).group(1))
+d = float(re.search(r"displacement_error: ([0-9.e+-]+)", t).group(1))
+if not (err > 0 and 0 < d < 1):
+    raise SystemExit("stress error %g, displacement error %g" % (err, d))
+PYEOF
+ok
+
+# refused, nothing written
+crom-fitfield --objective energy --mesh sq.h5 --rank 3 "${MAT[@]}" --pin clamp --steps 20 -q -o en.h5
+expect_error 64 "is a 'energy' model; the constrained equilibria" x.h5 -- crom-fullsim --equilibria en.h5 --grid 3 -o x.h5 sq.h5
+expect_error 64 "needs --grid N or --random N" x.h5 -- crom-fullsim --equilibria modes.h5 --pin clamp -o x.h5 sq.h5
+expect_error 64 "apply to --equilibria" x.h5 -- crom-fullsim --grid 3 --steps 2 -o x.h5 sq.h5
+expect_error 64 "elastic energy alone" x.h5 -- crom-fullsim --equilibria modes.h5 --pin clamp --grid 3 --gravity 0,0,-9.81 -o x.h5 sq.h5
+expect_error 64 "moves pinned degree of freedom" x.h5 -- crom-fullsim --equilibria modes.h5 --pin 'x<-0.45' --grid 3 -o x.h5 sq.h5
+expect_error 64 "give one of --grid and --random" x.h5 -- crom-fullsim --equilibria modes.h5 --grid 3 --random 4 -o x.h5 sq.h5
+expect_error 64 "over 3 modes is .* equilibria" x.h5 -- crom-fullsim --equilibria modes.h5 --pin clamp --grid 101 -o x.h5 sq.h5
+crom-fullsim "${MAT[@]}" --pin clamp --steps 2 -q -o run.h5 sq.h5
+expect_error 64 "holds no constrained equilibria" x.txt -- crom-metrics --equilibria run.h5 modes.h5
+expect_error 64 "not linear modes or a neuralmodes map" x.txt -- crom-metrics --equilibria eq.h5 en.h5
+expect_error 64 "scenario flags do not apply" x.txt -- crom-metrics --equilibria eq.h5 --youngs 1e6 modes.h5
+done_checks
