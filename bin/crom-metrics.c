@@ -143,7 +143,7 @@ static int run_equilibria(args *a, crom_model *model)
     if (a->mesh || a->compare || a->dist_given || a->sigma_given || a->material_given || a->gravity_given)
         return crom_err(CROM_EUSAGE, "--equilibria measures the model on the equilibria's mesh with their material: "
                                      "--mesh, --compare, the sampling flags and the scenario flags do not apply");
-    crom_result res;
+    crom_equilibria eq;
     crom_map map;
     memset(&map, 0, sizeof map);
     crom_system sys;
@@ -151,66 +151,32 @@ static int run_equilibria(args *a, crom_model *model)
     crom_scenario sc;
     crom_scenario_defaults(&sc);
     unsigned char *fixed = NULL;
-    double *Z = NULL, *U = NULL;
-    char *scen = NULL;
-    long K = 0, cap = 0;
-    int rc = crom_result_open(&res, a->equilibria, NULL, NULL);
+    int npinned = 0;
+    int rc = crom_equilibria_load(a->equilibria, &eq);
     if (rc)
         return rc;
-    int fz = -1, r = 0, n = 3 * res.mesh.nv, npinned = 0;
-    if (res.latent || !crom_h5_has_attr(res.in.h5, ".", "equilibria_model") || (fz = crom_in_field(&res.in, "modal_coordinates")) < 0) {
-        rc = crom_err(CROM_EUSAGE, "--equilibria %s holds no constrained equilibria (crom-fullsim --equilibria)",
-                      a->equilibria);
-        goto out;
-    }
-    r = (int)res.in.fields[fz].count;
-    if ((rc = crom_h5_get_str(res.in.h5, ".", "scenario", &scen)) || (rc = crom_scenario_parse_text(scen, &sc)))
-        goto out;
     const char *refs[CROM_SCENARIO_MAX];
+    if ((rc = crom_scenario_parse_text(eq.scenario, &sc)))
+        goto out;
     for (int i = 0; i < sc.npins; i++)
         refs[i] = sc.pins[i];
-    if ((rc = crom_modes_pins(&res.mesh, sc.npins, refs, &fixed, &npinned)) ||
-        (rc = crom_map_init(&map, model, NULL)))
+    if ((rc = crom_modes_pins(&eq.mesh, sc.npins, refs, &fixed, &npinned)) || (rc = crom_map_init(&map, model, NULL)))
         goto out;
-    if (map.r != r || crom_map_same_mesh(&map.mesh, &res.mesh)) {
+    if (map.r != eq.r || crom_map_same_mesh(&map.mesh, &eq.mesh)) {
         rc = crom_err(CROM_EUSAGE, "%s (rank %d) does not live on the mesh of %s or has not its %d modal coordinates",
-                      a->model, map.r, a->equilibria, r);
+                      a->model, map.r, a->equilibria, eq.r);
         goto out;
-    }
-    for (;;) {
-        if (K == cap) {
-            cap = cap ? 2 * cap : 64;
-            double *z2 = crom_realloc(Z, sizeof(double) * (size_t)cap * r), *u2 = z2 ? crom_realloc(U, sizeof(double) * (size_t)cap * n) : NULL;
-            if (z2)
-                Z = z2;
-            if (u2)
-                U = u2;
-            if (!z2 || !u2) {
-                rc = CROM_EINTERNAL;
-                goto out;
-            }
-        }
-        double t;
-        int got = crom_result_next(&res, &t, U + (size_t)K * n, NULL);
-        if (got < 0 || got > 1) {
-            rc = got < 0 ? -got : got;
-            goto out;
-        }
-        if (!got)
-            break;
-        memcpy(Z + (size_t)K * r, crom_in_get(&res.in, fz), sizeof(double) * (size_t)r);
-        K++;
     }
     crom_material mat;
     if ((rc = crom_material_init(&mat, sc.youngs, sc.poisson, sc.density)) ||
-        (rc = crom_system_init(&sys, &res.mesh, sc.youngs, sc.poisson, sc.density)))
+        (rc = crom_system_init(&sys, &eq.mesh, sc.youngs, sc.poisson, sc.density)))
         goto out;
     crom_metrics_eq e;
-    if ((rc = crom_metrics_equilibria(&map, &sys, &mat, fixed, (int)K, Z, U, &e)))
+    if ((rc = crom_metrics_equilibria(&map, &sys, &mat, fixed, eq.K, eq.Z, eq.U, &e)))
         goto out;
     printf("model: %s, basis %s, rank %d, model_id %s\n", a->model, model->basis, model->rank, model->model_id);
     printf("equilibria: %s, %d in %d modal coordinates, %d vertices (%d pinned), E %.6g Pa, nu %.6g; the modes "
-           "agree to %.2g m\n", a->equilibria, e.count, r, res.mesh.nv, npinned, sc.youngs, sc.poisson, e.zmax_dev);
+           "agree to %.2g m\n", a->equilibria, e.count, eq.r, eq.mesh.nv, npinned, sc.youngs, sc.poisson, e.zmax_dev);
     printf("elastic_energy: mean %.6g J, max %.6g J; equilibria mean %.6g J, max %.6g J; ratio %.4g\n", e.energy,
            e.energy_max, e.energy_gt, e.energy_gt_max, e.energy_gt > 0 ? e.energy / e.energy_gt : NAN);
     printf("von_mises_stress: mean %.6g Pa, max %.6g Pa; equilibria mean %.6g Pa, max %.6g Pa; relative error "
@@ -218,10 +184,10 @@ static int run_equilibria(args *a, crom_model *model)
     printf("nodal_force_error: %.6g N RMS (the equilibria's forces: %.6g N RMS)\n", e.force_err, e.force_gt);
     printf("displacement_error: %.4g\n", e.disp_err);
 out:
-    crom_result_close(&res);
+    crom_equilibria_free(&eq);
     crom_map_free(&map);
     crom_system_free(&sys);
-    free(fixed), free(Z), free(U), free(scen);
+    free(fixed);
     return rc;
 }
 

@@ -55,7 +55,24 @@ void crom_body_free(crom_body *b)
     free(b->triX);
     free(b->W);
     free(b->freq);
+    crom_equilibria_free(&b->eq);
     memset(b, 0, sizeof *b);
+}
+
+int crom_body_supervise(crom_body *b, const char *path, int rank, crom_datafree_problem *P)
+{
+    int rc = crom_equilibria_load(path, &b->eq);
+    if (rc)
+        return crom_err_ctx("--supervised");
+    if (crom_map_same_mesh(&b->eq.mesh, &b->mesh))
+        return crom_err(CROM_EUSAGE, "--supervised %s: the equilibria live on another mesh", path);
+    if (b->eq.r != rank)
+        return crom_err(CROM_EUSAGE, "--supervised %s: equilibria in %d modal coordinates for a map of rank %d", path,
+                        b->eq.r, rank);
+    P->nsup = b->eq.K;
+    P->sup_z = b->eq.Z;
+    P->sup_u = b->eq.U;
+    return 0;
 }
 
 double crom_body_volume(const crom_body *b)
@@ -164,7 +181,7 @@ int crom_body_map_problem(crom_body *b, const crom_scenario *sc, int objective, 
     if (nm && (rc = take_modes(b, rank)))
         return rc;
     *P = (crom_datafree_problem){&b->mesh, b->mat, {sc->gravity[0], sc->gravity[1], sc->gravity[2]}, b->fixed, b->W,
-                                 b->freq, NULL};
+                                 b->freq, NULL, 0, NULL, NULL};
     if (nm) /* nonlinear modes are equilibria of the elastic energy alone */
         P->gravity[0] = P->gravity[1] = P->gravity[2] = 0;
     return 0;
@@ -289,6 +306,11 @@ int crom_body_write_map(const crom_body *b, const crom_scenario *sc, crom_model 
     if (rc)
         return rc;
     rc = crom_datafree_write_record(out.h5, o, P, log, crom_body_mass(b), nm ? b->modes.model_id : NULL);
+    if (!rc && nm && P->nsup > 0) {
+        char what[96];
+        snprintf(what, sizeof what, "%d constrained equilibria in the modes %s", b->eq.K, b->eq.model_id);
+        rc = crom_h5_set_str(out.h5, ".", "supervised", what);
+    }
     return finish(&out, rc);
 }
 

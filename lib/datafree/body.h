@@ -28,6 +28,7 @@
 #include "phys/material.h"
 #include "phys/scenario.h"
 #include "rom/model.h"
+#include "rom/result.h"
 
 /* Where the body comes from: exactly one of the three files. */
 typedef struct {
@@ -53,6 +54,7 @@ typedef struct {
     crom_model modes;        /* neuralmodes: the linear modes */
     double *W, *freq;        /* neuralmodes: the lowest r of them [3nv][r], their frequencies [r] */
     double *deriv;           /* neuralmodes with derivatives: Ψ [3nv][r(r+1)/2] (crom_body_derivatives) */
+    crom_equilibria eq;      /* neuralmodes supervised: the equilibria fitted to (crom_body_supervise) */
 } crom_body;
 
 /* Load the geometry of src into b (cleared first; free it with
@@ -63,6 +65,13 @@ typedef struct {
 int crom_body_load(crom_body *b, const crom_body_source *src, const crom_scenario *sc);
 
 void crom_body_free(crom_body *b);
+
+/* The supervised baseline of a neuralmodes map (datafree.h): the
+ * constrained equilibria at path (crom-fullsim --equilibria) of b's mesh
+ * in rank modal coordinates, into P (nsup, sup_z, sup_u; b keeps them).
+ * Returns 0, CROM_EUSAGE (not equilibria, another mesh, another rank), or
+ * the reader's error with "--supervised" as context. */
+int crom_body_supervise(crom_body *b, const char *path, int rank, crom_datafree_problem *P);
 
 /* The body's volume (the mesh's, or the sampled points') and mass (m³, kg;
  * the mass after crom_body_pins). */

@@ -158,6 +158,22 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
     c->Eref = EV;
     if (nm)
         modes_box(c, p, o, EV);
+    if (nm && p->nsup > 0) { /* the equilibria must be in these modes: W^T M u* / m = z */
+        double dev = 0, zs = 0;
+        for (int k = 0; k < p->nsup; k++) {
+            cblas_dgemv(CblasRowMajor, CblasTrans, n, r, 1.0, c->MWm, r, p->sup_u + (size_t)k * n, 1, 0.0, c->cb, 1);
+            for (int a = 0; a < r; a++) {
+                double zk = p->sup_z[(size_t)k * r + a];
+                dev = fmax(dev, fabs(c->cb[a] - zk));
+                zs = fmax(zs, fabs(zk));
+            }
+        }
+        if (!(dev <= 1e-6 * zs + 1e-15)) {
+            crom_datafree_ctx_free(c);
+            return crom_err(CROM_EUSAGE, "the equilibria were not taken in these modes: W^T M u* / m is %.3g m from "
+                            "their modal coordinates", dev);
+        }
+    }
     return 0;
 }
 
@@ -244,6 +260,33 @@ static void energy_term(crom_datafree_ctx *c, int B, double rho, double *obj, do
         double *dY = c->dY + (size_t)b * n;
         for (int i = 0; i < n; i++)
             dY[i] = rho * scale * G[i];
+    }
+}
+
+/* Supervised: the geometric term 1/B Σ_b |u(z_b) − u*_b|²_M / (m a²) of
+ * the map's displacement u = W z + (½ Σ Ψ z z) + Y_b against equilibrium
+ * sup[b], and its gradient dY_b (the energy is only recorded). */
+static void data_term(crom_datafree_ctx *c, int B, const double *z, double *obj, double *Em)
+{
+    int r = c->r, n = c->n;
+    const double *Wm = c->P.modes, *Psi = c->P.deriv;
+    double a2 = c->o.box * c->o.box;
+    for (int b = 0; b < B; b++) {
+        const double *zb = z + (size_t)b * r, *us = c->P.sup_u + (size_t)c->sup[b] * n, *Y = c->Y + (size_t)b * n;
+        double *dY = c->dY + (size_t)b * n, e2 = 0;
+        *Em += c->E[b] / B;
+        for (int i = 0; i < n; i++) {
+            double u = Y[i];
+            for (int k = 0; k < r; k++)
+                u += Wm[(size_t)i * r + k] * zb[k];
+            for (int k = 0, cq = 0; Psi && k < r; k++)
+                for (int l = k; l < r; l++, cq++)
+                    u += 0.5 * Psi[((size_t)i * r * (r + 1)) / 2 + cq] * zb[k] * zb[l];
+            double d = u - us[i];
+            e2 += c->mw[i] * d * d;
+            dY[i] = 2 * c->mw[i] * d / (B * a2);
+        }
+        *obj += e2 / (B * a2);
     }
 }
 
@@ -349,7 +392,13 @@ int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho,
     if ((rc = crom_dfloss_check(B, c->bad, c->E, "sample")))
         return rc;
     double obj = 0, Em = 0, pen = 0, tan = 0;
-    energy_term(c, B, rho, &obj, &Em);
+    if (nm && c->P.nsup > 0) {
+        if (!c->sup)
+            return crom_err(CROM_EUSAGE, "a supervised loss needs the batch's equilibria");
+        data_term(c, B, z, &obj, &Em);
+    } else {
+        energy_term(c, B, rho, &obj, &Em);
+    }
     if (!nm && B >= 2)
         isometry_term(c, B, z, &obj, &pen);
     if (c->B0 > 0)
@@ -419,10 +468,16 @@ typedef struct {
     size_t np;
     crom_datafree_ctx ctx;
     crom_rng irng, srng;
+    int nsup;          /* supervised: the equilibria, */
+    int *sup;          /* [batch] those of the batch */
+    double *zs;        /* [batch][r] and their modal coordinates */
+    const double *sup_z;
 } map_trainer;
 
 static void map_free(map_trainer *T)
 {
+    free(T->sup);
+    free(T->zs);
     crom_datafree_ctx_free(&T->ctx);
     crom_nn_mlp_free(&T->net);
     free(T->params);
@@ -454,12 +509,34 @@ static int map_setup(map_trainer *T, const crom_datafree_problem *p)
             memset(ly->W + (size_t)i * ly->in, 0, sizeof(float) * (size_t)ly->in);
             ly->b[i] = 0;
         }
-    return crom_datafree_ctx_init(&T->ctx, p, o, &T->net, o->batch);
+    if (nm && p->nsup > 0) {
+        T->nsup = p->nsup;
+        T->sup_z = p->sup_z;
+        T->sup = crom_malloc(sizeof(int) * (size_t)o->batch);
+        T->zs = crom_malloc(sizeof(double) * (size_t)o->batch * o->rank);
+        if (!T->sup || !T->zs)
+            return CROM_EINTERNAL;
+        T->ctx.sup = T->sup;
+    }
+    rc = crom_datafree_ctx_init(&T->ctx, p, o, &T->net, o->batch);
+    T->ctx.sup = T->sup;
+    return rc;
 }
 
 static int map_loss(void *ctx, const double *z, double rho, int K, const int *tets, crom_dftrain_terms *t)
 {
     map_trainer *T = ctx;
+    int r = T->o.rank;
+    if (T->nsup) { /* supervised: the loop's uniform draw of coordinate 0 picks the equilibrium (the same
+                    * batch while L-BFGS iterates on it) */
+        for (int b = 0; b < T->o.batch; b++) {
+            double u = 0.5 * (z[(size_t)b * r] / T->ctx.half[0] + 1);
+            int k = (int)(u * T->nsup);
+            T->sup[b] = k < 0 ? 0 : k >= T->nsup ? T->nsup - 1 : k;
+            memcpy(T->zs + (size_t)b * r, T->sup_z + (size_t)T->sup[b] * r, sizeof(double) * (size_t)r);
+        }
+        z = T->zs;
+    }
     return crom_datafree_loss(&T->ctx, T->o.batch, z, rho, K, tets, t, T->grad);
 }
 

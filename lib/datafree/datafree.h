@@ -62,6 +62,13 @@
  * slender body from stretching (locking), which y is slow to learn alone. The last layer starts at zero:
  * training starts from the linear modes.
  *
+ * The supervised baseline of Wang et al. (their "L2 supervised" row,
+ * Table 2): the same map fitted to constrained equilibria u*_k at modal
+ * coordinates z_k (crom-fullsim --equilibria) by the geometric loss
+ * 1/B Σ_b |u(z_b) − u*_b|²_M / (m a²) plus the same orthogonality penalty,
+ * with z_b drawn from the equilibria (problem.nsup > 0): the energy is
+ * then only recorded.
+ *
  * field (beyond both papers): a CONTINUOUS data-free subspace x(X, z) = X
  * + W(X) (φ(z) − φ(0)), W a neural field over the body, trained on the
  * energy loss above integrated by a random cubature of the mesh: dffield.h.
@@ -114,6 +121,9 @@ typedef struct {
     const double *deriv;         /* neuralmodes: the modal derivatives Ψ [nv][3][r(r+1)/2] of W
                                   * (lib/phys/mderiv.h, in m⁻¹), or NULL: the map is then
                                   * X + W z + ½ Σ_{i<=j} Ψ_ij z_i z_j + y(z) */
+    int nsup;                    /* neuralmodes supervised by nsup constrained equilibria (0: data-free) */
+    const double *sup_z;         /* [nsup][r] their modal coordinates (m) */
+    const double *sup_u;         /* [nsup][3nv] their displacements (m) */
 } crom_datafree_problem;
 
 typedef struct {
@@ -171,6 +181,7 @@ typedef struct {
     double *cb;              /* [r] scratch */
     double *half;            /* neuralmodes: [r] half-widths of the box per mode */
     double *tg;              /* [3 r r + r] the collapse floor's Gram matrix, gradient, scratch */
+    const int *sup;          /* supervised: the equilibrium of each batch sample (set by the caller per batch) */
 } crom_datafree_ctx;
 
 /* Set up the loss of options o (objective, sigma, lambda, box, weights,

@@ -148,6 +148,8 @@ static const crom_schema_attr model_attrs[] = {
     {"ortho_weight", "f64", 0, "weight w_o of the M-orthogonality penalty (neuralmodes)", NULL},
     {"origin_weight", "f64", 0, "weight w_0 of the penalty on y(0) (neuralmodes written before the maps were anchored; no longer written)", NULL},
     {"modes_id", "str", 0, "model_id of the crom-modes model whose modes are the linear part (neuralmodes)", NULL},
+    {"supervised", "str", 0, "a neuralmodes map fitted to constrained equilibria by the geometric loss (crom-fitfield "
+                             "--supervised, Wang et al.'s L2 supervised baseline): how many, in which modes", NULL},
     {"cubature_tets", "i64", 0, "tets of the random cubature drawn at every training step (energy-field)", NULL},
     {"handles", "i64", 0, "H, the affine handles of a skinning subspace (12 coordinates each)", NULL},
     {"constant_handle", "i64", 0, "1 if handle 0 is the constant weight 1 (a free body), else 0 (skinning)", NULL},

@@ -1,5 +1,6 @@
 /* result.c — results as displacement frames on a mesh (see result.h). */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -278,4 +279,75 @@ void crom_result_close(crom_result *res)
     res->map = NULL;
     free(res->J);
     res->J = NULL;
+}
+
+void crom_equilibria_free(crom_equilibria *eq)
+{
+    if (!eq)
+        return;
+    crom_mesh_free(&eq->mesh);
+    free(eq->scenario);
+    free(eq->Z);
+    free(eq->U);
+    memset(eq, 0, sizeof *eq);
+}
+
+int crom_equilibria_load(const char *path, crom_equilibria *eq)
+{
+    memset(eq, 0, sizeof *eq);
+    crom_result res;
+    int rc = crom_result_open(&res, path, NULL, NULL);
+    if (rc)
+        return rc;
+    char *id = NULL;
+    int fz = -1, n = 3 * res.mesh.nv;
+    long cap = 0;
+    if (res.latent || !crom_h5_has_attr(res.in.h5, ".", "equilibria_model") ||
+        (fz = crom_in_field(&res.in, "modal_coordinates")) < 0) {
+        crom_err_clear();
+        rc = crom_err(CROM_EUSAGE, "%s holds no constrained equilibria (crom-fullsim --equilibria)", res.in.name);
+        goto out;
+    }
+    eq->r = (int)res.in.fields[fz].count;
+    if ((rc = crom_h5_get_str(res.in.h5, ".", "scenario", &eq->scenario)) ||
+        (rc = crom_h5_get_str(res.in.h5, ".", "equilibria_model", &id)))
+        goto out;
+    snprintf(eq->model_id, sizeof eq->model_id, "%s", id);
+    for (;;) {
+        if (eq->K == cap) {
+            cap = cap ? 2 * cap : 64;
+            double *z2 = crom_realloc(eq->Z, sizeof(double) * (size_t)cap * eq->r);
+            if (z2)
+                eq->Z = z2;
+            double *u2 = z2 ? crom_realloc(eq->U, sizeof(double) * (size_t)cap * n) : NULL;
+            if (u2)
+                eq->U = u2;
+            if (!z2 || !u2) {
+                rc = CROM_EINTERNAL;
+                goto out;
+            }
+        }
+        double t;
+        int got = crom_result_next(&res, &t, eq->U + (size_t)eq->K * n, NULL);
+        if (got == 0)
+            break;
+        if (got != 1) {
+            rc = got < 0 ? -got : got;
+            goto out;
+        }
+        memcpy(eq->Z + (size_t)eq->K * eq->r, crom_in_get(&res.in, fz), sizeof(double) * (size_t)eq->r);
+        eq->K++;
+    }
+    if (eq->K == 0)
+        rc = crom_err(CROM_EDATA, "%s holds no equilibrium", res.in.name);
+    if (!rc) { /* keep the mesh */
+        eq->mesh = res.mesh;
+        memset(&res.mesh, 0, sizeof res.mesh);
+    }
+out:
+    free(id);
+    crom_result_close(&res);
+    if (rc)
+        crom_equilibria_free(eq);
+    return rc;
 }

@@ -49,6 +49,24 @@ int crom_result_next(crom_result *res, double *t, double *u, double *v);
 
 void crom_result_close(crom_result *res);
 
+/* Constrained equilibria (crom-fullsim --equilibria; schemas/trajectory.md)
+ * read whole: the mesh, the scenario text (material, pins), and K frames of
+ * r modal coordinates Z [K][r] and displacements U [K][3nv]. */
+typedef struct {
+    crom_mesh mesh;
+    char *scenario;     /* the `scenario` attribute (flags, one per line) */
+    char model_id[17];  /* the modes' model_id (`equilibria_model`) */
+    int K, r;
+    double *Z, *U;
+} crom_equilibria;
+
+/* Read path (a file, or "-"/NULL for stdin). Returns 0, CROM_EUSAGE when it
+ * is no file of constrained equilibria, or the reader's errors. On failure
+ * *eq holds nothing to free. */
+int crom_equilibria_load(const char *path, crom_equilibria *eq);
+
+void crom_equilibria_free(crom_equilibria *eq);
+
 /* The one check that frame data is finite, for every program that reads
  * frames (crom-export and crom-diff through crom_result_next, crom-sample,
  * crom-encode, crom-cubature --poses, crom-reducedstep --init): every value

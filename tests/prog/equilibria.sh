@@ -6,7 +6,9 @@
 # rest, is at rest at z = 0 and mirror-symmetric (a flat plate bent by -z
 # stores what it stores at z); linear modes store many times the
 # equilibria's energy (membrane locking), a trained neural-modes map less;
-# and what is refused.
+# the supervised baseline fitted to a training grid of equilibria comes
+# closer in displacement but stores more energy on held-out coordinates;
+# the benchmark pipeline runs small; and what is refused.
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 
@@ -77,6 +79,50 @@ if not (err > 0 and 0 < d < 1):
 PYEOF
 ok
 
+# the supervised baseline (the same map fitted to a training grid of
+# equilibria by the geometric loss, Wang et al.'s "L2 supervised") on
+# held-out coordinates: closer in displacement, but neural modes store less
+# energy (Neural Modes Table 2)
+crom-fullsim --equilibria modes.h5 --pin clamp "${MAT[@]}" --grid 4 --box 0.04 -q -o train.h5 sq.h5
+crom-fullsim --equilibria modes.h5 --pin clamp "${MAT[@]}" --random 20 --box 0.04 --seed 7 -q -o test.h5 sq.h5
+crom-fitfield --objective neuralmodes --supervised train.h5 --mesh sq.h5 --modes modes.h5 --rank 3 --box 0.04 \
+  --box-scaling uniform --steps 6000 -q -o sup.h5
+$PY - sup.h5 <<'PYEOF' || fail "the supervised model's record"
+import sys, h5py
+a = h5py.File(sys.argv[1]).attrs["supervised"]
+a = a.decode() if isinstance(a, bytes) else a
+if not a.startswith("64 constrained equilibria in the modes "):
+    raise SystemExit("supervised attribute: %r" % a)
+PYEOF
+ok
+crom-metrics --equilibria test.h5 sup.h5 >sup.txt
+crom-metrics --equilibria test.h5 nm.h5 >nmt.txt
+sup=$(ratio sup.txt) nmt=$(ratio nmt.txt)
+echo "held out: energy over the equilibria's: supervised $sup, neural modes $nmt"
+$PY -c "import sys; s, n = float(sys.argv[1]), float(sys.argv[2]); sys.exit(0 if 1 <= n < s / 2 else 1)" "$sup" "$nmt" \
+  || fail "neural modes store less energy than the supervised baseline on held-out z ($nmt, $sup)"; ok
+
+# the benchmark pipeline (pipelines/squareshell.mk), small: its table has
+# the five subspaces, linear modes far above the equilibria, neural modes
+# closer; a second make has nothing to redo
+SQ=(make --no-print-directory -f "$CROM_TOP/pipelines/squareshell.mk" BINDIR="$CROM_BINDIR" OUT=sqb SIZE=0.2
+    TRAIN_GRID=3 TEST=8 STEPS_NM=1500 QUIET=-q)
+"${SQ[@]}" >sqb.log 2>&1 || fail "squareshell.mk: $(tail -5 sqb.log)"
+$PY - sqb/table.md <<'PYEOF' || fail "squareshell.mk table: $(cat sqb/table.md)"
+import sys, re
+rows = {l.split("|")[1].strip(): l.split("|") for l in open(sys.argv[1])
+        if re.match(r"\| (modes|quadratic|neural|nmderiv|supervised) ", l)}
+if sorted(rows) != ["modes", "neural", "nmderiv", "quadratic", "supervised"]:
+    raise SystemExit("check failed: five subspaces, got %s" % sorted(rows))
+ratio = {k: float(v[2]) for k, v in rows.items()}
+print("squareshell.mk at SIZE=0.2: energy over the equilibria's %s" % ratio)
+if not (ratio["modes"] > 10 and 1 <= ratio["neural"] < ratio["modes"] / 2 and all(r >= 1 for r in ratio.values())):
+    raise SystemExit("check failed: linear modes lock, neural modes store less, nothing below the equilibria")
+PYEOF
+ok
+left=$("${SQ[@]}" -n | grep -v '^cat ' || true)
+[ -z "$left" ] || fail "squareshell.mk reruns a finished run: $left"; ok
+
 # refused, nothing written
 crom-fitfield --objective energy --mesh sq.h5 --rank 3 "${MAT[@]}" --pin clamp --steps 20 -q -o en.h5
 expect_error 64 "is a 'energy' model; the constrained equilibria" x.h5 -- crom-fullsim --equilibria en.h5 --grid 3 -o x.h5 sq.h5
@@ -90,4 +136,7 @@ crom-fullsim "${MAT[@]}" --pin clamp --steps 2 -q -o run.h5 sq.h5
 expect_error 64 "holds no constrained equilibria" x.txt -- crom-metrics --equilibria run.h5 modes.h5
 expect_error 64 "not linear modes or a neuralmodes map" x.txt -- crom-metrics --equilibria eq.h5 en.h5
 expect_error 64 "scenario flags do not apply" x.txt -- crom-metrics --equilibria eq.h5 --youngs 1e6 modes.h5
+expect_error 64 "supervised applies to --objective neuralmodes" x.h5 -- crom-fitfield --objective energy --supervised train.h5 --mesh sq.h5 --rank 3 "${MAT[@]}" --pin clamp -o x.h5
+expect_error 64 "supervised.*holds no constrained equilibria" x.h5 -- crom-fitfield --objective neuralmodes --supervised run.h5 --mesh sq.h5 --modes modes.h5 --rank 3 -o x.h5
+expect_error 64 "equilibria in 3 modal coordinates for a map of rank 2" x.h5 -- crom-fitfield --objective neuralmodes --supervised train.h5 --mesh sq.h5 --modes modes.h5 --rank 2 -o x.h5
 done_checks

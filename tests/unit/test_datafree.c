@@ -109,6 +109,7 @@ static double loss_at(const double *x, void *v)
 }
 
 static int g_quadratic; /* gradient_check: neuralmodes with a quadratic part ½ Σ Ψ z z */
+static int g_supervised; /* gradient_check: neuralmodes fitted to (made-up) equilibria */
 
 static void gradient_check(int objective)
 {
@@ -129,7 +130,39 @@ static void gradient_check(int objective)
         for (int i = 0; i < 3 * m.nv * 6; i++)
             Psi[i] = fixed[i / 6] ? 0 : 0.2 * crom_rng_normal(&qr);
     }
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, W, freq, Psi};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, W, freq, Psi, 0, NULL, NULL};
+    /* supervised: 4 made-up equilibria u = W z + v, v random and
+     * M-orthogonal to the modes (so that W^T M u / m = z), zero at the pins */
+    double zsup[4 * 3], *usup = NULL;
+    int sup_idx[5] = {0, 1, 2, 3, 1};
+    if (g_supervised) {
+        crom_rng sr;
+        crom_rng_seed(&sr, 29);
+        int n = 3 * m.nv;
+        double *mv = malloc(sizeof(double) * m.nv), mt = 0;
+        crom_mesh_vertex_volumes(&m, mv);
+        for (int v = 0; v < m.nv; v++)
+            mt += mv[v];
+        usup = malloc(sizeof(double) * 4 * n);
+        for (int k = 0; k < 4; k++) {
+            double *u = usup + (size_t)k * n;
+            for (int i = 0; i < n; i++)
+                u[i] = fixed[i] ? 0 : 0.01 * crom_rng_normal(&sr);
+            for (int a = 0; a < r; a++) {
+                double p = 0;
+                for (int i = 0; i < n; i++)
+                    p += mv[i / 3] * W[(size_t)i * r + a] * u[i];
+                p /= mt;
+                zsup[k * r + a] = 0.05 * crom_rng_normal(&sr);
+                for (int i = 0; i < n; i++)
+                    u[i] += W[(size_t)i * r + a] * (zsup[k * r + a] - p);
+            }
+        }
+        free(mv);
+        P.nsup = 4;
+        P.sup_z = zsup;
+        P.sup_u = usup;
+    }
     crom_datafree_opts o;
     crom_datafree_defaults(&o, objective);
     o.rank = r;
@@ -162,6 +195,11 @@ static void gradient_check(int objective)
     double z[8 * 3]; /* the batch, then the tangent samples (energy) */
     for (int i = 0; i < B * r; i++)
         z[i] = objective == CROM_DATAFREE_ENERGY ? crom_rng_normal(&rng) : o.box * (2 * crom_rng_uniform(&rng) - 1);
+    if (g_supervised) { /* the batch: equilibria 0 1 2 3 1 at their modal coordinates */
+        for (int b = 0; b < B; b++)
+            memcpy(z + b * r, zsup + sup_idx[b] * r, sizeof(double) * r);
+        c.sup = sup_idx;
+    }
     for (int i = B * r; i < (B + c.B0) * r; i++) /* the secants 0.1 e_k (as the trainer draws them) */
         z[i] = (i - B * r) % (r + 1) == 0 ? 0.1 : 0;
     CHECK(c.B0 == (objective == CROM_DATAFREE_ENERGY ? 3 : 0));
@@ -198,7 +236,8 @@ static void gradient_check(int objective)
         double e = check_relerr(ga, gf, n, 1e-12);
         fprintf(stderr, "%s loss (rho %.1f, %s): objective %.4g (energy %.4g J, penalty %.4g, tangent %.4g); "
                         "gradient vs FD %.2e over %d parameters\n",
-                objective == CROM_DATAFREE_ENERGY ? "energy+isometry" : g_quadratic ? "neuralmodes + derivatives" : "neuralmodes", rhos[k],
+                objective == CROM_DATAFREE_ENERGY ? "energy+isometry" : g_supervised ? "neuralmodes supervised (L2)"
+                : g_quadratic ? "neuralmodes + derivatives" : "neuralmodes", rhos[k],
                 Ks[k] ? "random cubature" : "every tet", tm.objective, tm.energy, tm.penalty, tm.tangent, e, n);
         CHECK_LT(e, FD_TOL);
         CHECK(tm.penalty > 0);
@@ -221,6 +260,7 @@ static void gradient_check(int objective)
     free(W);
     free(freq);
     free(Psi);
+    free(usup);
     free(tets);
     free(fixed);
     crom_mesh_free(&m);
@@ -268,7 +308,7 @@ static void gradient_check_field(void)
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
     unsigned char *fixed = clamp_mask(&m);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     field_check_opts(&o);
     o.pin_length = 0.3; /* a wide mask: many vertices inside it */
@@ -359,7 +399,7 @@ static void gradient_check_field_basis(void)
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
     unsigned char *fixed = clamp_mask(&m);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     field_check_opts(&o);
     int r = 2, pf = 5, B = 4, pw[] = {r, 10, pf};
@@ -706,7 +746,7 @@ static crom_model g_energy_model; /* trained once, used by the dynamics tests */
  * pins stay exactly at rest, and so does a run with no load. */
 static void test_energy_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -767,7 +807,7 @@ static void test_energy_subspace(bar_case *b)
  * load stays at rest. */
 static void test_neuralmodes_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_NEURALMODES);
     o.rank = b->nmodes;
@@ -889,7 +929,7 @@ static void scenario_bar(crom_scenario *sc);
  * hold the clamp. */
 static void test_field_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_FIELD);
     o.rank = 2;
@@ -988,7 +1028,7 @@ static void test_field_subspace(bar_case *b)
  * its samples have less energy than the two lowest linear modes'. */
 static void test_skin_field(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL};
     crom_model sm;
     int rc = crom_dfskin_eigen(&b->mesh, &b->mat, b->fixed, 4, &sm, NULL);
     CHECK_MSG(rc == 0, "eigen: %s", crom_errmsg());
@@ -1308,7 +1348,7 @@ static void test_shell_map(void)
     CHECK(crom_modes_pins(&mesh, 1, clamp, &fixed, &npinned) == 0 && npinned > 0);
     crom_material mat;
     crom_material_init(&mat, 1e7, 0.3, 500);
-    crom_datafree_problem P = {&mesh, mat, {0, 0, -9.81}, fixed, NULL, NULL, NULL};
+    crom_datafree_problem P = {&mesh, mat, {0, 0, -9.81}, fixed, NULL, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -1657,7 +1697,7 @@ static void test_lbfgs(bar_case *bc)
     CHECK_LT(errs[0], 1e-6);
     CHECK_LT(errs[0], 1e-4 * errs[1]);
 
-    crom_datafree_problem P = {&bc->mesh, bc->mat, {0, -9.81, 0}, bc->fixed, NULL, NULL, NULL};
+    crom_datafree_problem P = {&bc->mesh, bc->mat, {0, -9.81, 0}, bc->fixed, NULL, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -1726,6 +1766,9 @@ int main(void)
     gradient_check(CROM_DATAFREE_NEURALMODES);
     g_quadratic = 1;
     gradient_check(CROM_DATAFREE_NEURALMODES);
+    g_supervised = 1; /* the supervised loss, with the quadratic part */
+    gradient_check(CROM_DATAFREE_NEURALMODES);
+    g_supervised = 0;
     g_quadratic = 0;
     gradient_check_field();
     gradient_check_field_basis();
