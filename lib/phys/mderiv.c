@@ -7,40 +7,8 @@
 #include "mesh/mesh.h"
 #include "phys/chol.h"
 #include "phys/mderiv.h"
+#include "phys/modes.h"
 #include "phys/sym.h"
-
-/* M-orthonormalize the columns of V [ncol][n] (column-major) in place by
- * modified Gram–Schmidt, twice; a column whose norm falls below 1e-8 of
- * its norm before is dropped (unless it is one of the first keep). Returns
- * the number of columns kept (moved to the front). */
-static int orthonormalize(double *V, int n, int ncol, const double *m, int keep)
-{
-    int kept = 0;
-    for (int c = 0; c < ncol; c++) {
-        double *v = V + (size_t)c * n, before = 0, after = 0;
-        for (int d = 0; d < n; d++)
-            before += m[d] * v[d] * v[d];
-        for (int pass = 0; pass < 2; pass++)
-            for (int j = 0; j < kept; j++) {
-                const double *u = V + (size_t)j * n;
-                double dot = 0;
-                for (int d = 0; d < n; d++)
-                    dot += m[d] * u[d] * v[d];
-                for (int d = 0; d < n; d++)
-                    v[d] -= dot * u[d];
-            }
-        for (int d = 0; d < n; d++)
-            after += m[d] * v[d] * v[d];
-        if (c >= keep && !(after > 1e-16 * before))
-            continue;
-        double s = 1 / sqrt(after);
-        double *dst = V + (size_t)kept * n;
-        for (int d = 0; d < n; d++)
-            dst[d] = s * v[d];
-        kept++;
-    }
-    return kept;
-}
 
 /* The factor of K at rest (the fixed DOFs decoupled: identity rows and
  * columns) in *ch, and K's values in K [nnz]. */
@@ -153,7 +121,11 @@ int crom_mderiv_basis(const crom_system *s, const double *X, const unsigned char
         goto out;
     for (int d = 0; d < n; d++)
         m[d] = s->mass[d / 3];
-    int kept = orthonormalize(V, n, ncol, m, k);
+    int kept = crom_modes_orthonormalize(V, n, ncol, m, k);
+    if (kept < k) {
+        rc = crom_err(CROM_EDATA, "modal derivatives: a mode vanishes on the free degrees of freedom");
+        goto out;
+    }
     W = crom_malloc(sizeof(double) * (size_t)n * kept);
     f = crom_malloc(sizeof(double) * (size_t)kept);
     if (!W || !f) {

@@ -210,32 +210,47 @@ static int piece_freedoms(const crom_mesh *mesh, const unsigned char *fixed, int
     return 0;
 }
 
+int crom_modes_orthonormalize(double *V, int n, int ncol, const double *m, int keep)
+{
+    int kept = 0;
+    for (int c = 0; c < ncol; c++) {
+        double *v = V + (size_t)c * n, before = 0, after = 0;
+        for (int d = 0; d < n; d++)
+            before += m[d] * v[d] * v[d];
+        for (int pass = 0; pass < 2; pass++)
+            for (int j = 0; j < kept; j++) {
+                const double *u = V + (size_t)j * n;
+                double dot = 0;
+                for (int d = 0; d < n; d++)
+                    dot += m[d] * u[d] * v[d];
+                for (int d = 0; d < n; d++)
+                    v[d] -= dot * u[d];
+            }
+        for (int d = 0; d < n; d++)
+            after += m[d] * v[d] * v[d];
+        if (!(after > 1e-16 * before) || !(after > 0)) {
+            if (c < keep)
+                return -1;
+            continue;
+        }
+        double s = 1 / sqrt(after);
+        double *dst = V + (size_t)kept * n;
+        for (int d = 0; d < n; d++)
+            dst[d] = s * v[d];
+        kept++;
+    }
+    return kept;
+}
+
 /* The columns of R [nr][n] M-orthonormal (masses mf) within each piece
- * (the pieces' columns are disjoint): Gram–Schmidt, twice. */
+ * (the pieces' columns are disjoint). */
 static int m_orthonormalize(double *R, int n, const double *mf, const pieces *pc)
 {
-    const int *first = pc->first;
-    for (int p = 0; p < pc->np; p++)
-        for (int q = first[p]; q < first[p + 1]; q++) {
-            double *x = R + (size_t)q * n;
-            for (int pass = 0; pass < 2; pass++)
-                for (int s = first[p]; s < q; s++) {
-                    const double *y = R + (size_t)s * n;
-                    double dot = 0;
-                    for (int i = 0; i < n; i++)
-                        dot += mf[i] * y[i] * x[i];
-                    for (int i = 0; i < n; i++)
-                        x[i] -= dot * y[i];
-                }
-            double nrm = 0;
-            for (int i = 0; i < n; i++)
-                nrm += mf[i] * x[i] * x[i];
-            nrm = sqrt(nrm);
-            if (!(nrm > 0))
-                return crom_err(CROM_EINTERNAL, "a rigid motion allowed by the pins vanishes on the free DOFs");
-            for (int i = 0; i < n; i++)
-                x[i] /= nrm;
-        }
+    for (int p = 0; p < pc->np; p++) {
+        int k = pc->first[p + 1] - pc->first[p];
+        if (crom_modes_orthonormalize(R + (size_t)pc->first[p] * n, n, k, mf, k) < 0)
+            return crom_err(CROM_EINTERNAL, "a rigid motion allowed by the pins vanishes on the free DOFs");
+    }
     return 0;
 }
 

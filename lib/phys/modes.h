@@ -120,6 +120,14 @@ void crom_modes_free(crom_modes *m);
 int crom_modes_pins(const crom_mesh *m, int n, const char *const *refs,
                     unsigned char **fixed, int *npinned);
 
+/* M-orthonormalize the ncol columns of V [ncol][n] (each column contiguous)
+ * in place, masses m [n], by modified Gram–Schmidt, twice. A column whose
+ * M-norm falls below 1e-8 of its norm before (dependent on those before) is
+ * dropped, unless it is one of the first keep. Returns the number of
+ * columns kept (moved to the front), or -1 when one of the first keep
+ * vanished. */
+int crom_modes_orthonormalize(double *V, int n, int ncol, const double *m, int keep);
+
 /* The rigid motions the pins leave free (those crom_modes_compute keeps
  * its modes M-orthogonal to): *nr M-orthonormal columns (RᵀMR = I, M the
  * lumped masses of sys) in *R [3nv][nr] row-major (malloc'ed; NULL when nr

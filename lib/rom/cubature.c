@@ -338,9 +338,9 @@ static int nnls_normal(int s, const double *G, const double *h, double *w, doubl
 
 /* Element e of c at latent q: its energy (NaN when not finite), and its
  * reduced force g_r += w Σ_a W_aᵀ ∂E_e/∂x_a. A solid's tet through
- * crom_cubature_tet with material mat (its rest shape recomputed: cheap
- * beside the kernel); a shell's element through its system
- * sys. work holds ELEM_WORK(r) doubles. */
+ * crom_cubature_tet with material mat (its rest shape recomputed; the
+ * greedy fit's columns, elem_column, compute it once per tet); a shell's
+ * element through its system sys. work holds ELEM_WORK(r) doubles. */
 static double elem_force(const crom_cubature *c, const crom_material *mat, const crom_system *sys, int e,
                          double w, const double *q, double *g_r, double *work)
 {
@@ -385,10 +385,21 @@ static int elem_column(const crom_cubature *c, const crom_cubature_opts *o, cons
 {
     int r = c->r, ro = o->proj ? o->rout : r;
     double *gf = work, *kw = work + r;
+    /* a solid's tet: its positions, W rows and rest shape once for every pose */
+    double Xe[12], Dm[9], V = 0, *W4 = kw, *tw = kw + 12 * (size_t)r;
+    if (!sys) {
+        gather(c, t, Xe, W4);
+        if (crom_fem_tet_rest(Xe, Dm, &V)) {
+            crom_err_clear();
+            return CROM_EDATA;
+        }
+    }
     for (int j = 0; j < o->npose; j++) {
         double *g = col + (size_t)j * (ro + 1);
+        const double *q = o->poses + (size_t)j * r;
         memset(gf, 0, sizeof(double) * (size_t)r);
-        double E = elem_force(c, mat, sys, t, 1.0, o->poses + (size_t)j * r, gf, kw);
+        double E = sys ? elem_force(c, mat, sys, t, 1.0, q, gf, kw)
+                       : crom_cubature_tet(mat, Xe, W4, r, Dm, V, 1.0, q, 0, gf, NULL, tw);
         if (!isfinite(E))
             return CROM_EDATA;
         if (o->proj)
