@@ -16,7 +16,7 @@
 #include "rom/map.h"
 #include "rom/model.h"
 
-enum { O_STREAM = 300, O_HDF5, O_STATS, O_EQUIL, O_GRID, O_RANDOM, O_BOX, O_BOXSC };
+enum { O_STREAM = 300, O_HDF5, O_STATS, O_EQUIL, O_GRID, O_RANDOM, O_LATENTS, O_BOX, O_BOXSC };
 
 static const crom_opt out_opts[] = {
     {"output", 'o', "OUT", "Write the trajectory to OUT (default: stdout; a frame stream into a pipe, HDF5 when redirected to a file)."},
@@ -29,6 +29,7 @@ static const crom_opt eq_opts[] = {
     {"equilibria", O_EQUIL, "MODEL", "Instead of a run: the constrained equilibria in the linear modes of MODEL (crom-modes, or the modes of a neuralmodes map), the ground truth of Neural Modes: frame k is argmin E(x) subject to W^T M (x - X) / m = z_k, for modal coordinates z_k on a grid or drawn at random in a box. The elastic energy alone: no gravity, forces, planes or velocities; --pin as the modes had it."},
     {"grid", O_GRID, "N", "--equilibria: N points per modal axis, N^r equilibria in the box (Wang et al.: 9 for training, 11 for testing)."},
     {"random", O_RANDOM, "N", "--equilibria: N equilibria at z uniform in the box (--seed)."},
+    {"latents", O_LATENTS, "LATENT", "--equilibria: one equilibrium per frame of LATENT (a crom/latent of a modal subspace in MODEL's modes, e.g. a crom-reducedstep --model run of a neuralmodes map), at its coordinates q = z: the ground truth along the states that run visited."},
     {"box", O_BOX, "A", "--equilibria: the box's half-width in metres of RMS displacement (default: a neuralmodes map's training box, else 0.2 times the bounding-box diagonal)."},
     {"box-scaling", O_BOXSC, "KIND", "--equilibria: uniform ([-A, A] for every mode; the default but for a neuralmodes map trained with frequency scaling) or frequency ([-A f_1/f_k, A f_1/f_k] for mode k)."},
     {NULL, 0, NULL, NULL}};
@@ -68,7 +69,7 @@ static const crom_cli_doc doc = {
 
 typedef struct {
     crom_scenario sc;
-    const char *input, *out, *stats, *equilibria;
+    const char *input, *out, *stats, *equilibria, *latents;
     int kind, grid, random, box_scaling; /* box_scaling: -1 unset, 0 uniform, 1 frequency */
     int tol_given, iter_given, gravity_given;
     double box;
@@ -99,9 +100,14 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_HDF5: a->kind = CROM_OUT_SERIES_H5; return 0;
     case O_STATS: a->stats = v; return 0;
     case O_EQUIL: a->equilibria = v; return 0;
+    case O_LATENTS:
+        if (a->grid || a->random || a->latents)
+            return crom_err(CROM_EUSAGE, "give one of --grid, --random and --latents");
+        a->latents = v;
+        return 0;
     case O_GRID: case O_RANDOM:
-        if (a->grid || a->random)
-            return crom_err(CROM_EUSAGE, "give one of --grid and --random");
+        if (a->grid || a->random || a->latents)
+            return crom_err(CROM_EUSAGE, "give one of --grid, --random and --latents");
         if (crom_parse_int(v, key == O_GRID ? "--grid" : "--random", key == O_GRID ? 2 : 1, 1000000L, &n))
             return CROM_EUSAGE;
         *(key == O_GRID ? &a->grid : &a->random) = (int)n;
@@ -171,10 +177,57 @@ static int eq_modes(args *a, const crom_mesh *m, crom_model *model, crom_map *ma
     return 0;
 }
 
-/* Modal coordinates of equilibrium k: the grid's point k (the last axis
- * fastest) or a uniform draw. */
-static void eq_point(const args *a, int r, const double *half, long k, crom_rng *rng, double *z)
+/* --latents: the latent q of every frame of a crom/latent of rank r into
+ * *Z [count][r] (malloc'ed). */
+static int eq_latents(const char *path, int r, double **Z, long *count)
 {
+    crom_in in;
+    double *all = NULL;
+    long nf = 0;
+    *Z = NULL;
+    *count = 0;
+    int rc = crom_in_open(&in, path), fq = -1;
+    if (rc)
+        return crom_err_ctx("--latents");
+    if (!(rc = crom_in_expect(&in, "crom/latent", 1)) && (fq = crom_in_field(&in, "q")) >= 0 &&
+        in.fields[fq].count != (size_t)r)
+        rc = crom_err(CROM_EUSAGE, "--latents %s has %zu latent coordinates, the modes %d", in.name,
+                      in.fields[fq].count, r);
+    if (!rc && fq < 0)
+        rc = CROM_EDATA;
+    if (!rc)
+        rc = crom_in_read_all(&in, &all, &nf);
+    if (!rc && nf < 1)
+        rc = crom_err(CROM_EDATA, "--latents %s has no frame", in.name);
+    if (!rc && !(*Z = crom_malloc(sizeof(double) * (size_t)nf * r)))
+        rc = CROM_EINTERNAL;
+    for (long k = 0; !rc && k < nf; k++) {
+        const double *q = all + (size_t)k * in.frame_len + in.fields[fq].offset;
+        for (int d = 0; d < r; d++)
+            if (!isfinite(q[d]))
+                rc = crom_err(CROM_EDATA, "--latents %s: frame %ld has a non-finite q", in.name, k);
+        if (!rc)
+            memcpy(*Z + (size_t)k * r, q, sizeof(double) * (size_t)r);
+    }
+    if (!rc)
+        *count = nf;
+    else {
+        free(*Z);
+        *Z = NULL;
+    }
+    free(all);
+    crom_in_close(&in);
+    return rc;
+}
+
+/* Modal coordinates of equilibrium k: the --latents frame k, the grid's
+ * point k (the last axis fastest) or a uniform draw. */
+static void eq_point(const args *a, int r, const double *half, const double *Z, long k, crom_rng *rng, double *z)
+{
+    if (Z) {
+        memcpy(z, Z + (size_t)k * r, sizeof(double) * (size_t)r);
+        return;
+    }
     for (int d = r - 1; d >= 0; d--) {
         if (a->grid) {
             long i = k % a->grid;
@@ -193,8 +246,8 @@ static int run_equilibria(crom_cli *cli, args *a, crom_mesh *m, char *hist)
         sc->spin[0] || sc->spin[1] || sc->spin[2])
         return crom_err(CROM_EUSAGE, "--equilibria minimizes the elastic energy alone: --gravity, --velocity, "
                                      "--force, --plane, --sphere and initial velocities do not apply");
-    if (!a->grid && !a->random)
-        return crom_err(CROM_EUSAGE, "--equilibria needs --grid N or --random N");
+    if (!a->grid && !a->random && !a->latents)
+        return crom_err(CROM_EUSAGE, "--equilibria needs --grid N, --random N or --latents LATENT");
     sc->gravity[0] = sc->gravity[1] = sc->gravity[2] = 0;
     crom_model model;
     crom_model_clear(&model);
@@ -205,7 +258,7 @@ static int run_equilibria(crom_cli *cli, args *a, crom_mesh *m, char *hist)
     crom_cequil ce;
     memset(&ce, 0, sizeof ce);
     unsigned char *fixed = NULL;
-    double *W = NULL, *x = NULL, *xprev = NULL, *u = NULL, *zero = NULL, half[64], z[64], lam[64], A = 0;
+    double *W = NULL, *x = NULL, *xprev = NULL, *u = NULL, *zero = NULL, *Zl = NULL, half[64], z[64], lam[64], A = 0;
     int npinned = 0, r = 0, n = 3 * m->nv, have_prev = 0;
     const char *refs[CROM_SCENARIO_MAX];
     for (int i = 0; i < sc->npins; i++)
@@ -219,6 +272,8 @@ static int run_equilibria(crom_cli *cli, args *a, crom_mesh *m, char *hist)
         goto out;
     r = map.r;
     long count = a->random;
+    if (a->latents && (rc = eq_latents(a->latents, r, &Zl, &count)))
+        goto out;
     if (a->grid) {
         double c = pow(a->grid, r);
         if (c > 1e6) {
@@ -273,7 +328,7 @@ static int run_equilibria(crom_cli *cli, args *a, crom_mesh *m, char *hist)
     crom_cli_progress_start(&prog, cli, "equilibria", count);
     long newton = 0;
     for (long k = 0; k < count && !rc; k++) {
-        eq_point(a, r, half, k, &rng, z);
+        eq_point(a, r, half, Zl, k, &rng, z);
         crom_cequil_stats st;
         double t0 = crom_clock_now();
         for (int i = 0; i < n; i++) { /* from X + W z, else from the previous equilibrium */
@@ -317,7 +372,7 @@ out:
     crom_system_free(&sys);
     crom_map_free(&map);
     crom_model_free(&model);
-    free(fixed), free(W), free(x), free(xprev), free(u), free(zero);
+    free(fixed), free(W), free(x), free(xprev), free(u), free(zero), free(Zl);
     return rc;
 }
 
@@ -334,10 +389,10 @@ static int run(crom_cli *cli, args *a)
         crom_mesh_free(&m);
         return rc;
     }
-    if (a->grid || a->random || a->box > 0 || a->box_scaling >= 0) {
+    if (a->grid || a->random || a->latents || a->box > 0 || a->box_scaling >= 0) {
         free(hist);
         crom_mesh_free(&m);
-        return crom_err(CROM_EUSAGE, "--grid, --random, --box and --box-scaling apply to --equilibria");
+        return crom_err(CROM_EUSAGE, "--grid, --random, --latents, --box and --box-scaling apply to --equilibria");
     }
     crom_sim s;
     if ((rc = crom_sim_init(&s, &m, &a->sc))) {

@@ -102,6 +102,21 @@ echo "held out: energy over the equilibria's: supervised $sup, neural modes $nmt
 $PY -c "import sys; s, n = float(sys.argv[1]), float(sys.argv[2]); sys.exit(0 if 1 <= n < s / 2 else 1)" "$sup" "$nmt" \
   || fail "neural modes store less energy than the supervised baseline on held-out z ($nmt, $sup)"; ok
 
+# --latents: the equilibria at the states a reduced run of the neural-modes
+# map visited (its latent q is z), one per frame
+crom-reducedstep --model nm.h5 --mesh sq.h5 "${MAT[@]}" --pin clamp --gravity 0,0,-9.81 --dt 0.05 --steps 6 \
+  --damping 4 -q -o red.h5
+crom-fullsim --equilibria modes.h5 --latents red.h5 --pin clamp "${MAT[@]}" -q -o eqr.h5 sq.h5
+$PY - eqr.h5 red.h5 <<'PYEOF' || fail "--latents"
+import sys, h5py, numpy as np
+e, r = h5py.File(sys.argv[1]), h5py.File(sys.argv[2])
+Z, q = e["frames/modal_coordinates"][()], r["frames/q"][()]
+if Z.shape != q.shape or np.abs(Z - q).max() != 0 or abs(q).max() <= 0:
+    raise SystemExit("check failed: one equilibrium per frame at its q (%r, %r)" % (Z.shape, q.shape))
+PYEOF
+ok
+crom-metrics --equilibria eqr.h5 nm.h5 | grep -q "^elastic_energy: " || fail "metrics along the run"; ok
+
 # the benchmark pipeline (pipelines/squareshell.mk), small: its table has
 # the five subspaces, linear modes far above the equilibria, neural modes
 # closer; a second make has nothing to redo
@@ -124,13 +139,15 @@ left=$("${SQ[@]}" -n | grep -v '^cat ' || true)
 [ -z "$left" ] || fail "squareshell.mk reruns a finished run: $left"; ok
 
 # refused, nothing written
+crom-modes "${MAT[@]}" --pin clamp --count 2 -o mod2.h5 sq.h5 2>/dev/null
 crom-fitfield --objective energy --mesh sq.h5 --rank 3 "${MAT[@]}" --pin clamp --steps 20 -q -o en.h5
 expect_error 64 "is a 'energy' model; the constrained equilibria" x.h5 -- crom-fullsim --equilibria en.h5 --grid 3 -o x.h5 sq.h5
-expect_error 64 "needs --grid N or --random N" x.h5 -- crom-fullsim --equilibria modes.h5 --pin clamp -o x.h5 sq.h5
+expect_error 64 "needs --grid N, --random N or --latents LATENT" x.h5 -- crom-fullsim --equilibria modes.h5 --pin clamp -o x.h5 sq.h5
 expect_error 64 "apply to --equilibria" x.h5 -- crom-fullsim --grid 3 --steps 2 -o x.h5 sq.h5
 expect_error 64 "elastic energy alone" x.h5 -- crom-fullsim --equilibria modes.h5 --pin clamp --grid 3 --gravity 0,0,-9.81 -o x.h5 sq.h5
 expect_error 64 "moves pinned degree of freedom" x.h5 -- crom-fullsim --equilibria modes.h5 --pin 'x<-0.45' --grid 3 -o x.h5 sq.h5
-expect_error 64 "give one of --grid and --random" x.h5 -- crom-fullsim --equilibria modes.h5 --grid 3 --random 4 -o x.h5 sq.h5
+expect_error 64 "give one of --grid, --random and --latents" x.h5 -- crom-fullsim --equilibria modes.h5 --grid 3 --random 4 -o x.h5 sq.h5
+expect_error 64 "latents .*has 3 latent coordinates, the modes 2" x.h5 -- crom-fullsim --equilibria mod2.h5 --latents red.h5 --pin clamp -o x.h5 sq.h5
 expect_error 64 "over 3 modes is .* equilibria" x.h5 -- crom-fullsim --equilibria modes.h5 --pin clamp --grid 101 -o x.h5 sq.h5
 crom-fullsim "${MAT[@]}" --pin clamp --steps 2 -q -o run.h5 sq.h5
 expect_error 64 "holds no constrained equilibria" x.txt -- crom-metrics --equilibria run.h5 modes.h5
