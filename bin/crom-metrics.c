@@ -143,7 +143,7 @@ static int run_equilibria(args *a, crom_model *model)
     if (a->mesh || a->compare || a->dist_given || a->sigma_given || a->material_given || a->gravity_given)
         return crom_err(CROM_EUSAGE, "--equilibria measures the model on the equilibria's mesh with their material: "
                                      "--mesh, --compare, the sampling flags and the scenario flags do not apply");
-    crom_equilibria eq;
+    crom_result_equilibria eq;
     crom_map map;
     memset(&map, 0, sizeof map);
     crom_system sys;
@@ -152,7 +152,7 @@ static int run_equilibria(args *a, crom_model *model)
     crom_scenario_defaults(&sc);
     unsigned char *fixed = NULL;
     int npinned = 0;
-    int rc = crom_equilibria_load(a->equilibria, &eq);
+    int rc = crom_result_equilibria_load(a->equilibria, &eq);
     if (rc)
         return rc;
     const char *refs[CROM_SCENARIO_MAX];
@@ -184,7 +184,7 @@ static int run_equilibria(args *a, crom_model *model)
     printf("nodal_force_error: %.6g N RMS (the equilibria's forces: %.6g N RMS)\n", e.force_err, e.force_gt);
     printf("displacement_error: %.4g\n", e.disp_err);
 out:
-    crom_equilibria_free(&eq);
+    crom_result_equilibria_free(&eq);
     crom_map_free(&map);
     crom_system_free(&sys);
     free(fixed);

@@ -55,13 +55,13 @@ void crom_body_free(crom_body *b)
     free(b->triX);
     free(b->W);
     free(b->freq);
-    crom_equilibria_free(&b->eq);
+    crom_result_equilibria_free(&b->eq);
     memset(b, 0, sizeof *b);
 }
 
 int crom_body_supervise(crom_body *b, const char *path, int rank, crom_datafree_problem *P)
 {
-    int rc = crom_equilibria_load(path, &b->eq);
+    int rc = crom_result_equilibria_load(path, &b->eq);
     if (rc)
         return crom_err_ctx("--supervised");
     if (crom_map_same_mesh(&b->eq.mesh, &b->mesh))

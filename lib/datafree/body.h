@@ -54,7 +54,7 @@ typedef struct {
     crom_model modes;        /* neuralmodes: the linear modes */
     double *W, *freq;        /* neuralmodes: the lowest r of them [3nv][r], their frequencies [r] */
     double *deriv;           /* neuralmodes with derivatives: Ψ [3nv][r(r+1)/2] (crom_body_derivatives) */
-    crom_equilibria eq;      /* neuralmodes supervised: the equilibria fitted to (crom_body_supervise) */
+    crom_result_equilibria eq; /* neuralmodes supervised: the equilibria fitted to (crom_body_supervise) */
 } crom_body;
 
 /* Load the geometry of src into b (cleared first; free it with

@@ -281,7 +281,7 @@ void crom_result_close(crom_result *res)
     res->J = NULL;
 }
 
-void crom_equilibria_free(crom_equilibria *eq)
+void crom_result_equilibria_free(crom_result_equilibria *eq)
 {
     if (!eq)
         return;
@@ -292,7 +292,7 @@ void crom_equilibria_free(crom_equilibria *eq)
     memset(eq, 0, sizeof *eq);
 }
 
-int crom_equilibria_load(const char *path, crom_equilibria *eq)
+int crom_result_equilibria_load(const char *path, crom_result_equilibria *eq)
 {
     memset(eq, 0, sizeof *eq);
     crom_result res;
@@ -348,6 +348,6 @@ out:
     free(id);
     crom_result_close(&res);
     if (rc)
-        crom_equilibria_free(eq);
+        crom_result_equilibria_free(eq);
     return rc;
 }

@@ -58,14 +58,14 @@ typedef struct {
     char model_id[17];  /* the modes' model_id (`equilibria_model`) */
     int K, r;
     double *Z, *U;
-} crom_equilibria;
+} crom_result_equilibria;
 
 /* Read path (a file, or "-"/NULL for stdin). Returns 0, CROM_EUSAGE when it
  * is no file of constrained equilibria, or the reader's errors. On failure
  * *eq holds nothing to free. */
-int crom_equilibria_load(const char *path, crom_equilibria *eq);
+int crom_result_equilibria_load(const char *path, crom_result_equilibria *eq);
 
-void crom_equilibria_free(crom_equilibria *eq);
+void crom_result_equilibria_free(crom_result_equilibria *eq);
 
 /* The one check that frame data is finite, for every program that reads
  * frames (crom-export and crom-diff through crom_result_next, crom-sample,
