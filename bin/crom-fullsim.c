@@ -59,7 +59,16 @@ static const crom_cli_doc doc = {
     "external and total energy, Newton iterations, final residual and wall time of the step. "
     "Frames stream to the next stage as they are computed. A run that fails (a step that does not "
     "converge) keeps the frames done so far, marked incomplete. With --verbose each step's "
-    "iterations and timing split (assembly, factorization, solves, line search) go to stderr.",
+    "iterations and timing split (assembly, factorization, solves, line search) go to stderr.\n\n"
+    "With --equilibria MODEL it computes, instead of a run, the constrained equilibria x*(z) = argmin "
+    "E(x) subject to W^T M (x - X) / m = z in MODEL's linear modes W (Wang et al., Neural Modes, eq. 9): "
+    "the configurations a neural-modes subspace is trained to reach, by Newton's method on the KKT "
+    "system (lib/phys/cequil.h) from X + W z, or, along --latents, from the previous equilibrium (the "
+    "other start when the first fails). Newton finds a local minimum: far from rest, where X + W z "
+    "inverts elements, continuation along a path (--latents) finds lower ones. Frame k holds the "
+    "equilibrium at z_k (modal_coordinates), its energy, the modal forces that hold it there and the "
+    "Newton iterations; time and step hold k. crom-metrics --equilibria measures a subspace against "
+    "them, crom-fitfield --objective neuralmodes --supervised fits the supervised baseline to them.",
     groups,
     "crom-mesh box --size 0.05 | crom-fullsim --velocity 'y>0.45=0,-2,0@0:0.1' --pin 'y<-0.45' \\\n"
     "    --gravity 0,0,0 --dt 0.005 --steps 60 | crom-export --format pvd -o out/\n"
@@ -151,8 +160,15 @@ static int eq_modes(args *a, const crom_mesh *m, crom_model *model, crom_map *ma
     if (!nm && strcmp(model->basis, "modes"))
         return crom_err(CROM_EUSAGE, "--equilibria %s is a '%s' model; the constrained equilibria are taken in "
                         "linear vibration modes (crom-modes, or a neuralmodes map)", a->equilibria, model->basis);
-    if ((rc = crom_map_init(map, model, nm ? NULL : m)))
+    /* the modes on their own mesh when it is this one (exactly, with zeros at
+     * the pins), else interpolated onto it (linear modes only) */
+    if ((rc = crom_map_init(map, model, NULL)))
         return rc;
+    if (!nm && crom_map_same_mesh(&map->mesh, m)) {
+        crom_map_free(map);
+        if ((rc = crom_map_init(map, model, m)))
+            return rc;
+    }
     if (nm && crom_map_same_mesh(&map->mesh, m))
         return crom_err(CROM_EUSAGE, "--equilibria %s: the neuralmodes map lives on another mesh than %s",
                         a->equilibria, a->input ? a->input : "stdin");
@@ -331,23 +347,38 @@ static int run_equilibria(crom_cli *cli, args *a, crom_mesh *m, char *hist)
         eq_point(a, r, half, Zl, k, &rng, z);
         crom_cequil_stats st;
         double t0 = crom_clock_now();
-        for (int i = 0; i < n; i++) { /* from X + W z, else from the previous equilibrium */
-            x[i] = m->X[i];
-            for (int d = 0; d < r; d++)
-                x[i] += W[(size_t)i * r + d] * z[d];
-        }
-        rc = crom_cequil_solve(&ce, z, x, lam, &st);
-        if (rc == CROM_EDATA && have_prev) {
-            char first[400];
-            snprintf(first, sizeof first, "%s", crom_errmsg());
-            crom_err_clear();
-            memcpy(x, xprev, sizeof(double) * (size_t)n);
-            if ((rc = crom_cequil_solve(&ce, z, x, lam, &st)))
-                crom_err(rc, "equilibrium %ld: from X + W z: %s; from the previous equilibrium: %s", k, first,
+        /* the start: X + W z; along a path (--latents) the previous
+         * equilibrium, moved to z; the other one when the first fails */
+        int first_prev = a->latents && have_prev;
+        char first[400] = "";
+        for (int attempt = 0; attempt < 2; attempt++) {
+            int from_prev = attempt ? !first_prev : first_prev;
+            if (from_prev && !have_prev)
+                break;
+            if (from_prev) {
+                memcpy(x, xprev, sizeof(double) * (size_t)n);
+            } else {
+                for (int i = 0; i < n; i++) {
+                    x[i] = m->X[i];
+                    for (int d = 0; d < r; d++)
+                        x[i] += W[(size_t)i * r + d] * z[d];
+                }
+            }
+            if ((rc = crom_cequil_solve(&ce, z, x, lam, &st)) != CROM_EDATA)
+                break;
+            if (attempt == 0) {
+                snprintf(first, sizeof first, "from %s: %s", from_prev ? "the previous equilibrium" : "X + W z",
                          crom_errmsg());
-        } else if (rc) {
-            crom_err_ctx("equilibrium %ld", k);
+                crom_err_clear();
+            } else {
+                crom_err(rc, "equilibrium %ld: %s; from %s: %s", k, first,
+                         from_prev ? "the previous equilibrium" : "X + W z", crom_errmsg());
+            }
         }
+        if (rc && !*first)
+            crom_err_ctx("equilibrium %ld", k);
+        else if (rc && !strstr(crom_errmsg(), "; from "))
+            crom_err(rc, "equilibrium %ld: %s", k, first);
         if (rc)
             break;
         memcpy(xprev, x, sizeof(double) * (size_t)n);

@@ -68,7 +68,9 @@ static const crom_cli_doc doc = {
     "von_mises_stress (mean over samples of the area- or volume-weighted mean element stress, a "
     "shell's membrane stress; largest element stress; and the relative weighted error), "
     "nodal_force_error (mean over samples of the RMS over free vertices of |f - f*|, f = -grad E), "
-    "displacement_error (mean |u - u*|_M / |u*|_M).",
+    "displacement_error (mean |u - u*|_M / |u*|_M). A warning counts the equilibria where the "
+    "subspace stores less energy than the solve found: there Newton stopped in a local minimum that "
+    "is not the least energy at that z.",
     groups,
     "crom-metrics df.h5\n"
     "crom-metrics --compare modes.h5 --samples 512 df.h5\n"
@@ -138,7 +140,7 @@ static void print_eigs(const char *name, const double *e, int r)
 }
 
 /* --equilibria: the subspace against constrained equilibria */
-static int run_equilibria(args *a, crom_model *model)
+static int run_equilibria(crom_cli *cli, args *a, crom_model *model)
 {
     if (a->mesh || a->compare || a->dist_given || a->sigma_given || a->material_given || a->gravity_given)
         return crom_err(CROM_EUSAGE, "--equilibria measures the model on the equilibria's mesh with their material: "
@@ -179,6 +181,9 @@ static int run_equilibria(args *a, crom_model *model)
            "agree to %.2g m\n", a->equilibria, e.count, eq.r, eq.mesh.nv, npinned, sc.youngs, sc.poisson, e.zmax_dev);
     printf("elastic_energy: mean %.6g J, max %.6g J; equilibria mean %.6g J, max %.6g J; ratio %.4g\n", e.energy,
            e.energy_max, e.energy_gt, e.energy_gt_max, e.energy_gt > 0 ? e.energy / e.energy_gt : NAN);
+    if (e.below)
+        crom_cli_warn(cli, "at %d of %d equilibria the subspace stores less energy: those solves found a higher local "
+                      "minimum, not the least energy at their z", e.below, e.count);
     printf("von_mises_stress: mean %.6g Pa, max %.6g Pa; equilibria mean %.6g Pa, max %.6g Pa; relative error "
            "%.4g\n", e.stress, e.stress_max, e.stress_gt, e.stress_gt_max, e.stress_err);
     printf("nodal_force_error: %.6g N RMS (the equilibria's forces: %.6g N RMS)\n", e.force_err, e.force_gt);
@@ -209,7 +214,7 @@ static int run(crom_cli *cli, args *a)
     if ((rc = crom_model_load(a->model, &model)))
         goto out;
     if (a->equilibria) {
-        rc = run_equilibria(a, &model);
+        rc = run_equilibria(cli, a, &model);
         goto out;
     }
     if (a->mesh && (rc = crom_mesh_load(a->mesh, 1, &mesh, NULL)))

@@ -391,6 +391,7 @@ int crom_metrics_equilibria(crom_map *map, const crom_system *sys, const crom_ma
         }
         out->energy += E / K;
         out->energy_gt += Es / K;
+        out->below += E < Es - 1e-9 * fabs(Es);
         out->energy_max = fmax(out->energy_max, E);
         out->energy_gt_max = fmax(out->energy_gt_max, Es);
         out->force_err += (nfree ? sqrt(f2 / nfree) : 0) / K;

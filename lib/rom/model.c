@@ -988,18 +988,20 @@ int crom_model_eval(const crom_model *m, size_t n, const double *X, double *W,
         *noutside = 0;
     if (n == 0)
         return 0;
-    if (m->field == CROM_MODEL_FIELD_MESH && crom_mesh_is_surface(&m->mesh)) {
-        /* a shell's basis lives at its own vertices only */
+    if (m->field == CROM_MODEL_FIELD_MESH) {
+        /* at its own vertices a mesh field is its values, exactly (zero at
+         * the pins: interpolation would leave round-off there); a shell's
+         * basis lives at its own vertices only */
         int same = n == (size_t)m->mesh.nv;
         for (size_t i = 0; same && i < 3 * n; i++)
             same = fabs(X[i] - m->mesh.X[i]) <= 1e-9 * (1 + fabs(X[i]));
-        if (!same)
+        if (same) {
+            memcpy(W, m->basis_v, sizeof(double) * 3 * (size_t)m->rank * n);
+            return 0;
+        }
+        if (crom_mesh_is_surface(&m->mesh))
             return crom_err(CROM_EDATA, "model %s (basis '%s') was made on a shell surface of %d vertices and is "
                             "evaluated only at them, got %zu other points", m->model_id, m->basis, m->mesh.nv, n);
-        memcpy(W, m->basis_v, sizeof(double) * 3 * (size_t)m->rank * n);
-        return 0;
-    }
-    if (m->field == CROM_MODEL_FIELD_MESH) {
         crom_locate_interp(&m->loc, n, X, 3 * m->rank, m->basis_v, W, noutside);
         return 0;
     }
