@@ -178,7 +178,8 @@ static int run_equilibria(crom_cli *cli, args *a, crom_model *model)
         goto out;
     printf("model: %s, basis %s, rank %d, model_id %s\n", a->model, model->basis, model->rank, model->model_id);
     printf("equilibria: %s, %d in %d modal coordinates, %d vertices (%d pinned), E %.6g Pa, nu %.6g; the modes "
-           "agree to %.2g m\n", a->equilibria, e.count, eq.r, eq.mesh.nv, npinned, sc.youngs, sc.poisson, e.zmax_dev);
+           "agree to %.2g m; the subspace's own modal coordinates are within %.3g m of z\n", a->equilibria, e.count,
+           eq.r, eq.mesh.nv, npinned, sc.youngs, sc.poisson, e.zmax_dev, e.zmap_dev);
     printf("elastic_energy: mean %.6g J, max %.6g J; equilibria mean %.6g J, max %.6g J; ratio %.4g\n", e.energy,
            e.energy_max, e.energy_gt, e.energy_gt_max, e.energy_gt > 0 ? e.energy / e.energy_gt : NAN);
     if (e.below)

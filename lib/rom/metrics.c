@@ -365,6 +365,12 @@ int crom_metrics_equilibria(crom_map *map, const crom_system *sys, const crom_ma
         }
         if ((rc = crom_map_eval(map, zk, x, NULL)))
             break;
+        for (int a = 0; a < r; a++) { /* the subspace's own modal coordinates */
+            double za = 0;
+            for (int i = 0; i < n; i++)
+                za += sys->mass[i / 3] * map->B[(size_t)i * map->p + a] * (x[i] - map->mesh.X[i]);
+            out->zmap_dev = fmax(out->zmap_dev, fabs(za / m - zk[a]));
+        }
         /* energies and forces, of the subspace and of the equilibrium */
         double E, Es, f2 = 0, fs2 = 0, d2 = 0, s2 = 0;
         int nfree = 0;

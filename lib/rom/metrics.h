@@ -97,6 +97,9 @@ typedef struct {
     double force_gt;                    /* mean over samples of the RMS over vertices of |f*| (N) */
     double disp_err;                    /* mean over samples of |u − u*|_M / |u*|_M */
     double zmax_dev;                    /* largest |Wᵀ M u*_k / m − z_k| (m): do the files' modes agree */
+    double zmap_dev;                    /* largest |Wᵀ M (x(z_k) − X) / m − z_k| (m): how far the subspace's own
+                                         * configuration is from the modal coordinates it is compared at (0
+                                         * for linear modes and a correction M-orthogonal to them) */
     int below;                          /* samples where the subspace stores less energy than the equilibrium
                                          * (by more than 1e-9 of it): a solve that found a higher local
                                          * minimum, not the least energy at that z */
