@@ -196,19 +196,6 @@ int crom_body_derivatives(crom_body *b, crom_datafree_problem *P, int rank)
     free(b->deriv);
     b->deriv = crom_malloc(sizeof(double) * 3 * (size_t)b->mesh.nv * ((size_t)rank * (rank + 1) / 2));
     rc = b->deriv ? crom_mderiv_compute(&sys, b->mesh.X, b->fixed, b->W, rank, b->deriv) : CROM_EINTERNAL;
-    /* Ψ_ij less its modal part, Ψ − W Wᵀ M Ψ / m: the correction ½ Σ Ψ z z +
-     * y(z) is then M-orthogonal to the modes, as Wang et al. constrain it, and
-     * z stays the map's modal coordinate (the same manifold to second order) */
-    size_t n = 3 * (size_t)b->mesh.nv, nd = (size_t)rank * (rank + 1) / 2;
-    for (size_t c = 0; !rc && c < nd; c++)
-        for (int k = 0; k < rank; k++) {
-            double p = 0;
-            for (size_t i = 0; i < n; i++)
-                p += sys.mass[i / 3] * b->W[i * rank + k] * b->deriv[i * nd + c];
-            p /= sys.total_mass;
-            for (size_t i = 0; i < n; i++)
-                b->deriv[i * nd + c] -= p * b->W[i * rank + k];
-        }
     crom_system_free(&sys);
     P->deriv = rc ? NULL : b->deriv;
     return rc;

@@ -53,8 +53,7 @@ typedef struct {
     const char *modes_path;  /* neuralmodes: where the modes came from (for messages) */
     crom_model modes;        /* neuralmodes: the linear modes */
     double *W, *freq;        /* neuralmodes: the lowest r of them [3nv][r], their frequencies [r] */
-    double *deriv;           /* neuralmodes with derivatives: Ψ [3nv][r(r+1)/2], M-orthogonal to the modes
-                              * (crom_body_derivatives) */
+    double *deriv;           /* neuralmodes with derivatives: Ψ [3nv][r(r+1)/2] (crom_body_derivatives) */
     crom_result_equilibria eq; /* neuralmodes supervised: the equilibria fitted to (crom_body_supervise) */
 } crom_body;
 

@@ -118,8 +118,7 @@ typedef struct {
     const unsigned char *fixed;  /* [3nv] pinned DOFs, or NULL */
     const double *modes;         /* neuralmodes: W [nv][3][r] */
     const double *freq;          /* neuralmodes: [r] frequencies (Hz), or NULL */
-    const double *deriv;         /* neuralmodes: the modal derivatives Ψ [nv][3][r(r+1)/2] of W (less
-                                  * their modal part: crom_body_derivatives)
+    const double *deriv;         /* neuralmodes: the modal derivatives Ψ [nv][3][r(r+1)/2] of W
                                   * (lib/phys/mderiv.h, in m⁻¹), or NULL: the map is then
                                   * X + W z + ½ Σ_{i<=j} Ψ_ij z_i z_j + y(z) */
     int nsup;                    /* neuralmodes supervised by nsup constrained equilibria (0: data-free) */
