@@ -14,6 +14,7 @@
 #include "phys/scenario.h"
 #include "phys/sim.h"
 #include "rom/map.h"
+#include "rom/equil.h"
 #include "rom/model.h"
 
 enum { O_STREAM = 300, O_HDF5, O_STATS, O_EQUIL, O_GRID, O_RANDOM, O_LATENTS, O_BOX, O_BOXSC };
@@ -148,113 +149,6 @@ static int put_frame(crom_out *o, crom_sim *s, const crom_sim_stats *st, double 
 
 /* ------------------------------------------------------------ equilibria */
 
-/* The modes W [n][r] of the model laid on mesh m (its linear part), and the
- * half-widths of the box. */
-static int eq_modes(args *a, const crom_mesh *m, crom_model *model, crom_map *map, double **W, double *half,
-                    double *box)
-{
-    int rc = crom_model_load(a->equilibria, model);
-    if (rc)
-        return crom_err_ctx("--equilibria");
-    int nm = !strcmp(model->basis, "neuralmodes");
-    if (!nm && strcmp(model->basis, "modes"))
-        return crom_err(CROM_EUSAGE, "--equilibria %s is a '%s' model; the constrained equilibria are taken in "
-                        "linear vibration modes (crom-modes, or a neuralmodes map)", a->equilibria, model->basis);
-    /* the modes on their own mesh when it is this one (exactly, with zeros at
-     * the pins), else interpolated onto it (linear modes only) */
-    if ((rc = crom_map_init(map, model, NULL)))
-        return rc;
-    if (!nm && crom_map_same_mesh(&map->mesh, m)) {
-        crom_map_free(map);
-        if ((rc = crom_map_init(map, model, m)))
-            return rc;
-    }
-    if (nm && crom_map_same_mesh(&map->mesh, m))
-        return crom_err(CROM_EUSAGE, "--equilibria %s: the neuralmodes map lives on another mesh than %s",
-                        a->equilibria, a->input ? a->input : "stdin");
-    int r = map->r, n = map->n;
-    if (map->nonlinear ? map->rl != r : map->p != r)
-        return crom_err(CROM_EINTERNAL, "the model's map has no linear part");
-    *W = crom_malloc(sizeof(double) * (size_t)n * r);
-    if (!*W)
-        return CROM_EINTERNAL;
-    for (int i = 0; i < n; i++)
-        for (int k = 0; k < r; k++)
-            (*W)[(size_t)i * r + k] = map->B[(size_t)i * map->p + k];
-    double A = a->box > 0 ? a->box : nm && model->latent_box > 0 ? model->latent_box
-                                                                 : 0.2 * crom_mesh_points_diagonal(m->X, m->nv);
-    int scaled = a->box_scaling >= 0 ? a->box_scaling : nm && model->latent_box_scaled;
-    if (scaled && !model->frequencies)
-        return crom_err(CROM_EUSAGE, "--box-scaling frequency: %s records no frequencies", a->equilibria);
-    for (int k = 0; k < r; k++)
-        half[k] = scaled ? crom_modes_box_half(model->frequencies, r, A, k) : A;
-    a->box_scaling = scaled;
-    *box = A;
-    return 0;
-}
-
-/* --latents: the latent q of every frame of a crom/latent of rank r into
- * *Z [count][r] (malloc'ed). */
-static int eq_latents(const char *path, int r, double **Z, long *count)
-{
-    crom_in in;
-    double *all = NULL;
-    long nf = 0;
-    *Z = NULL;
-    *count = 0;
-    int rc = crom_in_open(&in, path), fq = -1;
-    if (rc)
-        return crom_err_ctx("--latents");
-    if (!(rc = crom_in_expect(&in, "crom/latent", 1)) && (fq = crom_in_field(&in, "q")) >= 0 &&
-        in.fields[fq].count != (size_t)r)
-        rc = crom_err(CROM_EUSAGE, "--latents %s has %zu latent coordinates, the modes %d", in.name,
-                      in.fields[fq].count, r);
-    if (!rc && fq < 0)
-        rc = CROM_EDATA;
-    if (!rc)
-        rc = crom_in_read_all(&in, &all, &nf);
-    if (!rc && nf < 1)
-        rc = crom_err(CROM_EDATA, "--latents %s has no frame", in.name);
-    if (!rc && !(*Z = crom_malloc(sizeof(double) * (size_t)nf * r)))
-        rc = CROM_EINTERNAL;
-    for (long k = 0; !rc && k < nf; k++) {
-        const double *q = all + (size_t)k * in.frame_len + in.fields[fq].offset;
-        for (int d = 0; d < r; d++)
-            if (!isfinite(q[d]))
-                rc = crom_err(CROM_EDATA, "--latents %s: frame %ld has a non-finite q", in.name, k);
-        if (!rc)
-            memcpy(*Z + (size_t)k * r, q, sizeof(double) * (size_t)r);
-    }
-    if (!rc)
-        *count = nf;
-    else {
-        free(*Z);
-        *Z = NULL;
-    }
-    free(all);
-    crom_in_close(&in);
-    return rc;
-}
-
-/* Modal coordinates of equilibrium k: the --latents frame k, the grid's
- * point k (the last axis fastest) or a uniform draw. */
-static void eq_point(const args *a, int r, const double *half, const double *Z, long k, crom_rng *rng, double *z)
-{
-    if (Z) {
-        memcpy(z, Z + (size_t)k * r, sizeof(double) * (size_t)r);
-        return;
-    }
-    for (int d = r - 1; d >= 0; d--) {
-        if (a->grid) {
-            long i = k % a->grid;
-            k /= a->grid;
-            z[d] = half[d] * (-1 + 2.0 * (double)i / (a->grid - 1));
-        } else {
-            z[d] = half[d] * (2 * crom_rng_uniform(rng) - 1);
-        }
-    }
-}
-
 static int run_equilibria(crom_cli *cli, args *a, crom_mesh *m, char *hist)
 {
     crom_scenario *sc = &a->sc;
@@ -274,22 +168,33 @@ static int run_equilibria(crom_cli *cli, args *a, crom_mesh *m, char *hist)
     crom_cequil ce;
     memset(&ce, 0, sizeof ce);
     unsigned char *fixed = NULL;
-    double *W = NULL, *x = NULL, *xprev = NULL, *u = NULL, *zero = NULL, *Zl = NULL, half[64], z[64], lam[64], A = 0;
-    int npinned = 0, r = 0, n = 3 * m->nv, have_prev = 0;
+    double *W = NULL, *x = NULL, *xprev = NULL, *u = NULL, *zero = NULL, *Zl = NULL, *half = NULL, A = 0;
+    int npinned = 0, r = 0, n = 3 * m->nv, have_prev = 0, scaled = 0;
+    long count = a->random;
     const char *refs[CROM_SCENARIO_MAX];
     for (int i = 0; i < sc->npins; i++)
         refs[i] = sc->pins[i];
     int rc = crom_modes_pins(m, sc->npins, refs, &fixed, &npinned);
     if (!rc)
         rc = crom_system_init(&sys, m, sc->youngs, sc->poisson, sc->density);
-    if (!rc && (rc = eq_modes(a, m, &model, &map, &W, half, &A)) == 0 && map.r > 64)
-        rc = crom_err(CROM_EUSAGE, "--equilibria: %d modes (at most 64)", map.r);
+    if (!rc && (rc = crom_model_load(a->equilibria, &model)))
+        crom_err_ctx("--equilibria");
+    if (!rc && (rc = crom_equil_modes(&model, m, &map, &W)))
+        crom_err_ctx("--equilibria %s", a->equilibria);
     if (rc)
         goto out;
     r = map.r;
-    long count = a->random;
-    if (a->latents && (rc = eq_latents(a->latents, r, &Zl, &count)))
+    if (!(half = crom_malloc(sizeof(double) * 3 * (size_t)r))) { /* half, z, the modal forces */
+        rc = CROM_EINTERNAL;
         goto out;
+    }
+    double *z = half + r, *lam = half + 2 * r;
+    if ((rc = crom_equil_box(&model, m, a->box, a->box_scaling, half, &A, &scaled)))
+        goto out;
+    if (a->latents && (rc = crom_equil_latents(a->latents, r, &Zl, &count))) {
+        crom_err_ctx("--latents");
+        goto out;
+    }
     if (a->grid) {
         double c = pow(a->grid, r);
         if (c > 1e6) {
@@ -329,7 +234,7 @@ static int run_equilibria(crom_cli *cli, args *a, crom_mesh *m, char *hist)
     if (!rc)
         rc = crom_h5_set_f64(o.h5, ".", "latent_box", &A, 1);
     if (!rc)
-        rc = crom_h5_set_str(o.h5, ".", "latent_box_scaling", a->box_scaling ? "frequency" : "uniform");
+        rc = crom_h5_set_str(o.h5, ".", "latent_box_scaling", scaled ? "frequency" : "uniform");
     hsize_t dims[2] = {(hsize_t)m->nv, 3}, rd[1] = {(hsize_t)r};
     static const char *const f[] = {"time", "step", "displacement", "velocity", "kinetic_energy", "elastic_energy",
                                     "external_energy", "total_energy", "newton_iterations", "residual",
@@ -344,43 +249,14 @@ static int run_equilibria(crom_cli *cli, args *a, crom_mesh *m, char *hist)
     crom_cli_progress_start(&prog, cli, "equilibria", count);
     long newton = 0;
     for (long k = 0; k < count && !rc; k++) {
-        eq_point(a, r, half, Zl, k, &rng, z);
+        crom_equil_point(a->grid, r, half, Zl, k, &rng, z);
         crom_cequil_stats st;
         double t0 = crom_clock_now();
-        /* the start: X + W z; along a path (--latents) the previous
-         * equilibrium, moved to z; the other one when the first fails */
-        int first_prev = a->latents && have_prev;
-        char first[400] = "";
-        for (int attempt = 0; attempt < 2; attempt++) {
-            int from_prev = attempt ? !first_prev : first_prev;
-            if (from_prev && !have_prev)
-                break;
-            if (from_prev) {
-                memcpy(x, xprev, sizeof(double) * (size_t)n);
-            } else {
-                for (int i = 0; i < n; i++) {
-                    x[i] = m->X[i];
-                    for (int d = 0; d < r; d++)
-                        x[i] += W[(size_t)i * r + d] * z[d];
-                }
-            }
-            if ((rc = crom_cequil_solve(&ce, z, x, lam, &st)) != CROM_EDATA)
-                break;
-            if (attempt == 0) {
-                snprintf(first, sizeof first, "from %s: %s", from_prev ? "the previous equilibrium" : "X + W z",
-                         crom_errmsg());
-                crom_err_clear();
-            } else {
-                crom_err(rc, "equilibrium %ld: %s; from %s: %s", k, first,
-                         from_prev ? "the previous equilibrium" : "X + W z", crom_errmsg());
-            }
-        }
-        if (rc && !*first)
+        /* from X + W z; along a path (--latents) from the previous equilibrium first */
+        if ((rc = crom_equil_solve(&ce, m->X, W, z, have_prev ? xprev : NULL, a->latents != NULL, x, lam, &st))) {
             crom_err_ctx("equilibrium %ld", k);
-        else if (rc && !strstr(crom_errmsg(), "; from "))
-            crom_err(rc, "equilibrium %ld: %s", k, first);
-        if (rc)
             break;
+        }
         memcpy(xprev, x, sizeof(double) * (size_t)n);
         have_prev = 1;
         newton += st.newton;
@@ -403,7 +279,7 @@ out:
     crom_system_free(&sys);
     crom_map_free(&map);
     crom_model_free(&model);
-    free(fixed), free(W), free(x), free(xprev), free(u), free(zero), free(Zl);
+    free(fixed), free(W), free(x), free(xprev), free(u), free(zero), free(Zl), free(half);
     return rc;
 }
 
