@@ -27,7 +27,7 @@
 enum { O_RANK = 300, O_ENCODER, O_BASIS, O_EPOCHS, O_MINUTES, O_LR, O_BATCH, O_PPS, O_ENCPTS,
        O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX, O_BOXSC,
        O_ORTHO, O_STEPS, O_FEATURES, O_TETS, O_PINW, O_OPTIM, O_RESAMPLE, O_TANW, O_TANF, O_HANDLES, O_WEIGHTS,
-       O_SURFACE, O_CLOUD, O_SPOINTS, O_COORDS, O_COORDTOL, O_DERIV, O_SUPERV, O_LAST };
+       O_SURFACE, O_CLOUD, O_SPOINTS, O_COORDS, O_COORDTOL, O_DERIV, O_SUPERV, O_TANANCHOR, O_LAST };
 
 /* --objective skinning (lib/datafree/dfskin.h), next to the CROM_DATAFREE_* codes */
 #define OBJ_SKINNING 100
@@ -58,6 +58,7 @@ static const crom_opt df_opts[] = {
     {"tangent-floor", O_TANF, "F", "energy, field: the floor of --tangent-weight, in (0, 1]: normalized eigenvalues above it cost nothing (default 0.03; crom-metrics counts a dimension below 0.01 as collapsed). On the soft bar of the benchmarks a floor of 0.1 made the first step from rest 13-15% off for the skin-field and the energy map; 0.03 keeps every direction above 0.01 and the skin-field's first step at 4-7%."},
     {"box", O_BOX, "A", "neuralmodes: half-width of the box the modal coordinates z are drawn from, in metres of RMS displacement: [-A, A] for the lowest mode (default 0.2 times the bounding-box diagonal; see --box-scaling)."},
     {"derivatives", O_DERIV, NULL, "neuralmodes: seed the map with the modal derivatives Psi_ij of its --rank modes (Barbic and James 2005, computed here on --mesh with the material and pins): x(z) = X + Phi z + 1/2 sum_{i<=j} Psi_ij z_i z_j + y(z). The second-order term is the in-plane shortening that keeps bent modes of a shell or a slender body from stretching (locking), which y alone learns slowly; the model stores Psi."},
+    {"tangent-anchor", O_TANANCHOR, NULL, "neuralmodes: anchor the correction's tangent too: y(z) = N(z) - N(0) - J_N(0) z, zero to first order, so that the map leaves rest along the modes exactly as the constrained equilibria do (a learned first-order part stiffens small deflections). Trained with J_N(0) z as a central difference of step 0.01 z; the model (tangent_anchored) evaluates it exactly."},
     {"supervised", O_SUPERV, "EQ", "neuralmodes: the supervised baseline of Wang et al. (their 'L2 supervised'): the same map fitted to the constrained equilibria of EQ (crom-fullsim --equilibria in the same modes, on --mesh) by the mean squared mass-weighted distance, instead of trained on the energy; batches are drawn from the equilibria."},
     {"box-scaling", O_BOXSC, "KIND", "neuralmodes: frequency (default): mode k is drawn from [-A f_1/f_k, A f_1/f_k], the same linear energy at every edge, so that the stiff modes do not swamp the energy of the soft ones; uniform: every mode from [-A, A] (Wang et al.)."},
     {"optimizer", O_OPTIM, "KIND", "energy, neuralmodes: adam (default): Adam on a fresh batch every step. lbfgs: L-BFGS with a backtracking line search (Wang et al.), --resample iterations on each batch."},
@@ -302,6 +303,7 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_MODES: a->modes = v; return 0;
     case O_DERIV: a->derivatives = 1; return 0;
     case O_SUPERV: a->supervised = v; return 0;
+    case O_TANANCHOR: a->df.tangent_anchor = 1; return 0;
     case O_SPOINTS: return int_opt(key, v, 1, 100000000L, &a->sample_points);
     /* 0 parses, so that the training reports it as a count it cannot use */
     case O_HANDLES: return int_opt(key, v, 0, 100000L, &a->handles);
@@ -411,9 +413,9 @@ static void check_datafree(crom_cli *cli, const args *a)
                                  "MODEL (from crom-modes on the same mesh)"));
     if (a->objective != CROM_DATAFREE_NEURALMODES && a->modes)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--modes applies to --objective neuralmodes"));
-    if (a->objective != CROM_DATAFREE_NEURALMODES && (a->derivatives || a->supervised))
+    if (a->objective != CROM_DATAFREE_NEURALMODES && (a->derivatives || a->supervised || a->df.tangent_anchor))
         usage_exit(cli, crom_err(CROM_EUSAGE, "%s applies to --objective neuralmodes",
-                                 a->derivatives ? "--derivatives" : "--supervised"));
+                                 a->derivatives ? "--derivatives" : a->supervised ? "--supervised" : "--tangent-anchor"));
     if (a->objective != CROM_DATAFREE_NEURALMODES && GIVEN(a, O_STEPS) && a->df.steps == 0)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--steps 0 (no training) applies to --objective neuralmodes"));
 }
@@ -436,6 +438,7 @@ static crom_datafree_opts datafree_opts(const crom_cli *cli, const args *a)
     /* the data-free options given; the objective's defaults for the others */
 #define DF_GIVEN(key, field) if (GIVEN(a, key)) d.field = a->df.field
     DF_GIVEN(O_STEPS, steps);
+    DF_GIVEN(O_TANANCHOR, tangent_anchor);
     DF_GIVEN(O_SIGMA, sigma);
     DF_GIVEN(O_LAMBDA, lambda);
     DF_GIVEN(O_RAMP, ramp);

@@ -122,7 +122,9 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
     if (c->B0 && !(o->tangent_floor > 0 && o->tangent_floor <= 1))
         return crom_err(CROM_EUSAGE, "--tangent-floor %g: the collapse floor must be in (0, 1]", o->tangent_floor);
     c->nthreads = crom_dftrain_threads(o->threads);
-    size_t rows = (size_t)maxbatch + c->B0 + 1; /* the batch, the tangent samples, the anchor */
+    int ta = nm && o->tangent_anchor;
+    /* the batch, the tangent samples, the anchor (then, tangent-anchored, ±ε z_b) */
+    size_t rows = (size_t)maxbatch + c->B0 + 1 + (ta ? 2 * (size_t)maxbatch : 0);
     int rc = crom_mesh_is_surface(p->mesh) && o->tets > 0
                  ? crom_err(CROM_EUSAGE, "--tets %d: a random cubature of tets applies to solids; a shell's map "
                                          "integrates every triangle and hinge", o->tets)
@@ -177,24 +179,44 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
     return 0;
 }
 
+/* The step of the central difference that stands for J_N(0) z in a
+ * tangent-anchored map's training (relative to z; datafree.h). */
+#define TANGENT_EPS 1e-2
+
+static int tangent_anchored(const crom_datafree_ctx *c)
+{
+    return c->o.objective == CROM_DATAFREE_NEURALMODES && c->o.tangent_anchor;
+}
+
 /* The network at the batch, the tangent samples, then z = 0: the anchor
  * N(0) that every sample is taken relative to (lib/rom/map.h), Y_b = N(z_b)
  * − N(0); pinned outputs do not exist (the mask is part of the map). */
 static int map_outputs(crom_datafree_ctx *c, int B, const double *z)
 {
-    int r = c->r, n = c->n, Bt = B + c->B0;
+    int r = c->r, n = c->n, Bt = B + c->B0, ta = tangent_anchored(c);
     const unsigned char *fixed = c->P.fixed;
     for (int b = 0; b < Bt; b++)
         for (int k = 0; k < r; k++)
             c->zf[(size_t)b * r + k] = (float)z[(size_t)b * r + k];
     memset(c->zf + (size_t)Bt * r, 0, sizeof(float) * (size_t)r);
-    int rc = crom_nn_mlp_forward(c->net, &c->ws, Bt + 1, c->zf, NULL);
+    for (int b = 0; ta && b < B; b++) /* rows Bt + 1 + b: +ε z_b; Bt + 1 + B + b: −ε z_b */
+        for (int k = 0; k < r; k++) {
+            float v = (float)(TANGENT_EPS * z[(size_t)b * r + k]);
+            c->zf[(size_t)(Bt + 1 + b) * r + k] = v;
+            c->zf[(size_t)(Bt + 1 + B + b) * r + k] = -v;
+        }
+    int rc = crom_nn_mlp_forward(c->net, &c->ws, Bt + 1 + (ta ? 2 * B : 0), c->zf, NULL);
     if (rc)
         return rc;
     const float *Yf = crom_nn_ws_output(&c->ws), *Y0 = Yf + (size_t)Bt * n;
     for (int b = 0; b < Bt; b++)
         for (int i = 0; i < n; i++)
             c->Y[(size_t)b * n + i] = (double)Yf[(size_t)b * n + i] - (double)Y0[i];
+    for (int b = 0; ta && b < B; b++) { /* − J_N(0) z_b, by the central difference */
+        const float *Yp = Yf + (size_t)(Bt + 1 + b) * n, *Ym = Yf + (size_t)(Bt + 1 + B + b) * n;
+        for (int i = 0; i < n; i++)
+            c->Y[(size_t)b * n + i] -= ((double)Yp[i] - (double)Ym[i]) / (2 * TANGENT_EPS);
+    }
     if (fixed)
         for (int b = 0; b < Bt; b++)
             for (int i = 0; i < n; i++)
@@ -409,10 +431,20 @@ int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho,
         return rc;
     if (!grad)
         return 0;
-    /* through the anchor: dL/dN(z_b) = dY_b, dL/dN(0) = −Σ_b dY_b */
+    /* through the anchor: dL/dN(z_b) = dY_b, dL/dN(0) = −Σ_b dY_b; tangent-
+     * anchored also dL/dN(±ε z_b) = ∓dY_b / 2ε */
     crom_dfloss_anchor_grad(rows, c->n, c->dY, c->P.fixed, c->dyf);
+    int ta = tangent_anchored(c), all = rows + (ta ? 2 * B : 0);
+    for (int b = 0; ta && b < B; b++) {
+        float *fp = c->dyf + (size_t)(rows + b) * c->n, *fm = c->dyf + (size_t)(rows + B + b) * c->n;
+        const float *db = c->dyf + (size_t)b * c->n;
+        for (int i = 0; i < c->n; i++) {
+            fp[i] = (float)(-db[i] / (2 * TANGENT_EPS));
+            fm[i] = -fp[i];
+        }
+    }
     memset(grad, 0, sizeof(float) * c->net->nparams);
-    return crom_nn_mlp_backward(c->net, &c->ws, rows, c->dyf, grad, NULL);
+    return crom_nn_mlp_backward(c->net, &c->ws, all, c->dyf, grad, NULL);
 }
 
 /* ============================================================ training */
@@ -639,6 +671,8 @@ int crom_datafree_write_record(hid_t loc, const crom_datafree_opts *o, const cro
             rc = crom_h5_set_f64(loc, ".", "latent_box", &log->box, 1);
         if (!rc)
             rc = crom_h5_set_str(loc, ".", "latent_box_scaling", o->box_scaled ? "frequency" : "uniform");
+        if (!rc && o->tangent_anchor)
+            rc = crom_h5_set_i64(loc, ".", "tangent_anchored", 1);
         if (!rc)
             rc = crom_h5_set_f64(loc, ".", "ortho_weight", &o->ortho_weight, 1);
         if (!rc && modes_id)

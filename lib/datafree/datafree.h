@@ -148,6 +148,10 @@ typedef struct {
     double box;             /* neuralmodes: half-width a of the z box (m) */
     int box_scaled;         /* neuralmodes: 1 (default): mode k's half-width is a f_1 / f_k */
     double ortho_weight;    /* neuralmodes: w_o (1e4) */
+    int tangent_anchor;     /* neuralmodes: 1: y(z) = N(z) − N(0) − J_N(0) z, so that y = O(z²) and the map's
+                             * tangent at rest is the modes' exactly (trained with J_N(0) z as the central
+                             * difference (N(ε z) − N(−ε z)) / 2ε, ε = TANGENT_EPS; the model evaluates it
+                             * exactly) */
     int features;           /* field: p, the feature fields of W (32) */
     int field_depth, field_width; /* field: dense layers (4) and hidden width (64) of W */
     int tets;               /* tets of the random cubature per step (field: 512; maps: 0, every tet) */

@@ -148,6 +148,8 @@ static const crom_schema_attr model_attrs[] = {
     {"ortho_weight", "f64", 0, "weight w_o of the M-orthogonality penalty (neuralmodes)", NULL},
     {"origin_weight", "f64", 0, "weight w_0 of the penalty on y(0) (neuralmodes written before the maps were anchored; no longer written)", NULL},
     {"modes_id", "str", 0, "model_id of the crom-modes model whose modes are the linear part (neuralmodes)", NULL},
+    {"tangent_anchored", "i64", 0, "1: a neuralmodes map whose correction is y(q) = N(q) - N(0) - J_N(0) q, O(q^2), so "
+                                   "that its tangent at rest is the modes' (crom-fitfield --tangent-anchor)", NULL},
     {"supervised", "str", 0, "a neuralmodes map fitted to constrained equilibria by the geometric loss (crom-fitfield "
                              "--supervised, Wang et al.'s L2 supervised baseline): how many, in which modes", NULL},
     {"cubature_tets", "i64", 0, "tets of the random cubature drawn at every training step (energy-field)", NULL},

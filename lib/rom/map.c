@@ -21,6 +21,7 @@ void crom_map_free(crom_map *map)
     free(map->fa);
     free(map->fT);
     free(map->anchor);
+    free(map->tan0);
     free(map->mem);
     free(map->a0);
     free(map->a1);
@@ -251,6 +252,16 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
             free(a0);
         else
             map->anchor = a0;
+        if (!rc && model->tangent_anchored && !map->phi) { /* T(0) of the network's features */
+            double *z0 = crom_calloc((size_t)r, sizeof(double));
+            double *T0 = crom_malloc(sizeof(double) * (size_t)map->p * r);
+            rc = z0 && T0 ? crom_map_features(map, z0, NULL, T0) : CROM_EINTERNAL;
+            free(z0);
+            if (rc)
+                free(T0);
+            else
+                map->tan0 = T0;
+        }
     }
     if (rc)
         crom_map_free(map);
@@ -369,6 +380,8 @@ int crom_map_features(crom_map *map, const double *q, double *a, double *T)
                 return crom_err(CROM_EDATA, "the map's network is not finite at this latent");
             if (map->anchor)
                 a[i] -= map->anchor[i];
+            if (map->tan0 && i >= o) /* tangent-anchored: less T(0) q */
+                a[i] -= cblas_ddot(r, map->tan0 + (size_t)i * r, 1, q, 1);
         }
     }
     if (T) {
@@ -378,6 +391,9 @@ int crom_map_features(crom_map *map, const double *q, double *a, double *T)
         quadratic(map->rq ? r : 0, q, NULL, T + (size_t)rl * r);
         memcpy(T + (size_t)o * r, t, sizeof(double) * (size_t)nh * r);
         memset(T + (size_t)(p - 1) * r, 0, sizeof(double) * (size_t)r);
+        if (map->tan0)
+            for (size_t i = (size_t)o * r; i < (size_t)p * r; i++)
+                T[i] -= map->tan0[i];
     }
     return 0;
 }

@@ -74,6 +74,8 @@ typedef struct crom_map_s {
     double *a0, *a1, *z1, *t0, *t1;
     double *zs, *ts;     /* crom_map_curvature: every hidden layer's z and dz/dq */
     double *fa, *fT;     /* crom_map_eval's features and their Jacobian */
+    double *tan0;        /* tangent-anchored neuralmodes: [p][r] T(0), subtracted from the network's features
+                          * (a − T(0) q: the map's tangent at rest is W) */
     double *anchor;      /* [p] a(0), subtracted from the features of a nonlinear map (NULL: linear) */
 } crom_map;
 

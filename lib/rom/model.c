@@ -950,6 +950,15 @@ int crom_model_read(crom_in *in, crom_model *m)
     }
     if (crom_h5_has_attr(h, ".", "gravity") && !crom_h5_get_f64(h, ".", "gravity", m->gravity, 3))
         m->has_gravity = 1;
+    if (crom_h5_has_attr(h, ".", "tangent_anchored")) { /* it changes the map */
+        long long v = 0;
+        if (crom_h5_get_i64(h, ".", "tangent_anchored", &v) || (v != 0 && v != 1) ||
+            (v && strcmp(m->basis, "neuralmodes"))) {
+            rc = crom_err(CROM_EDATA, "%s: tangent_anchored must be 0 or 1, and only on a neuralmodes map", in->name);
+            goto out;
+        }
+        m->tangent_anchored = (int)v;
+    }
     crom_err_clear();
     crom_model_id(m, m->model_id);
     if (strcmp(id, m->model_id)) {

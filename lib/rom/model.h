@@ -132,6 +132,8 @@ typedef struct {
     double sigma;        /* energy maps: isometry scale (m per unit z) */
     double latent_box;   /* neuralmodes: half-width of the training box (m) */
     int latent_box_scaled; /* neuralmodes: 1 if mode k's half-width is latent_box f_1 / f_k */
+    int tangent_anchored;  /* neuralmodes: 1 if y(q) = N(q) − N(0) − J_N(0) q (attribute tangent_anchored;
+                            * written by the trainer's record) */
     double gravity[3];   /* the training gravity (m/s²) */
     int has_gravity;
 } crom_model;

@@ -102,6 +102,24 @@ echo "held out: energy over the equilibria's: supervised $sup, neural modes $nmt
 $PY -c "import sys; s, n = float(sys.argv[1]), float(sys.argv[2]); sys.exit(0 if 1 <= n < s / 2 else 1)" "$sup" "$nmt" \
   || fail "neural modes store less energy than the supervised baseline on held-out z ($nmt, $sup)"; ok
 
+# --tangent-anchor: the correction is zero to first order, so the map leaves
+# rest along the modes exactly; the model says so and its metrics hold
+crom-fitfield --objective neuralmodes --tangent-anchor --mesh sq.h5 --modes modes.h5 --rank 3 --box 0.04 \
+  --box-scaling uniform --steps 6000 -q -o nmt.h5
+crom-info --check nmt.h5 >/dev/null || fail "crom-info --check nmt.h5"; ok
+$PY - nmt.h5 <<'PYEOF' || fail "tangent_anchored attribute"
+import sys, h5py
+if h5py.File(sys.argv[1]).attrs["tangent_anchored"] != 1:
+    raise SystemExit("no tangent_anchored = 1")
+PYEOF
+ok
+crom-metrics --equilibria eq.h5 nmt.h5 >nmt.txt
+nta=$(ratio nmt.txt)
+echo "tangent-anchored neural modes: energy over the equilibria's $nta (not anchored $nm, linear modes $lin)"
+$PY -c "import sys; n, l = float(sys.argv[1]), float(sys.argv[2]); sys.exit(0 if 1 <= n < l / 4 else 1)" "$nta" "$lin" \
+  || fail "tangent-anchored neural modes store less than linear modes ($nta, $lin)"; ok
+expect_error 64 "tangent-anchor applies to --objective neuralmodes" x.h5 -- crom-fitfield --objective energy --tangent-anchor --mesh sq.h5 --rank 3 "${MAT[@]}" --pin clamp -o x.h5
+
 # --latents: the equilibria at the states a reduced run of the neural-modes
 # map visited (its latent q is z), one per frame
 crom-reducedstep --model nm.h5 --mesh sq.h5 "${MAT[@]}" --pin clamp --gravity 0,0,-9.81 --dt 0.05 --steps 6 \
