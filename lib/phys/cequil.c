@@ -200,9 +200,10 @@ int crom_cequil_solve(crom_cequil *c, const double *z, double *x, double *lambda
     for (int k = 0; k < c->nc; k++)
         for (int i = 0; i < n; i++)
             x[i] += c->V[(size_t)k * n + i] * c->lam[k];
-    /* Newton on the true Hessian while it is definite (quadratic
-     * convergence), else, for the rest of the solve, on SPD-projected element
-     * Hessians (as crom-fullsim's steps) */
+    /* Newton on the true Hessian plus μM (quadratic convergence), shifted by
+     * τM where its factorization fails (Levenberg: τ grows tenfold until it
+     * succeeds, and is relaxed fourfold per iteration); SPD-projected element
+     * Hessians for the rest of the solve if a direction does not descend */
     crom_fem_opts fo = {0, c->mu, c->fixed, 1};
     double E = NAN, shift = 0;
     for (int it = 0;; it++) {
@@ -223,7 +224,7 @@ int crom_cequil_solve(crom_cequil *c, const double *z, double *x, double *lambda
             if ((rc = crom_chol_factor(c->chol, c->H)) != CROM_EDATA || tries++ >= 30)
                 break;
             crom_err_clear();
-            tau = tau > 0 ? 10 * tau : 1e-2 * c->mu * 1e8; /* 1e-2 of the mean K_ii / m_i */
+            tau = tau > 0 ? 10 * tau : 1e6 * c->mu; /* 1e-2 of the mean K_ii / m_i for the default μ */
         }
         shift = added / 4;
         if (rc)

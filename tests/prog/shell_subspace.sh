@@ -192,15 +192,15 @@ crom-mesh box --size 0.2 -o box.h5
 expect_error 65 "decodes only onto it" x.vtu -- crom-export --format vtu --model tm.h5 --mesh box.h5 -o x.vtu tr.h5
 expect_error 65 "only onto its own mesh" x.h5 -- crom-reducedstep --model te.h5 --mesh other.h5 "${MAT[@]}" --steps 1 -o x.h5
 # 5. the hanging-sheet experiment (pipelines/sheet.mk), small: its table
-#    has the seven runs, the derivatives ahead of the modes; a second
+#    has the eight runs, the derivatives ahead of the modes; a second
 #    make has nothing to redo
 SHEET=(make --no-print-directory -f "$CROM_TOP/pipelines/sheet.mk" BINDIR="$CROM_BINDIR" OUT=hang SIZE=0.1 STEPS_DF=100 QUIET=-q)
 "${SHEET[@]}" >hang.log 2>&1 || fail "sheet.mk: $(tail -5 hang.log)"
 $PY - hang/table.md <<'PYEOF' || fail "sheet.mk table: $(cat hang/table.md)"
 import sys, re
-rows = {l.split("|")[1].strip(): l.split("|") for l in open(sys.argv[1]) if re.match(r"\| (modes|mderiv|neural|nmderiv|quadratic|energy|mderiv-cub) ", l)}
-if sorted(rows) != ["energy", "mderiv", "mderiv-cub", "modes", "neural", "nmderiv", "quadratic"]:
-    raise SystemExit("check failed: seven runs, got %s" % sorted(rows))
+rows = {l.split("|")[1].strip(): l.split("|") for l in open(sys.argv[1]) if re.match(r"\| (modes|mderiv|neural|nmderiv|nmderiv-ta|quadratic|energy|mderiv-cub) ", l)}
+if sorted(rows) != ["energy", "mderiv", "mderiv-cub", "modes", "neural", "nmderiv", "nmderiv-ta", "quadratic"]:
+    raise SystemExit("check failed: eight runs, got %s" % sorted(rows))
 err = {k: float(v[3].strip().rstrip("%")) for k, v in rows.items()}
 print("sheet.mk at SIZE=0.1: static errors %s" % err)
 if not (err["mderiv"] < 5 and err["modes"] > 30):
