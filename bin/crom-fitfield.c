@@ -118,7 +118,7 @@ static crom_cli_doc doc = {
     "crom-fitfield [--rank R] [--encoder lsq|pointnet] [--basis mlp|pod] [--epochs N] [--minutes M] [--seed S] [-o OUT] [SAMPLES]\n"
     "crom-fitfield --objective energy --mesh MESH [--rank R] [--sigma S] [--lambda L] [--steps N] [scenario] [-o OUT]\n"
     "crom-fitfield --objective neuralmodes --mesh MESH --modes MODEL [--rank R] [--box A] [--derivatives]\n"
-    "              [--supervised EQ] [--steps N] [-o OUT]\n"
+    "              [--tangent-anchor] [--supervised EQ] [--steps N] [-o OUT]\n"
     "crom-fitfield --objective field --mesh MESH [--rank R] [--features P] [--tets K] [--steps N] [scenario] [-o OUT]\n"
     "crom-fitfield --objective skinning --handles H [--weights trained|eigen] --mesh MESH|--surface STL|--cloud XYZV\n"
     "              [--steps N] [scenario] [-o OUT]",
