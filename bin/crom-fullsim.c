@@ -171,10 +171,7 @@ static int run_equilibria(crom_cli *cli, args *a, crom_mesh *m, char *hist)
     double *W = NULL, *x = NULL, *xprev = NULL, *u = NULL, *zero = NULL, *Zl = NULL, *half = NULL, A = 0;
     int npinned = 0, r = 0, n = 3 * m->nv, have_prev = 0, scaled = 0;
     long count = a->random;
-    const char *refs[CROM_SCENARIO_MAX];
-    for (int i = 0; i < sc->npins; i++)
-        refs[i] = sc->pins[i];
-    int rc = crom_modes_pins(m, sc->npins, refs, &fixed, &npinned);
+    int rc = crom_modes_scenario_pins(m, sc, &fixed, &npinned);
     if (!rc)
         rc = crom_system_init(&sys, m, sc->youngs, sc->poisson, sc->density);
     if (!rc && (rc = crom_model_load(a->equilibria, &model)))

@@ -157,12 +157,8 @@ static int run_equilibria(crom_cli *cli, args *a, crom_model *model)
     int rc = crom_result_equilibria_load(a->equilibria, &eq);
     if (rc)
         return rc;
-    const char *refs[CROM_SCENARIO_MAX];
-    if ((rc = crom_scenario_parse_text(eq.scenario, &sc)))
-        goto out;
-    for (int i = 0; i < sc.npins; i++)
-        refs[i] = sc.pins[i];
-    if ((rc = crom_modes_pins(&eq.mesh, sc.npins, refs, &fixed, &npinned)) || (rc = crom_map_init(&map, model, NULL)))
+    if ((rc = crom_scenario_parse_text(eq.scenario, &sc)) ||
+        (rc = crom_modes_scenario_pins(&eq.mesh, &sc, &fixed, &npinned)) || (rc = crom_map_init(&map, model, NULL)))
         goto out;
     if (map.r != eq.r || crom_map_same_mesh(&map.mesh, &eq.mesh)) {
         rc = crom_err(CROM_EUSAGE, "%s (rank %d) does not live on the mesh of %s or has not its %d modal coordinates",

@@ -265,12 +265,9 @@ static int run(crom_cli *cli, args *a)
         return rc;
     unsigned char *fixed = NULL;
     int npinned = 0;
-    const char *refs[CROM_SCENARIO_MAX];
-    for (int i = 0; i < a->sc.npins; i++)
-        refs[i] = a->sc.pins[i];
     crom_modes r;
     memset(&r, 0, sizeof r);
-    if ((rc = crom_modes_pins(&m, a->sc.npins, refs, &fixed, &npinned)))
+    if ((rc = crom_modes_scenario_pins(&m, &a->sc, &fixed, &npinned)))
         goto out;
     a->mo.seed = cli->seed;
     a->mo.nthreads = cli->threads;

@@ -63,6 +63,14 @@ int crom_modes_pins(const crom_mesh *m, int n, const char *const *refs, unsigned
     return 0;
 }
 
+int crom_modes_scenario_pins(const crom_mesh *m, const crom_scenario *sc, unsigned char **fixed, int *npinned)
+{
+    const char *refs[CROM_SCENARIO_MAX];
+    for (int i = 0; i < sc->npins; i++)
+        refs[i] = sc->pins[i];
+    return crom_modes_pins(m, sc->npins, refs, fixed, npinned);
+}
+
 /* ------------------------------------------------------- rigid motions */
 
 /* Rigid motion a at a DOF (coordinate k of the vertex at X): a < 3 the unit

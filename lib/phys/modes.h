@@ -47,6 +47,7 @@
 #include "mesh/mesh.h"
 #include "phys/fem.h"
 #include "phys/chol.h"
+#include "phys/scenario.h"
 #include "phys/system.h"
 
 typedef struct {
@@ -119,6 +120,9 @@ void crom_modes_free(crom_modes *m);
  * holds. CROM_EUSAGE for an unknown region or an empty selection. */
 int crom_modes_pins(const crom_mesh *m, int n, const char *const *refs,
                     unsigned char **fixed, int *npinned);
+
+/* The same for the --pin regions of a scenario. */
+int crom_modes_scenario_pins(const crom_mesh *m, const crom_scenario *sc, unsigned char **fixed, int *npinned);
 
 /* M-orthonormalize the ncol columns of V [ncol][n] (each column contiguous)
  * in place, masses m [n], by modified Gram–Schmidt, twice. A column whose

@@ -326,6 +326,20 @@ static int element_stress(const crom_system *sys, const crom_mesh *mesh, const c
     return 0;
 }
 
+/* The largest |Wᵀ M u / m − z| over the r modal coordinates, W the map's
+ * linear part (its first r feature columns). */
+static double modal_dev(const crom_map *map, const crom_system *sys, const double *u, const double *z)
+{
+    double dev = 0;
+    for (int a = 0; a < map->r; a++) {
+        double za = 0;
+        for (int i = 0; i < map->n; i++)
+            za += sys->mass[i / 3] * map->B[(size_t)i * map->p + a] * u[i];
+        dev = fmax(dev, fabs(za / sys->total_mass - z[a]));
+    }
+    return dev;
+}
+
 int crom_metrics_equilibria(crom_map *map, const crom_system *sys, const crom_material *mat,
                             const unsigned char *fixed, int K, const double *Z, const double *U, crom_metrics_eq *out)
 {
@@ -345,19 +359,14 @@ int crom_metrics_equilibria(crom_map *map, const crom_system *sys, const crom_ma
     int rc = 0;
     if (!x || !u || !g || !gs || !w || !s || !sg || !xt)
         rc = CROM_EINTERNAL;
-    double m = sys->total_mass, zscale = 0;
+    double zscale = 0;
     for (size_t i = 0; i < (size_t)K * r; i++)
         zscale = fmax(zscale, fabs(Z[i]));
     crom_fem_opts fo = {0, 0, fixed, 1};
     for (int k = 0; k < K && !rc; k++) {
         const double *zk = Z + (size_t)k * r, *us = U + (size_t)k * n;
         /* do the map's modes give the equilibrium's z? */
-        for (int a = 0; a < r; a++) {
-            double za = 0;
-            for (int i = 0; i < n; i++)
-                za += sys->mass[i / 3] * map->B[(size_t)i * map->p + a] * us[i];
-            out->zmax_dev = fmax(out->zmax_dev, fabs(za / m - zk[a]));
-        }
+        out->zmax_dev = fmax(out->zmax_dev, modal_dev(map, sys, us, zk));
         if (!(out->zmax_dev <= 1e-6 * zscale + 1e-15)) {
             rc = crom_err(CROM_EUSAGE, "the subspace's modes are not those of the equilibria: W^T M u* / m is %.3g m "
                                        "from z (equilibrium %d)", out->zmax_dev, k);
@@ -365,12 +374,9 @@ int crom_metrics_equilibria(crom_map *map, const crom_system *sys, const crom_ma
         }
         if ((rc = crom_map_eval(map, zk, x, NULL)))
             break;
-        for (int a = 0; a < r; a++) { /* the subspace's own modal coordinates */
-            double za = 0;
-            for (int i = 0; i < n; i++)
-                za += sys->mass[i / 3] * map->B[(size_t)i * map->p + a] * (x[i] - map->mesh.X[i]);
-            out->zmap_dev = fmax(out->zmap_dev, fabs(za / m - zk[a]));
-        }
+        for (int i = 0; i < n; i++)
+            u[i] = x[i] - map->mesh.X[i];
+        out->zmap_dev = fmax(out->zmap_dev, modal_dev(map, sys, u, zk)); /* the subspace's own coordinates */
         /* energies and forces, of the subspace and of the equilibrium */
         double E, Es, f2 = 0, fs2 = 0, d2 = 0, s2 = 0;
         int nfree = 0;
@@ -404,8 +410,6 @@ int crom_metrics_equilibria(crom_map *map, const crom_system *sys, const crom_ma
         out->force_gt += (nfree ? sqrt(fs2 / nfree) : 0) / K;
         out->disp_err += (s2 > 0 ? sqrt(d2 / s2) : 0) / K;
         /* stresses */
-        for (int i = 0; i < n; i++)
-            u[i] = x[i] - map->mesh.X[i];
         element_stress(sys, &map->mesh, mat, u, xt, w, s);
         element_stress(sys, &map->mesh, mat, us, xt, w, sg);
         double W0 = 0, S = 0, Sg = 0, Sd = 0;
