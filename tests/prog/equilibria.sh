@@ -118,6 +118,12 @@ nta=$(ratio nmt.txt)
 echo "tangent-anchored neural modes: energy over the equilibria's $nta (not anchored $nm, linear modes $lin)"
 $PY -c "import sys; n, l = float(sys.argv[1]), float(sys.argv[2]); sys.exit(0 if 1 <= n < l / 4 else 1)" "$nta" "$lin" \
   || fail "tangent-anchored neural modes store less than linear modes ($nta, $lin)"; ok
+$PY - nmt.h5 nmbad.h5 <<'PYEOF' || fail "editing a model"
+import sys, shutil, h5py
+shutil.copy(sys.argv[1], sys.argv[2])
+h5py.File(sys.argv[2], "r+").attrs["tangent_anchored"] = 2
+PYEOF
+expect_error 65 "tangent_anchored must be 0 or 1" x.txt -- crom-metrics --equilibria eq.h5 nmbad.h5
 expect_error 64 "tangent-anchor applies to --objective neuralmodes" x.h5 -- crom-fitfield --objective energy --tangent-anchor --mesh sq.h5 --rank 3 "${MAT[@]}" --pin clamp -o x.h5
 
 # --latents: the equilibria at the states a reduced run of the neural-modes
