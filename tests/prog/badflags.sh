@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Every numeric flag of every program, given a value no flag can mean (inf,
-# nan, 1e308, hexadecimal 0x10, the empty string, a leading blank) and the
+# Every numeric flag of every program, given a value no flag can mean (nan,
+# 1e308, hexadecimal 0x10, the empty string) and the
 # out-of-range values of issue 15 (--youngs 1e308, --dt 1e308, --tol 1e308,
 # --exponent 0, a region given twice): each must exit 64 with one line on
 # stderr naming the flag, and leave no output file (issue 15, defect 8).
@@ -16,8 +16,11 @@ crom-cubature --model modes.h5 --scheme optimized --poses lat.h5 -q -o cub.h5 m.
 crom-sample --points 20 -q -o s.h5 run.h5
 
 OUT="$O/out.h5"
-# values no flag accepts, substituted for X in a flag's template
-BAD=(inf nan 1e308 0x10 "" " 1")
+# values no flag accepts, substituted for X in a flag's template: one of each
+# way a value is refused (not finite, out of every range, not decimal,
+# empty); tests/unit/test_parse.c covers the parsers value by value (inf, a
+# leading blank, trailing junk, ...)
+BAD=(nan 1e308 0x10 "")
 # under ASan (CI's second pass) two of them: the values reach the same parser,
 # which test_parse covers value by value, and the full set costs 8 minutes there
 case "$CROM_BUILD" in *-san) BAD=(nan 0x10) ;; esac

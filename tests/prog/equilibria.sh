@@ -55,6 +55,11 @@ ok
 # untrained quadratic manifold of the modal derivatives and a trained
 # neural-modes map store less; the equilibria are the floor
 crom-metrics --equilibria eq.h5 modes.h5 >lin.txt
+grep -q "the modes agree to [0-9.e-]*" lin.txt || fail "modes check: $(cat lin.txt)"; ok
+# under the sanitizers (CI's second pass) the solves and the measures above
+# are the part to check; the three 6000-step trainings below take minutes
+# there, and tests/unit/test_datafree.c covers their library code
+if [ "${CROM_SANITIZE:-0}" = 1 ]; then done_checks; exit 0; fi
 crom-fitfield --objective neuralmodes --mesh sq.h5 --modes modes.h5 --rank 3 --box 0.04 --box-scaling uniform \
   --steps 6000 -q -o nm.h5
 crom-metrics --equilibria eq.h5 nm.h5 >nm.txt
@@ -63,7 +68,6 @@ lin=$(ratio lin.txt) nm=$(ratio nm.txt)
 echo "energy over the equilibria's: linear modes $lin, neural modes $nm"
 $PY -c "import sys; l, n = float(sys.argv[1]), float(sys.argv[2]); sys.exit(0 if l > 20 and 1 <= n < l / 4 else 1)" \
   "$lin" "$nm" || fail "linear modes lock (ratio $lin > 20); neural modes store less ($nm < $lin/4), never below 1"; ok
-grep -q "the modes agree to [0-9.e-]*" lin.txt || fail "modes check: $(cat lin.txt)"; ok
 for f in von_mises_stress nodal_force_error displacement_error; do
   grep -q "^$f: " nm.txt || fail "no $f line: $(cat nm.txt)"; ok
 done

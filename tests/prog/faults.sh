@@ -33,7 +33,7 @@ if mount -t tmpfs -o size=1m crom-faults "$FULL" 2>/dev/null; then
   trap 'umount "$FULL" 2>/dev/null || true; rm -rf "$TMP"' EXIT
   # the disk fills while the output is written: every program that writes a
   # large file, through HDF5 or stdio
-  expect_error 74 "^crom-mesh: $FULL/m.h5: $NOSPC\$" "$FULL/m.h5" -- crom-mesh box --size 0.02 -o "$FULL/m.h5"
+  expect_error 74 "^crom-mesh: $FULL/m.h5: $NOSPC\$" "$FULL/m.h5" -- crom-mesh box --size 0.04 -o "$FULL/m.h5"
   expect_error 74 "^crom-fullsim: $FULL/t.h5: $NOSPC\$" "$FULL/t.h5" -- \
     crom-fullsim --steps 200 --pin 'y>0.45' -o "$FULL/t.h5" mesh.h5
   expect_error 74 "^crom-fullsim: $FULL/t.h5: $NOSPC\$" "$FULL/t.h5" -- \

@@ -8,6 +8,7 @@
 # neuralmodes) trained on the shell and run, decoded by crom-diff and
 # crom-export onto the shell, what is refused, and a small run of
 # pipelines/sheet.mk.
+# asan: skip (subspace training and a make pipeline on shells, 100 s under ASan; tests/unit/test_shell.c and test_mderiv.c cover the same library code there)
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 

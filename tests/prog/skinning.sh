@@ -8,6 +8,7 @@
 # training from a closed surface and from a point cloud with volumes, then
 # running on a tet mesh; and bad input (handle counts, open surface, a cloud
 # without volumes, misplaced options).
+# asan: skip (minutes of weight training and reduced runs under ASan; tests/unit/test_skin.c covers the same library code there)
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 crom-mesh box --dims 1,0.2,0.2 --size 0.07 --region clamp='x<-0.49' -o bar.h5
