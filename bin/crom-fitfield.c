@@ -27,7 +27,7 @@
 enum { O_RANK = 300, O_ENCODER, O_BASIS, O_EPOCHS, O_MINUTES, O_LR, O_BATCH, O_PPS, O_ENCPTS,
        O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX, O_BOXSC,
        O_ORTHO, O_STEPS, O_FEATURES, O_TETS, O_PINW, O_OPTIM, O_RESAMPLE, O_TANW, O_TANF, O_HANDLES, O_WEIGHTS,
-       O_SURFACE, O_CLOUD, O_SPOINTS, O_COORDS, O_COORDTOL, O_DERIV, O_SUPERV, O_TANANCHOR, O_LAST };
+       O_SURFACE, O_CLOUD, O_SPOINTS, O_COORDS, O_COORDTOL, O_DERIV, O_SUPERV, O_TANANCHOR, O_VISIT, O_LAST };
 
 /* --objective skinning (lib/datafree/dfskin.h), next to the CROM_DATAFREE_* codes */
 #define OBJ_SKINNING 100
@@ -60,6 +60,7 @@ static const crom_opt df_opts[] = {
     {"derivatives", O_DERIV, NULL, "neuralmodes: seed the map with the modal derivatives Psi_ij of its --rank modes (Barbic and James 2005, computed here on --mesh with the material and pins): x(z) = X + Phi z + 1/2 sum_{i<=j} Psi_ij z_i z_j + y(z). The second-order term is the in-plane shortening that keeps bent modes of a shell or a slender body from stretching (locking), which y alone learns slowly; the model stores Psi."},
     {"tangent-anchor", O_TANANCHOR, NULL, "neuralmodes: anchor the correction's tangent too: y(z) = N(z) - N(0) - J_N(0) z, zero to first order, so that the map leaves rest along the modes exactly as the constrained equilibria do (a learned first-order part stiffens small deflections). Trained with J_N(0) z as a central difference of step 0.01 z; the model (tangent_anchored) evaluates it exactly."},
     {"supervised", O_SUPERV, "EQ", "neuralmodes: the supervised baseline of Wang et al. (their 'L2 supervised'): the same map fitted to the constrained equilibria of EQ (crom-fullsim --equilibria in the same modes, on --mesh) by the mean squared mass-weighted distance, instead of trained on the energy; batches are drawn from the equilibria."},
+    {"latents", O_VISIT, "RUN", "neuralmodes: sample along a run: every other sample of a batch is drawn near the modal coordinates of a frame of RUN (a crom/latent of a reduced run in the same modes, e.g. crom-reducedstep --model of the untrained map, --steps 0), moved by up to 15% of max(box half-width, |z_k|) per coordinate; the others from the box. For deformations whose coordinates lie outside the box (a soft body sagging far under its load). Still data-free: no full simulation."},
     {"box-scaling", O_BOXSC, "KIND", "neuralmodes: frequency (default): mode k is drawn from [-A f_1/f_k, A f_1/f_k], the same linear energy at every edge, so that the stiff modes do not swamp the energy of the soft ones; uniform: every mode from [-A, A] (Wang et al.)."},
     {"optimizer", O_OPTIM, "KIND", "energy, neuralmodes: adam (default): Adam on a fresh batch every step. lbfgs: L-BFGS with a backtracking line search (Wang et al.), --resample iterations on each batch."},
     {"resample", O_RESAMPLE, "N", "--optimizer lbfgs: iterations on each batch of samples before a fresh one is drawn (default 10)."},
@@ -118,7 +119,7 @@ static crom_cli_doc doc = {
     "crom-fitfield [--rank R] [--encoder lsq|pointnet] [--basis mlp|pod] [--epochs N] [--minutes M] [--seed S] [-o OUT] [SAMPLES]\n"
     "crom-fitfield --objective energy --mesh MESH [--rank R] [--sigma S] [--lambda L] [--steps N] [scenario] [-o OUT]\n"
     "crom-fitfield --objective neuralmodes --mesh MESH --modes MODEL [--rank R] [--box A] [--derivatives]\n"
-    "              [--tangent-anchor] [--supervised EQ] [--steps N] [-o OUT]\n"
+    "              [--tangent-anchor] [--supervised EQ | --latents RUN] [--steps N] [-o OUT]\n"
     "crom-fitfield --objective field --mesh MESH [--rank R] [--features P] [--tets K] [--steps N] [scenario] [-o OUT]\n"
     "crom-fitfield --objective skinning --handles H [--weights trained|eigen] --mesh MESH|--surface STL|--cloud XYZV\n"
     "              [--steps N] [scenario] [-o OUT]",
@@ -187,7 +188,7 @@ typedef struct {
     crom_fit_opts fit;
     /* data-free */
     int objective;               /* 0: samples, else CROM_DATAFREE_* or OBJ_SKINNING */
-    const char *mesh, *modes, *surface, *cloud, *supervised;
+    const char *mesh, *modes, *surface, *cloud, *supervised, *visit;
     int sample_points, handles, eigen, raw_coords, derivatives;
     double coord_tol;
     crom_datafree_opts df;
@@ -303,6 +304,7 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_MODES: a->modes = v; return 0;
     case O_DERIV: a->derivatives = 1; return 0;
     case O_SUPERV: a->supervised = v; return 0;
+    case O_VISIT: a->visit = v; return 0;
     case O_TANANCHOR: a->df.tangent_anchor = 1; return 0;
     case O_SPOINTS: return int_opt(key, v, 1, 100000000L, &a->sample_points);
     /* 0 parses, so that the training reports it as a count it cannot use */
@@ -413,9 +415,13 @@ static void check_datafree(crom_cli *cli, const args *a)
                                  "MODEL (from crom-modes on the same mesh)"));
     if (a->objective != CROM_DATAFREE_NEURALMODES && a->modes)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--modes applies to --objective neuralmodes"));
-    if (a->objective != CROM_DATAFREE_NEURALMODES && (a->derivatives || a->supervised || a->df.tangent_anchor))
+    if (a->objective != CROM_DATAFREE_NEURALMODES && (a->derivatives || a->supervised || a->df.tangent_anchor || a->visit))
         usage_exit(cli, crom_err(CROM_EUSAGE, "%s applies to --objective neuralmodes",
-                                 a->derivatives ? "--derivatives" : a->supervised ? "--supervised" : "--tangent-anchor"));
+                                 a->derivatives ? "--derivatives" : a->supervised ? "--supervised" :
+                                 a->visit ? "--latents" : "--tangent-anchor"));
+    if (a->supervised && a->visit)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--latents samples the energy along a run; --supervised fits equilibria: "
+                                 "give one"));
     if (a->objective != CROM_DATAFREE_NEURALMODES && GIVEN(a, O_STEPS) && a->df.steps == 0)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--steps 0 (no training) applies to --objective neuralmodes"));
 }
@@ -640,6 +646,8 @@ static int run_datafree(crom_cli *cli, args *a)
         rc = crom_body_derivatives(&b, &P, a->df.rank);
     if (!rc && a->supervised)
         rc = crom_body_supervise(&b, a->supervised, a->df.rank, &P);
+    if (!rc && a->visit)
+        rc = crom_body_visit(&b, a->visit, a->df.rank, &P);
     double t0 = crom_clock_now();
     if (!rc && skin && a->eigen) {
         rc = crom_dfskin_eigen(&b.mesh, &b.mat, b.fixed, so.handles, &out, &solves);

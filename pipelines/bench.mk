@@ -97,8 +97,12 @@ df2_kind = $(firstword $(subst -, ,$(1)))
 # feature field W(X) (DF_MINUTES)
 # and, over every tet for the trade-off table on this bar, the data-free
 # maps of one mesh (energy: Sharp et al.; neuralmodes: Wang et al. on the
-# modes, both DF_MINUTES) and the linear modes (modes) stepped the same way
-DF2_MAPS = sfield-all sfield-opt field-all field-opt energy-all neuralmodes-all modes-all mderiv-all
+# modes, both DF_MINUTES) and the linear modes (modes) stepped the same way;
+# nmseed, neural modes seeded with the modal derivatives of their modes and
+# not trained (the quadratic manifold), and nmrun, the same seed tangent-
+# anchored and trained DF_MINUTES with every other sample near the modal
+# coordinates the seed's static run visited (crom-fitfield --latents)
+DF2_MAPS = sfield-all sfield-opt field-all field-opt energy-all neuralmodes-all nmseed-all nmrun-all modes-all mderiv-all
 # mderiv: DF2_DMODES linear modes and their modal derivatives (crom-modes --derivatives;
 # 5: modes 4 and 5 are a pair of equal frequency, both or neither)
 DF2_DMODES ?= 5
@@ -309,6 +313,13 @@ $(OUT)/df2-map-mderiv.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
 $(OUT)/df2-map-neuralmodes.h5: $(OUT)/df-mesh.h5 $(OUT)/df2-map-modes.h5 $(call stamp,df2-maps)
 	crom-fitfield --objective neuralmodes --mesh $< --modes $(OUT)/df2-map-modes.h5 \
 	  --steps 1000000 --minutes $(DF_MINUTES) --seed $(SEED) --threads 1 $(QUIET) -o $@
+$(OUT)/df2-map-nmseed.h5: $(OUT)/df-mesh.h5 $(OUT)/df2-map-modes.h5 $(call stamp,df2-maps)
+	crom-fitfield --objective neuralmodes --mesh $< --modes $(OUT)/df2-map-modes.h5 --derivatives --steps 0 \
+	  --threads 1 $(QUIET) -o $@
+$(OUT)/df2-map-nmrun.h5: $(OUT)/df-mesh.h5 $(OUT)/df2-map-modes.h5 $(OUT)/df2-msred-nmseed-all.h5
+	crom-fitfield --objective neuralmodes --mesh $< --modes $(OUT)/df2-map-modes.h5 --derivatives --tangent-anchor \
+	  --latents $(OUT)/df2-msred-nmseed-all.h5 --steps 1000000 --minutes $(DF_MINUTES) --seed $(SEED) --threads 1 \
+	  $(QUIET) -o $@
 $(OUT)/df2-mcub-%.h5: $(OUT)/df2-map-%.h5 $(OUT)/df-mesh.h5 $(call stamp,df2-cubature)
 	crom-cubature --model $< --scheme optimized --count $(DF2_COUNT) --seed $(SEED) --threads 1 $(QUIET) -o $@ \
 	  $(OUT)/df-mesh.h5

@@ -43,6 +43,8 @@ def collapsed(path):
 MAP_NAMES = {"sfield": "continuous field over skinning eigenmodes (skin-field)",
              "field": "continuous field, trained W(X) (energy-field)",
              "energy": "energy map (Sharp et al.)", "neuralmodes": "neural modes (Wang et al.)",
+             "nmseed": "neural modes seeded with modal derivatives, untrained (quadratic manifold)",
+             "nmrun": "neural modes, derivative seed, tangent-anchored, sampled along the seed's static run",
              "modes": "linear modes",
              "mderiv": "linear modes and their modal derivatives (Barbic and James)"}
 

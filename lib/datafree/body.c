@@ -11,6 +11,7 @@
 #include "io/io.h"
 #include "mesh/pred.h"
 #include "phys/modes.h"
+#include "rom/equil.h"
 #include "rom/map.h"
 #include "phys/mderiv.h"
 #include "phys/system.h"
@@ -56,6 +57,7 @@ void crom_body_free(crom_body *b)
     free(b->W);
     free(b->freq);
     crom_result_equilibria_free(&b->eq);
+    free(b->visit);
     memset(b, 0, sizeof *b);
 }
 
@@ -72,6 +74,17 @@ int crom_body_supervise(crom_body *b, const char *path, int rank, crom_datafree_
     P->nsup = b->eq.K;
     P->sup_z = b->eq.Z;
     P->sup_u = b->eq.U;
+    return 0;
+}
+
+int crom_body_visit(crom_body *b, const char *path, int rank, crom_datafree_problem *P)
+{
+    if (crom_equil_latents(path, rank, &b->visit, &b->nvisit))
+        return crom_err_ctx("--latents");
+    const char *base = strrchr(path, '/');
+    snprintf(b->visit_what, sizeof b->visit_what, "%ld modal coordinates of %s", b->nvisit, base ? base + 1 : path);
+    P->nvisit = b->nvisit;
+    P->visit_z = b->visit;
     return 0;
 }
 
@@ -180,8 +193,8 @@ int crom_body_map_problem(crom_body *b, const crom_scenario *sc, int objective, 
     int nm = objective == CROM_DATAFREE_NEURALMODES, rc;
     if (nm && (rc = take_modes(b, rank)))
         return rc;
-    *P = (crom_datafree_problem){&b->mesh, b->mat, {sc->gravity[0], sc->gravity[1], sc->gravity[2]}, b->fixed, b->W,
-                                 b->freq, NULL, 0, NULL, NULL};
+    *P = (crom_datafree_problem){.mesh = &b->mesh, .mat = b->mat, .gravity = {sc->gravity[0], sc->gravity[1],
+                                 sc->gravity[2]}, .fixed = b->fixed, .modes = b->W, .freq = b->freq};
     if (nm) /* nonlinear modes are equilibria of the elastic energy alone */
         P->gravity[0] = P->gravity[1] = P->gravity[2] = 0;
     return 0;
@@ -311,6 +324,8 @@ int crom_body_write_map(const crom_body *b, const crom_scenario *sc, crom_model 
         snprintf(what, sizeof what, "%d constrained equilibria in the modes %s", b->eq.K, b->eq.model_id);
         rc = crom_h5_set_str(out.h5, ".", "supervised", what);
     }
+    if (!rc && nm && P->nvisit > 0)
+        rc = crom_h5_set_str(out.h5, ".", "sampled_along", b->visit_what);
     return finish(&out, rc);
 }
 

@@ -55,6 +55,9 @@ typedef struct {
     double *W, *freq;        /* neuralmodes: the lowest r of them [3nv][r], their frequencies [r] */
     double *deriv;           /* neuralmodes with derivatives: Ψ [3nv][r(r+1)/2] (crom_body_derivatives) */
     crom_result_equilibria eq; /* neuralmodes supervised: the equilibria fitted to (crom_body_supervise) */
+    double *visit;           /* neuralmodes sampled along a run: [nvisit][r] its coordinates (crom_body_visit) */
+    long nvisit;
+    char visit_what[160];    /* where they came from (the model's record) */
 } crom_body;
 
 /* Load the geometry of src into b (cleared first; free it with
@@ -72,6 +75,13 @@ void crom_body_free(crom_body *b);
  * Returns 0, CROM_EUSAGE (not equilibria, another mesh, another rank), or
  * the reader's error with "--supervised" as context. */
 int crom_body_supervise(crom_body *b, const char *path, int rank, crom_datafree_problem *P);
+
+/* Neural modes sampled along a run (datafree.h): the modal coordinates of
+ * every frame of the crom/latent at path (a reduced run of a map in the
+ * same modes, e.g. of the untrained map) into P (nvisit, visit_z; b keeps
+ * them). Returns 0, CROM_EUSAGE (another rank) or the reader's error with
+ * "--latents" as context. */
+int crom_body_visit(crom_body *b, const char *path, int rank, crom_datafree_problem *P);
 
 /* The body's volume (the mesh's, or the sampled points') and mass (m³, kg;
  * the mass after crom_body_pins). */

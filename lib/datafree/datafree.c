@@ -179,6 +179,10 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
     return 0;
 }
 
+/* Sampling along a run: the largest move of a sample from the visited
+ * point it is drawn near, relative to max(a_k, |z_k|) (datafree.h). */
+#define VISIT_JITTER 0.15
+
 /* The step of the central difference that stands for J_N(0) z in a
  * tangent-anchored map's training (relative to z; datafree.h). */
 #define TANGENT_EPS 1e-2
@@ -502,8 +506,10 @@ typedef struct {
     crom_rng irng, srng;
     int nsup;          /* supervised: the equilibria, */
     int *sup;          /* [batch] those of the batch */
-    double *zs;        /* [batch][r] and their modal coordinates */
+    double *zs;        /* [batch][r] and their modal coordinates (or the batch drawn along a run) */
     const double *sup_z;
+    long nvisit;       /* sampling along a run: the coordinates visited */
+    const double *visit_z;
 } map_trainer;
 
 static void map_free(map_trainer *T)
@@ -549,6 +555,11 @@ static int map_setup(map_trainer *T, const crom_datafree_problem *p)
         if (!T->sup || !T->zs)
             return CROM_EINTERNAL;
         T->ctx.sup = T->sup;
+    } else if (nm && p->nvisit > 0) {
+        T->nvisit = p->nvisit;
+        T->visit_z = p->visit_z;
+        if (!(T->zs = crom_malloc(sizeof(double) * (size_t)o->batch * o->rank)))
+            return CROM_EINTERNAL;
     }
     rc = crom_datafree_ctx_init(&T->ctx, p, o, &T->net, o->batch);
     T->ctx.sup = T->sup;
@@ -566,6 +577,26 @@ static int map_loss(void *ctx, const double *z, double rho, int K, const int *te
             int k = (int)(u * T->nsup);
             T->sup[b] = k < 0 ? 0 : k >= T->nsup ? T->nsup - 1 : k;
             memcpy(T->zs + (size_t)b * r, T->sup_z + (size_t)T->sup[b] * r, sizeof(double) * (size_t)r);
+        }
+        z = T->zs;
+    } else if (T->nvisit) { /* along a run: every other sample near a visited point, drawn from the
+                             * loop's uniform sample (so the batch stays fixed while L-BFGS iterates) */
+        const double *half = T->ctx.half;
+        for (int b = 0; b < T->o.batch; b++) {
+            const double *zb = z + (size_t)b * r;
+            double *y = T->zs + (size_t)b * r;
+            if (b % 2 == 0) {
+                memcpy(y, zb, sizeof(double) * (size_t)r);
+                continue;
+            }
+            double u = 0.5 * (zb[0] / half[0] + 1) * (double)T->nvisit; /* in [0, nvisit] */
+            long k = (long)u;
+            k = k < 0 ? 0 : k >= T->nvisit ? T->nvisit - 1 : k;
+            const double *v = T->visit_z + (size_t)k * r;
+            for (int a = 0; a < r; a++) {
+                double w = a ? zb[a] / half[a] : 2 * (u - (double)k) - 1; /* in [-1, 1] */
+                y[a] = v[a] + VISIT_JITTER * w * fmax(half[a], fabs(v[a]));
+            }
         }
         z = T->zs;
     }

@@ -69,6 +69,17 @@
  * with z_b drawn from the equilibria (problem.nsup > 0): the energy is
  * then only recorded.
  *
+ * Sampling along a run (problem.nvisit > 0, beyond both papers): the box
+ * holds the small deformations, but a large one (a soft body sagging far
+ * under its load) projects onto the modes outside it, most on the stiffer
+ * modes (issue 14: mode 6 at 3.8 times its half-width), where a map
+ * trained on the box extrapolates. Given the modal coordinates a reduced
+ * run of the map's seed visited (crom-reducedstep --model, no full
+ * simulation), every other sample of a batch is one of them, picked
+ * uniformly, moved by up to VISIT_JITTER of max(a_k, |z_k|) per
+ * coordinate; the loss is the same energy, so the map learns the
+ * constrained equilibria where the run goes (still data-free).
+ *
  * field (beyond both papers): a CONTINUOUS data-free subspace x(X, z) = X
  * + W(X) (φ(z) − φ(0)), W a neural field over the body, trained on the
  * energy loss above integrated by a random cubature of the mesh: dffield.h.
@@ -124,6 +135,8 @@ typedef struct {
     int nsup;                    /* neuralmodes supervised by nsup constrained equilibria (0: data-free) */
     const double *sup_z;         /* [nsup][r] their modal coordinates (m) */
     const double *sup_u;         /* [nsup][3nv] their displacements (m) */
+    long nvisit;                 /* neuralmodes: modal coordinates a reduced run visited (0: none); */
+    const double *visit_z;       /* [nvisit][r]: every other sample of a batch is drawn near one of them */
 } crom_datafree_problem;
 
 typedef struct {

@@ -152,6 +152,8 @@ static const crom_schema_attr model_attrs[] = {
                                    "that its tangent at rest is the modes' (crom-fitfield --tangent-anchor)", NULL},
     {"supervised", "str", 0, "a neuralmodes map fitted to constrained equilibria by the geometric loss (crom-fitfield "
                              "--supervised, Wang et al.'s L2 supervised baseline): how many, in which modes", NULL},
+    {"sampled_along", "str", 0, "a neuralmodes map trained with every other sample near the modal coordinates a "
+                                "reduced run visited (crom-fitfield --latents): how many, from which file", NULL},
     {"cubature_tets", "i64", 0, "tets of the random cubature drawn at every training step (energy-field)", NULL},
     {"handles", "i64", 0, "H, the affine handles of a skinning subspace (12 coordinates each)", NULL},
     {"constant_handle", "i64", 0, "1 if handle 0 is the constant weight 1 (a free body), else 0 (skinning)", NULL},
