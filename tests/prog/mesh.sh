@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # crom-mesh and crom-info through pipes and files: same data either way,
 # summaries that read back the numbers, schema validation.
+# asan: skip (gmsh meshing, which ASan does not instrument but slows threefold; tests/unit/test_mesh.c covers crom's meshing and reading code there)
 . "$CROM_TOP/tests/prog/common.bash"
 
 # 1. a pipe into crom-info works and reports the exact unit-box volume

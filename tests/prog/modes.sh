@@ -3,6 +3,7 @@
 # frequencies, attributes, pins), pipes and reproducibility, rigid modes of a
 # free body (and a falling bar that needs them), the classic linear modal ROM
 # through crom-cubature and crom-reducedstep against crom-fullsim, bad input.
+# asan: skip (eigensolves and reduced runs of several bars, 58 s under ASan; tests/unit/test_modes.c and test_mderiv.c cover the same library code there)
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 crom-mesh box --dims 1,0.2,0.2 --size 0.05 --region clamp='x<-0.49' -o bar.h5

@@ -2,6 +2,7 @@
 # Small versions of the shapes and tearing experiments (pipelines/*.mk) run
 # end to end; their tables' numbers are checked against bounds, and changing
 # one stage variable reruns only that stage onward.
+# asan: skip (make pipelines of simulations and training; their stages run under ASan in reduced.sh, fullsim.sh and the export tests)
 . "$CROM_TOP/tests/prog/common.bash"
 MK="make --no-print-directory -j2 -f $CROM_TOP/pipelines"
 

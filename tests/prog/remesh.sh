@@ -2,6 +2,7 @@
 # crom-remesh end to end: cut (pipes, stages, --all-stages), punch, swap,
 # refine, read back with crom-info and h5py; bad input; and a cut plate that
 # sags more than the intact one under crom-fullsim.
+# asan: skip (cuts and punches of fine plates with simulations, 46 s under ASan; tests/unit/test_remesh.c covers the same library code there)
 . "$CROM_TOP/tests/prog/common.bash"
 O="$TMP/out"; mkdir -p "$O"
 
