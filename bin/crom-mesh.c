@@ -19,7 +19,7 @@ static const crom_opt mesh_opts[] = {
     {"size", O_SIZE, "H", "Target edge length in metres (default 0.1)."},
     {"dims", O_DIMS, "X,Y,Z", "Extents of box, plate and superquadric, centred at the origin (default 1,1,1; plate 1,0.05,1). sheet: X by Y in the xy-plane (Z is not used)."},
     {"unstructured", O_UNSTRUCT, NULL, "sheet: mesh the rectangle with gmsh (unstructured triangles of edge about --size) instead of regular rows."},
-    {"thickness", O_THICK, "T", "Make a thin shell of this thickness in metres: sheet, disk (default 0.001), or import of an .stl/.obj surface, open or closed, whose triangles become the shell's (subdivided until no edge exceeds --size)."},
+    {"thickness", O_THICK, "T", "Make a thin shell of this thickness in metres: sheet, disk (default 0.001), or import of an .stl/.obj surface, open or closed, whose triangles become the shell's (subdivided until no edge exceeds --size), or of the 3-node triangles of a gmsh .msh surface, kept as they are, its physical groups becoming regions."},
     {"radius", O_RADIUS, "R", "Radius of sphere, cylinder and disk (default 0.5)."},
     {"height", O_HEIGHT, "H", "Height of the cylinder along y (default 1)."},
     {"exponent", O_EXP, "P", "Superquadric exponent: |x/a|^P+|y/b|^P+|z/c|^P <= 1; 2 is an ellipsoid, large P approaches the box (default 4)."},
@@ -40,7 +40,7 @@ static const crom_cli_doc doc = {
     "crom-mesh import FILE [options] [-o OUT]\n"
     "crom-mesh sheet [--dims X,Y,Z] [--size H] [--thickness T] [--unstructured] [options] [-o OUT]\n"
     "crom-mesh disk [--radius R] [--size H] [--thickness T] [options] [-o OUT]\n"
-    "crom-mesh import FILE.obj|FILE.stl --thickness T [--size H] [options] [-o OUT]",
+    "crom-mesh import FILE.obj|FILE.stl|FILE.msh --thickness T [--size H] [options] [-o OUT]",
     "Meshes a shape centred at the origin, or the inside of a closed .stl/.obj surface, or "
     "a .msh/.geo volume, with gmsh, and writes a crom/mesh file: rest positions, positively "
     "oriented tetrahedra and named vertex regions.\n\n"
@@ -51,8 +51,8 @@ static const crom_cli_doc doc = {
     "triangles of edge about --size (straight sides: each row ends in half-triangles), with "
     "--thickness stored in the mesh; disk makes a round one of --radius in the xy-plane, meshed by "
     "gmsh. import with --thickness makes a shell of the triangles of "
-    "an .stl/.obj surface, open or closed (consistently oriented, each edge shared by at most two "
-    "triangles).\n\n"
+    "an .stl/.obj surface or of a gmsh .msh surface mesh (its physical groups become regions), open "
+    "or closed (consistently oriented, each edge shared by at most two triangles).\n\n"
     "Nothing but the mesh goes to stdout. With --verbose the vertex and tet counts, the volume "
     "and the worst element quality (mean ratio, 1 = regular) are printed on stderr.",
     groups,

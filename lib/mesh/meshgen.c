@@ -4,6 +4,7 @@
 #include <ctype.h>
 #include <errno.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -196,13 +197,60 @@ out:
     return rc;
 }
 
+/* The physical groups of the model gmsh holds, as regions of m named by
+ * their physical names (or physicalDIM_TAG): the vertices of each, through
+ * map (gmsh node tag -> vertex of m, -1: none; tags up to maxtag). */
+static int add_physical_groups(crom_mesh *m, const int *map, size_t maxtag)
+{
+    int ierr = 0, rc = 0, *dimtags = NULL;
+    size_t ndt = 0;
+    G(gmshModelGetPhysicalGroups(&dimtags, &ndt, -1, &ierr), "read physical groups");
+    for (size_t g = 0; g < ndt / 2 && !rc; g++) {
+        int dim = dimtags[2 * g], tag = dimtags[2 * g + 1];
+        char *pname = NULL, name[80];
+        G(gmshModelGetPhysicalName(dim, tag, &pname, &ierr), "read a physical name");
+        if (pname && *pname) {
+            size_t j = 0;
+            for (const char *c = pname; *c && j < sizeof name - 1; c++)
+                name[j++] = (isalnum((unsigned char)*c) || *c == '-' || *c == '.') ? *c : '_';
+            name[j] = 0;
+        } else {
+            snprintf(name, sizeof name, "physical%d_%d", dim, tag);
+        }
+        if (pname)
+            gmshFree(pname);
+        size_t *gt = NULL, gn = 0, gc = 0;
+        double *gcoord = NULL;
+        G(gmshModelMeshGetNodesForPhysicalGroup(dim, tag, &gt, &gn, &gcoord, &gc, &ierr),
+          "read physical group nodes");
+        int *idx = crom_malloc(sizeof(int) * (gn + 1)), k = 0;
+        for (size_t i = 0; idx && i < gn; i++)
+            if (gt[i] <= maxtag && map[gt[i]] >= 0)
+                idx[k++] = map[gt[i]];
+        char src[128];
+        snprintf(src, sizeof src, "gmsh:%s", name);
+        if (!idx)
+            rc = CROM_EINTERNAL;
+        else if (k > 0)
+            rc = crom_mesh_add_region(m, name, src, idx, k);
+        free(idx);
+        if (gt)
+            gmshFree(gt);
+        if (gcoord)
+            gmshFree(gcoord);
+    }
+out:
+    if (dimtags)
+        gmshFree(dimtags);
+    return rc;
+}
+
 static int gmsh_extract(crom_mesh *m, int import_groups)
 {
     int ierr = 0, rc = 0;
     size_t *ntags = NULL, nn = 0, nc = 0, np = 0, *etags = NULL, ne = 0, *enodes = NULL, nen = 0;
     double *coord = NULL, *param = NULL;
-    int *map = NULL, *dimtags = NULL;
-    size_t ndt = 0;
+    int *map = NULL;
     G(gmshModelMeshGetNodes(&ntags, &nn, &coord, &nc, &param, &np, -1, -1, 0, 0, &ierr),
       "read the nodes");
     G(gmshModelMeshGetElementsByType(4, &etags, &ne, &enodes, &nen, -1, 0, 1, &ierr),
@@ -242,43 +290,8 @@ static int gmsh_extract(crom_mesh *m, int import_groups)
         }
         m->tets[k] = map[enodes[k]];
     }
-    if (import_groups) {
-        G(gmshModelGetPhysicalGroups(&dimtags, &ndt, -1, &ierr), "read physical groups");
-        for (size_t g = 0; g < ndt / 2 && !rc; g++) {
-            int dim = dimtags[2 * g], tag = dimtags[2 * g + 1];
-            char *pname = NULL, name[80];
-            G(gmshModelGetPhysicalName(dim, tag, &pname, &ierr), "read a physical name");
-            if (pname && *pname) {
-                size_t j = 0;
-                for (const char *c = pname; *c && j < sizeof name - 1; c++)
-                    name[j++] = (isalnum((unsigned char)*c) || *c == '-' || *c == '.') ? *c : '_';
-                name[j] = 0;
-            } else {
-                snprintf(name, sizeof name, "physical%d_%d", dim, tag);
-            }
-            if (pname)
-                gmshFree(pname);
-            size_t *gt = NULL, gn = 0, gc = 0;
-            double *gcoord = NULL;
-            G(gmshModelMeshGetNodesForPhysicalGroup(dim, tag, &gt, &gn, &gcoord, &gc, &ierr),
-              "read physical group nodes");
-            int *idx = crom_malloc(sizeof(int) * (gn + 1)), k = 0;
-            for (size_t i = 0; idx && i < gn; i++)
-                if (gt[i] <= maxtag && map[gt[i]] >= 0)
-                    idx[k++] = map[gt[i]];
-            char src[128];
-            snprintf(src, sizeof src, "gmsh:%s", name);
-            if (!idx)
-                rc = CROM_EINTERNAL;
-            else if (k > 0)
-                rc = crom_mesh_add_region(m, name, src, idx, k);
-            free(idx);
-            if (gt)
-                gmshFree(gt);
-            if (gcoord)
-                gmshFree(gcoord);
-        }
-    }
+    if (import_groups)
+        rc = add_physical_groups(m, map, maxtag);
 out:
     if (ntags)
         gmshFree(ntags);
@@ -290,8 +303,6 @@ out:
         gmshFree(etags);
     if (enodes)
         gmshFree(enodes);
-    if (dimtags)
-        gmshFree(dimtags);
     free(map);
     return rc;
 }
@@ -530,6 +541,97 @@ int crom_meshgen_sheet(const crom_meshgen_opts *o, crom_mesh *m)
     return crom_mesh_validate(m);
 }
 
+/* A shell from the 3-node triangles of a gmsh .msh file, kept as they are
+ * (like a .msh volume: no target size applies), its physical groups made
+ * regions. The triangles must be consistently oriented (an open or closed
+ * surface, each edge shared by at most two); a file holding tetrahedra is a
+ * volume, imported without --thickness. */
+static int msh_shell(const crom_meshgen_opts *o, crom_mesh *m)
+{
+    FILE *f = fopen(o->file, "rb"); /* gmsh only logs a file it cannot open */
+    if (!f)
+        return crom_err(CROM_ENOINPUT, "%s: %s", o->file, strerror(errno));
+    fclose(f);
+    int rc = crom_gmsh_begin(o->log), ierr = 0;
+    if (rc)
+        return rc;
+    size_t *ntags = NULL, nn = 0, nc = 0, np = 0, *etags = NULL, ne = 0, *enodes = NULL, nen = 0, maxtag = 0;
+    double *coord = NULL, *param = NULL;
+    int *map = NULL;
+    crom_surface s = {0};
+    G(gmshOpen(o->file, &ierr), "read the file");
+    if (have_tets()) {
+        rc = crom_err(CROM_EUSAGE, "%s holds a volume mesh (tetrahedra): import it without --thickness", o->file);
+        goto out;
+    }
+    G(gmshModelMeshGetNodes(&ntags, &nn, &coord, &nc, &param, &np, -1, -1, 0, 0, &ierr), "read the nodes");
+    G(gmshModelMeshGetElementsByType(2, &etags, &ne, &enodes, &nen, -1, 0, 1, &ierr), "read the triangles");
+    if (ne == 0) {
+        rc = crom_err(CROM_EDATA, "%s holds no 3-node triangles for a shell (is it a gmsh .msh surface?)", o->file);
+        goto out;
+    }
+    if (ne > 4000000 || nn > 12000000) {
+        rc = crom_err(CROM_EUSAGE, "%s: %zu triangles on %zu nodes is more than a shell of crom takes", o->file, ne, nn);
+        goto out;
+    }
+    for (size_t i = 0; i < nn; i++)
+        maxtag = ntags[i] > maxtag ? ntags[i] : maxtag;
+    s.nv = (int)nn;
+    s.nt = (int)ne;
+    map = crom_malloc(sizeof(int) * (maxtag + 1));
+    s.V = crom_malloc(sizeof(double) * 3 * nn);
+    s.T = crom_malloc(sizeof(int) * 3 * ne);
+    if (!map || !s.V || !s.T) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    for (size_t i = 0; i <= maxtag; i++)
+        map[i] = -1;
+    for (size_t i = 0; i < nn; i++) {
+        map[ntags[i]] = (int)i;
+        memcpy(s.V + 3 * i, coord + 3 * i, 3 * sizeof(double));
+    }
+    for (size_t k = 0; k < 3 * ne; k++) {
+        if (enodes[k] > maxtag || map[enodes[k]] < 0) {
+            rc = crom_err(CROM_EDATA, "%s: a triangle refers to an unknown node", o->file);
+            goto out;
+        }
+        s.T[k] = map[enodes[k]];
+    }
+    if ((rc = crom_surface_check_oriented(&s, o->file)))
+        goto out;
+    m->nv = s.nv;
+    m->ntri = s.nt;
+    m->thickness = o->thickness;
+    m->X = s.V;
+    m->tris = s.T;
+    s.V = NULL;
+    s.T = NULL;
+    if (!(m->tets = crom_malloc(sizeof(int) * 4))) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    if (!(rc = add_physical_groups(m, map, maxtag)) && !(rc = crom_mesh_compact(m)))
+        rc = crom_mesh_validate(m);
+out:
+    if (ntags)
+        gmshFree(ntags);
+    if (coord)
+        gmshFree(coord);
+    if (param)
+        gmshFree(param);
+    if (etags)
+        gmshFree(etags);
+    if (enodes)
+        gmshFree(enodes);
+    free(map);
+    crom_surface_free(&s);
+    crom_gmsh_end(o->log, o->log_ctx);
+    if (rc)
+        crom_mesh_free(m);
+    return rc;
+}
+
 int crom_meshgen_shell_import(const crom_meshgen_opts *o, crom_mesh *m)
 {
     memset(m, 0, sizeof *m);
@@ -537,8 +639,11 @@ int crom_meshgen_shell_import(const crom_meshgen_opts *o, crom_mesh *m)
         return crom_err(CROM_EUSAGE, "import needs a file");
     if (!(o->thickness > 0) || !isfinite(o->thickness))
         return crom_err(CROM_EUSAGE, "a shell import needs a positive --thickness (got %g)", o->thickness);
+    if (ends_with(o->file, ".msh"))
+        return msh_shell(o, m);
     if (!(ends_with(o->file, ".stl") || ends_with(o->file, ".obj")))
-        return crom_err(CROM_EUSAGE, "%s: a shell is imported from the triangles of an .stl or .obj surface", o->file);
+        return crom_err(CROM_EUSAGE, "%s: a shell is imported from the triangles of an .stl, .obj or .msh surface",
+                        o->file);
     crom_surface s = {0};
     int rc = crom_surface_read(o->file, &s);
     if (!rc)

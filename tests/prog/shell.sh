@@ -3,7 +3,8 @@
 # (exact area, consistent orientation, the thickness stored; regular rows or
 # gmsh's), disk (gmsh;
 # area converging to pi R^2) and import of
-# an .obj surface as a shell (round trip, subdivision), crom-fullsim on
+# an .obj surface as a shell (round trip, subdivision) and of a gmsh .msh
+# surface (its triangles and physical groups), crom-fullsim on
 # a sheet (a pinned sheet swinging out of plane; free fall of an unpinned
 # one, which implicit Euler moves by exactly g h² N(N+1)/2 with no strain),
 # crom-info, and the one-line refusals: shell flags on a solid, a shell
@@ -111,6 +112,55 @@ EOF
 ok
 expect_error 64 "unstructured is for a sheet" "$TMP/x.h5" -- crom-mesh box --unstructured -o "$TMP/x.h5"
 
+# a gmsh .msh surface imported as a shell: its triangles kept (the exact
+# area), its physical groups as regions (the clamp curve: every vertex on
+# x = -0.5 and no other), and the clamped plate sags under crom-fullsim
+cat >"$TMP/sq.geo" <<'GEO'
+SetFactory("OpenCASCADE");
+Rectangle(1) = {-0.5, -0.25, 0, 1, 0.5};
+Physical Curve("clamp") = {4};
+Physical Surface("plate") = {1};
+Mesh.MeshSizeMax = 0.05;
+GEO
+gmsh -2 "$TMP/sq.geo" -o "$TMP/sq.msh" >/dev/null 2>&1 || fail "gmsh -2 sq.geo"
+crom-mesh import "$TMP/sq.msh" --thickness 0.003 -o "$TMP/sqmsh.h5"
+crom-info --check "$TMP/sqmsh.h5" >/dev/null || fail "crom-info --check on an imported .msh shell"; ok
+crom-fullsim --pin clamp --youngs 1e7 --poisson 0.3 --density 500 --gravity 0,0,-9.81 --dt 0.05 --steps 3 \
+  -q -o "$TMP/sqmsh_run.h5" "$TMP/sqmsh.h5"
+$PY - "$TMP/sqmsh.h5" "$TMP/sq.msh" "$TMP/sqmsh_run.h5" <<'EOF' || fail "the imported .msh shell"
+import sys, h5py, numpy as np, meshio
+def need(c, what):
+    if not c:
+        sys.exit(what)
+f, g = h5py.File(sys.argv[1], 'r'), meshio.read(sys.argv[2])
+X, T = f['vertices'][...], f['triangles'][...]
+ntri = sum(len(c.data) for c in g.cells if c.type == 'triangle')
+need(len(T) == ntri and len(X) == len(g.points), f"{len(T)} triangles on {len(X)} vertices, gmsh {ntri} on {len(g.points)}")
+need(f['triangles'].attrs['thickness'] == 0.003, 'thickness 0.003')
+e1, e2 = X[T[:, 1]] - X[T[:, 0]], X[T[:, 2]] - X[T[:, 0]]
+area = 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1).sum()
+need(abs(area - 0.5) < 1e-12, f"area {area}")
+clamp, plate = f['regions/clamp'][...], f['regions/plate'][...]
+need(np.all(X[clamp, 0] == -0.5) and np.sum(X[:, 0] == -0.5) == len(clamp), 'the clamp curve is the x = -0.5 edge')
+need(len(plate) == len(X), 'the plate surface holds every vertex')
+u = h5py.File(sys.argv[3], 'r')['frames/displacement'][...]
+need(np.abs(u[:, clamp]).max() == 0 and u[-1][:, 2].min() < -1e-4, 'clamped, and the free end sags')
+print(f".msh shell: {len(X)} vertices, {len(T)} triangles, area {area:.15g}, clamp {len(clamp)} vertices, "
+      f"sag {-u[-1][:, 2].min():.3g} m")
+EOF
+ok
+cat >"$TMP/cube.geo" <<'GEO'
+SetFactory("OpenCASCADE");
+Box(1) = {0, 0, 0, 1, 1, 1};
+Mesh.MeshSizeMax = 0.5;
+GEO
+gmsh -3 "$TMP/cube.geo" -o "$TMP/cube.msh" >/dev/null 2>&1 || fail "gmsh -3 cube.geo"
+expect_error 64 "cube.msh holds a volume mesh \(tetrahedra\): import it without --thickness" "$TMP/x.h5" -- \
+  crom-mesh import "$TMP/cube.msh" --thickness 0.01 -o "$TMP/x.h5"
+printf 'not a mesh\n' >"$TMP/junk.msh"
+expect_error 65 "junk.msh holds no 3-node triangles for a shell" "$TMP/x.h5" -- \
+  crom-mesh import "$TMP/junk.msh" --thickness 0.01 -o "$TMP/x.h5"
+
 # a pinned sheet swinging out of plane
 crom-fullsim --pin top --youngs 2e5 --poisson 0.3 --density 400 --gravity 0,-9.81,4 --dt 0.02 --steps 10 \
   -o "$TMP/swing.h5" "$TMP/sheet.h5"
@@ -182,7 +232,8 @@ printf 'v 0 0 0\nv 1 0 0\nv 0.5 1 0\nv 0.5 -1 0\nf 1 2 3\nf 1 2 4\n' >"$TMP/flip
 expect_error 65 "non-manifold" "$TMP/x.h5" -- crom-mesh import "$TMP/fan.obj" --thickness 0.01 -o "$TMP/x.h5"
 expect_error 65 "not consistently oriented" "$TMP/x.h5" -- crom-mesh import "$TMP/flip.obj" --thickness 0.01 -o "$TMP/x.h5"
 expect_error 65 "not closed" "$TMP/x.h5" -- crom-mesh import "$TMP/sheet.obj" -o "$TMP/x.h5"
-expect_error 64 "stl or .obj" "$TMP/x.h5" -- crom-mesh import "$TMP/x.msh" --thickness 0.01 -o "$TMP/x.h5"
+expect_error 64 "an .stl, .obj or .msh surface" "$TMP/x.h5" -- crom-mesh import "$TMP/x.ply" --thickness 0.01 -o "$TMP/x.h5"
+expect_error 66 "nothere.msh: No such file or directory" "$TMP/x.h5" -- crom-mesh import "$TMP/nothere.msh" --thickness 0.01 -o "$TMP/x.h5"
 expect_error 65 "not consistently oriented" "$TMP/x.h5" -- crom-fullsim --steps 1 -o "$TMP/x.h5" "$TMP/flipped.h5"
 expect_error 65 "not manifold" "$TMP/x.h5" -- crom-fullsim --steps 1 -o "$TMP/x.h5" "$TMP/nonmanifold.h5"
 expect_error 65 "thickness" "$TMP/x.h5" -- crom-fullsim --steps 1 -o "$TMP/x.h5" "$TMP/thin.h5"
