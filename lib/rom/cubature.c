@@ -125,58 +125,96 @@ static int scheme_all(crom_cubature *c)
     return 0;
 }
 
-/* LiCROM §5: m random vertices plus all their incident tets, equal weights */
-static int scheme_random(crom_cubature *c, const double *tetvol, int m, crom_rng *rng)
+/* The random and METIS schemes work on a set of elements: nel elements of
+ * `per` vertices each (elv [nel][per]), of rest measure meas [nel] (a tet's
+ * volume, a triangle's area, a hinge's stiffness factor |ē|²/(Ā1 + Ā2)),
+ * numbered from offset among the cubature's elements. A solid is one set
+ * (its tets); a shell two (its triangles, then its hinges), each integrated
+ * on its own, so that the membrane and the bending energy keep their
+ * measures. The chosen elements and weights are appended to c->elem and
+ * c->weight. */
+typedef struct {
+    int nel, per, offset;
+    const int *elv;
+    const double *meas;
+} elem_set;
+
+static int append_elems(crom_cubature *c, int n)
 {
-    int nv = c->mesh.nv, nt = c->mesh.nt;
-    int *perm = crom_malloc(sizeof(int) * (size_t)nv);
-    unsigned char *pick = crom_calloc((size_t)nv, 1), *use = crom_calloc((size_t)nt, 1);
-    if (!perm || !pick || !use) {
-        free(perm);
-        free(pick);
-        free(use);
+    int *e = crom_realloc(c->elem, sizeof(int) * (size_t)(c->k + n));
+    if (e)
+        c->elem = e;
+    double *w = crom_realloc(c->weight, sizeof(double) * (size_t)(c->k + n));
+    if (w)
+        c->weight = w;
+    return e && w ? 0 : CROM_EINTERNAL;
+}
+
+/* LiCROM §5: m random vertices plus all the elements that touch them, equal
+ * weights (the set's measure over the chosen elements'). pick [nv] marks
+ * the chosen vertices. */
+static int random_set(crom_cubature *c, const elem_set *S, const unsigned char *pick)
+{
+    double total = 0, vsel = 0;
+    int n = 0;
+    unsigned char *use = crom_calloc((size_t)S->nel + 1, 1);
+    if (!use)
         return CROM_EINTERNAL;
-    }
-    for (int i = 0; i < nv; i++)
-        perm[i] = i;
-    crom_rng_shuffle(rng, perm, nv);
-    for (int i = 0; i < m && i < nv; i++)
-        pick[perm[i]] = 1;
-    c->k = 0;
-    double vsel = 0;
-    for (int t = 0; t < nt; t++) {
-        const int *e = c->mesh.tets + 4 * (size_t)t;
-        if (pick[e[0]] || pick[e[1]] || pick[e[2]] || pick[e[3]]) {
-            use[t] = 1;
-            c->k++;
-            vsel += tetvol[t];
-        }
-    }
-    c->elem = crom_malloc(sizeof(int) * (size_t)c->k);
-    c->weight = crom_malloc(sizeof(double) * (size_t)c->k);
-    int rc = 0;
-    if (!c->elem || !c->weight)
-        rc = CROM_EINTERNAL;
-    for (int t = 0, j = 0; !rc && t < nt; t++)
+    for (int t = 0; t < S->nel; t++) {
+        const int *e = S->elv + (size_t)S->per * t;
+        total += S->meas[t];
+        for (int a = 0; a < S->per && !use[t]; a++)
+            use[t] = pick[e[a]];
         if (use[t]) {
-            c->elem[j] = t;
-            c->weight[j++] = c->mesh_volume / vsel;
+            n++;
+            vsel += S->meas[t];
         }
-    free(perm);
-    free(pick);
+    }
+    int rc = append_elems(c, n);
+    for (int t = 0; !rc && t < S->nel; t++)
+        if (use[t]) {
+            c->elem[c->k] = S->offset + t;
+            c->weight[c->k++] = total / vsel;
+        }
     free(use);
     return rc;
 }
 
-/* METIS partition of the dual graph, one representative tet per part */
-static int scheme_metis(crom_cubature *c, const double *tetvol, int parts)
+static int scheme_random(crom_cubature *c, const elem_set *sets, int nsets, int m, crom_rng *rng)
 {
-    int nt = c->mesh.nt, nv = c->mesh.nv;
-    if (parts > nt)
-        return crom_err(CROM_EUSAGE, "--count %d: the mesh has only %d tets to split into parts", parts, nt);
-    idx_t *epart = crom_malloc(sizeof(idx_t) * (size_t)nt);
+    int nv = c->mesh.nv;
+    int *perm = crom_malloc(sizeof(int) * (size_t)nv);
+    unsigned char *pick = crom_calloc((size_t)nv, 1);
+    int rc = perm && pick ? 0 : CROM_EINTERNAL;
+    if (!rc) {
+        for (int i = 0; i < nv; i++)
+            perm[i] = i;
+        crom_rng_shuffle(rng, perm, nv);
+        for (int i = 0; i < m && i < nv; i++)
+            pick[perm[i]] = 1;
+    }
+    for (int k = 0; !rc && k < nsets; k++)
+        rc = random_set(c, &sets[k], pick);
+    free(perm);
+    free(pick);
+    return rc;
+}
+
+/* METIS partition of a set's dual graph (elements joined when they share
+ * ncommon vertices) into `parts`, one representative per part: the element
+ * nearest the part's measure-weighted centroid, weighted by the part's
+ * measure over its own. */
+static int metis_set(crom_cubature *c, const elem_set *S, int ncommon, int parts, idx_t **epart_out,
+                     int **rep_out)
+{
+    int nel = S->nel, nv = c->mesh.nv, per = S->per;
+    const double *X = c->mesh.X;
+    if (parts > nel)
+        parts = nel;
+    idx_t *epart = crom_malloc(sizeof(idx_t) * (size_t)nel);
     idx_t *npart = crom_malloc(sizeof(idx_t) * (size_t)nv);
-    idx_t *eptr = crom_malloc(sizeof(idx_t) * ((size_t)nt + 1)), *eind = crom_malloc(sizeof(idx_t) * 4 * (size_t)nt);
+    idx_t *eptr = crom_malloc(sizeof(idx_t) * ((size_t)nel + 1));
+    idx_t *eind = crom_malloc(sizeof(idx_t) * (size_t)per * nel);
     double *pv = crom_calloc((size_t)parts, sizeof(double)), *pc = crom_calloc(3 * (size_t)parts, sizeof(double));
     double *best = crom_malloc(sizeof(double) * (size_t)parts);
     int *rep = crom_malloc(sizeof(int) * (size_t)parts), rc = 0;
@@ -185,29 +223,29 @@ static int scheme_metis(crom_cubature *c, const double *tetvol, int parts)
         goto out;
     }
     if (parts == 1) { /* METIS divides by zero for one part (TOOLCHAIN.md) */
-        for (int t = 0; t < nt; t++)
+        for (int t = 0; t < nel; t++)
             epart[t] = 0;
     } else {
-        for (int t = 0; t <= nt; t++)
-            eptr[t] = 4 * t;
-        for (size_t i = 0; i < 4 * (size_t)nt; i++)
-            eind[i] = c->mesh.tets[i];
-        idx_t ne = nt, nn = nv, ncommon = 3, np = parts, objval, opts[METIS_NOPTIONS];
+        for (int t = 0; t <= nel; t++)
+            eptr[t] = (idx_t)per * t;
+        for (size_t i = 0; i < (size_t)per * nel; i++)
+            eind[i] = S->elv[i];
+        idx_t ne = nel, nn = nv, nc = ncommon, np = parts, objval, opts[METIS_NOPTIONS];
         METIS_SetDefaultOptions(opts);
         opts[METIS_OPTION_SEED] = 1;
-        if (METIS_PartMeshDual(&ne, &nn, eptr, eind, NULL, NULL, &ncommon, &np, NULL, opts, &objval,
-                               epart, npart) != METIS_OK) {
+        if (METIS_PartMeshDual(&ne, &nn, eptr, eind, NULL, NULL, &nc, &np, NULL, opts, &objval, epart, npart) !=
+            METIS_OK) {
             rc = crom_err(CROM_EINTERNAL, "METIS_PartMeshDual failed");
             goto out;
         }
     }
-    for (int t = 0; t < nt; t++) {
-        const int *e = c->mesh.tets + 4 * (size_t)t;
+    for (int t = 0; t < nel; t++) {
+        const int *e = S->elv + (size_t)per * t;
         int p = (int)epart[t];
-        pv[p] += tetvol[t];
-        for (int a = 0; a < 4; a++)
+        pv[p] += S->meas[t];
+        for (int a = 0; a < per; a++)
             for (int k = 0; k < 3; k++)
-                pc[3 * p + k] += tetvol[t] * c->mesh.X[3 * (size_t)e[a] + k] / 4;
+                pc[3 * p + k] += S->meas[t] * X[3 * (size_t)e[a] + k] / per;
     }
     for (int p = 0; p < parts; p++) {
         best[p] = INFINITY;
@@ -216,35 +254,37 @@ static int scheme_metis(crom_cubature *c, const double *tetvol, int parts)
             for (int k = 0; k < 3; k++)
                 pc[3 * p + k] /= pv[p];
     }
-    for (int t = 0; t < nt; t++) {
-        const int *e = c->mesh.tets + 4 * (size_t)t;
+    for (int t = 0; t < nel; t++) {
+        const int *e = S->elv + (size_t)per * t;
         int p = (int)epart[t];
         double d = 0;
         for (int k = 0; k < 3; k++) {
             double x = 0;
-            for (int a = 0; a < 4; a++)
-                x += c->mesh.X[3 * (size_t)e[a] + k] / 4;
+            for (int a = 0; a < per; a++)
+                x += X[3 * (size_t)e[a] + k] / per;
             d += (x - pc[3 * p + k]) * (x - pc[3 * p + k]);
         }
-        if (d < best[p]) {
+        if (S->meas[t] > 0 && d < best[p]) {
             best[p] = d;
             rep[p] = t;
         }
     }
-    c->k = 0;
+    int n = 0;
     for (int p = 0; p < parts; p++)
-        c->k += rep[p] >= 0;
-    c->elem = crom_malloc(sizeof(int) * (size_t)c->k);
-    c->weight = crom_malloc(sizeof(double) * (size_t)c->k);
-    if (!c->elem || !c->weight) {
-        rc = CROM_EINTERNAL;
+        n += rep[p] >= 0;
+    if ((rc = append_elems(c, n)))
         goto out;
-    }
-    for (int p = 0, j = 0; p < parts; p++)
+    for (int p = 0; p < parts; p++)
         if (rep[p] >= 0) {
-            c->elem[j] = rep[p];
-            c->weight[j++] = pv[p] / tetvol[rep[p]];
+            c->elem[c->k] = S->offset + rep[p];
+            c->weight[c->k++] = pv[p] / S->meas[rep[p]];
         }
+    if (epart_out) { /* the caller keeps the partition */
+        *epart_out = epart;
+        *rep_out = rep;
+        epart = NULL;
+        rep = NULL;
+    }
 out:
     free(epart);
     free(npart);
@@ -253,6 +293,125 @@ out:
     free(pv);
     free(pc);
     free(best);
+    free(rep);
+    return rc;
+}
+
+typedef struct {
+    int a, b, t; /* an edge a < b of triangle t */
+} tri_edge;
+
+static int tri_edge_cmp(const void *x, const void *y)
+{
+    const tri_edge *p = x, *q = y;
+    if (p->a != q->a)
+        return p->a < q->a ? -1 : 1;
+    return (p->b > q->b) - (p->b < q->b);
+}
+
+/* The hinges of a shell by the METIS parts of its triangles: a hinge
+ * belongs to the part of its triangle (v0, v1, v2); each part is stood for
+ * by the hinges on the edges of its representative triangle, weighted
+ * together by the part's stiffness factors over theirs. The edges of one
+ * triangle run in three directions, so the bending of every direction is
+ * sampled (one hinge per part would bend in one). */
+static int metis_hinges(crom_cubature *c, const elem_set *T, const elem_set *H, const idx_t *epart,
+                        const int *rep, int parts)
+{
+    int nt = T->nel, nh = H->nel, rc = 0;
+    tri_edge *ed = crom_malloc(sizeof(tri_edge) * 3 * (size_t)nt);
+    int *ht = crom_malloc(sizeof(int) * 2 * (size_t)nh);
+    double *Hp = crom_calloc((size_t)parts, sizeof(double)), *Hr = crom_calloc((size_t)parts, sizeof(double));
+    double *hw = crom_calloc((size_t)nh, sizeof(double));
+    if (!ed || !ht || !Hp || !Hr || !hw) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    for (int t = 0; t < nt; t++)
+        for (int e = 0; e < 3; e++) {
+            int a = T->elv[3 * (size_t)t + e], b = T->elv[3 * (size_t)t + (e + 1) % 3];
+            ed[3 * (size_t)t + e] = (tri_edge){a < b ? a : b, a < b ? b : a, t};
+        }
+    qsort(ed, 3 * (size_t)nt, sizeof *ed, tri_edge_cmp);
+    for (int h = 0; h < nh; h++) { /* the triangles on each side: (v0, v1, v2) and (v0, v1, v3) */
+        const int *v = H->elv + 4 * (size_t)h;
+        tri_edge key = {v[0] < v[1] ? v[0] : v[1], v[0] < v[1] ? v[1] : v[0], 0};
+        const tri_edge *f = bsearch(&key, ed, 3 * (size_t)nt, sizeof *ed, tri_edge_cmp);
+        ht[2 * h] = ht[2 * h + 1] = -1;
+        if (!f) {
+            rc = crom_err(CROM_EINTERNAL, "hinge %d has no triangle", h);
+            goto out;
+        }
+        while (f > ed && !tri_edge_cmp(f - 1, &key))
+            f--;
+        for (; f < ed + 3 * (size_t)nt && !tri_edge_cmp(f, &key); f++) {
+            const int *tv = T->elv + 3 * (size_t)f->t;
+            int side = tv[0] == v[3] || tv[1] == v[3] || tv[2] == v[3];
+            ht[2 * h + side] = f->t;
+        }
+        if (ht[2 * h] < 0) {
+            rc = crom_err(CROM_EINTERNAL, "hinge %d has no triangle (v0, v1, v2)", h);
+            goto out;
+        }
+        Hp[epart[ht[2 * h]]] += H->meas[h];
+    }
+    /* the representatives' hinges, and their stiffness factor per part */
+    for (int h = 0; h < nh; h++)
+        for (int side = 0; side < 2; side++) {
+            int t = ht[2 * h + side];
+            if (t >= 0 && rep[epart[t]] == t)
+                Hr[epart[t]] += H->meas[h];
+        }
+    for (int h = 0; h < nh; h++)
+        for (int side = 0; side < 2; side++) {
+            int t = ht[2 * h + side];
+            if (t >= 0 && rep[epart[t]] == t && Hr[epart[t]] > 0)
+                hw[h] += Hp[epart[t]] / Hr[epart[t]];
+        }
+    /* a part whose representative has no interior edge (a corner): its
+     * first hinge stands for it */
+    for (int p = 0; p < parts; p++)
+        if (Hp[p] > 0 && !(Hr[p] > 0))
+            for (int h = 0; h < nh; h++)
+                if (epart[ht[2 * h]] == p && H->meas[h] > 0) {
+                    hw[h] += Hp[p] / H->meas[h];
+                    break;
+                }
+    int n = 0;
+    for (int h = 0; h < nh; h++)
+        n += hw[h] > 0;
+    if ((rc = append_elems(c, n)))
+        goto out;
+    for (int h = 0; h < nh; h++)
+        if (hw[h] > 0) {
+            c->elem[c->k] = H->offset + h;
+            c->weight[c->k++] = hw[h];
+        }
+out:
+    free(ed);
+    free(ht);
+    free(Hp);
+    free(Hr);
+    free(hw);
+    return rc;
+}
+
+/* A solid's tets in `parts` parts, one tet each; a shell's triangles in
+ * `parts` parts, each stood for by a triangle and the hinges on its edges
+ * (metis_hinges). */
+static int scheme_metis(crom_cubature *c, const elem_set *sets, int nsets, int parts)
+{
+    if (parts > sets[0].nel)
+        return crom_err(CROM_EUSAGE, "--count %d: the mesh has only %d %s to split into parts", parts, sets[0].nel,
+                        sets[0].per == 3 ? "triangles" : "tets");
+    if (nsets == 1)
+        return metis_set(c, &sets[0], sets[0].per == 4 ? 3 : 2, parts, NULL, NULL);
+    idx_t *epart = NULL;
+    int *rep = NULL;
+    int rc = metis_set(c, &sets[0], 2, parts, &epart, &rep);
+    if (!rc)
+        rc = metis_hinges(c, &sets[0], &sets[1], epart, rep, parts);
+    free(epart);
     free(rep);
     return rc;
 }
@@ -642,6 +801,7 @@ int crom_cubature_build(crom_cubature *c, const crom_mesh *mesh, const double *W
     if (rc)
         return rc;
     int nv = mesh->nv, nt = mesh->nt, shell = crom_mesh_is_surface(mesh);
+    crom_system sys = {0};
     c->r = r;
     c->ne = nt;
     snprintf(c->model_id, sizeof c->model_id, "%s", model_id);
@@ -671,22 +831,21 @@ int crom_cubature_build(crom_cubature *c, const crom_mesh *mesh, const double *W
         for (int a = 0; a < 4; a++)
             c->vvol[e[a]] += V / 4;
     }
-    if (shell) { /* t A / 3 per triangle corner; the elements: the system's */
-        crom_system sys;
+    /* the element sets of the random and METIS schemes */
+    elem_set sets[2] = {{.nel = nt, .per = 4, .offset = 0, .elv = mesh->tets, .meas = tetvol}};
+    int nsets = 1;
+    if (shell) { /* t A / 3 per triangle corner; the elements: the system's (triangles, then hinges) */
         crom_material unit;
         crom_material_init(&unit, 1, 0.3, 1);
         if ((rc = crom_system_init(&sys, mesh, unit.E, unit.nu, unit.rho)))
             goto fail;
         c->ne = sys.nenergy;
-        crom_system_free(&sys);
         crom_mesh_vertex_volumes(mesh, c->vvol);
         for (int v = 0; v < nv; v++)
             c->mesh_volume += c->vvol[v];
-        if (o->scheme == CROM_CUBATURE_RANDOM || o->scheme == CROM_CUBATURE_METIS) {
-            rc = crom_err(CROM_EUSAGE, "--scheme %s picks tets; a shell's cubature is --scheme optimized or all",
-                          scheme_name(o->scheme));
-            goto fail;
-        }
+        sets[0] = (elem_set){.nel = sys.sh.nt, .per = 3, .offset = 0, .elv = sys.sh.tris, .meas = sys.sh.area};
+        sets[1] = (elem_set){.nel = sys.sh.nh, .per = 4, .offset = sys.sh.nt, .elv = sys.sh.hinges, .meas = sys.sh.hk};
+        nsets = sys.sh.nh > 0 ? 2 : 1;
     }
     /* WᵀVW = BᵀB with B = V^½ W (rows 3v+c scaled by sqrt(V_v)); WᵀV */
     for (int v = 0; v < nv; v++) {
@@ -729,10 +888,12 @@ int crom_cubature_build(crom_cubature *c, const crom_mesh *mesh, const double *W
     switch (o->scheme) {
     case CROM_CUBATURE_ALL: rc = scheme_all(c); break;
     case CROM_CUBATURE_RANDOM:
-        rc = o->count < 1 ? crom_err(CROM_EUSAGE, "--count must be at least 1") : scheme_random(c, tetvol, o->count, rng);
+        rc = o->count < 1 ? crom_err(CROM_EUSAGE, "--count must be at least 1")
+                          : scheme_random(c, sets, nsets, o->count, rng);
         break;
     case CROM_CUBATURE_METIS:
-        rc = o->count < 1 ? crom_err(CROM_EUSAGE, "--count must be at least 1") : scheme_metis(c, tetvol, o->count);
+        rc = o->count < 1 ? crom_err(CROM_EUSAGE, "--count must be at least 1")
+                          : scheme_metis(c, sets, nsets, o->count);
         break;
     case CROM_CUBATURE_OPTIMIZED:
         rc = o->count < 1 ? crom_err(CROM_EUSAGE, "--count must be at least 1") : scheme_optimized(c, o, rng);
@@ -741,6 +902,7 @@ int crom_cubature_build(crom_cubature *c, const crom_mesh *mesh, const double *W
     }
     if (rc)
         goto fail;
+    crom_system_free(&sys);
     if (shell) { /* no rest shapes of tets: crom-reducedstep --model integrates the system's elements */
         free(tetvol);
         free(B);
@@ -764,6 +926,7 @@ int crom_cubature_build(crom_cubature *c, const crom_mesh *mesh, const double *W
     free(B);
     return 0;
 fail:
+    crom_system_free(&sys);
     free(tetvol);
     free(B);
     crom_cubature_free(c);

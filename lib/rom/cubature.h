@@ -55,7 +55,7 @@ enum { CROM_CUBATURE_ALL, CROM_CUBATURE_RANDOM, CROM_CUBATURE_METIS, CROM_CUBATU
 
 typedef struct {
     int scheme;
-    int count;             /* random: vertices; metis: parts; optimized: max tets */
+    int count;             /* random: vertices; metis: parts (a shell: of each set); optimized: max elements */
     double tol;            /* optimized: stop at this relative force error */
     int candidates;        /* optimized: tets scored per greedy pick */
     const double *poses;   /* optimized: [npose][r] latent training poses (m) */
@@ -74,12 +74,14 @@ int crom_cubature_scheme(const char *name);
 
 /* Build a cubature for mesh (copied) with W [nv][3][r] at its vertices
  * (copied). On a shell surface the elements are the energy elements of its
- * system (membrane triangles, then hinges: lib/phys/system.h), the
- * schemes all and optimized (the fitted forces are the shell's, with the
- * mesh's thickness), and the cubature has no Dminv or volume: it serves
- * crom-reducedstep --model only (crom_nlsim_use_cubature). Returns 0,
- * CROM_EUSAGE (bad count, optimized without poses, random or metis on a
- * shell), CROM_EDATA (degenerate mesh, non-finite W) or CROM_EINTERNAL. */
+ * system (membrane triangles, then hinges: lib/phys/system.h; optimized
+ * fits the shell's forces, with the mesh's thickness; random and metis
+ * treat the triangles and the hinges as two sets, each weighted by its own
+ * measure: area, and the hinge stiffness factor |ē|²/(Ā1 + Ā2)), and the
+ * cubature has no Dminv or volume: it serves crom-reducedstep --model only
+ * (crom_nlsim_use_cubature). Returns 0, CROM_EUSAGE (bad count, optimized
+ * without poses), CROM_EDATA (degenerate mesh, non-finite W) or
+ * CROM_EINTERNAL. */
 int crom_cubature_build(crom_cubature *c, const crom_mesh *mesh, const double *W, int r,
                         const char *model_id, const crom_cubature_opts *o, crom_rng *rng);
 

@@ -17,6 +17,7 @@
 #include "mesh/meshgen.h"
 #include "mesh/remesh.h"
 #include "phys/fem.h"
+#include "phys/system.h"
 #include "rom/cubature.h"
 #include "io/io.h"
 #include "rom/newton.h"
@@ -742,6 +743,81 @@ static void test_crack_opens(void)
  * subspace: the analytic basis holds translations and every linear field, so
  * v0 + ω × (X − c) is in its span and must come back exactly at every vertex,
  * with the body's momentum M v0. */
+/* The random and METIS schemes on a shell: the triangles and the hinges are
+ * two sets, each integrated exactly in its own measure (area; the hinge
+ * stiffness factor), METIS gives COUNT triangles and the hinges on their
+ * edges, and the force error of the METIS cubature falls as the parts
+ * grow. */
+static void test_shell_schemes(void)
+{
+    crom_meshgen_opts go;
+    crom_meshgen_defaults(&go, CROM_MESHGEN_SHEET);
+    go.size = 0.05;
+    go.thickness = 0.002;
+    crom_mesh m;
+    CHECK(crom_meshgen_sheet(&go, &m) == 0);
+    enum { RS = 4 };
+    double *W = malloc(sizeof(double) * 3 * RS * m.nv);
+    for (int v = 0; v < m.nv; v++) { /* bending and stretching fields of the clamped-at-y = -1/2 sheet */
+        double x = m.X[3 * v], y = m.X[3 * v + 1] + 0.5;
+        double f[3][RS] = {{0, 0, 0.1 * y * y, 0}, {0, 0, 0, 0}, {y * y, x * y, 0, y * y * y}};
+        for (int c = 0; c < 3; c++)
+            for (int k = 0; k < RS; k++)
+                W[((size_t)v * 3 + c) * RS + k] = f[c][k];
+    }
+    crom_system sys;
+    CHECK(crom_system_init(&sys, &m, 1, 0.3, 1) == 0);
+    int nt = sys.sh.nt, nh = sys.sh.nh;
+    double hk = 0;
+    for (int h = 0; h < nh; h++)
+        hk += sys.sh.hk[h];
+    crom_rng rng;
+    crom_rng_seed(&rng, 3);
+    double poses[6 * RS];
+    for (int i = 0; i < 6 * RS; i++)
+        poses[i] = 0.05 * crom_rng_normal(&rng);
+    crom_material mat;
+    crom_material_init(&mat, 1e7, 0.3, 500);
+    crom_cubature_opts o = {CROM_CUBATURE_METIS, 20, 0, 0, NULL, 0, 1e7, 0.3, NULL, 0};
+    double ferr[3];
+    const int counts[3] = {10, 40, 160};
+    for (int pass = 0; pass < 4; pass++) {
+        crom_cubature c;
+        o.scheme = pass < 3 ? CROM_CUBATURE_METIS : CROM_CUBATURE_RANDOM;
+        o.count = pass < 3 ? counts[pass] : 25;
+        CHECK(crom_cubature_build(&c, &m, W, RS, "shell", &o, &rng) == 0);
+        double area = 0, hinge = 0;
+        int ntri = 0, nhin = 0;
+        for (int k = 0; k < c.k; k++) {
+            CHECK(c.elem[k] >= 0 && c.elem[k] < nt + nh && c.weight[k] >= 1);
+            if (c.elem[k] < nt) {
+                area += c.weight[k] * sys.sh.area[c.elem[k]];
+                ntri++;
+            } else {
+                hinge += c.weight[k] * sys.sh.hk[c.elem[k] - nt];
+                nhin++;
+            }
+        }
+        CHECK_NEAR(area / sys.sh.total_area, 1, 1e-12);
+        CHECK_NEAR(hinge / hk, 1, 1e-12);
+        if (pass < 3) {
+            CHECK(ntri == counts[pass] && nhin >= counts[pass] && nhin <= 3 * counts[pass]);
+            double eE;
+            CHECK(crom_cubature_error(&c, &mat, poses, 6, NULL, 0, &eE, &ferr[pass]) == 0);
+        } else {
+            CHECK(ntri > 25 && nhin > 25 && ntri < nt && nhin < nh);
+        }
+        crom_cubature_free(&c);
+    }
+    fprintf(stderr, "shell METIS cubature force error: %d parts %.3g, %d parts %.3g, %d parts %.3g (%d triangles, "
+            "%d hinges)\n", counts[0], ferr[0], counts[1], ferr[1], counts[2], ferr[2], nt, nh);
+    CHECK_LT(ferr[1], ferr[0]);
+    CHECK_LT(ferr[2], ferr[1]);
+    crom_system_free(&sys);
+    free(W);
+    crom_mesh_free(&m);
+}
+
 static void test_initial_velocity(void)
 {
     crom_mesh m;
@@ -892,6 +968,7 @@ int main(void)
     test_lagged_newton();
     test_galerkin();
     test_schemes_and_switch();
+    test_shell_schemes();
     test_initial_velocity();
     test_schedule();
     return check_done();
