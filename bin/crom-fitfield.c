@@ -141,8 +141,9 @@ static crom_cli_doc doc = {
     "snapshots weighted by the lumped vertex volumes (orthonormal in the volume-mean inner "
     "product; the density cancels), stored as a piecewise-linear field on that mesh so the "
     "whole pipeline can run the classic linear ROM as a baseline.\n\n"
-    "The relative reconstruction error ||Wq - u|| / ||u|| over all training frames is printed "
-    "and stored in the model with the training log (loss and wall time per epoch). The same samples, options and --seed give the same bytes (set "
+    "The relative error ||Wq - u|| / ||u|| over all samples of all frames is printed and stored "
+    "with the training log (per epoch: wall time and the loss on each step's points, which reads "
+    "lower). The same samples, options and --seed give the same bytes (set "
     "SOURCE_DATE_EPOCH for the stored times; --threads changes the last bits).\n\n"
     "Data-free subspaces need no samples, only a mesh (--mesh), a material, and the pins and "
     "gravity of the scenario flags. They are nonlinear maps from a latent z to the positions of "
@@ -500,7 +501,7 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
 static void on_progress(void *ctx, int epoch, double frac, double loss)
 {
     char buf[64];
-    snprintf(buf, sizeof buf, "epoch %d, loss %.3g m^2", epoch, loss);
+    snprintf(buf, sizeof buf, "epoch %d, loss %.3g m^2 (the steps' points)", epoch, loss);
     crom_cli_progress_update(ctx, (long)(frac * 1000), buf);
 }
 
