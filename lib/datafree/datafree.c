@@ -480,6 +480,9 @@ static int check_map(const crom_datafree_problem *p, crom_datafree_opts *o)
                                      "steps may be 0)");
     if (!nm && o->batch < 2)
         return crom_err(CROM_EUSAGE, "--batch %d: the isometry term needs pairs (at least 2 samples)", o->batch);
+    if (nm && p->nvisit > 0 && o->batch < 2)
+        return crom_err(CROM_EUSAGE, "--batch %d: sampling along a run (--latents) draws every other sample near it "
+                        "(at least 2 samples)", o->batch);
     double diag = crom_dftrain_diag(mesh);
     if (!(o->sigma > 0))
         o->sigma = 0.05 * diag;
