@@ -278,7 +278,7 @@ static int run(crom_cli *cli, args *a)
         rc = crom_mesh_copy(&model.mesh, &m); /* a map's own mesh */
     if (rc)
         goto out;
-    if (crom_mesh_is_surface(&m) && !crom_mesh_is_surface(&model.mesh)) {
+    if (crom_mesh_is_surface(&m) && model.mesh.nv > 0 && !crom_mesh_is_surface(&model.mesh)) {
         rc = crom_err(CROM_EUSAGE, "%s is a shell surface: model %s (basis '%s') is a field over solids; a shell's "
                       "cubature needs a model made on that shell (crom-modes, crom-fitfield --objective "
                       "energy|neuralmodes)", a->input ? a->input : "the mesh", model.model_id, model.basis);

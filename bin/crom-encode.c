@@ -112,7 +112,7 @@ static int run(crom_cli *cli, args *a)
     if ((rc = crom_in_expect(&in, "crom/trajectory", 1)))
         goto out;
     hid_t loc = H5Gopen2(in.h5, "mesh", H5P_DEFAULT);
-    rc = loc < 0 ? crom_err(CROM_EDATA, "%s has no /mesh", in.name) : crom_mesh_read(loc, &m);
+    rc = loc < 0 ? crom_err(CROM_EDATA, "%s has no /mesh", in.name) : crom_mesh_read_any(loc, &m);
     if (loc >= 0)
         H5Gclose(loc);
     if (rc) {

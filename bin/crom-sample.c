@@ -38,7 +38,8 @@ static const crom_cli_doc doc = {
     "not the meshes.\n\n"
     "Each frame is tagged with its source: the index of its input in the order given. The "
     "source meshes are stored under /sources/000, /sources/001, ... (name order = index order) "
-    "with a 'file' attribute naming the input.\n\n"
+    "with a 'file' attribute naming the input. A thin shell (crom-mesh sheet, disk, import "
+    "--thickness) is sampled at its vertices, and its triangles and thickness are kept.\n\n"
     "The same inputs and --seed give the same bytes. A --points larger than a mesh's vertex "
     "count in vertex mode is an error: use --points all or --mode interior.",
     groups,
@@ -163,9 +164,15 @@ static int sample_source(crom_cli *cli, args *a, crom_samples *s, const char *pa
     }
     crom_mesh m;
     hid_t loc = H5Gopen2(in.h5, "mesh", H5P_DEFAULT);
-    rc = loc < 0 ? crom_err(CROM_EDATA, "%s has no /mesh", in.name) : crom_mesh_read(loc, &m);
+    rc = loc < 0 ? crom_err(CROM_EDATA, "%s has no /mesh", in.name) : crom_mesh_read_any(loc, &m);
     if (loc >= 0)
         H5Gclose(loc);
+    if (!rc && a->interior && crom_mesh_is_surface(&m)) {
+        rc = crom_err(CROM_EUSAGE, "--mode interior samples the inside of tets; %s is a shell surface (%d "
+                      "triangles): sample its vertices", in.name, m.ntri);
+        crom_mesh_free(&m);
+        loc = -1;
+    }
     if (rc) {
         if (loc >= 0)
             crom_err_ctx("%s", in.name);
@@ -232,15 +239,19 @@ endloop:
         crom_cli_warn(cli, "%s is incomplete (the run stopped early): sampled its %ld frames", in.name, idx);
     if (cli->verbose)
         crom_cli_info(cli, "%s: %d vertices, kept %ld of %ld frames", in.name, m.nv, kept, idx);
-    /* keep the source mesh (vertices and tets only) */
+    /* keep the source mesh (vertices and tets, or a shell's triangles and thickness) */
     crom_mesh *src = &s->src[k];
     memset(src, 0, sizeof *src);
     src->nv = m.nv;
     src->nt = m.nt;
+    src->ntri = m.ntri;
+    src->thickness = m.thickness;
     src->X = m.X;
     src->tets = m.tets;
+    src->tris = m.tris;
     m.X = NULL;
     m.tets = NULL;
+    m.tris = NULL;
     s->src_file[k] = crom_strdup(in.name);
     s->nsources = k + 1;
     merge_history(history, in.history);

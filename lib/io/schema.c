@@ -105,6 +105,7 @@ static const crom_schema_attr samples_attrs[] = {
 
 static const crom_schema_attr samples_objattrs[] = {
     {"file", "str", 1, "the input the source came from: a path, or stdin", "sources/*"},
+    {"thickness", "f64", 1, THICKNESS_DESC, "sources/*/triangles"},
     {NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_dset samples_dsets[] = {
@@ -114,7 +115,8 @@ static const crom_schema_dset samples_dsets[] = {
     {"frame_source", "i32", "F", 1, "1", "which source (index into /sources) each frame comes from", NULL},
     {"frame_time", "f64", "F", 1, "s", "simulated time of each frame", NULL},
     {"sources/*/vertices", "f64", "?,3", 1, "m", "rest positions of the source trajectory's mesh", NULL},
-    {"sources/*/tets", "i32", "?,4", 1, "1", "tetrahedra of that mesh", NULL},
+    {"sources/*/tets", "i32", "?,4", 0, "1", "tetrahedra of that mesh (a solid's)", NULL},
+    {"sources/*/triangles", "i32", "?,3", 0, "1", "a shell's triangles instead of tets", NULL},
     {NULL, NULL, NULL, 0, NULL, NULL, NULL}};
 
 static const crom_schema_attr model_attrs[] = {

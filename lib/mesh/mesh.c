@@ -618,12 +618,17 @@ int crom_mesh_write(hid_t loc, const crom_mesh *m)
     return rc;
 }
 
+/* The programs that take a shell, named where a tet-only path refuses one. */
+#define SHELL_PROGRAMS                                                                                     \
+    "crom-fullsim, crom-modes, crom-sample, crom-encode, crom-cubature, crom-reducedstep --model, crom-diff, " \
+    "crom-export, crom-info"
+
 int crom_mesh_read(hid_t loc, crom_mesh *m)
 {
     int rc = crom_mesh_read_any(loc, m);
     if (!rc && crom_mesh_is_surface(m)) {
         rc = crom_err(CROM_EUSAGE, "the mesh is a shell surface (%d triangles); this program takes tet meshes "
-                      "(shells: crom-fullsim, crom-info, crom-export, crom-diff)", m->ntri);
+                      "(shells: " SHELL_PROGRAMS ")", m->ntri);
         crom_mesh_free(m);
     }
     return rc;
@@ -722,7 +727,7 @@ int crom_mesh_load(const char *path, int flags, crom_mesh *m, char **history)
     }
     if (!rc && crom_mesh_is_surface(m) && !(flags & CROM_MESH_SURFACES)) {
         rc = crom_err(CROM_EUSAGE, "%s is a shell surface (%d triangles); this program takes tet meshes (shells: "
-                      "crom-fullsim, crom-info, crom-export, crom-diff)", in.name, m->ntri);
+                      SHELL_PROGRAMS ")", in.name, m->ntri);
         crom_mesh_free(m);
     }
     if (!rc && history) {

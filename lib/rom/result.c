@@ -23,14 +23,16 @@ int crom_result_open(crom_result *res, const char *path, const char *mesh_path, 
 }
 
 /* The mesh a latent of model is decoded onto, from mesh_path (or a file
- * carrying a mesh): a tet mesh, or the model's own shell surface (a model
- * made on a shell lives on that shell only; fields over solids do not lay
- * on shells): anything else is refused with a one-line message. */
+ * carrying a mesh): a tet mesh, the model's own shell surface (a model
+ * made on a shell lives on that shell only), or any shell for a
+ * continuous field (a neural field W(X) of no mesh, e.g. trained on a
+ * shell's samples); a field on a tet mesh of its own does not lay on a
+ * shell. Anything else is refused with a one-line message. */
 static int latent_mesh(const char *mesh_path, const crom_model *model, crom_mesh *m)
 {
     int rc = crom_mesh_load(mesh_path, CROM_MESH_CARRIERS | CROM_MESH_SURFACES, m, NULL);
     int shell_model = crom_mesh_is_surface(&model->mesh);
-    if (!rc && crom_mesh_is_surface(m) && !shell_model)
+    if (!rc && crom_mesh_is_surface(m) && !shell_model && model->mesh.nv > 0)
         rc = crom_err(CROM_EUSAGE, "%s holds a shell surface (%d triangles): model %s is a field over solids and "
                       "is decoded onto tet meshes only", mesh_path, m->ntri, model->model_id);
     else if (!rc && shell_model && crom_map_same_mesh(m, &model->mesh))

@@ -88,10 +88,15 @@ int crom_samples_write(hid_t loc, const crom_samples *s)
             break;
         }
         const crom_mesh *m = &s->src[k];
-        hsize_t dv[2] = {(hsize_t)m->nv, 3}, dt[2] = {(hsize_t)m->nt, 4};
+        hsize_t dv[2] = {(hsize_t)m->nv, 3}, dt[2] = {(hsize_t)m->nt, 4}, dtri[2] = {(hsize_t)m->ntri, 3};
         rc = crom_h5_put_f64(sg, "vertices", 2, dv, m->X);
-        if (!rc)
+        if (!rc && crom_mesh_is_surface(m)) { /* a shell: its triangles and thickness */
+            rc = crom_h5_put_i32(sg, "triangles", 2, dtri, m->tris);
+            if (!rc)
+                rc = crom_h5_set_f64(sg, "triangles", "thickness", &m->thickness, 1);
+        } else if (!rc) {
             rc = crom_h5_put_i32(sg, "tets", 2, dt, m->tets);
+        }
         if (!rc)
             rc = crom_h5_set_str(sg, ".", "file", s->src_file && s->src_file[k] ? s->src_file[k] : "");
         H5Gclose(sg);
@@ -102,13 +107,14 @@ int crom_samples_write(hid_t loc, const crom_samples *s)
 }
 
 
-/* Read a mesh stored as vertices + tets under group g (no regions needed). */
+/* Read a mesh stored as vertices + tets (or a shell's triangles) under
+ * group g (no regions needed). */
 static int read_source(hid_t g, const char *name, crom_mesh *m)
 {
     hid_t sg = H5Gopen2(g, name, H5P_DEFAULT);
     if (sg < 0)
         return crom_err(CROM_EDATA, "/sources/%s is not a group", name);
-    int rc = crom_mesh_read(sg, m);
+    int rc = crom_mesh_read_any(sg, m);
     H5Gclose(sg);
     return rc ? crom_err_ctx("/sources/%s", name) : 0;
 }

@@ -291,7 +291,7 @@ ok
 # 5. tet-only paths refuse a shell in one line naming it
 crom-modes --count 8 -o modes.h5 hs.h5 2>modes.log   # a free sheet: its six rigid modes are found and dropped
 grep -q "6 rigid modes detected" modes.log || fail "free sheet modes: $(cat modes.log)"; ok
-expect_error 64 "shell" samples.h5 -- crom-sample --points 50 -o samples.h5 traj.h5
+expect_error 64 "interior samples the inside of tets.*shell surface" samples.h5 -- crom-sample --mode interior --points 50 -o samples.h5 traj.h5
 crom-mesh box --size 0.25 --region top='y>0.45' --region bottom='y<-0.45' -q -o box.h5
 BC=(--velocity 'top=0,-2,0@0:0.04' --pin bottom --gravity 0,0,0 --dt 0.01 --steps 4)
 crom-fullsim "${BC[@]}" -q -o full.h5 box.h5
