@@ -1,5 +1,7 @@
 /* gmsh.c — one gmsh session (see gmsh.h). */
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 
 #include "base/err.h"
 #include "mesh/gmsh.h"
@@ -47,4 +49,51 @@ int crom_gmsh_fail(int ierr, const char *what)
     if (msg)
         gmshFree(msg);
     return rc;
+}
+
+int crom_gmsh_mesh_read(int etype, const char *what, crom_gmsh_mesh *g)
+{
+    memset(g, 0, sizeof *g);
+    int ierr = 0, rc = 0;
+    size_t *ntags = NULL, nc = 0, np = 0, *etags = NULL, nen = 0;
+    double *param = NULL;
+    g->per = etype == 2 ? 3 : 4;
+    CROM_GMSH(gmshModelMeshGetNodes(&ntags, &g->nn, &g->coord, &nc, &param, &np, -1, -1, 0, 0, &ierr),
+              "read the nodes");
+    char msg[64];
+    snprintf(msg, sizeof msg, "read the %s", what);
+    CROM_GMSH(gmshModelMeshGetElementsByType(etype, &etags, &g->ne, &g->enodes, &nen, -1, 0, 1, &ierr), msg);
+    for (size_t i = 0; i < g->nn; i++)
+        g->maxtag = ntags[i] > g->maxtag ? ntags[i] : g->maxtag;
+    if (!(g->map = crom_malloc(sizeof(int) * (g->maxtag + 1)))) {
+        rc = CROM_EINTERNAL;
+        goto out;
+    }
+    for (size_t i = 0; i <= g->maxtag; i++)
+        g->map[i] = -1;
+    for (size_t i = 0; i < g->nn; i++)
+        g->map[ntags[i]] = (int)i;
+    for (size_t k = 0; k < g->per * g->ne; k++)
+        if (g->enodes[k] > g->maxtag || g->map[g->enodes[k]] < 0) {
+            rc = crom_err(CROM_EDATA, "gmsh: one of the %s refers to an unknown node", what);
+            goto out;
+        }
+out:
+    if (ntags)
+        gmshFree(ntags);
+    if (param)
+        gmshFree(param);
+    if (etags)
+        gmshFree(etags);
+    return rc;
+}
+
+void crom_gmsh_mesh_free(crom_gmsh_mesh *g)
+{
+    if (g->coord)
+        gmshFree(g->coord);
+    if (g->enodes)
+        gmshFree(g->enodes);
+    free(g->map);
+    memset(g, 0, sizeof *g);
 }

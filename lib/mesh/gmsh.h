@@ -32,6 +32,23 @@ void crom_gmsh_end(crom_gmsh_log_fn log_fn, void *ctx);
  * given: a surface it cannot mesh, a mesh it cannot refine). */
 int crom_gmsh_fail(int ierr, const char *what);
 
+/* The nodes of the model gmsh holds and its elements of one type (2: 3-node
+ * triangles, 4: 4-node tetrahedra), with the map from node tags to node
+ * indices 0 … nn−1 (tags up to maxtag; −1: no node). */
+typedef struct {
+    size_t nn, ne, per, maxtag;
+    double *coord;   /* [nn][3] (gmsh's) */
+    size_t *enodes;  /* [ne][per] node tags (gmsh's) */
+    int *map;        /* [maxtag + 1] */
+} crom_gmsh_mesh;
+
+/* Read them (g cleared first; free it with crom_gmsh_mesh_free, also on
+ * failure); what names the elements in messages ("triangles"). Returns 0,
+ * CROM_EDATA (gmsh failed, an element names an unknown node) or
+ * CROM_EINTERNAL. */
+int crom_gmsh_mesh_read(int etype, const char *what, crom_gmsh_mesh *g);
+void crom_gmsh_mesh_free(crom_gmsh_mesh *g);
+
 /* Run one gmsh call with the caller's `int ierr, rc` in scope; on failure
  * set rc = crom_gmsh_fail(ierr, what) and `goto out`. */
 #define CROM_GMSH(call, what)                                                                      \

@@ -247,63 +247,27 @@ out:
 
 static int gmsh_extract(crom_mesh *m, int import_groups)
 {
-    int ierr = 0, rc = 0;
-    size_t *ntags = NULL, nn = 0, nc = 0, np = 0, *etags = NULL, ne = 0, *enodes = NULL, nen = 0;
-    double *coord = NULL, *param = NULL;
-    int *map = NULL;
-    G(gmshModelMeshGetNodes(&ntags, &nn, &coord, &nc, &param, &np, -1, -1, 0, 0, &ierr),
-      "read the nodes");
-    G(gmshModelMeshGetElementsByType(4, &etags, &ne, &enodes, &nen, -1, 0, 1, &ierr),
-      "read the tetrahedra");
-    if (ne == 0) {
+    crom_gmsh_mesh g;
+    int rc = crom_gmsh_mesh_read(4, "tetrahedra", &g);
+    if (!rc && g.ne == 0)
         rc = crom_err(CROM_EDATA, "gmsh produced no linear tetrahedra (is the input a closed volume?)");
-        goto out;
+    if (!rc) {
+        memset(m, 0, sizeof *m);
+        m->nv = (int)g.nn;
+        m->nt = (int)g.ne;
+        m->X = crom_malloc(sizeof(double) * 3 * g.nn);
+        m->tets = crom_malloc(sizeof(int) * 4 * g.ne);
+        if (!m->X || !m->tets)
+            rc = CROM_EINTERNAL;
     }
-    size_t maxtag = 0;
-    for (size_t i = 0; i < nn; i++)
-        if (ntags[i] > maxtag)
-            maxtag = ntags[i];
-    map = crom_malloc(sizeof(int) * (maxtag + 1));
-    if (!map) {
-        rc = CROM_EINTERNAL;
-        goto out;
+    if (!rc) {
+        memcpy(m->X, g.coord, sizeof(double) * 3 * g.nn);
+        for (size_t k = 0; k < 4 * g.ne; k++)
+            m->tets[k] = g.map[g.enodes[k]];
     }
-    for (size_t i = 0; i <= maxtag; i++)
-        map[i] = -1;
-    memset(m, 0, sizeof *m);
-    m->nv = (int)nn;
-    m->nt = (int)ne;
-    m->X = crom_malloc(sizeof(double) * 3 * nn);
-    m->tets = crom_malloc(sizeof(int) * 4 * ne);
-    if (!m->X || !m->tets) {
-        rc = CROM_EINTERNAL;
-        goto out;
-    }
-    for (size_t i = 0; i < nn; i++) {
-        map[ntags[i]] = (int)i;
-        memcpy(m->X + 3 * i, coord + 3 * i, 3 * sizeof(double));
-    }
-    for (size_t k = 0; k < 4 * ne; k++) {
-        if (enodes[k] > maxtag || map[enodes[k]] < 0) {
-            rc = crom_err(CROM_EDATA, "gmsh tetrahedron refers to an unknown node");
-            goto out;
-        }
-        m->tets[k] = map[enodes[k]];
-    }
-    if (import_groups)
-        rc = add_physical_groups(m, map, maxtag);
-out:
-    if (ntags)
-        gmshFree(ntags);
-    if (coord)
-        gmshFree(coord);
-    if (param)
-        gmshFree(param);
-    if (etags)
-        gmshFree(etags);
-    if (enodes)
-        gmshFree(enodes);
-    free(map);
+    if (!rc && import_groups)
+        rc = add_physical_groups(m, g.map, g.maxtag);
+    crom_gmsh_mesh_free(&g);
     return rc;
 }
 
@@ -555,49 +519,35 @@ static int msh_shell(const crom_meshgen_opts *o, crom_mesh *m)
     int rc = crom_gmsh_begin(o->log), ierr = 0;
     if (rc)
         return rc;
-    size_t *ntags = NULL, nn = 0, nc = 0, np = 0, *etags = NULL, ne = 0, *enodes = NULL, nen = 0, maxtag = 0;
-    double *coord = NULL, *param = NULL;
-    int *map = NULL;
+    crom_gmsh_mesh g = {0};
     crom_surface s = {0};
     G(gmshOpen(o->file, &ierr), "read the file");
     if (have_tets()) {
         rc = crom_err(CROM_EUSAGE, "%s holds a volume mesh (tetrahedra): import it without --thickness", o->file);
         goto out;
     }
-    G(gmshModelMeshGetNodes(&ntags, &nn, &coord, &nc, &param, &np, -1, -1, 0, 0, &ierr), "read the nodes");
-    G(gmshModelMeshGetElementsByType(2, &etags, &ne, &enodes, &nen, -1, 0, 1, &ierr), "read the triangles");
-    if (ne == 0) {
+    if ((rc = crom_gmsh_mesh_read(2, "triangles", &g)))
+        goto out;
+    if (g.ne == 0) {
         rc = crom_err(CROM_EDATA, "%s holds no 3-node triangles for a shell (is it a gmsh .msh surface?)", o->file);
         goto out;
     }
-    if (ne > 4000000 || nn > 12000000) {
-        rc = crom_err(CROM_EUSAGE, "%s: %zu triangles on %zu nodes is more than a shell of crom takes", o->file, ne, nn);
+    if (g.ne > 4000000 || g.nn > 12000000) {
+        rc = crom_err(CROM_EUSAGE, "%s: %zu triangles on %zu nodes is more than a shell of crom takes", o->file, g.ne,
+                      g.nn);
         goto out;
     }
-    for (size_t i = 0; i < nn; i++)
-        maxtag = ntags[i] > maxtag ? ntags[i] : maxtag;
-    s.nv = (int)nn;
-    s.nt = (int)ne;
-    map = crom_malloc(sizeof(int) * (maxtag + 1));
-    s.V = crom_malloc(sizeof(double) * 3 * nn);
-    s.T = crom_malloc(sizeof(int) * 3 * ne);
-    if (!map || !s.V || !s.T) {
+    s.nv = (int)g.nn;
+    s.nt = (int)g.ne;
+    s.V = crom_malloc(sizeof(double) * 3 * g.nn);
+    s.T = crom_malloc(sizeof(int) * 3 * g.ne);
+    if (!s.V || !s.T) {
         rc = CROM_EINTERNAL;
         goto out;
     }
-    for (size_t i = 0; i <= maxtag; i++)
-        map[i] = -1;
-    for (size_t i = 0; i < nn; i++) {
-        map[ntags[i]] = (int)i;
-        memcpy(s.V + 3 * i, coord + 3 * i, 3 * sizeof(double));
-    }
-    for (size_t k = 0; k < 3 * ne; k++) {
-        if (enodes[k] > maxtag || map[enodes[k]] < 0) {
-            rc = crom_err(CROM_EDATA, "%s: a triangle refers to an unknown node", o->file);
-            goto out;
-        }
-        s.T[k] = map[enodes[k]];
-    }
+    memcpy(s.V, g.coord, sizeof(double) * 3 * g.nn);
+    for (size_t k = 0; k < 3 * g.ne; k++)
+        s.T[k] = g.map[g.enodes[k]];
     if ((rc = crom_surface_check_oriented(&s, o->file)))
         goto out;
     m->nv = s.nv;
@@ -611,20 +561,10 @@ static int msh_shell(const crom_meshgen_opts *o, crom_mesh *m)
         rc = CROM_EINTERNAL;
         goto out;
     }
-    if (!(rc = add_physical_groups(m, map, maxtag)) && !(rc = crom_mesh_compact(m)))
+    if (!(rc = add_physical_groups(m, g.map, g.maxtag)) && !(rc = crom_mesh_compact(m)))
         rc = crom_mesh_validate(m);
 out:
-    if (ntags)
-        gmshFree(ntags);
-    if (coord)
-        gmshFree(coord);
-    if (param)
-        gmshFree(param);
-    if (etags)
-        gmshFree(etags);
-    if (enodes)
-        gmshFree(enodes);
-    free(map);
+    crom_gmsh_mesh_free(&g);
     crom_surface_free(&s);
     crom_gmsh_end(o->log, o->log_ctx);
     if (rc)
@@ -691,9 +631,7 @@ static int gmsh_shell(const crom_meshgen_opts *o, int rect, crom_mesh *m)
     int rc = crom_gmsh_begin(o->log), ierr = 0;
     if (rc)
         return rc;
-    size_t *ntags = NULL, nn = 0, nc = 0, np = 0, *etags = NULL, ne = 0, *enodes = NULL, nen = 0, maxtag = 0;
-    double *coord = NULL, *param = NULL;
-    int *map = NULL;
+    crom_gmsh_mesh g = {0};
     gmshModelAdd("crom", &ierr);
     gmshOptionSetNumber("Mesh.MeshSizeMax", o->size, &ierr);
     gmshOptionSetNumber("Mesh.MeshSizeMin", o->size * 0.25, &ierr);
@@ -706,18 +644,16 @@ static int gmsh_shell(const crom_meshgen_opts *o, int rect, crom_mesh *m)
         G(gmshModelOccAddDisk(0, 0, 0, o->radius, o->radius, -1, &ierr), "make the disk");
     G(gmshModelOccSynchronize(&ierr), "synchronize");
     G(gmshModelMeshGenerate(2, &ierr), "mesh the surface");
-    G(gmshModelMeshGetNodes(&ntags, &nn, &coord, &nc, &param, &np, -1, -1, 0, 0, &ierr), "read the nodes");
-    G(gmshModelMeshGetElementsByType(2, &etags, &ne, &enodes, &nen, -1, 0, 1, &ierr), "read the triangles");
-    for (size_t i = 0; i < nn; i++)
-        maxtag = ntags[i] > maxtag ? ntags[i] : maxtag;
-    map = crom_malloc(sizeof(int) * (maxtag + 1));
+    if ((rc = crom_gmsh_mesh_read(2, "triangles", &g)))
+        goto out;
+    size_t nn = g.nn, ne = g.ne;
     m->nv = (int)nn;
     m->ntri = (int)ne;
     m->thickness = o->thickness;
     m->X = crom_malloc(sizeof(double) * 3 * (nn ? nn : 1));
     m->tris = crom_malloc(sizeof(int) * 3 * (ne ? ne : 1));
     m->tets = crom_malloc(sizeof(int) * 4);
-    if (!map || !m->X || !m->tris || !m->tets) {
+    if (!m->X || !m->tris || !m->tets) {
         rc = CROM_EINTERNAL;
         goto out;
     }
@@ -726,14 +662,13 @@ static int gmsh_shell(const crom_meshgen_opts *o, int rect, crom_mesh *m)
         goto out;
     }
     for (size_t i = 0; i < nn; i++) {
-        map[ntags[i]] = (int)i;
-        memcpy(m->X + 3 * i, coord + 3 * i, 3 * sizeof(double));
+        memcpy(m->X + 3 * i, g.coord + 3 * i, 3 * sizeof(double));
         m->X[3 * i + 2] = 0;
     }
     for (size_t t = 0; t < ne; t++) { /* every triangle facing +z */
         int v[3];
         for (int k = 0; k < 3; k++)
-            v[k] = map[enodes[3 * t + k]];
+            v[k] = g.map[g.enodes[3 * t + k]];
         const double *a = m->X + 3 * (size_t)v[0], *b = m->X + 3 * (size_t)v[1], *c = m->X + 3 * (size_t)v[2];
         double nz = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
         m->tris[3 * t] = v[0];
@@ -743,12 +678,7 @@ static int gmsh_shell(const crom_meshgen_opts *o, int rect, crom_mesh *m)
     if (!(rc = crom_mesh_compact(m)))
         rc = crom_mesh_validate(m);
 out:
-    gmshFree(ntags);
-    gmshFree(coord);
-    gmshFree(param);
-    gmshFree(etags);
-    gmshFree(enodes);
-    free(map);
+    crom_gmsh_mesh_free(&g);
     crom_gmsh_end(o->log, o->log_ctx);
     if (rc)
         crom_mesh_free(m);
