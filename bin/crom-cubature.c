@@ -17,7 +17,7 @@ enum { O_MODEL = 300, O_SCHEME, O_COUNT, O_POSES, O_TOL, O_CAND, O_YOUNGS, O_POI
 
 static const crom_opt cub_opts[] = {
     {"model", O_MODEL, "MODEL", "The crom/model whose basis W is cached (required). A nonlinear map (energy, neuralmodes) is cached through its features x = X + B a(q); the result serves crom-reducedstep --model MODEL --cubature, and the mesh operand may be left out (the map's own mesh)."},
-    {"scheme", O_SCHEME, "NAME", "random (LiCROM §5: COUNT random vertices and their tets, equal weights), metis (COUNT parts, one tet each; a shell: COUNT parts of its triangles and COUNT of its hinges), optimized (NNLS fit of at most COUNT tets to the forces of --poses), all (every tet, weight 1). Default random."},
+    {"scheme", O_SCHEME, "NAME", "random (LiCROM §5: COUNT random vertices and their tets, equal weights), metis (COUNT parts, one tet each; a shell: COUNT parts of its triangles, each one triangle and the hinges on its edges), optimized (NNLS fit of at most COUNT tets to the forces of --poses), all (every tet, weight 1). Default random."},
     {"count", O_COUNT, "K", "Vertices (random), parts (metis) or the tet budget (optimized). Default 400 (random), 300 (metis), 200 (optimized)."},
     {"poses", O_POSES, "LATENT", "crom/latent training poses for --scheme optimized (e.g. crom-encode of the training trajectories), and for the error report of any scheme. Repeatable: latent coordinates do not depend on the mesh, so the poses of every training run can serve any mesh."},
     {"max-poses", O_MAXPOSE, "N", "Use at most N poses, evenly spaced (default 40); for a map without --poses, draw N latent samples of its training distribution (default 100)."},
@@ -57,8 +57,9 @@ static const crom_cli_doc doc = {
     "energy|neuralmodes) the elements are the shell's membrane triangles and bending hinges: "
     "optimized fits both to the shell's element forces (with the mesh's thickness); random and "
     "metis treat the triangles and the hinges as two sets, each weighted by its own measure "
-    "(area; the hinge stiffness factor |e|^2 / (A1 + A2)), metis splitting each into COUNT "
-    "parts. The cubature serves crom-reducedstep --model MODEL --cubature CUB.",
+    "(area; the hinge stiffness factor |e|^2 / (A1 + A2)); metis splits the triangles into COUNT "
+    "parts, each stood for by one triangle and the hinges on its edges. The cubature serves "
+    "crom-reducedstep --model MODEL --cubature CUB.",
     groups,
     "crom-cubature --model model.h5 --scheme metis --count 200 -o cub.h5 box.h5\n"
     "crom-encode --model model.h5 < train.h5 > poses.h5\n"

@@ -55,7 +55,7 @@ enum { CROM_CUBATURE_ALL, CROM_CUBATURE_RANDOM, CROM_CUBATURE_METIS, CROM_CUBATU
 
 typedef struct {
     int scheme;
-    int count;             /* random: vertices; metis: parts (a shell: of each set); optimized: max elements */
+    int count;             /* random: vertices; metis: parts (a shell: of its triangles); optimized: max elements */
     double tol;            /* optimized: stop at this relative force error */
     int candidates;        /* optimized: tets scored per greedy pick */
     const double *poses;   /* optimized: [npose][r] latent training poses (m) */
@@ -77,7 +77,9 @@ int crom_cubature_scheme(const char *name);
  * system (membrane triangles, then hinges: lib/phys/system.h; optimized
  * fits the shell's forces, with the mesh's thickness; random and metis
  * treat the triangles and the hinges as two sets, each weighted by its own
- * measure: area, and the hinge stiffness factor |ē|²/(Ā1 + Ā2)), and the
+ * measure: area, and the hinge stiffness factor |ē|²/(Ā1 + Ā2); metis
+ * stands for each of count parts of the triangles by one triangle and the
+ * hinges on its edges), and the
  * cubature has no Dminv or volume: it serves crom-reducedstep --model only
  * (crom_nlsim_use_cubature). Returns 0, CROM_EUSAGE (bad count, optimized
  * without poses), CROM_EDATA (degenerate mesh, non-finite W) or
