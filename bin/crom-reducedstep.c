@@ -12,6 +12,7 @@
 #include "mesh/mesh.h"
 #include "phys/scenario.h"
 #include "rom/cubature.h"
+#include "rom/indicator.h"
 #include "rom/map.h"
 #include "rom/model.h"
 #include "rom/nlsim.h"
@@ -20,7 +21,7 @@
 #include "rom/schedule.h"
 
 enum { O_CUB = 300, O_INIT, O_SCHED, O_SOLVER, O_KAPPA, O_STATS, O_STREAM, O_HDF5, O_INITFRAME, O_BCTHR,
-       O_MODEL, O_MESH };
+       O_MODEL, O_MESH, O_IND, O_INDMESH, O_INDMODEL, O_WARN };
 
 static const crom_opt red_opts[] = {
     {"cubature", O_CUB, "CUB", "The crom/cubature to integrate over (this or --model is required): its mesh, regions and cached W. With --model: a cubature crom-cubature made for that map, whose tets replace every tet in the elastic energy."},
@@ -32,6 +33,10 @@ static const crom_opt red_opts[] = {
     {"solver", O_SOLVER, "NAME", "newton (default: exact reduced Hessian, converged to --tol; with --model: Gauss-Newton with the map's Jacobian) or gd (LiCROM §5 descent, --max-iter iterations per step; cubatures only)."},
     {"bc-stiffness", O_KAPPA, "K", "Penalty rate of pinned and prescribed regions in 1/s^2 (default 1e4/dt^2)."},
     {"bc-threshold", O_BCTHR, "T", "The penalty acts on the latent directions that move the boundary-condition vertices: those carrying at least T times the BC regions' mass fraction of their motion (default 0.1; 0 = every direction). A learned basis is only nearly zero where its training data was pinned; penalizing every direction would freeze the body. (Cubatures only: with --model the penalty acts on the vertices themselves; a data-free map holds its training pins by construction.)"},
+    {"indicator", O_IND, NULL, "Measure every stored frame with an a-posteriori error indicator that needs no full simulation: the reduced state is decoded onto a mesh of the body, the full-space residual g of its implicit Euler step is taken there (zero at the full step's solution), and the displacement it stands for, e = K0^-1 g with K0 the stiffness at rest (factored once), estimates the state's error. Stored per frame: `indicator` = |e|_M / |u|_M, `error_estimate` = the RMS of e (m), `bc_error` = the largest miss of a pinned or prescribed vertex (m); the root attribute `initial_error` holds the initial state's RMS distance from rest and from the initial velocity field. At the end one line gives sqrt(sum |e|^2 / sum |u|^2) over the frames, the measure of crom-diff. Costs a factorization of the mesh and a solve per stored frame. With --model: on the map's mesh. With --cubature: decoded by --indicator-model on the cubature's mesh (the mesh of each schedule entry in turn), or on --indicator-mesh. --stats gets the columns error_estimate and displacement_rms (m) per stored step."},
+    {"indicator-mesh", O_INDMESH, "MESH", "--indicator with --cubature: measure on this mesh of the body for the whole run (any mesh with the scenario's regions, e.g. a finer one) instead of the cubature's."},
+    {"indicator-model", O_INDMODEL, "MODEL", "--indicator with --cubature: the crom/model of the cubature (its model_id must match), laid on the mesh measured."},
+    {"warn-above", O_WARN, "T", "With --indicator: print one warning line when the run's indicator (over all stored frames) exceeds T (default 0.2; 0 = never): the subspace is out of its depth. It reads about the true error where the motion is quasi-static, and 2-6 times it where inertia matters (README)."},
     {"stats", O_STATS, "CSV", "Write one line per step: iterations, residual, constraint residual, seconds."},
     {"output", 'o', "OUT", "Write the latent trajectory to OUT (default stdout: a frame stream into a pipe)."},
     {"stream", O_STREAM, NULL, "Write a frame stream even to a file."},
@@ -84,10 +89,10 @@ static const crom_cli_doc doc = {
 
 typedef struct {
     crom_scenario sc;
-    const char *cub, *init, *sched, *out, *stats, *model, *mesh;
+    const char *cub, *init, *sched, *out, *stats, *model, *mesh, *ind_mesh, *ind_model;
     long init_frame;
-    int solver, kind, bcthr_given, threads;
-    double kappa, bc_threshold;
+    int solver, kind, bcthr_given, threads, indicator;
+    double kappa, bc_threshold, warn_above;
 } args;
 
 static int on_opt(void *ctx, int key, const char *v)
@@ -120,6 +125,13 @@ static int on_opt(void *ctx, int key, const char *v)
             return crom_err(CROM_EUSAGE, "--bc-threshold must be a number >= 0, got %s", v);
         return 0;
     case O_STATS: a->stats = v; return 0;
+    case O_IND: a->indicator = 1; return 0;
+    case O_INDMESH: a->ind_mesh = v; return 0;
+    case O_INDMODEL: a->ind_model = v; return 0;
+    case O_WARN:
+        if (crom_parse_double(v, "--warn-above", &a->warn_above) || !(a->warn_above >= 0))
+            return crom_err(CROM_EUSAGE, "--warn-above must be a number >= 0, got %s", v);
+        return 0;
     case O_STREAM: a->kind = CROM_OUT_SERIES_STREAM; return 0;
     case O_HDF5: a->kind = CROM_OUT_SERIES_H5; return 0;
     }
@@ -173,30 +185,139 @@ out:
     return rc;
 }
 
+/* The indicator of a run (--indicator): its measure, and the state before
+ * the step being measured. */
+typedef struct {
+    int on, have_model;
+    crom_indicator ind;
+    crom_model model;         /* a run over cubatures: the basis, laid on each mesh */
+    crom_mesh mesh;           /* --indicator-mesh */
+    double *prev, *prevdot;   /* positions and velocities, or q and qdot */
+    double rel, err, urms, bc; /* of the last frame: indicator, error and displacement RMS, BC miss */
+    double initial[2];        /* the initial state's RMS distance from rest (m) and its velocity's (m/s) */
+} indicator;
+
 static int put_values(crom_out *o, double t, long nstep, const double *q, const double *qd, double K, double E,
-                      double W, const crom_rsim_stats *st, int entry)
+                      double W, const crom_rsim_stats *st, int entry, const indicator *ind)
 {
     double step = (double)nstep, tot = K + E + W, it = st->iterations, res = st->residual,
            cres = st->constraint_residual, cub = entry, secs = crom_clock_wall(st->seconds);
-    const double *vals[] = {&t, &step, q, qd, &K, &E, &W, &tot, &it, &res, &cres, &cub, &secs};
+    const double *vals[] = {&t, &step, q, qd, &K, &E, &W, &tot, &it, &res, &cres, &cub, &secs,
+                            ind->on ? &ind->rel : NULL, ind->on ? &ind->err : NULL, ind->on ? &ind->bc : NULL};
     return crom_out_frame(o, vals);
 }
 
-static int put_frame(crom_out *o, crom_rsim *s, const crom_rsim_stats *st, int entry)
+/* Start the indicator: on mesh, the map's own (model_id NULL), or for a
+ * run over cubatures of model model_id and rank r on --indicator-mesh or
+ * else on mesh, the cubature's, with --indicator-model laid on it. The
+ * initial state (x0, v0, or q0, qd0) is measured at once. */
+static int indicator_start(indicator *I, const args *a, const crom_mesh *mesh, const char *model_id, int r,
+                           const double *x0, const double *v0)
+{
+    int rc = 0;
+    if (model_id) {
+        if (!a->ind_model)
+            return crom_err(CROM_EUSAGE, "--indicator with --cubature needs --indicator-model MODEL (the "
+                            "cubature's model) to decode the state with");
+        if ((rc = crom_model_load(a->ind_model, &I->model)))
+            return rc;
+        I->have_model = 1;
+        if (strcmp(I->model.model_id, model_id) || I->model.rank != r)
+            return crom_err(CROM_EUSAGE, "--indicator-model %s (model %s, rank %d) is not the cubature's model "
+                            "(%s, rank %d)", a->ind_model, I->model.model_id, I->model.rank, model_id, r);
+        if (a->ind_mesh) {
+            if ((rc = crom_mesh_load(a->ind_mesh, CROM_MESH_CARRIERS | CROM_MESH_SURFACES, &I->mesh, NULL)))
+                return rc;
+            mesh = &I->mesh;
+        }
+    }
+    if ((rc = crom_indicator_init(&I->ind, mesh, &a->sc, I->have_model ? &I->model : NULL)))
+        return rc;
+    I->on = 1;
+    size_t n = I->have_model ? (size_t)r : 3 * (size_t)mesh->nv;
+    I->prev = crom_malloc(sizeof(double) * n);
+    I->prevdot = crom_malloc(sizeof(double) * n);
+    if (!I->prev || !I->prevdot)
+        return CROM_EINTERNAL;
+    crom_indicator_initial(&I->ind, x0, v0, &I->initial[0], &I->initial[1]);
+    return 0;
+}
+
+/* A schedule switched the run to the cubature of mesh: measure there from
+ * now on (unless --indicator-mesh fixed the mesh). */
+static int indicator_switch(indicator *I, const args *a, const crom_mesh *mesh)
+{
+    if (!I->on || a->ind_mesh)
+        return 0;
+    int rc = crom_indicator_remesh(&I->ind, mesh, &a->sc, &I->model);
+    I->on = rc == 0;
+    return rc;
+}
+
+/* Measure the step that ended at t in state now (after save(prev) before it). */
+static int indicator_measure(indicator *I, double t, const double *now)
+{
+    int rc = crom_indicator_step(&I->ind, t, I->prev, I->prevdot, now, &I->err, &I->urms, &I->bc);
+    if (rc)
+        return rc;
+    I->rel = I->urms > 0 ? I->err / I->urms : 0;
+    return 0;
+}
+
+/* One line of --stats: the step, and with --indicator the error estimate
+ * and the displacement RMS of a stored step (empty fields otherwise). */
+static void indicator_csv(crom_fileout *csv, const indicator *I, int stored, int k, const crom_rsim_stats *st,
+                          int ncub)
+{
+    fprintf(csv->f, "%d,%d,%.3e,%.3e,%.6e,%d", k, st->iterations, st->residual, st->constraint_residual, st->seconds,
+            ncub);
+    if (I->on && stored)
+        fprintf(csv->f, ",%.6e,%.6e", I->err, I->urms);
+    else if (I->on)
+        fputs(",,", csv->f);
+    fputc('\n', csv->f);
+}
+
+static void indicator_end(crom_cli *cli, const args *a, const indicator *I)
+{
+    if (!I->on)
+        return;
+    double total = crom_indicator_total(&I->ind);
+    crom_cli_info(cli, "error indicator %.4g (estimated relative displacement error; worst frame %.3g at t = %g s)",
+                  total, I->ind.worst, I->ind.at);
+    if (a->warn_above > 0 && total > a->warn_above)
+        crom_cli_warn(cli, "the subspace is out of its depth: error indicator %.3g > --warn-above %g (worst frame "
+                      "at t = %g s)", total, a->warn_above, I->ind.at);
+}
+
+static void indicator_free(indicator *I)
+{
+    if (I->on)
+        crom_indicator_free(&I->ind);
+    if (I->have_model)
+        crom_model_free(&I->model);
+    crom_mesh_free(&I->mesh);
+    free(I->prev);
+    free(I->prevdot);
+}
+
+static int put_frame(crom_out *o, crom_rsim *s, const crom_rsim_stats *st, int entry, const indicator *ind)
 {
     double K, E, W;
     int rc = crom_rsim_energies(s, &K, &E, &W);
     if (rc)
         return rc;
-    return put_values(o, s->t, s->step, s->q, s->qd, K, E, W, st, entry);
+    return put_values(o, s->t, s->step, s->q, s->qd, K, E, W, st, entry, ind);
 }
 
 /* The latent output's attributes and frame fields (kind: the model's basis,
  * NULL for a run over cubatures; units and descriptions are lib/io/schema.c's). */
 static int start_output(crom_out *o, const args *a, const char *model_id, int r, const char *solver,
-                        const char *kind)
+                        const char *kind, const indicator *ind)
 {
     int rc = crom_h5_set_str(o->h5, ".", "model_id", model_id);
+    if (!rc && ind->on)
+        rc = crom_h5_set_f64(o->h5, ".", "initial_error", ind->initial, 2);
     if (!rc)
         rc = crom_h5_set_i64(o->h5, ".", "rank", r);
     if (!rc)
@@ -209,8 +330,10 @@ static int start_output(crom_out *o, const args *a, const char *model_id, int r,
         int vec;
     } f[] = {{"time", 0}, {"step", 0}, {"q", 1}, {"qdot", 1}, {"kinetic_energy", 0}, {"elastic_energy", 0},
              {"external_energy", 0}, {"total_energy", 0}, {"iterations", 0}, {"residual", 0},
-             {"constraint_residual", 0}, {"cubature", 0}, {"step_seconds", 0}};
-    for (size_t i = 0; i < sizeof f / sizeof *f && !rc; i++)
+             {"constraint_residual", 0}, {"cubature", 0}, {"step_seconds", 0}, {"indicator", 0}, {"error_estimate", 0},
+             {"bc_error", 0}};
+    size_t nf = sizeof f / sizeof *f - (ind->on ? 0 : 3);
+    for (size_t i = 0; i < nf && !rc; i++)
         rc = crom_out_field(o, f[i].name, f[i].vec, &dr, kind);
     if (!rc)
         rc = crom_out_begin(o);
@@ -236,7 +359,9 @@ static int run_map(crom_cli *cli, args *a)
     crom_out o;
     crom_fileout csv = {0};
     int have_out = 0;
-    double *q0 = NULL, *qd0 = NULL;
+    double *q0 = NULL, *qd0 = NULL, *xs = NULL, *vs = NULL;
+    indicator ind;
+    memset(&ind, 0, sizeof ind);
     char *hist = in.history;
     in.history = NULL;
     rc = crom_model_read(&in, &model);
@@ -275,31 +400,51 @@ static int run_map(crom_cli *cli, args *a)
         if (rc)
             goto out;
     }
+    if (a->indicator) {
+        size_t n = 3 * (size_t)map.mesh.nv;
+        xs = crom_malloc(sizeof(double) * n);
+        vs = crom_malloc(sizeof(double) * n);
+        if (!xs || !vs) {
+            rc = CROM_EINTERNAL;
+            goto out;
+        }
+        crom_nlsim_positions(&s, xs, vs);
+        if ((rc = indicator_start(&ind, a, &map.mesh, NULL, 0, xs, vs)))
+            goto out;
+    }
     if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli->cmdline, hist, a->kind)))
         goto out;
     have_out = 1;
-    if ((rc = start_output(&o, a, model.model_id, r, "gauss-newton", model.basis)))
+    if ((rc = start_output(&o, a, model.model_id, r, "gauss-newton", model.basis, &ind)))
         goto out;
     crom_rsim_stats st = {0, 0, crom_nlsim_constraint_residual(&s), 0, 1};
     double K, E, W;
     if (!(rc = crom_nlsim_energies(&s, &K, &E, &W)))
-        rc = put_values(&o, s.t, s.step, s.q, s.qd, K, E, W, &st, 0);
+        rc = put_values(&o, s.t, s.step, s.q, s.qd, K, E, W, &st, 0, &ind);
     if (!rc && a->stats && !(rc = crom_fileout_open(&csv, a->stats, 0)))
-        fprintf(csv.f, "step,iterations,residual,constraint_residual,seconds,cubature_tets\n");
+        fprintf(csv.f, "step,iterations,residual,constraint_residual,seconds,cubature_tets%s\n",
+                ind.on ? ",error_estimate,displacement_rms" : "");
     crom_cli_progress prog;
     crom_cli_progress_start(&prog, cli, "reducedstep", a->sc.steps);
     double tsum = 0;
     long iters = 0;
     for (int k = 1; k <= a->sc.steps && !rc; k++) {
+        int stored = k % a->sc.every == 0;
+        if (stored && ind.on)
+            crom_nlsim_positions(&s, ind.prev, ind.prevdot);
         if ((rc = crom_nlsim_step(&s, &st)))
             break;
+        if (stored && ind.on) {
+            crom_nlsim_positions(&s, xs, NULL);
+            if ((rc = indicator_measure(&ind, s.t, xs)))
+                break;
+        }
         tsum += st.seconds;
         iters += st.iterations;
         if (csv.f)
-            fprintf(csv.f, "%d,%d,%.3e,%.3e,%.6e,%d\n", k, st.iterations, st.residual, st.constraint_residual,
-                    st.seconds, s.ne);
-        if (k % a->sc.every == 0 && !(rc = crom_nlsim_energies(&s, &K, &E, &W)))
-            rc = put_values(&o, s.t, s.step, s.q, s.qd, K, E, W, &st, 0);
+            indicator_csv(&csv, &ind, stored, k, &st, s.ne);
+        if (stored && !(rc = crom_nlsim_energies(&s, &K, &E, &W)))
+            rc = put_values(&o, s.t, s.step, s.q, s.qd, K, E, W, &st, 0, &ind);
         crom_cli_progress_update(&prog, k, NULL);
     }
     crom_cli_progress_end(&prog);
@@ -312,9 +457,13 @@ static int run_map(crom_cli *cli, args *a)
                       "Gauss-Newton iterations/step", a->sc.steps, model.basis, r, map.nv, s.ne, s.sys.nenergy,
                       s.sys.shell ? "triangles and hinges" : "tets", 1e3 * tsum / a->sc.steps,
                       (double)iters / a->sc.steps);
+    indicator_end(cli, a, &ind);
 out:
     if (have_out)
         crom_out_fail(&o);
+    indicator_free(&ind);
+    free(xs);
+    free(vs);
     crom_nlsim_free(&s);
     crom_map_free(&map);
     crom_mesh_free(&mesh);
@@ -342,6 +491,8 @@ static int run(crom_cli *cli, args *a)
     crom_out o;
     crom_fileout csv = {0};
     int have_out = 0;
+    indicator ind;
+    memset(&ind, 0, sizeof ind);
     if (!q0 || !qd0) {
         rc = CROM_EINTERNAL;
         goto out;
@@ -355,6 +506,8 @@ static int run(crom_cli *cli, args *a)
         if ((rc = crom_rsim_set_cubature(&s, &e[0].cub)))
             goto out;
     }
+    if (a->indicator && (rc = indicator_start(&ind, a, &e[0].cub.mesh, e[0].cub.model_id, r, s.q, s.qd)))
+        goto out;
     if (cli->verbose && s.nbc)
         crom_cli_info(cli, "boundary conditions constrain %d of %d latent directions (penalty rate %.3g 1/s^2)",
                       s.nconstrained, r, s.kappa);
@@ -365,12 +518,13 @@ static int run(crom_cli *cli, args *a)
     rc = list ? crom_h5_set_str(o.h5, ".", "cubatures", list) : CROM_EINTERNAL;
     free(list);
     if (!rc)
-        rc = start_output(&o, a, e[0].cub.model_id, r, a->solver == CROM_RSIM_GD ? "gd" : "newton", NULL);
+        rc = start_output(&o, a, e[0].cub.model_id, r, a->solver == CROM_RSIM_GD ? "gd" : "newton", NULL, &ind);
     crom_rsim_stats st = {0, 0, crom_rsim_constraint_residual(&s), 0, 1};
     if (!rc)
-        rc = put_frame(&o, &s, &st, 0);
+        rc = put_frame(&o, &s, &st, 0, &ind);
     if (!rc && a->stats && !(rc = crom_fileout_open(&csv, a->stats, 0)))
-        fprintf(csv.f, "step,iterations,residual,constraint_residual,seconds,cubature_tets\n");
+        fprintf(csv.f, "step,iterations,residual,constraint_residual,seconds,cubature_tets%s\n",
+                ind.on ? ",error_estimate,displacement_rms" : "");
     crom_cli_progress prog;
     crom_cli_progress_start(&prog, cli, "reducedstep", a->sc.steps);
     int cur = 0;
@@ -378,19 +532,25 @@ static int run(crom_cli *cli, args *a)
     for (int k = 1; k <= a->sc.steps && !rc; k++) {
         if (cur + 1 < nsch && e[cur + 1].step == k) { /* switch mesh: the state carries over */
             cur++;
-            if ((rc = crom_rsim_set_cubature(&s, &e[cur].cub)))
+            if ((rc = crom_rsim_set_cubature(&s, &e[cur].cub)) || (rc = indicator_switch(&ind, a, &e[cur].cub.mesh)))
                 break;
             if (cli->verbose)
                 crom_cli_info(cli, "step %d: switched to %s (%d tets)", k, e[cur].path, e[cur].cub.k);
         }
+        int stored = k % a->sc.every == 0;
+        if (stored && ind.on) {
+            memcpy(ind.prev, s.q, sizeof(double) * (size_t)r);
+            memcpy(ind.prevdot, s.qd, sizeof(double) * (size_t)r);
+        }
         if ((rc = crom_rsim_step(&s, &st)))
             break;
         tsum += st.seconds;
+        if (stored && ind.on && (rc = indicator_measure(&ind, s.t, s.q)))
+            break;
         if (csv.f)
-            fprintf(csv.f, "%d,%d,%.3e,%.3e,%.6e,%d\n", k, st.iterations, st.residual, st.constraint_residual,
-                    st.seconds, e[cur].cub.k);
-        if (k % a->sc.every == 0)
-            rc = put_frame(&o, &s, &st, cur);
+            indicator_csv(&csv, &ind, stored, k, &st, e[cur].cub.k);
+        if (stored)
+            rc = put_frame(&o, &s, &st, cur, &ind);
         crom_cli_progress_update(&prog, k, NULL);
     }
     crom_cli_progress_end(&prog);
@@ -401,9 +561,11 @@ static int run(crom_cli *cli, args *a)
     if (!rc && cli->verbose && a->sc.steps > 0)
         crom_cli_info(cli, "%d steps, rank %d, %d cubature tets: %.3f ms/step", a->sc.steps, r, e[cur].cub.k,
                       1e3 * tsum / a->sc.steps);
+    indicator_end(cli, a, &ind);
 out:
     if (have_out)
         crom_out_fail(&o);
+    indicator_free(&ind);
     crom_rsim_free(&s);
     free(q0);
     free(qd0);
@@ -420,7 +582,14 @@ int main(int argc, char **argv)
     a.kind = CROM_OUT_SERIES;
     a.init_frame = -1;
     a.bc_threshold = 0.1;
+    a.warn_above = 0.2;
     crom_cli_parse(&cli, &doc, argc, argv, on_opt, &a);
+    if (!a.indicator && (a.ind_mesh || a.ind_model))
+        return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "%s applies to --indicator",
+                                            a.ind_mesh ? "--indicator-mesh" : "--indicator-model"));
+    if (a.indicator && a.model && (a.ind_mesh || a.ind_model))
+        return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--indicator with --model measures on the map's own mesh: "
+                                            "%s does not apply", a.ind_mesh ? "--indicator-mesh" : "--indicator-model"));
     a.threads = cli.threads > 0 ? cli.threads : 1; /* resolved by crom_cli_parse */
     if (a.model) {
         const char *bad = a.sched ? "--schedule" : a.bcthr_given ? "--bc-threshold" : NULL;

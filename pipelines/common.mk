@@ -22,6 +22,10 @@ COUNT ?= 200
 SOLVER ?= newton
 SEED ?= 1
 QUIET ?= -q
+# the a-posteriori error indicator of every reduced run over cubatures
+# (crom-reducedstep --indicator: needs no full run; the tables show it
+# beside crom-diff's error)
+IND_FLAGS = --indicator --indicator-model $(OUT)/model.h5
 FIT_FLAGS = --basis $(BASIS) --rank $(RANK) --seed $(SEED) $(if $(filter mlp,$(BASIS)),--encoder $(ENCODER) --epochs $(EPOCHS) $(if $(MINUTES),--minutes $(MINUTES)))
 
 # Stage flag stamps: $(OUT)/flags/NAME holds the flags of a stage and is

@@ -35,7 +35,7 @@ FIRST ?= $(shell echo $$(( $(STEPS) / 5 )))
 GAP ?= $(shell echo $$(( ($(STEPS) * 3 / 5) / ($(NHOLES) > 1 ? $(NHOLES) - 1 : 1) )))
 
 CUB_FLAGS = --scheme $(CUBATURE) --count $(COUNT) --seed $(SEED)
-RED_FLAGS = --solver $(SOLVER) $(SCENARIO)
+RED_FLAGS = --solver $(SOLVER) $(SCENARIO) $(IND_FLAGS)
 $(eval $(call stamp_rule,mesh,$(SIZE)))
 $(eval $(call stamp_rule,holes,$(HOLES)))
 $(eval $(call stamp_rule,scenario,$(SCENARIO)))

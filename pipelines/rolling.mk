@@ -44,7 +44,7 @@ PROBES = spinx spiny
 ALL := $(TRAIN) $(TEST)
 
 CUB_FLAGS = --scheme $(CUBATURE) --count $(COUNT) --seed $(SEED)
-RED_FLAGS = --solver $(SOLVER) $(SCENARIO)
+RED_FLAGS = --solver $(SOLVER) $(SCENARIO) $(IND_FLAGS)
 $(eval $(call stamp_rule,mesh,$(SIZE)))
 $(eval $(call stamp_rule,scenario,$(SCENARIO)))
 $(eval $(call stamp_rule,sample,$(POINTS) $(SEED) $(TRAIN)))

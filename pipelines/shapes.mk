@@ -20,7 +20,7 @@ SCENARIO = --velocity 'top=0,-2,0@0:0.1' --pin bottom --gravity 0,0,0 --dt $(DT)
 
 ALL := $(TRAIN) $(TEST)
 CUB_FLAGS = --scheme $(CUBATURE) --count $(COUNT) --seed $(SEED)
-RED_FLAGS = --solver $(SOLVER) $(SCENARIO)
+RED_FLAGS = --solver $(SOLVER) $(SCENARIO) $(IND_FLAGS)
 $(eval $(call stamp_rule,mesh,$(SIZE)))
 $(eval $(call stamp_rule,scenario,$(SCENARIO)))
 $(eval $(call stamp_rule,sample,$(POINTS) $(SEED) $(TRAIN)))

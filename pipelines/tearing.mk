@@ -60,7 +60,7 @@ $(OUT)/cub-stage-%.h5: $(OUT)/model.h5 $(OUT)/stages/stage_$(STAGES).h5 $(OUT)/p
 
 # reduced runs on the two training meshes, judged against the full runs
 $(OUT)/red-%.h5 $(OUT)/red-%.csv &: $(OUT)/cub-%.h5
-	crom-reducedstep --cubature $< --solver $(SOLVER) $(SCENARIO) $(QUIET) --stats $(OUT)/red-$*.csv -o $(OUT)/red-$*.h5
+	crom-reducedstep --cubature $< --solver $(SOLVER) $(SCENARIO) $(IND_FLAGS) $(QUIET) --stats $(OUT)/red-$*.csv -o $(OUT)/red-$*.h5
 $(OUT)/diff-%.txt: $(OUT)/red-%.h5 $(OUT)/full-%.h5 $(OUT)/model.h5
 	crom-diff $< $(OUT)/full-$*.h5 --model $(OUT)/model.h5 > $@
 
@@ -69,7 +69,7 @@ STAGE_LIST := $(shell seq 1 $(STAGES))
 $(OUT)/schedule.txt: $(foreach k,$(STAGE_LIST),$(OUT)/cub-stage-$(k).h5)
 	for k in $(STAGE_LIST); do echo "$$(( $(STEPS) / 2 + (k - 1) * $(STEPS) / (2 * $(STAGES)) + 1 )) $(OUT)/cub-stage-$$k.h5"; done > $@
 $(OUT)/tear.h5 $(OUT)/tear.csv &: $(OUT)/cub-intact.h5 $(OUT)/schedule.txt
-	crom-reducedstep --cubature $< --schedule $(OUT)/schedule.txt --solver $(SOLVER) $(SCENARIO) $(QUIET) \
+	crom-reducedstep --cubature $< --schedule $(OUT)/schedule.txt --solver $(SOLVER) $(SCENARIO) $(IND_FLAGS) $(QUIET) \
 	  --stats $(OUT)/tear.csv -o $(OUT)/tear.h5
 $(OUT)/diff-tear.txt: $(OUT)/tear.h5 $(OUT)/full-intact.h5 $(OUT)/model.h5
 	crom-diff $< $(OUT)/full-intact.h5 --model $(OUT)/model.h5 > $@

@@ -91,15 +91,15 @@ $(OUT)/cub-%.h5: $(OUT)/model.h5 $(OUT)/%.h5 $(POSES) $(call stamp,cubature)
 # reduced runs: the training tugs and the test tug on the body, the test tug
 # on the other shape from the start, and the swap
 $(OUT)/red-load%.h5 $(OUT)/red-load%.csv &: $(OUT)/cub-body.h5 $(call stamp,reduced) $(call stamp,scenario)
-	crom-reducedstep --cubature $< --solver $(SOLVER) $(call scenario,$(word $*,$(LOADS))) $(QUIET) \
+	crom-reducedstep --cubature $< --solver $(SOLVER) $(IND_FLAGS) $(call scenario,$(word $*,$(LOADS))) $(QUIET) \
 	  --stats $(OUT)/red-load$*.csv -o $(OUT)/red-load$*.h5
 $(OUT)/red-tug-%.h5 $(OUT)/red-tug-%.csv &: $(OUT)/cub-%.h5 $(call stamp,reduced) $(call stamp,scenario)
-	crom-reducedstep --cubature $< --solver $(SOLVER) $(call scenario,$(TUG)) $(QUIET) \
+	crom-reducedstep --cubature $< --solver $(SOLVER) $(IND_FLAGS) $(call scenario,$(TUG)) $(QUIET) \
 	  --stats $(OUT)/red-tug-$*.csv -o $(OUT)/red-tug-$*.h5
 $(OUT)/schedule.txt: $(OUT)/cub-other.h5 $(call stamp,reduced)
 	echo "$(SWAP) $<" > $@
 $(OUT)/swap.h5 $(OUT)/swap.csv &: $(OUT)/cub-body.h5 $(OUT)/schedule.txt $(call stamp,scenario)
-	crom-reducedstep --cubature $< --schedule $(OUT)/schedule.txt --solver $(SOLVER) $(call scenario,$(TUG)) $(QUIET) \
+	crom-reducedstep --cubature $< --schedule $(OUT)/schedule.txt --solver $(SOLVER) $(IND_FLAGS) $(call scenario,$(TUG)) $(QUIET) \
 	  --stats $(OUT)/swap.csv -o $(OUT)/swap.h5
 
 $(OUT)/diff-load%.txt: $(OUT)/red-load%.h5 $(OUT)/full-load%.h5 $(OUT)/model.h5

@@ -327,7 +327,7 @@ static int object_path(hid_t loc, const char *name, char *path, size_t n)
     return k < 0 || (size_t)k >= n ? crom_err(CROM_EINTERNAL, "path of '%s' too long", name) : 0;
 }
 
-/* Attribute `name` of type `type` ("str", "i64", "f64", "f64[3]") on object o
+/* Attribute `name` of type `type` ("str", "i64", "f64", "f64[N]") on object o
  * of a crom file must be in its table: a root attribute, an attribute of
  * that object, or the units and description of a dataset. */
 static int check_attr_documented(hid_t o, const char *name, const char *type)

@@ -232,6 +232,8 @@ static const crom_schema_attr latent_attrs[] = {
     {"solver", "str", 0, "how the reduced run solved its steps: newton or gd (over a cubature), gauss-newton (--model)", NULL},
     {"cubatures", "str", 0, "the cubatures of a run over cubatures, one line per schedule entry: the step it starts at, "
                             "then its path", NULL},
+    {"initial_error", "f64[2]", 0, "crom-reducedstep --indicator: the initial state's mass-weighted RMS distance from rest "
+                                "(m) and from the scenario's initial velocity field (m/s)", NULL},
     SCENARIO_ATTRS(0),
     {NULL, NULL, 0, NULL, NULL}};
 
@@ -264,6 +266,13 @@ static const crom_schema_dset latent_dsets[] = {
     {"frames/cubature", "f64", "F", 0, "1", "index of the schedule entry (cubature) in use", NULL},
     {"frames/step_seconds", "f64", "F", 0, "s", "wall time of the step (0 when SOURCE_DATE_EPOCH is set)", NULL},
     {"frames/reconstruction_error", "f64", "F", 0, "1", "|Wq - u| / |u| of the encoded frame (mass-weighted)", NULL},
+    {"frames/indicator", "f64", "F", 0, "1", "crom-reducedstep --indicator: the estimated relative displacement error "
+                                              "of the frame, |K0^-1 g|_M / |u|_M with g the full-space residual of its "
+                                              "step decoded onto a mesh and K0 the stiffness at rest (0 at frame 0)", NULL},
+    {"frames/error_estimate", "f64", "F", 0, "m", "crom-reducedstep --indicator: the mass-weighted RMS of K0^-1 g, the "
+                                                  "estimated displacement error (0 at frame 0)", NULL},
+    {"frames/bc_error", "f64", "F", 0, "m", "crom-reducedstep --indicator: the largest distance of a pinned or "
+                                            "prescribed vertex of the decoded state from its target (0 at frame 0)", NULL},
     {NULL, NULL, NULL, 0, NULL, NULL, NULL}};
 
 static const crom_schema_attr cub_attrs[] = {

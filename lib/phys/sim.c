@@ -143,13 +143,7 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
     }
     for (int k = 0; k < s->npin; k++)
         memset(s->v + 3 * (size_t)s->pin[k], 0, 3 * sizeof(double));
-    /* symbolic factorization, once per mesh */
-    s->chol = crom_chol_analyze(s->n, s->sys.colptr, s->sys.rowind, 3);
-    if (!s->chol) {
-        crom_sim_free(s);
-        return crom_errcode() ? crom_errcode() : CROM_EINTERNAL;
-    }
-    return 0;
+    return 0; /* the symbolic factorization waits for the first step */
 }
 
 void crom_sim_free(crom_sim *s)
@@ -487,6 +481,8 @@ static int newton_solve(crom_sim *s, crom_sim_stats *st)
                  {s->n, s->sys.colptr, s->sys.rowind, s->H},
                  CG_RTOL, INFINITY, 0, 0, 0, -1};
     st->residual = INFINITY;
+    if (!s->chol && !(s->chol = crom_chol_analyze(s->n, s->sys.colptr, s->sys.rowind, 3)))
+        return crom_errcode() ? crom_errcode() : CROM_EINTERNAL; /* once per mesh */
     int rc = 0, converged = 0, retry;
     while (!rc) {
         double t0 = crom_clock_now();
@@ -578,4 +574,69 @@ void crom_sim_displacement(const crom_sim *s, double *u)
 {
     for (int i = 0; i < s->n; i++)
         u[i] = s->x[i] - s->mesh->X[i];
+}
+
+/* The stiffness at rest, factored once: the indicator's estimate of the
+ * displacement a residual force stands for (crom_sim_residual). */
+static int rest_factor(crom_sim *s)
+{
+    if (s->have_factor)
+        return 0;
+    if (!s->chol && !(s->chol = crom_chol_analyze(s->n, s->sys.colptr, s->sys.rowind, 3)))
+        return crom_errcode() ? crom_errcode() : CROM_EINTERNAL;
+    int anyfixed = 0;
+    for (int i = 0; i < s->n && !anyfixed; i++)
+        anyfixed = s->fixed[i];
+    /* a free body's rigid motions: against the inertia of one step */
+    crom_fem_opts fo = {1, anyfixed ? 0 : 1.0 / (s->sc->dt * s->sc->dt), s->fixed, 0};
+    int rc = crom_system_assemble(&s->sys, s->mesh->X, &fo, NULL, NULL, s->H);
+    if (!rc)
+        rc = crom_chol_factor(s->chol, s->H);
+    s->have_factor = rc == 0;
+    return rc;
+}
+
+int crom_sim_residual(crom_sim *s, double t1, const double *xprev, const double *vprev, const double *x,
+                      double *err, double *urms, double *bc)
+{
+    const crom_scenario *sc = s->sc;
+    size_t n = (size_t)s->n;
+    double h = sc->dt;
+    int rc = rest_factor(s);
+    if (rc)
+        return rc;
+    memcpy(s->x, xprev, sizeof(double) * n);
+    memcpy(s->v, vprev, sizeof(double) * n);
+    step_begin(s, t1); /* xn, the prediction, f_ext, contact; s->x: the Dirichlet targets */
+    double miss = 0;
+    for (size_t i = 0; i < n; i++)
+        if (s->fixed[i])
+            miss = fmax(miss, fabs(x[i] - s->x[i]));
+    crom_fem_opts fo = {0, 0, s->fixed, 0};
+    double E;
+    if ((rc = crom_system_assemble(&s->sys, x, &fo, &E, s->g, NULL)))
+        return rc;
+    for (size_t i = 0; i < n; i++)
+        s->g[i] += s->m3[i] * ((x[i] - s->xhat[i]) / (h * h) + sc->damping * (x[i] - s->xn[i]) / h) - s->fext[i];
+    add_contact(s, x, s->g, NULL);
+    for (size_t i = 0; i < n; i++)
+        if (s->fixed[i])
+            s->g[i] = 0;
+    if ((rc = crom_chol_solve(s->chol, s->g, s->d)))
+        return rc;
+    double ee = 0, uu = 0, m = 0;
+    for (size_t i = 0; i < n; i++) {
+        double u = x[i] - s->mesh->X[i];
+        ee += s->m3[i] * s->d[i] * s->d[i];
+        uu += s->m3[i] * u * u;
+        m += s->m3[i];
+    }
+    *err = sqrt(3 * ee / m);
+    *urms = sqrt(3 * uu / m);
+    *bc = miss;
+    memcpy(s->x, x, sizeof(double) * n);
+    for (size_t i = 0; i < n; i++)
+        s->v[i] = (x[i] - s->xn[i]) / h;
+    s->t = t1;
+    return isfinite(*err) ? 0 : crom_err(CROM_EDATA, "the residual of the state at t = %g is not finite", t1);
 }

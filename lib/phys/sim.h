@@ -50,14 +50,32 @@ typedef struct {
 } crom_sim;
 
 /* Set up a simulation of mesh under scenario sc (both borrowed): material,
- * regions (CROM_EUSAGE naming an unknown or empty region), masses, symbolic
- * factorization, initial state (rest, initial velocity and spin). */
+ * regions (CROM_EUSAGE naming an unknown or empty region), masses, initial
+ * state (rest, initial velocity and spin); the symbolic factorization is
+ * done at the first step. */
 int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc);
 
 /* Advance one time step. Returns 0, or CROM_EDATA when Newton does not
  * converge within max_iter (message with the residual) or the state goes
  * non-finite. */
 int crom_sim_step(crom_sim *s, crom_sim_stats *st);
+
+/* The a-posteriori error indicator of a state reached by other means
+ * (issue 18; a reduced run decoded onto this mesh): the step from positions
+ * xprev and velocities vprev to positions x at time t1. Its residual is the
+ * gradient g of the incremental potential at x over the free DOFs, ∇E(x) +
+ * M((x − x̂)/h² + damping (x − x_n)/h) − f_ext − f_contact, zero at the full
+ * step's solution; the indicator is the displacement that force stands
+ * for, e = K₀⁻¹ g with K₀ the stiffness at rest (projected to SPD, factored
+ * once; plus M/h² for a body with no pinned or prescribed DOF, whose rigid
+ * motions it would not resist). *err = |e|_M / √m, the mass-weighted RMS of
+ * e over the vertices (m); *urms the same of the displacement x − X; *bc
+ * the largest distance of a pinned or prescribed DOF from its target (m).
+ * The simulation is left at (x, (x − xprev)/h) at t1. Returns 0, CROM_EDATA
+ * (a state not finite, a stiffness at rest not positive definite), or
+ * CROM_EINTERNAL. */
+int crom_sim_residual(crom_sim *s, double t1, const double *xprev, const double *vprev, const double *x,
+                      double *err, double *urms, double *bc);
 
 /* Kinetic ½vᵀMv, elastic E(x) and external −f_ext(t)·(x − X) energies. */
 int crom_sim_energies(crom_sim *s, double *kinetic, double *elastic, double *external);

@@ -21,6 +21,13 @@ for r in shape-2 shape-box unseen-4; do
   above "$(cell "$T" $r 5)" 3 "shapes $r speedup"
 done
 below "$(cell "$T" shape-box 6)" 0.08 "shapes box relative error"
+# the error indicator of each reduced run (no full run needed) reads within
+# a factor of 5 of crom-diff's error
+for r in shape-2 shape-box unseen-4; do
+  ratio=$($PY -c "print($(cell "$T" $r 7) / $(cell "$T" $r 6))")
+  above "$ratio" 0.2 "shapes $r indicator / error"
+  below "$ratio" 5 "shapes $r indicator / error"
+done
 for f in strip-2.png strip-4.png red-4.pvd red-4/red-4_00000.vtu; do [ -s "$S/$f" ] || fail "missing $f"; ok; done
 $PY - "$S/strip-4.png" <<'PYEOF' || fail "strip picture"
 import sys, zlib, struct

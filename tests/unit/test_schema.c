@@ -88,7 +88,7 @@ static int valid_type(const char *t, const char *const *ok)
 static void test_table_consistency(void)
 {
     static const char *const dtypes[] = {"f64", "f32", "i32", NULL};
-    static const char *const atypes[] = {"str", "i64", "f64", "f64[3]", NULL};
+    static const char *const atypes[] = {"str", "i64", "f64", "f64[2]", "f64[3]", NULL};
     static const char *const kinds[] = {"mlp", "pod", "modes", "energy", "neuralmodes", "energy-field", NULL};
     int nspecs = 0;
     for (const crom_schema *s = crom_schema_all(); s->schema; s++, nspecs++) {

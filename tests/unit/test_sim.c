@@ -418,6 +418,80 @@ static void test_bad_scenarios(void)
     crom_mesh_free(&m);
 }
 
+
+/* ------------------------------------------- a-posteriori error indicator */
+
+/* crom_sim_residual measures a state reached by other means: the full
+ * run's own step scores at its tolerance; a state moved off it by a smooth
+ * field scores the size of that field (K0⁻¹ g, exact for a small move when
+ * the step is static: dt = 1 s here, so that M/h² is small against the
+ * stiffness, and strains of 0.5%, so that K(x) is near K0), growing tenfold
+ * with it; a moved pin is reported in metres. */
+static void test_residual_indicator(void)
+{
+    crom_mesh m;
+    fx_gen(CROM_MESHGEN_BOX, NULL, 0.15, &m);
+    CHECK(crom_mesh_region_spec(&m, "bottom=y<-0.45") == 0);
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    sc.dt = 1;
+    sc.youngs = 2e6;
+    sc.tol = 1e-10;
+    strcpy(sc.pins[sc.npins++], "bottom");
+    crom_sim s, r;
+    CHECK(crom_sim_init(&s, &m, &sc) == 0);
+    CHECK(crom_sim_init(&r, &m, &sc) == 0);
+    size_t n = (size_t)s.n;
+    double *xp = malloc(sizeof(double) * n), *vp = malloc(sizeof(double) * n), *y = malloc(sizeof(double) * n);
+    crom_sim_stats st;
+    for (int k = 0; k < 5; k++)
+        CHECK(crom_sim_step(&s, &st) == 0);
+    memcpy(xp, s.x, sizeof(double) * n);
+    memcpy(vp, s.v, sizeof(double) * n);
+    CHECK(crom_sim_step(&s, &st) == 0);
+    double err, urms, bc;
+    CHECK(crom_sim_residual(&r, s.t, xp, vp, s.x, &err, &urms, &bc) == 0);
+    fprintf(stderr, "indicator of the full step: %.3e of %.3e m (bc %.1e m)\n", err, urms, bc);
+    CHECK_LT(err, 1e-7 * urms);
+    CHECK(bc == 0);
+    CHECK_LT(fabs(r.v[7] - s.v[7]), 1e-15 + 1e-12 * fabs(s.v[7]));
+    /* a smooth field over the free vertices at 0.3%, 3% and 30% of the sag */
+    double prev = err;
+    for (double a = 0.003; a < 1; a *= 10) {
+        double dd = 0, mm = 0;
+        for (int i = 0; i < s.nv; i++)
+            for (int c = 0; c < 3; c++) {
+                const double *X = m.X + 3 * i;
+                double d = s.fixed[3 * i] ? 0 : a * urms * sin(3 * X[0] + c) * (X[1] + 0.5);
+                y[3 * i + c] = s.x[3 * i + c] + d;
+                dd += s.sys.mass[i] * d * d;
+            }
+        for (int i = 0; i < s.nv; i++)
+            mm += s.sys.mass[i];
+        CHECK(crom_sim_residual(&r, s.t, xp, vp, y, &err, &urms, &bc) == 0);
+        fprintf(stderr, "moved by %.3e m RMS: estimated %.3e m\n", sqrt(dd / mm), err);
+        CHECK(err > 0.95 * sqrt(dd / mm) && err < 1.05 * sqrt(dd / mm));
+        CHECK(err > 5 * prev);
+        prev = err;
+    }
+    /* a pinned vertex moved by 1 mm */
+    memcpy(y, s.x, sizeof(double) * n);
+    int pv = -1;
+    for (int i = 0; i < s.nv && pv < 0; i++)
+        if (s.fixed[3 * i])
+            pv = i;
+    CHECK(pv >= 0);
+    y[3 * pv + 2] += 1e-3;
+    CHECK(crom_sim_residual(&r, s.t, xp, vp, y, &err, &urms, &bc) == 0);
+    CHECK_NEAR(bc, 1e-3, 1e-15);
+    free(xp);
+    free(vp);
+    free(y);
+    crom_sim_free(&s);
+    crom_sim_free(&r);
+    crom_mesh_free(&m);
+}
+
 int main(void)
 {
     check_begin("test_sim");
@@ -429,5 +503,6 @@ int main(void)
     test_tolerance();
     test_bad_scenarios();
     test_cantilever();
+    test_residual_indicator();
     return check_done();
 }
