@@ -2,9 +2,9 @@
 # figures the issues ask for, as markdown and CSV under bench/results/ with
 # PNG plots. Medians over steps, one core. Run through the top-level Makefile
 # (`make bench`); sizes are variables, e.g.
-#   make bench T_SIZES="0.056" FULL_SIZES="0.056"      # a quick one
+#   make bench T_SIZES="0.056" FULL_SIZES="0.056" SCALE_SIZES="0.1 0.056"   # a quick one
 #   make -f pipelines/bench.mk datafree DF_SIZE=0.1 DF_MINUTES=0.1 DF_STEPS=10 OUT=/tmp/df
-# About 50 minutes at the defaults on this 2-core machine (datafree: about 20,
+# About 55 minutes at the defaults on this 2-core machine (scale: about 5, datafree: about 20,
 # and about 12 more for the soft bar: its skinning and continuous-field rows).
 include $(dir $(lastword $(MAKEFILE_LIST)))common.mk
 .SECONDEXPANSION:
@@ -110,10 +110,10 @@ df2_map_args = --model $(OUT)/df2-map-$(call df2_kind,$(1)).h5 --mesh $(OUT)/df-
   $(if $(filter %-opt,$(1)),--cubature $(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
 df2_map_in = $(OUT)/df2-map-$(call df2_kind,$(1)).h5 $(if $(filter %-opt,$(1)),$(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
 
-.PHONY: all fullsim sheets tables training datafree plots micro
-all: fullsim sheets tables training datafree plots micro
+.PHONY: all fullsim sheets tables training datafree plots micro scale
+all: fullsim sheets tables training datafree plots micro scale
 	@cat $(OUT)/fullsim.md $(OUT)/sheets.md $(OUT)/tables.md $(OUT)/training.md $(OUT)/datafree.md $(OUT)/datafree2.md \
-	  $(OUT)/micro.md
+	  $(OUT)/micro.md $(OUT)/scale.md
 	@echo "plots: $(OUT)/steps.png $(OUT)/training.png"
 
 # ---------------------------------------------------------------- fullsim
@@ -168,6 +168,33 @@ $(OUT)/t-diff-%.txt: $(OUT)/t-red-%.h5 $(OUT)/t-full-%.h5
 RUNS = $(foreach s,$(T_SIZES),$(foreach l,$(LOADS),$(s)-$(l)))
 $(OUT)/tables.md: $(foreach r,$(RUNS),$(OUT)/t-diff-$(r).txt $(OUT)/t-red-$(r).csv)
 	/usr/bin/python3 $(TOP)/pipelines/benchtab.py tables $(OUT) "$(T_SIZES)" "$(LOADS)" > $@.tmp && mv $@.tmp $@
+
+# ------------------------------------------------------------------ scale
+# the reduced step against the mesh size (issue 18 item 2): the first
+# tables model (trained at T_SIZES' first size) laid on unit cubes of about
+# 5K and 100K vertices, a METIS cubature of the same SCALE_COUNT tets on
+# each, the compression load; the full step (SCALE_FULL_STEPS steps) with its
+# peak memory (ru_maxrss of the process)
+SCALE_SIZES ?= 0.056 0.0195
+SCALE_COUNT ?= 200
+SCALE_FULL_STEPS ?= 3
+SCALE_MODEL = $(OUT)/t-model-$(word 1,$(T_SIZES)).h5
+scale: $(OUT)/scale.md
+$(OUT)/sc-mesh-%.h5:
+	@mkdir -p $(@D)
+	crom-mesh box --size $* --algorithm hxt --region top='y>0.45' --region bottom='y<-0.45' $(QUIET) -o $@
+$(OUT)/sc-full-%.csv $(OUT)/sc-rss-%.txt &: $(OUT)/sc-mesh-%.h5
+	/usr/bin/python3 -c 'import resource, subprocess, sys; rc = subprocess.call(sys.argv[2:]); \
+	  open(sys.argv[1], "w").write("%d\n" % resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss); sys.exit(rc)' \
+	  $(OUT)/sc-rss-$*.txt crom-fullsim $(LOAD_compress) --steps $(SCALE_FULL_STEPS) --threads 1 \
+	  --stats $(OUT)/sc-full-$*.csv $(QUIET) -o /dev/null $<
+$(OUT)/sc-cub-%.h5: $(OUT)/sc-mesh-%.h5 $(SCALE_MODEL)
+	crom-cubature --model $(SCALE_MODEL) --scheme metis --count $(SCALE_COUNT) $(QUIET) -o $@ $<
+$(OUT)/sc-red-%.csv: $(OUT)/sc-cub-%.h5
+	crom-reducedstep --cubature $< $(LOAD_compress) --threads 1 --stats $@ $(QUIET) -o /dev/null
+$(OUT)/scale.md: $(foreach s,$(SCALE_SIZES),$(OUT)/sc-full-$(s).csv $(OUT)/sc-red-$(s).csv)
+	( echo "### the reduced step against the mesh size (issue 18): one model, $(SCALE_COUNT) METIS cubature tets"; \
+	  echo; /usr/bin/python3 $(TOP)/pipelines/benchtab.py scale $(OUT) "$(SCALE_SIZES)" ) > $@.tmp && mv $@.tmp $@
 
 # --------------------------------------------------------------- training
 training: $(OUT)/training.md

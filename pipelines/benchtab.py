@@ -6,6 +6,7 @@ and the attributes of models and cubatures. Markdown on stdout, CSV beside.
   benchtab.py tables DIR "SIZES" "LOADS"   LiCROM Tables 1 and 2 for crom
   benchtab.py training DIR                  training speed and time to accuracy
   benchtab.py datafree DIR "ROWS"           data-free objectives vs linear modes
+  benchtab.py scale DIR "SIZES"             the reduced step against the mesh size
 """
 import csv, re, statistics, sys
 
@@ -201,6 +202,30 @@ def datafree(out, rows):
                     "", "", "", "", 0])
 
 
+def scale(out, sizes):
+    """LiCROM's claim that the reduced step does not grow with the mesh
+    (issue 18 item 2): one model laid on meshes of 5K to 100K vertices, the
+    same count of cubature tets, the full step and its peak memory"""
+    print("| vertices | tets | full step (s) | full peak memory (GB) | reduced step (ms) | reduced / smallest | "
+          "cubature tets | cubature file (MB) |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|")
+    w = csv.writer(open(f"{out}/scale.csv", "w"))
+    w.writerow(["vertices", "tets", "full_step_s", "full_peak_gb", "reduced_step_ms", "reduced_ratio",
+                "cubature_tets", "cubature_mb"])
+    base = None
+    for s in sizes:
+        with h5py.File(f"{out}/sc-mesh-{s}.h5") as m:
+            nv, nt = m["vertices"].shape[0], m["tets"].shape[0]
+        full = statistics.median(col(f"{out}/sc-full-{s}.csv", "seconds"))
+        rss = int(open(f"{out}/sc-rss-{s}.txt").read()) / 2 ** 20
+        red = statistics.median(col(f"{out}/sc-red-{s}.csv", "seconds"))
+        k = int(col(f"{out}/sc-red-{s}.csv", "cubature_tets")[0])
+        mb = __import__("os").path.getsize(f"{out}/sc-cub-{s}.h5") / 2 ** 20
+        base = base or red
+        print(f"| {nv} | {nt} | {full:.2f} | {rss:.2f} | {1e3 * red:.3f} | {red / base:.2f} | {k} | {mb:.0f} |")
+        w.writerow([nv, nt, full, rss, 1e3 * red, red / base, k, mb])
+
+
 if __name__ == "__main__":
     if sys.argv[1] == "tables":
         tables(sys.argv[2], sys.argv[3].split(), sys.argv[4].split())
@@ -208,5 +233,7 @@ if __name__ == "__main__":
         training(sys.argv[2])
     elif sys.argv[1] == "datafree":
         datafree(sys.argv[2], sys.argv[3].split())
+    elif sys.argv[1] == "scale":
+        scale(sys.argv[2], sys.argv[3].split())
     else:
-        sys.exit("usage: benchtab.py tables|training|datafree DIR ...")
+        sys.exit("usage: benchtab.py tables|training|datafree|scale DIR ...")

@@ -37,9 +37,14 @@ enum { CROM_RSIM_NEWTON = 0, CROM_RSIM_GD = 1 };
 typedef struct {
     int iterations;
     double residual;            /* last correction, RMS displacement / size */
-    double constraint_residual; /* largest ‖W_v q − ū_v‖ over BC vertices (m) */
+    double constraint_residual; /* largest ‖W_v q − ū_v‖ over BC vertices (m): not filled by the step
+                                 * (a pass over every BC vertex, which grows with the mesh); the caller
+                                 * asks crom_rsim_constraint_residual when it reports it */
     double seconds;
     int converged;
+    int vertex_evals;           /* vertex positions one evaluation of the step's objective decodes: 4 per
+                                 * cubature tet (a map: its cubature's vertices), plus every surface vertex
+                                 * per collision plane or sphere; whatever the size of the mesh */
 } crom_rsim_stats;
 
 typedef struct {

@@ -98,6 +98,35 @@ m = meshio.read('pvd/frame_00016.vtu'); f = meshio.read('fine.vtu')
 if not (np.abs(m.point_data['displacement']).max() > 0.05 and np.abs(f.point_data['displacement']).max() > 0.05): raise SystemExit('check failed: decoded displacement too small')
 " || fail "decoded export"; ok
 
+# 7. the reduced step's work does not grow with the mesh (LiCROM §4; issue
+#    18): one field laid on two meshes of the box, 40 METIS cubature tets
+#    on each: every evaluation decodes the same 160 vertex positions; a
+#    collision plane adds each surface vertex, the one part that grows
+crom-fitfield --rank 4 --epochs 30 -q -o mlp.h5 <samples.h5
+crom-mesh box --size 0.1 --region top='y>0.45' --region bottom='y<-0.45' -q -o box_fine.h5
+for m in box box_fine; do
+  crom-cubature -q --model mlp.h5 --scheme metis --count 40 -o cm_$m.h5 $m.h5
+  crom-reducedstep --cubature cm_$m.h5 "${SC[@]}" --steps 4 --stats w_$m.csv -o /dev/null
+  crom-reducedstep --cubature cm_$m.h5 "${SC[@]}" --steps 4 --plane 0,1,0,-0.6 --stats wp_$m.csv -o /dev/null
+done
+$PY - <<'PYEOF' || fail "reduced step work against the mesh"
+import h5py, numpy as np
+from collections import Counter
+def surface(path):
+    t = h5py.File(path)["tets"][()]
+    faces = Counter(tuple(sorted(f)) for tet in t for f in ((tet[0], tet[1], tet[2]), (tet[0], tet[1], tet[3]),
+                                                             (tet[0], tet[2], tet[3]), (tet[1], tet[2], tet[3])))
+    return len({v for f, c in faces.items() if c == 1 for v in f})
+for m in ["box", "box_fine"]:
+    w = np.genfromtxt(f"w_{m}.csv", delimiter=",", names=True)["vertex_evals"]
+    wp = np.genfromtxt(f"wp_{m}.csv", delimiter=",", names=True)["vertex_evals"]
+    ns = surface(f"{m}.h5")
+    print(f"{m}: {w[0]:.0f} vertex positions per evaluation, {wp[0]:.0f} with a plane ({ns} surface vertices)")
+    if not (np.all(w == 160) and np.all(wp == 160 + ns)):
+        raise SystemExit(f"{m}: vertex_evals {w} and {wp}")
+PYEOF
+ok
+
 # 8. bad input
 O=out; mkdir -p $O
 crom-mesh sphere --size 0.3 --region top='y>0.3' -o sph.h5
