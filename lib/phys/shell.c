@@ -15,6 +15,7 @@
 
 #include "base/err.h"
 #include "phys/shell.h"
+#include "phys/sym.h"
 
 #define TRI_UP 45   /* upper entries of a 9×9 element Hessian */
 #define HINGE_UP 78 /* of a 12×12 one */
@@ -90,32 +91,6 @@ void crom_shell_tri_F(const double x[9], const double Dminv[4], double F[6])
     }
 }
 
-/* Clamp the negative eigenvalues of a symmetric n×n matrix (n <= 12) to 0
- * (a matrix that has a Cholesky factor is left as it is: most are, and the
- * factorization is far cheaper than the eigensolver). Returns 0, or 1 when
- * the eigensolver fails. */
-static int project_psd(double *M, int n)
-{
-    double w[12], Q[144];
-    memcpy(Q, M, sizeof(double) * (size_t)n * n);
-    if (LAPACKE_dpotrf(LAPACK_ROW_MAJOR, 'U', n, Q, n) == 0)
-        return 0;
-    memcpy(Q, M, sizeof(double) * (size_t)n * n);
-    if (LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'V', 'U', n, Q, n, w) != 0)
-        return 1;
-    if (w[0] >= 0)
-        return 0;
-    memset(M, 0, sizeof(double) * (size_t)n * n);
-    for (int k = 0; k < n; k++) {
-        if (w[k] <= 0)
-            continue;
-        for (int i = 0; i < n; i++)
-            for (int j = 0; j < n; j++)
-                M[i * n + j] += w[k] * Q[i * n + k] * Q[j * n + k];
-    }
-    return 0;
-}
-
 /* The right Cauchy–Green tensor C = FᵀF [2][2] of F [3][2]. */
 static void cauchy_green(const double F[6], double C2[4])
 {
@@ -186,7 +161,7 @@ int crom_shell_tri_eval(const crom_shell_material *m, const double x[9], const d
                         Ct[(2 * i + a) * 6 + 2 * j + b] = (i == j ? S[2 * a + b] : 0) + mu * F[2 * i + b] * F[2 * j + a] +
                                                           (a == b ? mu * FFt : 0) + lam * F[2 * i + a] * F[2 * j + b];
                     }
-        if (project && project_psd(Ct, 6))
+        if (project && crom_sym_dense_project(Ct, 6))
             return CROM_EDATA;
         for (int v = 0; v < 3; v++)
             for (int i = 0; i < 3; i++)

@@ -1,0 +1,258 @@
+/* rigid.c — rigid bodies as frames of four lumped masses (see rigid.h). */
+#include <lapacke.h>
+#include <math.h>
+#include <string.h>
+
+#include "base/err.h"
+#include "phys/rigid.h"
+#include "phys/sym.h"
+
+int crom_rigid_inertia_tets(const crom_mesh *mesh, double rho, crom_rigid_inertia *in)
+{
+    memset(in, 0, sizeof *in);
+    if (!(rho > 0) || !isfinite(rho))
+        return crom_err(CROM_EUSAGE, "density must be a positive number, got %g", rho);
+    /* first pass: mass and centre; second: ∫ (X − c)(X − c)ᵀ, exact for a
+     * tet: V/20 (Σ_i x_i x_iᵀ + (Σ_i x_i)(Σ_i x_i)ᵀ) with x relative to c */
+    double m = 0, c[3] = {0, 0, 0};
+    for (int t = 0; t < mesh->nt; t++) {
+        const int *v = mesh->tets + 4 * (size_t)t;
+        const double *X = mesh->X;
+        double V = crom_mesh_tet_volume(X + 3 * v[0], X + 3 * v[1], X + 3 * v[2], X + 3 * v[3]);
+        m += rho * V;
+        for (int k = 0; k < 3; k++)
+            c[k] += rho * V * 0.25 * (X[3 * v[0] + k] + X[3 * v[1] + k] + X[3 * v[2] + k] + X[3 * v[3] + k]);
+    }
+    if (!(m > 0))
+        return crom_err(CROM_EDATA, "the mesh has no volume: no rigid body");
+    for (int k = 0; k < 3; k++)
+        c[k] /= m;
+    double S[9] = {0};
+    for (int t = 0; t < mesh->nt; t++) {
+        const int *v = mesh->tets + 4 * (size_t)t;
+        const double *X = mesh->X;
+        double V = crom_mesh_tet_volume(X + 3 * v[0], X + 3 * v[1], X + 3 * v[2], X + 3 * v[3]);
+        double x[4][3], s[3] = {0, 0, 0};
+        for (int i = 0; i < 4; i++)
+            for (int k = 0; k < 3; k++) {
+                x[i][k] = X[3 * v[i] + k] - c[k];
+                s[k] += x[i][k];
+            }
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++) {
+                double q = s[a] * s[b];
+                for (int i = 0; i < 4; i++)
+                    q += x[i][a] * x[i][b];
+                S[3 * a + b] += rho * V / 20 * q;
+            }
+    }
+    in->m = m;
+    memcpy(in->c, c, sizeof c);
+    memcpy(in->S, S, sizeof S);
+    return 0;
+}
+
+void crom_rigid_inertia_box(const double a[3], const double c[3], double rho, crom_rigid_inertia *in)
+{
+    memset(in, 0, sizeof *in);
+    in->m = rho * a[0] * a[1] * a[2];
+    for (int k = 0; k < 3; k++) {
+        in->c[k] = c[k];
+        in->S[4 * k] = in->m * a[k] * a[k] / 12;
+    }
+}
+
+int crom_rigid_frame(const crom_rigid_inertia *in, double Y[12])
+{
+    /* A = (3S/m)^½ by the eigensystem of S */
+    double Q[9], w[3];
+    memcpy(Q, in->S, sizeof Q);
+    if (!(in->m > 0) || LAPACKE_dsyev(LAPACK_ROW_MAJOR, 'V', 'U', 3, Q, 3, w) != 0 || !(w[0] > 1e-12 * w[2]))
+        return crom_err(CROM_EDATA, "the body's second moment is not positive definite: it has no 3-D extent");
+    double A[9] = {0};
+    for (int k = 0; k < 3; k++) {
+        double s = sqrt(3 * w[k] / in->m);
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++)
+                A[3 * i + j] += s * Q[3 * i + k] * Q[3 * j + k];
+    }
+    static const double e[4][3] = {{1, 1, 1}, {1, -1, -1}, {-1, 1, -1}, {-1, -1, 1}};
+    for (int k = 0; k < 4; k++)
+        for (int i = 0; i < 3; i++) {
+            double s = 0;
+            for (int j = 0; j < 3; j++)
+                s += A[3 * i + j] * e[k][j] / sqrt(3.0);
+            Y[3 * k + i] = in->c[i] + s;
+        }
+    return 0;
+}
+
+int crom_rigid_frame_inverse(const double Y[12], double B[9])
+{
+    double D[9];
+    for (int i = 0; i < 3; i++)
+        for (int k = 0; k < 3; k++)
+            D[3 * i + k] = Y[3 * (k + 1) + i] - Y[i];
+    double det = D[0] * (D[4] * D[8] - D[5] * D[7]) - D[1] * (D[3] * D[8] - D[5] * D[6]) +
+                 D[2] * (D[3] * D[7] - D[4] * D[6]);
+    double scale = 0;
+    for (int i = 0; i < 9; i++)
+        scale = fmax(scale, fabs(D[i]));
+    if (!(fabs(det) > 1e-12 * scale * scale * scale))
+        return crom_err(CROM_EDATA, "degenerate rigid-body frame");
+    B[0] = (D[4] * D[8] - D[5] * D[7]) / det;
+    B[1] = (D[2] * D[7] - D[1] * D[8]) / det;
+    B[2] = (D[1] * D[5] - D[2] * D[4]) / det;
+    B[3] = (D[5] * D[6] - D[3] * D[8]) / det;
+    B[4] = (D[0] * D[8] - D[2] * D[6]) / det;
+    B[5] = (D[2] * D[3] - D[0] * D[5]) / det;
+    B[6] = (D[3] * D[7] - D[4] * D[6]) / det;
+    B[7] = (D[1] * D[6] - D[0] * D[7]) / det;
+    B[8] = (D[0] * D[4] - D[1] * D[3]) / det;
+    return 0;
+}
+
+void crom_rigid_coords(const double Y[12], const double B[9], const double X[3], double beta[4])
+{
+    double d[3] = {X[0] - Y[0], X[1] - Y[1], X[2] - Y[2]};
+    beta[0] = 1;
+    for (int k = 0; k < 3; k++) {
+        beta[k + 1] = B[3 * k] * d[0] + B[3 * k + 1] * d[1] + B[3 * k + 2] * d[2];
+        beta[0] -= beta[k + 1];
+    }
+}
+
+void crom_rigid_affine(const double Y[12], const double B[9], const double y[12], double R[9], double t[3])
+{
+    /* R = D_y B; t = y_0 − R Y_0 */
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            double s = 0;
+            for (int k = 0; k < 3; k++)
+                s += (y[3 * (k + 1) + i] - y[i]) * B[3 * k + j];
+            R[3 * i + j] = s;
+        }
+    for (int i = 0; i < 3; i++)
+        t[i] = y[i] - (R[3 * i] * Y[0] + R[3 * i + 1] * Y[1] + R[3 * i + 2] * Y[2]);
+}
+
+/* ∂R_ij/∂y_(k,i) = b_k[j]: the frame vertex k's weight in column j of R
+ * (b_0 = −Σ rows of B, b_k = row k−1 of B); R depends on y_(k,c) only
+ * through row c. */
+static void edge_weights(const double B[9], double b[4][3])
+{
+    for (int j = 0; j < 3; j++) {
+        b[0][j] = -(B[j] + B[3 + j] + B[6 + j]);
+        for (int k = 1; k < 4; k++)
+            b[k][j] = B[3 * (k - 1) + j];
+    }
+}
+
+int crom_rigid_ortho(const double B[9], double w, const double y[12], int project, double *E, double *g,
+                     double *H)
+{
+    double R[9], t[3], Y0[12] = {0}, b[4][3];
+    crom_rigid_affine(Y0, B, y, R, t); /* t is not needed: the rest origin does not enter R */
+    double G[9];                       /* RᵀR − I */
+    for (int a = 0; a < 3; a++)
+        for (int c = 0; c < 3; c++) {
+            double s = -(a == c);
+            for (int i = 0; i < 3; i++)
+                s += R[3 * i + a] * R[3 * i + c];
+            G[3 * a + c] = s;
+        }
+    if (E) {
+        double s = 0;
+        for (int i = 0; i < 9; i++)
+            s += G[i] * G[i];
+        *E = w * s;
+    }
+    if (!g && !H)
+        return 0;
+    edge_weights(B, b);
+    if (g) { /* ∂E/∂R = 4 w R G; ∂E/∂y_(k,i) = Σ_j (∂E/∂R)_ij b_k[j] */
+        double P[9];
+        for (int i = 0; i < 3; i++)
+            for (int a = 0; a < 3; a++) {
+                double s = 0;
+                for (int c = 0; c < 3; c++)
+                    s += R[3 * i + c] * G[3 * c + a];
+                P[3 * i + a] = 4 * w * s;
+            }
+        for (int k = 0; k < 4; k++)
+            for (int i = 0; i < 3; i++)
+                g[3 * k + i] = P[3 * i] * b[k][0] + P[3 * i + 1] * b[k][1] + P[3 * i + 2] * b[k][2];
+    }
+    if (!H)
+        return 0;
+    /* ∂²E/∂R_ia∂R_jb = 4 w (δ_ij G_ab + R_ib R_ja + δ_ab (R Rᵀ)_ij) */
+    double RRt[9], HR[81];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            RRt[3 * i + j] = R[3 * i] * R[3 * j] + R[3 * i + 1] * R[3 * j + 1] + R[3 * i + 2] * R[3 * j + 2];
+    for (int i = 0; i < 3; i++)
+        for (int a = 0; a < 3; a++)
+            for (int j = 0; j < 3; j++)
+                for (int bb = 0; bb < 3; bb++)
+                    HR[9 * (3 * i + a) + 3 * j + bb] =
+                        4 * w * ((i == j) * G[3 * a + bb] + R[3 * i + bb] * R[3 * j + a] + (a == bb) * RRt[3 * i + j]);
+    /* H[(k,i),(l,j)] = Σ_a Σ_b b_k[a] HR[(i,a),(j,b)] b_l[b] */
+    for (int k = 0; k < 4; k++)
+        for (int i = 0; i < 3; i++)
+            for (int l = 0; l < 4; l++)
+                for (int j = 0; j < 3; j++) {
+                    double s = 0;
+                    for (int a = 0; a < 3; a++)
+                        for (int bb = 0; bb < 3; bb++)
+                            s += b[k][a] * HR[9 * (3 * i + a) + 3 * j + bb] * b[l][bb];
+                    H[12 * (3 * k + i) + 3 * l + j] = s;
+                }
+    return project ? crom_sym_dense_project(H, 12) : 0;
+}
+
+void crom_rigid_pin(const double beta[4], double w, const double y[12], const double target[3], double *E,
+                    double *g, double *H)
+{
+    double d[3];
+    for (int i = 0; i < 3; i++)
+        d[i] = beta[0] * y[i] + beta[1] * y[3 + i] + beta[2] * y[6 + i] + beta[3] * y[9 + i] - target[i];
+    if (E)
+        *E = 0.5 * w * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    for (int k = 0; g && k < 4; k++)
+        for (int i = 0; i < 3; i++)
+            g[3 * k + i] = w * beta[k] * d[i];
+    if (H) {
+        memset(H, 0, sizeof(double) * 144);
+        for (int k = 0; k < 4; k++)
+            for (int l = 0; l < 4; l++)
+                for (int i = 0; i < 3; i++)
+                    H[12 * (3 * k + i) + 3 * l + i] = w * beta[k] * beta[l];
+    }
+}
+
+void crom_rigid_joint(const double beta[4], const double gamma[4], double w, const double ya[12],
+                      const double yb[12], double *E, double *g, double *H)
+{
+    double c[8], d[3];
+    for (int k = 0; k < 4; k++) {
+        c[k] = beta[k];
+        c[4 + k] = -gamma[k];
+    }
+    for (int i = 0; i < 3; i++) {
+        d[i] = 0;
+        for (int k = 0; k < 4; k++)
+            d[i] += beta[k] * ya[3 * k + i] - gamma[k] * yb[3 * k + i];
+    }
+    if (E)
+        *E = 0.5 * w * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    for (int k = 0; g && k < 8; k++)
+        for (int i = 0; i < 3; i++)
+            g[3 * k + i] = w * c[k] * d[i];
+    if (H) {
+        memset(H, 0, sizeof(double) * 576);
+        for (int k = 0; k < 8; k++)
+            for (int l = 0; l < 8; l++)
+                for (int i = 0; i < 3; i++)
+                    H[24 * (3 * k + i) + 3 * l + i] = w * c[k] * c[l];
+    }
+}
