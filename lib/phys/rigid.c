@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "base/err.h"
+#include "phys/fem.h"
 #include "phys/rigid.h"
 #include "phys/sym.h"
 
@@ -76,7 +77,8 @@ int crom_rigid_frame(const crom_rigid_inertia *in, double Y[12])
             for (int j = 0; j < 3; j++)
                 A[3 * i + j] += s * Q[3 * i + k] * Q[3 * j + k];
     }
-    static const double e[4][3] = {{1, 1, 1}, {1, -1, -1}, {-1, 1, -1}, {-1, -1, 1}};
+    /* a positively oriented regular tetrahedron (A is positive definite) */
+    static const double e[4][3] = {{1, 1, 1}, {-1, 1, -1}, {1, -1, -1}, {-1, -1, 1}};
     for (int k = 0; k < 4; k++)
         for (int i = 0; i < 3; i++) {
             double s = 0;
@@ -89,27 +91,8 @@ int crom_rigid_frame(const crom_rigid_inertia *in, double Y[12])
 
 int crom_rigid_frame_inverse(const double Y[12], double B[9])
 {
-    double D[9];
-    for (int i = 0; i < 3; i++)
-        for (int k = 0; k < 3; k++)
-            D[3 * i + k] = Y[3 * (k + 1) + i] - Y[i];
-    double det = D[0] * (D[4] * D[8] - D[5] * D[7]) - D[1] * (D[3] * D[8] - D[5] * D[6]) +
-                 D[2] * (D[3] * D[7] - D[4] * D[6]);
-    double scale = 0;
-    for (int i = 0; i < 9; i++)
-        scale = fmax(scale, fabs(D[i]));
-    if (!(fabs(det) > 1e-12 * scale * scale * scale))
-        return crom_err(CROM_EDATA, "degenerate rigid-body frame");
-    B[0] = (D[4] * D[8] - D[5] * D[7]) / det;
-    B[1] = (D[2] * D[7] - D[1] * D[8]) / det;
-    B[2] = (D[1] * D[5] - D[2] * D[4]) / det;
-    B[3] = (D[5] * D[6] - D[3] * D[8]) / det;
-    B[4] = (D[0] * D[8] - D[2] * D[6]) / det;
-    B[5] = (D[2] * D[3] - D[0] * D[5]) / det;
-    B[6] = (D[3] * D[7] - D[4] * D[6]) / det;
-    B[7] = (D[1] * D[6] - D[0] * D[7]) / det;
-    B[8] = (D[0] * D[4] - D[1] * D[3]) / det;
-    return 0;
+    double V;
+    return crom_fem_tet_rest(Y, B, &V); /* the frame is a tetrahedron */
 }
 
 void crom_rigid_coords(const double Y[12], const double B[9], const double X[3], double beta[4])
@@ -124,15 +107,8 @@ void crom_rigid_coords(const double Y[12], const double B[9], const double X[3],
 
 void crom_rigid_affine(const double Y[12], const double B[9], const double y[12], double R[9], double t[3])
 {
-    /* R = D_y B; t = y_0 − R Y_0 */
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) {
-            double s = 0;
-            for (int k = 0; k < 3; k++)
-                s += (y[3 * (k + 1) + i] - y[i]) * B[3 * k + j];
-            R[3 * i + j] = s;
-        }
-    for (int i = 0; i < 3; i++)
+    crom_fem_tet_F(y, B, R); /* R = D_y B, the frame's deformation gradient */
+    for (int i = 0; i < 3; i++) /* t = y_0 − R Y_0 */
         t[i] = y[i] - (R[3 * i] * Y[0] + R[3 * i + 1] * Y[1] + R[3 * i + 2] * Y[2]);
 }
 
@@ -151,9 +127,8 @@ static void edge_weights(const double B[9], double b[4][3])
 int crom_rigid_ortho(const double B[9], double w, const double y[12], int project, double *E, double *g,
                      double *H)
 {
-    double R[9], t[3], Y0[12] = {0}, b[4][3];
-    crom_rigid_affine(Y0, B, y, R, t); /* t is not needed: the rest origin does not enter R */
-    double G[9];                       /* RᵀR − I */
+    double R[9], b[4][3], G[9]; /* G = RᵀR − I */
+    crom_fem_tet_F(y, B, R);
     for (int a = 0; a < 3; a++)
         for (int c = 0; c < 3; c++) {
             double s = -(a == c);

@@ -55,8 +55,9 @@ void crom_rigid_inertia_box(const double a[3], const double c[3], double rho, cr
 int crom_rigid_frame(const crom_rigid_inertia *in, double Y[12]);
 
 /* The inverse edge matrix B = D_Y⁻¹ of a rest frame (row-major [3][3]; the
- * columns of D_Y are Y_k − Y_0, k = 1..3). CROM_EDATA for a degenerate
- * frame. */
+ * columns of D_Y are Y_k − Y_0, k = 1..3): crom_fem_tet_rest's, the frame
+ * being a positively oriented tetrahedron. CROM_EDATA for a degenerate or
+ * inverted frame. */
 int crom_rigid_frame_inverse(const double Y[12], double B[9]);
 
 /* Barycentric coordinates beta[4] of the rest point X in the rest frame
