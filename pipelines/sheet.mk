@@ -17,6 +17,9 @@
 #   energy    the data-free energy map (crom-fitfield --objective energy, d = 8)
 #   mderiv-cub mderiv over an optimized cubature of the shell's triangles and
 #             hinges (crom-cubature, fitted to the poses of mderiv's own run)
+#   skin      the skinning eigenmodes of SKIN_HANDLES affine handles (crom-fitfield
+#             --objective skinning --weights eigen): a linear subspace of rank
+#             9 per handle, no training
 # The table gives each run's error against crom-fullsim at the last frame
 # (the static sag) and over the run, and the median step time.
 #
@@ -31,7 +34,8 @@
 # quadratic 4.3% | 64%, energy
 # 99.8% | 99.6%, mderiv-cub 1.6% | 28.9% at 0.05 | 0.11 ms per step (median)
 # against crom-fullsim's 8.4 | 21 ms, where the runs over every element take
-# 3-24 ms. Bending modes lock: deflected, they stretch the membrane, (L/t)^2
+# 3-24 ms; skin (8 handles, rank 72) 2.0% | 2.6% at 83 | 98 ms per step
+# (measured later, beside a CI run; 16 handles: 0.43% | 0.84%). Bending modes lock: deflected, they stretch the membrane, (L/t)^2
 # = 4e4 times stiffer than bending; modal derivatives add the in-plane
 # shortening a bent sheet needs. quadratic is nmderiv untrained: the
 # training (6000 steps over the box) costs accuracy at this sag (34% after
@@ -55,7 +59,8 @@ MDFIELDS ?= $(D)
 STEPS_DF ?= 6000
 BOX ?= 0.05
 CUB_COUNT ?= 200
-RUNS = modes mderiv neural nmderiv nmderiv-ta quadratic energy mderiv-cub
+SKIN_HANDLES ?= 8
+RUNS = modes mderiv neural nmderiv nmderiv-ta quadratic energy mderiv-cub skin
 $(eval $(call stamp_rule,mesh,$(SIZE) $(THICKNESS) $(CLAMP)))
 $(eval $(call stamp_rule,scenario,$(SCENARIO)))
 $(eval $(call stamp_rule,modes,$(D)))
@@ -93,6 +98,10 @@ $(OUT)/model-quadratic.h5: $(OUT)/mesh.h5 $(OUT)/model-modes.h5 $(call stamp,dat
 $(OUT)/model-energy.h5: $(OUT)/mesh.h5 $(call stamp,scenario) $(call stamp,datafree)
 	crom-fitfield --objective energy --mesh $< --rank $(D) $(MAT) --pin clamp --gravity 0,0,-9.81 \
 	  --steps $(STEPS_DF) --seed $(SEED) $(QUIET) -o $@
+
+$(OUT)/model-skin.h5: $(OUT)/mesh.h5 $(call stamp,scenario)
+	crom-fitfield --objective skinning --weights eigen --handles $(SKIN_HANDLES) --mesh $< $(MAT) --pin clamp \
+	  $(QUIET) -o $@
 
 $(OUT)/cub-mderiv.h5: $(OUT)/model-mderiv.h5 $(OUT)/red-mderiv.h5 $(OUT)/mesh.h5
 	crom-cubature --model $< --scheme optimized --count $(CUB_COUNT) --poses $(OUT)/red-mderiv.h5 \

@@ -28,7 +28,7 @@ int crom_body_load(crom_body *b, const crom_body_source *src, const crom_scenari
             return crom_err_ctx("--mesh");
         if (crom_mesh_is_surface(&b->mesh) && !src->shells)
             return crom_err(CROM_EUSAGE, "--mesh %s is a shell surface (%d triangles): this objective trains on "
-                            "solids; a shell's data-free subspace is --objective energy or neuralmodes",
+                            "solids; on a shell use --objective energy or neuralmodes, or skinning with --weights eigen",
                             strcmp(src->mesh, "-") ? src->mesh : "stdin", b->mesh.ntri);
         return 0;
     }

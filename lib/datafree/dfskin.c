@@ -12,6 +12,7 @@
 #include "base/rng.h"
 #include "datafree/dfloss.h"
 #include "datafree/dfskin.h"
+#include "phys/system.h"
 #include "io/io.h"
 #include "phys/modes.h"
 #include "rom/skin.h"
@@ -609,9 +610,10 @@ int crom_dfskin_write_record(hid_t loc, const crom_dfskin_opts *o, const crom_df
 /* ============================================================ eigen */
 
 /* The scalar stiffness K_s of the free vertices (upper CSC, diagonal last):
- * (K_s)_ij = Σ_c K_(3i+c)(3j+c) from the rest Hessian K (crom_fem's
- * pattern); vmap[v] the free index of vertex v or -1. */
-static int scalar_stiffness(const crom_fem *fem, const double *Kv, const int *vmap, int nf, int **cp_out,
+ * (K_s)_ij = Σ_c K_(3i+c)(3j+c) from the rest Hessian K (the system's
+ * pattern: a solid's or a shell's); vmap[v] the free index of vertex v or
+ * -1. */
+static int scalar_stiffness(const crom_system *fem, const double *Kv, const int *vmap, int nf, int **cp_out,
                             int **ri_out, double **val_out)
 {
     int nv = fem->nv, rc = 0;
@@ -712,8 +714,8 @@ int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const uns
     int rc = crom_dfskin_check_handles(mesh, fixed, H);
     if (rc)
         return rc;
-    crom_fem fem;
-    if ((rc = crom_fem_init(&fem, mesh, mat)))
+    crom_system fem; /* a solid or a shell: its rest Hessian and lumped masses */
+    if ((rc = crom_system_init(&fem, mesh, mat->E, mat->nu, mat->rho)))
         return rc;
     int nv = mesh->nv, nf = 0, np = 0, *vmap = crom_malloc(sizeof(int) * (size_t)nv);
     int *cp = NULL, *ri = NULL;
@@ -725,7 +727,7 @@ int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const uns
     }
     /* the unprojected Hessian at rest: linear elasticity */
     crom_fem_opts fo = {0, 0, NULL, 1};
-    if ((rc = crom_fem_assemble(&fem, mesh->X, &fo, NULL, NULL, Kv)))
+    if ((rc = crom_system_assemble(&fem, mesh->X, &fo, NULL, NULL, Kv)))
         goto out;
     for (int v = 0; v < nv; v++) {
         int pin = crom_dfloss_pinned(fixed, v);
@@ -773,7 +775,7 @@ int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const uns
         goto out;
     rc = crom_skin_model_mesh(out, mesh, w, H, constant, F, eig);
 out:
-    crom_fem_free(&fem);
+    crom_system_free(&fem);
     free(vmap);
     free(Kv);
     free(cp);

@@ -33,7 +33,10 @@ typedef struct {
  * (borrowed): regions resolve against mesh (CROM_EUSAGE naming a missing
  * one). model (may be NULL: positions are given to crom_indicator_step) is a
  * linear basis laid on mesh, r its rank; CROM_EDATA when vertices of mesh
- * lie outside a mesh-field model. On failure *ind holds nothing to free. */
+ * lie outside a mesh-field model; CROM_EUSAGE for a shell surface (a flat
+ * shell's rest stiffness has no membrane resistance out of its plane: the
+ * estimate read 4e10 on a hanging sheet). On failure *ind holds nothing to
+ * free. */
 int crom_indicator_init(crom_indicator *ind, const crom_mesh *mesh, const crom_scenario *sc,
                         const crom_model *model);
 

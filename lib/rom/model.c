@@ -482,19 +482,24 @@ static int write_mlp(hid_t loc, const crom_model *m)
 
 /* CROM_MODEL_FIELD_MESH: the mesh (vertices and tets) and W at its
  * vertices, with the frequencies of modes. */
+int crom_model_write_field_mesh(hid_t loc, const crom_mesh *mesh)
+{
+    hsize_t dv[2] = {(hsize_t)mesh->nv, 3}, dt[2] = {(hsize_t)mesh->nt, 4}, dtri[2] = {(hsize_t)mesh->ntri, 3};
+    int rc = crom_h5_put_f64(loc, "field/mesh/vertices", 2, dv, mesh->X);
+    if (!rc && crom_mesh_is_surface(mesh)) { /* a shell: its triangles and thickness, as crom/mesh */
+        rc = crom_h5_put_i32(loc, "field/mesh/triangles", 2, dtri, mesh->tris);
+        if (!rc)
+            rc = crom_h5_set_f64(loc, "field/mesh/triangles", "thickness", &mesh->thickness, 1);
+    } else if (!rc) {
+        rc = crom_h5_put_i32(loc, "field/mesh/tets", 2, dt, mesh->tets);
+    }
+    return rc;
+}
+
 static int write_mesh_field(hid_t loc, const crom_model *m)
 {
-    hsize_t dv[2] = {(hsize_t)m->mesh.nv, 3}, dt[2] = {(hsize_t)m->mesh.nt, 4};
     hsize_t db[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)m->rank}, dr = (hsize_t)m->rank;
-    hsize_t dtri[2] = {(hsize_t)m->mesh.ntri, 3};
-    int rc = crom_h5_put_f64(loc, "field/mesh/vertices", 2, dv, m->mesh.X);
-    if (!rc && crom_mesh_is_surface(&m->mesh)) { /* a shell: its triangles and thickness, as crom/mesh */
-        rc = crom_h5_put_i32(loc, "field/mesh/triangles", 2, dtri, m->mesh.tris);
-        if (!rc)
-            rc = crom_h5_set_f64(loc, "field/mesh/triangles", "thickness", &m->mesh.thickness, 1);
-    } else if (!rc) {
-        rc = crom_h5_put_i32(loc, "field/mesh/tets", 2, dt, m->mesh.tets);
-    }
+    int rc = crom_model_write_field_mesh(loc, &m->mesh);
     if (!rc)
         rc = crom_h5_put_f64(loc, "field/basis", 3, db, m->basis_v);
     if (!rc && m->frequencies)

@@ -206,6 +206,12 @@ int crom_model_latent_normal(const crom_model *m);
  * or CROM_EDATA naming field/mesh. */
 int crom_model_read_field_mesh(hid_t h, crom_model *m);
 
+/* Write mesh as the group field/mesh of a model at loc: its vertices and
+ * tets, or a shell's triangles with their thickness (the attribute
+ * `thickness` of field/mesh/triangles), which crom_model_read_field_mesh
+ * reads back. */
+int crom_model_write_field_mesh(hid_t loc, const crom_mesh *mesh);
+
 /* A network of the given spec from an open model file h: its float32
  * parameters at dataset `params` (<group>/params) and, where shift is not
  * NULL, its input normalization at datasets shift and scale (3 values

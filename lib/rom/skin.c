@@ -229,6 +229,18 @@ int crom_skin_weights(const crom_model *m, size_t n, const double *X, double *w,
     int H = m->handles, k = m->skin_constant;
     if (n == 0)
         return 0;
+    if (m->skin_w && crom_mesh_is_surface(&m->mesh)) {
+        /* weights on a shell live at its own vertices only (as a shell's
+         * mesh field, lib/rom/model.c) */
+        int same = n == (size_t)m->mesh.nv;
+        for (size_t i = 0; same && i < 3 * n; i++)
+            same = fabs(X[i] - m->mesh.X[i]) <= 1e-9 * (1 + fabs(X[i]));
+        if (!same)
+            return crom_err(CROM_EDATA, "model %s (skinning weights on a shell surface of %d vertices) is evaluated "
+                            "only at them, got %zu other points", m->model_id, m->mesh.nv, n);
+        memcpy(w, m->skin_w, sizeof(double) * n * (size_t)H);
+        return 0;
+    }
     if (m->skin_w) {
         crom_locate_interp(&m->loc, n, X, H, m->skin_w, w, noutside);
         return 0;
@@ -372,19 +384,25 @@ int crom_skin_model_mesh(crom_model *m, const crom_mesh *mesh, const double *w, 
     int rc = 0;
     m->mesh.nv = mesh->nv;
     m->mesh.nt = mesh->nt;
+    m->mesh.ntri = mesh->ntri;
+    m->mesh.thickness = mesh->thickness;
     m->mesh.X = crom_malloc(sizeof(double) * 3 * (size_t)mesh->nv);
-    m->mesh.tets = crom_malloc(sizeof(int) * 4 * (size_t)mesh->nt);
+    m->mesh.tets = crom_malloc(sizeof(int) * 4 * (size_t)(mesh->nt ? mesh->nt : 1));
+    m->mesh.tris = mesh->ntri ? crom_malloc(sizeof(int) * 3 * (size_t)mesh->ntri) : NULL;
     m->skin_w = crom_malloc(sizeof(double) * nw);
     m->skin_eig = eig ? crom_malloc(sizeof(double) * (size_t)H) : NULL;
-    if (!m->mesh.X || !m->mesh.tets || !m->skin_w || (eig && !m->skin_eig))
+    if (!m->mesh.X || !m->mesh.tets || (mesh->ntri && !m->mesh.tris) || !m->skin_w || (eig && !m->skin_eig))
         rc = CROM_EINTERNAL;
     if (!rc) {
         memcpy(m->mesh.X, mesh->X, sizeof(double) * 3 * (size_t)mesh->nv);
-        memcpy(m->mesh.tets, mesh->tets, sizeof(int) * 4 * (size_t)mesh->nt);
+        if (mesh->nt)
+            memcpy(m->mesh.tets, mesh->tets, sizeof(int) * 4 * (size_t)mesh->nt);
+        if (mesh->ntri)
+            memcpy(m->mesh.tris, mesh->tris, sizeof(int) * 3 * (size_t)mesh->ntri);
         memcpy(m->skin_w, w, sizeof(double) * nw);
         if (eig)
             memcpy(m->skin_eig, eig, sizeof(double) * (size_t)H);
-        rc = crom_locate_init(&m->loc, &m->mesh);
+        rc = crom_mesh_is_surface(&m->mesh) ? 0 : crom_locate_init(&m->loc, &m->mesh);
     }
     if (rc) {
         crom_model_free(m);
@@ -456,6 +474,10 @@ uint64_t crom_skin_digest(const crom_model *m, uint64_t h)
         h = fnv_i64(h, m->mesh.nt);
         h = fnv(h, m->mesh.X, sizeof(double) * 3 * (size_t)m->mesh.nv);
         h = fnv(h, m->mesh.tets, sizeof(int) * 4 * (size_t)m->mesh.nt);
+        if (crom_mesh_is_surface(&m->mesh)) { /* a shell's weights: its triangles too */
+            h = fnv_i64(h, m->mesh.ntri);
+            h = fnv(h, m->mesh.tris, sizeof(int) * 3 * (size_t)m->mesh.ntri);
+        }
         return fnv(h, m->skin_w, sizeof(double) * (size_t)m->mesh.nv * m->handles);
     }
     const crom_nn_spec *sp = &m->mlp.spec;
@@ -503,11 +525,8 @@ int crom_skin_write(hid_t loc, const crom_model *m)
     if (rc)
         return rc;
     if (m->skin_w) {
-        hsize_t dv[2] = {(hsize_t)m->mesh.nv, 3}, dt[2] = {(hsize_t)m->mesh.nt, 4};
         hsize_t dw[2] = {(hsize_t)m->mesh.nv, (hsize_t)m->handles};
-        rc = crom_h5_put_f64(loc, "field/mesh/vertices", 2, dv, m->mesh.X);
-        if (!rc)
-            rc = crom_h5_put_i32(loc, "field/mesh/tets", 2, dt, m->mesh.tets);
+        rc = crom_model_write_field_mesh(loc, &m->mesh);
         if (!rc)
             rc = crom_h5_put_f64(loc, "skin/weights", 2, dw, m->skin_w);
         if (!rc && m->skin_eig)
@@ -643,7 +662,7 @@ static int read_weight_mesh(hid_t h, crom_model *m)
         if ((rc = read_fixed(h, "skin/eigenvalues", 1, &dh, m->skin_eig)))
             return rc;
     }
-    return crom_locate_init(&m->loc, &m->mesh);
+    return crom_mesh_is_surface(&m->mesh) ? 0 : crom_locate_init(&m->loc, &m->mesh);
 }
 
 int crom_skin_read(hid_t h, crom_model *m, const char *act)
