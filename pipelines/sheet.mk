@@ -34,8 +34,9 @@
 # quadratic 4.3% | 64%, energy
 # 99.8% | 99.6%, mderiv-cub 1.6% | 28.9% at 0.05 | 0.11 ms per step (median)
 # against crom-fullsim's 8.4 | 21 ms, where the runs over every element take
-# 3-24 ms; skin (8 handles, rank 72) 2.0% | 2.6% at 83 | 98 ms per step
-# (measured later, beside a CI run; 16 handles: 0.43% | 0.84%). Bending modes lock: deflected, they stretch the membrane, (L/t)^2
+# 3-24 ms; skin (8 handles, rank 72) 2.0% | 2.6% at 0.95 | 5.6 ms per step
+# (median; measured later beside a CI run, where crom-fullsim took 10.7 | 30
+# ms; 16 handles: 0.43% | 0.84%). Bending modes lock: deflected, they stretch the membrane, (L/t)^2
 # = 4e4 times stiffer than bending; modal derivatives add the in-plane
 # shortening a bent sheet needs. quadratic is nmderiv untrained: the
 # training (6000 steps over the box) costs accuracy at this sag (34% after

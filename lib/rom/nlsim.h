@@ -65,6 +65,7 @@
 #include "phys/system.h"
 #include "phys/scenario.h"
 #include "rom/map.h"
+#include "rom/newton.h"
 #include "rom/rsim.h"
 
 typedef struct {
@@ -96,6 +97,12 @@ typedef struct {
     double *a, *T, *ga, *A0, *Aq, *bq, *AT, *xc, *Jc, *gc, *ge, *Bc, *Xc, *Bg, *fa, c0;
     int nbc, nforce, nsurf, *surf;
     double *xs;         /* [nsurf][3] the surface vertices at the step's start */
+    /* a linear basis (map->nonlinear 0): its Gauss–Newton matrix factored
+     * and reused across iterations and steps with quasi-Newton pairs, as
+     * crom_rsim does (nlsim.c) */
+    int lagged, fac_ok, fac_iters, fac_slow;
+    double *Hfac;
+    crom_newton_memory mem;
     crom_nlsim_bc *bc, *force;
 } crom_nlsim;
 
