@@ -599,9 +599,10 @@ static int rest_factor(crom_sim *s)
 int crom_sim_residual(crom_sim *s, double t1, const double *xprev, const double *vprev, const double *x,
                       double *err, double *urms, double *bc)
 {
-    const crom_scenario *sc = s->sc;
     size_t n = (size_t)s->n;
-    double h = sc->dt;
+    double h = s->sc->dt;
+    if (s->step > 0)
+        return crom_err(CROM_EINTERNAL, "crom_sim_residual on a stepped simulation (its factor is no rest stiffness)");
     int rc = rest_factor(s);
     if (rc)
         return rc;
@@ -614,14 +615,8 @@ int crom_sim_residual(crom_sim *s, double t1, const double *xprev, const double 
             miss = fmax(miss, fabs(x[i] - s->x[i]));
     crom_fem_opts fo = {0, 0, s->fixed, 0};
     double E;
-    if ((rc = crom_system_assemble(&s->sys, x, &fo, &E, s->g, NULL)))
+    if ((rc = ip_gradient(s, x, &fo, &E, s->g, NULL))) /* the step's own residual */
         return rc;
-    for (size_t i = 0; i < n; i++)
-        s->g[i] += s->m3[i] * ((x[i] - s->xhat[i]) / (h * h) + sc->damping * (x[i] - s->xn[i]) / h) - s->fext[i];
-    add_contact(s, x, s->g, NULL);
-    for (size_t i = 0; i < n; i++)
-        if (s->fixed[i])
-            s->g[i] = 0;
     if ((rc = crom_chol_solve(s->chol, s->g, s->d)))
         return rc;
     double ee = 0, uu = 0, m = 0;

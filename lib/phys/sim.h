@@ -71,9 +71,10 @@ int crom_sim_step(crom_sim *s, crom_sim_stats *st);
  * motions it would not resist). *err = |e|_M / √m, the mass-weighted RMS of
  * e over the vertices (m); *urms the same of the displacement x − X; *bc
  * the largest distance of a pinned or prescribed DOF from its target (m).
- * The simulation is left at (x, (x − xprev)/h) at t1. Returns 0, CROM_EDATA
- * (a state not finite, a stiffness at rest not positive definite), or
- * CROM_EINTERNAL. */
+ * The simulation, one of its own that is never stepped (CROM_EINTERNAL
+ * otherwise: a stepped one's factor is no rest stiffness), is left at (x,
+ * (x − xprev)/h) at t1. Returns 0, CROM_EDATA (a state not finite, a
+ * stiffness at rest not positive definite), or CROM_EINTERNAL. */
 int crom_sim_residual(crom_sim *s, double t1, const double *xprev, const double *vprev, const double *x,
                       double *err, double *urms, double *bc);
 

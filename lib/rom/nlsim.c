@@ -25,10 +25,10 @@
  * converge so is solved again with a fresh matrix at every iteration.
  * Measured on sheet.mk's hanging sheet in the skinning eigenmodes of 8
  * handles (rank 72, every triangle and hinge, 60 steps): at E = 1e9 the
- * median step fell from 83 ms to 1.1-1.4 ms (mean 12-16 ms) with the same
- * result; at E = 1e8 (a large rotation) to 7.6 ms (mean 37, from 98), where
+ * median step fell from 83 ms to 0.95 ms (mean 16 ms) with the same result;
+ * at E = 1e8 (a large rotation) from 98 to 5.6 ms (mean 34), where
  * crom_rsim's schedule (24 and 10) left early steps unconverged after 50
- * iterations and 5 and 4 cost more (20 ms median). */
+ * iterations, and 5 and 4 cost more (20 ms median). */
 #define SLOW_ITERS 6
 #define LAG_ITERS 8
 #define PAIRS 16
