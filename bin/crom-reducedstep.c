@@ -193,7 +193,7 @@ typedef struct {
     crom_model model;         /* a run over cubatures: the basis, laid on each mesh */
     crom_mesh mesh;           /* --indicator-mesh */
     double *prev, *prevdot;   /* positions and velocities, or q and qdot */
-    double rel, err, urms, bc; /* of the last frame: indicator, error and displacement RMS, BC miss */
+    double rel;               /* the last frame's indicator, ind.err / ind.urms (its other measures: in ind) */
     double initial[2];        /* the initial state's RMS distance from rest (m) and its velocity's (m/s) */
 } indicator;
 
@@ -203,7 +203,7 @@ static int put_values(crom_out *o, double t, long nstep, const double *q, const 
     double step = (double)nstep, tot = K + E + W, it = st->iterations, res = st->residual,
            cres = st->constraint_residual, cub = entry, secs = crom_clock_wall(st->seconds);
     const double *vals[] = {&t, &step, q, qd, &K, &E, &W, &tot, &it, &res, &cres, &cub, &secs,
-                            ind->on ? &ind->rel : NULL, ind->on ? &ind->err : NULL, ind->on ? &ind->bc : NULL};
+                            ind->on ? &ind->rel : NULL, ind->on ? &ind->ind.err : NULL, ind->on ? &ind->ind.bc : NULL};
     return crom_out_frame(o, vals);
 }
 
@@ -257,10 +257,11 @@ static int indicator_switch(indicator *I, const args *a, const crom_mesh *mesh)
 /* Measure the step that ended at t in state now (after save(prev) before it). */
 static int indicator_measure(indicator *I, double t, const double *now)
 {
-    int rc = crom_indicator_step(&I->ind, t, I->prev, I->prevdot, now, &I->err, &I->urms, &I->bc);
+    double err, urms, bc; /* also kept in I->ind */
+    int rc = crom_indicator_step(&I->ind, t, I->prev, I->prevdot, now, &err, &urms, &bc);
     if (rc)
         return rc;
-    I->rel = I->urms > 0 ? I->err / I->urms : 0;
+    I->rel = urms > 0 ? err / urms : 0;
     return 0;
 }
 
@@ -272,7 +273,7 @@ static void indicator_csv(crom_fileout *csv, const indicator *I, int stored, int
     fprintf(csv->f, "%d,%d,%.3e,%.3e,%.6e,%d,%d", k, st->iterations, st->residual, st->constraint_residual,
             st->seconds, ncub, st->vertex_evals);
     if (I->on && stored)
-        fprintf(csv->f, ",%.6e,%.6e", I->err, I->urms);
+        fprintf(csv->f, ",%.6e,%.6e", I->ind.err, I->ind.urms);
     else if (I->on)
         fputs(",,", csv->f);
     fputc('\n', csv->f);
