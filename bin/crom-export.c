@@ -10,6 +10,8 @@
 #include "cli/cli.h"
 #include "io/io.h"
 #include "mesh/mesh.h"
+#include "phys/rigidsys.h"
+#include "rom/result.h"
 #include "view/export.h"
 #include "view/follow.h"
 #include "view/picture.h"
@@ -84,6 +86,9 @@ static const crom_cli_doc doc = {
     "'von_mises_stress' (of the membrane stress F S F^T / J in the deformed plane, Pa; the "
     "bending stresses at the faces are left out). A crom/latent is decoded onto tet meshes, or onto the "
     "shell its model (modes, energy, neuralmodes) was made on.\n\n"
+    "Rigid-body scenes (crom-scene) and their runs are shown by their bodies' shapes: each body's "
+    "box, sphere or capsule as closed triangles (spheres and capsules in 12 latitude rings) that "
+    "move with the body's frame, exported like a shell surface (a region per body).\n\n"
     "Every output appears only when complete (written to a temporary file and renamed).",
     groups,
     "crom-mesh box | crom-export --format vtu -o box.vtu\n"
@@ -264,8 +269,20 @@ static int export_mesh(crom_cli *cli, args *a, crom_in *probe)
     int rc = crom_in_expect(probe, "crom/mesh", 1);
     crom_mesh m;
     hid_t root = rc ? -1 : H5Gopen2(probe->h5, "/", H5P_DEFAULT);
-    if (!rc && (rc = crom_mesh_read_any(root, &m)))
+    if (!rc && (rc = crom_mesh_read_flags(root, CROM_MESH_SURFACES | CROM_MESH_SCENES, &m)))
         crom_err_ctx("%s", probe->name);
+    if (!rc && m.scene) { /* a rigid-body scene: its bodies' shapes */
+        crom_mesh d;
+        double *beta;
+        int *body;
+        rc = crom_rigidsys_display(&m, CROM_RESULT_DISPLAY_RINGS, &d, &beta, &body);
+        crom_mesh_free(&m);
+        if (!rc) {
+            free(beta);
+            free(body);
+            m = d;
+        }
+    }
     if (root >= 0)
         H5Gclose(root);
     char *history = probe->history ? crom_strdup(probe->history) : NULL;

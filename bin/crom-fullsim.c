@@ -134,7 +134,10 @@ static int on_opt(void *ctx, int key, const char *v)
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
 
-static int put_frame(crom_out *o, crom_sim *s, const crom_sim_stats *st, double *u)
+/* A frame; a rigid-body scene also gets each body's [R|t] into pose
+ * [nb][12] and the joint gaps into gap [nj] (frame fields body_pose,
+ * joint_gap). */
+static int put_frame(crom_out *o, crom_sim *s, const crom_sim_stats *st, double *u, double *pose, double *gap)
 {
     double K, E, W;
     int rc = crom_sim_energies(s, &K, &E, &W);
@@ -143,7 +146,18 @@ static int put_frame(crom_out *o, crom_sim *s, const crom_sim_stats *st, double 
     crom_sim_displacement(s, u);
     double step = (double)s->step, tot = K + E + W, it = st->newton, res = st->residual,
            secs = crom_clock_wall(st->t_total);
-    const double *vals[] = {&s->t, &step, u, s->v, &K, &E, &W, &tot, &it, &res, &secs};
+    const crom_rigidsys *rb = &s->sys.rb;
+    for (int b = 0; s->sys.rigid && b < rb->nb; b++) {
+        double R[9], t[3], *P = pose + 12 * (size_t)b;
+        crom_rigidsys_pose(rb, b, s->x, R, t);
+        for (int i = 0; i < 3; i++) {
+            memcpy(P + 4 * i, R + 3 * i, 3 * sizeof(double));
+            P[4 * i + 3] = t[i];
+        }
+    }
+    if (s->sys.rigid)
+        crom_rigidsys_joint_gaps(rb, s->x, gap);
+    const double *vals[] = {&s->t, &step, u, s->v, &K, &E, &W, &tot, &it, &res, &secs, pose, gap};
     return crom_out_frame(o, vals);
 }
 
@@ -284,9 +298,14 @@ static int run(crom_cli *cli, args *a)
 {
     crom_mesh m;
     char *hist = NULL;
-    int rc = crom_mesh_load(a->input, CROM_MESH_SURFACES, &m, &hist);
+    int rc = crom_mesh_load(a->input, CROM_MESH_SURFACES | CROM_MESH_SCENES, &m, &hist);
     if (rc)
         return rc;
+    if (a->equilibria && m.scene) {
+        free(hist);
+        crom_mesh_free(&m);
+        return crom_err(CROM_EUSAGE, "--equilibria takes a solid or a shell, not a rigid-body scene");
+    }
     if (a->equilibria) {
         rc = run_equilibria(cli, a, &m, hist);
         free(hist);
@@ -322,14 +341,21 @@ static int run(crom_cli *cli, args *a)
                                     "step_seconds"};
     for (int i = 0; i < 11 && !rc; i++)
         rc = crom_out_field(&o, f[i], (i == 2 || i == 3) ? 2 : 0, dims, NULL);
+    int nb = m.scene ? m.scene->nb : 0, nj = m.scene ? m.scene->nj : 0;
+    hsize_t pdims[3] = {(hsize_t)nb, 3, 4}, jdims[1] = {(hsize_t)nj};
+    if (!rc && nb)
+        rc = crom_out_field(&o, "body_pose", 3, pdims, NULL);
+    if (!rc && nj)
+        rc = crom_out_field(&o, "joint_gap", 1, jdims, NULL);
     if (!rc)
         rc = crom_out_begin(&o);
     double *u = crom_malloc(sizeof(double) * 3 * (size_t)m.nv);
+    double *pose = crom_malloc(sizeof(double) * (12 * (size_t)nb + 1)), *gap = crom_malloc(sizeof(double) * ((size_t)nj + 1));
     crom_sim_stats st = {0}, sum = {0};
-    if (!u)
+    if (!u || !pose || !gap)
         rc = CROM_EINTERNAL;
     if (!rc)
-        rc = put_frame(&o, &s, &st, u);
+        rc = put_frame(&o, &s, &st, u, pose, gap);
     crom_fileout csv = {0};
     if (!rc && a->stats && !(rc = crom_fileout_open(&csv, a->stats, 0)))
         fprintf(csv.f, "step,newton,cg,factorizations,residual,seconds,assembly,factorization,solves,line_search\n");
@@ -356,13 +382,15 @@ static int run(crom_cli *cli, args *a)
                     st.factorizations, st.residual, st.t_total, st.t_assemble, st.t_factor, st.t_solve,
                     st.t_linesearch);
         if (k % a->sc.every == 0)
-            rc = put_frame(&o, &s, &st, u);
+            rc = put_frame(&o, &s, &st, u, pose, gap);
         char extra[64];
         snprintf(extra, sizeof extra, "%d Newton, res %.1e", st.newton, st.residual);
         crom_cli_progress_update(&prog, k, extra);
     }
     crom_cli_progress_end(&prog);
     free(u);
+    free(pose);
+    free(gap);
     if ((rc = crom_out_finish_run(&o, &csv, rc)))
         goto out_sim;
     if (cli->verbose && a->sc.steps > 0) {
@@ -370,7 +398,8 @@ static int run(crom_cli *cli, args *a)
         crom_cli_info(cli, "%d vertices, %d %s: %d steps, %.3f s/step (assembly %.3f, factorization %.3f, "
                            "solves %.3f, line search %.3f), %.2f Newton and %.1f CG iterations and %.2f "
                            "factorizations per step",
-                      m.nv, m.ntri ? m.ntri : m.nt, m.ntri ? "triangles" : "tets", ns, sum.t_total / ns, sum.t_assemble / ns, sum.t_factor / ns,
+                      m.nv, m.scene ? m.scene->nb : m.ntri ? m.ntri : m.nt,
+                      m.scene ? "rigid bodies" : m.ntri ? "triangles" : "tets", ns, sum.t_total / ns, sum.t_assemble / ns, sum.t_factor / ns,
                       sum.t_solve / ns, sum.t_linesearch / ns, (double)sum.newton / ns,
                       (double)sum.cg / ns, (double)sum.factorizations / ns);
     }

@@ -69,14 +69,29 @@ static int on_opt(void *ctx, int key, const char *v)
 static void print_mesh(hid_t loc, const char *indent)
 {
     crom_mesh m;
-    if (crom_mesh_read_any(loc, &m)) {
+    if (crom_mesh_read_flags(loc, CROM_MESH_SURFACES | CROM_MESH_SCENES, &m)) {
         printf("%smesh: INVALID: %s\n", indent, crom_errmsg());
         return;
     }
-    double lo[3], hi[3], worst, mean;
+    double lo[3], hi[3], worst = 0, mean = 0;
     int wt;
     crom_mesh_bbox(&m, lo, hi);
-    if (crom_mesh_is_surface(&m)) {
+    if (m.scene) {
+        const crom_scene *s = m.scene;
+        int count[CROM_SCENE_COUNT] = {0}, pins = 0;
+        double mass = 0;
+        for (int b = 0; b < s->nb; b++) {
+            count[s->bodies[b].shape]++;
+            mass += s->bodies[b].density * crom_scene_body_volume(&s->bodies[b]);
+        }
+        for (int j = 0; j < s->nj; j++)
+            pins += s->joints[j].b < 0;
+        printf("%sa rigid-body scene: %d bodies (%d boxes, %d spheres, %d capsules, %d rings; %d DOF), mass %.6g kg\n",
+               indent, s->nb, count[CROM_SCENE_BOX], count[CROM_SCENE_SPHERE], count[CROM_SCENE_CAPSULE],
+               count[CROM_SCENE_RING], 12 * s->nb, mass);
+        printf("%s%d joints (%d pinned to the world), %d collision pairs, orthogonality weight %.4g J\n", indent,
+               s->nj, pins, s->np, s->ortho_weight);
+    } else if (crom_mesh_is_surface(&m)) {
         printf("%s%d vertices, %d triangles (a shell), thickness %.6g m, area %.6g m^2\n", indent, m.nv, m.ntri,
                m.thickness, crom_mesh_volume(&m) / m.thickness);
     } else {
@@ -85,7 +100,7 @@ static void print_mesh(hid_t loc, const char *indent)
     }
     printf("%sbounding box [%.4g, %.4g] x [%.4g, %.4g] x [%.4g, %.4g] m\n", indent, lo[0], hi[0],
            lo[1], hi[1], lo[2], hi[2]);
-    if (!crom_mesh_is_surface(&m))
+    if (!crom_mesh_is_surface(&m) && !m.scene)
         printf("%squality (mean ratio) worst %.3f, mean %.3f\n", indent, worst, mean);
     for (int r = 0; r < m.nregions; r++)
         printf("%sregion %-12s %6d vertices  (%s)\n", indent, m.regions[r].name, m.regions[r].n,

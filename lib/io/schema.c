@@ -22,17 +22,35 @@ static const crom_schema_attr common_attrs[] = {
 #define TETS_DESC "0-based vertex indices of each tetrahedron, positively oriented"
 #define TRIS_DESC "0-based vertex indices of each triangle of a shell surface (no tets then), consistently oriented"
 #define THICKNESS_DESC "the shell's thickness (m)"
+#define ORTHO_DESC "a rigid-body scene: the weight w of each body's orthogonality potential, w times the squared Frobenius norm of R^T R - I (J)"
+/* a rigid-body scene (lib/mesh/scene.h), under the mesh's group P */
+#define SCENE_DSETS(P)                                                                                        \
+    {P "scene/shape", "i32", "nb", 0, "1", "a rigid-body scene: each body's shape, 0 box, 1 sphere, 2 capsule, 3 ring", NULL}, \
+    {P "scene/size", "f64", "nb,3", 0, "m", "each body's shape size: a box's full extents; a sphere's radius; a capsule's " \
+                                           "radius and axis length (along x); a ring's tube radius, radius and straight " \
+                                           "length; unused entries 0", NULL},     \
+    {P "scene/centre", "f64", "nb,3", 0, "m", "each body's rest centre", NULL}, \
+    {P "scene/density", "f64", "nb", 0, "kg/m^3", "each body's density", NULL},                             \
+    {P "scene/rotation", "f64", "nb,3,3", 0, "1", "each body's rest rotation Q, shape to world: its shape point p " \
+                                                 "is at rest at centre + Q p (absent: the identity)", NULL},   \
+    {P "scene/joint_bodies", "i32", "nj,2", 0, "1", "each penalty joint's bodies a, b (b = -1: pinned to the world)", NULL}, \
+    {P "scene/joint_points", "f64", "nj,3", 0, "m", "each joint's rest point, held together in both bodies", NULL}, \
+    {P "scene/joint_weights", "f64", "nj", 0, "N/m", "each joint's penalty weight w: energy 1/2 w gap^2", NULL}, \
+    {P "scene/pair_bodies", "i32", "np,2", 0, "1", "each collision pair: body a's surface points against body b's " \
+                                                 "signed distance", NULL},                                  \
+    {P "scene/pair_weights", "f64", "np", 0, "N/m", "each pair's penalty weight w: energy 1/2 w sum min(phi, 0)^2", NULL}
 #define FIELDS_DESC "the frame field names, comma-separated, in the order a frame stream packs them"
 
 static const crom_schema_attr mesh_attrs[] = {
     {"generator", "str", 0, "what made the mesh: box, plate, sphere, cylinder, superquadric, import, sheet or disk (crom-mesh); "
-                            "remesh cut, punch, swap or refine with its parameters (crom-remesh)", NULL},
+                            "remesh cut, punch, swap or refine with its parameters (crom-remesh); pendulum or chain (crom-scene)", NULL},
     {"target_size", "f64", 0, "target edge length given to the mesher (m)", NULL},
     {NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_attr mesh_objattrs[] = {
     {"source", "str", 1, REGION_SOURCE, "regions/*"},
     {"thickness", "f64", 1, THICKNESS_DESC, "triangles"},
+    {"ortho_weight", "f64", 1, ORTHO_DESC, "scene"},
     {NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_dset mesh_dsets[] = {
@@ -40,6 +58,7 @@ static const crom_schema_dset mesh_dsets[] = {
     {"tets", "i32", "nt,4", 0, "1", TETS_DESC, NULL},
     {"triangles", "i32", "ntri,3", 0, "1", TRIS_DESC, NULL},
     {"regions/*", "i32", "?", 0, "1", REGION_DESC, NULL},
+    SCENE_DSETS(""),
     {NULL, NULL, NULL, 0, NULL, NULL, NULL}};
 
 /* the scenario a run was given, as crom_scenario_write_attrs stores it */
@@ -73,6 +92,7 @@ static const crom_schema_attr traj_objattrs[] = {
     {"fields", "str", 1, FIELDS_DESC, "frames"},
     {"source", "str", 1, REGION_SOURCE, "mesh/regions/*"},
     {"thickness", "f64", 1, THICKNESS_DESC, "mesh/triangles"},
+    {"ortho_weight", "f64", 1, ORTHO_DESC, "mesh/scene"},
     {NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_dset traj_dsets[] = {
@@ -80,6 +100,7 @@ static const crom_schema_dset traj_dsets[] = {
     {"mesh/tets", "i32", "nt,4", 0, "1", TETS_DESC, NULL},
     {"mesh/triangles", "i32", "ntri,3", 0, "1", TRIS_DESC, NULL},
     {"mesh/regions/*", "i32", "?", 0, "1", REGION_DESC, NULL},
+    SCENE_DSETS("mesh/"),
     {"frames/time", "f64", "F", 1, "s", "simulated time of each frame", NULL},
     {"frames/step", "f64", "F", 1, "1", "time-step index of each frame (0 = initial state)", NULL},
     {"frames/displacement", "f64", "F,nv,3", 1, "m", "displacement u = x - X of every vertex", NULL},
@@ -91,6 +112,10 @@ static const crom_schema_dset traj_dsets[] = {
     {"frames/newton_iterations", "f64", "F", 1, "1", "Newton iterations of the step that produced the frame (0 for frame 0)", NULL},
     {"frames/residual", "f64", "F", 1, "1", "last Newton correction of that step, max-norm, relative to the bounding-box diagonal", NULL},
     {"frames/step_seconds", "f64", "F", 1, "s", "wall time of that step (0 when SOURCE_DATE_EPOCH is set)", NULL},
+    {"frames/body_pose", "f64", "F,nb,3,4", 0, "1", "a rigid-body scene: each body's affine map x = R X + t of its rest "
+                                                 "points X, R in the first three columns, t (m) in the last", NULL},
+    {"frames/joint_gap", "f64", "F,nj", 0, "m", "a rigid-body scene: each joint's gap, the distance between x_a(P) and "
+                                               "x_b(P) (a pin: from its rest point)", NULL},
     {"frames/modal_coordinates", "f64", "F,r", 0, "m", "constrained equilibria: the modal coordinates z = W^T M u / m "
                                                        "of the frame", NULL},
     {"frames/modal_forces", "f64", "F,r", 0, "N", "constrained equilibria: the generalized forces -W^T grad E that "

@@ -226,19 +226,41 @@ static int validate_surface(const crom_mesh *m)
     return 0;
 }
 
+/* every region index in [0, nv) */
+static int validate_regions(const crom_mesh *m)
+{
+    for (int r = 0; r < m->nregions; r++)
+        for (int j = 0; j < m->regions[r].n; j++)
+            if (m->regions[r].idx[j] < 0 || m->regions[r].idx[j] >= m->nv)
+                return crom_err(CROM_EDATA, "region '%s' refers to vertex %d, but there are %d vertices",
+                                m->regions[r].name, m->regions[r].idx[j], m->nv);
+    return 0;
+}
+
+static int validate_scene(const crom_mesh *m)
+{
+    if (m->nt || m->ntri)
+        return crom_err(CROM_EDATA, "a rigid-body scene has tets (%d) or triangles (%d)", m->nt, m->ntri);
+    int rc = crom_scene_validate(m->scene);
+    if (!rc && m->nv != 4 * m->scene->nb)
+        rc = crom_err(CROM_EDATA, "a scene of %d bodies has %d vertices; it needs 4 frame vertices per body",
+                      m->scene->nb, m->nv);
+    for (size_t i = 0; !rc && i < 3 * (size_t)m->nv; i++)
+        if (!isfinite(m->X[i]))
+            rc = crom_err(CROM_EDATA, "vertex %zu has a non-finite coordinate", i / 3);
+    return rc ? rc : validate_regions(m);
+}
+
 int crom_mesh_validate(const crom_mesh *m)
 {
+    if (m->scene)
+        return validate_scene(m);
     if (m->ntri > 0 || m->tris) {
         for (size_t i = 0; i < 3 * (size_t)m->nv; i++)
             if (!isfinite(m->X[i]))
                 return crom_err(CROM_EDATA, "vertex %zu has a non-finite coordinate", i / 3);
         int rc = validate_surface(m);
-        for (int r = 0; !rc && r < m->nregions; r++)
-            for (int j = 0; j < m->regions[r].n; j++)
-                if (m->regions[r].idx[j] < 0 || m->regions[r].idx[j] >= m->nv)
-                    return crom_err(CROM_EDATA, "region '%s' refers to vertex %d, but there are %d vertices",
-                                    m->regions[r].name, m->regions[r].idx[j], m->nv);
-        return rc;
+        return rc ? rc : validate_regions(m);
     }
     if (m->nv < 4 || m->nt < 1)
         return crom_err(CROM_EDATA, "mesh has %d vertices and %d tets; a solid needs at least 4 and 1",
@@ -258,12 +280,7 @@ int crom_mesh_validate(const crom_mesh *m)
             return crom_err(CROM_EDATA, "tet %d has non-positive volume %.3g m^3 (tets must be positively oriented)",
                             t, V);
     }
-    for (int r = 0; r < m->nregions; r++)
-        for (int j = 0; j < m->regions[r].n; j++)
-            if (m->regions[r].idx[j] < 0 || m->regions[r].idx[j] >= m->nv)
-                return crom_err(CROM_EDATA, "region '%s' refers to vertex %d, but there are %d vertices",
-                                m->regions[r].name, m->regions[r].idx[j], m->nv);
-    return 0;
+    return validate_regions(m);
 }
 
 /* ---------------------------------------------------------------- boundary */
@@ -424,6 +441,8 @@ void crom_mesh_free(crom_mesh *m)
     free(m->tets);
     free(m->tris);
     free_regions(m->regions, m->nregions);
+    crom_scene_free(m->scene);
+    free(m->scene);
     memset(m, 0, sizeof *m);
 }
 
@@ -446,6 +465,12 @@ int crom_mesh_copy(const crom_mesh *s, crom_mesh *d)
         memcpy(d->tets, s->tets, sizeof(int) * 4 * (size_t)s->nt);
     if (s->ntri)
         memcpy(d->tris, s->tris, sizeof(int) * 3 * (size_t)s->ntri);
+    if (s->scene && (!(d->scene = crom_malloc(sizeof *d->scene)) || crom_scene_copy(s->scene, d->scene))) {
+        free(d->scene);
+        d->scene = NULL;
+        crom_mesh_free(d);
+        return CROM_EINTERNAL;
+    }
     for (int r = 0; r < s->nregions; r++) {
         int rc = crom_mesh_add_region(d, s->regions[r].name, s->regions[r].source,
                                       s->regions[r].idx, s->regions[r].n);
@@ -596,7 +621,9 @@ int crom_mesh_write(hid_t loc, const crom_mesh *m)
 {
     hsize_t dv[2] = {(hsize_t)m->nv, 3}, dt[2] = {(hsize_t)m->nt, 4}, dtri[2] = {(hsize_t)m->ntri, 3};
     int rc = crom_h5_put_f64(loc, "vertices", 2, dv, m->X);
-    if (!rc && crom_mesh_is_surface(m)) {
+    if (!rc && m->scene) {
+        rc = crom_scene_write(loc, m->scene);
+    } else if (!rc && crom_mesh_is_surface(m)) {
         rc = crom_h5_put_i32(loc, "triangles", 2, dtri, m->tris);
         if (!rc)
             rc = crom_h5_set_f64(loc, "triangles", "thickness", &m->thickness, 1);
@@ -623,18 +650,43 @@ int crom_mesh_write(hid_t loc, const crom_mesh *m)
     "crom-fullsim, crom-modes, crom-sample, crom-encode, crom-cubature, crom-reducedstep --model, crom-diff, " \
     "crom-export, crom-info"
 
+static int read_mesh(hid_t loc, crom_mesh *m);
+
+/* The programs that take a rigid-body scene. */
+#define SCENE_PROGRAMS "crom-fullsim, crom-export, crom-diff, crom-info"
+
 int crom_mesh_read(hid_t loc, crom_mesh *m)
 {
-    int rc = crom_mesh_read_any(loc, m);
-    if (!rc && crom_mesh_is_surface(m)) {
-        rc = crom_err(CROM_EUSAGE, "the mesh is a shell surface (%d triangles); this program takes tet meshes "
-                      "(shells: " SHELL_PROGRAMS ")", m->ntri);
-        crom_mesh_free(m);
-    }
-    return rc;
+    return crom_mesh_read_flags(loc, 0, m);
 }
 
 int crom_mesh_read_any(hid_t loc, crom_mesh *m)
+{
+    return crom_mesh_read_flags(loc, CROM_MESH_SURFACES, m);
+}
+
+/* Refuse what flags does not take (mesh freed then). */
+static int check_kind(const char *name, int flags, crom_mesh *m)
+{
+    int rc = 0;
+    if (m->scene && !(flags & CROM_MESH_SCENES))
+        rc = crom_err(CROM_EUSAGE, "%s is a rigid-body scene (%d bodies); this program does not take scenes yet "
+                      "(scenes: " SCENE_PROGRAMS ")", name ? name : "the mesh", m->scene->nb);
+    else if (crom_mesh_is_surface(m) && !(flags & CROM_MESH_SURFACES))
+        rc = crom_err(CROM_EUSAGE, "%s is a shell surface (%d triangles); this program takes tet meshes (shells: "
+                      SHELL_PROGRAMS ")", name ? name : "the mesh", m->ntri);
+    if (rc)
+        crom_mesh_free(m);
+    return rc;
+}
+
+int crom_mesh_read_flags(hid_t loc, int flags, crom_mesh *m)
+{
+    int rc = read_mesh(loc, m);
+    return rc ? rc : check_kind(NULL, flags, m);
+}
+
+static int read_mesh(hid_t loc, crom_mesh *m)
 {
     memset(m, 0, sizeof *m);
     hsize_t dv[2], dt[2];
@@ -642,7 +694,15 @@ int crom_mesh_read_any(hid_t loc, crom_mesh *m)
     if (!rc && dv[1] != 3)
         rc = crom_err(CROM_EDATA, "'vertices' has %llu columns, expected 3", (unsigned long long)dv[1]);
     int surface = !rc && !crom_h5_has(loc, "tets") && crom_h5_has(loc, "triangles");
-    if (!rc && surface) { /* a shell: triangles and their thickness */
+    int scene = !rc && !crom_h5_has(loc, "tets") && !surface && crom_h5_has(loc, "scene");
+    if (!rc && scene) { /* a rigid-body scene: its bodies, joints and pairs; no elements */
+        m->scene = crom_calloc(1, sizeof *m->scene);
+        rc = m->scene ? crom_scene_read(loc, m->scene) : CROM_EINTERNAL;
+        if (!rc && dv[0] > INT32_MAX / 3)
+            rc = crom_err(CROM_EDATA, "mesh too large");
+        if (!rc)
+            m->tets = crom_malloc(sizeof(int) * 4);
+    } else if (!rc && surface) { /* a shell: triangles and their thickness */
         rc = crom_h5_read_i32(loc, "triangles", 2, dt, &m->tris);
         if (!rc && dt[1] != 3)
             rc = crom_err(CROM_EDATA, "'triangles' has %llu columns, expected 3", (unsigned long long)dt[1]);
@@ -668,7 +728,9 @@ int crom_mesh_read_any(hid_t loc, crom_mesh *m)
         return rc;
     }
     m->nv = (int)dv[0];
-    if (surface)
+    if (scene)
+        ;
+    else if (surface)
         m->ntri = (int)dt[0];
     else
         m->nt = (int)dt[0];
@@ -717,7 +779,7 @@ int crom_mesh_load(const char *path, int flags, crom_mesh *m, char **history)
                       in.schema, in.version);
     if (!rc) {
         hid_t g = H5Gopen2(in.h5, group, H5P_DEFAULT);
-        rc = g < 0 ? crom_err(CROM_EDATA, "%s has no mesh", in.name) : crom_mesh_read_any(g, m);
+        rc = g < 0 ? crom_err(CROM_EDATA, "%s has no mesh", in.name) : read_mesh(g, m);
         if (g >= 0)
             H5Gclose(g);
         if (rc && g >= 0 && strcmp(group, "/"))
@@ -725,11 +787,8 @@ int crom_mesh_load(const char *path, int flags, crom_mesh *m, char **history)
         if (rc && g >= 0)
             crom_err_ctx("%s", in.name);
     }
-    if (!rc && crom_mesh_is_surface(m) && !(flags & CROM_MESH_SURFACES)) {
-        rc = crom_err(CROM_EUSAGE, "%s is a shell surface (%d triangles); this program takes tet meshes (shells: "
-                      SHELL_PROGRAMS ")", in.name, m->ntri);
-        crom_mesh_free(m);
-    }
+    if (!rc)
+        rc = check_kind(in.name, flags, m);
     if (!rc && history) {
         *history = in.history;
         in.history = NULL;

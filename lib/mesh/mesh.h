@@ -14,6 +14,7 @@
 #include <stddef.h>
 
 #include "mesh/pred.h"
+#include "mesh/scene.h"
 
 typedef struct {
     char *name;   /* region name: [A-Za-z0-9_.-]+ */
@@ -31,10 +32,14 @@ typedef struct {
     int ntri;         /* a surface mesh: triangles instead of tets (nt = 0) */
     int *tris;        /* [ntri][3] vertex indices, consistently oriented */
     double thickness; /* of the shell (m); 0 for a solid */
+    crom_scene *scene; /* a rigid-body scene (scene.h): nv = 4 frame vertices per body, no tets or
+                        * triangles; NULL for a solid or a shell */
 } crom_mesh;
 
 /* 1 for a surface (shell) mesh: triangles, no tets */
 static inline int crom_mesh_is_surface(const crom_mesh *m) { return m->ntri > 0; }
+/* 1 for a rigid-body scene */
+static inline int crom_mesh_is_scene(const crom_mesh *m) { return m->scene != NULL; }
 
 
 #include <hdf5.h>
@@ -133,16 +138,20 @@ int crom_mesh_write(hid_t loc, const crom_mesh *m);
  * takes both. */
 int crom_mesh_read(hid_t loc, crom_mesh *m);
 int crom_mesh_read_any(hid_t loc, crom_mesh *m);
+/* … taking what flags allows: CROM_MESH_SURFACES, CROM_MESH_SCENES (below);
+ * crom_mesh_read is flags 0, crom_mesh_read_any CROM_MESH_SURFACES. */
+int crom_mesh_read_flags(hid_t loc, int flags, crom_mesh *m);
 
 /* Read the crom/mesh at path (NULL or "-": stdin) or, when flags has
  * CROM_MESH_CARRIERS (1), also the /mesh of a crom/trajectory or
  * crom/cubature. A surface mesh is refused (CROM_EUSAGE, "... is a shell
  * surface; this program takes tet meshes") unless flags has
- * CROM_MESH_SURFACES. When history is not NULL it takes over the input's
+ * CROM_MESH_SURFACES, and a scene unless it has CROM_MESH_SCENES. When history is not NULL it takes over the input's
  * history attribute (malloc'ed; NULL if it had none), for the output's
  * provenance. */
 #define CROM_MESH_CARRIERS 1
 #define CROM_MESH_SURFACES 2
+#define CROM_MESH_SCENES 4 /* also accept a rigid-body scene (scene.h) */
 int crom_mesh_load(const char *path, int flags, crom_mesh *m, char **history);
 
 #define CROM_MESH_SCHEMA "crom/mesh"

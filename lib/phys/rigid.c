@@ -4,6 +4,7 @@
 #include <string.h>
 
 #include "base/err.h"
+#include "mesh/scene.h"
 #include "phys/fem.h"
 #include "phys/rigid.h"
 #include "phys/sym.h"
@@ -230,4 +231,152 @@ void crom_rigid_joint(const double beta[4], const double gamma[4], double w, con
                 for (int i = 0; i < 3; i++)
                     H[24 * (3 * k + i) + 3 * l + i] = w * c[k] * c[l];
     }
+}
+
+/* ------------------------------------------------------------ contacts */
+
+/* φ = |d| − r for d the offset of q from a segment along x of half-length
+ * h (h = 0: a point), with gradient and Hessian (a sphere, a capsule) */
+static void seg_sdf(double r, double h, const double q[3], double *phi, double *g, double *H)
+{
+    int inside = fabs(q[0]) < h;
+    double d[3] = {inside ? 0 : q[0] - (q[0] > 0 ? h : -h), q[1], q[2]};
+    double n = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (n < 1e-300)
+        n = 1e-300;
+    *phi = n - r;
+    for (int i = 0; g && i < 3; i++)
+        g[i] = d[i] / n;
+    for (int i = 0; H && i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            H[3 * i + j] = ((i == j) - d[i] * d[j] / (n * n) - (inside && i == 0 && j == 0)) / n;
+}
+
+void crom_rigid_sdf(int shape, const double size[3], const double q[3], double *phi, double *g, double *H)
+{
+    double gg[3], HH[9];
+    if (!g)
+        g = gg;
+    if (!H)
+        H = HH;
+    memset(H, 0, 9 * sizeof(double));
+    if (shape == CROM_SCENE_BOX) {
+        double e[3], out = 0;
+        int k = 0;
+        for (int i = 0; i < 3; i++) {
+            e[i] = fabs(q[i]) - size[i] / 2;
+            if (e[i] > e[k])
+                k = i;
+            out += e[i] > 0 ? e[i] * e[i] : 0;
+        }
+        if (e[k] <= 0) { /* inside: the nearest face's plane */
+            *phi = e[k];
+            g[0] = g[1] = g[2] = 0;
+            g[k] = q[k] >= 0 ? 1 : -1;
+            return;
+        }
+        *phi = sqrt(out);
+        for (int i = 0; i < 3; i++)
+            g[i] = e[i] > 0 ? (q[i] >= 0 ? 1 : -1) * e[i] / *phi : 0;
+        return;
+    }
+    if (shape == CROM_SCENE_SPHERE || shape == CROM_SCENE_CAPSULE) {
+        seg_sdf(size[0], shape == CROM_SCENE_CAPSULE ? size[1] / 2 : 0, q, phi, g, H);
+        return;
+    }
+    /* a ring: ρ = a − R the signed in-plane distance from the stadium curve
+     * (a the distance of (q_x, q_y) from the segment |x| <= h), and φ =
+     * |(ρ, q_z)| − r */
+    double r = size[0], R = size[1], h = size[2] / 2, ga[3], Ha[9];
+    double q2[3] = {q[0], q[1], 0}, a;
+    seg_sdf(0, h, q2, &a, ga, Ha); /* a = |s|, ga = ∇a, Ha = ∇²a (in-plane; its z row and column are dropped) */
+    ga[2] = 0;
+    for (int i = 0; i < 3; i++)
+        Ha[3 * i + 2] = Ha[6 + i] = 0;
+    double rho = a - R, u = sqrt(rho * rho + q[2] * q[2]);
+    if (u < 1e-300)
+        u = 1e-300;
+    *phi = u - r;
+    double m0 = rho / u, m1 = q[2] / u;
+    for (int i = 0; i < 3; i++)
+        g[i] = m0 * ga[i] + (i == 2 ? m1 : 0);
+    /* ∇²φ = Jᵀ (I − m mᵀ) J / u + m0 ∇²ρ, J = [∇ρ; e_z] */
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            double Ji[2] = {ga[i], i == 2}, Jj[2] = {ga[j], j == 2}, P[2][2] = {{1 - m0 * m0, -m0 * m1}, {-m0 * m1, 1 - m1 * m1}};
+            double v = 0;
+            for (int k = 0; k < 2; k++)
+                for (int l = 0; l < 2; l++)
+                    v += Ji[k] * P[k][l] * Jj[l];
+            H[3 * i + j] = v / u + m0 * Ha[3 * i + j];
+        }
+}
+
+int crom_rigid_contact(const double beta[4], const double Bq[9], int shape, const double size[3], double w,
+                       const double ya[12], const double yb[12], int project, double *E, double *g, double *H)
+{
+    /* R'_ij = Σ_k yb_(k,i) b_k[j] (edge_weights of Bq), d = Σ β_m ya_m − ¼ Σ yb_m,
+     * ℓ_j = Σ_i R'_ij d_i */
+    double b[4][3], Rp[9] = {0}, d[3], l[3];
+    edge_weights(Bq, b);
+    for (int i = 0; i < 3; i++) {
+        for (int j = 0; j < 3; j++)
+            for (int k = 0; k < 4; k++)
+                Rp[3 * i + j] += yb[3 * k + i] * b[k][j];
+        d[i] = 0;
+        for (int m = 0; m < 4; m++)
+            d[i] += beta[m] * ya[3 * m + i] - 0.25 * yb[3 * m + i];
+    }
+    for (int j = 0; j < 3; j++)
+        l[j] = Rp[j] * d[0] + Rp[3 + j] * d[1] + Rp[6 + j] * d[2];
+    double phi, gp[3], Hp[9];
+    crom_rigid_sdf(shape, size, l, &phi, gp, Hp);
+    if (E)
+        *E = phi < 0 ? 0.5 * w * phi * phi : 0;
+    if (g)
+        memset(g, 0, 24 * sizeof(double));
+    if (H)
+        memset(H, 0, 576 * sizeof(double));
+    if (phi >= 0 || (!g && !H))
+        return 0;
+    /* J[j][c] = ∂ℓ_j/∂y_c over the 24 coordinates c = 3k + i (ya, then yb):
+     * ∂ℓ_j/∂ya_(m,i) = R'_ij β_m, ∂ℓ_j/∂yb_(k,i) = b_k[j] d_i − ¼ R'_ij */
+    double J[3][24];
+    for (int j = 0; j < 3; j++)
+        for (int k = 0; k < 4; k++)
+            for (int i = 0; i < 3; i++) {
+                J[j][3 * k + i] = Rp[3 * i + j] * beta[k];
+                J[j][12 + 3 * k + i] = b[k][j] * d[i] - 0.25 * Rp[3 * i + j];
+            }
+    double s[24]; /* ∇_y φ = Jᵀ ∇φ */
+    for (int c = 0; c < 24; c++)
+        s[c] = J[0][c] * gp[0] + J[1][c] * gp[1] + J[2][c] * gp[2];
+    for (int c = 0; g && c < 24; c++)
+        g[c] = w * phi * s[c];
+    if (!H)
+        return 0;
+    /* H = w (s sᵀ + φ (Jᵀ ∇²φ J + Σ_j ∂φ/∂ℓ_j ∇²ℓ_j)); ∇²ℓ_j couples
+     * yb_(k,i) with ya_(m,i) by b_k[j] β_m and yb_(k,i) with yb_(n,i) by
+     * −¼ (b_k[j] + b_n[j]) */
+    double HJ[3][24];
+    for (int a = 0; a < 3; a++)
+        for (int c = 0; c < 24; c++)
+            HJ[a][c] = Hp[3 * a] * J[0][c] + Hp[3 * a + 1] * J[1][c] + Hp[3 * a + 2] * J[2][c];
+    for (int p = 0; p < 24; p++)
+        for (int q = 0; q < 24; q++)
+            H[24 * p + q] = w * (s[p] * s[q] + phi * (J[0][p] * HJ[0][q] + J[1][p] * HJ[1][q] + J[2][p] * HJ[2][q]));
+    for (int k = 0; k < 4; k++) {
+        double cb = gp[0] * b[k][0] + gp[1] * b[k][1] + gp[2] * b[k][2]; /* Σ_j ∂φ/∂ℓ_j b_k[j] */
+        for (int i = 0; i < 3; i++) {
+            int pb = 12 + 3 * k + i;
+            for (int m = 0; m < 4; m++) {
+                double v = w * phi * cb * beta[m];
+                H[24 * pb + 3 * m + i] += v;
+                H[24 * (3 * m + i) + pb] += v;
+                double cn = gp[0] * b[m][0] + gp[1] * b[m][1] + gp[2] * b[m][2];
+                H[24 * pb + 12 + 3 * m + i] += -0.25 * w * phi * (cb + cn);
+            }
+        }
+    }
+    return project ? crom_sym_dense_project(H, 24) : 0;
 }

@@ -27,7 +27,15 @@
  *   - orthogonality: w ‖RᵀR − I‖²_F with R = D_y D_Y⁻¹ (D the edge
  *     matrices y_k − y_0): zero exactly for rigid motions;
  *   - a pinned point: ½ w |x − target|² (Sharp eq. 9, w_eq |C_eq|²);
- *   - a point-to-point joint between two bodies: ½ w |x_a − x_b|².
+ *   - a point-to-point joint between two bodies: ½ w |x_a − x_b|²;
+ *   - a contact: a point of body a against the signed distance φ of body
+ *     b's shape, ½ w min(φ, 0)² (Sharp eq. 9, w_ineq |min(C, 0)|²), φ
+ *     taken at the point's shape coordinates in b, ℓ = R'ᵀ (x − ȳ_b) with
+ *     ȳ_b the mean of b's frame vertices (its centre) and R' = D_y B Q b's
+ *     affine map composed with its rest rotation Q: a cubic polynomial of
+ *     the two frames, the body's own coordinates whenever b moves rigidly
+ *     (R'ᵀ = R'⁻¹ then), as Sharp et al. test every vertex of one body
+ *     against the analytic signed distance of the other.
  */
 #ifndef CROM_RIGID_H
 #define CROM_RIGID_H
@@ -86,5 +94,20 @@ void crom_rigid_pin(const double beta[4], double w, const double y[12], const do
  * Hessian H [24][24] (constant, PSD); any output may be NULL. */
 void crom_rigid_joint(const double beta[4], const double gamma[4], double w, const double ya[12],
                       const double yb[12], double *E, double *g, double *H);
+
+/* The signed distance φ of a scene shape (mesh/scene.h: shape code and
+ * size) at shape coordinates q, its gradient g [3] and Hessian H [3][3]
+ * (either may be NULL): exact where φ < 0 (a box's Hessian is 0 inside,
+ * its faces' planes); outside, φ > 0 (a box's exact distance). */
+void crom_rigid_sdf(int shape, const double size[3], const double q[3], double *phi, double *g, double *H);
+
+/* The contact element: point beta [4] of frame ya against the shape of the
+ * body whose frame is yb, with Bq = B Q (its rest inverse edge matrix times
+ * its rest rotation, row-major). E = ½ w min(φ, 0)², gradient g [24] (ya
+ * then yb) and Hessian H [24][24]; any output may be NULL; project: H
+ * projected to PSD. Zero (all outputs) where φ >= 0. Returns 0, or 1 when
+ * the projection fails. */
+int crom_rigid_contact(const double beta[4], const double Bq[9], int shape, const double size[3], double w,
+                       const double ya[12], const double yb[12], int project, double *E, double *g, double *H);
 
 #endif

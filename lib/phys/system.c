@@ -10,6 +10,22 @@ int crom_system_init(crom_system *s, const crom_mesh *mesh, double E, double nu,
 {
     memset(s, 0, sizeof *s);
     int rc;
+    if (crom_mesh_is_scene(mesh)) {
+        if ((rc = crom_rigidsys_init(&s->rb, mesh)))
+            return rc;
+        s->rigid = 1;
+        s->nv = s->rb.nv;
+        s->n = s->rb.n;
+        s->nnz = s->rb.nnz;
+        s->colptr = s->rb.colptr;
+        s->rowind = s->rb.rowind;
+        s->mass = s->rb.mass;
+        s->total_mass = s->rb.total_mass;
+        s->volume = s->rb.volume;
+        s->per_elem = 4;
+        s->nenergy = s->rb.nel;
+        return CROM_OK;
+    }
     if (crom_mesh_is_surface(mesh)) {
         crom_shell_material sm;
         if ((rc = crom_shell_material_init(&sm, E, nu, mesh->thickness, rho)) ||
@@ -54,22 +70,29 @@ void crom_system_free(crom_system *s)
         return;
     crom_fem_free(&s->fem);
     crom_shell_free(&s->sh);
+    crom_rigidsys_free(&s->rb);
     memset(s, 0, sizeof *s);
 }
 
 int crom_system_assemble(const crom_system *s, const double *x, const crom_fem_opts *o, double *E, double *g,
                          double *H)
 {
+    if (s->rigid)
+        return crom_rigidsys_assemble(&s->rb, x, o, E, g, H);
     return s->shell ? crom_shell_assemble(&s->sh, x, o, E, g, H) : crom_fem_assemble(&s->fem, x, o, E, g, H);
 }
 
 int crom_system_energy(const crom_system *s, const double *x, double *E)
 {
+    if (s->rigid)
+        return crom_rigidsys_assemble(&s->rb, x, NULL, E, NULL, NULL);
     return s->shell ? crom_shell_assemble(&s->sh, x, NULL, E, NULL, NULL) : crom_fem_energy(&s->fem, x, E);
 }
 
-int crom_system_elem_vertices(const crom_system *s, int e, int v[4])
+int crom_system_elem_vertices(const crom_system *s, int e, int v[CROM_SYSTEM_MAXV])
 {
+    if (s->rigid)
+        return crom_rigidsys_elem_vertices(&s->rb, e, v);
     if (!s->shell) {
         memcpy(v, s->fem.tets + 4 * (size_t)e, 4 * sizeof(int));
         return 4;
@@ -86,6 +109,8 @@ int crom_system_elem_eval(const crom_system *s, int e, const double *xe, int pro
                           double *H)
 {
     int rc;
+    if (s->rigid)
+        return crom_rigidsys_elem_eval(&s->rb, e, xe, project, E, g, H);
     if (!s->shell) {
         const crom_fem *f = &s->fem;
         rc = crom_fem_tet_eval(&f->mat, xe, f->Dminv + 9 * (size_t)e, f->vol[e], project, E, g, H);
@@ -103,7 +128,7 @@ int crom_system_elem_eval(const crom_system *s, int e, const double *xe, int pro
 
 double crom_system_elem_energy(const crom_system *s, int e, const double *xe)
 {
-    if (!s->shell) {
+    if (!s->shell && !s->rigid) {
         const crom_fem *f = &s->fem;
         return crom_fem_tet_energy(&f->mat, xe, f->Dminv + 9 * (size_t)e, f->vol[e]);
     }
@@ -113,6 +138,8 @@ double crom_system_elem_energy(const crom_system *s, int e, const double *xe)
 
 double crom_system_elem_measure(const crom_system *s, int e)
 {
+    if (s->rigid)
+        return 0;
     if (!s->shell)
         return s->fem.vol[e];
     return e < s->sh.nt ? s->sh.area[e] : 0;

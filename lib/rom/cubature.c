@@ -513,8 +513,8 @@ static double elem_force(const crom_cubature *c, const crom_material *mat, const
         }
         return crom_cubature_tet(mat, Xe, W4, r, Dm, V, w, q, 0, g_r, NULL, kw);
     }
-    int v[4], k = crom_system_elem_vertices(sys, e, v);
-    double xe[12], ge[12], E, *We = work;
+    int v[CROM_SYSTEM_MAXV], k = crom_system_elem_vertices(sys, e, v);
+    double xe[3 * CROM_SYSTEM_MAXV], ge[3 * CROM_SYSTEM_MAXV], E, *We = work;
     size_t blk = 3 * (size_t)r;
     for (int a = 0; a < k; a++) {
         memcpy(We + a * blk, c->W + (size_t)v[a] * blk, blk * sizeof(double));

@@ -138,7 +138,7 @@ static int set_elastic(crom_nlsim *s, int k, const int *elem, const double *weig
     for (int j = 0; j < k; j++) {
         eidx[j] = elem ? elem[j] : j;
         ew[j] = weight ? weight[j] : 1;
-        int ev[4], ke = crom_system_elem_vertices(&s->sys, eidx[j], ev);
+        int ev[CROM_SYSTEM_MAXV], ke = crom_system_elem_vertices(&s->sys, eidx[j], ev);
         for (int c = 0; c < ke; c++) {
             int v = ev[c];
             if (loc[v] < 0) {
@@ -149,7 +149,7 @@ static int set_elastic(crom_nlsim *s, int k, const int *elem, const double *weig
     }
     int every = ncv == nv;
     for (int j = 0; j < k; j++) {
-        int ev[4], ke = crom_system_elem_vertices(&s->sys, eidx[j], ev);
+        int ev[CROM_SYSTEM_MAXV], ke = crom_system_elem_vertices(&s->sys, eidx[j], ev);
         for (int c = 0; c < 4; c++)
             eloc[4 * j + c] = c >= ke ? -1 : every ? ev[c] : loc[ev[c]];
     }
@@ -268,6 +268,10 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
     s->kappa = kappa > 0 ? kappa : 1e4 / (sc->dt * sc->dt);
     if ((rc = crom_system_init(&s->sys, &map->mesh, sc->youngs, sc->poisson, sc->density)))
         return rc;
+    if (s->sys.rigid) { /* its joints join 8 vertices; the element lists here hold 4 */
+        crom_system_free(&s->sys);
+        return crom_err(CROM_EUSAGE, "reduced simulation of a rigid-body scene is not supported yet (issue 17)");
+    }
     int r = s->r, n = s->n, p = s->p, T = s->nthreads;
     size_t rr = (size_t)r * r, nr = (size_t)n * r, pp = (size_t)p * p, pr = (size_t)p * r;
     double **vr[] = {&s->q, &s->qd, &s->qn, &s->g, &s->d, &s->qt, &s->zero};

@@ -7,6 +7,7 @@
 #include <cblas.h>
 
 #include "base/err.h"
+#include "phys/rigidsys.h"
 #include "rom/map.h"
 #include "rom/model.h"
 #include "rom/result.h"
@@ -149,13 +150,41 @@ static int adopt_trajectory(crom_result *res, const char *mesh_path)
     crom_err_clear();
     hid_t g = H5Gopen2(in->h5, "mesh", H5P_DEFAULT);
     crom_mesh own;
-    rc = g < 0 ? crom_err(CROM_EDATA, "%s has no mesh", in->name) : crom_mesh_read_any(g, &own);
+    rc = g < 0 ? crom_err(CROM_EDATA, "%s has no mesh", in->name)
+               : crom_mesh_read_flags(g, CROM_MESH_SURFACES | CROM_MESH_SCENES, &own);
     if (g >= 0)
         H5Gclose(g);
     if (rc) {
         if (g >= 0)
             crom_err_ctx("/mesh");
         crom_err_ctx("%s", in->name);
+        return rc;
+    }
+    if (own.scene) { /* shown on its display surface */
+        if (mesh_path) { /* only the same scene will do */
+            crom_mesh given;
+            rc = crom_mesh_load(mesh_path, CROM_MESH_CARRIERS | CROM_MESH_SURFACES | CROM_MESH_SCENES, &given, NULL);
+            int same = !rc && given.scene && given.nv == own.nv;
+            for (int i = 0; same && i < 3 * own.nv; i++)
+                same = fabs(given.X[i] - own.X[i]) <= 1e-9 * (1 + fabs(own.X[i]));
+            if (!rc)
+                crom_mesh_free(&given);
+            if (!rc && !same)
+                rc = crom_err(CROM_EDATA, "%s is a rigid-body scene's run, and %s is not that scene", in->name,
+                              mesh_path);
+            if (rc) {
+                crom_mesh_free(&own);
+                return rc;
+            }
+        }
+        if (in->fields[res->fu].count != 3 * (size_t)own.nv) {
+            crom_mesh_free(&own);
+            return crom_err(CROM_EDATA, "%s: displacement has %zu values per frame, the scene needs %d", in->name,
+                            in->fields[res->fu].count, 3 * own.nv);
+        }
+        res->scene_nv = own.nv;
+        rc = crom_rigidsys_display(&own, CROM_RESULT_DISPLAY_RINGS, &res->mesh, &res->dbeta, &res->dbody);
+        crom_mesh_free(&own);
         return rc;
     }
     if (mesh_path) {
@@ -229,6 +258,14 @@ int crom_result_next(crom_result *res, double *t, double *u, double *v)
         return rc;
     *t = crom_in_get(&res->in, res->ft)[0];
     int n = 3 * res->mesh.nv;
+    if (res->scene_nv) { /* frame vertices to the display surface */
+        crom_rigidsys_display_map(res->mesh.nv, res->dbeta, res->dbody, crom_in_get(&res->in, res->fu), u);
+        if (v && res->fv >= 0)
+            crom_rigidsys_display_map(res->mesh.nv, res->dbeta, res->dbody, crom_in_get(&res->in, res->fv), v);
+        else if (v)
+            memset(v, 0, sizeof(double) * (size_t)n);
+        return 1;
+    }
     if (!res->latent) {
         memcpy(u, crom_in_get(&res->in, res->fu), sizeof(double) * (size_t)n);
         if (v) {
@@ -279,6 +316,11 @@ void crom_result_close(crom_result *res)
     res->map = NULL;
     free(res->J);
     res->J = NULL;
+    free(res->dbeta);
+    free(res->dbody);
+    res->dbeta = NULL;
+    res->dbody = NULL;
+    res->scene_nv = 0;
 }
 
 void crom_result_equilibria_free(crom_result_equilibria *eq)

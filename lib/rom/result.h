@@ -5,12 +5,17 @@
  * (the training mesh, a finer display mesh, another shape), or through a
  * nonlinear one-mesh map (data-free models: u = x(q) − X, velocity J(q) q̇)
  * onto its own mesh only. Used by crom-export and crom-diff so both decode
- * the same way. */
+ * the same way. A rigid-body scene's trajectory is shown on its display
+ * surface (lib/phys/rigidsys.h), every surface point moving with its body.
+ */
 #ifndef CROM_RESULT_H
 #define CROM_RESULT_H
 
 #include "io/io.h"
 #include "mesh/mesh.h"
+
+/* latitude rings of a sphere or capsule on a scene's display surface */
+#define CROM_RESULT_DISPLAY_RINGS 12
 
 typedef struct {
     crom_in in;
@@ -23,6 +28,11 @@ typedef struct {
     char model_id[17];
     int ft, fu, fv;     /* frame fields: time, displacement or q, velocity or qdot */
     size_t outside;     /* latent: mesh vertices outside a mesh-field model */
+    /* a trajectory of a rigid-body scene: mesh is its display surface
+     * (crom_rigidsys_display), each frame mapped from the frame vertices */
+    int scene_nv;       /* frame vertices (0: not a scene) */
+    double *dbeta;      /* [nd][4] display coordinates in the body frames */
+    int *dbody;         /* [nd] body of each display vertex */
 } crom_result;
 
 /* Open path (a trajectory or a latent). mesh_path (may be NULL) names a

@@ -337,7 +337,7 @@ static void check_mesh(ctx *c, const crom_in *in, const char *group)
     crom_mesh m;
     char what[160];
     snprintf(what, sizeof what, "/%s", strcmp(group, "/") ? group : "");
-    if (crom_mesh_read_any(loc, &m))
+    if (crom_mesh_read_flags(loc, CROM_MESH_SURFACES | CROM_MESH_SCENES, &m))
         reader_violation(c, in, strcmp(group, "/") ? what : NULL);
     else
         crom_mesh_free(&m);

@@ -114,6 +114,10 @@ try crom-remesh --segment X,-1,0,1 cut -o "$OUT" m.h5
 try crom-remesh --sphere 0,0,0,X punch -o "$OUT" m.h5
 try crom-remesh --times X refine -o "$OUT" m.h5
 for f in --points --every; do try crom-sample $f X -o "$OUT" run.h5; done
+for f in --links --length --radius --density --joint-weight --ortho-weight; do try crom-scene $f X chain -o "$OUT"; done
+try crom-scene --angle X pendulum -o "$OUT"
+for f in --ring-radius --contact-weight; do try crom-scene $f X chain -o "$OUT"; done
+once crom-scene --angle 200 "--angle" pendulum -o "$OUT"
 for p in crom-info crom-encode; do
   expect_error 64 "^$p: --seed: '0x10' is not a non-negative decimal integer" - -- $p --seed 0x10 m.h5
   expect_error 64 "^$p: --threads: '1e308' is not an integer" - -- $p --threads 1e308 m.h5

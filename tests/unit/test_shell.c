@@ -721,7 +721,7 @@ static void elems_vs_assembly(const crom_mesh *m, double E, double nu, double rh
     crom_system_assemble(&s, x, &fo, &Ea, ga, Ha);
     int bad = 0, ntri = 0;
     for (int e = 0; e < s.nenergy; e++) {
-        int v[4], k = crom_system_elem_vertices(&s, e, v);
+        int v[CROM_SYSTEM_MAXV], k = crom_system_elem_vertices(&s, e, v);
         double xe[12];
         ntri += k == 3;
         for (int a = 0; a < k; a++)

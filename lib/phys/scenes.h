@@ -1,0 +1,48 @@
+/* scenes.h — rigid-body scenes of Sharp et al. 2023 (§5.1, Table 1) built
+ * from parameters, as scene meshes (mesh/scene.h, phys/rigidsys.h). y is
+ * up; gravity acts along −y.
+ *
+ * Default penalty weights (a parameter <= 0 asks for it) keep the
+ * penalties stiff against the scene's own weight: a joint of weight
+ * w_j = 1e4 m g / l stretches by 1e-4 l under the whole scene's weight m g
+ * (l the link length), and w_o = 1e4 m_b g l makes the frame's shear
+ * under a torque m_b g l about 1e-4 (m_b the heaviest body). */
+#ifndef CROM_SCENES_H
+#define CROM_SCENES_H
+
+#include "mesh/mesh.h"
+
+typedef struct {
+    int links;            /* chain: number of links */
+    int rings;            /* chain: 1: interlocked ring links held by contacts (Sharp's chain), 0: capsules
+                           * joined end to end */
+    double ring_radius;   /* ring links: the radius of their half circles (m) */
+    double contact_weight; /* N/m per contact point; <= 0: 1e3 m g / r (r the tube radius) */
+    double length;        /* pendulum: distance pivot–bob centre; chain: each link's axis length (m) */
+    double radius;        /* bob radius, or link radius (m) */
+    double density;       /* kg/m³ */
+    double angle;         /* pendulum: initial angle below the horizontal (radians), π/2 hanging; a
+                           * chain starts horizontal (angle 0; its capsules' axes are x at rest) */
+    double joint_weight;  /* N/m; <= 0: the default above */
+    double ortho_weight;  /* J; <= 0: the default above */
+    double gravity;       /* |g| the defaults are scaled with (m/s²; 9.81) */
+} crom_scenes_params;
+
+/* A pendulum: a sphere of `radius` whose centre is `length` from a pivot
+ * at the origin, pinned there (a joint to the world at the pivot). Its
+ * region is "bob". */
+int crom_scenes_pendulum(const crom_scenes_params *p, crom_mesh *m);
+
+/* A chain along +x from the origin, pinned to the world at the origin (the
+ * first link's end; a ball joint), its links regions "link0" … :
+ *   - capsules (rings = 0) of axis `length` and `radius`, end to end,
+ *     joined point to point at every shared end;
+ *   - rings (rings = 1): links of tube `radius`, `ring_radius` and straight
+ *     run `length`, alternately in the xy- and the xz-plane, each through
+ *     the next's opening with a gap of r/2 at rest (pitch 2(h + R) − 2.5 r),
+ *     held by contacts alone: every pair of neighbours collides both ways
+ *     (Sharp et al.'s chain, Figs. 6 and 8; with 2 links, the mini chain of
+ *     Fig. 11). */
+int crom_scenes_chain(const crom_scenes_params *p, crom_mesh *m);
+
+#endif
