@@ -518,7 +518,8 @@ static int load_body(crom_cli *cli, const args *a, crom_body *b)
 {
     int shells = a->objective == CROM_DATAFREE_ENERGY || a->objective == CROM_DATAFREE_NEURALMODES ||
                  (a->objective == OBJ_SKINNING && a->eigen);
-    crom_body_source src = {a->mesh, a->surface, a->cloud, a->sample_points, cli->seed, shells};
+    crom_body_source src = {a->mesh, a->surface, a->cloud, a->sample_points, cli->seed, shells,
+                            a->objective == CROM_DATAFREE_ENERGY};
     int rc = crom_body_load(b, &src, &a->sc);
     if (!rc && b->cloud.n)
         crom_cli_info(cli, "%s: %d points standing for %.6g m^3, integrated through virtual tets",

@@ -458,7 +458,7 @@ static int run_map(crom_cli *cli, args *a)
     if (!rc && cli->verbose && a->sc.steps > 0)
         crom_cli_info(cli, "%d steps, %s map of rank %d on %d vertices, %d of %d %s: %.3f ms/step, %.2f "
                       "Gauss-Newton iterations/step", a->sc.steps, model.basis, r, map.nv, s.ne, s.sys.nenergy,
-                      s.sys.shell ? "triangles and hinges" : "tets", 1e3 * tsum / a->sc.steps,
+                      s.sys.rigid ? "scene elements" : s.sys.shell ? "triangles and hinges" : "tets", 1e3 * tsum / a->sc.steps,
                       (double)iters / a->sc.steps);
     indicator_end(cli, a, &ind);
 out:

@@ -24,8 +24,12 @@ int crom_body_load(crom_body *b, const crom_body_source *src, const crom_scenari
     memset(b, 0, sizeof *b);
     crom_model_clear(&b->modes);
     if (src->mesh) {
-        if (crom_mesh_load(src->mesh, CROM_MESH_SURFACES, &b->mesh, &b->history))
+        if (crom_mesh_load(src->mesh, CROM_MESH_SURFACES | CROM_MESH_SCENES, &b->mesh, &b->history))
             return crom_err_ctx("--mesh");
+        if (b->mesh.scene && !src->scenes)
+            return crom_err(CROM_EUSAGE, "--mesh %s is a rigid-body scene (%d bodies): this objective trains on "
+                            "solids and shells; on a scene use --objective energy",
+                            strcmp(src->mesh, "-") ? src->mesh : "stdin", b->mesh.scene->nb);
         if (crom_mesh_is_surface(&b->mesh) && !src->shells)
             return crom_err(CROM_EUSAGE, "--mesh %s is a shell surface (%d triangles): this objective trains on "
                             "solids; on a shell use --objective energy or neuralmodes, or skinning with --weights eigen",

@@ -39,6 +39,7 @@ typedef struct {
     uint64_t seed;           /* of the sampling and of the stencils' rotations */
     int shells;              /* 1: the mesh may be a shell surface (the one-mesh maps, energy and
                               * neuralmodes, integrate any system's energy elements) */
+    int scenes;              /* 1: the mesh may be a rigid-body scene (the energy objective) */
 } crom_body_source;
 
 typedef struct {

@@ -125,9 +125,9 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
     int ta = nm && o->tangent_anchor;
     /* the batch, the tangent samples, the anchor (then, tangent-anchored, ±ε z_b) */
     size_t rows = (size_t)maxbatch + c->B0 + 1 + (ta ? 2 * (size_t)maxbatch : 0);
-    int rc = crom_mesh_is_surface(p->mesh) && o->tets > 0
-                 ? crom_err(CROM_EUSAGE, "--tets %d: a random cubature of tets applies to solids; a shell's map "
-                                         "integrates every triangle and hinge", o->tets)
+    int rc = (crom_mesh_is_surface(p->mesh) || crom_mesh_is_scene(p->mesh)) && o->tets > 0
+                 ? crom_err(CROM_EUSAGE, "--tets %d: a random cubature of tets applies to solids; a shell's or a "
+                                         "scene's map integrates every element", o->tets)
                  : crom_system_init(&c->sys, p->mesh, p->mat.E, p->mat.nu, p->mat.rho);
     if (!rc)
         rc = crom_nn_ws_init(&c->ws, net, (int)rows, 1);
@@ -157,6 +157,8 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
     for (int i = 0; i < n; i++)
         c->mw[i] = c->sys.mass[i / 3] / c->mass;
     double EV = p->mat.E * c->sys.volume;
+    if (c->sys.rigid) /* a scene has no modulus: its weight lifted by its size */
+        EV = c->mass * 9.81 * crom_mesh_points_diagonal(p->mesh->X, p->mesh->nv);
     c->Eref = EV;
     if (nm)
         modes_box(c, p, o, EV);
@@ -472,7 +474,10 @@ static int check_map(const crom_datafree_problem *p, crom_datafree_opts *o)
     if (nfree == 0)
         return crom_err(CROM_EUSAGE, "every degree of freedom is pinned");
     double gn = fabs(p->gravity[0]) + fabs(p->gravity[1]) + fabs(p->gravity[2]);
-    if (!nm && gn > 0 && nfree == n)
+    int held = 0; /* a scene held to the world by a penalty joint */
+    for (int j = 0; p->mesh->scene && j < p->mesh->scene->nj; j++)
+        held |= p->mesh->scene->joints[j].b < 0 && p->mesh->scene->joints[j].weight > 0;
+    if (!nm && gn > 0 && nfree == n && !held)
         return crom_err(CROM_EUSAGE, "a free body under gravity has no lowest energy (it falls forever): pin a "
                         "region (--pin) or train with --gravity 0,0,0");
     if ((o->steps < 1 && !(nm && o->steps == 0)) || o->batch < 1 || o->depth < 2 || o->width < 1)

@@ -193,6 +193,7 @@ static const crom_schema_attr model_attrs[] = {
 static const crom_schema_attr model_objattrs[] = {
     {"source", "str", 1, REGION_SOURCE, "field/mesh/regions/*"},
     {"thickness", "f64", 1, THICKNESS_DESC, "field/mesh/triangles"},
+    {"ortho_weight", "f64", 1, ORTHO_DESC, "field/mesh/scene"},
     {NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_dset model_dsets[] = {
@@ -210,6 +211,7 @@ static const crom_schema_dset model_dsets[] = {
     {"field/mesh/triangles", "i32", "ntri,3", 0, "1", "a shell's triangles instead of tets (modes, energy, neuralmodes on a "
                                                      "surface mesh), as crom/mesh", NULL},
     {"field/mesh/regions/*", "i32", "?", 0, "1", REGION_DESC, NULL},
+    SCENE_DSETS("field/mesh/"),
     {"field/basis", "f64", "nv,3,r", 0, "1", "basis W at the mesh vertices, [nv][3][r] (pod, modes); the linear part W "
                                              "of the map (neuralmodes)", NULL},
     {"frequencies", "f64", "r", 0, "Hz", "natural frequencies of the linear modes (modes, neuralmodes)", NULL},

@@ -226,7 +226,14 @@ int crom_model_from_mesh(crom_model *m, const char *basis, const crom_mesh *mesh
     if (mesh->ntri)
         memcpy(m->mesh.tris, mesh->tris, sizeof(int) * 3 * (size_t)mesh->ntri);
     memcpy(m->basis_v, basis_v, sizeof(double) * nb);
-    int rc = crom_mesh_is_surface(&m->mesh) ? 0 : crom_locate_init(&m->loc, &m->mesh);
+    if (mesh->scene && (!(m->mesh.scene = crom_malloc(sizeof *m->mesh.scene)) ||
+                        crom_scene_copy(mesh->scene, m->mesh.scene))) { /* a scene's basis: its frame vertices */
+        free(m->mesh.scene);
+        m->mesh.scene = NULL;
+        crom_model_free(m);
+        return CROM_EINTERNAL;
+    }
+    int rc = crom_mesh_is_surface(&m->mesh) || m->mesh.scene ? 0 : crom_locate_init(&m->loc, &m->mesh);
     if (rc)
         crom_model_free(m);
     else
@@ -764,7 +771,7 @@ static int read_map(hid_t h, crom_model *m, const char *act)
     hid_t g = H5Gopen2(h, "field/mesh", H5P_DEFAULT);
     if (g < 0)
         return crom_err(CROM_EDATA, "missing group field/mesh");
-    int rc = crom_mesh_read_any(g, &m->mesh);
+    int rc = crom_mesh_read_flags(g, CROM_MESH_SURFACES | CROM_MESH_SCENES, &m->mesh); /* energy maps of scenes */
     H5Gclose(g);
     if (rc)
         return crom_err_ctx("field/mesh");

@@ -33,7 +33,23 @@
 #define LAG_ITERS 8
 #define PAIRS 16
 
-#define TW(r) (168 + 24 * (size_t)(r) + 12) /* per-thread tet scratch: crom_cubature_tet's, J4, xe */
+/* Elements join up to MV vertices (a scene's joints and contacts: 8); the
+ * element lists hold MV slots each, −1 after the last vertex. */
+#define MV CROM_SYSTEM_MAXV
+/* per-thread element scratch: crom_cubature_tet's (168 + 12 r) or
+ * elem_reduced's (WR(r)), then the Jacobian rows J_e [3 MV][r] and the
+ * positions xe [3 MV] */
+#define WR(r) (9 * MV * MV + 3 * MV + 3 * MV * (size_t)(r))
+#define TW(r) (WR(r) + 3 * MV * (size_t)(r) + 3 * MV)
+
+/* the vertices of an element list entry (its slots up to the first −1) */
+static int elem_count(const int *e)
+{
+    int k = 0;
+    while (k < MV && e[k] >= 0)
+        k++;
+    return k;
+}
 
 static void free_bcs(crom_nlsim_bc *b, int n)
 {
@@ -126,7 +142,7 @@ static int initial_velocity(crom_nlsim *s)
 static int set_elastic(crom_nlsim *s, int k, const int *elem, const double *weight)
 {
     int nv = s->map->nv, r = s->r;
-    int *eidx = crom_malloc(sizeof(int) * (size_t)(k ? k : 1)), *eloc = crom_malloc(sizeof(int) * 4 * (size_t)(k ? k : 1));
+    int *eidx = crom_malloc(sizeof(int) * (size_t)(k ? k : 1)), *eloc = crom_malloc(sizeof(int) * MV * (size_t)(k ? k : 1));
     double *ew = crom_malloc(sizeof(double) * (size_t)(k ? k : 1));
     int *loc = crom_malloc(sizeof(int) * (size_t)nv), *cv = crom_malloc(sizeof(int) * (size_t)nv), ncv = 0;
     if (!eidx || !eloc || !ew || !loc || !cv) {
@@ -150,8 +166,8 @@ static int set_elastic(crom_nlsim *s, int k, const int *elem, const double *weig
     int every = ncv == nv;
     for (int j = 0; j < k; j++) {
         int ev[CROM_SYSTEM_MAXV], ke = crom_system_elem_vertices(&s->sys, eidx[j], ev);
-        for (int c = 0; c < 4; c++)
-            eloc[4 * j + c] = c >= ke ? -1 : every ? ev[c] : loc[ev[c]];
+        for (int c = 0; c < MV; c++)
+            eloc[MV * j + c] = c >= ke ? -1 : every ? ev[c] : loc[ev[c]];
     }
     free(loc);
     if (every) {
@@ -170,7 +186,7 @@ static int set_elastic(crom_nlsim *s, int k, const int *elem, const double *weig
     s->xc = crom_malloc(sizeof(double) * 3 * (size_t)(ncv ? ncv : 1));
     s->gc = crom_malloc(sizeof(double) * 3 * (size_t)(ncv ? ncv : 1));
     s->Jc = crom_malloc(sizeof(double) * 3 * (size_t)(ncv ? ncv : 1) * r);
-    s->ge = crom_malloc(sizeof(double) * 12 * (size_t)(k ? k : 1));
+    s->ge = crom_malloc(sizeof(double) * 3 * MV * (size_t)(k ? k : 1));
     if (!s->xc || !s->gc || !s->Jc || !s->ge)
         return CROM_EINTERNAL;
     if (cv) { /* the rows of B and X at the elastic vertices, contiguous: two BLAS calls per evaluation */
@@ -197,7 +213,7 @@ int crom_nlsim_use_cubature(crom_nlsim *s, int k, const int *elem, const double 
     for (int j = 0; j < k; j++) {
         if (elem[j] < 0 || elem[j] >= s->sys.nenergy)
             return crom_err(CROM_EDATA, "cubature element %d is not an element of the map's mesh (%d %s)", elem[j],
-                            s->sys.nenergy, s->sys.shell ? "triangles and hinges" : "tets");
+                            s->sys.nenergy, s->sys.rigid ? "scene elements" : s->sys.shell ? "triangles and hinges" : "tets");
         if (!(isfinite(weight[j]) && weight[j] >= 0))
             return crom_err(CROM_EDATA, "cubature weight %d is %g: weights must be finite and >= 0", j, weight[j]);
     }
@@ -268,10 +284,6 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
     s->kappa = kappa > 0 ? kappa : 1e4 / (sc->dt * sc->dt);
     if ((rc = crom_system_init(&s->sys, &map->mesh, sc->youngs, sc->poisson, sc->density)))
         return rc;
-    if (s->sys.rigid) { /* its joints join 8 vertices; the element lists here hold 4 */
-        crom_system_free(&s->sys);
-        return crom_err(CROM_EUSAGE, "reduced simulation of a rigid-body scene is not supported yet (issue 17)");
-    }
     int r = s->r, n = s->n, p = s->p, T = s->nthreads;
     size_t rr = (size_t)r * r, nr = (size_t)n * r, pp = (size_t)p * p, pr = (size_t)p * r;
     double **vr[] = {&s->q, &s->qd, &s->qn, &s->g, &s->d, &s->qt, &s->zero};
@@ -445,9 +457,9 @@ static int elastic_xgrad(crom_nlsim *s, double *E)
     double Es = 0;
 #pragma omp parallel for num_threads(s->nthreads) schedule(static) reduction(| : bad) reduction(+ : Es)
     for (int j = 0; j < ne; j++) {
-        const int *e = s->eloc + 4 * (size_t)j;
-        int ke = e[3] < 0 ? 3 : 4;
-        double xe[12], Ee, *ge = s->ge + 12 * (size_t)j;
+        const int *e = s->eloc + MV * (size_t)j;
+        int ke = elem_count(e);
+        double xe[3 * MV], Ee, *ge = s->ge + 3 * MV * (size_t)j;
         for (int a = 0; a < ke; a++)
             memcpy(xe + 3 * a, s->xc + 3 * (size_t)e[a], 3 * sizeof(double));
         if (crom_system_elem_eval(&s->sys, s->eidx[j], xe, 0, &Ee, ge, NULL) || !isfinite(Ee))
@@ -459,24 +471,24 @@ static int elastic_xgrad(crom_nlsim *s, double *E)
         return crom_err(CROM_EDATA, "non-finite elastic energy");
     memset(s->gc, 0, sizeof(double) * 3 * (size_t)s->ncv);
     for (int j = 0; j < ne; j++) {
-        const int *e = s->eloc + 4 * (size_t)j;
-        for (int a = 0; a < (e[3] < 0 ? 3 : 4); a++)
+        const int *e = s->eloc + MV * (size_t)j;
+        for (int a = 0, ke = elem_count(e); a < ke; a++)
             for (int c = 0; c < 3; c++)
-                s->gc[3 * (size_t)e[a] + c] += s->ew[j] * s->ge[12 * (size_t)j + 3 * a + c];
+                s->gc[3 * (size_t)e[a] + c] += s->ew[j] * s->ge[3 * MV * (size_t)j + 3 * a + c];
     }
     *E = Es;
     return 0;
 }
 
-/* A shell element's energy, and its reduced gradient tg += w J_eᵀ g_e and
- * Hessian tH += w J_eᵀ H_e J_e (tH NULL: none) with J_e = J4 [3ke][r] the
- * map's Jacobian rows at its vertices; work holds 156 + 12 r doubles.
- * Returns the element's energy, or NaN when it is not finite. */
+/* A shell's or a scene's element's energy, and its reduced gradient tg +=
+ * w J_eᵀ g_e and Hessian tH += w J_eᵀ H_e J_e (tH NULL: none) with J_e =
+ * J4 [3ke][r] the map's Jacobian rows at its vertices; work holds WR(r)
+ * doubles. Returns the element's energy, or NaN when it is not finite. */
 static double elem_reduced(const crom_system *sys, int t, int ke, const double *xe, const double *J4, int r,
                            double w, int project, double *tg, double *tH, double *work)
 {
     int m = 3 * ke;
-    double Ee, *He = work, *ge = work + 144, *HJ = work + 156;
+    double Ee, *He = work, *ge = work + 9 * MV * MV, *HJ = ge + 3 * MV;
     if (crom_system_elem_eval(sys, t, xe, project, &Ee, ge, tH ? He : NULL))
         return NAN;
     if (tg)
@@ -524,7 +536,7 @@ static int elastic(crom_nlsim *s, double *E, double *g, double *H, int project)
 #ifdef _OPENMP
         tid = omp_get_thread_num();
 #endif
-        double *w = s->tw + (size_t)tid * TW(r), *J4 = w + 168 + 12 * (size_t)r, *xe = J4 + 12 * (size_t)r;
+        double *w = s->tw + (size_t)tid * TW(r), *J4 = w + WR(r), *xe = J4 + 3 * MV * (size_t)r;
         double *tg = g ? s->tg + (size_t)tid * r : NULL, *tH = H ? s->tH + (size_t)tid * rr : NULL, Et = 0;
         if (tg)
             memset(tg, 0, sizeof(double) * (size_t)r);
@@ -533,8 +545,8 @@ static int elastic(crom_nlsim *s, double *E, double *g, double *H, int project)
 #pragma omp for schedule(static)
         for (int j = 0; j < ne; j++) {
             int t = s->eidx[j];
-            const int *e = s->eloc + 4 * (size_t)j;
-            int ke = e[3] < 0 ? 3 : 4;
+            const int *e = s->eloc + MV * (size_t)j;
+            int ke = elem_count(e);
             for (int a = 0; a < ke; a++) {
                 memcpy(xe + 3 * a, s->xc + 3 * (size_t)e[a], 3 * sizeof(double));
                 if (g || H)
@@ -543,7 +555,7 @@ static int elastic(crom_nlsim *s, double *E, double *g, double *H, int project)
             double Ee;
             if (!(g || H))
                 Ee = crom_system_elem_energy(sys, t, xe);
-            else if (!sys->shell) /* in F-space: G = ∂F/∂q, Gᵀ (∂P/∂F) G */
+            else if (!sys->shell && !sys->rigid) /* in F-space: G = ∂F/∂q, Gᵀ (∂P/∂F) G */
                 Ee = crom_cubature_tet(&f->mat, xe, J4, r, f->Dminv + 9 * (size_t)t, f->vol[t], s->ew[j], s->zero,
                                        project, tg, tH, w);
             else

@@ -46,6 +46,48 @@ static int latent_mesh(const char *mesh_path, const crom_model *model, crom_mesh
     return rc;
 }
 
+/* The display surface of scene mesh sc into res (crom_rigidsys_display),
+ * with scratch for the frame vertices' u and v. */
+static int scene_display(crom_result *res, const crom_mesh *sc)
+{
+    res->scene_nv = sc->nv;
+    int rc = crom_rigidsys_display(sc, CROM_RESULT_DISPLAY_RINGS, &res->mesh, &res->dbeta, &res->dbody);
+    if (!rc && !(res->uf = crom_malloc(sizeof(double) * 6 * (size_t)sc->nv)))
+        rc = CROM_EINTERNAL;
+    return rc;
+}
+
+/* Whether the mesh at path (or a file carrying one) is the scene sc. */
+static int same_scene(const char *path, const crom_mesh *sc, const char *what)
+{
+    crom_mesh given;
+    int rc = crom_mesh_load(path, CROM_MESH_CARRIERS | CROM_MESH_SURFACES | CROM_MESH_SCENES, &given, NULL);
+    int same = !rc && given.scene && given.nv == sc->nv;
+    for (int i = 0; same && i < 3 * sc->nv; i++)
+        same = fabs(given.X[i] - sc->X[i]) <= 1e-9 * (1 + fabs(sc->X[i]));
+    if (!rc)
+        crom_mesh_free(&given);
+    if (!rc && !same)
+        rc = crom_err(CROM_EDATA, "%s lives on a rigid-body scene, and %s is not that scene", what, path);
+    return rc;
+}
+
+/* A latent of an energy map of a rigid-body scene: x(q) on the scene's
+ * frame vertices, shown on its display surface (a --mesh must be the same
+ * scene). */
+static int latent_scene_map(crom_result *res, const crom_model *model, const char *mesh_path)
+{
+    int rc = mesh_path ? same_scene(mesh_path, &model->mesh, res->in.name) : 0;
+    if (!rc)
+        rc = crom_map_init(res->map, model, NULL);
+    if (!rc)
+        rc = scene_display(res, &res->map->mesh);
+    res->J = rc ? NULL : crom_malloc(sizeof(double) * 3 * (size_t)res->r * (size_t)res->scene_nv);
+    if (!rc && !res->J)
+        rc = CROM_EINTERNAL;
+    return rc;
+}
+
 /* A latent decoded by a nonlinear map: x(q) on the map's own mesh, or
  * (continuous) on the one at mesh_path; J its Jacobian's buffer. */
 static int latent_map(crom_result *res, const crom_model *model, const char *mesh_path)
@@ -56,6 +98,8 @@ static int latent_map(crom_result *res, const crom_model *model, const char *mes
     res->map = crom_calloc(1, sizeof *res->map);
     if (!res->map)
         rc = CROM_EINTERNAL;
+    if (!rc && model->mesh.scene)
+        return latent_scene_map(res, model, mesh_path);
     if (!rc && mesh_path)
         rc = latent_mesh(mesh_path, model, &given);
     if (!rc) {
@@ -161,29 +205,12 @@ static int adopt_trajectory(crom_result *res, const char *mesh_path)
         return rc;
     }
     if (own.scene) { /* shown on its display surface */
-        if (mesh_path) { /* only the same scene will do */
-            crom_mesh given;
-            rc = crom_mesh_load(mesh_path, CROM_MESH_CARRIERS | CROM_MESH_SURFACES | CROM_MESH_SCENES, &given, NULL);
-            int same = !rc && given.scene && given.nv == own.nv;
-            for (int i = 0; same && i < 3 * own.nv; i++)
-                same = fabs(given.X[i] - own.X[i]) <= 1e-9 * (1 + fabs(own.X[i]));
-            if (!rc)
-                crom_mesh_free(&given);
-            if (!rc && !same)
-                rc = crom_err(CROM_EDATA, "%s is a rigid-body scene's run, and %s is not that scene", in->name,
-                              mesh_path);
-            if (rc) {
-                crom_mesh_free(&own);
-                return rc;
-            }
-        }
-        if (in->fields[res->fu].count != 3 * (size_t)own.nv) {
-            crom_mesh_free(&own);
-            return crom_err(CROM_EDATA, "%s: displacement has %zu values per frame, the scene needs %d", in->name,
-                            in->fields[res->fu].count, 3 * own.nv);
-        }
-        res->scene_nv = own.nv;
-        rc = crom_rigidsys_display(&own, CROM_RESULT_DISPLAY_RINGS, &res->mesh, &res->dbeta, &res->dbody);
+        rc = mesh_path ? same_scene(mesh_path, &own, in->name) : 0;
+        if (!rc && in->fields[res->fu].count != 3 * (size_t)own.nv)
+            rc = crom_err(CROM_EDATA, "%s: displacement has %zu values per frame, the scene needs %d", in->name,
+                          in->fields[res->fu].count, 3 * own.nv);
+        if (!rc)
+            rc = scene_display(res, &own);
         crom_mesh_free(&own);
         return rc;
     }
@@ -258,7 +285,7 @@ int crom_result_next(crom_result *res, double *t, double *u, double *v)
         return rc;
     *t = crom_in_get(&res->in, res->ft)[0];
     int n = 3 * res->mesh.nv;
-    if (res->scene_nv) { /* frame vertices to the display surface */
+    if (res->scene_nv && !res->latent) { /* a scene run: frame vertices to the display surface */
         crom_rigidsys_display_map(res->mesh.nv, res->dbeta, res->dbody, crom_in_get(&res->in, res->fu), u);
         if (v && res->fv >= 0)
             crom_rigidsys_display_map(res->mesh.nv, res->dbeta, res->dbody, crom_in_get(&res->in, res->fv), v);
@@ -276,18 +303,25 @@ int crom_result_next(crom_result *res, double *t, double *u, double *v)
         }
         return 1;
     }
-    if (res->map) { /* u = x(q) − X, v = J(q) q̇ */
-        rc = crom_map_eval(res->map, crom_in_get(&res->in, res->fu), u, v ? res->J : NULL);
+    if (res->map) { /* u = x(q) − X, v = J(q) q̇ (a scene's: at its frame vertices, then shown) */
+        int sc = res->scene_nv > 0, nm = sc ? 3 * res->scene_nv : n;
+        double *uu = sc ? res->uf : u, *vv = sc ? res->uf + nm : v;
+        rc = crom_map_eval(res->map, crom_in_get(&res->in, res->fu), uu, v ? res->J : NULL);
         if (rc)
             return rc;
-        for (int i = 0; i < n; i++)
-            u[i] -= res->mesh.X[i];
+        for (int i = 0; i < nm; i++)
+            uu[i] -= res->map->mesh.X[i];
         if (v) {
             if (res->fv >= 0)
-                cblas_dgemv(CblasRowMajor, CblasNoTrans, n, res->r, 1.0, res->J, res->r,
-                            crom_in_get(&res->in, res->fv), 1, 0.0, v, 1);
+                cblas_dgemv(CblasRowMajor, CblasNoTrans, nm, res->r, 1.0, res->J, res->r,
+                            crom_in_get(&res->in, res->fv), 1, 0.0, vv, 1);
             else
-                memset(v, 0, sizeof(double) * (size_t)n);
+                memset(vv, 0, sizeof(double) * (size_t)nm);
+        }
+        if (sc) {
+            crom_rigidsys_display_map(res->mesh.nv, res->dbeta, res->dbody, uu, u);
+            if (v)
+                crom_rigidsys_display_map(res->mesh.nv, res->dbeta, res->dbody, vv, v);
         }
         return 1;
     }
@@ -318,7 +352,8 @@ void crom_result_close(crom_result *res)
     res->J = NULL;
     free(res->dbeta);
     free(res->dbody);
-    res->dbeta = NULL;
+    free(res->uf);
+    res->dbeta = res->uf = NULL;
     res->dbody = NULL;
     res->scene_nv = 0;
 }

@@ -32,6 +32,7 @@ typedef struct {
      * (crom_rigidsys_display), each frame mapped from the frame vertices */
     int scene_nv;       /* frame vertices (0: not a scene) */
     double *dbeta;      /* [nd][4] display coordinates in the body frames */
+    double *uf;         /* [2][scene_nv][3] a scene map's frame-vertex u and v (scratch) */
     int *dbody;         /* [nd] body of each display vertex */
 } crom_result;
 

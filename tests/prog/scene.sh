@@ -115,6 +115,38 @@ ok
 crom-diff "$TMP/chain-run.h5" "$TMP/chain-run.h5" --max-error 1e-12 >/dev/null || fail "crom-diff of a run with itself"
 ok
 
+# data-free training on a scene (Sharp et al.'s energy objective over every
+# scene element), its reduced run over the 8-vertex elements, and the
+# latent decoded onto the bodies' shapes: the model carries the scene; with
+# no load the run stays exactly at rest; crom-diff and crom-export decode it
+crom-scene pendulum -o "$TMP/hang.h5"
+crom-fitfield --objective energy --mesh "$TMP/hang.h5" --rank 1 --sigma 0.1 --lambda 10 --steps 400 --width 16 \
+  --depth 3 -q -o "$TMP/pend-map.h5"
+crom-info --check "$TMP/pend-map.h5" >/dev/null || fail "crom-info --check on a scene's energy map"
+crom-reducedstep --model "$TMP/pend-map.h5" --dt 0.01 --steps 10 --gravity 0,0,0 -q -o "$TMP/pend-red.h5"
+crom-info --check "$TMP/pend-red.h5" >/dev/null || fail "crom-info --check on a scene's latent run"
+crom-export -q -o "$TMP/pend-red.pvd" --model "$TMP/pend-map.h5" "$TMP/pend-red.h5"
+crom-fullsim "$TMP/hang.h5" --dt 0.01 --steps 10 --gravity 0,0,0 -q -o "$TMP/hang-run.h5"
+crom-diff "$TMP/hang-run.h5" "$TMP/pend-red.h5" --model "$TMP/pend-map.h5" >"$TMP/diff.txt" \
+  || fail "crom-diff of a scene's latent run"
+$PY - "$TMP/pend-map.h5" "$TMP/pend-red.pvd" <<'PYEOF' || fail "the scene's map and its run"
+import sys, os, h5py, meshio, numpy as np
+f = h5py.File(sys.argv[1], 'r')
+if f['field/mesh/scene/shape'][0] != 1 or f.attrs['basis'] != 'energy':
+    sys.exit("the map does not carry its scene")
+d = os.path.join(os.path.dirname(sys.argv[2]), 'pend-red')
+frames = sorted(os.listdir(d))
+u = max(np.abs(meshio.read(os.path.join(d, k)).point_data['displacement']).max() for k in frames)
+print(f"scene map: {len(frames)} frames of its reduced run at rest, largest displacement {u:.1e} m")
+if len(frames) != 11 or u > 1e-12:
+    sys.exit("a run with no load left rest")
+PYEOF
+ok
+expect_error 64 "is a rigid-body scene \(1 bodies\): this objective trains on solids and shells" "$TMP/x.h5" -- \
+  crom-fitfield --objective neuralmodes --mesh "$TMP/hang.h5" --modes "$TMP/pend-map.h5" -o "$TMP/x.h5"
+expect_error 64 "tets 5: a random cubature of tets applies to solids" "$TMP/x.h5" -- \
+  crom-fitfield --objective energy --mesh "$TMP/hang.h5" --tets 5 -o "$TMP/x.h5"
+
 # refusals
 expect_error 64 "unknown scene 'knot'" "$TMP/x.h5" -- crom-scene knot -o "$TMP/x.h5"
 expect_error 64 "angle is for the pendulum" "$TMP/x.h5" -- crom-scene chain --angle 10 -o "$TMP/x.h5"
