@@ -1,6 +1,6 @@
 /* crom-scene — build a rigid-body scene (a crom/mesh of bodies, joints and
- * penalty weights; lib/mesh/scene.h) from parameters: the pendulum and the
- * chains of Sharp et al. 2023 (§5.1, Table 1). */
+ * penalty weights; lib/mesh/scene.h) from parameters: the pendulum, the
+ * chains and the Klann linkage of Sharp et al. 2023 (§5.1, Table 1). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -23,7 +23,7 @@ static const crom_opt scene_opts[] = {
     {"ring-radius", O_RRADIUS, "R", "chain of rings: the radius of each link's half circles in metres (default 0.02)."},
     {"contact-weight", O_CONTACTW, "W", "chain of rings: penalty weight of every contact point in N/m, energy 1/2 W min(phi, 0)^2 with phi the other link's signed distance (Sharp et al. eq. 9). Default 1e3 m g / r (m the chain's mass, r the tube radius)."},
     {"density", O_DENSITY, "RHO", "Density of every body in kg/m^3 (default 1000)."},
-    {"angle", O_ANGLE, "DEG", "pendulum: the initial angle of the rod below the horizontal in degrees (default 90: hanging straight down). A chain starts horizontal along +x."},
+    {"angle", O_ANGLE, "DEG", "pendulum: the initial angle of the rod below the horizontal in degrees (default 90: hanging straight down); klann: the crank angle the linkage is assembled at (default 0). A chain starts horizontal along +x."},
     {"joint-weight", O_JOINTW, "W", "Penalty weight of every joint in N/m: energy 1/2 W |gap|^2 (Sharp et al. eq. 9). Default 1e4 m g / l (m the scene's mass, l the link length or pendulum length): a gap of 1e-4 l under the whole weight."},
     {"ortho-weight", O_ORTHOW, "W", "Weight of every body's orthogonality potential W |R^T R - I|_F^2 in J. Default 1e4 m_b g l (m_b the heaviest body)."},
     {NULL, 0, NULL, NULL}};
@@ -34,7 +34,8 @@ static const crom_cli_doc doc = {
     "crom-scene",
     "build a rigid-body scene (bodies, penalty joints) for crom-fullsim",
     "crom-scene pendulum [--length L] [--radius R] [--angle DEG] [options] [-o OUT]\n"
-    "crom-scene chain [--links N] [--link ring|capsule] [--length L] [--radius R] [options] [-o OUT]",
+    "crom-scene chain [--links N] [--link ring|capsule] [--length L] [--radius R] [options] [-o OUT]\n"
+    "crom-scene klann [--length L] [--radius R] [--angle DEG] [options] [-o OUT]",
     "Writes a crom/mesh holding a rigid-body scene (Sharp et al. 2023, section 5.1): each body "
     "is an analytic shape with a density, carried by four frame vertices whose lumped masses "
     "have its mass, centre and second moment exactly, so their affine motion is the body's [R|t] "
@@ -47,9 +48,18 @@ static const crom_cli_doc doc = {
     "ball joint (regions link0, link1, ...): rings (the paper's chain) alternately in the xy- "
     "and the xz-plane, each through the next's opening with a gap of half a tube radius, held "
     "together by contacts alone (every vertex of a link's surface against its neighbours' "
-    "signed distance, both ways); or capsules of --length and --radius joined end to end.",
+    "signed distance, both ways); or capsules of --length and --radius joined end to end.\n\n"
+    "klann: the Klann linkage of the paper's Fig. 2 (one degree of freedom, in the xy-plane): "
+    "a crank of --length (default 0.05) turning about the origin, a connecting rod held by a "
+    "rocker, and a leg held by a second rocker, its end the foot; the bar lengths are the "
+    "optimized Klann geometry of boim.com/Walkin8r scaled to the crank. Each moving link "
+    "(regions crank, rod, rocker_b, rocker_d, leg) is a thin box of half width --radius "
+    "(default 0.004); each revolute joint is two point joints --radius either side of the "
+    "plane, the three ground pivots pinned to the world. The linkage is assembled at crank "
+    "angle --angle (degrees, default 0).",
     groups,
     "crom-scene pendulum --length 1 --angle 85 -o pendulum.h5\n"
+    "crom-scene klann -o klann.h5 && crom-export -o klann.png klann.h5\n"
     "crom-scene chain --links 24 -o chain.h5 && crom-fullsim chain.h5 --dt 0.005 --steps 200 -o chain-run.h5\n"
     "crom-scene chain --link capsule --links 8 --length 0.2 -o capsules.h5",
     "crom-fullsim(1), crom-info(1), crom-export(1), crom-mesh(1)"};
@@ -105,24 +115,24 @@ static int on_opt(void *ctx, int key, const char *v)
 static int run(crom_cli *cli, args *a)
 {
     if (!a->kind)
-        return crom_err(CROM_EUSAGE, "no scene given (pendulum, chain)");
-    int chain = !strcmp(a->kind, "chain");
-    if (!chain && strcmp(a->kind, "pendulum"))
-        return crom_err(CROM_EUSAGE, "unknown scene '%s' (pendulum, chain)", a->kind);
+        return crom_err(CROM_EUSAGE, "no scene given (pendulum, chain, klann)");
+    int chain = !strcmp(a->kind, "chain"), klann = !strcmp(a->kind, "klann");
+    if (!chain && !klann && strcmp(a->kind, "pendulum"))
+        return crom_err(CROM_EUSAGE, "unknown scene '%s' (pendulum, chain, klann)", a->kind);
     if (chain && a->angle_given)
-        return crom_err(CROM_EUSAGE, "--angle is for the pendulum: a chain starts horizontal");
+        return crom_err(CROM_EUSAGE, "--angle is for the pendulum and the Klann linkage: a chain starts horizontal");
     if (!chain && (a->links_given || a->link_given))
         return crom_err(CROM_EUSAGE, "--links and --link are for a chain");
     if ((!chain || !a->p.rings) && (a->rradius_given || a->contact_given))
         return crom_err(CROM_EUSAGE, "--ring-radius and --contact-weight are for a chain of rings");
     if (!a->length_given)
-        a->p.length = !chain ? 1 : a->p.rings ? 0.03 : 0.1;
+        a->p.length = klann ? 0.05 : !chain ? 1 : a->p.rings ? 0.03 : 0.1;
     if (!a->radius_given)
-        a->p.radius = !chain ? 0.02 : a->p.rings ? 0.005 : 0.01;
-    if (!chain && !a->angle_given)
+        a->p.radius = klann ? 0.004 : !chain ? 0.02 : a->p.rings ? 0.005 : 0.01;
+    if (!chain && !klann && !a->angle_given)
         a->p.angle = M_PI / 2;
     crom_mesh m;
-    int rc = chain ? crom_scenes_chain(&a->p, &m) : crom_scenes_pendulum(&a->p, &m);
+    int rc = chain ? crom_scenes_chain(&a->p, &m) : klann ? crom_scenes_klann(&a->p, &m) : crom_scenes_pendulum(&a->p, &m);
     if (rc)
         return rc;
     if (cli->verbose) {

@@ -95,6 +95,23 @@ static void modes_box(crom_datafree_ctx *c, const crom_datafree_problem *p, cons
         c->Eref = EV;
 }
 
+/* A scene's size: the bounding-box diagonal of its frame vertices and its
+ * joints' points (a pendulum's reaches its pivot). */
+static double scene_size(const crom_mesh *m)
+{
+    const crom_scene *sc = m->scene;
+    double lo[3], hi[3], d2 = 0;
+    crom_mesh_bbox(m, lo, hi);
+    for (int j = 0; j < sc->nj; j++)
+        for (int k = 0; k < 3; k++) {
+            lo[k] = fmin(lo[k], sc->joints[j].point[k]);
+            hi[k] = fmax(hi[k], sc->joints[j].point[k]);
+        }
+    for (int k = 0; k < 3; k++)
+        d2 += (hi[k] - lo[k]) * (hi[k] - lo[k]);
+    return sqrt(d2);
+}
+
 int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p, const crom_datafree_opts *o,
                            const crom_nn_mlp *net, int maxbatch)
 {
@@ -158,7 +175,7 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
         c->mw[i] = c->sys.mass[i / 3] / c->mass;
     double EV = p->mat.E * c->sys.volume;
     if (c->sys.rigid) /* a scene has no modulus: its weight lifted by its size */
-        EV = c->mass * 9.81 * crom_mesh_points_diagonal(p->mesh->X, p->mesh->nv);
+        EV = c->mass * 9.81 * scene_size(p->mesh);
     c->Eref = EV;
     if (nm)
         modes_box(c, p, o, EV);

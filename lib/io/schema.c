@@ -43,7 +43,7 @@ static const crom_schema_attr common_attrs[] = {
 
 static const crom_schema_attr mesh_attrs[] = {
     {"generator", "str", 0, "what made the mesh: box, plate, sphere, cylinder, superquadric, import, sheet or disk (crom-mesh); "
-                            "remesh cut, punch, swap or refine with its parameters (crom-remesh); pendulum or chain (crom-scene)", NULL},
+                            "remesh cut, punch, swap or refine with its parameters (crom-remesh); pendulum, chain or klann (crom-scene)", NULL},
     {"target_size", "f64", 0, "target edge length given to the mesher (m)", NULL},
     {NULL, NULL, 0, NULL, NULL}};
 

@@ -131,3 +131,121 @@ int crom_scenes_chain(const crom_scenes_params *p, crom_mesh *m)
     free(names);
     return rc;
 }
+
+/* ------------------------------------------------------------- Klann */
+
+/* the optimized Klann geometry (boim.com/Walkin8r), crank AC = 17.5 */
+#define K_AC 17.5
+static const double k_B[2] = {-38.8, -12.5}, k_D[2] = {-14.6, 41.9};
+#define K_BH 23.7
+#define K_CF 73.4
+#define K_CH 38.8
+#define K_DE 34.1
+#define K_EF 57.7
+#define K_EG 111.7
+#define K_FG 59.0
+#define K_FH 35.2
+enum { KA, KB, KC, KD, KE, KF, KG, KH };
+
+/* the two intersections of circles (p, r) and (q, s): out[0] left of p->q
+ * (counter-clockwise), out[1] right; 1 when they do not meet */
+static int circles(const double p[2], double r, const double q[2], double s, double out[2][2])
+{
+    double dx = q[0] - p[0], dy = q[1] - p[1], d = hypot(dx, dy);
+    if (!(d > 0) || d > r + s || d < fabs(r - s))
+        return 1;
+    double a = (r * r - s * s + d * d) / (2 * d), h = sqrt(fmax(r * r - a * a, 0));
+    double mx = p[0] + a * dx / d, my = p[1] + a * dy / d;
+    out[0][0] = mx - h * dy / d, out[0][1] = my + h * dx / d;
+    out[1][0] = mx + h * dy / d, out[1][1] = my - h * dx / d;
+    return 0;
+}
+
+/* the branch of two intersections: the one nearer to hint (when given),
+ * else out[side] */
+static void pick(double out[2][2], const double *hint, int side, double res[2])
+{
+    int k = side;
+    if (hint)
+        k = hypot(out[0][0] - hint[0], out[0][1] - hint[1]) <= hypot(out[1][0] - hint[0], out[1][1] - hint[1]) ? 0 : 1;
+    res[0] = out[k][0], res[1] = out[k][1];
+}
+
+int crom_scenes_klann_points(double theta, double length, const double *prev, double P[8][2])
+{
+    double s = length / K_AC, X[2][2];
+    P[KA][0] = P[KA][1] = 0;
+    P[KB][0] = s * k_B[0], P[KB][1] = s * k_B[1];
+    P[KD][0] = s * k_D[0], P[KD][1] = s * k_D[1];
+    P[KC][0] = length * cos(theta), P[KC][1] = length * sin(theta);
+    /* H: on the rocker from B and CH from C; F and G: the rigid triangles
+     * C-H-F and E-F-G, on the side they were built with (the knee's bend);
+     * E: on the rocker from D and EF from F. The branches: the assembly
+     * whose crank turns fully with the foot below, tracing Klann's flat
+     * stride (74 by 33 units at the geometry's scale) */
+    if (circles(P[KB], s * K_BH, P[KC], s * K_CH, X))
+        return crom_err(CROM_EDATA, "the Klann linkage does not assemble at crank angle %g (H)", theta);
+    pick(X, prev ? prev + 2 * KH : NULL, 0, P[KH]);
+    if (circles(P[KC], s * K_CF, P[KH], s * K_FH, X))
+        return crom_err(CROM_EDATA, "the Klann linkage does not assemble at crank angle %g (F)", theta);
+    pick(X, NULL, 0, P[KF]);
+    if (circles(P[KD], s * K_DE, P[KF], s * K_EF, X))
+        return crom_err(CROM_EDATA, "the Klann linkage does not assemble at crank angle %g (E)", theta);
+    pick(X, prev ? prev + 2 * KE : NULL, 1, P[KE]);
+    if (circles(P[KE], s * K_EG, P[KF], s * K_FG, X))
+        return crom_err(CROM_EDATA, "the Klann linkage does not assemble at crank angle %g (G)", theta);
+    pick(X, NULL, 0, P[KG]);
+    return 0;
+}
+
+/* a thin box along the segment p0-p1 in the xy-plane, half width and
+ * thickness hw */
+static crom_scene_body bar(const double p0[2], const double p1[2], double hw, double density)
+{
+    double dx = p1[0] - p0[0], dy = p1[1] - p0[1], L = hypot(dx, dy);
+    const double size[3] = {L + 2 * hw, 2 * hw, 2 * hw}, c[3] = {(p0[0] + p1[0]) / 2, (p0[1] + p1[1]) / 2, 0};
+    crom_scene_body b = crom_scene_body_make(CROM_SCENE_BOX, size, c, density);
+    double cs = dx / L, sn = dy / L; /* shape x along the bar: a turn about z */
+    const double Q[9] = {cs, -sn, 0, sn, cs, 0, 0, 0, 1};
+    memcpy(b.rot, Q, sizeof Q);
+    return b;
+}
+
+int crom_scenes_klann(const crom_scenes_params *p, crom_mesh *m)
+{
+    memset(m, 0, sizeof *m);
+    int rc = check_params(p, 0);
+    if (rc)
+        return rc;
+    double P[8][2];
+    if ((rc = crom_scenes_klann_points(p->angle, p->length, NULL, P)))
+        return rc;
+    double hw = p->radius;
+    crom_scene s = {0};
+    /* bodies: crank A-C, rod C-F (with H), rocker B-H, rocker D-E, leg E-G (with F) */
+    crom_scene_body b[5] = {bar(P[KA], P[KC], hw, p->density), bar(P[KC], P[KF], hw, p->density),
+                            bar(P[KB], P[KH], hw, p->density), bar(P[KD], P[KE], hw, p->density),
+                            bar(P[KE], P[KG], hw, p->density)};
+    for (int i = 0; i < 5 && !rc; i++)
+        rc = crom_scene_add_body(&s, &b[i]);
+    /* revolute joints: (body, body or world, point) */
+    static const int J[7][3] = {{0, -1, KA}, {2, -1, KB}, {3, -1, KD}, {0, 1, KC}, {1, 2, KH}, {1, 4, KF}, {4, 3, KE}};
+    for (int j = 0; j < 7 && !rc; j++)
+        for (int k = -1; k <= 1 && !rc; k += 2) {
+            crom_scene_joint jt = {J[j][0], J[j][1], {P[J[j][2]][0], P[J[j][2]][1], k * hw}, 0};
+            rc = crom_scene_add_joint(&s, &jt);
+        }
+    if (rc) {
+        crom_scene_free(&s);
+        return rc;
+    }
+    double mass = 0, mb = 0;
+    for (int i = 0; i < 5; i++) {
+        double mi = p->density * crom_scene_body_volume(&s.bodies[i]);
+        mass += mi;
+        mb = fmax(mb, mi);
+    }
+    default_weights(p, mass, mb, p->length, &s);
+    static const char *const names[] = {"crank", "rod", "rocker_b", "rocker_d", "leg"};
+    return crom_rigidsys_scene_mesh(&s, names, m);
+}

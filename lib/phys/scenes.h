@@ -45,4 +45,26 @@ int crom_scenes_pendulum(const crom_scenes_params *p, crom_mesh *m);
  *     Fig. 11). */
 int crom_scenes_chain(const crom_scenes_params *p, crom_mesh *m);
 
+/* The Klann linkage (Sharp et al. Fig. 2; planar, one degree of freedom):
+ * a crank turning about A, a connecting rod C-H-F (one rigid triangle) held
+ * at H by a rocker from the fixed pivot B, and a leg E-F-G whose top E a
+ * rocker from the fixed pivot D holds and whose end G is the foot. Bar
+ * lengths are the optimized Klann geometry of boim.com/Walkin8r (AC 17.5,
+ * B (-38.8, -12.5), D (-14.6, 41.9), BH 23.7, CF 73.4, CH 38.8, DE 34.1,
+ * EF 57.7, EG 111.7, FG 59, FH 35.2), scaled so that AC = `length`, in the
+ * xy-plane with A at the origin. The five moving links are thin boxes
+ * (`radius`: half their width and thickness) along their longest side;
+ * every revolute joint is two point joints ±radius along z (the ground
+ * pivots A, B, D pinned to the world), so the linkage cannot leave its
+ * plane. The rest state is the linkage assembled at crank angle `angle`.
+ * Regions: crank, rod, rocker_b, rocker_d, leg. */
+int crom_scenes_klann(const crom_scenes_params *p, crom_mesh *m);
+
+/* The Klann linkage's points at crank angle theta (xy, metres): A, B, C,
+ * D, E, F, G, H into P [8][2] in that order, by a direct kinematic solve
+ * (circle intersections). prev (may be NULL) is the previous solution: each
+ * branch is then the one nearer to it; without it the assembly crom-scene
+ * builds. CROM_EDATA where the linkage cannot be assembled. */
+int crom_scenes_klann_points(double theta, double length, const double *prev, double P[8][2]);
+
 #endif

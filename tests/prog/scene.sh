@@ -147,9 +147,26 @@ expect_error 64 "is a rigid-body scene \(1 bodies\): this objective trains on so
 expect_error 64 "tets 5: a random cubature of tets applies to solids" "$TMP/x.h5" -- \
   crom-fitfield --objective energy --mesh "$TMP/hang.h5" --tets 5 -o "$TMP/x.h5"
 
+# the Klann linkage: five links and seven revolute joints (two point joints
+# each), assembled exactly at rest
+crom-scene klann --angle 30 -o "$TMP/klann.h5"
+crom-info "$TMP/klann.h5" >"$TMP/info.txt"
+grep -q "5 bodies (5 boxes, 0 spheres, 0 capsules, 0 rings; 60 DOF)" "$TMP/info.txt" || fail "the Klann linkage's bodies"
+grep -q "14 joints (6 pinned to the world)" "$TMP/info.txt" || fail "the Klann linkage's joints"
+crom-fullsim "$TMP/klann.h5" --dt 0.005 --steps 40 --gravity 0,0,0 -o "$TMP/klann-run.h5"
+$PY - "$TMP/klann-run.h5" <<'PYEOF' || fail "the Klann linkage at rest"
+import sys, h5py, numpy as np
+f = h5py.File(sys.argv[1], 'r')
+u, g = np.abs(f['frames/displacement'][...]).max(), f['frames/joint_gap'][...].max()
+print(f"Klann linkage with no load: largest displacement {u:.1e} m, joint gaps <= {g:.1e} m")
+if u > 1e-12 or g > 1e-12:
+    sys.exit("the assembled linkage is not at rest")
+PYEOF
+ok
+
 # refusals
-expect_error 64 "unknown scene 'knot'" "$TMP/x.h5" -- crom-scene knot -o "$TMP/x.h5"
-expect_error 64 "angle is for the pendulum" "$TMP/x.h5" -- crom-scene chain --angle 10 -o "$TMP/x.h5"
+expect_error 64 "unknown scene 'knot' \(pendulum, chain, klann\)" "$TMP/x.h5" -- crom-scene knot -o "$TMP/x.h5"
+expect_error 64 "angle is for the pendulum and the Klann linkage" "$TMP/x.h5" -- crom-scene chain --angle 10 -o "$TMP/x.h5"
 expect_error 64 "links" "$TMP/x.h5" -- crom-scene chain --links 0 -o "$TMP/x.h5"
 expect_error 64 "ring radius 0.004 m must exceed the tube radius 0.005 m" "$TMP/x.h5" -- \
   crom-scene chain --ring-radius 0.004 -o "$TMP/x.h5"

@@ -22,6 +22,7 @@
 #include "rom/map.h"
 #include "rom/model.h"
 #include "rom/nlsim.h"
+#include "datafree/datafree.h"
 
 static crom_scenes_params params(void)
 {
@@ -551,6 +552,148 @@ static void test_reduced_full_rank(void)
     crom_mesh_free(&m);
 }
 
+/* a body point's position: rest point X0 carried by body b's frame at x */
+static void carried(const crom_rigidsys *rs, int b, const double *x, const double X0[3], double out[3])
+{
+    double R[9], t[3];
+    crom_rigidsys_pose(rs, b, x, R, t);
+    for (int i = 0; i < 3; i++)
+        out[i] = R[3 * i] * X0[0] + R[3 * i + 1] * X0[1] + R[3 * i + 2] * X0[2] + t[i];
+}
+
+/* The Klann linkage: assembled exactly (zero energy at rest); a direct
+ * kinematic solve closes at every crank angle of a full turn with every
+ * bar at its length; and crom-fullsim's linkage swinging under gravity
+ * keeps its foot on the kinematic solution for its own crank angle (the
+ * joints' give: measured 5e-6 of the leg). */
+static void test_klann(void)
+{
+    crom_scenes_params p = {.length = 0.05, .radius = 0.004, .density = 1000, .gravity = 9.81};
+    double P[8][2], prev[16], worst = 0;
+    CHECK(crom_scenes_klann_points(0, 0.05, NULL, P) == 0);
+    const double s = 0.05 / 17.5;
+    static const int bars[][2] = {{0, 2}, {1, 7}, {2, 7}, {2, 5}, {7, 5}, {3, 4}, {4, 5}, {4, 6}, {5, 6}};
+    static const double len[] = {17.5, 23.7, 38.8, 73.4, 35.2, 34.1, 57.7, 111.7, 59};
+    for (int k = 0; k <= 72; k++) { /* a full turn in 5-degree steps, each branch nearest the last */
+        memcpy(prev, P, sizeof prev);
+        CHECK(crom_scenes_klann_points(2 * M_PI * k / 72, 0.05, prev, P) == 0);
+        for (int b = 0; b < 9; b++)
+            worst = fmax(worst, fabs(hypot(P[bars[b][0]][0] - P[bars[b][1]][0], P[bars[b][0]][1] - P[bars[b][1]][1]) -
+                                     s * len[b]));
+    }
+    CHECK_LT(worst, 1e-12);
+    crom_mesh m;
+    CHECK(crom_scenes_klann(&p, &m) == 0);
+    CHECK(m.scene->nb == 5 && m.scene->nj == 14);
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    sc.dt = 0.005;
+    sc.max_iter = 100;
+    crom_sim sim;
+    crom_sim_stats st;
+    CHECK(crom_sim_init(&sim, &m, &sc) == 0);
+    double E0;
+    CHECK(crom_system_energy(&sim.sys, m.X, &E0) == 0);
+    CHECK_LT(E0, 1e-20);
+    CHECK(crom_scenes_klann_points(0, 0.05, NULL, P) == 0);
+    const double C0[3] = {P[2][0], P[2][1], 0}, G0[3] = {P[6][0], P[6][1], 0};
+    double foot = 0, lo = 0, hi = 0;
+    for (int k = 0; k < 300; k++) {
+        CHECK(crom_sim_step(&sim, &st) == 0);
+        double C[3], G[3], Q[8][2];
+        carried(&sim.sys.rb, 0, sim.x, C0, C);
+        carried(&sim.sys.rb, 4, sim.x, G0, G);
+        double th = atan2(C[1], C[0]);
+        lo = fmin(lo, th), hi = fmax(hi, th);
+        memcpy(prev, P, sizeof prev);
+        CHECK(crom_scenes_klann_points(th, 0.05, prev, Q) == 0);
+        memcpy(P, Q, sizeof P);
+        foot = fmax(foot, hypot(hypot(G[0] - Q[6][0], G[1] - Q[6][1]), G[2]));
+    }
+    fprintf(stderr, "Klann: bars at their lengths to %.1e m over a turn; swinging under gravity (crank %.1f..%.1f "
+                    "degrees) the simulated foot stays %.1e m (%.1e of the leg) from the kinematic solution\n",
+            worst, lo * 180 / M_PI, hi * 180 / M_PI, foot, foot / (s * 111.7));
+    CHECK(hi - lo > 0.2);
+    CHECK_LT(foot, 1e-3 * s * 111.7);
+    crom_sim_free(&sim);
+    crom_mesh_free(&m);
+}
+
+/* Sharp et al. Fig. 2: a data-free 1-D subspace of the Klann linkage
+ * (energy objective, no gravity: the penalties alone; sigma 0.02 m, lambda
+ * 1 as in their Table 1, 10000 steps, 1.5 s). Decoded over z in [-2.5,
+ * 2.5], its states are measured against the linkage: the joints' largest
+ * gap relative to the crank (measured 3.1%), the crank angles covered
+ * (-33..28 degrees), and the foot against the direct kinematic solve at
+ * the decoded crank angle (6.6% of the leg). The issue's targets (1% and
+ * 2%, the whole cycle) are not met: with 40000 steps 2.7%, -19..19
+ * degrees, 2.4% (KL_STEPS=40000 build/tests/test_scene prints it). */
+static void test_klann_datafree(void)
+{
+    crom_scenes_params p = {.length = 0.05, .radius = 0.004, .density = 1000, .gravity = 9.81};
+    crom_mesh m;
+    CHECK(crom_scenes_klann(&p, &m) == 0);
+    crom_datafree_problem P = {.mesh = &m, .gravity = {0, 0, 0}};
+    crom_material_init(&P.mat, 1e6, 0.3, 1000);
+    crom_datafree_opts o;
+    crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
+    o.rank = 1;
+    o.steps = getenv("KL_STEPS") ? atoi(getenv("KL_STEPS")) : 10000;
+    o.sigma = getenv("KL_SIGMA") ? atof(getenv("KL_SIGMA")) : 0.02;
+    o.lambda = getenv("KL_LAMBDA") ? atof(getenv("KL_LAMBDA")) : 1;
+    o.width = 64;
+    o.depth = 6;
+    o.seed = 5;
+    crom_model model;
+    crom_dftrain_log log;
+    int rc = crom_datafree_train(&P, &o, &model, &log);
+    CHECK_MSG(rc == 0, "train: %s", crom_errmsg());
+    if (rc)
+        return;
+    crom_map map;
+    CHECK(crom_map_init(&map, &model, NULL) == 0);
+    crom_rigidsys rs;
+    CHECK(crom_rigidsys_init(&rs, &m) == 0);
+    double Pk[8][2], prev[16], gap[14], x[60], worst_gap = 0, foot = 0, lo = 10, hi = -10;
+    CHECK(crom_scenes_klann_points(0, 0.05, NULL, Pk) == 0);
+    const double C0[3] = {Pk[2][0], Pk[2][1], 0}, G0[3] = {Pk[6][0], Pk[6][1], 0};
+    double Pz[8][2];
+    memcpy(Pz, Pk, sizeof Pz);
+    for (int dir = -1; dir <= 1; dir += 2) { /* from z = 0 outwards, each kinematic branch nearest the last */
+        memcpy(Pk, Pz, sizeof Pk);
+        for (int k = 0; k <= 50; k++) {
+            double z = dir * 2.5 * k / 50, C[3], G[3], Q[8][2];
+            CHECK(crom_map_eval(&map, &z, x, NULL) == 0);
+            crom_rigidsys_joint_gaps(&rs, x, gap);
+            for (int j = 0; j < 14; j++)
+                worst_gap = fmax(worst_gap, gap[j]);
+            carried(&rs, 0, x, C0, C);
+            carried(&rs, 4, x, G0, G);
+            double th = atan2(C[1], C[0]);
+            lo = fmin(lo, th), hi = fmax(hi, th);
+            memcpy(prev, Pk, sizeof prev);
+            if (crom_scenes_klann_points(th, 0.05, prev, Q) == 0) {
+                memcpy(Pk, Q, sizeof Pk);
+                foot = fmax(foot, hypot(G[0] - Q[6][0], G[1] - Q[6][1]));
+            }
+        }
+    }
+    fprintf(stderr, "Klann, data-free d = 1 (%d steps, sigma %g, lambda %g): over z in [-2.5, 2.5] the joints' gaps "
+                    "<= %.2g of the crank, crank %.0f..%.0f degrees, foot within %.2g of the leg of the kinematic "
+                    "solve\n",
+            o.steps, o.sigma, o.lambda, worst_gap / 0.05, lo * 180 / M_PI, hi * 180 / M_PI, foot / (0.05 / 17.5 * 111.7));
+    if (!getenv("KL_STEPS")) { /* the default run: measured 3.1%, -33..28 degrees, 6.6% */
+        CHECK_LT(worst_gap, 0.06 * 0.05);
+        CHECK(hi - lo > 40 * M_PI / 180);
+        CHECK_LT(foot, 0.1 * 0.05 / 17.5 * 111.7);
+    }
+    crom_rigidsys_free(&rs);
+    crom_map_free(&map);
+    crom_model_free(&model);
+    crom_dftrain_log_free(&log);
+    crom_mesh_free(&m);
+}
+
 int main(void)
 {
     check_begin("test_scene");
@@ -562,5 +705,7 @@ int main(void)
     test_display();
     test_contacts();
     test_reduced_full_rank();
+    test_klann();
+    test_klann_datafree();
     return check_done();
 }
