@@ -1,6 +1,7 @@
 /* crom-scene — build a rigid-body scene (a crom/mesh of bodies, joints and
  * penalty weights; lib/mesh/scene.h) from parameters: the pendulum, the
- * chains and the Klann linkage of Sharp et al. 2023 (§5.1, Table 1). */
+ * chains, the Klann linkage and the Stewart platform of Sharp et al. 2023
+ * (§5.1, Table 1). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -35,7 +36,8 @@ static const crom_cli_doc doc = {
     "build a rigid-body scene (bodies, penalty joints) for crom-fullsim",
     "crom-scene pendulum [--length L] [--radius R] [--angle DEG] [options] [-o OUT]\n"
     "crom-scene chain [--links N] [--link ring|capsule] [--length L] [--radius R] [options] [-o OUT]\n"
-    "crom-scene klann [--length L] [--radius R] [--angle DEG] [options] [-o OUT]",
+    "crom-scene klann [--length L] [--radius R] [--angle DEG] [options] [-o OUT]\n"
+    "crom-scene stewart [--length L] [--radius R] [options] [-o OUT]",
     "Writes a crom/mesh holding a rigid-body scene (Sharp et al. 2023, section 5.1): each body "
     "is an analytic shape with a density, carried by four frame vertices whose lumped masses "
     "have its mass, centre and second moment exactly, so their affine motion is the body's [R|t] "
@@ -56,7 +58,13 @@ static const crom_cli_doc doc = {
     "(regions crank, rod, rocker_b, rocker_d, leg) is a thin box of half width --radius "
     "(default 0.004); each revolute joint is two point joints --radius either side of the "
     "plane, the three ground pivots pinned to the world. The linkage is assembled at crank "
-    "angle --angle (degrees, default 0).",
+    "angle --angle (degrees, default 0).\n\n"
+    "stewart: the Stewart platform of the paper's Fig. 2 (14 bodies, 168 DOF): a base pinned "
+    "to the world, a platform --length (default 0.5) above it, and six telescoping legs, each "
+    "a lower capsule hanging from the base by a ball joint and an upper capsule holding the "
+    "platform by one, the upper sliding in the lower (two point-on-axis joints); --radius "
+    "(default 0.02) is the legs'. With no actuators the legs slide freely: the platform keeps "
+    "its six degrees of freedom (regions base, platform, leg0_lower, leg0_upper, ...).",
     groups,
     "crom-scene pendulum --length 1 --angle 85 -o pendulum.h5\n"
     "crom-scene klann -o klann.h5 && crom-export -o klann.png klann.h5\n"
@@ -115,24 +123,27 @@ static int on_opt(void *ctx, int key, const char *v)
 static int run(crom_cli *cli, args *a)
 {
     if (!a->kind)
-        return crom_err(CROM_EUSAGE, "no scene given (pendulum, chain, klann)");
-    int chain = !strcmp(a->kind, "chain"), klann = !strcmp(a->kind, "klann");
-    if (!chain && !klann && strcmp(a->kind, "pendulum"))
-        return crom_err(CROM_EUSAGE, "unknown scene '%s' (pendulum, chain, klann)", a->kind);
-    if (chain && a->angle_given)
-        return crom_err(CROM_EUSAGE, "--angle is for the pendulum and the Klann linkage: a chain starts horizontal");
+        return crom_err(CROM_EUSAGE, "no scene given (pendulum, chain, klann, stewart)");
+    int chain = !strcmp(a->kind, "chain"), klann = !strcmp(a->kind, "klann"), stewart = !strcmp(a->kind, "stewart");
+    if (!chain && !klann && !stewart && strcmp(a->kind, "pendulum"))
+        return crom_err(CROM_EUSAGE, "unknown scene '%s' (pendulum, chain, klann, stewart)", a->kind);
+    if ((chain || stewart) && a->angle_given)
+        return crom_err(CROM_EUSAGE, "--angle is for the pendulum and the Klann linkage");
     if (!chain && (a->links_given || a->link_given))
         return crom_err(CROM_EUSAGE, "--links and --link are for a chain");
     if ((!chain || !a->p.rings) && (a->rradius_given || a->contact_given))
         return crom_err(CROM_EUSAGE, "--ring-radius and --contact-weight are for a chain of rings");
     if (!a->length_given)
-        a->p.length = klann ? 0.05 : !chain ? 1 : a->p.rings ? 0.03 : 0.1;
+        a->p.length = stewart ? 0.5 : klann ? 0.05 : !chain ? 1 : a->p.rings ? 0.03 : 0.1;
     if (!a->radius_given)
-        a->p.radius = klann ? 0.004 : !chain ? 0.02 : a->p.rings ? 0.005 : 0.01;
-    if (!chain && !klann && !a->angle_given)
+        a->p.radius = stewart ? 0.02 : klann ? 0.004 : !chain ? 0.02 : a->p.rings ? 0.005 : 0.01;
+    if (!chain && !klann && !stewart && !a->angle_given)
         a->p.angle = M_PI / 2;
     crom_mesh m;
-    int rc = chain ? crom_scenes_chain(&a->p, &m) : klann ? crom_scenes_klann(&a->p, &m) : crom_scenes_pendulum(&a->p, &m);
+    int rc = chain     ? crom_scenes_chain(&a->p, &m)
+             : klann   ? crom_scenes_klann(&a->p, &m)
+             : stewart ? crom_scenes_stewart(&a->p, &m)
+                       : crom_scenes_pendulum(&a->p, &m);
     if (rc)
         return rc;
     if (cli->verbose) {

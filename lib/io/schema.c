@@ -36,6 +36,10 @@ static const crom_schema_attr common_attrs[] = {
     {P "scene/joint_bodies", "i32", "nj,2", 0, "1", "each penalty joint's bodies a, b (b = -1: pinned to the world)", NULL}, \
     {P "scene/joint_points", "f64", "nj,3", 0, "m", "each joint's rest point, held together in both bodies", NULL}, \
     {P "scene/joint_weights", "f64", "nj", 0, "N/m", "each joint's penalty weight w: energy 1/2 w gap^2", NULL}, \
+    {P "scene/joint_kinds", "i32", "nj", 0, "1", "each joint's kind: 0 a point joint, 1 a slider (b's point on a's " \
+                                               "axis through it; absent: all point joints)", NULL},            \
+    {P "scene/joint_axes", "f64", "nj,3", 0, "1", "each slider's rest direction in body a (a unit vector; 0 for point " \
+                                                "joints)", NULL},                                            \
     {P "scene/pair_bodies", "i32", "np,2", 0, "1", "each collision pair: body a's surface points against body b's " \
                                                  "signed distance", NULL},                                  \
     {P "scene/pair_weights", "f64", "np", 0, "N/m", "each pair's penalty weight w: energy 1/2 w sum min(phi, 0)^2", NULL}
@@ -43,7 +47,7 @@ static const crom_schema_attr common_attrs[] = {
 
 static const crom_schema_attr mesh_attrs[] = {
     {"generator", "str", 0, "what made the mesh: box, plate, sphere, cylinder, superquadric, import, sheet or disk (crom-mesh); "
-                            "remesh cut, punch, swap or refine with its parameters (crom-remesh); pendulum, chain or klann (crom-scene)", NULL},
+                            "remesh cut, punch, swap or refine with its parameters (crom-remesh); pendulum, chain, klann or stewart (crom-scene)", NULL},
     {"target_size", "f64", 0, "target edge length given to the mesher (m)", NULL},
     {NULL, NULL, 0, NULL, NULL}};
 

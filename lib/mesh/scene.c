@@ -91,6 +91,12 @@ int crom_scene_validate(const crom_scene *s)
             return crom_err(CROM_EDATA, "joint %d joins body %d to itself", i, j->a);
         if (!finite3(j->point))
             return crom_err(CROM_EDATA, "joint %d has a non-finite point", i);
+        if (j->kind != CROM_SCENE_POINT && j->kind != CROM_SCENE_SLIDER)
+            return crom_err(CROM_EDATA, "joint %d has unknown kind %d (0 point, 1 slider)", i, j->kind);
+        double an = sqrt(j->axis[0] * j->axis[0] + j->axis[1] * j->axis[1] + j->axis[2] * j->axis[2]);
+        if (j->kind == CROM_SCENE_SLIDER && (j->b < 0 || !(fabs(an - 1) <= 1e-6)))
+            return crom_err(CROM_EDATA, "slider joint %d: it joins two bodies along a unit axis (b = %d, |axis| = %g)",
+                            i, j->b, an);
         if (!(j->weight >= 0) || !isfinite(j->weight))
             return crom_err(CROM_EDATA, "joint %d has weight %g N/m: weights must be non-negative and finite", i,
                             j->weight);
@@ -217,6 +223,14 @@ int crom_scene_write(hid_t loc, const crom_scene *s)
             dv[i] = s->joints[i].weight;
         if (!rc)
             rc = crom_h5_put_f64(loc, "scene/joint_weights", 1, &e1, dv);
+        for (int i = 0; i < nj; i++)
+            iv[i] = s->joints[i].kind;
+        if (!rc)
+            rc = crom_h5_put_i32(loc, "scene/joint_kinds", 1, &e1, iv);
+        for (int i = 0; i < nj; i++)
+            memcpy(dv + 3 * i, s->joints[i].axis, 3 * sizeof(double));
+        if (!rc)
+            rc = crom_h5_put_f64(loc, "scene/joint_axes", 2, e3, dv);
     }
     if (!rc && np) {
         hsize_t e1 = (hsize_t)np, e2[2] = {(hsize_t)np, 2};
@@ -252,8 +266,8 @@ static int read_rows(hid_t loc, const char *name, int isint, int cols, int *n, v
 int crom_scene_read(hid_t loc, crom_scene *s)
 {
     memset(s, 0, sizeof *s);
-    int *shape = NULL, *jb = NULL, *pb = NULL, nb = -1, nj = -1, np = -1;
-    double *size = NULL, *centre = NULL, *dens = NULL, *jp = NULL, *jw = NULL, *pw = NULL, *rot = NULL;
+    int *shape = NULL, *jb = NULL, *pb = NULL, *jk = NULL, nb = -1, nj = -1, np = -1;
+    double *size = NULL, *centre = NULL, *dens = NULL, *jp = NULL, *jw = NULL, *pw = NULL, *rot = NULL, *ja = NULL;
     int rc = read_rows(loc, "scene/shape", 1, 0, &nb, (void **)&shape);
     if (!rc)
         rc = read_rows(loc, "scene/size", 0, 3, &nb, (void **)&size);
@@ -278,6 +292,10 @@ int crom_scene_read(hid_t loc, crom_scene *s)
             rc = read_rows(loc, "scene/joint_points", 0, 3, &nj, (void **)&jp);
         if (!rc)
             rc = read_rows(loc, "scene/joint_weights", 0, 0, &nj, (void **)&jw);
+        if (!rc && crom_h5_has(loc, "scene/joint_kinds")) /* absent: every joint a point joint */
+            rc = read_rows(loc, "scene/joint_kinds", 1, 0, &nj, (void **)&jk);
+        if (!rc && crom_h5_has(loc, "scene/joint_axes"))
+            rc = read_rows(loc, "scene/joint_axes", 0, 3, &nj, (void **)&ja);
     }
     if (!rc && crom_h5_has(loc, "scene/pair_bodies")) {
         rc = read_rows(loc, "scene/pair_bodies", 1, 2, &np, (void **)&pb);
@@ -291,14 +309,17 @@ int crom_scene_read(hid_t loc, crom_scene *s)
         rc = crom_scene_add_body(s, &b);
     }
     for (int i = 0; !rc && i < nj; i++) {
-        crom_scene_joint j = {jb[2 * i], jb[2 * i + 1], {jp[3 * i], jp[3 * i + 1], jp[3 * i + 2]}, jw[i]};
+        crom_scene_joint j = {jb[2 * i], jb[2 * i + 1], {jp[3 * i], jp[3 * i + 1], jp[3 * i + 2]}, jw[i],
+                              jk ? jk[i] : CROM_SCENE_POINT, {0, 0, 0}};
+        if (ja)
+            memcpy(j.axis, ja + 3 * i, sizeof j.axis);
         rc = crom_scene_add_joint(s, &j);
     }
     for (int i = 0; !rc && i < np; i++) {
         crom_scene_pair p = {pb[2 * i], pb[2 * i + 1], pw[i]};
         rc = crom_scene_add_pair(s, &p);
     }
-    free(shape), free(jb), free(pb), free(size), free(centre), free(dens), free(jp), free(jw), free(pw), free(rot);
+    free(shape), free(jb), free(pb), free(size), free(centre), free(dens), free(jp), free(jw), free(pw), free(rot), free(jk), free(ja);
     if (!rc)
         rc = crom_scene_validate(s);
     if (rc)

@@ -43,11 +43,16 @@ crom_scene_body crom_scene_body_make(int shape, const double size[3], const doub
 
 /* A penalty joint (Sharp eq. 9, w_eq |C_eq(q)|² with C the gap): the body
  * point of body a at rest position `point` is held to the same point of
- * body b, or (b = −1) pinned to its rest position in the world. */
+ * body b, or (b = −1) pinned to its rest position in the world; a slider
+ * (point on axis) holds b's point on the line through a's point along a's
+ * rest direction `axis` (a unit vector), free to slide along it. */
+enum { CROM_SCENE_POINT = 0, CROM_SCENE_SLIDER = 1 };
 typedef struct {
-    int a, b;         /* bodies; b = −1: the world */
+    int a, b;         /* bodies; b = −1: the world (point joints) */
     double point[3];  /* rest position (m) */
     double weight;    /* w (N/m): energy ½ w |gap|² */
+    int kind;         /* CROM_SCENE_POINT or CROM_SCENE_SLIDER */
+    double axis[3];   /* a slider's rest direction in body a (unit) */
 } crom_scene_joint;
 
 /* A collision pair: sample points of body a's surface against the signed
@@ -73,7 +78,8 @@ int crom_scene_shape_parse(const char *name);
 /* The volume of a body's shape (m³). */
 double crom_scene_body_volume(const crom_scene_body *b);
 
-/* Check a scene: at least one body; known shapes with positive finite
+/* Check a scene: at least one body; joints of a known kind (a slider
+ * between two bodies, along a unit axis); known shapes with positive finite
  * sizes (a ring's straight length may be 0, and its tube must be thinner
  * than its radius) and density; rotations orthonormal with det +1 (to
  * 1e-9); joints and pairs naming existing bodies (a pair of two

@@ -380,3 +380,81 @@ int crom_rigid_contact(const double beta[4], const double Bq[9], int shape, cons
     }
     return project ? crom_sym_dense_project(H, 24) : 0;
 }
+
+/* ------------------------------------------------------------- sliders */
+
+void crom_rigid_axis_weights(const double B[9], const double a0[3], double c[4])
+{
+    double b[4][3];
+    edge_weights(B, b);
+    for (int k = 0; k < 4; k++)
+        c[k] = b[k][0] * a0[0] + b[k][1] * a0[1] + b[k][2] * a0[2];
+}
+
+int crom_rigid_slider(const double beta[4], const double gamma[4], const double c[4], double w, const double ya[12],
+                      const double yb[12], int project, double *E, double *g, double *H)
+{
+    /* in the six variables (d, u): e = d − s u, s = u·d; E = ½ w |e|² */
+    double d[3], u[3], e[3], s = 0, ue = 0;
+    for (int i = 0; i < 3; i++) {
+        d[i] = u[i] = 0;
+        for (int k = 0; k < 4; k++) {
+            d[i] += gamma[k] * yb[3 * k + i] - beta[k] * ya[3 * k + i];
+            u[i] += c[k] * ya[3 * k + i];
+        }
+        s += u[i] * d[i];
+    }
+    for (int i = 0; i < 3; i++) {
+        e[i] = d[i] - s * u[i];
+        ue += u[i] * e[i];
+    }
+    if (E)
+        *E = 0.5 * w * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+    /* ∂e/∂d = I − u uᵀ, ∂e/∂u = −(s I + u dᵀ): ∇_d E = w (e − u (u·e)),
+     * ∇_u E = −w (s e + (u·e) d) */
+    double gd[3], gu[3];
+    for (int i = 0; i < 3; i++) {
+        gd[i] = w * (e[i] - u[i] * ue);
+        gu[i] = -w * (s * e[i] + ue * d[i]);
+    }
+    /* y coordinate (frame a vertex k, component i) moves d_i by −β_k and u_i
+     * by c_k; (frame b vertex k, component i) moves d_i by γ_k */
+    for (int k = 0; g && k < 4; k++)
+        for (int i = 0; i < 3; i++) {
+            g[3 * k + i] = -beta[k] * gd[i] + c[k] * gu[i];
+            g[12 + 3 * k + i] = gamma[k] * gd[i];
+        }
+    if (!H)
+        return 0;
+    /* the 6×6 Hessian in (d, u): w (Jᵀ J + Σ_i e_i ∇²e_i), J = [∂e/∂d, ∂e/∂u];
+     * Σ e_i ∂²e_i/∂d_j∂u_k = −(δ_jk (u·e) + u_j e_k), Σ e_i ∂²e_i/∂u_j∂u_k =
+     * −(d_j e_k + d_k e_j), the d-d block 0 */
+    double J[3][6], H6[6][6];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            J[i][j] = (i == j) - u[i] * u[j];
+            J[i][3 + j] = -(s * (i == j) + u[i] * d[j]);
+        }
+    for (int p = 0; p < 6; p++)
+        for (int q = 0; q < 6; q++) {
+            double v = J[0][p] * J[0][q] + J[1][p] * J[1][q] + J[2][p] * J[2][q];
+            if (p < 3 && q >= 3)
+                v -= (p == q - 3) * ue + u[p] * e[q - 3];
+            else if (p >= 3 && q < 3)
+                v -= (q == p - 3) * ue + u[q] * e[p - 3];
+            else if (p >= 3)
+                v -= d[p - 3] * e[q - 3] + d[q - 3] * e[p - 3];
+            H6[p][q] = w * v;
+        }
+    /* through the linear maps: coordinate (frame, vertex k, component i) has
+     * weights (wd, wu) on d_i and u_i */
+    for (int P = 0; P < 24; P++)
+        for (int Q = 0; Q < 24; Q++) {
+            int kp = (P % 12) / 3, ip = P % 3, kq = (Q % 12) / 3, iq = Q % 3;
+            double dp = P < 12 ? -beta[kp] : gamma[kp], up = P < 12 ? c[kp] : 0;
+            double dq = Q < 12 ? -beta[kq] : gamma[kq], uq = Q < 12 ? c[kq] : 0;
+            H[24 * P + Q] = dp * dq * H6[ip][iq] + dp * uq * H6[ip][3 + iq] + up * dq * H6[3 + ip][iq] +
+                            up * uq * H6[3 + ip][3 + iq];
+        }
+    return project ? crom_sym_dense_project(H, 24) : 0;
+}

@@ -95,6 +95,22 @@ void crom_rigid_pin(const double beta[4], double w, const double y[12], const do
 void crom_rigid_joint(const double beta[4], const double gamma[4], double w, const double ya[12],
                       const double yb[12], double *E, double *g, double *H);
 
+/* A point-on-axis (slider) joint: point gamma [4] of frame yb held on the
+ * line through point beta [4] of frame ya along ya's axis u = R_a a0 (a0
+ * a unit rest direction; u = Σ_k c_k ya_k with c_k the axis weights of
+ * crom_rigid_axis_weights): E = ½ w |d − (u·d) u|², d = x_b − x_a (the
+ * component of d across the axis, taking |u| = 1, which the orthogonality
+ * potential keeps), gradient g [24] (ya then yb) and Hessian H [24][24],
+ * exact (the energy is a polynomial of the frames); any output may be
+ * NULL; project: H projected to PSD. Returns 0, or 1 when the projection
+ * fails. */
+int crom_rigid_slider(const double beta[4], const double gamma[4], const double c[4], double w, const double ya[12],
+                      const double yb[12], int project, double *E, double *g, double *H);
+
+/* The weights c [4] with R a0 = Σ_k c_k y_k for frame y of rest inverse
+ * edges B (c_k = b_k · a0; Σ c_k = 0). */
+void crom_rigid_axis_weights(const double B[9], const double a0[3], double c[4]);
+
 /* The signed distance φ of a scene shape (mesh/scene.h: shape code and
  * size) at shape coordinates q, its gradient g [3] and Hessian H [3][3]
  * (either may be NULL): exact where φ < 0 (a box's Hessian is 0 inside,

@@ -117,7 +117,7 @@ int crom_rigidsys_elem_vertices(const crom_rigidsys *s, int e, int *v)
     const crom_rigidsys_elem *el = &s->el[e];
     for (int k = 0; k < 4; k++)
         v[k] = 4 * el->a + k;
-    if (el->kind != CROM_RIGIDSYS_JOINT && el->kind != CROM_RIGIDSYS_CONTACT)
+    if (el->kind == CROM_RIGIDSYS_ORTHO || el->kind == CROM_RIGIDSYS_PIN)
         return 4;
     for (int k = 0; k < 4; k++)
         v[4 + k] = 4 * el->b + k;
@@ -139,6 +139,10 @@ int crom_rigidsys_elem_eval(const crom_rigidsys *s, int e, const double *xe, int
     case CROM_RIGIDSYS_JOINT:
         crom_rigid_joint(el->beta, el->gamma, el->w, xe, xe + 12, E, g, H);
         break;
+    case CROM_RIGIDSYS_SLIDER:
+        if (crom_rigid_slider(el->beta, el->gamma, el->c, el->w, xe, xe + 12, project, E, g, H))
+            return CROM_EDATA;
+        break;
     default: {
         const crom_scene_body *sb = &s->body[el->b];
         if (crom_rigid_contact(el->beta, s->Bq + 9 * (size_t)el->b, sb->shape, sb->size, el->w, xe, xe + 12, project,
@@ -146,7 +150,7 @@ int crom_rigidsys_elem_eval(const crom_rigidsys *s, int e, const double *xe, int
             return CROM_EDATA;
     }
     }
-    int m = el->kind == CROM_RIGIDSYS_JOINT || el->kind == CROM_RIGIDSYS_CONTACT ? 24 : 12;
+    int m = el->kind == CROM_RIGIDSYS_ORTHO || el->kind == CROM_RIGIDSYS_PIN ? 12 : 24;
     if (E && !isfinite(*E))
         return CROM_EDATA;
     for (int i = 0; g && i < m; i++)
@@ -268,13 +272,15 @@ int crom_rigidsys_init(crom_rigidsys *s, const crom_mesh *m)
     for (int j = 0; !rc && j < sc->nj; j++) {
         const crom_scene_joint *J = &sc->joints[j];
         crom_rigidsys_elem *el = &s->el[sc->nb + j];
-        el->kind = J->b < 0 ? CROM_RIGIDSYS_PIN : CROM_RIGIDSYS_JOINT;
+        el->kind = J->b < 0 ? CROM_RIGIDSYS_PIN : J->kind == CROM_SCENE_SLIDER ? CROM_RIGIDSYS_SLIDER : CROM_RIGIDSYS_JOINT;
         el->a = J->a;
         el->b = J->b;
         el->w = J->weight;
         crom_rigid_coords(s->Y + 12 * (size_t)J->a, s->B + 9 * (size_t)J->a, J->point, el->beta);
         if (J->b >= 0)
             crom_rigid_coords(s->Y + 12 * (size_t)J->b, s->B + 9 * (size_t)J->b, J->point, el->gamma);
+        if (el->kind == CROM_RIGIDSYS_SLIDER)
+            crom_rigid_axis_weights(s->B + 9 * (size_t)J->a, J->axis, el->c);
         memcpy(el->target, J->point, sizeof el->target);
     }
     if (!rc)
@@ -353,13 +359,20 @@ void crom_rigidsys_joint_gaps(const crom_rigidsys *s, const double *x, double *g
 {
     for (int e = s->nb; e < s->nb + s->nj; e++) {
         const crom_rigidsys_elem *el = &s->el[e];
-        const double *ya = x + 12 * (size_t)el->a, *yb = el->kind == CROM_RIGIDSYS_JOINT ? x + 12 * (size_t)el->b : NULL;
-        double d2 = 0;
+        const double *ya = x + 12 * (size_t)el->a, *yb = el->kind == CROM_RIGIDSYS_PIN ? NULL : x + 12 * (size_t)el->b;
+        double d[3], u[3], du = 0, d2 = 0;
         for (int i = 0; i < 3; i++) {
-            double d = -el->target[i] * (yb == NULL);
-            for (int k = 0; k < 4; k++)
-                d += el->beta[k] * ya[3 * k + i] - (yb ? el->gamma[k] * yb[3 * k + i] : 0);
-            d2 += d * d;
+            d[i] = yb ? 0 : -el->target[i];
+            u[i] = 0;
+            for (int k = 0; k < 4; k++) {
+                d[i] += el->beta[k] * ya[3 * k + i] - (yb ? el->gamma[k] * yb[3 * k + i] : 0);
+                u[i] += el->c[k] * ya[3 * k + i];
+            }
+            du += d[i] * u[i];
+        }
+        for (int i = 0; i < 3; i++) { /* a slider: the part across its axis (c = 0 otherwise) */
+            double v = el->kind == CROM_RIGIDSYS_SLIDER ? d[i] - du * u[i] : d[i];
+            d2 += v * v;
         }
         gap[e - s->nb] = sqrt(d2);
     }

@@ -4,7 +4,8 @@
  *   - per body, the orthogonality potential w_o ‖RᵀR − I‖²_F;
  *   - per joint to the world, a pin ½ w |x(P) − P|²;
  *   - per joint between bodies a and b, ½ w |x_a(P) − x_b(P)|² (Sharp eq.
- *     9, w_eq |C_eq(q)|²), P the joint's rest point;
+ *     9, w_eq |C_eq(q)|²), P the joint's rest point; a slider: ½ w times
+ *     the squared distance of b's point from a's axis through P (rigid.h);
  *   - per collision pair (a, b) and per sample point of a's surface (the
  *     vertices of a's display surface at CROM_RIGIDSYS_CONTACT_RINGS), a
  *     contact ½ w min(φ_b, 0)² against b's signed distance (rigid.h).
@@ -23,13 +24,14 @@
 /* latitude rings (a ring: stations per half) of the contact sample points */
 #define CROM_RIGIDSYS_CONTACT_RINGS 8
 
-enum { CROM_RIGIDSYS_ORTHO, CROM_RIGIDSYS_PIN, CROM_RIGIDSYS_JOINT, CROM_RIGIDSYS_CONTACT };
+enum { CROM_RIGIDSYS_ORTHO, CROM_RIGIDSYS_PIN, CROM_RIGIDSYS_JOINT, CROM_RIGIDSYS_CONTACT, CROM_RIGIDSYS_SLIDER };
 
 typedef struct {
-    int kind;           /* CROM_RIGIDSYS_ORTHO, _PIN, _JOINT or _CONTACT */
+    int kind;           /* CROM_RIGIDSYS_ORTHO, _PIN, _JOINT, _CONTACT or _SLIDER */
     int a, b;           /* bodies (b: joints and contacts: the body whose shape is hit) */
     double beta[4];     /* the point's coordinates in frame a (pins, joints, contacts) */
-    double gamma[4];    /* … in frame b (joints) */
+    double gamma[4];    /* … in frame b (joints, sliders) */
+    double c[4];        /* a slider's axis weights in frame a (rigid.h) */
     double target[3];   /* a pin's world position (m) */
     double w;           /* weight: J (ortho) or N/m */
 } crom_rigidsys_elem;
@@ -96,8 +98,9 @@ int crom_rigidsys_display(const crom_mesh *scene, int res, crom_mesh *disp, doub
 /* The display displacement ud [nd][3] of frame displacements u [nv][3]. */
 void crom_rigidsys_display_map(int nd, const double *beta, const int *body, const double *u, double *ud);
 
-/* The gap |x_a(P) − x_b(P)| (a pin: |x_a(P) − P|) of every joint of the
- * scene at positions x, in scene order, into gap [nj] (m). */
+/* The gap |x_a(P) − x_b(P)| (a pin: |x_a(P) − P|; a slider: the distance
+ * of b's point from a's axis) of every joint of the scene at positions x,
+ * in scene order, into gap [nj] (m). */
 void crom_rigidsys_joint_gaps(const crom_rigidsys *s, const double *x, double *gap);
 
 #endif

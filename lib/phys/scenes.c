@@ -43,7 +43,7 @@ int crom_scenes_pendulum(const crom_scenes_params *p, crom_mesh *m)
     crom_scene s = {0};
     const double size[3] = {p->radius, 0, 0}, c[3] = {p->length * cos(p->angle), -p->length * sin(p->angle), 0};
     crom_scene_body b = crom_scene_body_make(CROM_SCENE_SPHERE, size, c, p->density);
-    crom_scene_joint j = {0, -1, {0, 0, 0}, 0};
+    crom_scene_joint j = {0, -1, {0, 0, 0}, 0, CROM_SCENE_POINT, {0, 0, 0}};
     if (crom_scene_add_body(&s, &b) || crom_scene_add_joint(&s, &j)) {
         crom_scene_free(&s);
         return CROM_EINTERNAL;
@@ -76,7 +76,7 @@ static int ring_links(const crom_scenes_params *p, crom_scene *s, double *mb, do
         }
     }
     /* pinned at the first link's far end (a point of its tube's centreline) */
-    crom_scene_joint j = {0, -1, {0, 0, 0}, 0};
+    crom_scene_joint j = {0, -1, {0, 0, 0}, 0, CROM_SCENE_POINT, {0, 0, 0}};
     if (!rc)
         rc = crom_scene_add_joint(s, &j);
     if (!rc)
@@ -104,7 +104,7 @@ int crom_scenes_chain(const crom_scenes_params *p, crom_mesh *m)
             const double size[3] = {p->radius, l, 0}, c[3] = {(i + 0.5) * l, 0, 0};
             crom_scene_body b = crom_scene_body_make(CROM_SCENE_CAPSULE, size, c, p->density);
             rc = crom_scene_add_body(&s, &b);
-            crom_scene_joint j = {i, i - 1, {i * l, 0, 0}, 0};
+            crom_scene_joint j = {i, i - 1, {i * l, 0, 0}, 0, CROM_SCENE_POINT, {0, 0, 0}};
             if (!rc)
                 rc = crom_scene_add_joint(&s, &j);
         }
@@ -232,7 +232,7 @@ int crom_scenes_klann(const crom_scenes_params *p, crom_mesh *m)
     static const int J[7][3] = {{0, -1, KA}, {2, -1, KB}, {3, -1, KD}, {0, 1, KC}, {1, 2, KH}, {1, 4, KF}, {4, 3, KE}};
     for (int j = 0; j < 7 && !rc; j++)
         for (int k = -1; k <= 1 && !rc; k += 2) {
-            crom_scene_joint jt = {J[j][0], J[j][1], {P[J[j][2]][0], P[J[j][2]][1], k * hw}, 0};
+            crom_scene_joint jt = {J[j][0], J[j][1], {P[J[j][2]][0], P[J[j][2]][1], k * hw}, 0, CROM_SCENE_POINT, {0, 0, 0}};
             rc = crom_scene_add_joint(&s, &jt);
         }
     if (rc) {
@@ -248,4 +248,104 @@ int crom_scenes_klann(const crom_scenes_params *p, crom_mesh *m)
     default_weights(p, mass, mb, p->length, &s);
     static const char *const names[] = {"crank", "rod", "rocker_b", "rocker_d", "leg"};
     return crom_rigidsys_scene_mesh(&s, names, m);
+}
+
+/* ------------------------------------------------------------ Stewart */
+
+/* a capsule of radius r from p0 to p1 (its axis x turned onto p1 - p0) */
+static crom_scene_body capsule_between(const double p0[3], const double p1[3], double r, double density)
+{
+    double v[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]}, L = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    const double size[3] = {r, L, 0}, c[3] = {(p0[0] + p1[0]) / 2, (p0[1] + p1[1]) / 2, (p0[2] + p1[2]) / 2};
+    crom_scene_body b = crom_scene_body_make(CROM_SCENE_CAPSULE, size, c, density);
+    for (int i = 0; i < 3; i++)
+        v[i] /= L;
+    /* columns: v, a unit vector across it, and their cross product */
+    double t[3] = {fabs(v[1]) < 0.9 ? 0 : 1, fabs(v[1]) < 0.9 ? 1 : 0, 0}, w[3];
+    double tv = t[0] * v[0] + t[1] * v[1] + t[2] * v[2], tn;
+    for (int i = 0; i < 3; i++)
+        t[i] -= tv * v[i];
+    tn = sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+    for (int i = 0; i < 3; i++)
+        t[i] /= tn;
+    w[0] = v[1] * t[2] - v[2] * t[1], w[1] = v[2] * t[0] - v[0] * t[2], w[2] = v[0] * t[1] - v[1] * t[0];
+    for (int i = 0; i < 3; i++)
+        b.rot[3 * i] = v[i], b.rot[3 * i + 1] = t[i], b.rot[3 * i + 2] = w[i];
+    return b;
+}
+
+int crom_scenes_stewart(const crom_scenes_params *p, crom_mesh *m)
+{
+    memset(m, 0, sizeof *m);
+    int rc = check_params(p, 0);
+    if (rc)
+        return rc;
+    static const double ab[6] = {-20, 20, 100, 140, 220, 260}, ap[6] = {-50, 50, 70, 170, 190, 290};
+    double L = p->length, rp = 0.6 * L, r = p->radius;
+    crom_scene s = {0};
+    const double bsize[3] = {2.4 * L, 0.1 * L, 2.4 * L}, bc[3] = {0, -0.05 * L, 0};
+    const double psize[3] = {1.4 * rp, 0.05 * L, 1.4 * rp}, pc[3] = {0, L + 0.025 * L, 0};
+    crom_scene_body base = crom_scene_body_make(CROM_SCENE_BOX, bsize, bc, p->density),
+                    plat = crom_scene_body_make(CROM_SCENE_BOX, psize, pc, p->density);
+    rc = crom_scene_add_body(&s, &base);
+    if (!rc)
+        rc = crom_scene_add_body(&s, &plat);
+    for (int k = 0; k < 3 && !rc; k++) { /* the base pinned at three points */
+        double a = 2 * M_PI * k / 3;
+        crom_scene_joint j = {0, -1, {L * cos(a), -0.05 * L, L * sin(a)}, 0, CROM_SCENE_POINT, {0, 0, 0}};
+        rc = crom_scene_add_joint(&s, &j);
+    }
+    for (int i = 0; i < 6 && !rc; i++) {
+        double B[3] = {L * cos(ab[i] * M_PI / 180), 0, L * sin(ab[i] * M_PI / 180)};
+        double P[3] = {rp * cos(ap[i] * M_PI / 180), L, rp * sin(ap[i] * M_PI / 180)}, d[3], len = 0;
+        for (int k = 0; k < 3; k++)
+            d[k] = P[k] - B[k], len += d[k] * d[k];
+        len = sqrt(len);
+        double M1[3], M2[3], Q[3]; /* the lower capsule ends at 0.65, the upper starts at 0.35 of the leg */
+        for (int k = 0; k < 3; k++) {
+            d[k] /= len;
+            M1[k] = B[k] + 0.65 * len * d[k];
+            M2[k] = B[k] + 0.35 * len * d[k];
+            Q[k] = B[k] + 0.5 * len * d[k];
+        }
+        crom_scene_body lo = capsule_between(B, M1, r, p->density), up = capsule_between(M2, P, r, p->density);
+        int bl = s.nb, bu = s.nb + 1;
+        rc = crom_scene_add_body(&s, &lo);
+        if (!rc)
+            rc = crom_scene_add_body(&s, &up);
+        crom_scene_joint jb = {bl, 0, {B[0], B[1], B[2]}, 0, CROM_SCENE_POINT, {0, 0, 0}},
+                         jp = {bu, 1, {P[0], P[1], P[2]}, 0, CROM_SCENE_POINT, {0, 0, 0}},
+                         s1 = {bl, bu, {M2[0], M2[1], M2[2]}, 0, CROM_SCENE_SLIDER, {d[0], d[1], d[2]}},
+                         s2 = {bl, bu, {Q[0], Q[1], Q[2]}, 0, CROM_SCENE_SLIDER, {d[0], d[1], d[2]}};
+        if (!rc)
+            rc = crom_scene_add_joint(&s, &jb);
+        if (!rc)
+            rc = crom_scene_add_joint(&s, &jp);
+        if (!rc)
+            rc = crom_scene_add_joint(&s, &s1);
+        if (!rc)
+            rc = crom_scene_add_joint(&s, &s2);
+    }
+    if (rc) {
+        crom_scene_free(&s);
+        return rc;
+    }
+    double mass = 0, mb = 0;
+    for (int i = 1; i < s.nb; i++) { /* the pinned base aside */
+        double mi = p->density * crom_scene_body_volume(&s.bodies[i]);
+        mass += mi;
+        mb = fmax(mb, mi);
+    }
+    default_weights(p, mass, mb, L, &s);
+    char names[14][24];
+    const char *np[14];
+    snprintf(names[0], sizeof names[0], "base");
+    snprintf(names[1], sizeof names[1], "platform");
+    for (int i = 0; i < 6; i++) {
+        snprintf(names[2 + 2 * i], sizeof names[0], "leg%d_lower", i);
+        snprintf(names[3 + 2 * i], sizeof names[0], "leg%d_upper", i);
+    }
+    for (int i = 0; i < 14; i++)
+        np[i] = names[i];
+    return crom_rigidsys_scene_mesh(&s, np, m);
 }

@@ -60,6 +60,18 @@ int crom_scenes_chain(const crom_scenes_params *p, crom_mesh *m);
  * Regions: crank, rod, rocker_b, rocker_d, leg. */
 int crom_scenes_klann(const crom_scenes_params *p, crom_mesh *m);
 
+/* The Stewart platform (Sharp et al. Fig. 2; 14 bodies, 168 DOF): a base
+ * (a flat box pinned to the world at three points) and a platform of
+ * radius 0.6 `length` at height `length` above it, joined by six
+ * telescoping legs; leg i's lower capsule hangs from the base by a ball
+ * joint at B_i (radius `length`, angles -20, 20, 100, 140, 220, 260
+ * degrees) and its upper capsule holds the platform by a ball joint at P_i
+ * (angles -50, 50, 70, 170, 190, 290), the upper sliding in the lower (two
+ * sliders along the leg's axis); `radius` is the legs' radius. y is up.
+ * Regions: base, platform, leg<i>_lower, leg<i>_upper. With no actuators
+ * the legs slide freely: the platform has its six degrees of freedom. */
+int crom_scenes_stewart(const crom_scenes_params *p, crom_mesh *m);
+
 /* The Klann linkage's points at crank angle theta (xy, metres): A, B, C,
  * D, E, F, G, H into P [8][2] in that order, by a direct kinematic solve
  * (circle intersections). prev (may be NULL) is the previous solution: each

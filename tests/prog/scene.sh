@@ -9,7 +9,9 @@
 # flags, a scene given to a program that does not take scenes, collision
 # planes on a scene, and corrupt scene files (a joint naming a missing body,
 # a negative weight, a degenerate shape, frame vertices that are not the
-# body's), a ring whose tube is thicker than its radius.
+# body's), a ring whose tube is thicker than its radius, a slider whose
+# axis is not a unit vector; the Klann linkage assembled at rest, and the
+# Stewart platform pushed sideways with every ball joint and slider holding.
 . "$CROM_TOP/tests/prog/common.bash"
 
 crom-scene pendulum --length 1 --angle 85 -o "$TMP/pend.h5"
@@ -164,8 +166,32 @@ if u > 1e-12 or g > 1e-12:
 PYEOF
 ok
 
+# the Stewart platform: six telescoping legs (ball joints and sliders);
+# pushed sideways with no gravity the platform moves and every joint holds
+crom-scene stewart -o "$TMP/stewart.h5"
+crom-info "$TMP/stewart.h5" >"$TMP/info.txt"
+grep -q "14 bodies (2 boxes, 0 spheres, 12 capsules, 0 rings; 168 DOF)" "$TMP/info.txt" || fail "the Stewart platform"
+crom-fullsim "$TMP/stewart.h5" --dt 0.01 --steps 30 --gravity 0,0,0 --force platform=20,0,0 -o "$TMP/stewart-run.h5"
+$PY - "$TMP/stewart-run.h5" <<'PYEOF' || fail "the Stewart platform's run"
+import sys, h5py, numpy as np
+f = h5py.File(sys.argv[1], 'r')
+P, c = f['frames/body_pose'][...], f['mesh/scene/centre'][1]
+x = P[-1, 1, :, :3] @ c + P[-1, 1, :, 3]
+g = f['frames/joint_gap'][...].max()
+kinds = f['mesh/scene/joint_kinds'][...]
+print(f"Stewart platform: {int((kinds == 1).sum())} sliders; pushed 0.3 s, the platform moved {x[0] - c[0]:.3f} m, "
+      f"joints within {g:.1e} m")
+if x[0] - c[0] < 0.02 or g > 1e-3:
+    sys.exit("the platform did not move, or a joint gave")
+PYEOF
+ok
+cp "$TMP/stewart.h5" "$TMP/badslider.h5"
+$PY -c "import h5py; f = h5py.File('$TMP/badslider.h5', 'r+'); f['scene/joint_axes'][5] *= 2"
+expect_error 65 "slider joint 5: it joins two bodies along a unit axis" "$TMP/x.h5" -- \
+  crom-fullsim "$TMP/badslider.h5" --steps 1 -o "$TMP/x.h5"
+
 # refusals
-expect_error 64 "unknown scene 'knot' \(pendulum, chain, klann\)" "$TMP/x.h5" -- crom-scene knot -o "$TMP/x.h5"
+expect_error 64 "unknown scene 'knot' \(pendulum, chain, klann, stewart\)" "$TMP/x.h5" -- crom-scene knot -o "$TMP/x.h5"
 expect_error 64 "angle is for the pendulum and the Klann linkage" "$TMP/x.h5" -- crom-scene chain --angle 10 -o "$TMP/x.h5"
 expect_error 64 "links" "$TMP/x.h5" -- crom-scene chain --links 0 -o "$TMP/x.h5"
 expect_error 64 "ring radius 0.004 m must exceed the tube radius 0.005 m" "$TMP/x.h5" -- \

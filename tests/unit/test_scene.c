@@ -694,6 +694,112 @@ static void test_klann_datafree(void)
     crom_mesh_free(&m);
 }
 
+/* The slider (point on axis): gradient and Hessian against finite
+ * differences at a stretched, sheared pair of frames; zero when the point
+ * slides along the axis of a rigidly moved body. */
+typedef struct {
+    const double *beta, *gamma, *c;
+} sctx2;
+
+static double sl_f(const double *y, void *ctx)
+{
+    sctx2 *c = ctx;
+    double E;
+    crom_rigid_slider(c->beta, c->gamma, c->c, 2.5, y, y + 12, 0, &E, NULL, NULL);
+    return E;
+}
+
+static void sl_g(const double *y, void *ctx, double *g)
+{
+    sctx2 *c = ctx;
+    crom_rigid_slider(c->beta, c->gamma, c->c, 2.5, y, y + 12, 0, NULL, g, NULL);
+}
+
+static void test_slider(void)
+{
+    const double ext[3] = {0.5, 0.1, 0.1}, ca[3] = {0, 0, 0}, cb[3] = {0.3, 0.02, -0.01};
+    crom_rigid_inertia ia, ib;
+    crom_rigid_inertia_box(ext, ca, 1000, &ia);
+    crom_rigid_inertia_box(ext, cb, 700, &ib);
+    double Ya[12], Yb[12], Ba[9], Bb[9], beta[4], gamma[4], c[4];
+    CHECK(crom_rigid_frame(&ia, Ya) == 0 && crom_rigid_frame_inverse(Ya, Ba) == 0);
+    CHECK(crom_rigid_frame(&ib, Yb) == 0 && crom_rigid_frame_inverse(Yb, Bb) == 0);
+    const double P[3] = {0.2, 0.01, 0.005}, a0[3] = {1, 0, 0};
+    crom_rigid_coords(Ya, Ba, P, beta);
+    crom_rigid_coords(Yb, Bb, P, gamma);
+    crom_rigid_axis_weights(Ba, a0, c);
+    CHECK_NEAR(c[0] + c[1] + c[2] + c[3], 0, 1e-12);
+    /* a rigid turn of a, and b's point slid 0.1 along a's turned axis: no energy */
+    crom_rng rng;
+    crom_rng_seed(&rng, 31);
+    double Q[9], y[24], E, t[3] = {0.1, -0.3, 0.2};
+    fx_random_rotation(&rng, Q);
+    for (int k = 0; k < 4; k++)
+        for (int i = 0; i < 3; i++) {
+            y[3 * k + i] = Q[3 * i] * Ya[3 * k] + Q[3 * i + 1] * Ya[3 * k + 1] + Q[3 * i + 2] * Ya[3 * k + 2] + t[i];
+            y[12 + 3 * k + i] = Q[3 * i] * (Yb[3 * k] + 0.1) + Q[3 * i + 1] * Yb[3 * k + 1] +
+                                Q[3 * i + 2] * Yb[3 * k + 2] + t[i];
+        }
+    CHECK(crom_rigid_slider(beta, gamma, c, 2.5, y, y + 12, 0, &E, NULL, NULL) == 0);
+    CHECK_LT(E, 1e-28);
+    for (int i = 0; i < 24; i++)
+        y[i] += 0.03 * crom_rng_normal(&rng);
+    sctx2 cx = {beta, gamma, c};
+    double g[24], gf[24], H[576], Hf[576], Hp[576];
+    CHECK(crom_rigid_slider(beta, gamma, c, 2.5, y, y + 12, 0, &E, g, H) == 0 && E > 0);
+    check_fd_gradient(sl_f, &cx, y, 24, 1e-6, gf);
+    check_fd_jacobian(sl_g, &cx, y, 24, 24, 1e-6, Hf);
+    double eg = check_relerr(g, gf, 24, 1e-10), eh = check_relerr(H, Hf, 576, 1e-8);
+    CHECK(crom_rigid_slider(beta, gamma, c, 2.5, y, y + 12, 1, NULL, NULL, Hp) == 0);
+    fprintf(stderr, "slider: gradient %.1e, Hessian %.1e against finite differences; projected min eigenvalue %.1e\n",
+            eg, eh, fx_min_eig(Hp, 24));
+    CHECK_LT(eg, 1e-7);
+    CHECK_LT(eh, 1e-6);
+    CHECK(fx_min_eig(Hp, 24) > -1e-9 * fabs(H[0]));
+}
+
+/* The Stewart platform: assembled exactly; pushed sideways by a force on
+ * the platform (no gravity) the platform moves while every ball joint and
+ * slider holds (the legs telescope). */
+static void test_stewart(void)
+{
+    crom_scenes_params p = {.length = 0.5, .radius = 0.02, .density = 1000, .gravity = 9.81};
+    crom_mesh m;
+    CHECK(crom_scenes_stewart(&p, &m) == 0);
+    CHECK(m.scene->nb == 14 && m.scene->nj == 27);
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    sc.dt = 0.01;
+    sc.gravity[1] = 0;
+    sc.max_iter = 100;
+    CHECK(crom_bc_parse("--force", "platform=20,0,0", &sc.force[0]) == 0);
+    sc.nforce = 1;
+    crom_sim sim;
+    crom_sim_stats st;
+    int rc = crom_sim_init(&sim, &m, &sc);
+    CHECK_MSG(rc == 0, "stewart: %s", crom_errmsg());
+    if (rc)
+        return;
+    double E0, gap[27], worst = 0;
+    CHECK(crom_system_energy(&sim.sys, m.X, &E0) == 0);
+    CHECK_LT(E0, 1e-20);
+    for (int k = 0; k < 30; k++) {
+        CHECK(crom_sim_step(&sim, &st) == 0);
+        crom_rigidsys_joint_gaps(&sim.sys.rb, sim.x, gap);
+        for (int j = 0; j < 27; j++)
+            worst = fmax(worst, gap[j]);
+    }
+    const double c0[3] = {0, 0.5125, 0};
+    double c[3];
+    carried(&sim.sys.rb, 1, sim.x, c0, c);
+    fprintf(stderr, "Stewart platform pushed for 0.3 s: platform moved %.3f m along x, joints within %.1e m\n",
+            c[0], worst);
+    CHECK(c[0] > 0.02);
+    CHECK_LT(worst, 1e-3);
+    crom_sim_free(&sim);
+    crom_mesh_free(&m);
+}
+
 int main(void)
 {
     check_begin("test_scene");
@@ -707,5 +813,7 @@ int main(void)
     test_reduced_full_rank();
     test_klann();
     test_klann_datafree();
+    test_slider();
+    test_stewart();
     return check_done();
 }
