@@ -108,6 +108,7 @@ void crom_rigidsys_free(crom_rigidsys *s)
     free(s->Y);
     free(s->B);
     free(s->Bq);
+    free(s->reach);
     free(s->el);
     memset(s, 0, sizeof *s);
 }
@@ -145,6 +146,24 @@ int crom_rigidsys_elem_eval(const crom_rigidsys *s, int e, const double *xe, int
         break;
     default: {
         const crom_scene_body *sb = &s->body[el->b];
+        /* far from b (by twice its reach, which its frame's give never
+         * closes): no contact, without computing b's signed distance */
+        double d2 = 0;
+        for (int i = 0; i < 3; i++) {
+            double d = -0.25 * (xe[12 + i] + xe[15 + i] + xe[18 + i] + xe[21 + i]);
+            for (int k = 0; k < 4; k++)
+                d += el->beta[k] * xe[3 * k + i];
+            d2 += d * d;
+        }
+        if (d2 > 4 * s->reach[el->b] * s->reach[el->b]) {
+            if (E)
+                *E = 0;
+            if (g)
+                memset(g, 0, 24 * sizeof(double));
+            if (H)
+                memset(H, 0, 576 * sizeof(double));
+            return CROM_OK;
+        }
         if (crom_rigid_contact(el->beta, s->Bq + 9 * (size_t)el->b, sb->shape, sb->size, el->w, xe, xe + 12, project,
                                E, g, H))
             return CROM_EDATA;
@@ -241,8 +260,9 @@ int crom_rigidsys_init(crom_rigidsys *s, const crom_mesh *m)
     s->Y = crom_malloc(sizeof(double) * 12 * (size_t)s->nb);
     s->B = crom_malloc(sizeof(double) * 9 * (size_t)s->nb);
     s->Bq = crom_malloc(sizeof(double) * 9 * (size_t)s->nb);
+    s->reach = crom_malloc(sizeof(double) * (size_t)s->nb);
     s->el = crom_calloc((size_t)s->nel, sizeof *s->el);
-    if (!s->mass || !s->Y || !s->B || !s->Bq || !s->el) {
+    if (!s->mass || !s->Y || !s->B || !s->Bq || !s->reach || !s->el) {
         crom_rigidsys_free(s);
         return CROM_EINTERNAL;
     }
@@ -256,6 +276,13 @@ int crom_rigidsys_init(crom_rigidsys *s, const crom_mesh *m)
                 rc = crom_err(CROM_EDATA, "body %d's frame vertices are not those of its shape and density", b);
         if (!rc && crom_rigid_frame_inverse(s->Y + 12 * (size_t)b, s->B + 9 * (size_t)b))
             rc = crom_err(CROM_EDATA, "body %d has a degenerate frame", b);
+        const double *a = sc->bodies[b].size;
+        switch (sc->bodies[b].shape) {
+        case CROM_SCENE_BOX: s->reach[b] = 0.5 * sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]); break;
+        case CROM_SCENE_SPHERE: s->reach[b] = a[0]; break;
+        case CROM_SCENE_CAPSULE: s->reach[b] = a[0] + a[1] / 2; break;
+        default: s->reach[b] = a[0] + a[1] + a[2] / 2;
+        }
         const double *B = s->B + 9 * (size_t)b, *Q = sc->bodies[b].rot;
         for (int i = 0; i < 3; i++)
             for (int j = 0; j < 3; j++)

@@ -43,6 +43,7 @@ typedef struct {
     double total_mass, volume;
     double *Y, *B;        /* [nb][12] rest frames, [nb][9] their inverse edge matrices */
     double *Bq;           /* [nb][9] B Q, Q the body's rest rotation (contacts) */
+    double *reach;        /* [nb] the largest distance of a point of the body's shape from its centre (m) */
     const crom_scene_body *body; /* [nb] the scene's bodies (borrowed from the mesh) */
     int nj, ncontact;     /* joints, contact elements */
     int nel;
