@@ -110,10 +110,10 @@ df2_map_args = --model $(OUT)/df2-map-$(call df2_kind,$(1)).h5 --mesh $(OUT)/df-
   $(if $(filter %-opt,$(1)),--cubature $(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
 df2_map_in = $(OUT)/df2-map-$(call df2_kind,$(1)).h5 $(if $(filter %-opt,$(1)),$(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
 
-.PHONY: all fullsim sheets tables training datafree plots micro scale
-all: fullsim sheets tables training datafree plots micro scale
-	@cat $(OUT)/fullsim.md $(OUT)/sheets.md $(OUT)/tables.md $(OUT)/training.md $(OUT)/datafree.md $(OUT)/datafree2.md \
-	  $(OUT)/micro.md $(OUT)/scale.md
+.PHONY: all fullsim sheets scenes tables training datafree plots micro scale
+all: fullsim sheets scenes tables training datafree plots micro scale
+	@cat $(OUT)/fullsim.md $(OUT)/sheets.md $(OUT)/scenes.md $(OUT)/tables.md $(OUT)/training.md $(OUT)/datafree.md \
+	  $(OUT)/datafree2.md $(OUT)/micro.md $(OUT)/scale.md
 	@echo "plots: $(OUT)/steps.png $(OUT)/training.png"
 
 # ---------------------------------------------------------------- fullsim
@@ -143,6 +143,40 @@ $(OUT)/sheetsim-%.csv: $(OUT)/sheet-%.h5
 $(OUT)/sheets.md: $(foreach s,$(SHEET_SIZES),$(OUT)/sheetsim-$(s).csv)
 	( echo "### crom-fullsim on a thin shell: a hanging sheet swinging out of plane (issue 16)"; echo; \
 	  $(TOP)/tests/benchtab.sh sheets $(OUT) $(SHEET_SIZES) ) > $@.tmp && mv $@.tmp $@
+
+# ----------------------------------------------------------------- scenes
+# crom-fullsim on rigid-body scenes (issue 17, crom-scene): SCENE_STEPS steps
+# of each under gravity at dt 2 ms, one core; the ring chains are held by
+# contacts alone, the Stewart platform is pushed sideways with no gravity
+SCENES ?= pendulum capsules rings minichain klann stewart
+SCENE_STEPS ?= 200
+scene_args_pendulum = pendulum --angle 80
+scene_args_capsules = chain --link capsule --links 24
+scene_args_rings = chain --links 24
+scene_args_minichain = chain --links 2
+scene_args_klann = klann
+scene_args_stewart = stewart
+scene_run_stewart = --gravity 0,0,0 --force platform=20,0,0
+scenes: $(OUT)/scenes.md
+$(OUT)/scene-%.h5:
+	@mkdir -p $(@D)
+	crom-scene $(scene_args_$*) -o $@
+$(OUT)/scenesim-%.csv: $(OUT)/scene-%.h5
+	crom-fullsim --dt 0.002 --steps $(SCENE_STEPS) --max-iter 200 --threads 1 $(scene_run_$*) --stats $@ $(QUIET) \
+	  -o /dev/null $<
+$(OUT)/scenes.md: $(foreach s,$(SCENES),$(OUT)/scenesim-$(s).csv)
+	( echo "### crom-fullsim on rigid-body scenes (issue 17), dt 2 ms, $(SCENE_STEPS) steps, one core"; echo; \
+	  echo "| scene | bodies (DOF) | joints, collision pairs | step, median (ms) | Newton per step, mean (max) |"; \
+	  echo "|---|---:|---:|---:|---:|"; \
+	  for s in $(SCENES); do \
+	    crom-info $(OUT)/scene-$$s.h5 > $(OUT)/scene-$$s.txt; \
+	    b=$$(sed -n 's/.*a rigid-body scene: \([0-9]*\) bodies.*; \([0-9]*\) DOF.*/\1 (\2)/p' $(OUT)/scene-$$s.txt); \
+	    j=$$(sed -n 's/^ *\([0-9]*\) joints.*, \([0-9]*\) collision pairs.*/\1, \2/p' $(OUT)/scene-$$s.txt); \
+	    med=$$(awk -F, 'NR > 1 {print $$6}' $(OUT)/scenesim-$$s.csv | sort -g | \
+	      awk '{a[NR] = $$1} END {printf "%.3g", (NR % 2 ? a[(NR + 1) / 2] : (a[NR / 2] + a[NR / 2 + 1]) / 2) * 1e3}'); \
+	    awk -F, -v s="$$s" -v b="$$b" -v j="$$j" -v med="$$med" 'NR > 1 {n += $$2; if ($$2 > m) m = $$2; c++} \
+	      END {printf "| %s | %s | %s | %s | %.2f (%d) |\n", s, b, j, med, n / c, m}' $(OUT)/scenesim-$$s.csv; \
+	  done ) > $@.tmp && mv $@.tmp $@
 
 # ----------------------------------------------------------------- tables
 tables: $(OUT)/tables.md
