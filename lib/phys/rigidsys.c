@@ -6,6 +6,7 @@
 
 #include "base/err.h"
 #include "phys/rigidsys.h"
+#include "phys/sym.h"
 
 /* The second moment of a ring (scene.h) about its centre in its shape
  * coordinates: two half tori of tube radius r and radius R shifted to
@@ -178,68 +179,17 @@ int crom_rigidsys_elem_eval(const crom_rigidsys *s, int e, const double *xe, int
     return CROM_OK;
 }
 
-static int pair_cmp(const void *pa, const void *pb)
+static int elem_verts(const void *ctx, int e, int *v)
 {
-    const long long *a = pa, *b = pb;
-    return *a < *b ? -1 : *a > *b;
+    return crom_rigidsys_elem_vertices(ctx, e, v);
 }
 
 /* The upper-CSC pattern: full 3×3 blocks for every pair of vertices that
  * share an element (every body's four vertices share its orthogonality
- * element), the diagonal blocks' upper halves. */
+ * element). */
 static int build_pattern(crom_rigidsys *s)
 {
-    int nv = s->nv;
-    size_t cap = (size_t)s->nel * 28 + (size_t)nv, k = 0;
-    long long *pr = crom_malloc(sizeof *pr * cap);
-    int *cnt = crom_calloc((size_t)nv + 1, sizeof(int));
-    if (!pr || !cnt) {
-        free(pr), free(cnt);
-        return CROM_EINTERNAL;
-    }
-    for (int v = 0; v < nv; v++)
-        pr[k++] = (long long)v * nv + v;
-    for (int e = 0; e < s->nel; e++) {
-        int vs[CROM_RIGIDSYS_MAXV], m = crom_rigidsys_elem_vertices(s, e, vs);
-        for (int i = 0; i < m; i++)
-            for (int j = i + 1; j < m; j++) {
-                int lo = vs[i] < vs[j] ? vs[i] : vs[j], hi = vs[i] < vs[j] ? vs[j] : vs[i];
-                pr[k++] = (long long)hi * nv + lo;
-            }
-    }
-    qsort(pr, k, sizeof *pr, pair_cmp);
-    size_t u = 0;
-    for (size_t i = 0; i < k; i++)
-        if (!u || pr[i] != pr[u - 1])
-            pr[u++] = pr[i];
-    for (size_t i = 0; i < u; i++)
-        cnt[pr[i] / nv + 1]++;
-    for (int v = 0; v < nv; v++)
-        cnt[v + 1] += cnt[v];
-    size_t nnz = 0;
-    for (int v = 0; v < nv; v++)
-        nnz += 9 * (size_t)(cnt[v + 1] - cnt[v] - 1) + 6;
-    s->colptr = crom_malloc(sizeof(int) * ((size_t)s->n + 1));
-    s->rowind = crom_malloc(sizeof(int) * nnz);
-    if (!s->colptr || !s->rowind) {
-        free(pr), free(cnt);
-        return CROM_EINTERNAL;
-    }
-    int z = 0;
-    for (int v = 0; v < nv; v++)
-        for (int d = 0; d < 3; d++) {
-            s->colptr[3 * v + d] = z;
-            for (int b = cnt[v]; b < cnt[v + 1]; b++) {
-                int lo = (int)(pr[b] % nv);
-                for (int c = 0; c < 3 && (lo < v || c <= d); c++)
-                    s->rowind[z++] = 3 * lo + c;
-            }
-        }
-    s->colptr[s->n] = z;
-    s->nnz = z;
-    free(pr);
-    free(cnt);
-    return 0;
+    return crom_sym_block_pattern(s->nv, s->nel, elem_verts, s, &s->colptr, &s->rowind, &s->nnz);
 }
 
 static int add_contacts(crom_rigidsys *s, const crom_mesh *m);
@@ -319,20 +269,6 @@ int crom_rigidsys_init(crom_rigidsys *s, const crom_mesh *m)
     return rc;
 }
 
-/* index of row r in column c of the pattern (it is there) */
-static int entry(const crom_rigidsys *s, int r, int c)
-{
-    int lo = s->colptr[c], hi = s->colptr[c + 1] - 1;
-    while (lo < hi) {
-        int mid = (lo + hi) / 2;
-        if (s->rowind[mid] < r)
-            lo = mid + 1;
-        else
-            hi = mid;
-    }
-    return lo;
-}
-
 int crom_rigidsys_assemble(const crom_rigidsys *s, const double *x, const crom_fem_opts *o, double *E, double *g,
                            double *H)
 {
@@ -357,7 +293,8 @@ int crom_rigidsys_assemble(const crom_rigidsys *s, const double *x, const crom_f
         for (int p = 0; H && p < m; p++)
             for (int q = p; q < m; q++) {
                 int gp = 3 * vs[p / 3] + p % 3, gq = 3 * vs[q / 3] + q % 3;
-                H[gp <= gq ? entry(s, gp, gq) : entry(s, gq, gp)] += He[m * p + q];
+                H[gp <= gq ? crom_sym_entry(s->colptr, s->rowind, gp, gq) : crom_sym_entry(s->colptr, s->rowind, gq, gp)] +=
+                    He[m * p + q];
             }
     }
     const unsigned char *fx = o ? o->fixed : NULL;

@@ -363,12 +363,6 @@ static int edge_cmp(const void *pa, const void *pb)
     return a->tri < b->tri ? -1 : a->tri > b->tri;
 }
 
-static int pair_cmp(const void *pa, const void *pb)
-{
-    const long long *a = pa, *b = pb;
-    return *a < *b ? -1 : *a > *b;
-}
-
 /* The hinges: every edge shared by two triangles (crom_shell_init's checks),
  * their rest angles and stiffnesses from the rest positions X0 */
 static int build_hinges(crom_shell *s, const double *X0)
@@ -437,15 +431,7 @@ static int build_hinges(crom_shell *s, const double *X0)
 /* index of row r in column c of the pattern (it is there) */
 static int entry(const crom_shell *s, int r, int c)
 {
-    int lo = s->colptr[c], hi = s->colptr[c + 1] - 1;
-    while (lo < hi) {
-        int mid = (lo + hi) / 2;
-        if (s->rowind[mid] < r)
-            lo = mid + 1;
-        else
-            hi = mid;
-    }
-    return lo;
+    return crom_sym_entry(s->colptr, s->rowind, r, c);
 }
 
 /* scatter[k] for the upper entries (p <= q, row-major) of an element of nvert vertices */
@@ -459,65 +445,22 @@ static void element_scatter(const crom_shell *s, const int *vs, int nvert, int *
         }
 }
 
+/* the vertices of shell element e: triangle e, or hinge e − nt */
+static int elem_verts(const void *ctx, int e, int *v)
+{
+    const crom_shell *s = ctx;
+    int m = e < s->nt ? 3 : 4;
+    memcpy(v, e < s->nt ? s->tris + 3 * (size_t)e : s->hinges + 4 * (size_t)(e - s->nt), sizeof(int) * (size_t)m);
+    return m;
+}
+
 /* The CSC pattern of the upper triangle: 3×3 blocks for the vertex pairs
  * of every triangle and hinge, rows sorted (the diagonal last) */
 static int build_pattern(crom_shell *s)
 {
-    size_t np = 6 * (size_t)s->nt + 10 * (size_t)s->nh + (size_t)s->nv, k = 0;
-    long long *pr = crom_malloc(sizeof *pr * np);
-    int nv = s->nv, n = 3 * nv;
-    int *cnt = crom_calloc((size_t)nv + 1, sizeof(int));
-    if (!pr || !cnt) {
-        free(pr);
-        free(cnt);
+    s->n = 3 * s->nv;
+    if (crom_sym_block_pattern(s->nv, s->nt + s->nh, elem_verts, s, &s->colptr, &s->rowind, &s->nnz))
         return CROM_EINTERNAL;
-    }
-    for (int v = 0; v < nv; v++) /* every diagonal block */
-        pr[k++] = (long long)v * nv + v;
-    for (int e = 0; e < s->nt + s->nh; e++) {
-        const int *vs = e < s->nt ? s->tris + 3 * (size_t)e : s->hinges + 4 * (size_t)(e - s->nt);
-        int m = e < s->nt ? 3 : 4;
-        for (int i = 0; i < m; i++)
-            for (int j = i + 1; j < m; j++) {
-                int lo = vs[i] < vs[j] ? vs[i] : vs[j], hi = vs[i] < vs[j] ? vs[j] : vs[i];
-                pr[k++] = (long long)hi * nv + lo; /* column-major: (column hi, row lo) */
-            }
-    }
-    qsort(pr, k, sizeof *pr, pair_cmp);
-    size_t u = 0;
-    for (size_t i = 0; i < k; i++)
-        if (!u || pr[i] != pr[u - 1])
-            pr[u++] = pr[i];
-    /* per vertex column block: its neighbours lo <= hi in order */
-    for (size_t i = 0; i < u; i++)
-        cnt[pr[i] / nv + 1]++;
-    for (int v = 0; v < nv; v++)
-        cnt[v + 1] += cnt[v];
-    s->n = n;
-    s->colptr = crom_malloc(sizeof(int) * ((size_t)n + 1));
-    size_t nnz = 0;
-    for (int v = 0; v < nv; v++) /* (blocks − 1) full 3×3 off-diagonal blocks and the 6 of the diagonal */
-        nnz += 9 * (size_t)(cnt[v + 1] - cnt[v] - 1) + 6;
-    s->rowind = crom_malloc(sizeof(int) * (nnz ? nnz : 1));
-    if (!s->colptr || !s->rowind || nnz > (size_t)2147483647) {
-        free(pr);
-        free(cnt);
-        return CROM_EINTERNAL;
-    }
-    int z = 0;
-    for (int v = 0; v < nv; v++)
-        for (int d = 0; d < 3; d++) {
-            s->colptr[3 * v + d] = z;
-            for (int b = cnt[v]; b < cnt[v + 1]; b++) {
-                int lo = (int)(pr[b] % nv);
-                for (int c = 0; c < 3 && (lo < v || c <= d); c++)
-                    s->rowind[z++] = 3 * lo + c;
-            }
-        }
-    s->colptr[n] = z;
-    s->nnz = z;
-    free(pr);
-    free(cnt);
     s->tscatter = crom_malloc(sizeof(int) * TRI_UP * (size_t)(s->nt ? s->nt : 1));
     s->hscatter = crom_malloc(sizeof(int) * HINGE_UP * (size_t)(s->nh ? s->nh : 1));
     if (!s->tscatter || !s->hscatter)

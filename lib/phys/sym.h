@@ -25,4 +25,17 @@ void crom_sym_matvec(const crom_sym *A, const double *x, double *y);
 #define CROM_SYM_DENSE_MAX 24
 int crom_sym_dense_project(double *M, int n);
 
+/* The upper-CSC pattern of a matrix of 3×3 blocks over nv vertices: a full
+ * block for every pair of vertices that share one of nelem elements (the
+ * vertices of element e are given by verts(ctx, e, v), returning their
+ * count, at most 8), and every diagonal block's upper half; rows sorted in
+ * each column, the diagonal last. *colptr [3 nv + 1] and *rowind [*nnz]
+ * are malloc'ed. Returns 0, or CROM_EINTERNAL (out of memory, or more than
+ * 2^31 entries). */
+int crom_sym_block_pattern(int nv, int nelem, int (*verts)(const void *ctx, int e, int *v), const void *ctx,
+                           int **colptr, int **rowind, int *nnz);
+
+/* The index of entry (r, c), r <= c, in an upper-CSC pattern that has it. */
+int crom_sym_entry(const int *colptr, const int *rowind, int r, int c);
+
 #endif
