@@ -282,6 +282,9 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
     s->p = map->p;
     s->nthreads = nthreads < 1 ? 1 : nthreads > 256 ? 256 : nthreads;
     s->kappa = kappa > 0 ? kappa : 1e4 / (sc->dt * sc->dt);
+    if (crom_mesh_is_scene(&map->mesh) && sc->nplanes)
+        return crom_err(CROM_EUSAGE, "--plane, --sphere: collisions with the world are not simulated on rigid-body scenes yet (a "
+                        "scene's vertices are its bodies' frames, not surface points)");
     if ((rc = crom_system_init(&s->sys, &map->mesh, sc->youngs, sc->poisson, sc->density)))
         return rc;
     int r = s->r, n = s->n, p = s->p, T = s->nthreads;

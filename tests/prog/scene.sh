@@ -146,6 +146,8 @@ PYEOF
 ok
 expect_error 64 "is a rigid-body scene \(1 bodies\): this objective trains on solids and shells" "$TMP/x.h5" -- \
   crom-fitfield --objective neuralmodes --mesh "$TMP/hang.h5" --modes "$TMP/pend-map.h5" -o "$TMP/x.h5"
+expect_error 64 "collisions with the world are not simulated on rigid-body scenes" "$TMP/x.h5" -- \
+  crom-reducedstep --model "$TMP/pend-map.h5" --plane 0,1,0,-2 --steps 2 -o "$TMP/x.h5"
 expect_error 64 "tets 5: a random cubature of tets applies to solids" "$TMP/x.h5" -- \
   crom-fitfield --objective energy --mesh "$TMP/hang.h5" --tets 5 -o "$TMP/x.h5"
 
@@ -203,7 +205,7 @@ expect_error 64 "--links and --link are for a chain" "$TMP/x.h5" -- crom-scene p
 expect_error 64 "is a rigid-body scene \(24 bodies\); this program does not take scenes" "$TMP/x.h5" -- \
   crom-modes "$TMP/chain.h5" -o "$TMP/x.h5"
 expect_error 64 "is a rigid-body scene" "$TMP/x.h5" -- crom-sample "$TMP/chain-run.h5" -o "$TMP/x.h5"
-expect_error 64 "collision planes are not simulated on rigid-body scenes" "$TMP/x.h5" -- \
+expect_error 64 "collisions with the world are not simulated on rigid-body scenes" "$TMP/x.h5" -- \
   crom-fullsim "$TMP/chain.h5" --plane 0,1,0,-1 --steps 2 -o "$TMP/x.h5"
 expect_error 64 "equilibria takes a solid or a shell" "$TMP/x.h5" -- \
   crom-fullsim "$TMP/chain.h5" --equilibria m.h5 -o "$TMP/x.h5"
