@@ -253,7 +253,8 @@ static int read_rows(hid_t loc, const char *name, int isint, int cols, int *n, v
 {
     hsize_t d[2] = {0, 0};
     int rank = cols ? 2 : 1;
-    int rc = isint ? crom_h5_read_i32(loc, name, rank, d, (int **)out) : crom_h5_read_f64(loc, name, rank, d, (double **)out);
+    int rc = isint ? crom_h5_read_i32(loc, name, rank, d, (int **)out)
+                   : crom_h5_read_f64(loc, name, rank, d, (double **)out);
     if (rc)
         return rc;
     if ((cols && d[1] != (hsize_t)cols) || d[0] > INT32_MAX / 4 || (*n >= 0 && d[0] != (hsize_t)*n))
@@ -319,7 +320,8 @@ int crom_scene_read(hid_t loc, crom_scene *s)
         crom_scene_pair p = {pb[2 * i], pb[2 * i + 1], pw[i]};
         rc = crom_scene_add_pair(s, &p);
     }
-    free(shape), free(jb), free(pb), free(size), free(centre), free(dens), free(jp), free(jw), free(pw), free(rot), free(jk), free(ja);
+    free(shape), free(jb), free(pb), free(jk);
+    free(size), free(centre), free(dens), free(jp), free(jw), free(pw), free(rot), free(ja);
     if (!rc)
         rc = crom_scene_validate(s);
     if (rc)

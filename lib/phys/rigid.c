@@ -303,7 +303,8 @@ void crom_rigid_sdf(int shape, const double size[3], const double q[3], double *
     /* ∇²φ = Jᵀ (I − m mᵀ) J / u + m0 ∇²ρ, J = [∇ρ; e_z] */
     for (int i = 0; i < 3; i++)
         for (int j = 0; j < 3; j++) {
-            double Ji[2] = {ga[i], i == 2}, Jj[2] = {ga[j], j == 2}, P[2][2] = {{1 - m0 * m0, -m0 * m1}, {-m0 * m1, 1 - m1 * m1}};
+            double Ji[2] = {ga[i], i == 2}, Jj[2] = {ga[j], j == 2};
+            double P[2][2] = {{1 - m0 * m0, -m0 * m1}, {-m0 * m1, 1 - m1 * m1}};
             double v = 0;
             for (int k = 0; k < 2; k++)
                 for (int l = 0; l < 2; l++)

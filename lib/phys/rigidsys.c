@@ -249,7 +249,9 @@ int crom_rigidsys_init(crom_rigidsys *s, const crom_mesh *m)
     for (int j = 0; !rc && j < sc->nj; j++) {
         const crom_scene_joint *J = &sc->joints[j];
         crom_rigidsys_elem *el = &s->el[sc->nb + j];
-        el->kind = J->b < 0 ? CROM_RIGIDSYS_PIN : J->kind == CROM_SCENE_SLIDER ? CROM_RIGIDSYS_SLIDER : CROM_RIGIDSYS_JOINT;
+        el->kind = J->b < 0                        ? CROM_RIGIDSYS_PIN
+                   : J->kind == CROM_SCENE_SLIDER ? CROM_RIGIDSYS_SLIDER
+                                                  : CROM_RIGIDSYS_JOINT;
         el->a = J->a;
         el->b = J->b;
         el->w = J->weight;
@@ -293,8 +295,8 @@ int crom_rigidsys_assemble(const crom_rigidsys *s, const double *x, const crom_f
         for (int p = 0; H && p < m; p++)
             for (int q = p; q < m; q++) {
                 int gp = 3 * vs[p / 3] + p % 3, gq = 3 * vs[q / 3] + q % 3;
-                H[gp <= gq ? crom_sym_entry(s->colptr, s->rowind, gp, gq) : crom_sym_entry(s->colptr, s->rowind, gq, gp)] +=
-                    He[m * p + q];
+                int lo = gp <= gq ? gp : gq, hi = gp <= gq ? gq : gp;
+                H[crom_sym_entry(s->colptr, s->rowind, lo, hi)] += He[m * p + q];
             }
     }
     const unsigned char *fx = o ? o->fixed : NULL;

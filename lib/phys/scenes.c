@@ -232,7 +232,8 @@ int crom_scenes_klann(const crom_scenes_params *p, crom_mesh *m)
     static const int J[7][3] = {{0, -1, KA}, {2, -1, KB}, {3, -1, KD}, {0, 1, KC}, {1, 2, KH}, {1, 4, KF}, {4, 3, KE}};
     for (int j = 0; j < 7 && !rc; j++)
         for (int k = -1; k <= 1 && !rc; k += 2) {
-            crom_scene_joint jt = {J[j][0], J[j][1], {P[J[j][2]][0], P[J[j][2]][1], k * hw}, 0, CROM_SCENE_POINT, {0, 0, 0}};
+            crom_scene_joint jt = {J[j][0], J[j][1], {P[J[j][2]][0], P[J[j][2]][1], k * hw}, 0, CROM_SCENE_POINT,
+                                   {0, 0, 0}};
             rc = crom_scene_add_joint(&s, &jt);
         }
     if (rc) {

@@ -62,8 +62,8 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
     if (rc)
         return rc;
     if (crom_mesh_is_scene(mesh) && sc->nplanes)
-        return crom_err(CROM_EUSAGE, "--plane, --sphere: collisions with the world are not simulated on rigid-body scenes yet (a "
-                        "scene's vertices are its bodies' frames, not surface points)");
+        return crom_err(CROM_EUSAGE, "--plane, --sphere: collisions with the world are not simulated on rigid-body "
+                        "scenes yet (a scene's vertices are its bodies' frames, not surface points)");
     if ((rc = crom_system_init(&s->sys, mesh, sc->youngs, sc->poisson, sc->density)))
         return rc;
     s->nv = mesh->nv;

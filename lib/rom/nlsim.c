@@ -142,7 +142,8 @@ static int initial_velocity(crom_nlsim *s)
 static int set_elastic(crom_nlsim *s, int k, const int *elem, const double *weight)
 {
     int nv = s->map->nv, r = s->r;
-    int *eidx = crom_malloc(sizeof(int) * (size_t)(k ? k : 1)), *eloc = crom_malloc(sizeof(int) * MV * (size_t)(k ? k : 1));
+    int *eidx = crom_malloc(sizeof(int) * (size_t)(k ? k : 1));
+    int *eloc = crom_malloc(sizeof(int) * MV * (size_t)(k ? k : 1));
     double *ew = crom_malloc(sizeof(double) * (size_t)(k ? k : 1));
     int *loc = crom_malloc(sizeof(int) * (size_t)nv), *cv = crom_malloc(sizeof(int) * (size_t)nv), ncv = 0;
     if (!eidx || !eloc || !ew || !loc || !cv) {
@@ -213,7 +214,8 @@ int crom_nlsim_use_cubature(crom_nlsim *s, int k, const int *elem, const double 
     for (int j = 0; j < k; j++) {
         if (elem[j] < 0 || elem[j] >= s->sys.nenergy)
             return crom_err(CROM_EDATA, "cubature element %d is not an element of the map's mesh (%d %s)", elem[j],
-                            s->sys.nenergy, s->sys.rigid ? "scene elements" : s->sys.shell ? "triangles and hinges" : "tets");
+                            s->sys.nenergy,
+                            s->sys.rigid ? "scene elements" : s->sys.shell ? "triangles and hinges" : "tets");
         if (!(isfinite(weight[j]) && weight[j] >= 0))
             return crom_err(CROM_EDATA, "cubature weight %d is %g: weights must be finite and >= 0", j, weight[j]);
     }
@@ -283,8 +285,8 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
     s->nthreads = nthreads < 1 ? 1 : nthreads > 256 ? 256 : nthreads;
     s->kappa = kappa > 0 ? kappa : 1e4 / (sc->dt * sc->dt);
     if (crom_mesh_is_scene(&map->mesh) && sc->nplanes)
-        return crom_err(CROM_EUSAGE, "--plane, --sphere: collisions with the world are not simulated on rigid-body scenes yet (a "
-                        "scene's vertices are its bodies' frames, not surface points)");
+        return crom_err(CROM_EUSAGE, "--plane, --sphere: collisions with the world are not simulated on rigid-body "
+                        "scenes yet (a scene's vertices are its bodies' frames, not surface points)");
     if ((rc = crom_system_init(&s->sys, &map->mesh, sc->youngs, sc->poisson, sc->density)))
         return rc;
     int r = s->r, n = s->n, p = s->p, T = s->nthreads;
