@@ -653,7 +653,8 @@ int crom_mesh_write(hid_t loc, const crom_mesh *m)
 static int read_mesh(hid_t loc, crom_mesh *m);
 
 /* The programs that take a rigid-body scene. */
-#define SCENE_PROGRAMS "crom-fullsim, crom-export, crom-diff, crom-info"
+#define SCENE_PROGRAMS                                                                                    \
+    "crom-fullsim, crom-export, crom-diff, crom-info, crom-fitfield --objective energy, crom-reducedstep --model"
 
 int crom_mesh_read(hid_t loc, crom_mesh *m)
 {
