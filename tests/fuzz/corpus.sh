@@ -49,12 +49,19 @@ crom-modes --youngs 1e6 --pin 'y>-0.1' --count 2 --derivatives -q -o sheetmodes.
 crom-fitfield --objective neuralmodes --derivatives --mesh sheet.h5 --modes sheetmodes.h5 --rank 2 --steps 0 \
   --width 4 --depth 2 -q -o sheetnm.h5
 crom-cubature --model sheetmodes.h5 --scheme all -q -o sheetcub.h5 sheet.h5
-cp box.h5 sphere.h5 run.h5 run1.h5 cub.h5 sheet.h5 sheetrun.h5 "$OUT/mesh/"
-cp run.h5 run1.h5 sheetrun.h5 "$OUT/traj/"
+# rigid-body scenes (rings with rotations and collision pairs; sliders), a
+# scene's run and an energy map of one
+crom-scene chain --links 2 -q -o minichain.h5
+crom-scene stewart -q -o stewart.h5
+crom-fullsim --steps 2 -q -o scenerun.h5 minichain.h5
+crom-fitfield --objective energy --mesh minichain.h5 --rank 2 --steps 2 --width 4 --depth 2 -q -o scenemap.h5
+cp box.h5 sphere.h5 run.h5 run1.h5 cub.h5 sheet.h5 sheetrun.h5 minichain.h5 stewart.h5 scenerun.h5 "$OUT/mesh/"
+cp run.h5 run1.h5 sheetrun.h5 scenerun.h5 "$OUT/traj/"
 cp samples.h5 samples_all.h5 samples_two.h5 "$OUT/samples/"
-cp pod.h5 mlp.h5 modes.h5 skin.h5 sheetmodes.h5 sheetnm.h5 "$OUT/model/"
+cp pod.h5 mlp.h5 modes.h5 skin.h5 sheetmodes.h5 sheetnm.h5 scenemap.h5 "$OUT/model/"
 cp cub.h5 cub_modes.h5 sheetcub.h5 "$OUT/cubature/"
-cp box.h5 run.h5 samples.h5 pod.h5 latent.h5 modes.h5 cub.h5 sheet.h5 sheetrun.h5 sheetnm.h5 sheetcub.h5 "$OUT/check/"
+cp box.h5 run.h5 samples.h5 pod.h5 latent.h5 modes.h5 cub.h5 sheet.h5 sheetrun.h5 sheetnm.h5 sheetcub.h5 stewart.h5 \
+  scenerun.h5 scenemap.h5 "$OUT/check/"
 cp run.stream latent.stream "$OUT/stream/"
 
 # ---- frame records after the fuzz_frames header (crom/latent: time, q[3],
