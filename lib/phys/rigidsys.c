@@ -216,11 +216,15 @@ int crom_rigidsys_init(crom_rigidsys *s, const crom_mesh *m)
         crom_rigidsys_free(s);
         return CROM_EINTERNAL;
     }
-    int rc = crom_rigidsys_frames(sc, s->Y);
+    int rc = 0;
     double L = crom_mesh_points_diagonal(m->X, m->nv);
     for (int b = 0; !rc && b < s->nb; b++) {
         crom_rigid_inertia in;
         crom_rigidsys_body_inertia(&sc->bodies[b], &in);
+        if (crom_rigid_frame(&in, s->Y + 12 * (size_t)b)) { /* crom_rigidsys_frames' frame */
+            rc = crom_err_ctx("body %d", b);
+            break;
+        }
         for (int i = 0; i < 12; i++)
             if (!(fabs(m->X[12 * (size_t)b + i] - s->Y[12 * (size_t)b + i]) <= 1e-9 * L))
                 rc = crom_err(CROM_EDATA, "body %d's frame vertices are not those of its shape and density", b);
@@ -299,18 +303,7 @@ int crom_rigidsys_assemble(const crom_rigidsys *s, const double *x, const crom_f
                 H[crom_sym_entry(s->colptr, s->rowind, lo, hi)] += He[m * p + q];
             }
     }
-    const unsigned char *fx = o ? o->fixed : NULL;
-    for (int i = 0; g && fx && i < s->n; i++)
-        if (fx[i])
-            g[i] = 0;
-    for (int c = 0; H && c < s->n; c++)
-        for (int k = s->colptr[c]; k < s->colptr[c + 1]; k++) {
-            int r = s->rowind[k];
-            if (fx && (fx[r] || fx[c]))
-                H[k] = r == c;
-            else if (r == c && o)
-                H[k] += o->mass_scale * s->mass[c / 3];
-        }
+    crom_sym_dirichlet_mass(s->n, s->colptr, s->rowind, o ? o->fixed : NULL, s->mass, o ? o->mass_scale : 0, g, H);
     if (E)
         *E = Et;
     return CROM_OK;

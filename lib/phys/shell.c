@@ -582,18 +582,7 @@ int crom_shell_assemble(const crom_shell *s, const double *x, const crom_fem_opt
                     Hval[sc[k++]] += H[12 * p + q];
         }
     }
-    const unsigned char *fx = opt->fixed;
-    for (int i = 0; grad && fx && i < s->n; i++)
-        if (fx[i])
-            grad[i] = 0;
-    for (int c = 0; Hval && c < s->n; c++)
-        for (int k = s->colptr[c]; k < s->colptr[c + 1]; k++) {
-            int r = s->rowind[k];
-            if (fx && (fx[r] || fx[c]))
-                Hval[k] = r == c;
-            else if (r == c)
-                Hval[k] += opt->mass_scale * s->mass[c / 3];
-        }
+    crom_sym_dirichlet_mass(s->n, s->colptr, s->rowind, opt->fixed, s->mass, opt->mass_scale, grad, Hval);
     if (E)
         *E = Et;
     return CROM_OK;

@@ -130,3 +130,19 @@ int crom_sym_entry(const int *colptr, const int *rowind, int r, int c)
     }
     return lo;
 }
+
+void crom_sym_dirichlet_mass(int n, const int *colptr, const int *rowind, const unsigned char *fixed,
+                             const double *mass, double mass_scale, double *g, double *H)
+{
+    for (int i = 0; g && fixed && i < n; i++)
+        if (fixed[i])
+            g[i] = 0;
+    for (int c = 0; H && c < n; c++)
+        for (int k = colptr[c]; k < colptr[c + 1]; k++) {
+            int r = rowind[k];
+            if (fixed && (fixed[r] || fixed[c]))
+                H[k] = r == c;
+            else if (r == c)
+                H[k] += mass_scale * mass[c / 3];
+        }
+}

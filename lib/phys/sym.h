@@ -35,6 +35,14 @@ int crom_sym_dense_project(double *M, int n);
 int crom_sym_block_pattern(int nv, int nelem, int (*verts)(const void *ctx, int e, int *v), const void *ctx,
                            int **colptr, int **rowind, int *nnz);
 
+/* Finish an assembled gradient g [n] and upper-CSC Hessian H (either may
+ * be NULL) of lumped masses mass [n/3]: the Dirichlet DOFs fixed [n] (may be
+ * NULL) eliminated (g_i = 0; their rows and columns of H the identity's),
+ * and mass_scale m_v added to the diagonal of every free DOF of vertex v
+ * (implicit Euler's M/h²). */
+void crom_sym_dirichlet_mass(int n, const int *colptr, const int *rowind, const unsigned char *fixed,
+                             const double *mass, double mass_scale, double *g, double *H);
+
 /* The index of entry (r, c), r <= c, in an upper-CSC pattern that has it. */
 int crom_sym_entry(const int *colptr, const int *rowind, int r, int c);
 

@@ -62,9 +62,7 @@ static int same_scene(const char *path, const crom_mesh *sc, const char *what)
 {
     crom_mesh given;
     int rc = crom_mesh_load(path, CROM_MESH_CARRIERS | CROM_MESH_SURFACES | CROM_MESH_SCENES, &given, NULL);
-    int same = !rc && given.scene && given.nv == sc->nv;
-    for (int i = 0; same && i < 3 * sc->nv; i++)
-        same = fabs(given.X[i] - sc->X[i]) <= 1e-9 * (1 + fabs(sc->X[i]));
+    int same = !rc && given.scene && !crom_map_same_mesh(sc, &given);
     if (!rc)
         crom_mesh_free(&given);
     if (!rc && !same)

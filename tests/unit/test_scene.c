@@ -336,14 +336,19 @@ static void test_validation(void)
     crom_err_clear();
 }
 
+/* a body point's position: rest point X0 carried by body b's frame at x */
+static void carried(const crom_rigidsys *rs, int b, const double *x, const double X0[3], double out[3])
+{
+    double R[9], t[3];
+    crom_rigidsys_pose(rs, b, x, R, t);
+    for (int i = 0; i < 3; i++)
+        out[i] = R[3 * i] * X0[0] + R[3 * i + 1] * X0[1] + R[3 * i + 2] * X0[2] + t[i];
+}
+
 /* the position of body b's centre at positions x */
 static void centre(const crom_sim *s, int b, double c[3])
 {
-    double R[9], t[3];
-    crom_rigidsys_pose(&s->sys.rb, b, s->x, R, t);
-    const double *c0 = s->mesh->scene->bodies[b].centre;
-    for (int i = 0; i < 3; i++)
-        c[i] = R[3 * i] * c0[0] + R[3 * i + 1] * c0[1] + R[3 * i + 2] * c0[2] + t[i];
+    carried(&s->sys.rb, b, s->x, s->mesh->scene->bodies[b].centre, c);
 }
 
 static void test_free_fall(void)
@@ -550,15 +555,6 @@ static void test_reduced_full_rank(void)
     crom_map_free(&map);
     crom_model_free(&model);
     crom_mesh_free(&m);
-}
-
-/* a body point's position: rest point X0 carried by body b's frame at x */
-static void carried(const crom_rigidsys *rs, int b, const double *x, const double X0[3], double out[3])
-{
-    double R[9], t[3];
-    crom_rigidsys_pose(rs, b, x, R, t);
-    for (int i = 0; i < 3; i++)
-        out[i] = R[3 * i] * X0[0] + R[3 * i + 1] * X0[1] + R[3 * i + 2] * X0[2] + t[i];
 }
 
 /* The Klann linkage: assembled exactly (zero energy at rest); a direct
