@@ -30,6 +30,10 @@ DEPINC  := -I/usr/include/hdf5/serial -I/usr/include/suitesparse
 CPPFLAGS := -Ilib $(DEPINC) -D_DEFAULT_SOURCE -DCROM_VERSION='"$(VERSION)"'
 CFLAGS  ?= -g $(OPT)
 CFLAGS  += -std=c17 $(WARN) -fopenmp
+# --as-needed: a program links only the libraries it calls, so the ones that
+# never mesh do not load gmsh and its ~90 libraries at every start (0.29 s ->
+# 0.12 s per start under ASan, where the tests start programs thousands of times)
+LDFLAGS += -Wl,--as-needed
 LDLIBS  := -L/usr/lib/x86_64-linux-gnu/hdf5/serial -lhdf5_hl -lhdf5 -lgmsh -lmetis \
            -lcholmod -lsuitesparseconfig -larpack -llapacke -lopenblas -lpng -lm
 
