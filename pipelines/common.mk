@@ -10,6 +10,20 @@ TOP := $(abspath $(dir $(lastword $(MAKEFILE_LIST)))/..)
 BINDIR ?= $(TOP)/bin
 export PATH := $(BINDIR):$(PATH)
 
+# SUBMIT: run every stage as a job of a cluster's scheduler, e.g.
+#   make -f pipelines/shapes.mk -j64 SUBMIT='srun -N1 -n1 -c1' SUBMIT_FULLSIM='--mem=8G' SUBMIT_FITFIELD='-c4'
+# Each recipe line that runs a crom program is run by $(SUBMIT) (on a node
+# that shares this directory), with the options SUBMIT_<PROGRAM> of each
+# program it names appended; other lines run here (pipelines/submit.sh). A
+# failed job fails its target, and make deletes what it had written.
+SUBMIT ?=
+ifneq ($(strip $(SUBMIT)),)
+CROM_STAGES := MESH FULLSIM SAMPLE ENCODE FITFIELD CUBATURE REDUCEDSTEP REMESH EXPORT INFO DIFF METRICS MODES SCENE
+export CROM_SUBMIT := $(SUBMIT)
+$(foreach s,$(CROM_STAGES),$(eval export CROM_SUBMIT_$(s) := $$(SUBMIT_$(s))))
+%: SHELL = $(TOP)/pipelines/submit.sh
+endif
+
 # stage variables (one variable swaps one stage)
 RANK ?= 20
 BASIS ?= mlp

@@ -27,7 +27,7 @@ static const crom_opt common_opts[] = {
     {"seed", CROM_CLI_SEED, "S",
      "Seed of the pseudo-random numbers (default 1); the same seed and inputs give the same output bytes."},
     {"threads", CROM_CLI_THREADS, "N",
-     "Threads for the parallel loops (default 1; 0 = all cores). This machine kind gains little from a second core."},
+     "Threads for the parallel loops (default 1, or the environment variable CROM_THREADS; 0 = all cores). This machine kind gains little from a second core."},
     {"help-man", CROM_CLI_HELP_MAN, NULL, "Print the manual page as troff and exit."},
     {NULL, 0, NULL, NULL}};
 
@@ -537,6 +537,15 @@ void crom_cli_parse(crom_cli *cli, const crom_cli_doc *doc, int argc, char **arg
     cli->threads = 1;
     cli->seed = 1;
     cli->cmdline = shell_join(argc, argv);
+    /* a job's cores (pipelines/submit.sh sets CROM_THREADS from Slurm's
+     * SLURM_CPUS_PER_TASK): the default that --threads overrides */
+    const char *env = getenv("CROM_THREADS");
+    long envn;
+    if (env && *env) {
+        if (crom_parse_int(env, "CROM_THREADS", 0, 4096, &envn))
+            usage_exit(cli);
+        cli->threads = (int)envn;
+    }
     strvec sv = {0};
     int rc = 0;
     for (int i = 1; i < argc && !rc; i++)

@@ -111,4 +111,14 @@ grep -q "incomplete" "$TMP/chk" || fail "--check does not say incomplete"; ok
 # through a pipe the stream ends with an incomplete marker
 rc=0; crom-fullsim "${SC[@]}" --max-iter 1 --tol 1e-14 "$TMP/box.h5" 2>/dev/null | crom-info - >"$TMP/inf" || rc=$?
 grep -q "INCOMPLETE" "$TMP/inf" || fail "stream not marked incomplete"; ok
+
+# CROM_THREADS (a Slurm job's cores, pipelines/submit.sh) is the default of
+# --threads: the same run as --threads 2, and a bad value is refused by name
+crom-fullsim "${SC[@]}" --steps 2 --threads 2 -q -o "$O/t2.h5" "$TMP/box.h5"
+CROM_THREADS=2 crom-fullsim "${SC[@]}" --steps 2 -q -o "$O/e2.h5" "$TMP/box.h5"
+$PY -c "import h5py,sys,numpy as np; a,b=(h5py.File(f)['frames/displacement'][()] for f in sys.argv[1:]); sys.exit(0 if np.array_equal(a,b) else 1)" \
+  "$O/t2.h5" "$O/e2.h5" || fail "CROM_THREADS=2 and --threads 2 differ"; ok
+export CROM_THREADS=two
+expect_error 64 "CROM_THREADS: 'two' is not an integer" "$O/x.h5" -- crom-fullsim -o "$O/x.h5" "$TMP/box.h5"
+unset CROM_THREADS
 done_checks
