@@ -103,6 +103,32 @@ $(BINDIR)/crom-%: $(BUILD)/bin/crom-%.o $(LIBA) | $(DEPSTAMP)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(LDFLAGS) $< $(LIBA) $(LDLIBS) -o $@
 
+# MPI: crom-fitfield alone is built with -DCROM_MPI and Open MPI's flags
+# (mpicc --showme:compile / --showme:link) when mpicc is found, unless MPI=0
+# or SANITIZE=1 (the sanitized build stays MPI-free; tests/unit/test_fit.c
+# runs the sharded training under ASan); then `mpirun -n P crom-fitfield` trains
+# data-parallel. lib/ and the other programs never see MPI, and without it
+# crom-fitfield is the serial program. The recipes ask for mpicc when they
+# run, after the package step has installed it on a new machine (make reads
+# this file before that); $(MPISTAMP) holds what was found when make read it,
+# so that a change (MPI=0, mpicc installed or removed) rebuilds crom-fitfield.
+MPI     ?= 1
+MPI_WANTED := $(if $(filter 1,$(SANITIZE)),,$(if $(filter 0,$(MPI)),,1))
+MPISTAMP := $(BUILD)/.mpi
+ifneq ($(filter-out clean distclean deps uninstall,$(or $(MAKECMDGOALS),all)),)
+MPI_NOW := $(if $(MPI_WANTED),$(shell command -v mpicc >/dev/null 2>&1 && mpicc --showme:compile && mpicc --showme:link))
+$(shell mkdir -p $(BUILD) && { printf '%s\n' '$(MPI_WANTED) $(MPI_NOW)' | cmp -s - $(MPISTAMP) || printf '%s\n' '$(MPI_WANTED) $(MPI_NOW)' > $(MPISTAMP); })
+endif
+$(MPISTAMP): ;
+# $(call mpi_flags,compile|link): shell text the recipe expands
+mpi_flags = $(if $(MPI_WANTED),$$(if command -v mpicc >/dev/null 2>&1; then $(if $(filter compile,$(1)),echo -DCROM_MPI;) mpicc --showme:$(1); fi))
+$(BUILD)/bin/crom-fitfield.o: bin/crom-fitfield.c $(FLAGSTAMP) $(MPISTAMP) | $(DEPSTAMP)
+	@mkdir -p $(@D)
+	$(CC) $(CPPFLAGS) $(call mpi_flags,compile) $(CFLAGS) -MMD -MP -c $< -o $@
+$(BINDIR)/crom-fitfield: $(BUILD)/bin/crom-fitfield.o $(LIBA) | $(DEPSTAMP)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(LDFLAGS) $< $(LIBA) $(LDLIBS) $(call mpi_flags,link) -o $@
+
 $(BUILD)/tests/test_%: $(BUILD)/tests/test_%.o $(LIBA) | $(DEPSTAMP)
 	$(CC) $(CFLAGS) $(LDFLAGS) $< $(LIBA) $(LDLIBS) -o $@
 

@@ -2,14 +2,26 @@
  * samples (crom/samples): a neural field, or a classic POD basis; or, with
  * no data at all, a subspace from the energy of a body (--objective
  * energy|neuralmodes|field|skinning: the library's datafree layer; this
- * program parses the options, reports and shows progress). */
+ * program parses the options, reports and shows progress).
+ *
+ * Built with -DCROM_MPI (the Makefile does when it finds Open MPI's mpicc)
+ * and launched by mpirun, it trains the neural field data-parallel: each
+ * rank evaluates its shards of every step and MPI_Allreduce sums the
+ * gradient (lib/rom/fit.h, --shards). The library knows nothing of MPI:
+ * this program gives it the allreduce, and only here is MPI called. */
 #ifdef _OPENMP
 #include <omp.h>
 #endif
+#ifdef CROM_MPI
+#include <mpi.h>
+#endif
+#include <fcntl.h>
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "base/err.h"
 #include "cli/cli.h"
@@ -27,10 +39,19 @@
 enum { O_RANK = 300, O_ENCODER, O_BASIS, O_EPOCHS, O_MINUTES, O_LR, O_BATCH, O_PPS, O_ENCPTS,
        O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX, O_BOXSC,
        O_ORTHO, O_STEPS, O_FEATURES, O_TETS, O_PINW, O_OPTIM, O_RESAMPLE, O_TANW, O_TANF, O_HANDLES, O_WEIGHTS,
-       O_SURFACE, O_CLOUD, O_SPOINTS, O_COORDS, O_COORDTOL, O_DERIV, O_SUPERV, O_TANANCHOR, O_VISIT, O_LAST };
+       O_SURFACE, O_CLOUD, O_SPOINTS, O_COORDS, O_COORDTOL, O_DERIV, O_SUPERV, O_TANANCHOR, O_VISIT, O_SHARDS, O_LAST };
 
 /* --objective skinning (lib/datafree/dfskin.h), next to the CROM_DATAFREE_* codes */
 #define OBJ_SKINNING 100
+
+/* the end of --shards' text: what this build does (tests/prog/mpi.sh reads it) */
+#ifdef CROM_MPI
+#define CROM_FITFIELD_MPI_NOTE "This crom-fitfield was built with MPI; under it --threads 0 (all cores) means the " \
+                               "cores of a node divided by the ranks on it."
+#else
+#define CROM_FITFIELD_MPI_NOTE "This crom-fitfield was built without MPI (no mpicc when it was made, or MPI=0): " \
+                               "the shards of a step are evaluated one after another."
+#endif
 
 static const crom_opt fit_opts[] = {
     {"output", 'o', "OUT", "Write the model to OUT (default: stdout, which must not be a terminal)."},
@@ -81,6 +102,7 @@ static const crom_opt train_opts[] = {
     {"width", O_WIDTH, "W", "Hidden width of the field MLP (default 60; data-free maps: 64)."},
     {"depth", O_DEPTH, "D", "Dense layers of the field MLP (default 5: 3 -> 60 -> 60 -> 60 -> 60 -> 3r; data-free maps: 6, i.e. r -> 64 x 5 -> 3nv)."},
     {"tikhonov", O_TIK, "T", "Relative Tikhonov weight of the lsq fits: lambda = T tr(W^T W) / r (default 1e-6)."},
+    {"shards", O_SHARDS, "S", "Cut each step's batch into S shards of consecutive frames, about --batch/S each, every shard with points of its own (vertex samples: its own subset of the mesh's vertices, so a step evaluates W at S times as many points), and take the gradient of the mean loss over all their samples (default 1; under MPI the number of ranks; at most the frames of a batch). Under MPI (mpirun -n P crom-fitfield --shards S ... SAMPLES) rank p evaluates shards p, p + P, ..., one MPI_Allreduce per step sums the gradient with the loss terms (8 bytes per network parameter, plus 72), and every rank takes the same Adam step: P ranks train the model one process trains with the same --shards and --seed, up to round-off. Every rank reads SAMPLES (a file, not stdin); rank 0 alone prints and writes the model; an error on any rank stops them all. " CROM_FITFIELD_MPI_NOTE},
     {NULL, 0, NULL, NULL}};
 
 static const crom_cli_optgroup groups[] = {{"Options", fit_opts},
@@ -117,6 +139,7 @@ static crom_cli_doc doc = {
     "crom-fitfield",
     "learn a displacement basis W(X) from point samples",
     "crom-fitfield [--rank R] [--encoder lsq|pointnet] [--basis mlp|pod] [--epochs N] [--minutes M] [--seed S] [-o OUT] [SAMPLES]\n"
+    "mpirun -n P crom-fitfield [--shards S] [options of a neural field] -o OUT SAMPLES\n"
     "crom-fitfield --objective energy --mesh MESH [--rank R] [--sigma S] [--lambda L] [--steps N] [scenario] [-o OUT]\n"
     "crom-fitfield --objective neuralmodes --mesh MESH --modes MODEL [--rank R] [--box A] [--derivatives]\n"
     "              [--tangent-anchor] [--supervised EQ | --latents RUN] [--steps N] [-o OUT]\n"
@@ -173,6 +196,7 @@ static crom_cli_doc doc = {
     groups,
     "crom-sample run*.h5 | crom-fitfield --rank 20 -o model.h5\n"
     "crom-fitfield --encoder pointnet --epochs 3750 -o model.h5 samples.h5\n"
+    "mpirun -n 2 crom-fitfield --shards 2 --epochs 400 -o model.h5 samples.h5\n"
     "crom-sample --points all run.h5 | crom-fitfield --basis pod --rank 10 -o pod.h5\n"
     "crom-fitfield --objective energy --mesh bar.h5 --pin clamp --youngs 1e6 --rank 3 -o df.h5\n"
     "crom-modes --pin clamp --youngs 1e6 --count 6 -o modes.h5 bar.h5\n"
@@ -198,6 +222,8 @@ typedef struct {
     int material_given;          /* --youngs, --poisson or --density */
     int samples_only;            /* a samples-only option given (its key), for the message */
     int df_only;                 /* a data-free-only option given (its key) */
+    int mpi;                     /* started by an MPI launcher: MPI_Init was called */
+    int remote;                  /* the run stopped because another MPI rank failed */
 } args;
 
 #define GIVEN(a, key) ((a)->given[(key) - O_RANK])
@@ -285,7 +311,8 @@ static int on_opt(void *ctx, int key, const char *v)
         GIVEN(a, key) = 1;
     if (in_opts(df_opts, key))
         a->df_only = key;
-    else if (key == O_EPOCHS || key == O_BASIS || key == O_ENCODER || key == O_PPS || key == O_ENCPTS || key == O_TIK)
+    else if (key == O_EPOCHS || key == O_BASIS || key == O_ENCODER || key == O_PPS || key == O_ENCPTS || key == O_TIK ||
+             key == O_SHARDS)
         a->samples_only = key;
     switch (key) {
     case 0:
@@ -341,6 +368,7 @@ static int on_opt(void *ctx, int key, const char *v)
         a->fit.encoder = i ? CROM_MODEL_ENC_POINTNET : CROM_MODEL_ENC_LSQ;
         return 0;
     case O_EPOCHS: return int_opt(key, v, 1, 100000000L, &a->fit.epochs);
+    case O_SHARDS: return int_opt(key, v, 1, 1000000L, &a->fit.shards);
     case O_MINUTES: return crom_parse_positive(v, "--minutes", &a->fit.minutes);
     case O_LR: return crom_parse_positive(v, "--lr", &a->fit.lr);
     case O_BATCH: return int_opt(key, v, 1, 1000000L, &a->fit.batch);
@@ -479,6 +507,9 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     if (a->pod && GIVEN(a, O_ENCODER) && a->fit.encoder == CROM_MODEL_ENC_POINTNET)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--basis pod has no neural encoder: its q is the lsq projection (drop "
                                  "--encoder pointnet)"));
+    if (a->pod && GIVEN(a, O_SHARDS))
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--shards applies to a neural field (--basis mlp): --basis pod is one "
+                                 "eigen-decomposition"));
     if (!a->objective && a->df_only)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--%s applies to a data-free subspace (--objective "
                                  "energy|neuralmodes|field|skinning)", opt_name(a->df_only)));
@@ -496,6 +527,171 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     a->fit.threads = 1;
 #endif
     a->df.threads = a->fit.threads;
+}
+
+/* ------------------------------------------------------------------ MPI */
+
+/* How many processes an MPI launcher started with this one, and this one's
+ * rank, from the environment it sets (Open MPI's mpirun:
+ * OMPI_COMM_WORLD_SIZE and _RANK; MPICH and Slurm's PMI: PMI_SIZE and
+ * PMI_RANK; PMIx launchers: PMIX_RANK, with srun's SLURM_STEP_NUM_TASKS),
+ * or 0 when none did. MPI is initialized only for more than one process:
+ * otherwise (no launcher, mpirun -n 1, a one-task Slurm step) this is the
+ * serial program, which never calls MPI. Always 0 without MPI. */
+static int launched(int *rank)
+{
+    *rank = 0;
+#ifdef CROM_MPI
+    const char *v;
+    if ((v = getenv("OMPI_COMM_WORLD_SIZE"))) {
+        *rank = (v = getenv("OMPI_COMM_WORLD_RANK")) ? atoi(v) : 0;
+        return atoi(getenv("OMPI_COMM_WORLD_SIZE"));
+    }
+    if ((v = getenv("PMI_SIZE"))) {
+        *rank = (v = getenv("PMI_RANK")) ? atoi(v) : 0;
+        return atoi(getenv("PMI_SIZE"));
+    }
+    if ((v = getenv("PMIX_RANK"))) {
+        *rank = atoi(v);
+        v = getenv("SLURM_STEP_NUM_TASKS");
+        return v ? atoi(v) : 2; /* a size unknown: several, to be safe */
+    }
+#endif
+    return 0;
+}
+
+/* Ranks after the first say nothing while the options are parsed: every
+ * rank parses the same options and finds the same errors, which rank 0
+ * reports. Their stdout and stderr go to /dev/null; returns the saved
+ * stderr (restored by mpi_start, for errors of the rank's own), or -1. */
+static int hush(int nlaunched, int rank)
+{
+    if (nlaunched < 2 || rank < 1)
+        return -1;
+    int saved = dup(2), null = open("/dev/null", O_WRONLY);
+    if (null >= 0) {
+        dup2(null, 1);
+        dup2(null, 2);
+        close(null);
+    }
+    return saved;
+}
+
+#ifdef CROM_MPI
+/* The library's allreduce (lib/rom/fit.h): buf summed in place over the
+ * ranks, every rank getting the same sums (MPI_Allreduce with MPI_IN_PLACE,
+ * MPI 2.2 §5.9.6). */
+static int sum_over_ranks(void *ctx, double *buf, size_t n)
+{
+    (void)ctx;
+    if (n > INT_MAX)
+        return crom_err(CROM_EINTERNAL, "an allreduce of %zu doubles exceeds MPI's int count", n);
+    int rc = MPI_Allreduce(MPI_IN_PLACE, buf, (int)n, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+    return rc == MPI_SUCCESS ? 0 : crom_err(CROM_EINTERNAL, "MPI_Allreduce failed (MPI error %d)", rc);
+}
+#endif
+
+/* Started by an MPI launcher with others (nlaunched > 1): MPI_Init; this
+ * rank and the number of ranks into a->fit (proc, nprocs) with the
+ * allreduce; --shards defaults to the ranks, and --threads 0 (all cores)
+ * is the cores of a node over its ranks; ranks after 0 are quiet. What ranks cannot do is
+ * refused alike on every rank: output to stdout (Open MPI hands it to rank
+ * 0 through a terminal), POD and the data-free objectives (one process),
+ * samples on stdin (which only rank 0 gets). Returns 0 or CROM_EUSAGE. */
+static int mpi_start(crom_cli *cli, args *a, int nlaunched, int saved_err)
+{
+#ifdef CROM_MPI
+    if (nlaunched < 2)
+        return 0;
+    int rank, size;
+    MPI_Init(NULL, NULL);
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    if (saved_err >= 0) {
+        dup2(saved_err, 2);
+        close(saved_err);
+    }
+    a->mpi = 1;
+    a->fit.proc = rank;
+    a->fit.nprocs = size;
+    if (rank > 0)
+        cli->quiet = 1;
+    if (!a->out || !strcmp(a->out, "-"))
+        return crom_err(CROM_EUSAGE, "under MPI give the model a file, -o OUT: mpirun passes stdout through a "
+                        "terminal");
+    if (size == 1)
+        return 0; /* the launcher's environment said more */
+    if (a->objective || a->pod)
+        return crom_err(CROM_EUSAGE, "%d MPI ranks train a neural field (--basis mlp) together; %s runs in one "
+                        "process: start it without mpirun", size, a->pod ? "--basis pod" : "a data-free objective");
+    if (!a->input || !strcmp(a->input, "-"))
+        return crom_err(CROM_EUSAGE, "under MPI every rank reads the samples: give SAMPLES as a file, not stdin");
+    if (!GIVEN(a, O_SHARDS))
+        a->fit.shards = size;
+    if (cli->threads <= 0) {
+        /* the ranks on this node share its cores (MPI-3 shared-memory split) */
+        MPI_Comm node;
+        int local = 1, procs = 1;
+        if (MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, rank, MPI_INFO_NULL, &node) == MPI_SUCCESS) {
+            MPI_Comm_size(node, &local);
+            MPI_Comm_free(&node);
+        }
+#ifdef _OPENMP
+        procs = omp_get_num_procs();
+#endif
+        a->fit.threads = procs / local > 1 ? procs / local : 1;
+    }
+    a->fit.allreduce = sum_over_ranks;
+#endif
+    return 0;
+}
+
+/* With several ranks: whether every rank got this far without an error
+ * (one MPI_Allreduce), so that no rank goes on to a collective call the
+ * others never make. A rank that did not fail itself gets CROM_EINTERNAL
+ * and a->remote. Returns rc otherwise. */
+static int mpi_agree(args *a, int rc)
+{
+#ifdef CROM_MPI
+    if (a->fit.nprocs > 1) {
+        int failed = rc != 0;
+        MPI_Allreduce(MPI_IN_PLACE, &failed, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+        if (failed && !rc) {
+            a->remote = 1;
+            rc = crom_err(CROM_EINTERNAL, "stopped: another MPI rank failed");
+        }
+    }
+#endif
+    return rc;
+}
+
+/* The end (crom_cli_exit). Under MPI every rank learns every rank's result
+ * (MPI_Allgather): the lowest rank with an error of its own reports it,
+ * alone, and every rank exits with its code after MPI_Finalize, so that
+ * mpirun reports that code once. */
+static int mpi_exit(crom_cli *cli, args *a, int rc)
+{
+#ifdef CROM_MPI
+    if (a->mpi) {
+        int n = a->fit.nprocs, mine[2] = {rc, rc && !a->remote}, who = -1;
+        int *all = malloc(sizeof(int) * 2 * (size_t)n);
+        if (!all)
+            MPI_Abort(MPI_COMM_WORLD, CROM_EINTERNAL);
+        MPI_Allgather(mine, 2, MPI_INT, all, 2, MPI_INT, MPI_COMM_WORLD);
+        for (int own = 1; own >= 0 && who < 0; own--)
+            for (int r = 0; r < n && who < 0; r++)
+                if (all[2 * r + own])
+                    who = r;
+        int code = who < 0 ? 0 : all[2 * who];
+        free(all);
+        MPI_Finalize();
+        if (who != a->fit.proc) {
+            int out = crom_cli_exit(cli, 0);
+            return code ? code : out;
+        }
+    }
+#endif
+    return crom_cli_exit(cli, rc);
 }
 
 static void on_progress(void *ctx, int epoch, double frac, double loss)
@@ -685,24 +881,52 @@ static int run_datafree(crom_cli *cli, args *a)
     return rc;
 }
 
+/* The model to a->out. Its history records the command line; after a run
+ * on several MPI ranks, as a shell comment, the ranks and the shards (one
+ * process with those --shards trains the same model up to round-off). */
+static int write_model(const crom_cli *cli, const args *a, crom_model *m, const char *parent_history)
+{
+    char *cmd = NULL;
+    if (a->fit.nprocs > 1) {
+        size_t n = strlen(cli->cmdline) + 64;
+        if (!(cmd = crom_malloc(n)))
+            return CROM_EINTERNAL;
+        snprintf(cmd, n, "%s # on %d MPI ranks, --shards %d", cli->cmdline, a->fit.nprocs, a->fit.shards);
+    }
+    crom_out o;
+    int rc = crom_out_create(&o, a->out, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cmd ? cmd : cli->cmdline,
+                             parent_history, CROM_OUT_PLAIN);
+    free(cmd);
+    if (rc)
+        return rc;
+    if ((rc = crom_model_write(o.h5, m)))
+        crom_out_fail(&o);
+    else
+        rc = crom_out_commit(&o);
+    return rc;
+}
+
 /* A basis fitted to the samples: POD, or the neural field with the
  * progress display; the model; the summary. */
 static int run_samples(crom_cli *cli, args *a)
 {
     crom_in in;
     crom_samples S;
+    memset(&S, 0, sizeof S);
     int rc = crom_in_open(&in, a->input);
-    if (rc)
+    if (!rc) {
+        if (!(rc = crom_in_expect(&in, CROM_SAMPLES_SCHEMA, CROM_SAMPLES_VERSION)))
+            rc = crom_samples_read(&in, &S);
+        crom_in_close(&in);
+    }
+    if ((rc = mpi_agree(a, rc))) {
+        crom_samples_free(&S);
         return rc;
-    if (!(rc = crom_in_expect(&in, CROM_SAMPLES_SCHEMA, CROM_SAMPLES_VERSION)))
-        rc = crom_samples_read(&in, &S);
-    crom_in_close(&in);
-    if (rc)
-        return rc;
+    }
     crom_model m;
     crom_model_clear(&m);
     double captured = NAN, t0 = crom_clock_now();
-    crom_fit_stats stats = {0, 0, 0, 0};
+    crom_fit_stats stats = {0};
     if (a->pod) {
         rc = crom_fit_pod(&S, a->fit.rank, &m, &captured);
     } else {
@@ -713,19 +937,12 @@ static int run_samples(crom_cli *cli, args *a)
         a->fit.stats = &stats;
         rc = crom_fit_mlp(&S, &a->fit, &m);
         crom_cli_progress_end(&prog);
+        a->remote = stats.remote_failure;
+        rc = mpi_agree(a, rc); /* every rank trained: rank 0 writes */
     }
-    if (!rc) {
-        crom_out o;
-        if (!(rc = crom_out_create(&o, a->out, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, cli->cmdline, S.history,
-                                   CROM_OUT_PLAIN))) {
-            rc = crom_model_write(o.h5, &m);
-            if (!rc)
-                rc = crom_out_commit(&o);
-            else
-                crom_out_fail(&o);
-        }
-    }
-    if (!rc) {
+    if (!rc && a->fit.proc == 0)
+        rc = write_model(cli, a, &m, S.history);
+    if (!rc && a->fit.proc == 0) {
         if (a->pod)
             crom_cli_info(cli, "relative reconstruction error %.4g over %d frames (pod, rank %d, %.1f%% of the snapshot energy, %.1f s)",
                           m.reconstruction_error, S.F, m.rank, 100 * captured, crom_clock_now() - t0);
@@ -736,6 +953,10 @@ static int run_samples(crom_cli *cli, args *a)
         if (cli->verbose && !a->pod && stats.seconds > 0)
             crom_cli_info(cli, "%ld steps in %.1f s: %.3g points/s through W forward+backward, %.3g samples/s in the loss",
                           stats.steps, stats.seconds, stats.rows / stats.seconds, stats.samples / stats.seconds);
+        if (a->fit.nprocs > 1)
+            crom_cli_info(cli, "data parallel: %d MPI ranks, %d shards a step; each of the %ld steps allreduced %zu "
+                          "doubles (%.1f kB)", a->fit.nprocs, a->fit.shards, stats.steps, stats.allreduce_doubles,
+                          8e-3 * (double)stats.allreduce_doubles);
         if (cli->verbose)
             crom_cli_info(cli, "model_id %s", m.model_id);
     }
@@ -750,6 +971,10 @@ int main(int argc, char **argv)
 {
     crom_cli cli;
     args a;
+    int rank, nlaunched = launched(&rank), saved_err = hush(nlaunched, rank);
     parse_args(&cli, &a, argc, argv);
-    return crom_cli_exit(&cli, run(&cli, &a));
+    int rc = mpi_start(&cli, &a, nlaunched, saved_err);
+    if (!rc)
+        rc = run(&cli, &a);
+    return mpi_exit(&cli, &a, rc);
 }

@@ -110,10 +110,10 @@ df2_map_args = --model $(OUT)/df2-map-$(call df2_kind,$(1)).h5 --mesh $(OUT)/df-
   $(if $(filter %-opt,$(1)),--cubature $(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
 df2_map_in = $(OUT)/df2-map-$(call df2_kind,$(1)).h5 $(if $(filter %-opt,$(1)),$(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
 
-.PHONY: all fullsim sheets scenes tables training datafree plots micro scale
-all: fullsim sheets scenes tables training datafree plots micro scale
+.PHONY: all fullsim sheets scenes tables training datafree plots micro scale mpi
+all: fullsim sheets scenes tables training datafree plots micro scale mpi
 	@cat $(OUT)/fullsim.md $(OUT)/sheets.md $(OUT)/scenes.md $(OUT)/tables.md $(OUT)/training.md $(OUT)/datafree.md \
-	  $(OUT)/datafree2.md $(OUT)/micro.md $(OUT)/scale.md
+	  $(OUT)/datafree2.md $(OUT)/micro.md $(OUT)/scale.md $(OUT)/mpi.md
 	@echo "plots: $(OUT)/steps.png $(OUT)/training.png"
 
 # ---------------------------------------------------------------- fullsim
@@ -250,6 +250,25 @@ $(OUT)/tr-pointnet.h5 $(OUT)/tr-pointnet.log &: $(OUT)/tr-samples.h5
 	  -o $(OUT)/tr-pointnet.h5 < $< 2> $(OUT)/tr-pointnet.log
 $(OUT)/training.md: $(OUT)/tr-lsq.h5 $(OUT)/tr-pointnet.h5
 	/usr/bin/python3 $(TOP)/pipelines/benchtab.py training $(OUT) > $@.tmp && mv $@.tmp $@
+
+# -------------------------------------------------------------------- mpi
+# data-parallel training (issue 20): the training set above, lsq, MPI_EPOCHS
+# epochs with --shards 2, one process against mpirun -n 2 (one core each),
+# MPI_REPEATS runs each; the training loop's own clock (crom-fitfield -v:
+# "N steps in S s"), medians, and the doubles allreduced per step
+MPI_EPOCHS ?= 300
+MPI_REPEATS ?= 3
+MPIRUN ?= mpirun --allow-run-as-root --oversubscribe --mca btl self,vader --mca btl_vader_single_copy_mechanism none -n 2
+mpi: $(OUT)/mpi.md
+$(OUT)/mpi.md: $(OUT)/tr-samples.h5
+	@command -v mpirun >/dev/null || { echo "bench mpi: no mpirun (make deps installs Open MPI)" >&2; exit 1; }
+	@crom-fitfield --help | grep -q 'built with MPI' || { echo "bench mpi: crom-fitfield was built without MPI" >&2; exit 1; }
+	A="--rank 20 --encoder lsq --epochs $(MPI_EPOCHS) --shards 2 --threads 1 --seed $(SEED) -v"; \
+	for k in $$(seq $(MPI_REPEATS)); do \
+	  crom-fitfield $$A -o $(OUT)/mpi-1.h5 $< 2> $(OUT)/mpi-1-$$k.log; \
+	  $(MPIRUN) crom-fitfield $$A -o $(OUT)/mpi-2.h5 $< 2> $(OUT)/mpi-2-$$k.log; \
+	done; \
+	/usr/bin/python3 $(TOP)/pipelines/benchtab.py mpi $(OUT) $(MPI_REPEATS) > $@.tmp && mv $@.tmp $@
 
 # --------------------------------------------------------------- datafree
 datafree: $(OUT)/datafree.md $(OUT)/datafree2.md

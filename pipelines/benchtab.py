@@ -226,6 +226,40 @@ def scale(out, sizes):
         w.writerow([nv, nt, full, rss, 1e3 * red, red / base, k, mb])
 
 
+def mpi(out, repeats):
+    """Data-parallel training: one process with --shards 2 against mpirun -n 2."""
+    import re
+    def runs(p):
+        secs, steps, doubles = [], None, 0
+        for k in range(1, repeats + 1):
+            t = open(f"{out}/mpi-{p}-{k}.log").read()
+            m = re.search(r"(\d+) steps in ([0-9.]+) s", t)
+            steps, sec = int(m.group(1)), float(m.group(2))
+            secs.append(sec)
+            d = re.search(r"allreduced (\d+) doubles", t)
+            doubles = int(d.group(1)) if d else 0
+        return statistics.median(secs), steps, doubles
+    (s1, n1, _), (s2, n2, d2) = runs(1), runs(2)
+    with h5py.File(f"{out}/mpi-1.h5") as a, h5py.File(f"{out}/mpi-2.h5") as b:
+        diffs = []
+        def visit(name, obj):
+            if isinstance(obj, h5py.Dataset) and name.startswith("field/") and obj.dtype.kind == "f":
+                x, y = obj[()], b[name][()]
+                diffs.append(float(abs(x - y).max() / max(abs(x).max(), 1e-30)))
+        a.visititems(visit)
+    print(f"Data-parallel training (lsq, r = 20, --shards 2, {n1} steps; medians of {repeats} runs; "
+          "the training loop's own clock):\n")
+    print("| processes | ms per step | speedup | doubles allreduced per step | kB per step |")
+    print("|---:|---:|---:|---:|---:|")
+    print(f"| 1 | {1e3 * s1 / n1:.3f} | 1.00 | 0 | 0 |")
+    print(f"| 2 (mpirun) | {1e3 * s2 / n2:.3f} | {s1 / n1 / (s2 / n2):.2f} | {d2} | {8e-3 * d2:.1f} |")
+    print(f"\nlargest relative difference of the two models' field parameters: {max(diffs) if diffs else float('nan'):.2g}")
+    w = csv.writer(open(f"{out}/mpi.csv", "w"))
+    w.writerow(["processes", "s_per_step", "speedup", "allreduce_doubles"])
+    w.writerow([1, s1 / n1, 1.0, 0])
+    w.writerow([2, s2 / n2, s1 / n1 / (s2 / n2), d2])
+
+
 if __name__ == "__main__":
     if sys.argv[1] == "tables":
         tables(sys.argv[2], sys.argv[3].split(), sys.argv[4].split())
@@ -235,5 +269,7 @@ if __name__ == "__main__":
         datafree(sys.argv[2], sys.argv[3].split())
     elif sys.argv[1] == "scale":
         scale(sys.argv[2], sys.argv[3].split())
+    elif sys.argv[1] == "mpi":
+        mpi(sys.argv[2], int(sys.argv[3]))
     else:
-        sys.exit("usage: benchtab.py tables|training|datafree|scale DIR ...")
+        sys.exit("usage: benchtab.py tables|training|datafree|scale|mpi DIR ...")

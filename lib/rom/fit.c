@@ -361,6 +361,8 @@ void crom_fit_defaults(crom_fit_opts *o)
     o->tikhonov = 1e-6;
     o->threads = 1;
     o->seed = 1;
+    o->shards = 1;
+    o->nprocs = 1;
 }
 
 int crom_fit_check(const crom_samples *S, int rank)
@@ -656,61 +658,83 @@ static void plan_epoch(trainer *t)
     crom_rng_shuffle(&t->rng, t->border, nb);
 }
 
-/* Fill t->b from the frames fr[0..nf-1] (one source in shared mode). */
-static void build_batch(trainer *t, const int *fr, int nf)
+/* Shared mode: t->b from the frames fr[0..nf-1] of source k at its
+ * vertices perm[0..v-1] (just drawn). */
+static void fill_shared(trainer *t, const int *fr, int nf, int k, const int *perm, int v)
 {
     const crom_samples *S = t->S;
     crom_fit_batch *b = &t->b;
     int N = S->N;
     double is = 1.0 / t->s;
-    b->nframes = nf;
-    memcpy(b->frame_id, fr, sizeof(int) * (size_t)nf);
+    memcpy(t->Vbuf, perm, sizeof(int) * (size_t)v);
+    qsort(t->Vbuf, (size_t)v, sizeof(int), cmp_int);
+    const float *Xs = t->Xsrc + 3 * t->xoff[k];
+    for (int i = 0; i < v; i++)
+        memcpy(b->X + 3 * (size_t)i, Xs + 3 * (size_t)t->Vbuf[i], sizeof(float) * 3);
+    memset(b->U, 0, sizeof(double) * 3 * (size_t)v * nf);
+    memset(b->M, 0, sizeof(double) * (size_t)v * nf);
+    size_t present = 0;
+    for (int j = 0; j < nf; j++) {
+        int f = fr[j];
+        const int *sv = t->sv + (size_t)f * N, *si = t->si + (size_t)f * N;
+        const float *Uf = S->U + (size_t)f * N * 3;
+        int a = 0, c = 0;
+        while (a < v && c < N) {
+            if (t->Vbuf[a] < sv[c])
+                a++;
+            else if (t->Vbuf[a] > sv[c])
+                c++;
+            else {
+                const float *u = Uf + 3 * (size_t)si[c];
+                for (int d = 0; d < 3; d++)
+                    b->U[(size_t)(3 * a + d) * nf + j] = u[d] * is;
+                b->M[(size_t)a * nf + j] = 1;
+                present++;
+                a++;
+                c++;
+            }
+        }
+    }
+    b->ngroups = 1;
+    b->rows[0] = v;
+    b->frames[0] = nf;
+    b->dense[0] = present == (size_t)v * nf;
+    b->nrows = v;
+}
+
+/* Draw the points of the frames fr[0..nf-1] (one source in shared mode)
+ * and, if fill, fill t->b with them. Without fill only the random draws
+ * are made, the same ones in the same order: a process draws the shards
+ * it does not evaluate too, so that every process's generator stays in
+ * step. */
+static void build_batch(trainer *t, const int *fr, int nf, int fill)
+{
+    const crom_samples *S = t->S;
+    crom_fit_batch *b = &t->b;
+    int N = S->N;
+    double is = 1.0 / t->s;
+    if (fill) {
+        b->nframes = nf;
+        memcpy(b->frame_id, fr, sizeof(int) * (size_t)nf);
+    }
     if (t->shared) {
         int k = S->source[fr[0]];
         int nv = S->src[k].nv, v = t->vsz[k];
         int *perm = t->perm + t->xoff[k];
         partial_shuffle(&t->rng, perm, nv, v);
-        memcpy(t->Vbuf, perm, sizeof(int) * (size_t)v);
-        qsort(t->Vbuf, (size_t)v, sizeof(int), cmp_int);
-        const float *Xs = t->Xsrc + 3 * t->xoff[k];
-        for (int i = 0; i < v; i++)
-            memcpy(b->X + 3 * (size_t)i, Xs + 3 * (size_t)t->Vbuf[i], sizeof(float) * 3);
-        memset(b->U, 0, sizeof(double) * 3 * (size_t)v * nf);
-        memset(b->M, 0, sizeof(double) * (size_t)v * nf);
-        size_t present = 0;
-        for (int j = 0; j < nf; j++) {
-            int f = fr[j];
-            const int *sv = t->sv + (size_t)f * N, *si = t->si + (size_t)f * N;
-            const float *Uf = S->U + (size_t)f * N * 3;
-            int a = 0, c = 0;
-            while (a < v && c < N) {
-                if (t->Vbuf[a] < sv[c])
-                    a++;
-                else if (t->Vbuf[a] > sv[c])
-                    c++;
-                else {
-                    const float *u = Uf + 3 * (size_t)si[c];
-                    for (int d = 0; d < 3; d++)
-                        b->U[(size_t)(3 * a + d) * nf + j] = u[d] * is;
-                    b->M[(size_t)a * nf + j] = 1;
-                    present++;
-                    a++;
-                    c++;
-                }
-            }
-        }
-        b->ngroups = 1;
-        b->rows[0] = v;
-        b->frames[0] = nf;
-        b->dense[0] = present == (size_t)v * nf;
-        b->nrows = v;
+        if (fill)
+            fill_shared(t, fr, nf, k, perm, v);
     } else {
         int P = t->P;
-        b->ngroups = nf;
-        b->nrows = nf * P;
+        if (fill) {
+            b->ngroups = nf;
+            b->nrows = nf * P;
+        }
         for (int j = 0; j < nf; j++) {
             int f = fr[j];
             partial_shuffle(&t->rng, t->permN, N, P);
+            if (!fill)
+                continue;
             for (int i = 0; i < P; i++) {
                 size_t idx = (size_t)f * N + t->permN[i];
                 size_t row = (size_t)j * P + i;
@@ -729,6 +753,8 @@ static void build_batch(trainer *t, const int *fr, int nf)
         for (int j = 0; j < nf; j++) {
             int f = fr[j];
             partial_shuffle(&t->rng, t->permE, N, Pe);
+            if (!fill)
+                continue;
             float *e = b->enc + (size_t)j * Pe * 6;
             for (int i = 0; i < Pe; i++) {
                 size_t idx = (size_t)f * N + t->permE[i];
@@ -942,6 +968,7 @@ typedef struct {
     crom_nn_pointnet P;
     size_t nW, nP;        /* parameters of W and of P */
     float *params, *grad; /* [nW + nP] */
+    double *acc;          /* [nW + nP + CROM_FIT_EXTRAS] a step's sums: what the allreduce carries */
     crom_fit_ctx ctx;
     crom_nn_adam adam;
     double *loss, *secs;  /* [o.epochs] per epoch: mean misfit (m²), wall time */
@@ -959,6 +986,7 @@ static void fitrun_free(fitrun *R)
     crom_nn_mlp_free(&R->W);
     free(R->params);
     free(R->grad);
+    free(R->acc);
     trainer_free(&R->t);
 }
 
@@ -1038,46 +1066,167 @@ static int make_optimizer(fitrun *R)
         return rc;
     R->loss = crom_malloc(sizeof(double) * (size_t)o->epochs);
     R->secs = crom_malloc(sizeof(double) * (size_t)o->epochs);
-    return R->loss && R->secs ? 0 : CROM_EINTERNAL;
+    R->acc = crom_malloc(sizeof(double) * (R->nW + R->nP + CROM_FIT_EXTRAS));
+    return R->loss && R->secs && R->acc ? 0 : CROM_EINTERNAL;
 }
 
-/* One step on batch bj of the epoch's plan (epoch e) at learning rate lr:
- * the loss and its gradient, one Adam step, the counts of the run; *mis
- * gets the batch's misfit. */
-static int train_batch(fitrun *R, int bj, int e, double lr, double *mis)
+/* The doubles after the gradient in a step's sums (CROM_FIT_EXTRAS of
+ * them): the samples n, sum n_s misfit_s, sum n_s objective_s, MLP rows,
+ * shards evaluated, the misfit and objective of a lone shard as computed
+ * (so that a step of one shard is bit for bit the step of one batch),
+ * process 0's clock (s since the start) and the processes that failed. */
+enum { X_N, X_MIS, X_OBJ, X_ROWS, X_SHARDS, X_MIS1, X_OBJ1, X_CLOCK, X_FAILED, X_COUNT };
+_Static_assert(X_COUNT == CROM_FIT_EXTRAS, "CROM_FIT_EXTRAS counts the extras of a step");
+
+/* FNV-1a over n bytes, continuing from h. */
+static uint64_t fnv1a(uint64_t h, const void *p, size_t n)
+{
+    const unsigned char *c = p;
+    for (size_t i = 0; i < n; i++)
+        h = (h ^ c[i]) * 0x100000001b3ULL;
+    return h;
+}
+
+/* A 20-bit fingerprint of what decides the sequence of steps and their
+ * allreduces: the samples, and the options but threads, proc and the
+ * callbacks. */
+static double fingerprint(const crom_samples *S, const crom_fit_opts *o)
+{
+    size_t n = (size_t)S->F * S->N * 3;
+    int v[] = {S->F, S->N, S->nsources, o->rank, o->encoder, o->depth, o->width, (int)o->act, o->epochs, o->batch,
+               o->points_per_step, o->enc_points, o->shards, o->nprocs};
+    double d[] = {o->lr, o->tikhonov, o->minutes};
+    uint64_t h = fnv1a(0xcbf29ce484222325ULL, v, sizeof v);
+    h = fnv1a(h, d, sizeof d);
+    h = fnv1a(h, &o->seed, sizeof o->seed);
+    h = fnv1a(h, S->X, sizeof(float) * n);
+    h = fnv1a(h, S->U, sizeof(float) * n);
+    h = fnv1a(h, S->vertex, sizeof(int) * (size_t)S->F * S->N);
+    h = fnv1a(h, S->source, sizeof(int) * (size_t)S->F);
+    return (double)((h ^ h >> 20 ^ h >> 40) & 0xfffff);
+}
+
+/* Whether every process is ready to train on the same thing: one
+ * allreduce of [failures, f, f^2] with f the fingerprint above, so that a
+ * process that could not set up (out of memory) or was given other samples
+ * or options (a stale copy of the file on another node) does not leave
+ * the others waiting in a step it never takes. Every process sees the sum
+ * of f equal nprocs f and that of f^2 equal nprocs f^2 (exact integers in
+ * double) only if every f is its own. rc is this process's result. */
+static int agree_ready(fitrun *R, const crom_samples *S, int rc)
+{
+    const crom_fit_opts *o = &R->o;
+    if (!o->allreduce)
+        return rc;
+    double f = fingerprint(S, o), x[3] = {rc != 0, f, f * f};
+    int arc = o->allreduce(o->allreduce_ctx, x, 3);
+    if (rc || arc)
+        return rc ? rc : arc;
+    if (x[0] > 0) {
+        R->st.remote_failure = 1;
+        return crom_err(CROM_EINTERNAL, "training stopped: another process could not set up");
+    }
+    if (x[1] != o->nprocs * f || x[2] != o->nprocs * (f * f))
+        return crom_err(CROM_EUSAGE, "the %d processes were given different samples or training options: each "
+                        "must train on the same", o->nprocs);
+    return 0;
+}
+
+/* One step on batch bj of the epoch's plan (epoch e). Its frames are cut
+ * into o.shards shards of consecutive frames, each drawn with its own
+ * points; this process evaluates shards proc, proc + nprocs, ... and
+ * sums n_s grad_s (n_s: the shard's samples) into R->acc, which the
+ * allreduce sums over the processes. The step's gradient is
+ * sum n_s grad_s / sum n_s, that of the mean over all its samples, alike
+ * on every process, and so is the Adam step, at the learning rate of the
+ * fraction frac of the run done or of the budget used, *el seconds (read
+ * by the caller; with an allreduce, process 0's clock as it passes it on).
+ * *mis gets the step's misfit. With one shard and one process this is,
+ * bit for bit, one step on the whole batch: n g / n == g exactly for a
+ * float g. The processes return together: a failure is counted in the
+ * sums. */
+static int train_step(fitrun *R, int bj, int e, double frac, double budget, double tstart, double *el,
+                      double *mis)
 {
     trainer *t = &R->t;
-    build_batch(t, t->order + t->bstart[bj], t->bstart[bj + 1] - t->bstart[bj]);
-    double obj;
-    int rc = crom_fit_loss(&R->ctx, &t->b, &obj, mis, R->grad, NULL);
+    const crom_fit_opts *o = &R->o;
+    const int *fr = t->order + t->bstart[bj];
+    int nf = t->bstart[bj + 1] - t->bstart[bj], S = o->shards, rc = 0;
+    size_t np = R->nW + R->nP, nx = np + CROM_FIT_EXTRAS;
+    double *acc = R->acc, *x = R->acc + np;
+    memset(acc, 0, sizeof(double) * nx);
+    for (int s = 0; s < S && !rc; s++) {
+        int f0 = (int)((long)nf * s / S), f1 = (int)((long)nf * (s + 1) / S), mine = s % o->nprocs == o->proc;
+        if (f1 == f0)
+            continue; /* a batch of fewer frames than shards */
+        build_batch(t, fr + f0, f1 - f0, mine);
+        if (!mine)
+            continue;
+        double obj, m, n = batch_weight(&t->b);
+        if ((rc = crom_fit_loss(&R->ctx, &t->b, &obj, &m, R->grad, NULL)))
+            break;
+        for (size_t i = 0; i < np; i++)
+            acc[i] += n * R->grad[i];
+        x[X_N] += n;
+        x[X_MIS] += n * m;
+        x[X_OBJ] += n * obj;
+        x[X_ROWS] += t->b.nrows;
+        x[X_SHARDS] += 1;
+        x[X_MIS1] = m;
+        x[X_OBJ1] = obj;
+    }
+    if (rc) {
+        memset(acc, 0, sizeof(double) * nx);
+        x[X_FAILED] = 1;
+    }
+    if (o->allreduce) {
+        /* under MPI this is MPI_Allreduce, which gives every rank the same
+         * sums ("MPI requires that all processes participating in these
+         * operations receive identical results", MPI 1.1 §4.9.5), so that
+         * the processes' parameters stay equal */
+        x[X_CLOCK] = o->proc == 0 ? crom_clock_now() - tstart : 0;
+        int arc = o->allreduce(o->allreduce_ctx, acc, nx);
+        if (rc || arc)
+            return rc ? rc : arc;
+        R->st.allreduce_doubles = nx;
+        *el = x[X_CLOCK];
+    }
     if (rc)
         return rc;
+    if (x[X_FAILED] > 0) {
+        R->st.remote_failure = 1;
+        return crom_err(CROM_EINTERNAL, "training stopped at epoch %d: a step failed in another process", e + 1);
+    }
+    double N = x[X_N];
+    int one = x[X_SHARDS] == 1;
+    double obj = one ? x[X_OBJ1] : N > 0 ? x[X_OBJ] / N : 0;
+    *mis = one ? x[X_MIS1] : N > 0 ? x[X_MIS] / N : 0;
     if (!isfinite(obj))
         return crom_err(CROM_EDATA, "training diverged (loss %g at epoch %d): try a smaller --lr", obj, e + 1);
+    for (size_t i = 0; i < np; i++)
+        R->grad[i] = N > 0 ? (float)(acc[i] / N) : 0.0f;
+    if (budget > 0)
+        frac = fmax(frac, *el / budget);
+    int ev = (int)floor(frac * o->epochs);
+    double lr = crom_nn_lr_schedule(o->lr, ev < o->epochs ? ev : o->epochs - 1, o->epochs);
     crom_nn_adam_step(&R->adam, R->params, R->grad, lr);
     R->st.steps++;
-    R->st.rows += t->b.nrows;
-    for (int g = 0, c0 = 0; g < t->b.ngroups; g++) {
-        int nc = t->b.rows[g] * t->b.frames[g];
-        if (t->b.dense[g])
-            R->st.samples += nc;
-        else
-            for (int i = 0; i < nc; i++)
-                R->st.samples += t->b.M[c0 + i];
-        c0 += nc;
-    }
+    R->st.rows += x[X_ROWS];
+    R->st.samples += N;
     return 0;
 }
 
 /* Epochs until o.epochs or the wall-time budget; the learning rate
  * follows the LiCROM step schedule over the fraction of the run done,
  * max(epoch / epochs, elapsed / budget). Each epoch's mean misfit goes to
- * the log and to o.progress. */
+ * the log and to o.progress. With an allreduce the clock is process 0's,
+ * from the last step's allreduce, so that every process stops at the same
+ * step. */
 static int train(fitrun *R)
 {
     const crom_fit_opts *o = &R->o;
     trainer *t = &R->t;
-    double budget = o->minutes > 0 ? 60 * o->minutes : 0, tstart = crom_clock_now();
+    double budget = o->minutes > 0 ? 60 * o->minutes : 0, tstart = crom_clock_now(), el = 0;
     int stop = 0, rc;
     for (int e = 0; e < o->epochs && !stop; e++) {
         plan_epoch(t);
@@ -1085,18 +1234,14 @@ static int train(fitrun *R)
         int nsum = 0;
         for (int k = 0; k < t->nbatches; k++) {
             double frac = (e + (double)k / t->nbatches) / o->epochs;
-            double el = crom_clock_now() - tstart;
-            if (budget > 0) {
-                if (el >= budget) {
-                    stop = 1;
-                    break;
-                }
-                frac = fmax(frac, el / budget);
+            if (!o->allreduce)
+                el = crom_clock_now() - tstart;
+            if (budget > 0 && el >= budget) {
+                stop = 1;
+                break;
             }
-            int ev = (int)floor(frac * o->epochs);
-            double lr = crom_nn_lr_schedule(o->lr, ev < o->epochs ? ev : o->epochs - 1, o->epochs);
-            double mis;
-            if ((rc = train_batch(R, t->border[k], e, lr, &mis)))
+            double mis = 0;
+            if ((rc = train_step(R, t->border[k], e, frac, budget, tstart, &el, &mis)))
                 return rc;
             sum += mis;
             nsum++;
@@ -1183,6 +1328,24 @@ static int make_model(fitrun *R, const crom_samples *S, double t0, crom_model *o
     return 0;
 }
 
+/* Whether the options (epochs and lr resolved) and the data are fit for
+ * training: 0, CROM_EUSAGE or CROM_EDATA. */
+static int check_run(const crom_samples *S, const crom_fit_opts *o)
+{
+    if (o->rank < 1 || o->depth < 2 || o->depth > CROM_NN_MAX_LAYERS || o->width < 1 || o->batch < 1 ||
+        !(o->lr > 0) || o->enc_points < 1 || o->threads < 1 || !(o->tikhonov >= 0) || o->shards < 1 ||
+        o->nprocs < 1 || o->proc < 0 || o->proc >= o->nprocs || (o->nprocs > 1 && !o->allreduce))
+        return crom_err(CROM_EUSAGE, "invalid training options");
+    int rc = crom_fit_check(S, o->rank);
+    if (rc)
+        return rc;
+    int B = o->batch < S->F ? o->batch : S->F; /* frames of a batch (trainer_init) */
+    if (o->shards > B)
+        return crom_err(CROM_EUSAGE, "--shards %d exceeds the %d frames of a batch (--batch %d, %d frames in the "
+                        "samples): each shard needs a frame", o->shards, B, o->batch, S->F);
+    return 0;
+}
+
 int crom_fit_mlp(const crom_samples *S, const crom_fit_opts *opts, crom_model *out)
 {
     crom_model_clear(out);
@@ -1195,25 +1358,24 @@ int crom_fit_mlp(const crom_samples *S, const crom_fit_opts *opts, crom_model *o
         o->epochs = R.pn ? CROM_FIT_EPOCHS_POINTNET : CROM_FIT_EPOCHS_LSQ;
     if (o->lr <= 0)
         o->lr = R.pn ? CROM_FIT_LR_POINTNET : CROM_FIT_LR_LSQ;
-    if (o->rank < 1 || o->depth < 2 || o->depth > CROM_NN_MAX_LAYERS || o->width < 1 || o->batch < 1 ||
-        !(o->lr > 0) || o->enc_points < 1 || o->threads < 1 || !(o->tikhonov >= 0))
-        return crom_err(CROM_EUSAGE, "invalid training options");
-    int rc = crom_fit_check(S, o->rank);
-    if (rc)
-        return rc;
     double t0 = crom_clock_now();
     /* threaded MLP passes call sgemm per thread: OpenBLAS single-threaded
      * meanwhile (nn.h), the caller's setting restored on return */
     int blas_threads = openblas_get_num_threads(), threaded = o->threads > 1;
     if (threaded)
         openblas_set_num_threads(1);
-    if (!(rc = trainer_init(&R.t, S, o)) && !(rc = make_networks(&R)) && !(rc = set_input_norm(&R, S)) &&
-        !(rc = make_optimizer(&R)) && !(rc = train(&R))) {
-        if (o->stats)
-            *o->stats = R.st;
-        if (!(rc = R.pn ? unscale_encoder(&R) : 0) && !(rc = canonicalize(&R, S)))
-            rc = make_model(&R, S, t0, out);
-    }
+    int rc = check_run(S, o);
+    if (!rc && !(rc = trainer_init(&R.t, S, o)) && !(rc = make_networks(&R)) && !(rc = set_input_norm(&R, S)))
+        rc = make_optimizer(&R);
+    /* with an allreduce, every process makes this one call whatever its
+     * checks found, then (all ready) the same steps */
+    if (!(rc = agree_ready(&R, S, rc)))
+        rc = train(&R);
+    if (o->stats)
+        *o->stats = R.st;
+    /* after the last step every process goes on alone, alike */
+    if (!rc && !(rc = R.pn ? unscale_encoder(&R) : 0) && !(rc = canonicalize(&R, S)))
+        rc = make_model(&R, S, t0, out);
     fitrun_free(&R);
     if (threaded)
         openblas_set_num_threads(blas_threads);

@@ -24,7 +24,9 @@
  * source's vertices and uses, for every frame of the batch, the samples it
  * has at V (a 0/1 mask says which). Interior samples give one group per
  * frame. Displacements in a batch are scaled by the data's RMS displacement
- * s, so losses are relative; the model stores W with q in metres.
+ * s, so losses are relative; the model stores W with q in metres. With
+ * shards (crom_fit_opts) a step's frames are cut into shards, each a batch
+ * of its own in this sense, which processes may share out (MPI).
  *
  * After training an mlp W is re-expressed, exactly, in a canonical basis of
  * its own span: orthonormal in the mean over the training points
@@ -111,6 +113,24 @@ typedef struct {
     double tikhonov;        /* relative Tikhonov weight of the lsq fits (1e-6) */
     int threads;            /* threads for the MLP passes (1) */
     uint64_t seed;
+    /* Data parallelism (crom-fitfield under MPI). Each step's batch is cut
+     * into `shards` shards of about batch/shards frames (consecutive in the
+     * batch), each with points of its own; what a step draws does not
+     * depend on nprocs. Process `proc` of `nprocs` (an MPI rank) evaluates
+     * shards proc, proc + nprocs, ..., sums their gradients weighted by
+     * their sample counts, and `allreduce` sums [gradient | loss terms] over
+     * the processes in place, once per step (8 (P + CROM_FIT_EXTRAS) bytes,
+     * P parameters); then every process takes the same Adam step. A step's
+     * objective is the mean over all samples of its shards, so one process
+     * with the same shards trains the same model up to round-off. allreduce
+     * returns 0 or an error code; it may be NULL when nprocs is 1. The
+     * processes return together from a failure before or during training:
+     * the next allreduce passes it on (the others get CROM_EINTERNAL and
+     * stats->remote_failure 1); after the last step each finishes alone. */
+    int shards;             /* shards per step (1; at most the frames of a batch) */
+    int proc, nprocs;       /* this process and the number of them (0, 1) */
+    int (*allreduce)(void *ctx, double *buf, size_t n);
+    void *allreduce_ctx;
     /* statistics of the run (may be NULL) */
     struct crom_fit_stats *stats;
     /* progress: called after every epoch (frac = progress in [0,1]) */
@@ -118,12 +138,21 @@ typedef struct {
     void *progress_ctx;
 } crom_fit_opts;
 
+/* The doubles a step's allreduce carries besides the gradient: sample
+ * count, weighted misfit and objective, rows, shards, the misfit and
+ * objective of a lone shard, process 0's clock, failures. */
+#define CROM_FIT_EXTRAS 9
+
 /* What a training run did: steps, MLP rows through forward + backward (W
- * evaluated once per point of a group), samples (frame, point) in the losses,
- * and the wall time of the steps. */
+ * evaluated once per point of a group), samples (frame, point) in the losses
+ * (over every process), the wall time of the steps, the doubles summed by
+ * each step's allreduce (0 without one), and whether training stopped
+ * because another process failed. */
 typedef struct crom_fit_stats {
     long steps;
     double rows, samples, seconds;
+    size_t allreduce_doubles;
+    int remote_failure;
 } crom_fit_stats;
 
 #define CROM_FIT_EPOCHS_LSQ 400
@@ -145,9 +174,13 @@ int crom_fit_check(const crom_samples *S, int rank);
  * out gets the model with its training log, reconstruction error and wall
  * time. Stops after o->epochs epochs or o->minutes of wall time; the
  * learning rate follows the LiCROM step schedule over the fraction of the
- * run done, max(epoch / epochs, elapsed / budget). Returns 0, CROM_EDATA
- * (data unusable: see crom_fit_check), CROM_EUSAGE (bad options) or
- * CROM_EINTERNAL. */
+ * run done, max(epoch / epochs, elapsed / budget) (with an allreduce:
+ * process 0's clock, passed on by it). With o->allreduce every process must
+ * call this with the same S and options but o->proc (and threads): they
+ * check that in one allreduce before training, with what each found wrong
+ * with the options and data, and fail together. Returns 0, CROM_EDATA
+ * (data unusable: see crom_fit_check), CROM_EUSAGE (bad options, shards
+ * more than the frames of a batch) or CROM_EINTERNAL. */
 int crom_fit_mlp(const crom_samples *S, const crom_fit_opts *o, crom_model *out);
 
 /* Mass-weighted POD of samples of one mesh with every vertex in every frame

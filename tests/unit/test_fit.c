@@ -1,14 +1,19 @@
 /* test_fit.c — lib/fit: finite-difference checks of the composed training
  * losses (variable projection with Tikhonov term, joint PointNet loss) on
  * batches with dense and masked groups; fitting known analytic fields (lsq
- * neural field, POD); the canonical basis; determinism; data checks.
+ * neural field, POD); the canonical basis; determinism; data checks; the
+ * data-parallel hook (shards, two processes emulated by two threads: the
+ * only run of the sharded steps under the sanitizers, which build
+ * crom-fitfield without MPI).
  *
  * Gradient checks follow test_nn.c: float networks, loss accumulated in
  * double, central differences with step 1e-3 on the float parameters, and the
  * relative error of the whole gradient vector below 2e-3 (rounding gives
  * ~1e-4; a missing or wrong term gives O(1)).
  */
+#include <cblas.h>
 #include <math.h>
+#include <omp.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -317,11 +322,170 @@ static void test_checks(void)
     crom_samples_free(&S);
 }
 
+/* Two processes emulated by the two threads of an OpenMP team: the
+ * allreduce adds both buffers into shared memory between barriers (as
+ * MPI_Allreduce, both get the same sums: a + b is b + a bit for bit). */
+typedef struct {
+    double *sum;
+    size_t cap;
+} two_procs;
+
+static int sum_two(void *ctx, double *buf, size_t n)
+{
+    two_procs *t = ctx;
+    if (n > t->cap)
+        return crom_err(CROM_EINTERNAL, "test allreduce of %zu doubles exceeds %zu", n, t->cap);
+#pragma omp barrier
+#pragma omp single
+    memset(t->sum, 0, sizeof(double) * n);
+#pragma omp critical
+    for (size_t i = 0; i < n; i++)
+        t->sum[i] += buf[i];
+#pragma omp barrier
+    memcpy(buf, t->sum, sizeof(double) * n);
+#pragma omp barrier
+    return 0;
+}
+
+/* Train on S with o as two processes; rc, models and stats per process. */
+static void train_two(const crom_samples *S, const crom_fit_opts *o, const crom_fit_opts *o1, int rc[2],
+                      crom_model M[2], crom_fit_stats st[2])
+{
+    two_procs tp = {malloc(sizeof(double) * (1 << 18)), 1 << 18};
+#pragma omp parallel num_threads(2)
+    {
+        int p = omp_get_thread_num();
+        crom_fit_opts q = p && o1 ? *o1 : *o;
+        q.proc = p;
+        q.nprocs = 2;
+        q.allreduce = sum_two;
+        q.allreduce_ctx = &tp;
+        q.stats = &st[p];
+        rc[p] = crom_fit_mlp(S, &q, &M[p]);
+    }
+    free(tp.sum);
+}
+
+/* Relative difference of two models' field parameters. */
+static double param_diff(const crom_model *a, const crom_model *b)
+{
+    double d = 0, n = 0;
+    for (size_t i = 0; i < a->mlp.nparams; i++) {
+        d += ((double)a->mlp.params[i] - b->mlp.params[i]) * ((double)a->mlp.params[i] - b->mlp.params[i]);
+        n += (double)a->mlp.params[i] * a->mlp.params[i];
+    }
+    return sqrt(d / n);
+}
+
+static void test_shards(void)
+{
+    printf("shards: one process and two emulated ones train the same model\n");
+    int team = 1;
+#pragma omp parallel num_threads(2)
+#pragma omp single
+    team = omp_get_num_threads();
+    if (team != 2) {
+        printf("  skipped: OpenMP gave %d threads, not 2\n", team);
+        return;
+    }
+    int blas = openblas_get_num_threads();
+    openblas_set_num_threads(1); /* two callers at once */
+    crom_samples S;
+    analytic_set(&S, 5, 14, 3, 1.0, 71);
+    subsample(&S, 80, 72); /* masked shared groups */
+    crom_fit_opts o;
+    crom_fit_defaults(&o);
+    o.rank = 3;
+    o.epochs = 12;
+    o.batch = 7;
+    o.lr = 1e-2;
+    o.width = 16;
+    o.depth = 3;
+    for (int pn = 0; pn < 2; pn++) {
+        o.encoder = pn ? CROM_MODEL_ENC_POINTNET : CROM_MODEL_ENC_LSQ;
+        o.enc_points = 20;
+        o.epochs = pn ? 3 : 12;
+        for (int shards = 2; shards <= 3; shards++) {
+            o.shards = shards;
+            crom_model A, M[2];
+            crom_fit_stats st[2];
+            int rc[2];
+            CHECK(crom_fit_mlp(&S, &o, &A) == 0);
+            train_two(&S, &o, NULL, rc, M, st);
+            CHECK(rc[0] == 0 && rc[1] == 0);
+            if (rc[0] || rc[1])
+                continue;
+            double d = param_diff(&A, &M[0]), de = 0;
+            if (pn) {
+                crom_nn_pointnet *a = &A.enc, *b = &M[0].enc;
+                double dd = 0, nn = 0;
+                for (size_t i = 0; i < a->nparams; i++) {
+                    dd += ((double)a->params[i] - b->params[i]) * ((double)a->params[i] - b->params[i]);
+                    nn += (double)a->params[i] * a->params[i];
+                }
+                de = sqrt(dd / nn);
+            }
+            printf("  %s, %d shards: |two - one| / |one| of the field %.2g, of the encoder %.2g; %zu doubles a "
+                   "step\n", pn ? "pointnet" : "lsq", shards, d, de, st[0].allreduce_doubles);
+            CHECK_LT(d, 1e-5);
+            CHECK_LT(de, 1e-5);
+            /* every process took the same steps: the same bits */
+            CHECK(!memcmp(M[0].mlp.params, M[1].mlp.params, sizeof(float) * M[0].mlp.nparams));
+            CHECK(!strcmp(M[0].model_id, M[1].model_id));
+            CHECK(st[0].allreduce_doubles == A.mlp.nparams + (pn ? A.enc.nparams : 0) + CROM_FIT_EXTRAS);
+            CHECK(st[0].steps == st[1].steps && st[0].samples == st[1].samples);
+            if (!pn && shards == 2) {
+                /* the comparison means something: one shard, or another
+                 * seed, gives another model */
+                crom_fit_opts q = o;
+                crom_model B;
+                q.shards = 1;
+                CHECK(crom_fit_mlp(&S, &q, &B) == 0);
+                printf("  1 shard against 2: %.2g\n", param_diff(&A, &B));
+                CHECK(param_diff(&A, &B) > 1e-3);
+                crom_model_free(&B);
+                q = o;
+                q.seed = 2;
+                CHECK(crom_fit_mlp(&S, &q, &B) == 0);
+                CHECK(param_diff(&A, &B) > 1e-2);
+                crom_model_free(&B);
+            }
+            crom_model_free(&A);
+            crom_model_free(&M[0]);
+            crom_model_free(&M[1]);
+        }
+    }
+    /* failures are shared: other options on one process, or a setup that
+     * fails on one, stop both at once instead of leaving one waiting */
+    o.encoder = CROM_MODEL_ENC_LSQ;
+    o.epochs = 4;
+    o.shards = 2;
+    crom_fit_opts o1 = o;
+    o1.epochs = 5;
+    crom_model M[2];
+    crom_fit_stats st[2];
+    int rc[2];
+    train_two(&S, &o, &o1, rc, M, st);
+    CHECK(rc[0] == CROM_EUSAGE && rc[1] == CROM_EUSAGE);
+    o1 = o;
+    o1.shards = 8; /* more than the 7 frames of a batch */
+    train_two(&S, &o, &o1, rc, M, st);
+    CHECK(rc[0] == CROM_EINTERNAL && st[0].remote_failure == 1);
+    CHECK(rc[1] == CROM_EUSAGE && st[1].remote_failure == 0);
+    /* and serially: a shard needs a frame */
+    o.shards = 8;
+    CHECK(crom_fit_mlp(&S, &o, &M[0]) == CROM_EUSAGE);
+    CHECK_MSG(strstr(crom_errmsg(), "--shards 8 exceeds the 7 frames of a batch") != NULL, "%s", crom_errmsg());
+    crom_samples_free(&S);
+    openblas_set_num_threads(blas);
+}
+
 int main(void)
 {
     check_begin("test_fit");
     test_gradients();
     test_checks();
     test_analytic_fits();
+    test_shards();
     return check_done();
 }
