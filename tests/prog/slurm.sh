@@ -135,23 +135,22 @@ cat >"$TMP/job.sh" <<EOF
 #SBATCH --ntasks=2 --cpus-per-task=1
 set -euo pipefail
 $MK -j2 OUT="$O" ${ARGS[*]@Q} SUBMIT='srun -N1 -n1 -c1 --exclusive'
+echo done >"$TMP/job.done"
 EOF
-(cd "$TMP" && sbatch --wait --quiet -o "$TMP/sbatch.out" "$TMP/job.sh") || { tail -20 "$TMP/sbatch.out"; fail "sbatch run"; }
+# (sbatch --wait polls at growing intervals: watch the queue instead)
+jid=$(cd "$TMP" && sbatch --parsable -o "$TMP/sbatch.out" "$TMP/job.sh") || fail "sbatch: $jid"
+for _ in $(seq 1 600); do
+  squeue -h -j "$jid" 2>/dev/null | grep -q . || break
+  sleep 0.2
+done
+[ -s "$TMP/job.done" ] || { tail -20 "$TMP/sbatch.out"; fail "the sbatch job did not finish its make"; }
 cmp -s "$TMP/local/model.h5" "$O/model.h5" || fail "the sbatch run's model differs from the local one"; ok
 cmp -s "$TMP/local/red-4.h5" "$O/red-4.h5" || fail "the sbatch run's reduced run differs from the local one"; ok
 echo "sbatch run: identical model and reduced run (${SECONDS}s)"
 
-# failures. A missing SUBMIT command: one clear line, make fails, no output
-rm -rf "$O"
-rc=0; $MK OUT="$O" "${ARGS[@]}" SUBMIT='no-such-srun -N1' >"$TMP/bad.log" 2>&1 || rc=$?
-[ $rc -ne 0 ] || fail "make succeeded with a missing SUBMIT command"; ok
-grep -q "SUBMIT='no-such-srun -N1': 'no-such-srun' is not a command on this machine" "$TMP/bad.log" \
-  || fail "missing command message: $(tail -3 "$TMP/bad.log")"; ok
-! find "$O" -name '*.h5' 2>/dev/null | grep -q . || fail "HDF5 files written with a missing SUBMIT command"; ok
-
-# a job that fails fails its target; make reruns only what failed: break the
-# model after a full run, and the rerun redoes the stages after it only
-$MK -j2 OUT="$O" "${ARGS[@]}" SUBMIT='srun -N1 -n1 -c1' >"$TMP/again.log" 2>&1 || { tail -20 "$TMP/again.log"; fail "Slurm rerun"; }
+# failures. A job that fails fails its target; make reruns only what failed:
+# break the model of the finished sbatch run, and the rerun redoes the stages
+# after it only
 m0=$(stat -c %Y "$O/full-2.h5"); sleep 1
 head -c 4096 /dev/urandom >"$O/model.h5"; touch "$O/model.h5"; rm -f "$O/poses-box.h5"
 rc=0; $MK OUT="$O" "${ARGS[@]}" SUBMIT='srun -N1 -n1 -c1' >"$TMP/fail.log" 2>&1 || rc=$?
@@ -161,6 +160,14 @@ grep -qE 'srun: error: .*(task 0: Exited with exit code|Exited with exit code)' 
 [ ! -e "$O/poses-box.h5" ] || fail "a stale poses file was left behind"; ok
 ! ls -a "$O" | grep -q '\.tmp$' || fail "temporary files left behind"; ok
 [ "$(stat -c %Y "$O/full-2.h5")" = "$m0" ] || fail "a full run that had not failed was redone"; ok
+
+# a missing SUBMIT command: one clear line, make fails, no output
+rm -rf "$O"
+rc=0; $MK OUT="$O" "${ARGS[@]}" SUBMIT='no-such-srun -N1' >"$TMP/bad.log" 2>&1 || rc=$?
+[ $rc -ne 0 ] || fail "make succeeded with a missing SUBMIT command"; ok
+grep -q "SUBMIT='no-such-srun -N1': 'no-such-srun' is not a command on this machine" "$TMP/bad.log" \
+  || fail "missing command message: $(tail -3 "$TMP/bad.log")"; ok
+! find "$O" -name '*.h5' 2>/dev/null | grep -q . || fail "HDF5 files written with a missing SUBMIT command"; ok
 
 # an unreachable controller: srun gives up with its own message and make fails
 dead=$($PY -c "
