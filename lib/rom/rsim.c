@@ -51,6 +51,12 @@ static void free_cub_data(crom_rsim *s)
     crom_newton_memory_free(&s->mem);
     free_bcs(s->bc, s->nbc);
     free_bcs(s->force, s->nforce);
+    for (int d = 0; d < s->ndrag; d++) { /* the drags stay; their sums are the cubature's */
+        free(s->drag[d].b.idx);
+        free(s->drag[d].b.P);
+        free(s->drag[d].b.S);
+        memset(&s->drag[d].b, 0, sizeof s->drag[d].b);
+    }
     s->Mr = s->fg = s->G = s->Gfac = s->lam = NULL;
     s->qn = s->qhat = s->g = s->H = s->d = s->qt = s->gt = s->fext = s->Hfac = s->Q = s->Pk = s->lin = NULL;
     s->fac_ok = 0;
@@ -82,6 +88,41 @@ static int region_sums(const crom_cubature *c, double rho, const char *ref, crom
         for (int j = 0; j < i; j++)
             b->P[i * r + j] = b->P[j * r + i];
     return 0;
+}
+
+/* A drag's region sums and rest centroid on the current cubature's mesh. */
+static int drag_resolve(crom_rsim *s, crom_rsim_drag *d)
+{
+    const crom_cubature *c = s->cub;
+    int rc = region_sums(c, s->sc->density, d->ref, &d->b);
+    if (rc)
+        return rc;
+    if (!(d->b.mass > 0))
+        return crom_err(CROM_EUSAGE, "region '%s' has no mass to drag", d->ref);
+    d->xbar[0] = d->xbar[1] = d->xbar[2] = 0;
+    for (int k = 0; k < d->b.n; k++) {
+        int v = d->b.idx[k];
+        double m = s->sc->density * c->vvol[v];
+        for (int j = 0; j < 3; j++)
+            d->xbar[j] += m * c->mesh.X[3 * (size_t)v + j] / d->b.mass;
+    }
+    return 0;
+}
+
+/* The objective's constant quadratic part Q = (1/h² + A/h) M_r + κ Σ_b P_b
+ * + Σ_d k_d/m_d P_d (the drags' springs). A change of it drops the reused
+ * factor and the quasi-Newton pairs built on it. */
+static void quad_rebuild(crom_rsim *s)
+{
+    const crom_scenario *sc = s->sc;
+    size_t rr = (size_t)s->r * s->r;
+    double cq = 1 / (sc->dt * sc->dt) + sc->damping / sc->dt;
+    for (size_t i = 0; i < rr; i++)
+        s->Q[i] = cq * s->Mr[i] + s->Pk[i];
+    for (int d = 0; d < s->ndrag; d++)
+        cblas_daxpy((int)rr, s->drag[d].k / s->drag[d].b.mass, s->drag[d].b.P, 1, s->Q, 1);
+    s->fac_ok = 0;
+    crom_newton_memory_reset(&s->mem);
 }
 
 /* Which latent directions the boundary conditions constrain. With P the
@@ -217,12 +258,13 @@ static int build(crom_rsim *s)
     }
     if (s->nbc && s->bc_threshold > 0 && (rc = constrain_directions(s)))
         return rc;
-    /* the objective's constant quadratic part: Q = (1/h² + A/h) M_r + κ Σ_b P_b */
-    double cq = 1 / (sc->dt * sc->dt) + sc->damping / sc->dt;
+    for (int d = 0; d < s->ndrag && !rc; d++)
+        if ((rc = drag_resolve(s, &s->drag[d])))
+            return crom_err_ctx("drag");
+    /* the objective's constant quadratic part (quad_rebuild) */
     for (int b = 0; b < s->nbc; b++)
         cblas_daxpy((int)rr, s->kappa, s->bc[b].P, 1, s->Pk, 1);
-    for (size_t i = 0; i < rr; i++)
-        s->Q[i] = cq * s->Mr[i] + s->Pk[i];
+    quad_rebuild(s);
     /* the gd preconditioner: G = Σ_e w_e V_e/4 Σ_{a in e} W_aᵀ W_a (LiCROM
      * eq. 10, each cubature point weighted by its share of volume), scaled by
      * ρ/h² to mass units (the cubature's estimate of M_r/h²), plus the boundary-condition penalty's
@@ -353,10 +395,90 @@ int crom_rsim_set_cubature(crom_rsim *s, const crom_cubature *cub)
 void crom_rsim_free(crom_rsim *s)
 {
     free_cub_data(s);
+    free(s->drag);
     free(s->q);
     free(s->qd);
     free(s->corr);
     memset(s, 0, sizeof *s);
+}
+
+int crom_rsim_drag_set(crom_rsim *s, const char *ref, const double c[3], double k)
+{
+    if (!(isfinite(c[0]) && isfinite(c[1]) && isfinite(c[2])))
+        return crom_err(CROM_EUSAGE, "drag %s: the point must be finite", ref);
+    if (!(k > 0) || !isfinite(k))
+        return crom_err(CROM_EUSAGE, "drag %s: the stiffness must be positive (N/m)", ref);
+    if (strlen(ref) >= sizeof s->drag->ref)
+        return crom_err(CROM_EUSAGE, "drag: region name too long");
+    int d = 0;
+    while (d < s->ndrag && strcmp(s->drag[d].ref, ref))
+        d++;
+    if (d == s->ndrag) { /* a new one: its sums on this cubature */
+        crom_rsim_drag *a = realloc(s->drag, sizeof *a * (size_t)(s->ndrag + 1));
+        if (!a)
+            return crom_err(CROM_EINTERNAL, "out of memory");
+        s->drag = a;
+        memset(&a[d], 0, sizeof a[d]);
+        snprintf(a[d].ref, sizeof a[d].ref, "%s", ref);
+        int rc = drag_resolve(s, &a[d]);
+        if (rc) {
+            free(a[d].b.idx);
+            free(a[d].b.P);
+            free(a[d].b.S);
+            return crom_err_ctx("drag");
+        }
+        s->ndrag++;
+    }
+    crom_rsim_drag *g = &s->drag[d];
+    memcpy(g->c, c, sizeof g->c);
+    if (g->k != k) {
+        g->k = k;
+        quad_rebuild(s);
+    }
+    return 0;
+}
+
+int crom_rsim_drag_release(crom_rsim *s, const char *ref)
+{
+    int kept = 0, n = s->ndrag;
+    for (int d = 0; d < n; d++) {
+        if (!ref || !strcmp(s->drag[d].ref, ref)) {
+            free(s->drag[d].b.idx);
+            free(s->drag[d].b.P);
+            free(s->drag[d].b.S);
+        } else {
+            s->drag[kept++] = s->drag[d];
+        }
+    }
+    s->ndrag = kept;
+    if (kept != n)
+        quad_rebuild(s);
+    return n - kept;
+}
+
+int crom_rsim_sync_forces(crom_rsim *s)
+{
+    const crom_scenario *sc = s->sc;
+    if (sc->nforce <= s->nforce)
+        return 0;
+    crom_rsim_bc *f = realloc(s->force, sizeof *f * (size_t)(sc->nforce + 1));
+    if (!f)
+        return crom_err(CROM_EINTERNAL, "out of memory");
+    s->force = f;
+    while (s->nforce < sc->nforce) {
+        crom_rsim_bc *b = &s->force[s->nforce];
+        memset(b, 0, sizeof *b);
+        b->bc = &sc->force[s->nforce];
+        int rc = region_sums(s->cub, sc->density, b->bc->ref, b);
+        if (rc) {
+            free(b->idx);
+            free(b->P);
+            free(b->S);
+            return crom_err_ctx("force");
+        }
+        s->nforce++;
+    }
+    return 0;
 }
 
 /* reduced external load at time t: gravity plus region forces */
@@ -412,6 +534,21 @@ void crom_rsim_begin_step(crom_rsim *s)
         for (int i = 0; i < r; i++)
             Su += s->qhat[i] * (bc->S[i * 3] * u[0] + bc->S[i * 3 + 1] * u[1] + bc->S[i * 3 + 2] * u[2]);
         s->c0 += 0.5 * s->kappa * (bc->mass * (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]) - 2 * Su);
+    }
+    /* the drags' springs: k/(2m) (qᵀPq − 2qᵀS d + m|d|²), d = c − X̄, about q̂ */
+    for (int k = 0; k < s->ndrag; k++) {
+        const crom_rsim_drag *dg = &s->drag[k];
+        double w = dg->k / dg->b.mass, d[3], *Pqh = s->gt + 2 * r; /* (gt: 4r scratch; vp, Mv done) */
+        for (int j = 0; j < 3; j++)
+            d[j] = dg->c[j] - dg->xbar[j];
+        cblas_dsymv(CblasRowMajor, CblasUpper, r, 1.0, dg->b.P, r, s->qhat, 1, 0.0, Pqh, 1);
+        double qPq = cblas_ddot(r, s->qhat, 1, Pqh, 1), qSd = 0;
+        for (int i = 0; i < r; i++) {
+            double Sd = dg->b.S[i * 3] * d[0] + dg->b.S[i * 3 + 1] * d[1] + dg->b.S[i * 3 + 2] * d[2];
+            s->lin[i] += w * (Pqh[i] - Sd);
+            qSd += s->qhat[i] * Sd;
+        }
+        s->c0 += 0.5 * w * (qPq - 2 * qSd + dg->b.mass * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]));
     }
     /* lagged normal forces of the contact points, from the start of the step */
     for (int p = 0; p < sc->nplanes; p++)

@@ -56,6 +56,21 @@ typedef struct {
     const crom_bc *bc;  /* NULL for a pin */
 } crom_rsim_bc;
 
+/* A drag (crom-live, the cursor's spring): a spring of total stiffness k
+ * (N/m) from the point c to region ref, spread over its vertices by mass,
+ *   k/(2 m_R) Σ_{v∈R} m_v ‖x_v − (X_v + c − X̄_R)‖²,   X̄_R = Σ m_v X_v / m_R,
+ * which pulls the region's rest centroid toward c (each vertex toward c plus
+ * its rest offset from the centroid), integrated implicitly with the rest of
+ * the step. With x_v = X_v + W_v q it is the quadratic
+ *   k/(2 m_R) (qᵀP q − 2 qᵀS d + m_R |d|²),  d = c − X̄_R,
+ * over the region's sums P, S (crom_rsim_bc). */
+typedef struct {
+    char ref[128];
+    double c[3], k;
+    double xbar[3];     /* X̄_R on the current cubature's mesh */
+    crom_rsim_bc b;
+} crom_rsim_drag;
+
 typedef struct {
     const crom_scenario *sc;
     const crom_cubature *cub;
@@ -85,6 +100,8 @@ typedef struct {
     int fac_ok;         /* Hfac holds a factor */
     int fac_iters;      /* iterations of this step since it was made */
     int fac_slow;       /* the last step needed more than its share: refresh (rsim.c) */
+    int ndrag;          /* drags (crom_rsim_drag_set), kept across cubatures */
+    crom_rsim_drag *drag;
     crom_elastic el;    /* the elastic energy over the cubature (rebuilt per cubature) */
     crom_newton_memory mem; /* quasi-Newton pairs that correct the reused factor (newton.h) */
 } crom_rsim;
@@ -101,6 +118,25 @@ int crom_rsim_init(crom_rsim *s, const crom_cubature *cub, const crom_scenario *
 /* Switch to another cubature (a remeshed body, LiCROM §4): the state q, q̇
  * carries over unchanged. CROM_EDATA if its model_id or rank differs. */
 int crom_rsim_set_cubature(crom_rsim *s, const crom_cubature *cub);
+
+/* Pull region ref toward c with a spring of stiffness k (N/m; see
+ * crom_rsim_drag), from the next step on; a region dragged already has its
+ * point and stiffness replaced. A new stiffness changes the step's Hessian
+ * (its reused factor is dropped); a new point only its linear part.
+ * CROM_EUSAGE for an unknown or empty region, a non-finite point or a
+ * stiffness not positive. */
+int crom_rsim_drag_set(crom_rsim *s, const char *ref, const double c[3], double k);
+
+/* Release the drag of region ref (NULL: every drag). Returns the number
+ * released. */
+int crom_rsim_drag_release(crom_rsim *s, const char *ref);
+
+/* The scenario (s->sc) has grown forces since the last call, init or
+ * cubature switch (its nforce): take the new ones into the step's loads,
+ * leaving everything else of the step as it was, so that a force appended
+ * at time t with the window [t, T1] gives the run that has it from the
+ * start (crom-live). CROM_EUSAGE for an unknown or empty region. */
+int crom_rsim_sync_forces(crom_rsim *s);
 
 /* Advance one step. CROM_EDATA when Newton does not converge in max_iter
  * iterations (gd never fails that way: its count is fixed). */
