@@ -296,6 +296,10 @@ static const crom_schema_dset latent_dsets[] = {
     {"frames/constraint_residual", "f64", "F", 0, "m", "largest distance of a pinned/prescribed vertex from its target", NULL},
     {"frames/cubature", "f64", "F", 0, "1", "index of the schedule entry (cubature) in use", NULL},
     {"frames/step_seconds", "f64", "F", 0, "s", "wall time of the step (0 when SOURCE_DATE_EPOCH is set)", NULL},
+    {"frames/wall_time", "f64", "F", 0, "s", "crom-live: wall-clock time since the run started at which the frame was "
+                                             "written, against its simulated time (0 when SOURCE_DATE_EPOCH is set)", NULL},
+    {"frames/late", "f64", "F", 0, "1", "crom-live: 1 when the step ended after its simulated time (it took longer "
+                                        "than dt), else 0", NULL},
     {"frames/reconstruction_error", "f64", "F", 0, "1", "|Wq - u| / |u| of the encoded frame (mass-weighted)", NULL},
     {"frames/indicator", "f64", "F", 0, "1", "crom-reducedstep --indicator: the estimated relative displacement error "
                                               "of the frame, |K0^-1 g|_M / |u|_M with g the full-space residual of its "

@@ -1,6 +1,7 @@
 /* mesh.c — tetrahedral meshes: geometry, orientation, quality, boundary,
  * named regions, and the crom/mesh layout in HDF5. */
 #include <ctype.h>
+#include <errno.h>
 #include <float.h>
 #include <math.h>
 #include <stdint.h>
@@ -584,6 +585,20 @@ int crom_mesh_region_spec(crom_mesh *m, const char *spec)
 
 int crom_mesh_select(const crom_mesh *m, const char *ref, int **idx, int *n)
 {
+    if (ref[0] == '#') { /* one vertex by its index */
+        char *end;
+        errno = 0;
+        long v = isdigit((unsigned char)ref[1]) ? strtol(ref + 1, &end, 10) : -1;
+        if (v < 0 || errno || *end)
+            return crom_err(CROM_EUSAGE, "'%s': a vertex is #N, N a non-negative decimal index", ref);
+        if (v >= m->nv)
+            return crom_err(CROM_EUSAGE, "vertex %s: the mesh has %d vertices (#0 to #%d)", ref, m->nv, m->nv - 1);
+        if (!(*idx = crom_malloc(sizeof(int))))
+            return CROM_EINTERNAL;
+        **idx = (int)v;
+        *n = 1;
+        return 0;
+    }
     const crom_mesh_region *r = crom_mesh_find_region(m, ref);
     if (r) {
         if (r->n == 0)

@@ -121,8 +121,8 @@ int crom_mesh_add_region(crom_mesh *m, const char *name, const char *source,
 /* Add region from "NAME=PRED"; CROM_EUSAGE if it selects no vertex. */
 int crom_mesh_region_spec(crom_mesh *m, const char *spec);
 
-/* Resolve a reference to vertices: a stored region name or an inline
- * predicate. *idx is malloc'ed. CROM_EUSAGE for an unknown name (listing the
+/* Resolve a reference to vertices: a stored region name, an inline
+ * predicate, or one vertex by its index, "#N". *idx is malloc'ed. CROM_EUSAGE for an unknown name (listing the
  * known ones) or an empty selection. */
 int crom_mesh_select(const crom_mesh *m, const char *ref, int **idx, int *n);
 

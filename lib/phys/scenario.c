@@ -27,7 +27,7 @@ const crom_opt crom_scenario_opts[] = {
     {"steps", SC_STEPS, "N", "Number of time steps (default 100)."},
     {"every", SC_EVERY, "K", "Store every K-th step (default 1); frame 0 is the initial state."},
     {"gravity", SC_GRAVITY, "GX,GY,GZ", "Gravitational acceleration in m/s^2 (default 0,-9.81,0)."},
-    {"pin", SC_PIN, "REGION", "Hold the vertices of REGION (a mesh region name or a predicate such as 'y<-0.45') at rest (repeatable; a region pinned or moved by --velocity already is an error)."},
+    {"pin", SC_PIN, "REGION", "Hold the vertices of REGION (a mesh region name, a predicate such as 'y<-0.45', or one vertex '#N') at rest (repeatable; a region pinned or moved by --velocity already is an error)."},
     {"velocity", SC_VELOCITY, "REGION=VX,VY,VZ[@T0:T1]", "Move REGION at the given velocity (m/s) during [T0, T1] (default: always) and hold it still outside (repeatable, once per region). LiCROM's compression: --velocity 'y>0.45=0,-2,0' --pin 'y<-0.45'."},
     {"force", SC_FORCE, "REGION=FX,FY,FZ[@T0:T1]", "Apply a total force (N) to REGION, spread over its vertices by mass, during [T0, T1] (repeatable: forces on one region add up)."},
     {"plane", SC_PLANE, "NX,NY,NZ,D[,MU]", "Collision half-space: keep n.x >= D (n is normalized), with Coulomb friction coefficient MU (default 0) (repeatable)."},
