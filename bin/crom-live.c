@@ -11,6 +11,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "base/array.h"
 #include "base/clock.h"
 #include "base/err.h"
 #include "base/parse.h"
@@ -153,12 +154,51 @@ static int fill(input *in, double timeout)
     return 0;
 }
 
+/* a growing list of durations (s) */
+typedef struct {
+    double *v;
+    size_t n, cap;
+} times;
+
+static int times_push(times *t, double x)
+{
+    int rc = crom_array_reserve((void **)&t->v, &t->cap, t->n + 1, sizeof *t->v);
+    if (!rc)
+        t->v[t->n++] = x;
+    return rc;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* median (sorts the list) and largest; 0 for none */
+static double times_median(times *t)
+{
+    if (!t->n)
+        return 0;
+    qsort(t->v, t->n, sizeof *t->v, cmp_double);
+    return t->n % 2 ? t->v[t->n / 2] : 0.5 * (t->v[t->n / 2 - 1] + t->v[t->n / 2]);
+}
+
+static double times_max(const times *t)
+{
+    double m = 0;
+    for (size_t i = 0; i < t->n; i++)
+        m = t->v[i] > m ? t->v[i] : m;
+    return m;
+}
+
 typedef struct {
     crom_out o;
     double t0;      /* monotonic clock at the start */
     int clock;      /* paced by the wall clock */
     long late, worst_step;
     double worst_lag;
+    double cmd_t;   /* when the oldest command not yet in a frame was applied (0: none) */
+    times step_s, latency_s; /* every step's seconds; each command's time to its first frame */
 } run_out;
 
 static int put_frame(run_out *R, crom_live *L, const crom_rsim_stats *st)
@@ -179,7 +219,14 @@ static int put_frame(run_out *R, crom_live *L, const crom_rsim_stats *st)
         }
     }
     const double *vals[] = {&t, &step, L->sim.q, L->sim.qd, &K, &E, &W, &tot, &it, &res, &cub, &secs, &w, &late};
-    return crom_out_frame(&R->o, vals);
+    rc = crom_out_frame(&R->o, vals);
+    if (!rc && L->sim.step > 0)
+        rc = times_push(&R->step_s, st->seconds);
+    if (!rc && R->cmd_t > 0) { /* from a command to the frame that first shows it */
+        rc = times_push(&R->latency_s, crom_clock_now() - R->cmd_t);
+        R->cmd_t = 0;
+    }
+    return rc;
 }
 
 static int start_output(run_out *R, const crom_cli *cli, const args *a, crom_live *L, const char *history)
@@ -215,7 +262,8 @@ static int start_output(run_out *R, const crom_cli *cli, const args *a, crom_liv
 
 /* One command line: parsed and applied; a bad one is reported and the run
  * goes on. *pending gets the steps a 'step N' asks for, *quit a 'quit'. */
-static void command(const crom_cli *cli, crom_live *L, const input *in, const char *line, long *pending, int *quit)
+static void command(const crom_cli *cli, crom_live *L, run_out *R, const input *in, const char *line, long *pending,
+                    int *quit)
 {
     crom_live_cmd c;
     int rc = crom_live_parse(line, &c);
@@ -228,8 +276,11 @@ static void command(const crom_cli *cli, crom_live *L, const input *in, const ch
     if (rc) {
         crom_cli_warn(cli, "line %ld: %s", in->line, crom_errmsg());
         crom_err_clear();
-    } else if (cli->verbose && c.kind != CROM_LIVE_NONE) {
-        crom_cli_info(cli, "t = %.4g s: %s", L->sim.t, line);
+    } else if (c.kind != CROM_LIVE_NONE && c.kind != CROM_LIVE_STEP && c.kind != CROM_LIVE_QUIT) {
+        if (!R->cmd_t)
+            R->cmd_t = crom_clock_now();
+        if (cli->verbose)
+            crom_cli_info(cli, "t = %.4g s: %s", L->sim.t, line);
     }
 }
 
@@ -275,7 +326,7 @@ static int run(crom_cli *cli, args *a)
             if (!in.eof && !memchr(in.buf, '\n', in.len) && (rc = fill(&in, 0))) /* what has come */
                 break;
             while (!quit && !pending && next_line(&in, line, sizeof line))
-                command(cli, L, &in, line, &pending, &quit);
+                command(cli, L, &R, &in, line, &pending, &quit);
             if (quit || pending)
                 break;
             if (in.eof) {
@@ -309,8 +360,16 @@ static int run(crom_cli *cli, args *a)
     if (!rc && R.late)
         crom_cli_info(cli, "%ld of %ld steps ended after their simulated time (worst %.3g s late, step %ld)", R.late,
                       L->sim.step, R.worst_lag, R.worst_step);
-    else if (!rc)
-        crom_cli_info(cli, "%ld steps, %.4g s simulated", L->sim.step, L->sim.t);
+    if (!rc) {
+        double med = times_median(&R.step_s);
+        crom_cli_info(cli, "%ld steps, %.4g s simulated; a step %.3g ms (median; %.0f steps/s)", L->sim.step,
+                      L->sim.t, 1e3 * med, med > 0 ? 1 / med : 0.0);
+    }
+    if (!rc && R.latency_s.n)
+        crom_cli_info(cli, "from a command to the frame that shows it: %.3g ms (median of %zu), at most %.3g ms",
+                      1e3 * times_median(&R.latency_s), R.latency_s.n, 1e3 * times_max(&R.latency_s));
+    free(R.step_s.v);
+    free(R.latency_s.v);
 out:
     if (in.fd > 0)
         close(in.fd);

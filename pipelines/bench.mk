@@ -110,10 +110,10 @@ df2_map_args = --model $(OUT)/df2-map-$(call df2_kind,$(1)).h5 --mesh $(OUT)/df-
   $(if $(filter %-opt,$(1)),--cubature $(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
 df2_map_in = $(OUT)/df2-map-$(call df2_kind,$(1)).h5 $(if $(filter %-opt,$(1)),$(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
 
-.PHONY: all fullsim sheets scenes tables training datafree plots micro scale mpi
-all: fullsim sheets scenes tables training datafree plots micro scale mpi
+.PHONY: all fullsim sheets scenes tables training datafree plots micro scale mpi live
+all: fullsim sheets scenes tables training datafree plots micro scale mpi live
 	@cat $(OUT)/fullsim.md $(OUT)/sheets.md $(OUT)/scenes.md $(OUT)/tables.md $(OUT)/training.md $(OUT)/datafree.md \
-	  $(OUT)/datafree2.md $(OUT)/micro.md $(OUT)/scale.md $(OUT)/mpi.md
+	  $(OUT)/datafree2.md $(OUT)/micro.md $(OUT)/scale.md $(OUT)/mpi.md $(OUT)/live.md
 	@echo "plots: $(OUT)/steps.png $(OUT)/training.png"
 
 # ---------------------------------------------------------------- fullsim
@@ -198,7 +198,7 @@ $(OUT)/t-cub-%.h5: $(OUT)/t-model-%.h5 $(OUT)/t-mesh-%.h5 $$(foreach l,$(LOADS),
 $(OUT)/t-red-%.h5 $(OUT)/t-red-%.csv &: $$(OUT)/t-cub-$$(word 1,$$(subst -, ,$$*)).h5
 	crom-reducedstep --cubature $< $(LOAD_$(word 2,$(subst -, ,$*))) --stats $(OUT)/t-red-$*.csv $(QUIET) -o $(OUT)/t-red-$*.h5
 $(OUT)/t-diff-%.txt: $(OUT)/t-red-%.h5 $(OUT)/t-full-%.h5
-	crom-diff $< $(OUT)/t-full-$*.h5 --model $(OUT)/t-model-$(word 1,$(subst -, ,$*)).h5 > $@
+	crom-diff $< $(OUT)/t-full-$*.h5 --model $(OUT)/t-model-$(word 1,$(subst -, ,$*)).h5 $(ATOMIC)
 RUNS = $(foreach s,$(T_SIZES),$(foreach l,$(LOADS),$(s)-$(l)))
 $(OUT)/tables.md: $(foreach r,$(RUNS),$(OUT)/t-diff-$(r).txt $(OUT)/t-red-$(r).csv)
 	/usr/bin/python3 $(TOP)/pipelines/benchtab.py tables $(OUT) "$(T_SIZES)" "$(LOADS)" > $@.tmp && mv $@.tmp $@
@@ -250,6 +250,41 @@ $(OUT)/tr-pointnet.h5 $(OUT)/tr-pointnet.log &: $(OUT)/tr-samples.h5
 	  -o $(OUT)/tr-pointnet.h5 < $< 2> $(OUT)/tr-pointnet.log
 $(OUT)/training.md: $(OUT)/tr-lsq.h5 $(OUT)/tr-pointnet.h5
 	/usr/bin/python3 $(TOP)/pipelines/benchtab.py training $(OUT) > $@.tmp && mv $@.tmp $@
+
+# ------------------------------------------------------------------- live
+# crom-live (issue 21): the tables' model and optimized cubature at each
+# T_SIZES size, the body pinned at the bottom with its top dragged around a
+# circle of 5 cm (one turn a second, the point moved every step): steps per
+# second (--no-clock, LIVE_STEPS steps, median step), and paced at 60
+# steps/s, the point moved every 20 ms for 3 s: the time from a command to
+# the frame that shows it (median, largest) and the steps that ended after
+# their simulated time
+LIVE_STEPS ?= 2000
+live: $(OUT)/live.md
+$(OUT)/live-%.txt: $(OUT)/t-cub-%.h5
+	awk 'BEGIN {for (i = 0; i < $(LIVE_STEPS); i++) printf "drag top %.6f,%.6f,0 1e6\nstep 1\n", \
+	  0.05 * sin(0.0628319 * i), 0.5 + 0.05 * cos(0.0628319 * i)}' | \
+	  crom-live --cubature $< --pin bottom --no-clock --threads 1 -o /dev/null 2> $@.tmp
+	( for i in $$(seq 150); do awk -v i=$$i 'BEGIN {printf "drag top %.6f,%.6f,0 1e6\n", 0.05 * sin(0.1257 * i), \
+	    0.5 + 0.05 * cos(0.1257 * i)}'; sleep 0.02; done; echo quit ) | \
+	  crom-live --cubature $< --pin bottom --dt 0.0166667 --threads 1 -o /dev/null 2>> $@.tmp
+	mv $@.tmp $@
+$(OUT)/live.md: $(foreach s,$(T_SIZES),$(OUT)/live-$(s).txt)
+	( echo "crom-live: the tables' models (r = 20, optimized cubature), the top dragged, one core"; echo; \
+	  echo "| vertices | cubature tets | step with the drag moving (ms) | steps/s | command to frame at 60 steps/s, median (ms) | largest (ms) | late steps |"; \
+	  echo "|---:|---:|---:|---:|---:|---:|---:|"; \
+	  for s in $(T_SIZES); do \
+	    nv=$$(crom-info $(OUT)/t-mesh-$$s.h5 | awk '/ vertices, / {print $$1; exit}'); \
+	    k=$$(crom-info $(OUT)/t-cub-$$s.h5 | awk '$$1 == "count" {print $$2; exit}'); \
+	    awk -v nv="$$nv" -v k="$$k" '/a step/ && !a {split($$0, x, "a step "); split(x[2], y, " "); ms = y[1]; \
+	        split($$0, z, "; "); split(z[3], w, " "); sps = w[1]; a = 1; next} \
+	      /a step/ {split($$0, x, "crom-live: "); split(x[2], y, " "); total = y[1]} \
+	      /command to the frame/ {split($$0, x, "shows it: "); split(x[2], y, " "); med = y[1]; \
+	        split($$0, z, "at most "); split(z[2], w, " "); mx = w[1]} \
+	      /steps ended after/ {split($$0, x, ": "); split(x[2], y, " "); late = y[1]} \
+	      END {printf "| %s | %s | %s | %s | %s | %s | %s of %s |\n", nv, k, ms, sps, med, mx, late ? late : 0, total}' \
+	      $(OUT)/live-$$s.txt; \
+	  done ) > $@.tmp && mv $@.tmp $@
 
 # -------------------------------------------------------------------- mpi
 # data-parallel training (issue 20): the training set above, lsq, MPI_EPOCHS
@@ -318,13 +353,13 @@ $(OUT)/df-sfull.h5: $(OUT)/df-mesh.h5 $(call stamp,df-static)
 $(OUT)/df-sred-%.h5: $$(call df_in,$$*) $(call stamp,df-static)
 	crom-reducedstep $(call df_args,$*) $(DF_STATIC) --threads 1 $(QUIET) -o $@
 $(OUT)/df-sdiff-%.txt: $(OUT)/df-sred-%.h5 $(OUT)/df-sfull.h5 $$(call df_model,$$*)
-	crom-diff $< $(OUT)/df-sfull.h5 --model $(call df_model,$*) $(call df_mesh,$*) --threads 1 > $@
+	crom-diff $< $(OUT)/df-sfull.h5 --model $(call df_model,$*) $(call df_mesh,$*) --threads 1 $(ATOMIC)
 $(OUT)/df-diff-%.txt: $(OUT)/df-red-%.h5 $(OUT)/df-full.h5 $$(call df_model,$$*)
-	crom-diff $< $(OUT)/df-full.h5 --model $(call df_model,$*) $(call df_mesh,$*) --threads 1 > $@
+	crom-diff $< $(OUT)/df-full.h5 --model $(call df_model,$*) $(call df_mesh,$*) --threads 1 $(ATOMIC)
 # energy at random latents, and collapsed dimensions (the maps against the modes)
 $(OUT)/df-metrics-%.txt: $(OUT)/df-%.h5 $(OUT)/df-modes.h5 $(call stamp,df-metrics)
 	crom-metrics $(if $(filter-out modes,$*),--compare $(OUT)/df-modes.h5) $(call df_mesh,$*) --samples $(DF_SAMPLES) --seed $(SEED) \
-	  --threads 1 $< > $@
+	  --threads 1 $< $(ATOMIC)
 $(OUT)/datafree.md: $(OUT)/df-mesh.h5 $(OUT)/df-full.csv $(OUT)/df-modes.log \
                     $(foreach r,$(DF_ROWS),$(OUT)/df-red-$(r).csv $(OUT)/df-diff-$(r).txt $(OUT)/df-sdiff-$(r).txt) \
                     $(foreach m,modes energy neuralmodes field,$(OUT)/df-metrics-$(m).txt)
@@ -370,12 +405,12 @@ $(OUT)/df2-sred-%.h5: $(OUT)/df2-cub-%.h5 $(call stamp,df2-static)
 	crom-reducedstep --cubature $< $(DF2_STATIC) --threads 1 $(QUIET) -o $@
 $(OUT)/df2-diff-%.txt: $(OUT)/df2-red-%.h5 $(OUT)/df2-full.h5 $$(OUT)/df2-skin-$$(call df2_kind,$$*).h5
 	crom-diff $< $(OUT)/df2-full.h5 --model $(OUT)/df2-skin-$(call df2_kind,$*).h5 --mesh $(OUT)/df-mesh.h5 \
-	  --threads 1 > $@
+	  --threads 1 $(ATOMIC)
 $(OUT)/df2-sdiff-%.txt: $(OUT)/df2-sred-%.h5 $(OUT)/df2-sfull.h5 $$(OUT)/df2-skin-$$(call df2_kind,$$*).h5
 	crom-diff $< $(OUT)/df2-sfull.h5 --model $(OUT)/df2-skin-$(call df2_kind,$*).h5 --mesh $(OUT)/df-mesh.h5 \
-	  --threads 1 > $@
+	  --threads 1 $(ATOMIC)
 $(OUT)/df2-metrics-%.txt: $(OUT)/df2-skin-%.h5 $(OUT)/df-mesh.h5
-	crom-metrics --mesh $(OUT)/df-mesh.h5 --samples $(DF_SAMPLES) --seed $(SEED) --threads 1 $< > $@
+	crom-metrics --mesh $(OUT)/df-mesh.h5 --samples $(DF_SAMPLES) --seed $(SEED) --threads 1 $< $(ATOMIC)
 $(eval $(call stamp_rule,df2-maps,$(DF2_MAT) $(DF2_HANDLES) $(DF2_MINUTES) $(DF_MINUTES) $(DF_RANK) $(DF2_DMODES) $(SEED)))
 $(OUT)/df2-map-sfield.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
 	crom-fitfield --objective field --handles $(DF2_HANDLES) --rank $(DF_RANK) --mesh $< $(DF2_MAT) $(DF_BC) \
@@ -410,12 +445,12 @@ $(OUT)/df2-msred-%.h5: $$(call df2_map_in,$$*) $(call stamp,df2-static)
 	crom-reducedstep $(call df2_map_args,$*) $(DF2_STATIC) --threads 1 $(QUIET) -o $@
 $(OUT)/df2-mdiff-%.txt: $(OUT)/df2-mred-%.h5 $(OUT)/df2-full.h5 $$(OUT)/df2-map-$$(call df2_kind,$$*).h5
 	crom-diff $< $(OUT)/df2-full.h5 --model $(OUT)/df2-map-$(call df2_kind,$*).h5 --mesh $(OUT)/df-mesh.h5 \
-	  --threads 1 > $@
+	  --threads 1 $(ATOMIC)
 $(OUT)/df2-msdiff-%.txt: $(OUT)/df2-msred-%.h5 $(OUT)/df2-sfull.h5 $$(OUT)/df2-map-$$(call df2_kind,$$*).h5
 	crom-diff $< $(OUT)/df2-sfull.h5 --model $(OUT)/df2-map-$(call df2_kind,$*).h5 --mesh $(OUT)/df-mesh.h5 \
-	  --threads 1 > $@
+	  --threads 1 $(ATOMIC)
 $(OUT)/df2-mmetrics-%.txt: $(OUT)/df2-map-%.h5 $(OUT)/df-mesh.h5
-	crom-metrics --mesh $(OUT)/df-mesh.h5 --samples $(DF_SAMPLES) --seed $(SEED) --threads 1 $< > $@
+	crom-metrics --mesh $(OUT)/df-mesh.h5 --samples $(DF_SAMPLES) --seed $(SEED) --threads 1 $< $(ATOMIC)
 $(OUT)/datafree2.md: $(OUT)/df-mesh.h5 $(OUT)/df2-full.csv $(OUT)/df2-sfull.h5 \
                      $(foreach r,$(DF2_ROWS),$(OUT)/df2-red-$(r).csv $(OUT)/df2-diff-$(r).txt $(OUT)/df2-sdiff-$(r).txt \
                        $(OUT)/df2-metrics-$(call df2_kind,$(r)).txt $(OUT)/df2-cub-$(r).h5) \

@@ -17,6 +17,10 @@ export PATH := $(BINDIR):$(PATH)
 # program it names appended; other lines run here (pipelines/submit.sh). A
 # failed job fails its target, and make deletes what it had written.
 SUBMIT ?=
+# a recipe's standard output to its target, atomically: `cmd $(ATOMIC)` writes
+# $@.tmp and renames it when cmd succeeds, and removes it when cmd fails, so a
+# target on a shared directory is either complete or absent
+ATOMIC = > $@.tmp && mv -f $@.tmp $@ || { rm -f $@.tmp; false; }
 ifneq ($(strip $(SUBMIT)),)
 CROM_STAGES := MESH FULLSIM SAMPLE ENCODE FITFIELD CUBATURE REDUCEDSTEP REMESH EXPORT INFO DIFF METRICS MODES SCENE
 export CROM_SUBMIT := $(SUBMIT)

@@ -83,12 +83,12 @@ $(OUT)/cub-%.h5: $(OUT)/model.h5 $(OUT)/mesh-%.h5 $(POSES) $(call stamp,cubature
 $(OUT)/red-%.h5 $(OUT)/red-%.csv &: $(OUT)/cub-%.h5 $(call stamp,reduced)
 	crom-reducedstep --cubature $< $(RED_FLAGS) $(QUIET) --stats $(OUT)/red-$*.csv -o $(OUT)/red-$*.h5
 $(OUT)/diff-%.txt: $(OUT)/red-%.h5 $(OUT)/full-%.h5 $(OUT)/model.h5
-	crom-diff $< $(OUT)/full-$*.h5 --model $(OUT)/model.h5 > $@
+	crom-diff $< $(OUT)/full-$*.h5 --model $(OUT)/model.h5 $(ATOMIC)
 
 # the punching run: starts intact, hole K punched before step FIRST + (K-1) GAP
 PUNCH := $(shell seq 1 $(NHOLES))
 $(OUT)/schedule.txt: $(foreach k,$(PUNCH),$(OUT)/cub-$(k).h5) $(call stamp,reduced)
-	for k in $(PUNCH); do echo "$$(( $(FIRST) + (k - 1) * $(GAP) )) $(OUT)/cub-$$k.h5"; done > $@
+	for k in $(PUNCH); do echo "$$(( $(FIRST) + (k - 1) * $(GAP) )) $(OUT)/cub-$$k.h5"; done $(ATOMIC)
 $(OUT)/punch.h5 $(OUT)/punch.csv &: $(OUT)/cub-0.h5 $(OUT)/schedule.txt
 	crom-reducedstep --cubature $< --schedule $(OUT)/schedule.txt $(RED_FLAGS) $(QUIET) \
 	  --stats $(OUT)/punch.csv -o $(OUT)/punch.h5
@@ -102,12 +102,12 @@ $(OUT)/rows.txt: $(foreach k,$(MESHES),$(OUT)/diff-$(k).txt $(OUT)/red-$(k).csv)
 	    case " $(TRAIN) " in *" $$k "*) t=trained;; *) t=unseen;; esac; \
 	    echo "$$k-holes($$t) $(OUT)/full-$$k.csv $(OUT)/red-$$k.csv $(OUT)/diff-$$k.txt $(OUT)/cub-$$k.h5 $(OUT)/model.h5"; done; \
 	  echo "punching-0-to-$(NHOLES)(vs-intact-full) $(OUT)/full-0.csv $(OUT)/punch.csv $(OUT)/diff-punch-vs-0.txt $(OUT)/cub-$(NHOLES).h5 $(OUT)/model.h5"; \
-	  echo "punching-0-to-$(NHOLES)(vs-$(NHOLES)-hole-full) $(OUT)/full-$(NHOLES).csv $(OUT)/punch.csv $(OUT)/diff-punch-vs-$(NHOLES).txt $(OUT)/cub-$(NHOLES).h5 $(OUT)/model.h5" ) > $@
+	  echo "punching-0-to-$(NHOLES)(vs-$(NHOLES)-hole-full) $(OUT)/full-$(NHOLES).csv $(OUT)/punch.csv $(OUT)/diff-punch-vs-$(NHOLES).txt $(OUT)/cub-$(NHOLES).h5 $(OUT)/model.h5" ) $(ATOMIC)
 $(OUT)/table.md: $(OUT)/rows.txt
 	( $(TOP)/pipelines/table.sh "punching: block with 0..$(NHOLES) tunnels, holes punched during the reduced run (LiCROM Fig. 10)" $<; echo; \
 	  echo "No full run punches holes mid-run: the punching run (hole K before step $(FIRST) + (K-1)·$(GAP)) is compared with the"; \
 	  echo "intact block's full run (the same until the first punch) and with the $(NHOLES)-hole block's (what it becomes); the latter"; \
-	  echo "mostly measures how the punching history differs from having the holes from the start." ) > $@
+	  echo "mostly measures how the punching history differs from having the holes from the start." ) $(ATOMIC)
 
 # pictures: the punching run, each frame on its current mesh, over the full
 # runs of the intact and of the fully punched block

@@ -97,9 +97,9 @@ $(OUT)/diff-%.txt $(OUT)/diff-%.csv &: $(OUT)/red-%.h5 $(OUT)/full-%.h5 $(OUT)/m
 
 $(OUT)/rows.txt: $(foreach s,$(ALL),$(OUT)/diff-$(s).txt $(OUT)/red-$(s).csv $(OUT)/full-$(s).csv)
 	( for s in $(TRAIN); do echo "trained-p$$s $(OUT)/full-$$s.csv $(OUT)/red-$$s.csv $(OUT)/diff-$$s.txt $(OUT)/cub-$$s.h5 $(OUT)/model.h5"; done; \
-	  for s in $(TEST); do echo "interpolated-p$$s $(OUT)/full-$$s.csv $(OUT)/red-$$s.csv $(OUT)/diff-$$s.txt $(OUT)/cub-$$s.h5 $(OUT)/model.h5"; done ) > $@
+	  for s in $(TEST); do echo "interpolated-p$$s $(OUT)/full-$$s.csv $(OUT)/red-$$s.csv $(OUT)/diff-$$s.txt $(OUT)/cub-$$s.h5 $(OUT)/model.h5"; done ) $(ATOMIC)
 $(OUT)/table.md: $(OUT)/rows.txt
-	$(TOP)/pipelines/table.sh "rolling: superquadrics rolling down a 45° frictional slope, trained on p = $(TRAIN), interpolated p = $(TEST) (LiCROM Fig. 11, 12)" $< > $@
+	$(TOP)/pipelines/table.sh "rolling: superquadrics rolling down a 45° frictional slope, trained on p = $(TRAIN), interpolated p = $(TEST) (LiCROM Fig. 11, 12)" $< $(ATOMIC)
 
 # rigid-motion probes on the first training shape: spinning freely about x
 # (the axis a body rolls about on this slope) and about y (never in training)
@@ -119,7 +119,7 @@ $(OUT)/recon.md: $(foreach s,$(ALL),$(OUT)/recon-$(s).txt) $(foreach p,$(PROBES)
 	  echo "| spin-x | p$(firstword $(TRAIN)) spinning freely about x, $(SPIN) rad/s (the rolling axis) | $$(grep -o 'error [0-9.e+-]*' $(OUT)/recon-probe-spinx.txt | head -1 | cut -d' ' -f2) |"; \
 	  echo "| spin-y | p$(firstword $(TRAIN)) spinning freely about y, $(SPIN) rad/s (not in training) | $$(grep -o 'error [0-9.e+-]*' $(OUT)/recon-probe-spiny.txt | head -1 | cut -d' ' -f2) |"; \
 	  echo; echo "A small spin-x error means the basis spans finite rotations about the rolling axis (a rotation about a"; \
-	  echo "fixed axis is linear in X, so a linear subspace can hold it at any angle); spin-y is the control." ) > $@
+	  echo "fixed axis is linear in X, so a linear subspace can hold it at any angle); spin-y is the control." ) $(ATOMIC)
 
 # pictures: each reduced run over its full run
 $(OUT)/strip-%.png: $(OUT)/red-%.h5 $(OUT)/full-%.h5 $(OUT)/model.h5

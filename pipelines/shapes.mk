@@ -74,11 +74,11 @@ $(OUT)/red-%.h5 $(OUT)/red-%.csv &: $(OUT)/cub-%.h5 $(call stamp,reduced)
 	crom-reducedstep --cubature $< $(RED_FLAGS) $(QUIET) --stats $(OUT)/red-$*.csv -o $(OUT)/red-$*.h5
 
 $(OUT)/diff-%.txt: $(OUT)/red-%.h5 $(OUT)/full-%.h5 $(OUT)/model.h5
-	crom-diff $< $(OUT)/full-$*.h5 --model $(OUT)/model.h5 > $@
+	crom-diff $< $(OUT)/full-$*.h5 --model $(OUT)/model.h5 $(ATOMIC)
 
 $(OUT)/rows.txt: $(foreach s,$(ALL),$(OUT)/diff-$(s).txt $(OUT)/red-$(s).csv $(OUT)/full-$(s).csv)
 	( for s in $(TRAIN); do echo "shape-$$s $(OUT)/full-$$s.csv $(OUT)/red-$$s.csv $(OUT)/diff-$$s.txt $(OUT)/cub-$$s.h5 $(OUT)/model.h5"; done; \
-	  for s in $(TEST); do echo "unseen-$$s $(OUT)/full-$$s.csv $(OUT)/red-$$s.csv $(OUT)/diff-$$s.txt $(OUT)/cub-$$s.h5 $(OUT)/model.h5"; done ) > $@
+	  for s in $(TEST); do echo "unseen-$$s $(OUT)/full-$$s.csv $(OUT)/red-$$s.csv $(OUT)/diff-$$s.txt $(OUT)/cub-$$s.h5 $(OUT)/model.h5"; done ) $(ATOMIC)
 
 $(OUT)/table.md: $(OUT)/rows.txt
-	$(TOP)/pipelines/table.sh "shapes: one basis trained on $(words $(TRAIN)) shapes ($(TRAIN)), reduced runs on them and on $(words $(TEST)) unseen ($(TEST)) (LiCROM Fig. 5, 7)" $< > $@
+	$(TOP)/pipelines/table.sh "shapes: one basis trained on $(words $(TRAIN)) shapes ($(TRAIN)), reduced runs on them and on $(words $(TEST)) unseen ($(TEST)) (LiCROM Fig. 5, 7)" $< $(ATOMIC)

@@ -62,24 +62,24 @@ $(OUT)/cub-stage-%.h5: $(OUT)/model.h5 $(OUT)/stages/stage_$(STAGES).h5 $(OUT)/p
 $(OUT)/red-%.h5 $(OUT)/red-%.csv &: $(OUT)/cub-%.h5
 	crom-reducedstep --cubature $< --solver $(SOLVER) $(SCENARIO) $(IND_FLAGS) $(QUIET) --stats $(OUT)/red-$*.csv -o $(OUT)/red-$*.h5
 $(OUT)/diff-%.txt: $(OUT)/red-%.h5 $(OUT)/full-%.h5 $(OUT)/model.h5
-	crom-diff $< $(OUT)/full-$*.h5 --model $(OUT)/model.h5 > $@
+	crom-diff $< $(OUT)/full-$*.h5 --model $(OUT)/model.h5 $(ATOMIC)
 
 # the progressive tear: the cut grows during the second half of the run
 STAGE_LIST := $(shell seq 1 $(STAGES))
 $(OUT)/schedule.txt: $(foreach k,$(STAGE_LIST),$(OUT)/cub-stage-$(k).h5)
-	for k in $(STAGE_LIST); do echo "$$(( $(STEPS) / 2 + (k - 1) * $(STEPS) / (2 * $(STAGES)) + 1 )) $(OUT)/cub-stage-$$k.h5"; done > $@
+	for k in $(STAGE_LIST); do echo "$$(( $(STEPS) / 2 + (k - 1) * $(STEPS) / (2 * $(STAGES)) + 1 )) $(OUT)/cub-stage-$$k.h5"; done $(ATOMIC)
 $(OUT)/tear.h5 $(OUT)/tear.csv &: $(OUT)/cub-intact.h5 $(OUT)/schedule.txt
 	crom-reducedstep --cubature $< --schedule $(OUT)/schedule.txt --solver $(SOLVER) $(SCENARIO) $(IND_FLAGS) $(QUIET) \
 	  --stats $(OUT)/tear.csv -o $(OUT)/tear.h5
 $(OUT)/diff-tear.txt: $(OUT)/tear.h5 $(OUT)/full-intact.h5 $(OUT)/model.h5
-	crom-diff $< $(OUT)/full-intact.h5 --model $(OUT)/model.h5 > $@
+	crom-diff $< $(OUT)/full-intact.h5 --model $(OUT)/model.h5 $(ATOMIC)
 
 $(OUT)/rows.txt: $(OUT)/diff-intact.txt $(OUT)/diff-cut.txt $(OUT)/diff-tear.txt
 	( echo "intact $(OUT)/full-intact.csv $(OUT)/red-intact.csv $(OUT)/diff-intact.txt $(OUT)/cub-intact.h5 $(OUT)/model.h5"; \
 	  echo "Y-cut $(OUT)/full-cut.csv $(OUT)/red-cut.csv $(OUT)/diff-cut.txt $(OUT)/cub-cut.h5 $(OUT)/model.h5"; \
-	  echo "progressive-tear(vs-intact) $(OUT)/full-intact.csv $(OUT)/tear.csv $(OUT)/diff-tear.txt $(OUT)/cub-stage-$(STAGES).h5 $(OUT)/model.h5" ) > $@
+	  echo "progressive-tear(vs-intact) $(OUT)/full-intact.csv $(OUT)/tear.csv $(OUT)/diff-tear.txt $(OUT)/cub-stage-$(STAGES).h5 $(OUT)/model.h5" ) $(ATOMIC)
 $(OUT)/table.md: $(OUT)/rows.txt
-	$(TOP)/pipelines/table.sh "tearing: intact and Y-cut plate, cut grown during the reduced run (LiCROM Fig. 6)" $< > $@
+	$(TOP)/pipelines/table.sh "tearing: intact and Y-cut plate, cut grown during the reduced run (LiCROM Fig. 6)" $< $(ATOMIC)
 
 # pictures: the torn run, each frame on the mesh cut so far, over the full
 # runs of both meshes

@@ -97,13 +97,13 @@ $(OUT)/red-tug-%.h5 $(OUT)/red-tug-%.csv &: $(OUT)/cub-%.h5 $(call stamp,reduced
 	crom-reducedstep --cubature $< --solver $(SOLVER) $(IND_FLAGS) $(call scenario,$(TUG)) $(QUIET) \
 	  --stats $(OUT)/red-tug-$*.csv -o $(OUT)/red-tug-$*.h5
 $(OUT)/schedule.txt: $(OUT)/cub-other.h5 $(call stamp,reduced)
-	echo "$(SWAP) $<" > $@
+	echo "$(SWAP) $<" $(ATOMIC)
 $(OUT)/swap.h5 $(OUT)/swap.csv &: $(OUT)/cub-body.h5 $(OUT)/schedule.txt $(call stamp,scenario)
 	crom-reducedstep --cubature $< --schedule $(OUT)/schedule.txt --solver $(SOLVER) $(IND_FLAGS) $(call scenario,$(TUG)) $(QUIET) \
 	  --stats $(OUT)/swap.csv -o $(OUT)/swap.h5
 
 $(OUT)/diff-load%.txt: $(OUT)/red-load%.h5 $(OUT)/full-load%.h5 $(OUT)/model.h5
-	crom-diff $< $(OUT)/full-load$*.h5 --model $(OUT)/model.h5 > $@
+	crom-diff $< $(OUT)/full-load$*.h5 --model $(OUT)/model.h5 $(ATOMIC)
 $(OUT)/diff-tug-%.txt $(OUT)/diff-tug-%.csv &: $(OUT)/red-tug-%.h5 $(OUT)/full-tug-%.h5 $(OUT)/model.h5
 	crom-diff $< $(OUT)/full-tug-$*.h5 --model $(OUT)/model.h5 --csv $(OUT)/diff-tug-$*.csv > $(OUT)/diff-tug-$*.txt
 # no full run swaps meshes: the swap is compared, decoded on each mesh, with
@@ -119,12 +119,12 @@ $(OUT)/rows.txt: $(foreach k,$(NLOADS),$(OUT)/diff-load$(k).txt) $(OUT)/diff-tug
 	  echo "new-tug $(OUT)/full-tug-body.csv $(OUT)/red-tug-body.csv $(OUT)/diff-tug-body.txt $(OUT)/cub-body.h5 $(OUT)/model.h5"; \
 	  echo "unseen-shape(new-tug) $(OUT)/full-tug-other.csv $(OUT)/red-tug-other.csv $(OUT)/diff-tug-other.txt $(OUT)/cub-other.h5 $(OUT)/model.h5"; \
 	  echo "swap-at-step-$(SWAP)(vs-body-full) $(OUT)/full-tug-body.csv $(OUT)/swap.csv $(OUT)/diff-swap-vs-body.txt $(OUT)/cub-other.h5 $(OUT)/model.h5"; \
-	  echo "swap-at-step-$(SWAP)(vs-other-full) $(OUT)/full-tug-other.csv $(OUT)/swap.csv $(OUT)/diff-swap-vs-other.txt $(OUT)/cub-other.h5 $(OUT)/model.h5" ) > $@
+	  echo "swap-at-step-$(SWAP)(vs-other-full) $(OUT)/full-tug-other.csv $(OUT)/swap.csv $(OUT)/diff-swap-vs-other.txt $(OUT)/cub-other.h5 $(OUT)/model.h5" ) $(ATOMIC)
 $(OUT)/table.md: $(OUT)/rows.txt
 	( $(TOP)/pipelines/table.sh "tug: a column tugged at its top, trained on $(words $(LOADS)) tugs (forces $(LOADS) N); a new tug ($(TUG) N) on it, on an unseen shape, and swapping to that shape before step $(SWAP) (LiCROM Fig. 3)" $<; echo; \
 	  echo "No full run swaps meshes: the swapping run is compared, decoded on each mesh, with the column's full run of the"; \
 	  echo "new tug (the same until the swap) and with the unseen shape's (tugged from rest: it shows how the swapped body's"; \
-	  echo "motion differs from the one it would have had from the start)." ) > $@
+	  echo "motion differs from the one it would have had from the start)." ) $(ATOMIC)
 
 # pictures: the swapping run (each frame on its mesh) over the full runs of
 # the test tug on the body and on the other shape
