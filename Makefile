@@ -203,7 +203,7 @@ FUZZ_SAN    := -fsanitize=address,undefined -fno-sanitize-recover=undefined -fno
 FUZZ_CFLAGS := -g -O1 -std=c17 -Wall -Wextra -Wpedantic -Wno-unused-parameter -Wno-pass-failed -fopenmp $(FUZZ_SAN)
 FUZZ_LIB_OBJ := $(patsubst lib/%.c,$(FUZZ)/lib/%.o,$(LIB_SRC))
 # harness name: its source and defines (-Wl,--wrap=exit: crom_cli_parse exits)
-FUZZ_NAMES  := flags atfile stl obj cloud frames stream mesh traj samples model cubature check
+FUZZ_NAMES  := flags atfile stl obj cloud live frames stream mesh traj samples model cubature check
 FUZZSRC_flags := tests/fuzz/fuzz_flags.c
 FUZZDEF_flags := -Wl,--wrap=exit
 FUZZSRC_atfile := tests/fuzz/fuzz_flags.c
@@ -212,6 +212,7 @@ FUZZSRC_stl := tests/fuzz/fuzz_surface.c
 FUZZSRC_obj := tests/fuzz/fuzz_surface.c
 FUZZDEF_obj := -DFUZZ_OBJ
 FUZZSRC_cloud := tests/fuzz/fuzz_cloud.c
+FUZZSRC_live := tests/fuzz/fuzz_live.c
 FUZZSRC_frames := tests/fuzz/fuzz_stream.c
 FUZZDEF_frames := -DFUZZ_FRAMES
 FUZZSRC_stream := tests/fuzz/fuzz_stream.c

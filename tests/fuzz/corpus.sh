@@ -21,7 +21,7 @@ OUT=$(cd "$OUT" && pwd)
 W=$(mktemp -d "${TMPDIR:-/tmp}/crom-corpus.XXXXXX")
 trap 'rm -rf "$W"' EXIT
 cd "$W"
-for d in flags atfile stl obj cloud frames stream mesh traj samples model cubature check; do mkdir -p "$OUT/$d"; done
+for d in flags atfile stl obj cloud live frames stream mesh traj samples model cubature check; do mkdir -p "$OUT/$d"; done
 
 # ---- HDF5 files of each kind, at tiny sizes
 SC=(--velocity 'top=0,-2,0@0:0.1' --pin bottom --gravity 0,0,0 --dt 0.01 --steps 3)
@@ -114,6 +114,10 @@ open(out + "/obj/tet.obj", "w").write(o)
 o2 = "o quad\n" + "".join("v %g %g %g\n" % v for v in V)
 o2 += "f 1/1/1 3/1/1 2/1/1\nf -4//1 -3//1 -1//1\nf 1 4 3\nf 2 3 4 1\n"
 open(out + "/obj/slashes.obj", "w").write(o2)
+open(out + "/live/session.txt", "w").write(
+    "# a live session\ndrag top 0,0.6,0 2e5\nstep 20\ndrag #17 0.1,0.5,-0.2\nrelease top\nrelease\n"
+    "force top 0,-40,0\nforce 'y>0.4' 0,0,0\npin bottom\nunpin bottom\nschedule cub.h5\ncondition youngs=1e6\nquit\n")
+open(out + "/live/bad.txt", "w").write("bogus\ndrag top nan,0,0\nstep -1\nforce top 1,2\ndrag\n\t \n")
 open(out + "/cloud/points.xyz", "w").write(
     "# x y z volume\n0 0 0 0.001\n0.1, 0.2, 0.3, 0.002\n-1e-3 2.5 1e2 1e-9 # comment\n\n")
 PY

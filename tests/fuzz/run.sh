@@ -36,7 +36,7 @@ for name in "$@"; do
     # input (30 inputs/s). Leaks are still detected, once, at exit.
     frames) len=4096 extra=(-detect_leaks=0) ;;
     stream) len=131072 extra=(-detect_leaks=0) ;;
-    cloud) len=4096 extra=() ;;
+    cloud | live) len=4096 extra=() ;;
     obj) len=16384 extra=() ;;
     stl) len=32768 extra=() ;;
     *) len=524288 extra=() ;;     # a trajectory of a few steps is 400 KB

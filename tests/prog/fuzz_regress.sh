@@ -24,7 +24,7 @@ for h in "$R"/replay_*; do
   n=$((n + ${#files[@]} - 2))
   ok
 done
-[ "$NCHECK" -ge 13 ] || fail "only $NCHECK replay programs in $R"
+[ "$NCHECK" -ge 14 ] || fail "only $NCHECK replay programs in $R"
 # every reproducer is in the folder of a harness that exists
 for d in "$CROM_TOP"/tests/fuzz/regress/*/; do
   [ -d "$d" ] || continue
