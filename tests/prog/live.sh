@@ -63,6 +63,11 @@ printf 'step 5\n' | crom-live "${RUN[@]}" --dt 1e-7 -o slow.h5 2>slow.err || fai
 grep -q "warning: step 1 ended .* after its simulated time: steps take longer than --dt" slow.err || fail "no lateness warning: $(cat slow.err)"; ok
 grep -q "5 of 5 steps ended after their simulated time" slow.err || fail "no lateness count: $(cat slow.err)"; ok
 
+# through a pipe, frame by frame, into crom-export (decoded on the mesh as they come)
+crom-live "${RUN[@]}" --no-clock <forces.txt 2>/dev/null | crom-export --model pod.h5 --mesh mesh.h5 -q -o piped.pvd \
+  || fail "crom-live | crom-export"
+[ "$(ls piped/*.vtu | wc -l)" = 36 ] || fail "$(ls piped/*.vtu | wc -l) frames through the pipe, expected 36"; ok
+
 # ---- drags
 # the region's centroid decoded from q: mass-weighted over its vertices
 centroid() { $PY -c "
