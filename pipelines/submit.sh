@@ -28,7 +28,7 @@ if [ $# -lt 2 ]; then
   exit 2
 fi
 line=$2
-progs=$(grep -oE '(^|[^[:alnum:]_.-])crom-[a-z]+' <<<"$line" | grep -oE 'crom-[a-z]+' | sort -u)
+progs=$(grep -oE '(^|[^[:alnum:]_./-])crom-[a-z]+' <<<"$line" | grep -oE 'crom-[a-z]+' | sort -u)
 if [ -z "$progs" ]; then
   exec /bin/bash "${flags[@]}" -c "$line"
 fi
