@@ -137,18 +137,18 @@ int crom_live_init(crom_live *L, const crom_cubature *cub, const crom_scenario *
 
 double crom_live_force_window(const crom_live *L) { return L->sim.t + 0.5 * L->sc.dt; }
 
-/* The region exists on the cubature's mesh and is not empty. */
-static int check_ref(const crom_live *L, const char *ref)
+/* The region exists on mesh m and is not empty. */
+static int check_ref(const crom_mesh *m, const char *ref)
 {
     int *idx = NULL, n = 0;
-    int rc = crom_mesh_select(&L->cubs[L->cur]->mesh, ref, &idx, &n);
+    int rc = crom_mesh_select(m, ref, &idx, &n);
     free(idx);
     return rc;
 }
 
 static int apply_force(crom_live *L, const crom_live_cmd *c)
 {
-    int rc = check_ref(L, c->ref);
+    int rc = check_ref(&L->cubs[L->cur]->mesh, c->ref);
     if (rc)
         return rc;
     crom_scenario *sc = &L->sc;
@@ -190,7 +190,7 @@ static int apply_pin(crom_live *L, const crom_live_cmd *c)
             return crom_err(CROM_EUSAGE, "pin %s: pinned already", c->ref);
         if (sc->npins == CROM_SCENARIO_MAX)
             return crom_err(CROM_EUSAGE, "pin %s: at most %d pins", c->ref, CROM_SCENARIO_MAX);
-        int rc = check_ref(L, c->ref);
+        int rc = check_ref(&L->cubs[L->cur]->mesh, c->ref);
         if (rc)
             return rc;
         snprintf(sc->pins[sc->npins++], sizeof sc->pins[0], "%s", c->ref);
@@ -218,11 +218,8 @@ static int apply_schedule(crom_live *L, const crom_live_cmd *c)
                       cub->model_id, cub->r, L->cubs[L->cur]->model_id, L->sim.r);
     if (!rc) /* every region the run uses must be on the new mesh */
         rc = crom_scenario_check_regions(&L->sc, &cub->mesh);
-    for (int d = 0; !rc && d < L->sim.ndrag; d++) {
-        int *idx = NULL, n = 0;
-        rc = crom_mesh_select(&cub->mesh, L->sim.drag[d].ref, &idx, &n);
-        free(idx);
-    }
+    for (int d = 0; !rc && d < L->sim.ndrag; d++)
+        rc = check_ref(&cub->mesh, L->sim.drag[d].ref);
     if (!rc)
         rc = crom_rsim_set_cubature(&L->sim, cub);
     if (rc) {

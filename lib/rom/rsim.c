@@ -18,13 +18,19 @@
 #define LAG_ITERS 24
 #define PAIRS 16
 
+/* a region's sums (region_sums), emptied */
+static void free_bc(crom_rsim_bc *b)
+{
+    free(b->idx);
+    free(b->P);
+    free(b->S);
+    memset(b, 0, sizeof *b);
+}
+
 static void free_bcs(crom_rsim_bc *b, int n)
 {
-    for (int i = 0; b && i < n; i++) {
-        free(b[i].idx);
-        free(b[i].P);
-        free(b[i].S);
-    }
+    for (int i = 0; b && i < n; i++)
+        free_bc(&b[i]);
     free(b);
 }
 
@@ -51,12 +57,8 @@ static void free_cub_data(crom_rsim *s)
     crom_newton_memory_free(&s->mem);
     free_bcs(s->bc, s->nbc);
     free_bcs(s->force, s->nforce);
-    for (int d = 0; d < s->ndrag; d++) { /* the drags stay; their sums are the cubature's */
-        free(s->drag[d].b.idx);
-        free(s->drag[d].b.P);
-        free(s->drag[d].b.S);
-        memset(&s->drag[d].b, 0, sizeof s->drag[d].b);
-    }
+    for (int d = 0; d < s->ndrag; d++) /* the drags stay; their sums are the cubature's */
+        free_bc(&s->drag[d].b);
     s->Mr = s->fg = s->G = s->Gfac = s->lam = NULL;
     s->qn = s->qhat = s->g = s->H = s->d = s->qt = s->gt = s->fext = s->Hfac = s->Q = s->Pk = s->lin = NULL;
     s->fac_ok = 0;
@@ -422,9 +424,7 @@ int crom_rsim_drag_set(crom_rsim *s, const char *ref, const double c[3], double 
         snprintf(a[d].ref, sizeof a[d].ref, "%s", ref);
         int rc = drag_resolve(s, &a[d]);
         if (rc) {
-            free(a[d].b.idx);
-            free(a[d].b.P);
-            free(a[d].b.S);
+            free_bc(&a[d].b);
             return crom_err_ctx("drag");
         }
         s->ndrag++;
@@ -442,13 +442,10 @@ int crom_rsim_drag_release(crom_rsim *s, const char *ref)
 {
     int kept = 0, n = s->ndrag;
     for (int d = 0; d < n; d++) {
-        if (!ref || !strcmp(s->drag[d].ref, ref)) {
-            free(s->drag[d].b.idx);
-            free(s->drag[d].b.P);
-            free(s->drag[d].b.S);
-        } else {
+        if (!ref || !strcmp(s->drag[d].ref, ref))
+            free_bc(&s->drag[d].b);
+        else
             s->drag[kept++] = s->drag[d];
-        }
     }
     s->ndrag = kept;
     if (kept != n)
@@ -471,9 +468,7 @@ int crom_rsim_sync_forces(crom_rsim *s)
         b->bc = &sc->force[s->nforce];
         int rc = region_sums(s->cub, sc->density, b->bc->ref, b);
         if (rc) {
-            free(b->idx);
-            free(b->P);
-            free(b->S);
+            free_bc(b);
             return crom_err_ctx("force");
         }
         s->nforce++;
