@@ -297,7 +297,7 @@ MPIRUN ?= mpirun --allow-run-as-root --oversubscribe --mca btl self,vader --mca 
 mpi: $(OUT)/mpi.md
 $(OUT)/mpi.md: $(OUT)/tr-samples.h5
 	@command -v mpirun >/dev/null || { echo "bench mpi: no mpirun (make deps installs Open MPI)" >&2; exit 1; }
-	@crom-fitfield --help | grep -q 'built with MPI' || { echo "bench mpi: crom-fitfield was built without MPI" >&2; exit 1; }
+	@crom-fitfield --help | grep -c 'built with MPI' >/dev/null || { echo "bench mpi: crom-fitfield was built without MPI" >&2; exit 1; }
 	A="--rank 20 --encoder lsq --epochs $(MPI_EPOCHS) --shards 2 --threads 1 --seed $(SEED) -v"; \
 	for k in $$(seq $(MPI_REPEATS)); do \
 	  crom-fitfield $$A -o $(OUT)/mpi-1.h5 $< 2> $(OUT)/mpi-1-$$k.log; \

@@ -25,7 +25,10 @@ cannot() {
   echo "skipped: cannot test MPI training here: $*"
   exit 0
 }
-crom-fitfield --help | grep -q "built with MPI" \
+# (the help read whole first: grep -q would close the pipe early, and with
+# pipefail crom-fitfield's SIGPIPE would read as "built without MPI")
+help=$(crom-fitfield --help)
+grep -q "built with MPI" <<<"$help" \
   || cannot "crom-fitfield was built without MPI (no mpicc when make ran, or MPI=0; make deps installs Open MPI)"
 command -v mpirun >/dev/null 2>&1 || cannot "mpirun is not installed (make deps installs openmpi-bin)"
 # Open MPI refuses root unless told; shared memory between the two ranks only
