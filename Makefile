@@ -4,6 +4,7 @@
 #   make test       build and run the whole test suite
 #   make test SANITIZE=1   the same suite under ASan + UBSan (build-san/)
 #   make demo       the built-in default run, mesh to pictures
+#   make live       the demo body live in the browser (crom-live + crom-view)
 #   make bench      timing tables (bench/)
 #   make deps       install the Debian packages the build and tests need
 #   make fuzz       libFuzzer harnesses of every reader (build-fuzz/), a seed
@@ -57,7 +58,7 @@ UNIT_TESTS := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(TEST_SRC))
 BENCHES  := $(patsubst tests/unit/%.c,$(BUILD)/tests/%,$(wildcard tests/unit/bench_*.c))
 MANPAGES := $(patsubst bin/%.c,man/%.1,$(PROG_SRC))
 
-.PHONY: all test check demo bench deps install uninstall clean distclean man fuzz fuzz-build
+.PHONY: all test check demo live bench deps install uninstall clean distclean man fuzz fuzz-build
 .DELETE_ON_ERROR:
 
 all: $(PROGS) $(MANPAGES)
@@ -129,6 +130,20 @@ $(BINDIR)/crom-fitfield: $(BUILD)/bin/crom-fitfield.o $(LIBA) | $(DEPSTAMP)
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) $(LDFLAGS) $< $(LIBA) $(LDLIBS) $(call mpi_flags,link) -o $@
 
+# crom-view: libwebsockets and a thread, and its page (bin/crom-view.html)
+# compiled in as bytes (od; a string literal that long is beyond ISO C's limit)
+$(BUILD)/gen/viewer_page.h: bin/crom-view.html
+	@mkdir -p $(@D)
+	{ echo '/* bin/crom-view.html as bytes, made by the Makefile */'; \
+	  echo 'static const char crom_viewer_page[] = {'; \
+	  od -An -v -tx1 $< | sed 's/ *\([0-9a-f][0-9a-f]\)/0x\1,/g'; echo '0};'; } > $@.tmp && mv $@.tmp $@
+$(BUILD)/bin/crom-view.o: bin/crom-view.c $(BUILD)/gen/viewer_page.h $(FLAGSTAMP) | $(DEPSTAMP)
+	@mkdir -p $(@D)
+	$(CC) $(CPPFLAGS) -I$(BUILD)/gen $(CFLAGS) -MMD -MP -c $< -o $@
+$(BINDIR)/crom-view: $(BUILD)/bin/crom-view.o $(LIBA) | $(DEPSTAMP)
+	@mkdir -p $(@D)
+	$(CC) $(CFLAGS) $(LDFLAGS) $< $(LIBA) $(LDLIBS) -lwebsockets -lpthread -o $@
+
 $(BUILD)/tests/test_%: $(BUILD)/tests/test_%.o $(LIBA) | $(DEPSTAMP)
 	$(CC) $(CFLAGS) $(LDFLAGS) $< $(LIBA) $(LDLIBS) -o $@
 
@@ -148,6 +163,10 @@ man/%.1: $(BINDIR)/% tests/mkman.sh
 
 demo: $(PROGS) | $(DEPSTAMP)
 	@$(MAKE) --no-print-directory -f pipelines/demo.mk BINDIR=$(abspath $(BINDIR))
+
+# the demo's body live in the browser (pipelines/live.mk): crom-live and crom-view
+live: $(PROGS) | $(DEPSTAMP)
+	@$(MAKE) --no-print-directory -f pipelines/live.mk live BINDIR=$(abspath $(BINDIR))
 
 bench: $(PROGS) $(BENCHES) | $(DEPSTAMP)
 	@$(MAKE) --no-print-directory -f pipelines/bench.mk BINDIR=$(abspath $(BINDIR)) \

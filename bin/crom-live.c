@@ -7,6 +7,7 @@
 #include <fcntl.h>
 #include <math.h>
 #include <poll.h>
+#include <signal.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -59,18 +60,22 @@ static const crom_cli_doc doc = {
     "  quit                  end the run\n\n"
     "REF is a region of the cubature's mesh, a predicate such as 'x>0.4', or one vertex '#N'. A bad "
     "command gets one line on stderr ('crom-live: line L: ...') and changes nothing; the run goes on. "
-    "The end of the input ends the run after the steps it asked for.\n\n"
+    "The end of the input ends the run after the steps it asked for; so do Ctrl-C (SIGINT) and SIGTERM, "
+    "the output complete.\n\n"
     "A force given at time t acts from the next step on, as crom-reducedstep --force 'REF=F@T0:' "
     "with T0 = t + dt/2 does: a script of force and step commands run with --no-clock gives "
     "that run's trajectory to round-off.\n\n"
     "The output is a crom/latent streamed frame by frame (one per step): q, qdot, energies, "
     "iterations, and wall_time, the wall-clock time at which the frame was written, against time, "
     "the simulated time it stands for; a step that ends later than its simulated time (it took "
-    "longer than dt) has late = 1, and the run says so once on stderr and counts them at the end.",
+    "longer than dt) has late = 1, and the run says so once on stderr and counts them at the end; "
+    "commands counts the command lines read before the frame's step (applied or refused), so that "
+    "a frame with commands >= N is the first to show the N-th command (crom-view(1) times a page's "
+    "drag to its frame so).",
     groups,
     "mkfifo cmds; crom-live --cubature cub.h5 --pin bottom --commands cmds | crom-export --model m.h5 --mesh mesh.h5 -o live.pvd\n"
     "printf 'force top 0,-20,0\\nstep 50\\ndrag #120 0.3,0.6,0 400\\nstep 50\\n' | crom-live --cubature cub.h5 --pin bottom --no-clock -o run.h5",
-    "crom-reducedstep(1), crom-cubature(1), crom-export(1)"};
+    "crom-reducedstep(1), crom-cubature(1), crom-export(1), crom-view(1)"};
 
 typedef struct {
     crom_scenario sc;
@@ -196,6 +201,7 @@ typedef struct {
     double t0;      /* monotonic clock at the start */
     int clock;      /* paced by the wall clock */
     long late, worst_step;
+    long ncmd;      /* command lines read (applied or refused) */
     double worst_lag;
     double cmd_t;   /* when the oldest command not yet in a frame was applied (0: none) */
     times step_s, latency_s; /* every step's seconds; each command's time to its first frame */
@@ -210,7 +216,7 @@ static int put_frame(run_out *R, crom_live *L, const crom_rsim_stats *st)
     double wall = crom_clock_now() - R->t0, lag = wall - L->sim.t;
     double late = R->clock && L->sim.step > 0 && lag > 0 ? 1 : 0; /* (without the clock: never) */
     double t = L->sim.t, step = (double)L->sim.step, tot = K + E + W, it = st->iterations, res = st->residual,
-           cub = L->cur, secs = crom_clock_wall(st->seconds), w = crom_clock_wall(wall);
+           cub = L->cur, secs = crom_clock_wall(st->seconds), w = crom_clock_wall(wall), ncmd = (double)R->ncmd;
     if (late) {
         R->late++;
         if (lag > R->worst_lag) {
@@ -218,7 +224,7 @@ static int put_frame(run_out *R, crom_live *L, const crom_rsim_stats *st)
             R->worst_step = L->sim.step;
         }
     }
-    const double *vals[] = {&t, &step, L->sim.q, L->sim.qd, &K, &E, &W, &tot, &it, &res, &cub, &secs, &w, &late};
+    const double *vals[] = {&t, &step, L->sim.q, L->sim.qd, &K, &E, &W, &tot, &it, &res, &cub, &secs, &w, &late, &ncmd};
     rc = crom_out_frame(&R->o, vals);
     if (!rc && L->sim.step > 0)
         rc = times_push(&R->step_s, st->seconds);
@@ -250,7 +256,7 @@ static int start_output(run_out *R, const crom_cli *cli, const args *a, crom_liv
         int vec;
     } f[] = {{"time", 0}, {"step", 0}, {"q", 1}, {"qdot", 1}, {"kinetic_energy", 0}, {"elastic_energy", 0},
              {"external_energy", 0}, {"total_energy", 0}, {"iterations", 0}, {"residual", 0}, {"cubature", 0},
-             {"step_seconds", 0}, {"wall_time", 0}, {"late", 0}};
+             {"step_seconds", 0}, {"wall_time", 0}, {"late", 0}, {"commands", 0}};
     for (size_t i = 0; i < sizeof f / sizeof *f && !rc; i++)
         rc = crom_out_field(&R->o, f[i].name, f[i].vec, &dr, NULL);
     if (!rc)
@@ -267,6 +273,8 @@ static void command(const crom_cli *cli, crom_live *L, run_out *R, const input *
 {
     crom_live_cmd c;
     int rc = crom_live_parse(line, &c);
+    if (rc || c.kind != CROM_LIVE_NONE)
+        R->ncmd++;
     if (!rc && c.kind == CROM_LIVE_STEP)
         *pending += c.n;
     else if (!rc && c.kind == CROM_LIVE_QUIT)
@@ -282,6 +290,16 @@ static void command(const crom_cli *cli, crom_live *L, run_out *R, const input *
         if (cli->verbose)
             crom_cli_info(cli, "t = %.4g s: %s", L->sim.t, line);
     }
+}
+
+/* Ctrl-C (SIGINT) or SIGTERM ends the run as 'quit' does: the frame
+ * stream gets its end record; a second one ends the process at once. */
+static volatile sig_atomic_t stop_asked;
+
+static void on_stop(int sig)
+{
+    (void)sig;
+    stop_asked = 1;
 }
 
 static int run(crom_cli *cli, args *a)
@@ -319,10 +337,16 @@ static int run(crom_cli *cli, args *a)
     int quit = 0;
     char line[sizeof in.buf];
     double h = a->sc.dt;
-    while (!rc && !quit && (max < 0 || L->sim.step < max)) {
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_stop;
+    sa.sa_flags = (int)SA_RESETHAND;
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    while (!rc && !quit && !stop_asked && (max < 0 || L->sim.step < max)) {
         /* commands until a step is due: with the clock, when the wall clock
          * reaches the simulated time of the state; without, when asked */
-        while (!rc && !quit && !pending) {
+        while (!rc && !quit && !pending && !stop_asked) {
             if (!in.eof && !memchr(in.buf, '\n', in.len) && (rc = fill(&in, 0))) /* what has come */
                 break;
             while (!quit && !pending && next_line(&in, line, sizeof line))
@@ -338,7 +362,7 @@ static int run(crom_cli *cli, args *a)
                 break;
             rc = fill(&in, wait);
         }
-        if (rc || quit)
+        if (rc || quit || stop_asked)
             break;
         if (!a->noclock && pending) { /* 'step N' with the clock: wait for the step's time */
             double wait = L->sim.t - (crom_clock_now() - R.t0);

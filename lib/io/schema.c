@@ -300,6 +300,10 @@ static const crom_schema_dset latent_dsets[] = {
                                              "written, against its simulated time (0 when SOURCE_DATE_EPOCH is set)", NULL},
     {"frames/late", "f64", "F", 0, "1", "crom-live: 1 when the step ended after its simulated time (it took longer "
                                         "than dt), else 0", NULL},
+    {"frames/commands", "f64", "F", 0, "1", "crom-live: command lines read before the frame's step (applied or "
+                                            "refused; blank and comment lines not counted): a frame with commands "
+                                            "≥ N shows the N-th command (crom-view times a page's command to its "
+                                            "frame so)", NULL},
     {"frames/reconstruction_error", "f64", "F", 0, "1", "|Wq - u| / |u| of the encoded frame (mass-weighted)", NULL},
     {"frames/indicator", "f64", "F", 0, "1", "crom-reducedstep --indicator: the estimated relative displacement error "
                                               "of the frame, |K0^-1 g|_M / |u|_M with g the full-space residual of its "

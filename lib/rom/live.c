@@ -118,6 +118,9 @@ int crom_live_init(crom_live *L, const crom_cubature *cub, const crom_scenario *
                    double drag_k)
 {
     memset(L, 0, sizeof *L);
+    if (cub->map_rank > 0) /* its W is a nonlinear map's feature basis, which rsim does not step */
+        return crom_err(CROM_EUSAGE, "the cubature of a nonlinear map (model %s): crom-live steps linear subspaces "
+                        "(crom-reducedstep --model runs it)", cub->model_id);
     L->sc = *sc;
     L->cubs = crom_malloc(sizeof *L->cubs);
     if (!L->cubs)
@@ -213,6 +216,8 @@ static int apply_schedule(crom_live *L, const crom_live_cmd *c)
     }
     L->cubs = a;
     int rc = crom_cubature_load(c->ref, cub, NULL);
+    if (!rc && cub->map_rank > 0)
+        rc = crom_err(CROM_EDATA, "%s is the cubature of a nonlinear map: crom-live steps linear subspaces", c->ref);
     if (!rc && (cub->r != L->sim.r || strcmp(cub->model_id, L->cubs[L->cur]->model_id)))
         rc = crom_err(CROM_EDATA, "%s belongs to model %s (rank %d), the run uses model %s (rank %d)", c->ref,
                       cub->model_id, cub->r, L->cubs[L->cur]->model_id, L->sim.r);

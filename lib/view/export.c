@@ -180,9 +180,7 @@ int crom_export_surface(const crom_mesh *m, int *ntri, int **tris)
     return 0;
 }
 
-/* The surface's triangles (crom_export_surface) and the compact list of the
- * vertices they use. */
-static int surface(const crom_mesh *m, int *ntri, int **tris, int *nsv, int **sv, int **map)
+int crom_export_surface_compact(const crom_mesh *m, int *ntri, int **tris, int *nsv, int **sv, int **map)
 {
     int rc = crom_export_surface(m, ntri, tris);
     if (rc)
@@ -212,7 +210,7 @@ static int surface(const crom_mesh *m, int *ntri, int **tris, int *nsv, int **sv
 int crom_export_obj(FILE *f, const crom_mesh *m, const double *disp)
 {
     int nt, *T, nsv, *sv, *map;
-    int rc = surface(m, &nt, &T, &nsv, &sv, &map);
+    int rc = crom_export_surface_compact(m, &nt, &T, &nsv, &sv, &map);
     if (rc)
         return rc;
     fprintf(f, "# crom surface: %d vertices, %d triangles\n", nsv, nt);
@@ -233,7 +231,7 @@ int crom_export_obj(FILE *f, const crom_mesh *m, const double *disp)
 int crom_export_ply(FILE *f, const crom_mesh *m, const double *disp)
 {
     int nt, *T, nsv, *sv, *map;
-    int rc = surface(m, &nt, &T, &nsv, &sv, &map);
+    int rc = crom_export_surface_compact(m, &nt, &T, &nsv, &sv, &map);
     if (rc)
         return rc;
     fprintf(f, "ply\nformat binary_little_endian 1.0\ncomment crom surface\n"
@@ -889,7 +887,7 @@ static int gmsh_write_into(FILE *f, const char *ext, const int *views, int nview
 static int stl_model(const crom_mesh *m, const double *disp)
 {
     int nt, *T, nsv, *sv, *map, ierr;
-    int rc = surface(m, &nt, &T, &nsv, &sv, &map);
+    int rc = crom_export_surface_compact(m, &nt, &T, &nsv, &sv, &map);
     if (rc)
         return rc;
     size_t *ntag = crom_malloc(sizeof(size_t) * (size_t)(nsv ? nsv : 1));

@@ -84,6 +84,11 @@ int crom_export_pvd(FILE *f, const double *time, const char *const *file, int n)
  * CROM_EINTERNAL. */
 int crom_export_surface(const crom_mesh *m, int *ntri, int **tris);
 
+/* The same triangles (mesh vertex indices) and the compact list of the
+ * vertices they use: sv [nsv] (in order of first use) and map [nv] (a mesh
+ * vertex's place in sv, or -1), all malloc'ed. Returns 0 or CROM_EINTERNAL. */
+int crom_export_surface_compact(const crom_mesh *m, int *ntri, int **tris, int *nsv, int **sv, int **map);
+
 /* The surface (crom_export_surface), deformed by disp ([nv][3] or NULL), as
  * Wavefront OBJ. Returns 0, CROM_EINTERNAL or CROM_EIO. */
 int crom_export_obj(FILE *f, const crom_mesh *m, const double *disp);
