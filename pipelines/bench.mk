@@ -110,10 +110,10 @@ df2_map_args = --model $(OUT)/df2-map-$(call df2_kind,$(1)).h5 --mesh $(OUT)/df-
   $(if $(filter %-opt,$(1)),--cubature $(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
 df2_map_in = $(OUT)/df2-map-$(call df2_kind,$(1)).h5 $(if $(filter %-opt,$(1)),$(OUT)/df2-mcub-$(call df2_kind,$(1)).h5)
 
-.PHONY: all fullsim sheets scenes tables training datafree plots micro scale mpi live
-all: fullsim sheets scenes tables training datafree plots micro scale mpi live
+.PHONY: all fullsim sheets scenes tables training datafree plots micro scale mpi live view
+all: fullsim sheets scenes tables training datafree plots micro scale mpi live view
 	@cat $(OUT)/fullsim.md $(OUT)/sheets.md $(OUT)/scenes.md $(OUT)/tables.md $(OUT)/training.md $(OUT)/datafree.md \
-	  $(OUT)/datafree2.md $(OUT)/micro.md $(OUT)/scale.md $(OUT)/mpi.md $(OUT)/live.md
+	  $(OUT)/datafree2.md $(OUT)/micro.md $(OUT)/scale.md $(OUT)/mpi.md $(OUT)/live.md $(OUT)/view.md
 	@echo "plots: $(OUT)/steps.png $(OUT)/training.png"
 
 # ---------------------------------------------------------------- fullsim
@@ -284,6 +284,45 @@ $(OUT)/live.md: $(foreach s,$(T_SIZES),$(OUT)/live-$(s).txt)
 	      /steps ended after/ {split($$0, x, ": "); split(x[2], y, " "); late = y[1]} \
 	      END {printf "| %s | %s | %s | %s | %s | %s | %s of %s |\n", nv, k, ms, sps, med, mx, late ? late : 0, total}' \
 	      $(OUT)/live-$$s.txt; \
+	  done ) > $@.tmp && mv $@.tmp $@
+
+# crom-view (issue 21 items 2, 3): the tables' 19K-vertex body above and the
+# 100K-vertex one of `scale` (the same model on SCALE_SIZES' last size, a
+# METIS cubature), crom-live paced at 60 steps/s into crom-view, and a page
+# in headless Chromium (tests/prog/view_client.py load: ChromeDriver, a
+# software GL) whose mouse drags the top round a circle for
+# LIVE_VIEW_SECONDS, a point a tenth of a second; the page decodes the
+# surface from each frame's q and reports frames received and drawn, its
+# decode time and the time from sending a command to the frame that first
+# shows it (the stream's commands field)
+LIVE_VIEW_SECONDS ?= 8
+LIVE_VIEW_CUBS ?= t-cub-$(word 1,$(T_SIZES)) sc-cub-$(lastword $(SCALE_SIZES))
+view: $(OUT)/view.md
+$(OUT)/view-%.txt: $(OUT)/%.h5
+	@command -v chromedriver >/dev/null || { echo "bench view: no chromedriver (make deps installs it)" >&2; exit 1; }
+	d=$$(mktemp -d /tmp/crom-bench-view.XXXXXX); mkfifo $$d/f $$d/c; \
+	crom-live --cubature $< --pin bottom --gravity 0,0,0 --dt 0.0166667 --drag-stiffness 1e7 --threads 1 \
+	  --commands $$d/c > $$d/f 2> $$d/live.err & l=$$!; \
+	crom-view --cubature $< --port 0 < $$d/f > $$d/c 2> $$d/view.err & v=$$!; \
+	for i in $$(seq 300); do grep -q 'open http' $$d/view.err && break; sleep 0.1; done; \
+	port=$$(grep -o '127\.0\.0\.1:[0-9]*' $$d/view.err | head -1 | cut -d: -f2); \
+	rc=0; /usr/bin/python3 $(TOP)/tests/prog/view_client.py load $$port $(LIVE_VIEW_SECONDS) > $$d/page.txt || rc=$$?; \
+	kill -INT $$v; wait $$v || rc=1; wait $$l || rc=1; \
+	cat $$d/live.err $$d/view.err $$d/page.txt > $@.tmp; rm -rf $$d; [ $$rc -eq 0 ] && mv $@.tmp $@
+$(OUT)/view.md: $(foreach c,$(LIVE_VIEW_CUBS),$(OUT)/view-$(c).txt)
+	( echo "crom-live at 60 steps/s into crom-view, a page in headless Chromium dragging the top ($(LIVE_VIEW_SECONDS) s)"; echo; \
+	  echo "| vertices | surface vertices | steps | late steps | frames to the page /s | drawn /s | decode on the page, mean (ms) | command to frame at the page, median (ms) | in crom-live (ms) |"; \
+	  echo "|---:|---:|---:|---:|---:|---:|---:|---:|---:|"; \
+	  for c in $(LIVE_VIEW_CUBS); do \
+	    nv=$$(crom-info $(OUT)/$$c.h5 | awk '/ vertices, / {print $$1; exit}'); \
+	    awk -v nv="$$nv" '/surface vertices\)/ {split($$0, x, "r = "); split(x[2], y, " "); ns = y[2]} \
+	      /crom-live: [0-9]+ steps,/ {split($$0, x, "crom-live: "); split(x[2], y, " "); steps = y[1]} \
+	      /steps ended after/ {split($$0, x, "crom-live: "); split(x[2], y, " "); late = y[1]} \
+	      /crom-live: from a command/ {split($$0, x, "shows it: "); split(x[2], y, " "); lat = y[1]} \
+	      /^page: / {split($$0, x, " "); fr = x[2]; dr = x[5]; split($$0, z, "decode "); split(z[2], w, " "); dec = w[1]; \
+	        split($$0, z, "command to frame "); split(z[2], w, " "); plat = w[1]} \
+	      END {printf "| %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", nv, ns, steps, late ? late : 0, \
+	        fr, dr, dec, plat, lat}' $(OUT)/view-$$c.txt; \
 	  done ) > $@.tmp && mv $@.tmp $@
 
 # -------------------------------------------------------------------- mpi

@@ -117,6 +117,8 @@ open(out + "/obj/slashes.obj", "w").write(o2)
 open(out + "/live/session.txt", "w").write(
     "# a live session\ndrag top 0,0.6,0 2e5\nstep 20\ndrag #17 0.1,0.5,-0.2\nrelease top\nrelease\n"
     "force top 0,-40,0\nforce 'y>0.4' 0,0,0\npin bottom\nunpin bottom\nschedule cub.h5\ncondition youngs=1e6\nquit\n")
+open(out + "/live/page.txt", "w").write(  # a page's messages to crom-view (the harness offers cut.h5)
+    "drag #2 0.25,0.75,0.1\ndrag #2 0.3,0.700000001,0.1 1e7\nrelease #2\nschedule cut.h5\nforce y>0.5 0,-1,0\n")
 open(out + "/live/bad.txt", "w").write("bogus\ndrag top nan,0,0\nstep -1\nforce top 1,2\ndrag\n\t \n")
 open(out + "/cloud/points.xyz", "w").write(
     "# x y z volume\n0 0 0 0.001\n0.1, 0.2, 0.3, 0.002\n-1e-3 2.5 1e2 1e-9 # comment\n\n")
