@@ -98,8 +98,7 @@ typedef struct client_s {
     int rxbad;
     char reply[NREPLY][320];
     int nreply;
-    char drag[8][128];   /* what this page drags (released when it goes) */
-    int ndrag;
+    crom_viewer_drags drags; /* released when the page goes */
     char stats[256];     /* the page's last report */
 } client;
 
@@ -111,22 +110,20 @@ typedef struct {
     crom_viewer_surface surf[MAXOFFER + 1];
     unsigned char *smsg[MAXOFFER + 1];
     size_t slen[MAXOFFER + 1];
-    int as[64], nas;               /* the stream's cubature k is offered cubature as[k] */
-    int pend[8], npend;            /* schedules passed on, not yet in a frame */
-    long pend_seq[8];
+    crom_viewer_switches sw;       /* which offered cubature a frame is on */
     char hello[8192];
     int r, fd;                     /* commands out (-1: the run no longer reads them) */
     long ncmd;                     /* command lines passed on */
     /* the reader thread's frame, under mu */
     pthread_mutex_t mu;
     crom_in in;
-    int fq, fld[6];                /* q; time, step, wall_time, late, cubature, commands (-1: absent) */
-    double *q_in, v_in[6];
+    int fq, fld[CROM_VIEWER_NFIELDS]; /* q, and the fields of a frame message (-1: absent) */
+    double *q_in, v_in[CROM_VIEWER_NFIELDS];
     long seq_in;
     int eof, rc_in;
     char err_in[300];
     /* the main thread's copy */
-    double *q, v[6];
+    double *q, v[CROM_VIEWER_NFIELDS];
     long seq;
     int shown;                     /* offered cubature of the newest frame */
     client *clients;
@@ -182,19 +179,6 @@ static void reply(client *c, const char *fmt, const char *a, const char *b)
     lws_callback_on_writable(c->wsi);
 }
 
-static void note_drag(client *c, const crom_live_cmd *k)
-{
-    int i = 0;
-    while (i < c->ndrag && strcmp(c->drag[i], k->ref))
-        i++;
-    if (k->kind == CROM_LIVE_DRAG && i == c->ndrag && c->ndrag < 8)
-        snprintf(c->drag[c->ndrag++], sizeof c->drag[0], "%s", k->ref);
-    else if (k->kind == CROM_LIVE_RELEASE && !k->ref[0])
-        c->ndrag = 0;
-    else if (k->kind == CROM_LIVE_RELEASE && i < c->ndrag)
-        memmove(c->drag[i], c->drag[i + 1], sizeof c->drag[0] * (size_t)(--c->ndrag - i));
-}
-
 /* A line from page c: its report, or a command checked and passed on. */
 static void page_line(server *S, client *c, const char *line)
 {
@@ -218,8 +202,12 @@ static void page_line(server *S, client *c, const char *line)
     }
     if (!out[0])
         return;
-    if (k.kind == CROM_LIVE_SCHEDULE && S->npend == 8) {
-        reply(c, "error: schedule %s: %s", k.ref, "too many switches under way");
+    int o = 1;
+    while (k.kind == CROM_LIVE_SCHEDULE && strcmp(S->path[o], k.ref))
+        o++;
+    if (k.kind == CROM_LIVE_SCHEDULE && crom_viewer_switch_passed(&S->sw, o, S->seq)) {
+        reply(c, "error: schedule %s: %s", k.ref, crom_errmsg());
+        crom_err_clear();
         return;
     }
     if (pass_on(S, out)) {
@@ -228,14 +216,7 @@ static void page_line(server *S, client *c, const char *line)
     }
     if (S->cli->verbose)
         crom_cli_info(S->cli, "page %d: %s", c->id, out);
-    note_drag(c, &k);
-    if (k.kind == CROM_LIVE_SCHEDULE) {
-        int o = 1;
-        while (strcmp(S->path[o], k.ref))
-            o++;
-        S->pend[S->npend] = o;
-        S->pend_seq[S->npend++] = S->seq;
-    }
+    crom_viewer_drags_note(&c->drags, &k);
     char n[32];
     snprintf(n, sizeof n, "%ld", S->ncmd);
     reply(c, "ok %s%s", n, "");
@@ -254,18 +235,11 @@ static void take_frame(server *S)
     if (S->eof)
         S->stop = 1;
     pthread_mutex_unlock(&S->mu);
-    int k = (int)S->v[4];
-    while (k >= S->nas && S->npend && S->nas < 64) { /* a switch the run took */
-        S->as[S->nas++] = S->pend[0];
-        memmove(S->pend, S->pend + 1, sizeof *S->pend * (size_t)--S->npend);
-        memmove(S->pend_seq, S->pend_seq + 1, sizeof *S->pend_seq * (size_t)S->npend);
-    }
-    while (S->npend && S->seq > S->pend_seq[0] + 30) { /* one it refused (its stderr says why) */
-        crom_cli_warn(S->cli, "schedule %s: the run did not switch", S->path[S->pend[0]]);
-        memmove(S->pend, S->pend + 1, sizeof *S->pend * (size_t)--S->npend);
-        memmove(S->pend_seq, S->pend_seq + 1, sizeof *S->pend_seq * (size_t)S->npend);
-    }
-    S->shown = k >= 0 && k < S->nas ? S->as[k] : S->shown;
+    int refused[CROM_VIEWER_SWITCHES], nrefused;
+    int o = crom_viewer_switch_frame(&S->sw, (int)S->v[4], S->seq, refused, &nrefused);
+    for (int i = 0; i < nrefused; i++) /* (the run's stderr says why) */
+        crom_cli_warn(S->cli, "schedule %s: the run did not switch", S->path[refused[i]]);
+    S->shown = o >= 0 ? o : S->shown;
 }
 
 /* One write to page c, the most urgent first: its greeting, the surface
@@ -392,13 +366,13 @@ static int on_ws(struct lws *wsi, enum lws_callback_reasons reason, void *user, 
                 *pp = c->next;
                 break;
             }
-        for (int i = 0; i < c->ndrag; i++) { /* nobody holds what it held */
+        for (int i = 0; i < c->drags.n; i++) { /* nobody holds what it held */
             char line[160];
-            snprintf(line, sizeof line, "release %s", c->drag[i]);
+            snprintf(line, sizeof line, "release %s", c->drags.ref[i]);
             pass_on(S, line);
         }
         if (S->cli->verbose || c->stats[0])
-            crom_cli_info(S->cli, "page %d went away%s", c->id, c->ndrag ? " (its drags released)" : "");
+            crom_cli_info(S->cli, "page %d went away%s", c->id, c->drags.n ? " (its drags released)" : "");
         page_report(S, c);
         return 0;
     case LWS_CALLBACK_EVENT_WAIT_CANCELLED:
@@ -463,7 +437,7 @@ static void *reader(void *arg)
     while ((rc = crom_in_next(&S->in)) == 1) {
         pthread_mutex_lock(&S->mu);
         memcpy(S->q_in, crom_in_get(&S->in, S->fq), sizeof *S->q_in * (size_t)S->r);
-        for (int i = 0; i < 6; i++)
+        for (int i = 0; i < CROM_VIEWER_NFIELDS; i++)
             S->v_in[i] = S->fld[i] < 0 ? 0 : crom_in_get(&S->in, S->fld[i])[0];
         S->seq_in++;
         pthread_mutex_unlock(&S->mu);
@@ -480,24 +454,6 @@ static void *reader(void *arg)
 }
 
 /* ------------------------------------------------------------ start and end */
-
-/* s as a JSON string into b (cap bytes), quotes included */
-static void json_str(char *b, size_t cap, const char *s)
-{
-    size_t n = 0;
-    b[n++] = '"';
-    for (; *s && n + 8 < cap; s++) {
-        unsigned char ch = (unsigned char)*s;
-        if (ch == '"' || ch == '\\')
-            b[n++] = '\\', b[n++] = (char)ch;
-        else if (ch < 0x20)
-            n += (size_t)snprintf(b + n, cap - n, "\\u%04x", ch);
-        else
-            b[n++] = (char)ch;
-    }
-    b[n++] = '"';
-    b[n] = 0;
-}
 
 static int load(server *S, const args *a)
 {
@@ -524,52 +480,9 @@ static int load(server *S, const args *a)
     if (rc)
         return rc;
     S->r = S->cub[0].r;
-    S->as[0] = 0;
-    S->nas = 1;
-    char q[1100];
-    size_t n = 0, cap = sizeof S->hello;
-    json_str(q, sizeof q, a->cub);
-    n += (size_t)snprintf(S->hello + n, cap - n, "{\"cubature\":%s,\"model\":\"%s\",\"rank\":%d,\"vertices\":%d,\"offers\":[",
-                          q, S->cub[0].model_id, S->r, S->cub[0].mesh.nv);
-    for (int i = 1; i < S->ncub && n < cap; i++) {
-        json_str(q, sizeof q, S->path[i]);
-        n += (size_t)snprintf(S->hello + n, cap - n, "%s%s", i > 1 ? "," : "", q);
-    }
-    if (n < cap)
-        snprintf(S->hello + n, cap - n, "]}");
-    if (n + 2 >= cap)
-        return crom_err(CROM_EUSAGE, "the cubatures' paths are too long for the page's greeting");
-    return 0;
-}
-
-/* The run's stream on stdin: a crom/latent of the cubature's model. */
-static int open_stream(server *S)
-{
-    int rc = crom_in_open(&S->in, NULL);
-    if (rc)
-        return rc;
-    rc = crom_in_expect(&S->in, "crom/latent", 1);
-    char *id = NULL;
-    if (!rc && (rc = crom_h5_get_str(S->in.h5, ".", "model_id", &id)) == 0 && strcmp(id, S->cub[0].model_id))
-        rc = crom_err(CROM_EDATA, "stdin: a run of model %s, --cubature %s is of model %s", id, S->path[0],
-                      S->cub[0].model_id);
-    free(id);
-    if (!rc && S->in.form != CROM_IO_STREAM)
-        rc = crom_err(CROM_EUSAGE, "stdin: an HDF5 file; crom-view shows a live run's frame stream (crom-live | crom-view)");
-    if (!rc && (S->fq = crom_in_field(&S->in, "q")) < 0)
-        rc = CROM_EDATA;
-    if (!rc && S->in.fields[S->fq].count != (size_t)S->r)
-        rc = crom_err(CROM_EDATA, "stdin: q has %zu numbers, the model's rank is %d", S->in.fields[S->fq].count, S->r);
-    static const char *const names[6] = {"time", "step", "wall_time", "late", "cubature", "commands"};
-    for (int i = 0; !rc && i < 6; i++) {
-        S->fld[i] = crom_in_field(&S->in, names[i]);
-        crom_err_clear(); /* (all but time may be absent) */
-    }
-    if (!rc && S->fld[0] < 0)
-        rc = crom_err(CROM_EDATA, "stdin: frames without time");
-    if (rc)
-        crom_in_close(&S->in);
-    return rc;
+    crom_viewer_switches_init(&S->sw);
+    return crom_viewer_hello(S->hello, sizeof S->hello, a->cub, S->cub[0].model_id, S->r, S->cub[0].mesh.nv,
+                             S->path + 1, S->ncub - 1);
 }
 
 static int serve(server *S, const args *a)
@@ -639,7 +552,7 @@ int main(int argc, char **argv)
     int rc = load(S, &a);
     if (!rc && a.cmds && (S->fd = open(a.cmds, O_WRONLY | O_CLOEXEC)) < 0)
         rc = crom_err(CROM_ENOINPUT, "--commands %s: %s", a.cmds, strerror(errno));
-    int opened = !rc && !(rc = open_stream(S));
+    int opened = !rc && !(rc = crom_viewer_stream_open(&S->in, S->path[0], S->cub[0].model_id, S->r, &S->fq, S->fld));
     S->q = calloc((size_t)S->r + 1, sizeof *S->q);
     S->q_in = calloc((size_t)S->r + 1, sizeof *S->q_in);
     if (!rc && (!S->q || !S->q_in))

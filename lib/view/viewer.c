@@ -213,3 +213,130 @@ int crom_viewer_check(const crom_mesh *m, const char *line, const char *const *o
         return crom_err(CROM_EUSAGE, "command too long");
     return 0;
 }
+
+/* s as a JSON string at b + n (quotes included); returns the new length,
+ * or cap when it does not fit */
+static size_t json_str(char *b, size_t n, size_t cap, const char *s)
+{
+    if (n + 2 >= cap)
+        return cap;
+    b[n++] = '"';
+    for (; *s; s++) {
+        unsigned char ch = (unsigned char)*s;
+        if (n + 8 >= cap)
+            return cap;
+        if (ch == '"' || ch == '\\') {
+            b[n++] = '\\';
+            b[n++] = (char)ch;
+        } else if (ch < 0x20)
+            n += (size_t)snprintf(b + n, cap - n, "\\u%04x", ch);
+        else
+            b[n++] = (char)ch;
+    }
+    b[n++] = '"';
+    b[n] = 0;
+    return n;
+}
+
+int crom_viewer_hello(char *buf, size_t cap, const char *cub, const char *model_id, int r, int nv,
+                      const char *const *offers, int noffers)
+{
+    size_t n = (size_t)snprintf(buf, cap, "{\"cubature\":");
+    n = json_str(buf, n, cap, cub);
+    if (n < cap)
+        n += (size_t)snprintf(buf + n, cap - n, ",\"model\":");
+    if (n < cap)
+        n = json_str(buf, n, cap, model_id);
+    if (n < cap)
+        n += (size_t)snprintf(buf + n, cap - n, ",\"rank\":%d,\"vertices\":%d,\"offers\":[", r, nv);
+    for (int i = 0; i < noffers && n < cap; i++) {
+        if (i && n + 1 < cap)
+            buf[n++] = ',';
+        n = json_str(buf, n, cap, offers[i]);
+    }
+    if (n < cap)
+        n += (size_t)snprintf(buf + n, cap - n, "]}");
+    if (n >= cap)
+        return crom_err(CROM_EUSAGE, "the cubatures' paths are too long for the page's greeting");
+    return 0;
+}
+
+void crom_viewer_switches_init(crom_viewer_switches *w)
+{
+    memset(w, 0, sizeof *w);
+    w->nas = 1; /* the stream's cubature 0 is the first offer */
+}
+
+int crom_viewer_switch_passed(crom_viewer_switches *w, int o, long seq)
+{
+    if (w->npend == CROM_VIEWER_SWITCHES)
+        return crom_err(CROM_EUSAGE, "too many switches under way");
+    w->pend[w->npend] = o;
+    w->pend_seq[w->npend++] = seq;
+    return 0;
+}
+
+static void pop(crom_viewer_switches *w)
+{
+    w->npend--;
+    memmove(w->pend, w->pend + 1, sizeof *w->pend * (size_t)w->npend);
+    memmove(w->pend_seq, w->pend_seq + 1, sizeof *w->pend_seq * (size_t)w->npend);
+}
+
+int crom_viewer_switch_frame(crom_viewer_switches *w, int k, long seq, int *refused, int *nrefused)
+{
+    *nrefused = 0;
+    int cap = (int)(sizeof w->as / sizeof *w->as);
+    while (k >= w->nas && w->npend && w->nas < cap) { /* a switch the run took */
+        w->as[w->nas++] = w->pend[0];
+        pop(w);
+    }
+    while (w->npend && seq > w->pend_seq[0] + CROM_VIEWER_SWITCH_FRAMES) { /* one it refused */
+        refused[(*nrefused)++] = w->pend[0];
+        pop(w);
+    }
+    return k >= 0 && k < w->nas ? w->as[k] : -1;
+}
+
+void crom_viewer_drags_note(crom_viewer_drags *d, const crom_live_cmd *c)
+{
+    int i = 0;
+    while (i < d->n && strcmp(d->ref[i], c->ref))
+        i++;
+    if (c->kind == CROM_LIVE_DRAG && i == d->n && d->n < 8)
+        snprintf(d->ref[d->n++], sizeof d->ref[0], "%s", c->ref);
+    else if (c->kind == CROM_LIVE_RELEASE && !c->ref[0])
+        d->n = 0;
+    else if (c->kind == CROM_LIVE_RELEASE && i < d->n) {
+        d->n--;
+        memmove(d->ref[i], d->ref[i + 1], sizeof d->ref[0] * (size_t)(d->n - i));
+    }
+}
+
+int crom_viewer_stream_open(crom_in *in, const char *cub, const char *model_id, int r, int *fq, int *fld)
+{
+    int rc = crom_in_open(in, NULL);
+    if (rc)
+        return rc;
+    rc = crom_in_expect(in, "crom/latent", 1);
+    char *id = NULL;
+    if (!rc && (rc = crom_h5_get_str(in->h5, ".", "model_id", &id)) == 0 && strcmp(id, model_id))
+        rc = crom_err(CROM_EDATA, "stdin: a run of model %s, %s is of model %s", id, cub, model_id);
+    free(id);
+    if (!rc && in->form != CROM_IO_STREAM)
+        rc = crom_err(CROM_EUSAGE, "stdin: an HDF5 file; crom-view shows a live run's frame stream (crom-live | crom-view)");
+    if (!rc && (*fq = crom_in_field(in, "q")) < 0)
+        rc = CROM_EDATA;
+    if (!rc && in->fields[*fq].count != (size_t)r)
+        rc = crom_err(CROM_EDATA, "stdin: q has %zu numbers, the model's rank is %d", in->fields[*fq].count, r);
+    static const char *const names[CROM_VIEWER_NFIELDS] = {"time", "step", "wall_time", "late", "cubature", "commands"};
+    for (int i = 0; !rc && i < CROM_VIEWER_NFIELDS; i++) {
+        fld[i] = crom_in_field(in, names[i]);
+        crom_err_clear(); /* (all but time may be absent) */
+    }
+    if (!rc && fld[0] < 0)
+        rc = crom_err(CROM_EDATA, "stdin: frames without time");
+    if (rc)
+        crom_in_close(in);
+    return rc;
+}

@@ -31,6 +31,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "io/io.h"
 #include "rom/cubature.h"
 #include "rom/live.h"
 
@@ -79,5 +80,52 @@ size_t crom_viewer_frame_msg(unsigned char *buf, int r, const crom_viewer_frame 
  * message (kind NONE: nothing to pass on, returns 0 with out empty). */
 int crom_viewer_check(const crom_mesh *m, const char *line, const char *const *offered, int noffered,
                       crom_live_cmd *c, char *out, size_t cap);
+
+/* A live run's frame stream on stdin (crom-live | crom-view): a crom/latent
+ * stream of model model_id (that of cubature cub, named in messages) and
+ * rank r. *fq gets q's field, fld [CROM_VIEWER_NFIELDS] the fields time,
+ * step, wall_time, late, cubature, commands (-1 for those absent; time must
+ * be there). Returns 0 or an error with a message, in closed then. */
+#define CROM_VIEWER_NFIELDS 6
+int crom_viewer_stream_open(crom_in *in, const char *cub, const char *model_id, int r, int *fq, int *fld);
+
+/* The page's greeting, a JSON object: {"cubature": PATH, "model": ID,
+ * "rank": r, "vertices": nv, "offers": [PATH, ...]} (strings escaped).
+ * Returns 0 or CROM_EUSAGE when it does not fit in cap bytes. */
+int crom_viewer_hello(char *buf, size_t cap, const char *cub, const char *model_id, int r, int nv,
+                      const char *const *offers, int noffers);
+
+/* Which cubature a frame is on. crom-live numbers the cubatures of a run
+ * in the order it loads them (0 the first, then each 'schedule' it
+ * accepts) and the stream's `cubature` field says which; a viewer knows
+ * the switches it passed on, not which the run accepted. A switch passed
+ * on is taken when a frame shows the next number, and dropped as refused
+ * when CROM_VIEWER_SWITCH_FRAMES frames have gone by without it. */
+#define CROM_VIEWER_SWITCH_FRAMES 30
+#define CROM_VIEWER_SWITCHES 8
+typedef struct {
+    int as[64], nas;                  /* the stream's cubature k is offer as[k] (offer 0: the first) */
+    int pend[CROM_VIEWER_SWITCHES], npend;
+    long pend_seq[CROM_VIEWER_SWITCHES];
+} crom_viewer_switches;
+
+void crom_viewer_switches_init(crom_viewer_switches *w);
+/* A switch to offer o passed on at frame seq. CROM_EUSAGE (with a
+ * message) when CROM_VIEWER_SWITCHES are already under way. */
+int crom_viewer_switch_passed(crom_viewer_switches *w, int o, long seq);
+/* Frame seq shows the stream's cubature k: returns the offer it is (-1
+ * unknown); refused [CROM_VIEWER_SWITCHES] gets the offers whose switch
+ * was dropped, *nrefused how many. */
+int crom_viewer_switch_frame(crom_viewer_switches *w, int k, long seq, int *refused, int *nrefused);
+
+/* What one page drags (released for it when it goes). */
+typedef struct {
+    char ref[8][128];
+    int n;
+} crom_viewer_drags;
+
+/* Note command c (passed on for the page): a drag adds its reference
+ * (while there is room), a release removes its own or, without one, all. */
+void crom_viewer_drags_note(crom_viewer_drags *d, const crom_live_cmd *c);
 
 #endif

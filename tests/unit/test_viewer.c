@@ -8,7 +8,11 @@
  *     rounding (1e-6 relative), and the frame message holds q exactly;
  *   - a page's command is passed on normalized so that crom_live_parse
  *     reads back the very same numbers; step, quit, an unoffered schedule,
- *     a region or vertex not on the mesh, NaN are refused with a message. */
+ *     a region or vertex not on the mesh, NaN are refused with a message;
+ *   - the greeting escapes its strings and refuses what does not fit; a
+ *     switch passed on is taken by the frame that shows the next cubature
+ *     number and dropped after CROM_VIEWER_SWITCH_FRAMES frames without it;
+ *     a page's drags are forgotten by their releases. */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -162,10 +166,57 @@ static void test_check(void)
     crom_mesh_free(&m);
 }
 
+static void test_bookkeeping(void)
+{
+    char b[256];
+    const char *offers[] = {"a\"b.h5", "c\\d\n.h5"};
+    CHECK(crom_viewer_hello(b, sizeof b, "x.h5", "0123abcd", 20, 99, offers, 2) == 0);
+    CHECK_MSG(!strcmp(b, "{\"cubature\":\"x.h5\",\"model\":\"0123abcd\",\"rank\":20,\"vertices\":99,"
+                         "\"offers\":[\"a\\\"b.h5\",\"c\\\\d\\u000a.h5\"]}"), "greeting: %s", b);
+    for (size_t cap = 1; cap < strlen(b) + 1; cap += 7) {
+        char t[256];
+        CHECK_MSG(crom_viewer_hello(t, cap, "x.h5", "0123abcd", 20, 99, offers, 2) == CROM_EUSAGE, "cap %zu", cap);
+    }
+    crom_err_clear();
+
+    crom_viewer_switches w;
+    int ref[CROM_VIEWER_SWITCHES], nref;
+    crom_viewer_switches_init(&w);
+    CHECK(crom_viewer_switch_frame(&w, 0, 1, ref, &nref) == 0 && nref == 0);
+    CHECK(crom_viewer_switch_frame(&w, 1, 2, ref, &nref) == -1); /* a number nobody asked for */
+    CHECK(crom_viewer_switch_passed(&w, 2, 10) == 0);
+    CHECK(crom_viewer_switch_frame(&w, 0, 11, ref, &nref) == 0 && nref == 0); /* not yet */
+    CHECK(crom_viewer_switch_frame(&w, 1, 12, ref, &nref) == 2 && nref == 0); /* taken */
+    CHECK(crom_viewer_switch_passed(&w, 3, 20) == 0);                       /* refused by the run */
+    CHECK(crom_viewer_switch_frame(&w, 1, 20 + CROM_VIEWER_SWITCH_FRAMES, ref, &nref) == 2 && nref == 0);
+    CHECK(crom_viewer_switch_frame(&w, 1, 21 + CROM_VIEWER_SWITCH_FRAMES, ref, &nref) == 2 && nref == 1 &&
+          ref[0] == 3);
+    CHECK(crom_viewer_switch_passed(&w, 1, 60) == 0 && crom_viewer_switch_passed(&w, 0, 60) == 0);
+    CHECK(crom_viewer_switch_frame(&w, 3, 61, ref, &nref) == 0 && nref == 0); /* both taken at once */
+    CHECK(crom_viewer_switch_frame(&w, 2, 62, ref, &nref) == 1 && w.npend == 0);
+    for (int i = 0; i < CROM_VIEWER_SWITCHES; i++)
+        CHECK(crom_viewer_switch_passed(&w, 1, 70) == 0);
+    CHECK(crom_viewer_switch_passed(&w, 1, 70) == CROM_EUSAGE);
+    crom_err_clear();
+
+    crom_viewer_drags d = {0};
+    crom_live_cmd c;
+    const char *lines[] = {"drag #3 0,0,0", "drag top 0,0,0", "drag #3 1,1,1", "release #3", "force top 1,0,0"};
+    for (size_t i = 0; i < sizeof lines / sizeof *lines; i++) {
+        CHECK(crom_live_parse(lines[i], &c) == 0);
+        crom_viewer_drags_note(&d, &c);
+    }
+    CHECK(d.n == 1 && !strcmp(d.ref[0], "top"));
+    CHECK(crom_live_parse("release", &c) == 0);
+    crom_viewer_drags_note(&d, &c);
+    CHECK(d.n == 0);
+}
+
 int main(void)
 {
     check_name = "viewer";
     test_surface();
     test_check();
+    test_bookkeeping();
     return check_done();
 }
