@@ -29,7 +29,7 @@ enum { O_CUB = 300, O_OFFER, O_PORT, O_CMDS };
 
 static const crom_opt view_opts[] = {
     {"cubature", O_CUB, "CUB", "The cubature crom-live runs on (required): the surface the page draws and decodes."},
-    {"offer", O_OFFER, "CUB", "Offer CUB, another cubature of the same model (a cut, punched or swapped mesh), as a button on the page that switches the run to it (crom-live's 'schedule CUB'); repeatable. A page can switch only to these."},
+    {"offer", O_OFFER, "CUB", "Offer CUB, another cubature of the same model (a cut, punched or swapped mesh), as a button on the page that switches the run to it (crom-live's 'schedule CUB'); repeatable. A page can switch only to these and back to --cubature."},
     {"port", O_PORT, "N", "Serve on 127.0.0.1:N (default 8780; 0: a free port). Only the loopback interface listens."},
     {"commands", O_CMDS, "FILE", "Write the page's commands to FILE, a FIFO that crom-live --commands reads (default: stdout)."},
     {NULL, 0, NULL, NULL}};
@@ -48,7 +48,7 @@ static const crom_cli_doc doc = {
     "drag elsewhere turns the view, the wheel zooms.\n\n"
     "Every command a page sends is checked before it goes on to crom-live (a known command with finite "
     "numbers, a region, predicate or vertex of the mesh in use; 'step' and 'quit' are the run's, and "
-    "'schedule' only to an --offer'ed cubature); a bad one is answered 'error: ...' on that page, logged on "
+    "'schedule' only to an --offer'ed cubature or back to --cubature); a bad one is answered 'error: ...' on that page, logged on "
     "stderr, and never reaches the run. A page that goes away has its drags released. WebSocket "
     "connections from pages of other origins are refused.\n\n"
     "Pages report what they measure: crom-view prints, per page, the frames drawn, the median time to "
@@ -190,10 +190,8 @@ static void page_line(server *S, client *c, const char *line)
     }
     crom_live_cmd k;
     char out[320];
-    const char *offers[MAXOFFER];
-    for (int i = 1; i < S->ncub; i++)
-        offers[i - 1] = S->path[i];
-    int rc = crom_viewer_check(&S->cub[S->shown].mesh, line, offers, S->ncub - 1, &k, out, sizeof out);
+    /* (a page may switch to any of them, back to the first too) */
+    int rc = crom_viewer_check(&S->cub[S->shown].mesh, line, S->path, S->ncub, &k, out, sizeof out);
     if (rc) {
         crom_cli_warn(S->cli, "page %d: %s", c->id, crom_errmsg());
         reply(c, "error: %s%s", crom_errmsg(), "");
@@ -202,7 +200,7 @@ static void page_line(server *S, client *c, const char *line)
     }
     if (!out[0])
         return;
-    int o = 1;
+    int o = 0;
     while (k.kind == CROM_LIVE_SCHEDULE && strcmp(S->path[o], k.ref))
         o++;
     if (k.kind == CROM_LIVE_SCHEDULE && crom_viewer_switch_passed(&S->sw, o, S->seq)) {
@@ -283,8 +281,8 @@ static int write_client(server *S, client *c)
             lws_callback_on_writable(c->wsi);
             return 0;
         }
-        crom_viewer_frame f = {S->v[1], S->v[0], S->v[2], S->v[5], (int)S->v[4], (int)S->v[3], S->q};
-        f.cubature = (int)S->v[4];
+        /* (cubature: the surface's index, the offered cubature, as in its SURF message) */
+        crom_viewer_frame f = {S->v[1], S->v[0], S->v[2], S->v[5], S->shown, (int)S->v[3], S->q};
         size_t len = crom_viewer_frame_msg(p, S->r, &f);
         c->seq = S->seq;
         n = lws_write(c->wsi, p, len, LWS_WRITE_BINARY);
@@ -482,7 +480,7 @@ static int load(server *S, const args *a)
     S->r = S->cub[0].r;
     crom_viewer_switches_init(&S->sw);
     return crom_viewer_hello(S->hello, sizeof S->hello, a->cub, S->cub[0].model_id, S->r, S->cub[0].mesh.nv,
-                             S->path + 1, S->ncub - 1);
+                             S->path, S->ncub);
 }
 
 static int serve(server *S, const args *a)

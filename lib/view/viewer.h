@@ -12,13 +12,13 @@
  * Messages (WebSocket binary, little-endian; a text message is a command
  * line or "error: ..."):
  *
- *   surface  "SURF" u32 index (the cubature, as the stream's `cubature`
- *            field counts them), u32 ns, u32 nt, u32 r, f32 lo[3], f32
+ *   surface  "SURF" u32 index (the cubature: 0 the run's first, i the
+ *            viewer's i-th offered one), u32 ns, u32 nt, u32 r, f32 lo[3], f32
  *            hi[3] (the rest bounding box), f32 X[ns][3], f32 W[ns][3][r],
  *            u32 tri[nt][3] (into the ns vertices), i32 vid[ns] (each
  *            surface vertex's index in the mesh: "#vid" names it in a
  *            command)
- *   frame    "FRAM" u32 r, u32 cubature, u32 late, f64 step, f64 time, f64
+ *   frame    "FRAM" u32 r, u32 cubature (the index of its surface), u32 late, f64 step, f64 time, f64
  *            wall_time, f64 q[r] (from byte 40), f64 commands (the
  *            command lines the run had read before the frame's step)
  *
@@ -90,7 +90,8 @@ int crom_viewer_check(const crom_mesh *m, const char *line, const char *const *o
 int crom_viewer_stream_open(crom_in *in, const char *cub, const char *model_id, int r, int *fq, int *fld);
 
 /* The page's greeting, a JSON object: {"cubature": PATH, "model": ID,
- * "rank": r, "vertices": nv, "offers": [PATH, ...]} (strings escaped).
+ * "rank": r, "vertices": nv, "offers": [PATH, ...]} (strings escaped; the
+ * offers are the cubatures a page may switch to, offer i is SURF index i).
  * Returns 0 or CROM_EUSAGE when it does not fit in cap bytes. */
 int crom_viewer_hello(char *buf, size_t cap, const char *cub, const char *model_id, int r, int nv,
                       const char *const *offers, int noffers);

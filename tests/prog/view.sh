@@ -102,6 +102,14 @@ else
   echo "view: browser part skipped under the sanitizers"
 fi
 
+# ---- Ctrl-C to the run alone: it ends its stream, crom-view follows; both 0
+start
+sleep 0.3
+kill -INT $LIVE
+rl=0; wait $LIVE || rl=$?; rv=0; wait $VIEW || rv=$?
+[ $rl -eq 0 ] && [ $rv -eq 0 ] || fail "SIGINT to crom-live: it exited $rl, crom-view $rv: $(cat live.err view.err)"
+grep -q 'the run ended after [0-9]* frames' view.err || fail "no closing line: $(cat view.err)"; ok
+
 # ---- a run that dies: one line, non-zero
 start
 sleep 0.3

@@ -125,10 +125,10 @@ async def ws_test(port, vid, k):
               % (vid, d2, math.dist(x2, target)))
         if not d2 < 0.5 * math.dist(x0, target):
             fail("the drag of a page that went away was not released")
-        if not hello["offers"]:
+        if len(hello["offers"]) < 2:
             return
         # switch the run to an offered cubature: the page gets its surface, then its frames
-        await ws.send("schedule " + hello["offers"][0])
+        await ws.send("schedule " + hello["offers"][1])
         t0, s2, after = time.time(), None, 0
         while time.time() - t0 < 3 and after < 10:
             m = await ws.recv()
@@ -141,9 +141,23 @@ async def ws_test(port, vid, k):
         if not s2 or after < 10:
             fail("schedule: no new surface or no frames on it")
         print("schedule %s: surface %d (%d vertices, %d triangles, was %d, %d), %d frames on it" %
-              (hello["offers"][0], s2["index"], s2["ns"], s2["nt"], s["ns"], s["nt"], after))
+              (hello["offers"][1], s2["index"], s2["ns"], s2["nt"], s["ns"], s["nt"], after))
         if s2["index"] != 1 or s2["nt"] == s["nt"]:
             fail("schedule: the surface did not change")
+        # and back to the first: the run loads it again as its third cubature, the page's index is 0
+        await ws.send("schedule " + hello["offers"][0])
+        t0, s3, after = time.time(), None, 0
+        while time.time() - t0 < 3 and after < 10:
+            m = await ws.recv()
+            if isinstance(m, str):
+                continue
+            if m[:4] == b"SURF":
+                s3 = parse_surface(m)
+            elif s3 and parse_frame(m)["cubature"] == s3["index"]:
+                after += 1
+        if not s3 or after < 10 or s3["index"] != 0 or s3["nt"] != s["nt"]:
+            fail("schedule back to the first cubature: %s, %d frames" % (s3 and s3["index"], after))
+        print("schedule %s: back on surface 0, %d frames on it" % (hello["offers"][0], after))
 
 
 # ---------------------------------------------------------------- WebDriver
