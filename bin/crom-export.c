@@ -433,8 +433,11 @@ static int run(crom_cli *cli, args *a)
     int known = 0;
     if (!strcmp(a->format, "vtu") || !strcmp(a->format, "pvd") || !strcmp(a->format, "xdmf")) {
         cp = &cells;
-        if (!(rc = crom_export_material(&mat, &known, &s.res[0].in, a->youngs, a->poisson)) && known)
+        if (!(rc = crom_export_material(&mat, &known, &s.res[0].in, a->youngs, a->poisson)) && known > 0)
             cells.mat = &mat;
+        else if (!rc && known < 0)
+            crom_cli_info(cli, "%s has regions of other materials: cell data without energy_density and "
+                          "von_mises_stress (one material for all is --youngs E --poisson NU)", s.res[0].in.name);
         else if (!rc)
             crom_cli_info(cli, "%s records no material: cell data without energy_density%s (give --youngs and "
                           "--poisson)", s.res[0].in.name,

@@ -188,6 +188,8 @@ static int run_equilibria(crom_cli *cli, args *a, crom_mesh *m, char *hist)
     int rc = crom_modes_scenario_pins(m, sc, &fixed, &npinned);
     if (!rc)
         rc = crom_system_init(&sys, m, sc->youngs, sc->poisson, sc->density);
+    if (!rc)
+        rc = crom_system_set_materials(&sys, sc, m);
     if (!rc && (rc = crom_model_load(a->equilibria, &model)))
         crom_err_ctx("--equilibria");
     if (!rc && (rc = crom_equil_modes(&model, m, &map, &W)))

@@ -314,5 +314,7 @@ int main(int argc, char **argv)
     crom_scenario_defaults(&a.sc);
     a.threshold = 0.01;
     crom_cli_parse(&cli, &doc, argc, argv, on_opt, &a);
+    if (crom_scenario_uniform(&a.sc, "crom-metrics"))
+        return crom_cli_exit(&cli, CROM_EUSAGE);
     return crom_cli_exit(&cli, run(&cli, &a));
 }

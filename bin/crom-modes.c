@@ -336,5 +336,7 @@ int main(int argc, char **argv)
     crom_modes_defaults(&a.mo);
     split_scenario_opts();
     crom_cli_parse(&cli, &doc, argc, argv, on_opt, &a);
+    if (crom_scenario_uniform(&a.sc, "crom-modes"))
+        return crom_cli_exit(&cli, CROM_EUSAGE);
     return crom_cli_exit(&cli, run(&cli, &a));
 }

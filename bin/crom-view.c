@@ -184,6 +184,8 @@ static void page_line(server *S, client *c, const char *line)
 {
     if (!strncmp(line, "stats ", 6)) {
         snprintf(c->stats, sizeof c->stats, "%s", line + 6);
+        for (char *p = c->stats; *p; p++) /* (a page's text on our terminal: printable only) */
+            *p = *p < 0x20 || *p == 0x7f ? '?' : *p;
         if (S->cli->verbose > 1)
             crom_cli_info(S->cli, "page %d: %s", c->id, c->stats);
         return;

@@ -91,7 +91,7 @@ int crom_dfloss_tets(const crom_fem *fem, int K, const int *tets, double wK, con
             for (int d = 0; d < 3; d++)
                 xe[3 * a + d] = X ? X[3 * (size_t)v + d] + u[3 * (size_t)l[a] + d] : u[3 * (size_t)l[a] + d];
         }
-        if (crom_fem_tet_eval(&fem->mat, xe, fem->Dminv + 9 * (size_t)tt, fem->vol[tt], 0, &Ee, ge, NULL)) {
+        if (crom_fem_tet_eval(crom_fem_tet_material(fem, tt), xe, fem->Dminv + 9 * (size_t)tt, fem->vol[tt], 0, &Ee, ge, NULL)) {
             bad = 1;
             break;
         }

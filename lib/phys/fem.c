@@ -1021,6 +1021,20 @@ static int build_colors(crom_fem *fem)
     return CROM_OK;
 }
 
+int crom_fem_set_materials(crom_fem *fem, const crom_material *mats, int nmat, const int *tmat)
+{
+    for (int k = 0; tmat && k < nmat; k++)
+        if (mats[k].rho != fem->mat.rho)
+            return crom_err(CROM_EUSAGE, "material %d has density %g, the body %g: regions of other materials share "
+                            "the body's density", k, mats[k].rho, fem->mat.rho);
+    for (int t = 0; tmat && t < fem->nt; t++)
+        if (tmat[t] < 0 || tmat[t] >= nmat)
+            return crom_err(CROM_EUSAGE, "tet %d: material %d of %d", t, tmat[t], nmat);
+    fem->mats = tmat ? mats : NULL;
+    fem->tmat = tmat;
+    return 0;
+}
+
 int crom_fem_init(crom_fem *fem, const crom_mesh *mesh, const crom_material *mat)
 {
     memset(fem, 0, sizeof *fem);
@@ -1110,7 +1124,7 @@ static inline int assemble_tet(const crom_fem *fem, const double *x, int t,
 {
     double xe[12], g[12], Hup[NUP], E;
     crom_fem_tet_positions(fem, x, t, xe);
-    double J = tet_kernel(&fem->mat, xe, fem->Dminv + 9 * (size_t)t, fem->vol[t],
+    double J = tet_kernel(crom_fem_tet_material(fem, t), xe, fem->Dminv + 9 * (size_t)t, fem->vol[t],
                           project, &E, grad ? g : NULL, Hval ? Hup : NULL);
     double sum = E;
     if (grad)
@@ -1268,7 +1282,7 @@ int crom_fem_tet_energies(const crom_fem *fem, const double *x, const int *idx,
         int t = idx ? idx[i] : i;
         double xe[12];
         crom_fem_tet_positions(fem, x, t, xe);
-        out[i] = crom_fem_tet_energy(&fem->mat, xe, fem->Dminv + 9 * (size_t)t,
+        out[i] = crom_fem_tet_energy(crom_fem_tet_material(fem, t), xe, fem->Dminv + 9 * (size_t)t,
                                      fem->vol[t]);
         if (!isfinite(out[i]))
             return crom_err(CROM_EDATA, "non-finite elastic energy at tet %d", t);

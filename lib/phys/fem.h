@@ -102,6 +102,8 @@ int crom_fem_tet_measures(const crom_mesh *mesh, const double *u, const crom_mat
 typedef struct {
     int nv, nt;
     crom_material mat;
+    const crom_material *mats; /* regions of other materials (crom_fem_set_materials; borrowed): */
+    const int *tmat;           /* [nt] tet t's material is mats[tmat[t]]; NULL: mat for all */
     int *tets;       /* [nt][4] copy of the mesh's tets */
     double *Dminv;   /* [nt][9] rest-shape inverses */
     double *vol;     /* [nt] rest volumes (m³) */
@@ -134,6 +136,18 @@ typedef struct {
     const unsigned char *fixed; /* [3nv] nonzero = Dirichlet DOF, or NULL */
     int nthreads;             /* 0: OpenMP default, 1: serial, k: k threads */
 } crom_fem_opts;
+
+/* The material of tet t. */
+static inline const crom_material *crom_fem_tet_material(const crom_fem *fem, int t)
+{
+    return fem->tmat ? &fem->mats[fem->tmat[t]] : &fem->mat;
+}
+
+/* Regions of other materials (scenario.h crom_scenario_materials): tet t
+ * takes mats[tmat[t]] (both borrowed, kept until the operator is freed;
+ * NULL tmat: the material of init for all). Every material must have the
+ * density of init's (the lumped masses stay). Returns 0 or CROM_EUSAGE. */
+int crom_fem_set_materials(crom_fem *fem, const crom_material *mats, int nmat, const int *tmat);
 
 /* Build the operator from a mesh and a material: rest shapes, volumes,
  * lumped masses, Hessian pattern, scatter map and colouring. Returns

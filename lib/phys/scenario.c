@@ -20,8 +20,8 @@ enum {
 };
 
 const crom_opt crom_scenario_opts[] = {
-    {"youngs", SC_YOUNGS, "E", "Young's modulus in Pa (default 2.5e6, LiCROM Table 1)."},
-    {"poisson", SC_POISSON, "NU", "Poisson ratio in (-1, 0.5) (default 0.25)."},
+    {"youngs", SC_YOUNGS, "[REGION=]E", "Young's modulus in Pa (default 2.5e6, LiCROM Table 1). With REGION=, the modulus of the tets whose four corners are in REGION (repeatable: regions of other materials; where they overlap the last given wins; crom-fullsim, crom-reducedstep and crom-live)."},
+    {"poisson", SC_POISSON, "[REGION=]NU", "Poisson ratio in (-1, 0.5) (default 0.25). With REGION=, that of the tets of REGION, as --youngs REGION=E."},
     {"density", SC_DENSITY, "RHO", "Density in kg/m^3 (default 1000)."},
     {"dt", SC_DT, "H", "Time step in s (default 0.01)."},
     {"steps", SC_STEPS, "N", "Number of time steps (default 100)."},
@@ -94,14 +94,54 @@ static int check_ref(const char *flag, const char *ref, size_t len)
     return 0;
 }
 
+/* --youngs REGION=E, --poisson REGION=NU: a region of another material
+ * (the value after the last '=', so a predicate may hold one) */
+static int parse_material(crom_scenario *s, int key, const char *v)
+{
+    const char *flag = key == SC_YOUNGS ? "--youngs" : "--poisson", *eq = strrchr(v, '=');
+    size_t len = (size_t)(eq - v);
+    if (!len || len >= sizeof s->mat[0].ref)
+        return crom_err(CROM_EUSAGE, "%s: empty or too long region in '%s'", flag, v);
+    if (check_ref(flag, v, len))
+        return CROM_EUSAGE;
+    double x;
+    if (crom_parse_double(eq + 1, flag, &x))
+        return CROM_EUSAGE;
+    if (key == SC_YOUNGS && !(x > 0 && x <= 1e13))
+        return crom_err(CROM_EUSAGE, "%s %.*s=: a positive modulus in Pa, got %g (allowed (0, 1e13])", flag,
+                        (int)len, v, x);
+    if (key == SC_POISSON && !(x > -1 && x < 0.5))
+        return crom_err(CROM_EUSAGE, "%s %.*s=: must be in (-1, 0.5), got %g", flag, (int)len, v, x);
+    int i = 0;
+    while (i < s->nmat && (strlen(s->mat[i].ref) != len || strncmp(s->mat[i].ref, v, len)))
+        i++;
+    if (i == s->nmat) {
+        if (s->nmat == CROM_SCENARIO_MAX)
+            return crom_err(CROM_EUSAGE, "%s: at most %d regions of other materials", flag, CROM_SCENARIO_MAX);
+        memcpy(s->mat[i].ref, v, len);
+        s->mat[i].ref[len] = 0;
+        s->mat[i].youngs = s->mat[i].poisson = NAN;
+        s->nmat++;
+    }
+    if (key == SC_YOUNGS)
+        s->mat[i].youngs = x;
+    else
+        s->mat[i].poisson = x;
+    return 0;
+}
+
 static int parse_option(crom_scenario *s, int key, const char *v)
 {
     long n;
     double d[5];
     int k;
     switch (key) {
-    case SC_YOUNGS: return crom_parse_double(v, "--youngs", &s->youngs);
-    case SC_POISSON: return crom_parse_double(v, "--poisson", &s->poisson);
+    case SC_YOUNGS:
+    case SC_POISSON:
+        if (strchr(v, '='))
+            return parse_material(s, key, v);
+        return crom_parse_double(v, key == SC_YOUNGS ? "--youngs" : "--poisson",
+                                 key == SC_YOUNGS ? &s->youngs : &s->poisson);
     case SC_DENSITY: return crom_parse_double(v, "--density", &s->density);
     case SC_DT: return crom_parse_positive(v, "--dt", &s->dt);
     case SC_STEPS:
@@ -327,6 +367,12 @@ char *crom_scenario_text(const crom_scenario *s)
     size_t l = 0, c = 0;
     appendf(&b, &l, &c, "--youngs %.17g\n--poisson %.17g\n--density %.17g\n", s->youngs,
             s->poisson, s->density);
+    for (int i = 0; i < s->nmat; i++) {
+        if (!isnan(s->mat[i].youngs))
+            appendf(&b, &l, &c, "--youngs %s=%.17g\n", s->mat[i].ref, s->mat[i].youngs);
+        if (!isnan(s->mat[i].poisson))
+            appendf(&b, &l, &c, "--poisson %s=%.17g\n", s->mat[i].ref, s->mat[i].poisson);
+    }
     appendf(&b, &l, &c, "--dt %.17g\n--steps %d\n--every %d\n", s->dt, s->steps, s->every);
     appendf(&b, &l, &c, "--gravity %.17g,%.17g,%.17g\n", s->gravity[0], s->gravity[1], s->gravity[2]);
     for (int i = 0; i < s->npins; i++)
@@ -459,4 +505,66 @@ int crom_scenario_write_attrs(hid_t h, const crom_scenario *s)
     if (!rc)
         rc = crom_h5_set_f64(h, ".", "tolerance", &s->tol, 1);
     return rc;
+}
+
+int crom_scenario_materials(const crom_scenario *s, const crom_mesh *m, crom_material *mats, int *nmat, int **tmat)
+{
+    *nmat = 1;
+    *tmat = NULL;
+    int rc = crom_material_init(&mats[0], s->youngs, s->poisson, s->density);
+    if (rc || !s->nmat)
+        return rc;
+    if (crom_mesh_is_surface(m) || crom_mesh_is_scene(m))
+        return crom_err(CROM_EUSAGE, "--youngs/--poisson %s=: regions of other materials are for tet meshes; this one "
+                        "is a %s", s->mat[0].ref, crom_mesh_is_surface(m) ? "shell" : "rigid-body scene");
+    int *t = crom_calloc((size_t)m->nt, sizeof *t);
+    unsigned char *in = crom_malloc((size_t)(m->nv ? m->nv : 1));
+    if (!t || !in) {
+        free(t);
+        free(in);
+        return CROM_EINTERNAL;
+    }
+    for (int k = 0; !rc && k < s->nmat; k++) {
+        const crom_scenario_material *o = &s->mat[k];
+        double E = isnan(o->youngs) ? s->youngs : o->youngs, nu = isnan(o->poisson) ? s->poisson : o->poisson;
+        if ((rc = crom_material_init(&mats[k + 1], E, nu, s->density))) {
+            crom_err(rc, "region '%s': %s", o->ref, crom_errmsg());
+            break;
+        }
+        int *idx = NULL, n = 0;
+        if ((rc = crom_mesh_select(m, o->ref, &idx, &n)))
+            break;
+        memset(in, 0, (size_t)m->nv);
+        for (int i = 0; i < n; i++)
+            in[idx[i]] = 1;
+        free(idx);
+        int whole = 0;
+        for (int e = 0; e < m->nt; e++) {
+            const int *v = m->tets + 4 * (size_t)e;
+            if (in[v[0]] && in[v[1]] && in[v[2]] && in[v[3]]) {
+                t[e] = k + 1;
+                whole++;
+            }
+        }
+        if (!whole)
+            rc = crom_err(CROM_EUSAGE, "region '%s' (%d vertices) holds no whole tet: it can have no material of its "
+                          "own", o->ref, n);
+    }
+    free(in);
+    if (rc) {
+        free(t);
+        return rc;
+    }
+    *nmat = s->nmat + 1;
+    *tmat = t;
+    return 0;
+}
+
+int crom_scenario_uniform(const crom_scenario *s, const char *prog)
+{
+    if (!s->nmat)
+        return 0;
+    return crom_err(CROM_EUSAGE, "--%s %s=: %s takes one material for the whole body (regions of other materials: "
+                    "crom-fullsim, crom-reducedstep, crom-live)", isnan(s->mat[0].youngs) ? "poisson" : "youngs",
+                    s->mat[0].ref, prog);
 }

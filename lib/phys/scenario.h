@@ -14,11 +14,21 @@
 #include "mesh/mesh.h"
 #include "phys/bc.h"
 #include "phys/contact.h"
+#include "phys/material.h"
 
 #define CROM_SCENARIO_MAX 32 /* pins, velocities, forces, planes: at most this many of each */
 
+/* A region of another material (--youngs REGION=E, --poisson REGION=NU):
+ * the tets whose four corners are all in the region; NaN: the run's. */
+typedef struct {
+    char ref[128];
+    double youngs, poisson;
+} crom_scenario_material;
+
 typedef struct {
     double youngs, poisson, density; /* Pa, 1, kg/m³ */
+    int nmat;
+    crom_scenario_material mat[CROM_SCENARIO_MAX]; /* in the order first given; a later one wins a tet */
     double dt;                       /* s */
     int steps, every;
     double gravity[3];               /* m/s² */
@@ -65,6 +75,21 @@ int crom_scenario_check(const crom_scenario *s);
  * the errors of crom_mesh_select for a region m lacks. What crom_sim_init,
  * crom_rsim_init and crom_nlsim_init check on their meshes. */
 int crom_scenario_check_regions(const crom_scenario *s, const crom_mesh *m);
+
+/* The material of each tet of solid mesh m (material.h): mats [nmat]
+ * (room for CROM_SCENARIO_MAX + 1) gets the run's material (--youngs,
+ * --poisson, --density) as mats[0] and one per region of another material,
+ * *tmat [nt] (malloc'ed) each tet's index into mats: the last region given
+ * that holds its four corners, else 0. Without such regions *nmat = 1 and
+ * *tmat = NULL. Returns 0, or CROM_EUSAGE for a region that is not on the
+ * mesh or holds no whole tet, a bad material, or a shell or scene mesh
+ * (their materials are uniform). */
+/* 0 when the body is of one material; CROM_EUSAGE naming the first
+ * region of another material otherwise (for a program, prog, that does not
+ * take them yet). */
+int crom_scenario_uniform(const crom_scenario *s, const char *prog);
+
+int crom_scenario_materials(const crom_scenario *s, const crom_mesh *m, crom_material *mats, int *nmat, int **tmat);
 
 /* Canonical flag text, one flag per line (malloc'ed). */
 char *crom_scenario_text(const crom_scenario *s);

@@ -66,6 +66,10 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
                         "scenes yet (a scene's vertices are its bodies' frames, not surface points)");
     if ((rc = crom_system_init(&s->sys, mesh, sc->youngs, sc->poisson, sc->density)))
         return rc;
+    if ((rc = crom_system_set_materials(&s->sys, sc, mesh))) {
+        crom_system_free(&s->sys);
+        return rc;
+    }
     s->nv = mesh->nv;
     s->n = 3 * mesh->nv;
     size_t n = (size_t)s->n;

@@ -1,5 +1,6 @@
 /* system.c — a solid or a shell behind one interface (system.h). */
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "base/err.h"
@@ -64,10 +65,34 @@ int crom_system_init(crom_system *s, const crom_mesh *mesh, double E, double nu,
     return CROM_OK;
 }
 
+int crom_system_set_materials(crom_system *s, const crom_scenario *sc, const crom_mesh *mesh)
+{
+    if (!sc->nmat)
+        return 0;
+    crom_material *mats = crom_malloc(sizeof *mats * (CROM_SCENARIO_MAX + 1));
+    int nmat, *tmat = NULL, rc = mats ? crom_scenario_materials(sc, mesh, mats, &nmat, &tmat) : CROM_EINTERNAL;
+    if (!rc && (s->shell || s->rigid || mesh->nt != s->fem.nt))
+        rc = crom_err(CROM_EUSAGE, "regions of other materials are for tet meshes");
+    if (!rc)
+        rc = crom_fem_set_materials(&s->fem, mats, nmat, tmat);
+    if (rc) {
+        free(mats);
+        free(tmat);
+        return rc;
+    }
+    free(s->mats);
+    free(s->tmat);
+    s->mats = mats;
+    s->tmat = tmat;
+    return 0;
+}
+
 void crom_system_free(crom_system *s)
 {
     if (!s)
         return;
+    free(s->mats);
+    free(s->tmat);
     crom_fem_free(&s->fem);
     crom_shell_free(&s->sh);
     crom_rigidsys_free(&s->rb);

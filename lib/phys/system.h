@@ -13,6 +13,7 @@
 #include "mesh/mesh.h"
 #include "phys/fem.h"
 #include "phys/rigidsys.h"
+#include "phys/scenario.h"
 #include "phys/shell.h"
 
 /* the most vertices an energy element joins (a joint between two bodies) */
@@ -32,6 +33,8 @@ typedef struct {
     int nelem, per_elem;  /* elements (tets or triangles) and their vertices (4 or 3); a scene: 0 */
     const int *elem;      /* [nelem][per_elem] */
     int nenergy;          /* energy elements: the tets, or the triangles then the hinges */
+    crom_material *mats;  /* regions of other materials (crom_system_set_materials), owned */
+    int *tmat;
 } crom_system;
 
 /* The system of mesh (borrowed only during the call) with Young's modulus
@@ -42,6 +45,12 @@ typedef struct {
  * crom_rigidsys_init. On failure *s
  * holds nothing to free. */
 int crom_system_init(crom_system *s, const crom_mesh *mesh, double E, double nu, double rho);
+
+/* The regions of other materials of scenario sc (--youngs REGION=E,
+ * --poisson REGION=NU; crom_scenario_materials) on the mesh of s (a
+ * solid's). Nothing to do without such regions. Returns 0 or CROM_EUSAGE
+ * (a region not on the mesh, holding no whole tet; a shell or a scene). */
+int crom_system_set_materials(crom_system *s, const crom_scenario *sc, const crom_mesh *mesh);
 
 /* Release (NULL-safe, idempotent). */
 void crom_system_free(crom_system *s);

@@ -179,14 +179,15 @@ int crom_elastic_eval(crom_elastic *e, const crom_material *mat, const double *q
     all_Gq(e, q);
     for (int t = 0; t < e->k; t++) {
         double F[9], P[9], wV = e->wV[t];
+        const crom_material *m = e->kmat ? e->kmat[t] : mat;
         tet_F(e, t, F);
-        double psi = crom_fem_psi(mat, F);
+        double psi = crom_fem_psi(m, F);
         if (!isfinite(psi))
             return crom_err(CROM_EDATA, "cubature tet %d: non-finite elastic energy", t);
         Et += wV * psi;
         if (g) { /* w V P, laid out as Fq */
             double *Pm = e->Pm + 9 * (size_t)t;
-            crom_fem_pk1(mat, F, P);
+            crom_fem_pk1(m, F, P);
             if (e->block)
                 for (int c = 0; c < 3; c++)
                     for (int j = 0; j < 3; j++)
@@ -197,7 +198,7 @@ int crom_elastic_eval(crom_elastic *e, const crom_material *mat, const double *q
         }
         if (H) {
             double *A = e->A + 81 * (size_t)t;
-            crom_fem_dPdF(mat, F, project, A);
+            crom_fem_dPdF(m, F, project, A);
             for (int i = 0; i < 81; i++) {
                 A[i] *= wV;
                 if (!isfinite(A[i]))

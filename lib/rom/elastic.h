@@ -48,6 +48,8 @@ typedef struct {
     double *Hb;     /* block: [S][3S] scratch */
     double *Fq;     /* [k][9] G_k q of the last evaluation */
     double *Pm;     /* [k][9] w_k V_k vec P(F_k) of the last evaluation */
+    const crom_material *const *kmat; /* [k] each tet's material (regions of other materials;
+                                       * borrowed, set by the caller); NULL: eval's for all */
 } crom_elastic;
 
 /* Precompute G_k, F0_k and w_k V_k of every tet of cubature c (borrowed

@@ -287,7 +287,8 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
     if (crom_mesh_is_scene(&map->mesh) && sc->nplanes)
         return crom_err(CROM_EUSAGE, "--plane, --sphere: collisions with the world are not simulated on rigid-body "
                         "scenes yet (a scene's vertices are its bodies' frames, not surface points)");
-    if ((rc = crom_system_init(&s->sys, &map->mesh, sc->youngs, sc->poisson, sc->density)))
+    if ((rc = crom_system_init(&s->sys, &map->mesh, sc->youngs, sc->poisson, sc->density)) ||
+        (rc = crom_system_set_materials(&s->sys, sc, &map->mesh)))
         return rc;
     int r = s->r, n = s->n, p = s->p, T = s->nthreads;
     size_t rr = (size_t)r * r, nr = (size_t)n * r, pp = (size_t)p * p, pr = (size_t)p * r;
@@ -561,7 +562,7 @@ static int elastic(crom_nlsim *s, double *E, double *g, double *H, int project)
             if (!(g || H))
                 Ee = crom_system_elem_energy(sys, t, xe);
             else if (!sys->shell && !sys->rigid) /* in F-space: G = ∂F/∂q, Gᵀ (∂P/∂F) G */
-                Ee = crom_cubature_tet(&f->mat, xe, J4, r, f->Dminv + 9 * (size_t)t, f->vol[t], s->ew[j], s->zero,
+                Ee = crom_cubature_tet(crom_fem_tet_material(f, t), xe, J4, r, f->Dminv + 9 * (size_t)t, f->vol[t], s->ew[j], s->zero,
                                        project, tg, tH, w);
             else
                 Ee = elem_reduced(sys, t, ke, xe, J4, r, s->ew[j], project, tg, tH, w);

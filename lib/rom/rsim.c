@@ -36,6 +36,11 @@ static void free_bcs(crom_rsim_bc *b, int n)
 
 static void free_cub_data(crom_rsim *s)
 {
+    free(s->mats);
+    free(s->kmat);
+    s->mats = NULL;
+    s->kmat = NULL;
+    s->el.kmat = NULL;
     free(s->Mr);
     free(s->fg);
     free(s->G);
@@ -230,6 +235,19 @@ static int build(crom_rsim *s)
         return CROM_EINTERNAL;
     if ((rc = crom_elastic_init(&s->el, c)) || (rc = crom_newton_memory_init(&s->mem, r, PAIRS)))
         return rc;
+    if (sc->nmat) { /* each cubature tet's material (its mesh tet's: crom_scenario_materials) */
+        int nmat, *tmat = NULL;
+        s->mats = crom_malloc(sizeof *s->mats * (CROM_SCENARIO_MAX + 1));
+        s->kmat = crom_malloc(sizeof *s->kmat * (size_t)(c->k ? c->k : 1));
+        if (!s->mats || !s->kmat)
+            return CROM_EINTERNAL;
+        if ((rc = crom_scenario_materials(sc, &c->mesh, s->mats, &nmat, &tmat)))
+            return rc;
+        for (int k = 0; k < c->k; k++)
+            s->kmat[k] = &s->mats[tmat[c->elem[k]]];
+        free(tmat);
+        s->el.kmat = s->kmat;
+    }
     for (size_t i = 0; i < rr; i++)
         s->Mr[i] = rho * c->WtVW[i];
     for (int i = 0; i < r; i++)

@@ -75,6 +75,8 @@ typedef struct {
     const crom_scenario *sc;
     const crom_cubature *cub;
     crom_material mat;
+    crom_material *mats;              /* regions of other materials (--youngs REGION=E): [nmat] */
+    const crom_material **kmat;       /* [cubature tets] each one's material; NULL: mat for all */
     int r, solver;
     double kappa;       /* BC penalty rate (1/s²) */
     double bc_threshold;/* constrained directions: μ >= threshold × BC mass fraction */

@@ -12,6 +12,7 @@
 #include "base/err.h"
 #include "io/io.h"
 #include "mesh/gmsh.h"
+#include "phys/scenario.h"
 #include "phys/shell.h"
 #include "view/export.h"
 
@@ -808,6 +809,20 @@ int crom_export_material(crom_material *m, int *known, const crom_in *in, double
     double v[2] = {E, nu};
     static const char *const attr[2] = {"youngs", "poisson"};
     *known = 0;
+    if (isnan(E) && isnan(nu) && in->h5 >= 0 && crom_h5_has_attr(in->h5, ".", "scenario")) {
+        /* a run with regions of other materials: one material would give their energy and stress wrong */
+        char *text = NULL;
+        crom_scenario sc;
+        crom_scenario_defaults(&sc);
+        int rc = crom_h5_get_str(in->h5, ".", "scenario", &text);
+        int het = !rc && !crom_scenario_parse_text(text, &sc) && sc.nmat > 0;
+        free(text);
+        crom_err_clear();
+        if (het) {
+            *known = -1;
+            return 0;
+        }
+    }
     for (int i = 0; i < 2; i++)
         if (isnan(v[i]) && in->h5 >= 0 && crom_h5_has_attr(in->h5, ".", attr[i]) &&
             crom_h5_get_f64(in->h5, ".", attr[i], &v[i], 1))

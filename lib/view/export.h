@@ -56,7 +56,10 @@ typedef struct {
 /* The material the cell fields use: E and nu when given (not NaN), else the
  * input's root attributes `youngs` and `poisson` (trajectories and reduced
  * runs carry them). *known = 0 when neither names both (a usage error when
- * only one of E, nu was given and the input lacks the other). Returns 0,
+ * only one of E, nu was given and the input lacks the other), -1 when the
+ * run had regions of other materials (its `scenario` attribute; the cell
+ * fields take one material, which would misstate their energy and stress)
+ * and E, nu were not given. Returns 0,
  * CROM_EUSAGE (values out of range) or that error. */
 int crom_export_material(crom_material *m, int *known, const crom_in *in, double E, double nu);
 
