@@ -271,6 +271,7 @@ static int run(crom_cli *cli, args *a)
         goto out;
     a->mo.seed = cli->seed;
     a->mo.nthreads = cli->threads;
+    a->mo.materials = &a->sc; /* (regions of other materials) */
     if ((rc = crom_modes_compute(&m, &mat, fixed, &a->mo, &r))) {
         if (rc == CROM_EUSAGE && strstr(crom_errmsg(), "asked for")) {
             char msg[512];
@@ -300,7 +301,9 @@ static int run(crom_cli *cli, args *a)
         int kb = 0;
         if ((rc = crom_system_init(&sys, &m, a->sc.youngs, a->sc.poisson, a->sc.density)))
             goto out;
-        rc = crom_mderiv_basis(&sys, m.X, fixed, r.phi, r.k, &B, &kb, &f);
+        rc = crom_system_set_materials(&sys, &a->sc, &m);
+        if (!rc)
+            rc = crom_mderiv_basis(&sys, m.X, fixed, r.phi, r.k, &B, &kb, &f);
         crom_system_free(&sys);
         int independent = kb - r.k;
         if (!rc && a->fields && a->fields < kb) { /* the first fields: B is [n][kb] row-major */
@@ -336,7 +339,5 @@ int main(int argc, char **argv)
     crom_modes_defaults(&a.mo);
     split_scenario_opts();
     crom_cli_parse(&cli, &doc, argc, argv, on_opt, &a);
-    if (crom_scenario_uniform(&a.sc, "crom-modes"))
-        return crom_cli_exit(&cli, CROM_EUSAGE);
     return crom_cli_exit(&cli, run(&cli, &a));
 }

@@ -1056,6 +1056,8 @@ int crom_modes_compute(const crom_mesh *mesh, const crom_material *mat, const un
     int rc = crom_system_init(&M.fem, mesh, mat->E, mat->nu, mat->rho);
     if (rc)
         return rc;
+    if (o->materials && (rc = crom_system_set_materials(&M.fem, o->materials, mesh)))
+        goto out;
     if ((rc = free_system(&M, mesh, fixed, out)))
         goto out;
     out->t_assemble = crom_clock_now() - t0;

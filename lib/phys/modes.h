@@ -64,6 +64,8 @@ typedef struct {
     long max_solves;   /* limit on solves with the factor (0: 200·(k + 6) + 2000) */
     uint64_t seed;     /* start vector (default 1) */
     int nthreads;      /* assembly threads (0: OpenMP default) */
+    const crom_scenario *materials; /* its regions of other materials (--youngs REGION=E;
+                                       crom_system_set_materials), or NULL: mat everywhere */
 } crom_modes_opts;
 
 /* Defaults as documented above, count = 20. */

@@ -12,8 +12,10 @@
 #     below 1%), while the same reduced run without the region misses it by
 #     far more (so the reduced path does use the region); crom-live the same;
 #   - crom-export leaves out the cell fields that need one material;
-#   - bad regions, bad values, and programs that take one material (fitfield,
-#     modes) refuse with one line.
+#   - crom-modes: the two-material bar's frequencies lie between the soft and
+#     the stiff bar's, one material by region is the uniform bar;
+#   - bad regions, bad values, and the programs that take one material
+#     (fitfield) refuse with one line.
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 crom-mesh box --dims 1,0.1,0.1 --size 0.04 --region clamp='x<-0.499' --region tip='x>0.499' -q -o bar.h5
@@ -60,13 +62,32 @@ a, b = (h5py.File(f, 'r')['frames/q'][()] for f in ('live.h5', 'red.h5'))
 sys.exit(0 if a.shape == b.shape and np.abs(a - b).max() <= 1e-12 * np.abs(b).max() else 'live differs')" ||
   fail "crom-live with regions differs from crom-reducedstep"; ok
 
+# ---- crom-modes: the clamped bar's first frequencies lie between those of the
+# soft and the stiff bar; the soft material given by region to every tet is
+# the soft bar to round-off; modal derivatives take the regions too
+M=(--poisson 0 --density 1000 --pin clamp --count 3)
+crom-modes "${M[@]}" --youngs 1e7 -q -o m1.h5 bar.h5
+crom-modes "${M[@]}" --youngs 4e7 -q -o m4.h5 bar.h5
+crom-modes "${M[@]}" --youngs 1e7 "${HET[@]}" -q -o mh.h5 bar.h5
+crom-modes "${M[@]}" --youngs 4e7 --youngs 'x>-1=1e7' -q -o ma.h5 bar.h5
+crom-modes "${M[@]}" --youngs 1e7 "${HET[@]}" --derivatives -q -o md.h5 bar.h5
+$PY - <<'EOF2' || fail "crom-modes with regions"
+import h5py, numpy as np, sys
+f = {k: h5py.File(k + ".h5", "r")["frequencies"][()] for k in ("m1", "m4", "mh", "ma")}
+print("first frequencies (Hz): soft %s, two materials %s, stiff %s" % (f["m1"][:3], f["mh"][:3], f["m4"][:3]))
+if not (np.all(f["m1"] < f["mh"]) and np.all(f["mh"] < f["m4"])):
+    sys.exit("two materials: not between the soft and the stiff bar")
+if np.abs(f["ma"] - f["m1"]).max() > 1e-9 * f["m1"].max():
+    sys.exit("the soft material by region differs from the soft bar: %s %s" % (f["ma"], f["m1"]))
+EOF2
+ok
+
 # ---- bad input
 expect_error 64 "region 'nowhere'|unknown region" - -- crom-fullsim "${BASE[@]}" --youngs nowhere=1e7 -o x.h5 bar.h5
 expect_error 64 "--youngs x>0=: a positive modulus" - -- crom-fullsim "${BASE[@]}" --youngs 'x>0=-1' -o x.h5 bar.h5
 expect_error 64 "--poisson x>0=: must be in" - -- crom-fullsim "${BASE[@]}" --poisson 'x>0=0.5' -o x.h5 bar.h5
 expect_error 64 "holds no whole tet" - -- crom-fullsim "${BASE[@]}" --youngs 'tip=2e7' -o x.h5 bar.h5
 expect_error 64 "crom-fitfield takes one material" - -- crom-fitfield --objective energy --mesh bar.h5 --youngs 'x>0=2e7' -o x.h5
-expect_error 64 "crom-modes takes one material" - -- crom-modes --youngs 'x>0=2e7' -o x.h5 bar.h5
 crom-mesh sheet --size 0.1 -q -o sheet.h5
 expect_error 64 "for tet meshes" - -- crom-fullsim --youngs 'x>0=2e7' --steps 1 -o x.h5 sheet.h5
 done_checks

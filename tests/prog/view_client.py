@@ -47,6 +47,20 @@ def decode(s, q, i):
     return [s["X"][3 * i + d] + sum(s["W"][(3 * i + d) * r + k] * q[k] for k in range(r)) for d in range(3)]
 
 
+async def new_surface(ws, seconds=3, want=10):
+    """After a switch: the surface that comes, and how many frames on it (up to want)."""
+    t0, surf, after = time.time(), None, 0
+    while time.time() - t0 < seconds and after < want:
+        m = await ws.recv()
+        if isinstance(m, str):
+            continue
+        if m[:4] == b"SURF":
+            surf = parse_surface(m)
+        elif surf and parse_frame(m)["cubature"] == surf["index"]:
+            after += 1
+    return surf, after
+
+
 async def ws_test(port, vid, k):
     import websockets
     url = "ws://127.0.0.1:%d/" % port
@@ -129,15 +143,7 @@ async def ws_test(port, vid, k):
             return
         # switch the run to an offered cubature: the page gets its surface, then its frames
         await ws.send("schedule " + hello["offers"][1])
-        t0, s2, after = time.time(), None, 0
-        while time.time() - t0 < 3 and after < 10:
-            m = await ws.recv()
-            if isinstance(m, str):
-                continue
-            if m[:4] == b"SURF":
-                s2 = parse_surface(m)
-            elif s2 and parse_frame(m)["cubature"] == s2["index"]:
-                after += 1
+        s2, after = await new_surface(ws)
         if not s2 or after < 10:
             fail("schedule: no new surface or no frames on it")
         print("schedule %s: surface %d (%d vertices, %d triangles, was %d, %d), %d frames on it" %
@@ -146,15 +152,7 @@ async def ws_test(port, vid, k):
             fail("schedule: the surface did not change")
         # and back to the first: the run loads it again as its third cubature, the page's index is 0
         await ws.send("schedule " + hello["offers"][0])
-        t0, s3, after = time.time(), None, 0
-        while time.time() - t0 < 3 and after < 10:
-            m = await ws.recv()
-            if isinstance(m, str):
-                continue
-            if m[:4] == b"SURF":
-                s3 = parse_surface(m)
-            elif s3 and parse_frame(m)["cubature"] == s3["index"]:
-                after += 1
+        s3, after = await new_surface(ws)
         if not s3 or after < 10 or s3["index"] != 0 or s3["nt"] != s["nt"]:
             fail("schedule back to the first cubature: %s, %d frames" % (s3 and s3["index"], after))
         print("schedule %s: back on surface 0, %d frames on it" % (hello["offers"][0], after))
