@@ -504,7 +504,8 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     crom_datafree_defaults(&a->df, CROM_DATAFREE_ENERGY);
     crom_scenario_defaults(&a->sc);
     crom_cli_parse(cli, &doc, argc, argv, on_opt, a);
-    if (crom_scenario_uniform(&a->sc, "crom-fitfield"))
+    if (a->objective != CROM_DATAFREE_ENERGY && a->objective != CROM_DATAFREE_NEURALMODES && /* (maps of one mesh) */
+        crom_scenario_uniform(&a->sc, a->objective ? "this --objective of crom-fitfield" : "crom-fitfield on samples"))
         usage_exit(cli, CROM_EUSAGE);
     if (a->pod && GIVEN(a, O_ENCODER) && a->fit.encoder == CROM_MODEL_ENC_POINTNET)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--basis pod has no neural encoder: its q is the lsq projection (drop "

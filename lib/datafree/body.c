@@ -198,7 +198,8 @@ int crom_body_map_problem(crom_body *b, const crom_scenario *sc, int objective, 
     if (nm && (rc = take_modes(b, rank)))
         return rc;
     *P = (crom_datafree_problem){.mesh = &b->mesh, .mat = b->mat, .gravity = {sc->gravity[0], sc->gravity[1],
-                                 sc->gravity[2]}, .fixed = b->fixed, .modes = b->W, .freq = b->freq};
+                                 sc->gravity[2]}, .fixed = b->fixed, .modes = b->W, .freq = b->freq,
+                                 .materials = sc->nmat ? sc : NULL};
     if (nm) /* nonlinear modes are equilibria of the elastic energy alone */
         P->gravity[0] = P->gravity[1] = P->gravity[2] = 0;
     return 0;
@@ -208,8 +209,12 @@ int crom_body_derivatives(crom_body *b, crom_datafree_problem *P, int rank)
 {
     crom_system sys;
     int rc = crom_system_init(&sys, &b->mesh, b->mat.E, b->mat.nu, b->mat.rho);
-    if (rc)
+    if (!rc && P->materials)
+        rc = crom_system_set_materials(&sys, P->materials, &b->mesh);
+    if (rc) {
+        crom_system_free(&sys);
         return rc;
+    }
     free(b->deriv);
     b->deriv = crom_malloc(sizeof(double) * 3 * (size_t)b->mesh.nv * ((size_t)rank * (rank + 1) / 2));
     rc = b->deriv ? crom_mderiv_compute(&sys, b->mesh.X, b->fixed, b->W, rank, b->deriv) : CROM_EINTERNAL;
@@ -268,16 +273,23 @@ int crom_body_train_skin_field(const crom_body *b, const crom_datafree_problem *
 
 /* ============================================================ the record */
 
-/* The material, the gravity (if asked) and the pins of sc as flags, one
- * per line, and the material, into m. */
+/* The material (its regions of other materials too), the gravity (if
+ * asked) and the pins of sc as flags, one per line, and the material, into
+ * m. */
 static int provenance(crom_model *m, const crom_scenario *s, int gravity)
 {
-    size_t cap = 512 + (size_t)s->npins * 140;
+    size_t cap = 512 + (size_t)s->npins * 140 + (size_t)s->nmat * 340;
     char *t = crom_malloc(cap);
     if (!t)
         return CROM_EINTERNAL;
     size_t l = (size_t)snprintf(t, cap, "--youngs %.17g\n--poisson %.17g\n--density %.17g\n", s->youngs, s->poisson,
                                 s->density);
+    for (int i = 0; i < s->nmat; i++) { /* regions of other materials */
+        if (!isnan(s->mat[i].youngs))
+            l += (size_t)snprintf(t + l, cap - l, "--youngs %s=%.17g\n", s->mat[i].ref, s->mat[i].youngs);
+        if (!isnan(s->mat[i].poisson))
+            l += (size_t)snprintf(t + l, cap - l, "--poisson %s=%.17g\n", s->mat[i].ref, s->mat[i].poisson);
+    }
     if (gravity)
         l += (size_t)snprintf(t + l, cap - l, "--gravity %.17g,%.17g,%.17g\n", s->gravity[0], s->gravity[1],
                               s->gravity[2]);

@@ -146,6 +146,8 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
                  ? crom_err(CROM_EUSAGE, "--tets %d: a random cubature of tets applies to solids; a shell's or a "
                                          "scene's map integrates every element", o->tets)
                  : crom_system_init(&c->sys, p->mesh, p->mat.E, p->mat.nu, p->mat.rho);
+    if (!rc && p->materials)
+        rc = crom_system_set_materials(&c->sys, p->materials, p->mesh);
     if (!rc)
         rc = crom_nn_ws_init(&c->ws, net, (int)rows, 1);
     if (rc) {

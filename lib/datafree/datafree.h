@@ -137,6 +137,7 @@ typedef struct {
     const double *sup_u;         /* [nsup][3nv] their displacements (m) */
     long nvisit;                 /* neuralmodes: modal coordinates a reduced run visited (0: none); */
     const double *visit_z;       /* [nvisit][r]: every other sample of a batch is drawn near one of them */
+    const crom_scenario *materials; /* its regions of other materials (--youngs REGION=E), or NULL */
 } crom_datafree_problem;
 
 typedef struct {

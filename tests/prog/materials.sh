@@ -14,8 +14,11 @@
 #   - crom-export leaves out the cell fields that need one material;
 #   - crom-modes: the two-material bar's frequencies lie between the soft and
 #     the stiff bar's, one material by region is the uniform bar;
-#   - bad regions, bad values, and the programs that take one material
-#     (fitfield) refuse with one line.
+#   - the data-free maps of one mesh (energy, neural modes) train with them
+#     and record them, and the energy map's reduced run responds less with
+#     the stiff half than without;
+#   - bad regions, bad values, and what takes one material (crom-fitfield's
+#     continuous objectives and samples, crom-metrics) refuse with one line.
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 crom-mesh box --dims 1,0.1,0.1 --size 0.04 --region clamp='x<-0.499' --region tip='x>0.499' -q -o bar.h5
@@ -82,12 +85,32 @@ if np.abs(f["ma"] - f["m1"]).max() > 1e-9 * f["m1"].max():
 EOF2
 ok
 
+# ---- data-free maps of the body (energy; neural modes over the modes above):
+# they train with the regions and record them; the energy map's reduced run
+# (crom_nlsim) with the stiff half responds less than without it
+crom-fitfield --objective energy --mesh bar.h5 --poisson 0 --youngs 1e7 "${HET[@]}" --pin clamp --rank 4 --steps 300 \
+  -q -o map.h5
+crom-fitfield --objective neuralmodes --mesh bar.h5 --modes mh.h5 --poisson 0 --youngs 1e7 "${HET[@]}" --pin clamp \
+  --rank 3 --steps 100 -q -o nm.h5
+for f in map nm; do
+  $PY -c "import h5py, sys; s = h5py.File('$f.h5')['/'].attrs['scenario']; s = s.decode() if isinstance(s, bytes) else s; \
+sys.exit(0 if '--youngs x>0=40000000' in s else 'scenario: ' + s)" || fail "$f.h5 does not record the region"
+done; ok
+NL=(--poisson 0 --youngs 1e7 --density 1000 --gravity 0,0,0 --pin clamp --force tip=100,0,0@0: --damping 20 --dt 0.01 --steps 100)
+crom-reducedstep --model map.h5 --mesh bar.h5 "${NL[@]}" "${HET[@]}" -q -o nlh.h5
+crom-reducedstep --model map.h5 --mesh bar.h5 "${NL[@]}" -q -o nl1.h5
+$PY -c "
+import h5py, numpy as np, sys
+a, b = (np.linalg.norm(h5py.File(f, 'r')['frames/q'][-1]) for f in ('nlh.h5', 'nl1.h5'))
+print('energy map, reduced: |q| %.4g with the stiff half, %.4g without' % (a, b))
+sys.exit(0 if a < 0.9 * b else 'the stiff half did not stiffen the reduced run')" || fail "crom_nlsim with regions"; ok
+
 # ---- bad input
 expect_error 64 "region 'nowhere'|unknown region" - -- crom-fullsim "${BASE[@]}" --youngs nowhere=1e7 -o x.h5 bar.h5
 expect_error 64 "--youngs x>0=: a positive modulus" - -- crom-fullsim "${BASE[@]}" --youngs 'x>0=-1' -o x.h5 bar.h5
 expect_error 64 "--poisson x>0=: must be in" - -- crom-fullsim "${BASE[@]}" --poisson 'x>0=0.5' -o x.h5 bar.h5
 expect_error 64 "holds no whole tet" - -- crom-fullsim "${BASE[@]}" --youngs 'tip=2e7' -o x.h5 bar.h5
-expect_error 64 "crom-fitfield takes one material" - -- crom-fitfield --objective energy --mesh bar.h5 --youngs 'x>0=2e7' -o x.h5
+expect_error 64 "this --objective of crom-fitfield takes one material" - -- crom-fitfield --objective field --mesh bar.h5 --youngs 'x>0=2e7' -o x.h5
 crom-mesh sheet --size 0.1 -q -o sheet.h5
 expect_error 64 "for tet meshes" - -- crom-fullsim --youngs 'x>0=2e7' --steps 1 -o x.h5 sheet.h5
 done_checks

@@ -131,7 +131,7 @@ static void gradient_check(int objective)
         for (int i = 0; i < 3 * m.nv * 6; i++)
             Psi[i] = fixed[i / 6] ? 0 : 0.2 * crom_rng_normal(&qr);
     }
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, W, freq, Psi, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, W, freq, Psi, 0, NULL, NULL, 0, NULL, NULL};
     /* supervised: 4 made-up equilibria u = W z + v, v random and
      * M-orthogonal to the modes (so that W^T M u / m = z), zero at the pins */
     double zsup[4 * 3], *usup = NULL;
@@ -384,7 +384,7 @@ static void gradient_check_field(void)
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
     unsigned char *fixed = clamp_mask(&m);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     field_check_opts(&o);
     o.pin_length = 0.3; /* a wide mask: many vertices inside it */
@@ -475,7 +475,7 @@ static void gradient_check_field_basis(void)
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
     unsigned char *fixed = clamp_mask(&m);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     field_check_opts(&o);
     int r = 2, pf = 5, B = 4, pw[] = {r, 10, pf};
@@ -822,7 +822,7 @@ static crom_model g_energy_model; /* trained once, used by the dynamics tests */
  * pins stay exactly at rest, and so does a run with no load. */
 static void test_energy_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -883,7 +883,7 @@ static void test_energy_subspace(bar_case *b)
  * load stays at rest. */
 static void test_neuralmodes_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_NEURALMODES);
     o.rank = b->nmodes;
@@ -1014,7 +1014,7 @@ static void test_neuralmodes_visit(bar_case *b)
     visit[0] = 0.3;       /* mode 1 at 3 times the box, */
     visit[r + 0] = 0.25;  /* and near it with mode 2 */
     visit[r + 1] = 0.05;
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_NEURALMODES);
     o.rank = r;
@@ -1051,7 +1051,7 @@ static void test_neuralmodes_visit(bar_case *b)
 
 static void test_field_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_FIELD);
     o.rank = 2;
@@ -1150,7 +1150,7 @@ static void test_field_subspace(bar_case *b)
  * its samples have less energy than the two lowest linear modes'. */
 static void test_skin_field(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_model sm;
     int rc = crom_dfskin_eigen(&b->mesh, &b->mat, b->fixed, 4, &sm, NULL);
     CHECK_MSG(rc == 0, "eigen: %s", crom_errmsg());
@@ -1470,7 +1470,7 @@ static void test_shell_map(void)
     CHECK(crom_modes_pins(&mesh, 1, clamp, &fixed, &npinned) == 0 && npinned > 0);
     crom_material mat;
     crom_material_init(&mat, 1e7, 0.3, 500);
-    crom_datafree_problem P = {&mesh, mat, {0, 0, -9.81}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&mesh, mat, {0, 0, -9.81}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -1853,7 +1853,7 @@ static void test_lbfgs(bar_case *bc)
     CHECK_LT(errs[0], 1e-6);
     CHECK_LT(errs[0], 1e-4 * errs[1]);
 
-    crom_datafree_problem P = {&bc->mesh, bc->mat, {0, -9.81, 0}, bc->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&bc->mesh, bc->mat, {0, -9.81, 0}, bc->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
