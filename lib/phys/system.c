@@ -138,7 +138,7 @@ int crom_system_elem_eval(const crom_system *s, int e, const double *xe, int pro
         return crom_rigidsys_elem_eval(&s->rb, e, xe, project, E, g, H);
     if (!s->shell) {
         const crom_fem *f = &s->fem;
-        rc = crom_fem_tet_eval(&f->mat, xe, f->Dminv + 9 * (size_t)e, f->vol[e], project, E, g, H);
+        rc = crom_fem_tet_eval(crom_fem_tet_material(f, e), xe, f->Dminv + 9 * (size_t)e, f->vol[e], project, E, g, H);
         if (rc)
             crom_err_clear(); /* the caller names the element */
         return rc ? CROM_EDATA : CROM_OK;
@@ -155,7 +155,7 @@ double crom_system_elem_energy(const crom_system *s, int e, const double *xe)
 {
     if (!s->shell && !s->rigid) {
         const crom_fem *f = &s->fem;
-        return crom_fem_tet_energy(&f->mat, xe, f->Dminv + 9 * (size_t)e, f->vol[e]);
+        return crom_fem_tet_energy(crom_fem_tet_material(f, e), xe, f->Dminv + 9 * (size_t)e, f->vol[e]);
     }
     double E;
     return crom_system_elem_eval(s, e, xe, 0, &E, NULL, NULL) ? NAN : E;
