@@ -260,6 +260,28 @@ def mpi(out, repeats):
     w.writerow([2, s2 / n2, s1 / n1 / (s2 / n2), d2])
 
 
+def hetero(out, rows, stiff):
+    """pipelines/hetero.mk: each subspace's rest state against the full one"""
+    import h5py
+    import numpy as np
+    names = {"modes": "linear modes", "mderiv": "modes + modal derivatives", "energy": "data-free energy map",
+             "neuralmodes": "neural modes (with derivatives)"}
+    full = h5py.File(f"{out}/full.h5", "r")
+    X, u = full["mesh/vertices"][()], full["frames/displacement"][-1]
+    tip = X[:, 0] > 0.499
+    print(f"A clamped bar, its far half {stiff}x stiffer, at rest under gravity and a tip force: full tip "
+          f"displacement {np.linalg.norm(u[tip].mean(axis=0)):.4g} m\n")
+    print("| subspace | dimension | build (s) | relative error at rest | over the run |")
+    print("|---|---:|---:|---:|---:|")
+    for r in rows:
+        m = h5py.File(f"{out}/{r}.h5", "r")
+        dim = int(m.attrs.get("rank", 0))
+        secs = m.attrs.get("training_seconds")
+        secs = f"{float(secs):.3g}" if secs is not None else "(an eigensolve)"
+        print(f"| {names.get(r, r)} | {dim} | {secs} | {last_frame_error(f'{out}/diff-{r}.txt'):.3g} | "
+              f"{diff_error(f'{out}/diff-{r}.txt'):.3g} |")
+
+
 if __name__ == "__main__":
     if sys.argv[1] == "tables":
         tables(sys.argv[2], sys.argv[3].split(), sys.argv[4].split())
@@ -271,5 +293,7 @@ if __name__ == "__main__":
         scale(sys.argv[2], sys.argv[3].split())
     elif sys.argv[1] == "mpi":
         mpi(sys.argv[2], int(sys.argv[3]))
+    elif sys.argv[1] == "hetero":
+        hetero(sys.argv[2], sys.argv[3].split(), sys.argv[4])
     else:
-        sys.exit("usage: benchtab.py tables|training|datafree|scale|mpi DIR ...")
+        sys.exit("usage: benchtab.py tables|training|datafree|scale|mpi|hetero DIR ...")
