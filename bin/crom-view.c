@@ -112,6 +112,7 @@ typedef struct {
     size_t slen[MAXOFFER + 1];
     crom_viewer_switches sw;       /* which offered cubature a frame is on */
     char hello[8192];
+    unsigned char *wbuf;           /* LWS_PRE + a frame or a reply: what one write sends */
     int r, fd;                     /* commands out (-1: the run no longer reads them) */
     long ncmd;                     /* command lines passed on */
     /* the reader thread's frame, under mu */
@@ -246,7 +247,7 @@ static void take_frame(server *S)
  * it lacks, replies, the newest frame. */
 static int write_client(server *S, client *c)
 {
-    unsigned char buf[LWS_PRE + 1024], *p = buf + LWS_PRE;
+    unsigned char *p = S->wbuf + LWS_PRE; /* (sized for a frame of rank r and a reply) */
     int more = 1, n;
     if (c->stage == ST_HELLO) {
         size_t len = strlen(S->hello);
@@ -555,7 +556,8 @@ int main(int argc, char **argv)
     int opened = !rc && !(rc = crom_viewer_stream_open(&S->in, S->path[0], S->cub[0].model_id, S->r, &S->fq, S->fld));
     S->q = calloc((size_t)S->r + 1, sizeof *S->q);
     S->q_in = calloc((size_t)S->r + 1, sizeof *S->q_in);
-    if (!rc && (!S->q || !S->q_in))
+    S->wbuf = malloc(LWS_PRE + crom_viewer_frame_size(S->r) + sizeof ((client *)0)->reply[0]);
+    if (!rc && (!S->q || !S->q_in || !S->wbuf))
         rc = CROM_EINTERNAL;
     if (!rc)
         rc = serve(S, &a);
@@ -570,6 +572,7 @@ int main(int argc, char **argv)
     }
     free(S->q);
     free(S->q_in);
+    free(S->wbuf);
     pthread_mutex_destroy(&S->mu);
     free(S);
     return crom_cli_exit(&cli, rc);

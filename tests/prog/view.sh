@@ -35,14 +35,16 @@ crom-fitfield --basis pod --rank 6 -q -o pod.h5 s.h5
 crom-cubature --model pod.h5 --scheme all -q -o cub.h5 mesh.h5
 crom-remesh punch --sphere 0.5,0,0,0.3 -q -o punched.h5 mesh.h5
 crom-cubature --model pod.h5 --scheme all -q -o cub-p.h5 punched.h5
-RUN=(--cubature cub.h5 --pin bottom --gravity 0,0,0 --youngs 2e5 --dt 0.01 --drag-stiffness 1e7)
+RUNF=(--pin bottom --gravity 0,0,0 --youngs 2e5 --dt 0.01 --drag-stiffness 1e7)
+RUN=(--cubature cub.h5 "${RUNF[@]}")
+CUB=cub.h5
 VID=$($PY -c "import h5py, numpy as np; X = h5py.File('mesh.h5')['vertices'][()]; print(int(np.argmax(X[:, 1] + 1e-3 * X[:, 0])))")
 
 # start crom-live and crom-view joined by two FIFOs; PORT, LIVE, VIEW
 start() {
   rm -f frames cmds view.err live.err; mkfifo frames cmds
-  crom-live "${RUN[@]}" --commands cmds >frames 2>live.err & LIVE=$!
-  crom-view --cubature cub.h5 "$@" --port 0 -v <frames >cmds 2>view.err & VIEW=$!
+  crom-live --cubature "$CUB" "${RUNF[@]}" --commands cmds >frames 2>live.err & LIVE=$!
+  crom-view --cubature "$CUB" "$@" --port 0 -v <frames >cmds 2>view.err & VIEW=$!
   for _ in $(seq 200); do grep -q 'open http://127.0.0.1:' view.err 2>/dev/null && break; sleep 0.1; done
   PORT=$(grep -o '127\.0\.0\.1:[0-9]*' view.err | head -1 | cut -d: -f2)
   [ -n "$PORT" ] || fail "crom-view did not start: $(cat view.err)"
@@ -109,6 +111,17 @@ kill -INT $LIVE
 rl=0; wait $LIVE || rl=$?; rv=0; wait $VIEW || rv=$?
 [ $rl -eq 0 ] && [ $rv -eq 0 ] || fail "SIGINT to crom-live: it exited $rl, crom-view $rv: $(cat live.err view.err)"
 grep -q 'the run ended after [0-9]* frames' view.err || fail "no closing line: $(cat view.err)"; ok
+
+# ---- a model of rank 130: a frame of 48 + 8 r = 1088 bytes (crom-view once
+# built frames in a 1 KiB buffer)
+crom-modes --pin bottom --count 130 -q -o modes130.h5 mesh.h5
+crom-cubature --model modes130.h5 --scheme random --count 40 -q -o cub130.h5 mesh.h5
+CUB=cub130.h5
+start
+timeout 60 $PY "$CROM_TOP/tests/prog/view_client.py" frames "$PORT" 130 >frames.txt 2>&1 || fail "rank 130: $(cat frames.txt)"
+cat frames.txt; ok
+stop
+CUB=cub.h5
 
 # ---- a run that dies: one line, non-zero
 start

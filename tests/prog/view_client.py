@@ -5,6 +5,8 @@
                                          N/m) and checks
                                          it follows; bad commands; a foreign
                                          origin; leaves mid-drag
+  view_client.py frames PORT R           a model of rank R: greeting, surface
+                                         and frames of 48 + 8 R bytes
   view_client.py browser PORT OUTDIR     headless Chromium through ChromeDriver
                                          (WebDriver over HTTP): the page draws
                                          the body, a mouse drag pulls it;
@@ -158,6 +160,26 @@ async def ws_test(port, vid, k):
         print("schedule %s: back on surface 0, %d frames on it" % (hello["offers"][0], after))
 
 
+async def frames_test(port, r):
+    """greeting, surface and 20 frames of a rank-r model, each 48 + 8 r bytes"""
+    import websockets
+    async with websockets.connect("ws://127.0.0.1:%d/" % port, subprotocols=["crom"], max_size=None) as ws:
+        hello = json.loads(await ws.recv())
+        s = parse_surface(await ws.recv())
+        sizes = set()
+        for _ in range(20):
+            m = await ws.recv()
+            if isinstance(m, str):
+                continue
+            f = parse_frame(m)
+            if f["r"] != r or len(m) != 48 + 8 * r:
+                fail("a frame of rank %d and %d bytes, expected %d and %d" % (f["r"], len(m), r, 48 + 8 * r))
+            sizes.add(len(m))
+        print("rank %d: greeting says %d, surface %d rows, frames of %s bytes" % (r, hello["rank"], s["r"], sorted(sizes)))
+        if hello["rank"] != r or s["r"] != r:
+            fail("rank %d expected" % r)
+
+
 # ---------------------------------------------------------------- WebDriver
 
 class Browser:
@@ -301,6 +323,8 @@ if __name__ == "__main__":
     mode, port = sys.argv[1], int(sys.argv[2])
     if mode == "ws":
         asyncio.run(ws_test(port, int(sys.argv[3]), float(sys.argv[4])))
+    elif mode == "frames":
+        asyncio.run(frames_test(port, int(sys.argv[3])))
     elif mode == "browser":
         browser_test(port, sys.argv[3])
     elif mode == "load":
