@@ -11,6 +11,7 @@
 #include <libwebsockets.h>
 #include <pthread.h>
 #include <signal.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -172,11 +173,15 @@ static int pass_on(server *S, const char *line)
     return 0;
 }
 
-static void reply(client *c, const char *fmt, const char *a, const char *b)
+static void reply(client *c, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void reply(client *c, const char *fmt, ...)
 {
     if (c->nreply == NREPLY) /* a page that does not read: keep the newest */
         memmove(c->reply[0], c->reply[1], sizeof c->reply[0] * (NREPLY - 1)), c->nreply--;
-    snprintf(c->reply[c->nreply++], sizeof c->reply[0], fmt, a, b);
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(c->reply[c->nreply++], sizeof c->reply[0], fmt, ap);
+    va_end(ap);
     lws_callback_on_writable(c->wsi);
 }
 
@@ -197,7 +202,7 @@ static void page_line(server *S, client *c, const char *line)
     int rc = crom_viewer_check(&S->cub[S->shown].mesh, line, S->path, S->ncub, &k, out, sizeof out);
     if (rc) {
         crom_cli_warn(S->cli, "page %d: %s", c->id, crom_errmsg());
-        reply(c, "error: %s%s", crom_errmsg(), "");
+        reply(c, "error: %s", crom_errmsg());
         crom_err_clear();
         return;
     }
@@ -212,15 +217,13 @@ static void page_line(server *S, client *c, const char *line)
         return;
     }
     if (pass_on(S, out)) {
-        reply(c, "error: %s%s", "the run has ended", "");
+        reply(c, "error: the run has ended");
         return;
     }
     if (S->cli->verbose)
         crom_cli_info(S->cli, "page %d: %s", c->id, out);
     crom_viewer_drags_note(&c->drags, &k);
-    char n[32];
-    snprintf(n, sizeof n, "%ld", S->ncmd);
-    reply(c, "ok %s%s", n, "");
+    reply(c, "ok %ld", S->ncmd);
 }
 
 /* The newest frame from the reader; which offered cubature it is on. */
@@ -347,7 +350,7 @@ static int on_ws(struct lws *wsi, enum lws_callback_reasons reason, void *user, 
         if (c->rxbad) {
             crom_cli_warn(S->cli, "page %d: a message that is not a command line (binary or over %zu bytes)", c->id,
                           sizeof c->rx - 1);
-            reply(c, "error: %s%s", "not a command line (binary or too long)", "");
+            reply(c, "error: not a command line (binary or too long)");
         } else {
             c->rx[c->rxlen] = 0;
             for (char *s = c->rx, *e; s && *s; s = e ? e + 1 : NULL) {

@@ -284,12 +284,7 @@ static int provenance(crom_model *m, const crom_scenario *s, int gravity)
         return CROM_EINTERNAL;
     size_t l = (size_t)snprintf(t, cap, "--youngs %.17g\n--poisson %.17g\n--density %.17g\n", s->youngs, s->poisson,
                                 s->density);
-    for (int i = 0; i < s->nmat; i++) { /* regions of other materials */
-        if (!isnan(s->mat[i].youngs))
-            l += (size_t)snprintf(t + l, cap - l, "--youngs %s=%.17g\n", s->mat[i].ref, s->mat[i].youngs);
-        if (!isnan(s->mat[i].poisson))
-            l += (size_t)snprintf(t + l, cap - l, "--poisson %s=%.17g\n", s->mat[i].ref, s->mat[i].poisson);
-    }
+    l += crom_scenario_material_flags(s, t + l, cap - l);
     if (gravity)
         l += (size_t)snprintf(t + l, cap - l, "--gravity %.17g,%.17g,%.17g\n", s->gravity[0], s->gravity[1],
                               s->gravity[2]);

@@ -367,11 +367,10 @@ char *crom_scenario_text(const crom_scenario *s)
     size_t l = 0, c = 0;
     appendf(&b, &l, &c, "--youngs %.17g\n--poisson %.17g\n--density %.17g\n", s->youngs,
             s->poisson, s->density);
-    for (int i = 0; i < s->nmat; i++) {
-        if (!isnan(s->mat[i].youngs))
-            appendf(&b, &l, &c, "--youngs %s=%.17g\n", s->mat[i].ref, s->mat[i].youngs);
-        if (!isnan(s->mat[i].poisson))
-            appendf(&b, &l, &c, "--poisson %s=%.17g\n", s->mat[i].ref, s->mat[i].poisson);
+    if (s->nmat) {
+        char mb[CROM_SCENARIO_MAX * 2 * 180];
+        crom_scenario_material_flags(s, mb, sizeof mb);
+        appendf(&b, &l, &c, "%s", mb);
     }
     appendf(&b, &l, &c, "--dt %.17g\n--steps %d\n--every %d\n", s->dt, s->steps, s->every);
     appendf(&b, &l, &c, "--gravity %.17g,%.17g,%.17g\n", s->gravity[0], s->gravity[1], s->gravity[2]);
@@ -567,4 +566,21 @@ int crom_scenario_uniform(const crom_scenario *s, const char *prog)
     return crom_err(CROM_EUSAGE, "--%s %s=: %s takes one material for the whole body (regions of other materials: "
                     "crom-fullsim, crom-reducedstep, crom-live, crom-modes)", isnan(s->mat[0].youngs) ? "poisson" : "youngs",
                     s->mat[0].ref, prog);
+}
+
+size_t crom_scenario_material_flags(const crom_scenario *s, char *buf, size_t cap)
+{
+    size_t l = 0;
+    if (cap)
+        buf[0] = 0;
+    for (int i = 0; i < s->nmat; i++) {
+        const crom_scenario_material *o = &s->mat[i];
+        if (!isnan(o->youngs))
+            l += (size_t)snprintf(buf + (l < cap ? l : cap), l < cap ? cap - l : 0, "--youngs %s=%.17g\n", o->ref,
+                                  o->youngs);
+        if (!isnan(o->poisson))
+            l += (size_t)snprintf(buf + (l < cap ? l : cap), l < cap ? cap - l : 0, "--poisson %s=%.17g\n", o->ref,
+                                  o->poisson);
+    }
+    return l;
 }

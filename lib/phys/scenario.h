@@ -84,6 +84,11 @@ int crom_scenario_check_regions(const crom_scenario *s, const crom_mesh *m);
  * *tmat = NULL. Returns 0, or CROM_EUSAGE for a region that is not on the
  * mesh or holds no whole tet, a bad material, or a shell or scene mesh
  * (their materials are uniform). */
+/* The regions of other materials as flags, one per line ("--youngs
+ * REGION=E\n--poisson REGION=NU\n"), into buf (cap bytes, snprintf's
+ * way); returns the length they need. */
+size_t crom_scenario_material_flags(const crom_scenario *s, char *buf, size_t cap);
+
 /* 0 when the body is of one material; CROM_EUSAGE naming the first
  * region of another material otherwise (for a program, prog, that does not
  * take them yet). */

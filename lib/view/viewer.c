@@ -151,16 +151,6 @@ size_t crom_viewer_frame_msg(unsigned char *buf, int r, const crom_viewer_frame 
     return (size_t)(p - buf);
 }
 
-/* x as the shortest of %.15g, %.16g, %.17g that reads back as x */
-static void num(char *b, size_t cap, double x)
-{
-    for (int p = 15; p <= 17; p++) {
-        snprintf(b, cap, "%.*g", p, x);
-        if (strtod(b, NULL) == x)
-            return;
-    }
-}
-
 int crom_viewer_check(const crom_mesh *m, const char *line, const char *const *offered, int noffered,
                       crom_live_cmd *c, char *out, size_t cap)
 {
@@ -195,8 +185,8 @@ int crom_viewer_check(const crom_mesh *m, const char *line, const char *const *o
     int k;
     char x[4][32];
     for (int i = 0; i < 3; i++)
-        num(x[i], sizeof x[i], c->v[i]);
-    num(x[3], sizeof x[3], c->k);
+        crom_export_number(x[i], sizeof x[i], c->v[i]); /* (the shortest that reads back as the same number) */
+    crom_export_number(x[3], sizeof x[3], c->k);
     switch (c->kind) {
     case CROM_LIVE_DRAG:
         k = snprintf(out, cap, "drag %s %s,%s,%s%s%s", c->ref, x[0], x[1], x[2], c->k > 0 ? " " : "", c->k > 0 ? x[3] : "");
