@@ -312,6 +312,11 @@ static const crom_schema_dset latent_dsets[] = {
                                                   "estimated displacement error (0 at frame 0)", NULL},
     {"frames/bc_error", "f64", "F", 0, "m", "crom-reducedstep --indicator: the largest distance of a pinned or "
                                             "prescribed vertex of the decoded state from its target (0 at frame 0)", NULL},
+    {"frames/keyframe", "f64", "F", 0, "1", "crom-keyframe: the frame's place among the keys, s in [0, K-1] (an integer "
+                                           "at a key, z(s) interpolates between keys floor(s) and floor(s)+1)", NULL},
+    {"frames/lerp_energy", "f64", "F", 0, "J", "crom-keyframe: strain energy of the linear interpolation of the decoded "
+                                               "keyframe positions at the same s (what interpolating positions instead "
+                                               "of latents would store)", NULL},
     {NULL, NULL, NULL, 0, NULL, NULL, NULL}};
 
 static const crom_schema_attr cub_attrs[] = {

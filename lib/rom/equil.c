@@ -64,7 +64,8 @@ int crom_equil_latents(const char *path, int r, double **Z, long *count)
         return rc;
     if (!(rc = crom_in_expect(&in, "crom/latent", 1)) && (fq = crom_in_field(&in, "q")) >= 0 &&
         in.fields[fq].count != (size_t)r)
-        rc = crom_err(CROM_EUSAGE, "%s has %zu latent coordinates, the modes %d", in.name, in.fields[fq].count, r);
+        rc = crom_err(CROM_EUSAGE, "%s has %zu latent coordinates, the model's rank is %d", in.name,
+                      in.fields[fq].count, r);
     if (!rc && fq < 0)
         rc = CROM_EDATA;
     if (!rc)

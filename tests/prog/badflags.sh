@@ -109,6 +109,8 @@ for f in --samples --sphere --box --normal --sigma --pairs-of --collapse-thresho
   try crom-metrics $f X --mesh m.h5 modes.h5
 done
 for f in --count --shift --tol --rigid-tol; do try crom-modes $f X -o "$OUT" m.h5; done
+for f in --between --fps --youngs --density; do try crom-keyframe $f X --model modes.h5 --key 0,0,0 --key 1,0,0 -o "$OUT"; done
+try crom-keyframe --key X,0,0 --model modes.h5 --key 1,0,0 -o "$OUT"
 for f in --init-frame --bc-stiffness --bc-threshold; do
   try crom-reducedstep $f X --cubature cub.h5 --steps 2 -o "$OUT"
 done

@@ -389,7 +389,7 @@ expect_error 65 "--modes df.h5 is a 'energy' model; neuralmodes builds on linear
 expect_error 64 "--rank 5: --modes modes.h5 has only 3 modes" $O/m.h5 -- crom-fitfield --objective neuralmodes --mesh bar.h5 --modes modes.h5 --rank 5 -o $O/m.h5
 expect_error 64 "--latents applies to --objective neuralmodes" $O/m.h5 -- crom-fitfield --objective energy --mesh bar.h5 --latents softrun0.h5 -o $O/m.h5
 expect_error 64 "--latents samples the energy along a run; --supervised fits equilibria: give one" $O/m.h5 -- crom-fitfield --objective neuralmodes --mesh bar.h5 --modes modes.h5 --latents softrun0.h5 --supervised softrun0.h5 -o $O/m.h5
-expect_error 64 "softrun0.h5 has 4 latent coordinates, the modes 3" $O/m.h5 -- crom-fitfield --objective neuralmodes --mesh bar.h5 --modes modes.h5 --latents softrun0.h5 -o $O/m.h5
+expect_error 64 "softrun0.h5 has 4 latent coordinates, the model's rank is 3" $O/m.h5 -- crom-fitfield --objective neuralmodes --mesh bar.h5 --modes modes.h5 --latents softrun0.h5 -o $O/m.h5
 expect_error 65 "--latents.*bar.h5.*crom/latent" $O/m.h5 -- crom-fitfield --objective neuralmodes --mesh bar.h5 --modes modes.h5 --latents bar.h5 -o $O/m.h5
 expect_error 64 "--batch 1: sampling along a run \(--latents\) draws every other sample near it" $O/m.h5 -- crom-fitfield --objective neuralmodes --mesh bar.h5 --modes softm4.h5 --latents softrun0.h5 --batch 1 -o $O/m.h5
 expect_error 64 "a free body under gravity has no lowest energy" $O/m.h5 -- crom-fitfield "${DF[@]}" --mesh bar.h5 -o $O/m.h5

@@ -175,7 +175,7 @@ expect_error 64 "apply to --equilibria" x.h5 -- crom-fullsim --grid 3 --steps 2 
 expect_error 64 "elastic energy alone" x.h5 -- crom-fullsim --equilibria modes.h5 --pin clamp --grid 3 --gravity 0,0,-9.81 -o x.h5 sq.h5
 expect_error 64 "moves pinned degree of freedom" x.h5 -- crom-fullsim --equilibria modes.h5 --pin 'x<-0.45' --grid 3 -o x.h5 sq.h5
 expect_error 64 "give one of --grid, --random and --latents" x.h5 -- crom-fullsim --equilibria modes.h5 --grid 3 --random 4 -o x.h5 sq.h5
-expect_error 64 "latents.*has 3 latent coordinates, the modes 2" x.h5 -- crom-fullsim --equilibria mod2.h5 --latents red.h5 --pin clamp -o x.h5 sq.h5
+expect_error 64 "latents.*has 3 latent coordinates, the model's rank is 2" x.h5 -- crom-fullsim --equilibria mod2.h5 --latents red.h5 --pin clamp -o x.h5 sq.h5
 expect_error 64 "over 3 modes is .* equilibria" x.h5 -- crom-fullsim --equilibria modes.h5 --pin clamp --grid 101 -o x.h5 sq.h5
 crom-fullsim "${MAT[@]}" --pin clamp --steps 2 -q -o run.h5 sq.h5
 expect_error 64 "holds no constrained equilibria" x.txt -- crom-metrics --equilibria run.h5 modes.h5
