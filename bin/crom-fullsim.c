@@ -166,10 +166,10 @@ static int put_frame(crom_out *o, crom_sim *s, const crom_sim_stats *st, double 
 static int run_equilibria(crom_cli *cli, args *a, crom_mesh *m, char *hist)
 {
     crom_scenario *sc = &a->sc;
-    if (sc->nvel || sc->nforce || sc->nplanes || a->gravity_given || sc->v0[0] || sc->v0[1] || sc->v0[2] ||
-        sc->spin[0] || sc->spin[1] || sc->spin[2])
+    if (sc->nvel || sc->nforce || sc->nplanes || sc->nrod || a->gravity_given || sc->v0[0] || sc->v0[1] ||
+        sc->v0[2] || sc->spin[0] || sc->spin[1] || sc->spin[2])
         return crom_err(CROM_EUSAGE, "--equilibria minimizes the elastic energy alone: --gravity, --velocity, "
-                                     "--force, --plane, --sphere and initial velocities do not apply");
+                                     "--force, --rod, --plane, --sphere and initial velocities do not apply");
     if (!a->grid && !a->random && !a->latents)
         return crom_err(CROM_EUSAGE, "--equilibria needs --grid N, --random N or --latents LATENT");
     sc->gravity[0] = sc->gravity[1] = sc->gravity[2] = 0;

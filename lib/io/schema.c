@@ -111,7 +111,7 @@ static const crom_schema_dset traj_dsets[] = {
     {"frames/velocity", "f64", "F,nv,3", 1, "m/s", "velocity of every vertex", NULL},
     {"frames/kinetic_energy", "f64", "F", 1, "J", "1/2 v^T M v", NULL},
     {"frames/elastic_energy", "f64", "F", 1, "J", "stable neo-Hookean strain energy", NULL},
-    {"frames/external_energy", "f64", "F", 1, "J", "potential of gravity and applied forces, -f_ext . u", NULL},
+    {"frames/external_energy", "f64", "F", 1, "J", "potential of gravity and applied forces, -f_ext . u, plus the rods' energy (--rod)", NULL},
     {"frames/total_energy", "f64", "F", 1, "J", "kinetic + elastic + external", NULL},
     {"frames/newton_iterations", "f64", "F", 1, "1", "Newton iterations of the step that produced the frame (0 for frame 0)", NULL},
     {"frames/residual", "f64", "F", 1, "1", "last Newton correction of that step, max-norm, relative to the bounding-box diagonal", NULL},
@@ -288,7 +288,7 @@ static const crom_schema_dset latent_dsets[] = {
     {"frames/elastic_energy", "f64", "F", 0, "J", "stable neo-Hookean strain energy, summed over the cubature tets with "
                                                   "their weights, or over every tet of the mesh (--model without --cubature)", NULL},
     {"frames/external_energy", "f64", "F", 0, "J", "potential of gravity and applied forces, -f_ext . u of the decoded "
-                                                   "displacement", NULL},
+                                                   "displacement, plus the rods' energy (--rod)", NULL},
     {"frames/total_energy", "f64", "F", 0, "J", "kinetic + elastic + external", NULL},
     {"frames/iterations", "f64", "F", 0, "1", "solver iterations of the step", NULL},
     {"frames/residual", "f64", "F", 0, "1", "last correction of the step: RMS displacement relative to the bounding-box "

@@ -212,17 +212,24 @@ static double dot(const double *a, const double *b, int n)
     return s;
 }
 
+static void sym_apply(void *ctx, const double *x, double *y) { crom_sym_matvec(ctx, x, y); }
+
 int crom_chol_pcg(const crom_sym *A, crom_chol *c, const double *b, double *x, double rtol,
              int maxit, double *work)
 {
-    int n = A->n;
+    return crom_chol_pcg_op(A->n, sym_apply, (void *)A, c, b, x, rtol, maxit, work);
+}
+
+int crom_chol_pcg_op(int n, void (*apply)(void *ctx, const double *x, double *y), void *ctx, crom_chol *c,
+                     const double *b, double *x, double rtol, int maxit, double *work)
+{
     double *r = work, *z = work + n, *p = work + 2 * (size_t)n, *Ap = work + 3 * (size_t)n;
     double bn = sqrt(dot(b, b, n));
     if (bn == 0) {
         memset(x, 0, sizeof(double) * (size_t)n);
         return 0;
     }
-    crom_sym_matvec(A, x, Ap);
+    apply(ctx, x, Ap);
     for (int i = 0; i < n; i++)
         r[i] = b[i] - Ap[i];
     if (sqrt(dot(r, r, n)) <= rtol * bn)
@@ -233,7 +240,7 @@ int crom_chol_pcg(const crom_sym *A, crom_chol *c, const double *b, double *x, d
     memcpy(p, z, sizeof(double) * (size_t)n);
     double rz = dot(r, z, n);
     for (int it = 1; it <= maxit; it++) {
-        crom_sym_matvec(A, p, Ap);
+        apply(ctx, p, Ap);
         double pAp = dot(p, Ap, n);
         if (!(pAp > 0))
             return -1;

@@ -44,4 +44,9 @@ void crom_chol_free(crom_chol *c);
 int crom_chol_pcg(const crom_sym *A, crom_chol *c, const double *b, double *x,
                   double rtol, int maxit, double *work);
 
+/* The same for an operator given by its product: apply(ctx, x, y) sets
+ * y = A x (A symmetric, n × n). */
+int crom_chol_pcg_op(int n, void (*apply)(void *ctx, const double *x, double *y), void *ctx, crom_chol *c,
+                     const double *b, double *x, double rtol, int maxit, double *work);
+
 #endif

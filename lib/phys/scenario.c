@@ -16,7 +16,7 @@
 enum {
     SC_YOUNGS = 0x1000, SC_POISSON, SC_DENSITY, SC_DT, SC_STEPS, SC_EVERY, SC_GRAVITY,
     SC_PIN, SC_VELOCITY, SC_FORCE, SC_PLANE, SC_DAMPING, SC_CONTACT_K, SC_FRICTION_EPS,
-    SC_TOL, SC_MAXIT, SC_V0, SC_SPIN, SC_SPHERE
+    SC_TOL, SC_MAXIT, SC_V0, SC_SPIN, SC_SPHERE, SC_ROD
 };
 
 const crom_opt crom_scenario_opts[] = {
@@ -30,6 +30,7 @@ const crom_opt crom_scenario_opts[] = {
     {"pin", SC_PIN, "REGION", "Hold the vertices of REGION (a mesh region name, a predicate such as 'y<-0.45', or one vertex '#N') at rest (repeatable; a region pinned or moved by --velocity already is an error)."},
     {"velocity", SC_VELOCITY, "REGION=VX,VY,VZ[@T0:T1]", "Move REGION at the given velocity (m/s) during [T0, T1] (default: always) and hold it still outside (repeatable, once per region). LiCROM's compression: --velocity 'y>0.45=0,-2,0' --pin 'y<-0.45'."},
     {"force", SC_FORCE, "REGION=FX,FY,FZ[@T0:T1]", "Apply a total force (N) to REGION, spread over its vertices by mass, during [T0, T1] (repeatable: forces on one region add up)."},
+    {"rod", SC_ROD, "A/B=K,L0[,AMP,PERIOD[,PHASE]]", "A rod between the centroids of regions A and B (names, predicates or vertices '#N'): a spring of stiffness K (N/m) whose rest length is L0 (m, or 'rest': the ends' distance at rest) plus AMP sin(2 pi t / PERIOD + PHASE) (Neural Modes' puppet); its force spreads over each end by mass (repeatable; crom-fullsim, crom-reducedstep, crom-live)."},
     {"plane", SC_PLANE, "NX,NY,NZ,D[,MU]", "Collision half-space: keep n.x >= D (n is normalized), with Coulomb friction coefficient MU (default 0) (repeatable)."},
     {"sphere", SC_SPHERE, "CX,CY,CZ,R[,MU]", "Collision sphere (a fixed ball): keep vertices outside |x - c| >= R, with the planes' penalty and Coulomb friction coefficient MU (default 0) (repeatable; planes and spheres together at most 32)."},
     {"damping", SC_DAMPING, "A", "Mass-proportional damping rate in 1/s (default 0): a drag force A m v."},
@@ -184,6 +185,15 @@ static int parse_option(crom_scenario *s, int key, const char *v)
             check_ref("--force", s->force[s->nforce].ref, strlen(s->force[s->nforce].ref)))
             return CROM_EUSAGE;
         s->nforce++;
+        return 0;
+    case SC_ROD:
+        if (s->nrod == CROM_SCENARIO_MAX)
+            return crom_err(CROM_EUSAGE, "--rod: at most %d", CROM_SCENARIO_MAX);
+        if (crom_rod_parse("--rod", v, &s->rod[s->nrod]) ||
+            check_ref("--rod", s->rod[s->nrod].a, strlen(s->rod[s->nrod].a)) ||
+            check_ref("--rod", s->rod[s->nrod].b, strlen(s->rod[s->nrod].b)))
+            return CROM_EUSAGE;
+        s->nrod++;
         return 0;
     case SC_PLANE: {
         if (s->nplanes == CROM_SCENARIO_MAX)
@@ -380,6 +390,11 @@ char *crom_scenario_text(const crom_scenario *s)
         bc_text(&b, &l, &c, "--velocity", &s->vel[i]);
     for (int i = 0; i < s->nforce; i++)
         bc_text(&b, &l, &c, "--force", &s->force[i]);
+    for (int i = 0; i < s->nrod; i++) {
+        char rb[400];
+        crom_rod_format(&s->rod[i], rb, sizeof rb);
+        appendf(&b, &l, &c, "--rod %s\n", rb);
+    }
     for (int i = 0; i < s->nplanes; i++)
         if (s->plane[i].sphere)
             appendf(&b, &l, &c, "--sphere %.17g,%.17g,%.17g,%.17g,%.17g\n", s->plane[i].c[0], s->plane[i].c[1],

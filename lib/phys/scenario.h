@@ -15,6 +15,7 @@
 #include "phys/bc.h"
 #include "phys/contact.h"
 #include "phys/material.h"
+#include "phys/rod.h"
 
 #define CROM_SCENARIO_MAX 32 /* pins, velocities, forces, planes: at most this many of each */
 
@@ -38,6 +39,8 @@ typedef struct {
     crom_bc vel[CROM_SCENARIO_MAX];        /* prescribed velocities (held still outside [t0, t1]) */
     int nforce;
     crom_bc force[CROM_SCENARIO_MAX];      /* total forces, spread over the region by mass */
+    int nrod;
+    crom_rod rod[CROM_SCENARIO_MAX];       /* rods between two regions (--rod) */
     int nplanes;                     /* collision planes and spheres (--plane, --sphere), in order */
     crom_contact_plane plane[CROM_SCENARIO_MAX];
     double damping;                  /* mass-proportional damping rate (1/s) */

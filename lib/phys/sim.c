@@ -130,6 +130,11 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
     for (int b = 0; b < s->nforce; b++)
         for (int k = s->force_ptr[b]; k < s->force_ptr[b + 1]; k++)
             s->force_mass[b] += s->sys.mass[s->force_idx[k]];
+    if ((rc = crom_rods_init(&s->rods, sc->nrod, sc->rod, mesh, s->sys.mass)) ||
+        !(s->rod_H = crom_calloc((size_t)9 * sc->nrod + 1, sizeof(double)))) {
+        crom_sim_free(s);
+        return rc ? rc : CROM_EINTERNAL;
+    }
     for (int k = 0; k < s->npin; k++)
         memset(s->fixed + 3 * (size_t)s->pin[k], 1, 3);
     for (int k = 0; s->nvel && k < s->vel_ptr[s->nvel]; k++)
@@ -176,6 +181,8 @@ void crom_sim_free(crom_sim *s)
     free(s->force_ptr);
     free(s->force_idx);
     free(s->force_mass);
+    crom_rods_free(&s->rods);
+    free(s->rod_H);
     memset(s, 0, sizeof *s);
 }
 
@@ -223,9 +230,10 @@ static int potential(crom_sim *s, const double *x, double E, double *ip, double 
             con += crom_contact_eval(&sc->plane[p], sc->contact_stiffness, s->sys.mass[i], x + 3 * i,
                                      s->xn + 3 * i, s->lam[(size_t)p * s->nv + i],
                                      sc->friction_eps * h, NULL, NULL);
-    *ip = kin / (2 * h * h) + sc->damping * damp / (2 * h) + E - ext + con;
+    double rods = crom_rods_eval(&s->rods, sc->rod, s->t1, x, NULL, NULL, 0);
+    *ip = kin / (2 * h * h) + sc->damping * damp / (2 * h) + E - ext + con + rods;
     if (noise)
-        *noise = 64 * DBL_EPSILON * (fabs(*ip) + fabs(E) + extabs + con + kin / (2 * h * h));
+        *noise = 64 * DBL_EPSILON * (fabs(*ip) + fabs(E) + extabs + con + rods + kin / (2 * h * h));
     return isfinite(*ip) ? 0 : crom_err(CROM_EDATA, "incremental potential is not finite");
 }
 
@@ -267,6 +275,7 @@ static int ip_gradient(crom_sim *s, const double *x, const crom_fem_opts *fo, do
     for (int i = 0; i < s->n; i++)
         g[i] += s->m3[i] * ((x[i] - s->xhat[i]) / (h * h) + sc->damping * (x[i] - s->xn[i]) / h) - s->fext[i];
     add_contact(s, x, g, H);
+    crom_rods_eval(&s->rods, sc->rod, s->t1, x, g, H ? s->rod_H : NULL, fo->project);
     for (int i = 0; i < s->n; i++)
         if (s->fixed[i])
             g[i] = 0;
@@ -294,6 +303,7 @@ static void step_begin(crom_sim *s, double t1)
     const crom_scenario *sc = s->sc;
     double h = sc->dt;
     size_t n = (size_t)s->n;
+    s->t1 = t1;
     memcpy(s->xn, s->x, sizeof(double) * n);
     for (size_t i = 0; i < n; i++)
         s->xhat[i] = s->xn[i] + h * s->v[i];
@@ -370,6 +380,26 @@ static int simplified_step(crom_sim *s, newton *nw, crom_sim_stats *st, int *con
     return 0;
 }
 
+/* the Newton matrix as an operator: the sparse H and the rods */
+typedef struct {
+    crom_sim *s;
+    const crom_sym *A;
+} newton_op;
+static void newton_apply(void *ctx, const double *x, double *y)
+{
+    newton_op *o = ctx;
+    crom_sym_matvec(o->A, x, y);
+    crom_rods_matvec(&o->s->rods, o->s->rod_H, o->s->fixed, x, y);
+}
+
+/* CG on H d = -g (s->xt) from d = s->d, preconditioned with the factor;
+ * as crom_chol_pcg */
+static int solve_pcg(crom_sim *s, newton *nw, double rtol)
+{
+    newton_op op = {s, &nw->A};
+    return crom_chol_pcg_op(s->n, newton_apply, &op, s->chol, s->xt, s->d, rtol, CG_MAX, s->work);
+}
+
 /* The Newton direction d, H d = -g: by CG preconditioned with the reused
  * factor while it serves (nw->cg its iterations), else from a fresh
  * factorization (nw->cg = -1). *retry when H proved indefinite: the
@@ -384,7 +414,7 @@ static int newton_direction(crom_sim *s, newton *nw, crom_sim_stats *st, int *re
     double t0 = crom_clock_now();
     if (s->have_factor && !s->refactor) {
         memset(s->d, 0, sizeof(double) * n);
-        cg = crom_chol_pcg(&nw->A, s->chol, s->xt, s->d, nw->rtol, CG_MAX, s->work);
+        cg = solve_pcg(s, nw, nw->rtol);
         if (cg < -1)
             return -cg;
         if (cg >= 0)
@@ -414,6 +444,21 @@ static int newton_direction(crom_sim *s, newton *nw, crom_sim_stats *st, int *re
     t0 = crom_clock_now();
     if ((rc = crom_chol_solve(s->chol, s->xt, s->d)))
         return rc;
+    if (s->rods.n) {
+        /* the factor lacks the rods' coupling (rank 3 each): CG with it
+         * as preconditioner, from its solution, adds a few iterations */
+        cg = solve_pcg(s, nw, fmin(nw->rtol, 1e-6));
+        if (cg < -1)
+            return -cg;
+        if (cg < 0 && !nw->fo.project) { /* the rods made H indefinite */
+            nw->fo.project = 1;
+            *retry = 1;
+            return 0;
+        }
+        if (cg < 0 && (rc = crom_chol_solve(s->chol, s->xt, s->d))) /* SPD anyway: still a descent direction */
+            return rc;
+        st->cg += cg > 0 ? cg : 0;
+    }
     st->t_solve += crom_clock_now() - t0;
     return 0;
 }
@@ -573,7 +618,7 @@ int crom_sim_energies(crom_sim *s, double *kinetic, double *elastic, double *ext
         W -= s->fext[i] * (s->x[i] - s->mesh->X[i]);
     }
     *kinetic = K;
-    *external = W;
+    *external = W + crom_rods_eval(&s->rods, s->sc->rod, s->t, s->x, NULL, NULL, 0);
     return crom_system_energy(&s->sys, s->x, elastic);
 }
 

@@ -4,8 +4,10 @@
  * Each step minimizes the incremental potential (LiCROM eq. 5 in full space)
  *   IP(x) = 1/(2h²) ‖x − x̂‖²_M + A/(2h) ‖x − x_n‖²_M + E(x) − f_ext·x + C(x),
  *   x̂ = x_n + h v_n,
- * with M the lumped mass, A the damping rate, E the elastic energy, C the
- * collision/friction energy (contact.h); pinned and prescribed vertices are
+ * with M the lumped mass, A the damping rate, E the elastic energy plus
+ * the rods' (rod.h: their Hessian, which joins the two ends of each rod
+ * densely, is applied as a product inside CG and left out of the sparse
+ * factor), C the collision/friction energy (contact.h); pinned and prescribed vertices are
  * eliminated (Dirichlet DOFs set to their targets). Newton with per-element
  * SPD-projected Hessians; the linear systems are solved by CG preconditioned
  * with a sparse Cholesky factor that is reused across iterations and steps
@@ -19,6 +21,7 @@
 #include "phys/scenario.h"
 #include "phys/system.h"
 #include "phys/chol.h"
+#include "phys/rod.h"
 
 typedef struct {
     int newton;           /* Newton iterations of the step */
@@ -47,6 +50,9 @@ typedef struct {
     double *force_mass;               /* total mass of each force region */
     crom_chol *chol;
     int have_factor, refactor;
+    crom_rods rods;                   /* the scenario's rods (--rod) on the mesh */
+    double *rod_H;                    /* [nrod][9] their Hessians in their gaps, at the last assembly */
+    double t1;                        /* the time the step in progress ends at */
 } crom_sim;
 
 /* Set up a simulation of mesh under scenario sc (both borrowed): material,
@@ -78,7 +84,8 @@ int crom_sim_step(crom_sim *s, crom_sim_stats *st);
 int crom_sim_residual(crom_sim *s, double t1, const double *xprev, const double *vprev, const double *x,
                       double *err, double *urms, double *bc);
 
-/* Kinetic ½vᵀMv, elastic E(x) and external −f_ext(t)·(x − X) energies. */
+/* Kinetic ½vᵀMv, elastic E(x) and external −f_ext(t)·(x − X) energies;
+ * the rods' energy at time t counts as external (the actuators' work). */
 int crom_sim_energies(crom_sim *s, double *kinetic, double *elastic, double *external);
 
 /* Displacement u = x − X into u[3nv]. */

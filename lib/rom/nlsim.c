@@ -77,6 +77,9 @@ void crom_nlsim_free(crom_nlsim *s)
     free(s->eloc);
     free_bcs(s->bc, s->nbc);
     free_bcs(s->force, s->nforce);
+    free(s->rod_d0);
+    free(s->rod_rest);
+    free(s->rod_D);
     crom_newton_memory_free(&s->mem);
     memset(s, 0, sizeof *s);
 }
@@ -90,6 +93,70 @@ static int region(crom_nlsim *s, const char *ref, const crom_bc *bc, crom_nlsim_
     for (int k = 0; k < b->n; k++)
         b->mass += s->sys.mass[b->idx[k]];
     return 0;
+}
+
+/* The scenario's rods in the map's features: each end's mass-weighted
+ * sums of its vertices' rest positions and rows of B. */
+static int rods_setup(crom_nlsim *s)
+{
+    const crom_scenario *sc = s->sc;
+    const crom_map *map = s->map;
+    int p = s->p, nr = sc->nrod, rc = 0;
+    s->nrod = nr;
+    s->rod_d0 = crom_calloc((size_t)3 * nr + 1, sizeof(double));
+    s->rod_rest = crom_calloc((size_t)nr + 1, sizeof(double));
+    s->rod_D = crom_calloc((size_t)3 * nr * p + 1, sizeof(double));
+    if (!s->rod_d0 || !s->rod_rest || !s->rod_D)
+        return CROM_EINTERNAL;
+    for (int k = 0; k < nr && !rc; k++) {
+        double *d0 = s->rod_d0 + 3 * k, *D = s->rod_D + (size_t)3 * k * p;
+        for (int e = 0; e < 2 && !rc; e++) {
+            crom_nlsim_bc b;
+            memset(&b, 0, sizeof b);
+            const char *ref = e ? sc->rod[k].b : sc->rod[k].a;
+            if ((rc = region(s, ref, NULL, &b)))
+                crom_err_ctx("--rod");
+            else if (!(b.mass > 0))
+                rc = crom_err(CROM_EUSAGE, "--rod: end '%s' has no mass", ref);
+            for (int j = 0; !rc && j < b.n; j++) {
+                int v = b.idx[j];
+                double w = (e ? 1 : -1) * s->sys.mass[v] / b.mass;
+                for (int c = 0; c < 3; c++) {
+                    d0[c] += w * map->mesh.X[3 * (size_t)v + c];
+                    cblas_daxpy(p, w, map->B + (3 * (size_t)v + c) * p, 1, D + (size_t)c * p, 1);
+                }
+            }
+            free(b.idx);
+        }
+        s->rod_rest[k] = sqrt(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2]);
+    }
+    return rc;
+}
+
+/* The rods' energy at features a and time t; ga [p] (may be NULL) gets
+ * their gradient in a, Drodᵀ g_d, and H [r][r] (may be NULL) their
+ * Gauss–Newton term (Drod T)ᵀ H_d (Drod T) with T = s->T. */
+static double rods_eval(crom_nlsim *s, const double *a, double t, double *ga, double *H, int project)
+{
+    int p = s->p, r = s->r;
+    double E = 0;
+    for (int k = 0; k < s->nrod; k++) {
+        const double *D = s->rod_D + (size_t)3 * k * p;
+        double d[3], gd[3], Hd[9];
+        memcpy(d, s->rod_d0 + 3 * k, sizeof d);
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, 3, p, 1.0, D, p, a, 1, 1.0, d, 1);
+        E += crom_rod_eval(s->sc->rod[k].k, crom_rod_length(&s->sc->rod[k], s->rod_rest[k], t), d, gd,
+                           H ? Hd : NULL, project);
+        if (ga)
+            cblas_dgemv(CblasRowMajor, CblasTrans, 3, p, 1.0, D, p, gd, 1, 1.0, ga, 1);
+        if (H) { /* DT = D T [3][r] (in Jt's room), H += DTᵀ Hd DT */
+            double *DT = s->Jt, *HDT = s->Jt + 3 * (size_t)r;
+            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, 3, r, p, 1.0, D, p, s->T, r, 0.0, DT, r);
+            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, 3, r, 3, 1.0, Hd, 3, DT, r, 0.0, HDT, r);
+            cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, r, 3, 1.0, DT, r, HDT, r, 1.0, H, r);
+        }
+    }
+    return E;
 }
 
 /* H = Jᵀ M J (upper triangle) of the Jacobian in s->J: the mass-weighted
@@ -348,7 +415,7 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
         crom_nlsim_free(s);
         return CROM_EUSAGE;
     }
-    if ((rc = quadratic_setup(s)) || (rc = set_elastic(s, s->sys.nenergy, NULL, NULL))) {
+    if ((rc = rods_setup(s)) || (rc = quadratic_setup(s)) || (rc = set_elastic(s, s->sys.nenergy, NULL, NULL))) {
         crom_nlsim_free(s);
         return rc;
     }
@@ -638,6 +705,8 @@ int crom_nlsim_objective(crom_nlsim *s, const double *q, double *Eout, double *g
             }
         }
     }
+    /* the rods (gradient into ga) */
+    E += rods_eval(s, s->a, (double)(s->step + 1) * h, s->ga, H, project);
     /* elastic energy over the elastic tets */
     double Ee = 0;
     if ((rc = elastic(s, &Ee, g, H, project)))
@@ -936,6 +1005,6 @@ int crom_nlsim_energies(crom_nlsim *s, double *kinetic, double *elastic_e, doubl
         return rc;
     *elastic_e = Ee;
     *kinetic = K;
-    *external = W;
+    *external = W + rods_eval(s, s->an, s->t, NULL, NULL, 0);
     return 0;
 }

@@ -6,7 +6,7 @@
  *
  *   Φ(q) = 1/(2h²) ‖x(q) − x̂‖²_M + A/(2h) ‖x(q) − x_n‖²_M + E(x(q))
  *        − f_ext·(x(q) − x_n) + κ/2 Σ_bc Σ_v m_v ‖x_v(q) − X_v − ū_v(t)‖²
- *        + contact(x(q) at the surface vertices),
+ *        + contact(x(q) at the surface vertices) + the rods' energy (rod.h),
  *
  *   x̂ = x_n + h v_n,  v_n = (x_n − x_{n−1}) / h,
  *
@@ -104,6 +104,11 @@ typedef struct {
     double *Hfac;
     crom_newton_memory mem;
     crom_nlsim_bc *bc, *force;
+    /* the scenario's rods (--rod): gap d = d0 + Drod a in the features */
+    int nrod;
+    double *rod_d0;     /* [nrod][3] the gaps at rest */
+    double *rod_rest;   /* [nrod] their lengths */
+    double *rod_D;      /* [nrod][3][p] Σ_v w_v B_v over both ends (w_v = ±m_v / m_end) */
 } crom_nlsim;
 
 /* Set up on map (borrowed; its mesh's regions resolve the scenario's) with

@@ -62,6 +62,11 @@ static void free_cub_data(crom_rsim *s)
     crom_newton_memory_free(&s->mem);
     free_bcs(s->bc, s->nbc);
     free_bcs(s->force, s->nforce);
+    for (int k = 0; k < s->nrod; k++)
+        free(s->rod[k].D);
+    free(s->rod);
+    s->rod = NULL;
+    s->nrod = 0;
     for (int d = 0; d < s->ndrag; d++) /* the drags stay; their sums are the cubature's */
         free_bc(&s->drag[d].b);
     s->Mr = s->fg = s->G = s->Gfac = s->lam = NULL;
@@ -114,6 +119,74 @@ static int drag_resolve(crom_rsim *s, crom_rsim_drag *d)
             d->xbar[j] += m * c->mesh.X[3 * (size_t)v + j] / d->b.mass;
     }
     return 0;
+}
+
+/* The scenario's rods on the current cubature (crom_rsim_rod): each end's
+ * region sums and rest centroid give its centroid X̄ + Sᵀq/m. */
+static int rods_build(crom_rsim *s)
+{
+    const crom_scenario *sc = s->sc;
+    const crom_cubature *c = s->cub;
+    int r = s->r, rc = 0;
+    if (!sc->nrod)
+        return 0;
+    if (!(s->rod = crom_calloc((size_t)sc->nrod, sizeof *s->rod)))
+        return CROM_EINTERNAL;
+    s->nrod = sc->nrod;
+    for (int k = 0; k < sc->nrod && !rc; k++) {
+        crom_rsim_rod *rd = &s->rod[k];
+        if (!(rd->D = crom_calloc((size_t)3 * r, sizeof(double))))
+            return CROM_EINTERNAL;
+        for (int e = 0; e < 2 && !rc; e++) {
+            const char *ref = e ? sc->rod[k].b : sc->rod[k].a;
+            crom_rsim_bc b;
+            memset(&b, 0, sizeof b);
+            if ((rc = region_sums(c, sc->density, ref, &b))) {
+                crom_err_ctx("--rod");
+            } else if (!(b.mass > 0)) {
+                rc = crom_err(CROM_EUSAGE, "--rod: end '%s' has no mass", ref);
+            } else {
+                double sg = e ? 1 : -1;
+                for (int j = 0; j < b.n; j++) {
+                    int v = b.idx[j];
+                    for (int a = 0; a < 3; a++)
+                        rd->d0[a] += sg * sc->density * c->vvol[v] * c->mesh.X[3 * (size_t)v + a] / b.mass;
+                }
+                for (int i = 0; i < r; i++)
+                    for (int a = 0; a < 3; a++)
+                        rd->D[a * r + i] += sg * b.S[i * 3 + a] / b.mass;
+            }
+            free_bc(&b);
+        }
+        rd->rest = sqrt(rd->d0[0] * rd->d0[0] + rd->d0[1] * rd->d0[1] + rd->d0[2] * rd->d0[2]);
+    }
+    return rc;
+}
+
+/* The rods' energy at q and time t; g [r] and H [r][r] (may be NULL) get
+ * their gradient Dᵀ g_d and Hessian Dᵀ H_d D added (projected per
+ * project). */
+static double rods_eval(crom_rsim *s, const double *q, double t, double *g, double *H, int project)
+{
+    int r = s->r;
+    double E = 0;
+    for (int k = 0; k < s->nrod; k++) {
+        const crom_rsim_rod *rd = &s->rod[k];
+        double d[3], gd[3], Hd[9], HD[3 * 64];
+        memcpy(d, rd->d0, sizeof d);
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, 3, r, 1.0, rd->D, r, q, 1, 1.0, d, 1);
+        E += crom_rod_eval(s->sc->rod[k].k, crom_rod_length(&s->sc->rod[k], rd->rest, t), d, gd, H ? Hd : NULL,
+                           project);
+        if (g)
+            cblas_dgemv(CblasRowMajor, CblasTrans, 3, r, 1.0, rd->D, r, gd, 1, 1.0, g, 1);
+        for (int j0 = 0; H && j0 < r; j0 += 64) { /* H += Dᵀ Hd D in slices of 64 columns */
+            int nj = r - j0 < 64 ? r - j0 : 64;
+            cblas_dgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, 3, nj, 3, 1.0, Hd, 3, rd->D + j0, r, 0.0, HD,
+                        nj);
+            cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, nj, 3, 1.0, rd->D, r, HD, nj, 1.0, H + j0, r);
+        }
+    }
+    return E;
 }
 
 /* The objective's constant quadratic part Q = (1/h² + A/h) M_r + κ Σ_b P_b
@@ -281,6 +354,8 @@ static int build(crom_rsim *s)
     for (int d = 0; d < s->ndrag && !rc; d++)
         if ((rc = drag_resolve(s, &s->drag[d])))
             return crom_err_ctx("drag");
+    if ((rc = rods_build(s)))
+        return rc;
     /* the objective's constant quadratic part (quad_rebuild) */
     for (int b = 0; b < s->nbc; b++)
         cblas_daxpy((int)rr, s->kappa, s->bc[b].P, 1, s->Pk, 1);
@@ -598,7 +673,7 @@ int crom_rsim_objective(crom_rsim *s, const double *q, double *Eout, double *g, 
     int rc = crom_elastic_eval(&s->el, &s->mat, q, project, &Ee, g, H);
     if (rc)
         return rc;
-    E += Ee;
+    E += Ee + rods_eval(s, q, (double)(s->step + 1) * sc->dt, g, H, project);
     /* contact at the surface vertices */
     for (int p = 0; p < sc->nplanes; p++)
         for (int k = 0; k < c->nsurf; k++) {
@@ -778,6 +853,6 @@ int crom_rsim_energies(crom_rsim *s, double *kinetic, double *elastic, double *e
         return rc;
     *kinetic = K;
     *elastic = Ee;
-    *external = W;
+    *external = W + rods_eval(s, s->q, s->t, NULL, NULL, 0);
     return 0;
 }

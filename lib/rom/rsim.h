@@ -71,6 +71,16 @@ typedef struct {
     crom_rsim_bc b;
 } crom_rsim_drag;
 
+/* A rod of the scenario (--rod, phys/rod.h) on the current cubature's
+ * mesh: its gap d(q) = d0 + D q between the ends' centroids, with D =
+ * S_Bᵀ/m_B − S_Aᵀ/m_A over the ends' region sums, exact in a linear
+ * subspace. */
+typedef struct {
+    double d0[3];       /* the gap at rest (m) */
+    double rest;        /* |d0| */
+    double *D;          /* [3][r] */
+} crom_rsim_rod;
+
 typedef struct {
     const crom_scenario *sc;
     const crom_cubature *cub;
@@ -102,6 +112,8 @@ typedef struct {
     int fac_ok;         /* Hfac holds a factor */
     int fac_iters;      /* iterations of this step since it was made */
     int fac_slow;       /* the last step needed more than its share: refresh (rsim.c) */
+    int nrod;           /* the scenario's rods, rebuilt per cubature */
+    crom_rsim_rod *rod;
     int ndrag;          /* drags (crom_rsim_drag_set), kept across cubatures */
     crom_rsim_drag *drag;
     crom_elastic el;    /* the elastic energy over the cubature (rebuilt per cubature) */

@@ -48,7 +48,7 @@ SC=(--youngs X --poisson X --density X --dt X --steps X --every X --gravity X,0,
     --velocity top=X,0,0 --velocity top=0,0,0@X:1 --force top=0,X,0 --plane 0,1,0,X --plane 0,1,0,0,X
     --sphere X,0,0,1 --sphere 0,0,0,X --sphere 0,0,0,1,X
     --damping X --contact-stiffness X --friction-eps X --tol X --max-iter X --initial-velocity X,0,0
-    --spin 0,0,X)
+    --spin 0,0,X --rod top/bottom=X,rest --rod top/bottom=1,rest,X,1)
 for ((i = 0; i < ${#SC[@]}; i += 2)); do
   try crom-fullsim "${SC[i]}" "${SC[i + 1]}" -o "$OUT" m.h5
   try crom-reducedstep "${SC[i]}" "${SC[i + 1]}" --cubature cub.h5 -o "$OUT"

@@ -1294,7 +1294,8 @@ static void nl_grad(const double *q, void *ctx, double *g)
 
 /* The reduced objective of the energy map: gradient against differences,
  * with every term (inertia, damping, gravity, a force, a pin penalty on a
- * region the map moves, a frictional plane the bar touches), and the
+ * region the map moves, a frictional plane the bar touches, a rod with a
+ * moving rest length), and the
  * Newton matrix (Gauss–Newton plus the map's curvature) against differences
  * of the gradient; then a free run: finite, and its total energy never
  * increases (implicit Euler dissipates). */
@@ -1318,6 +1319,9 @@ static void test_dynamics(bar_case *b)
     sc.plane[0].d = -0.2;
     sc.plane[0].mu = 0.3;
     sc.nplanes = 1;
+    /* a rod pulling the free end's top toward the middle, its rest length moving */
+    CHECK(crom_rod_parse("--rod", "x<-0.4/x>0.2&y>0.09=500,0.4,0.05,0.5", &sc.rod[0]) == 0);
+    sc.nrod = 1;
     crom_nlsim s;
     double q0[2] = {0.4, -0.3}, qd0[2] = {2, 1};
     int rc = crom_nlsim_init(&s, &map, &sc, 1e5, q0, qd0, 1);
@@ -1376,6 +1380,11 @@ static void test_dynamics(bar_case *b)
             double mi = s.sys.mass[i / 3], a = x[i] - xn[i] - h * vn[i], bb = x[i] - xn[i];
             Eref += 0.5 * mi * (cin * a * a + cd * bb * bb) - fext[i] * bb;
         }
+        crom_rods R; /* the rod */
+        CHECK(crom_rods_init(&R, 1, sc.rod, &map.mesh, s.sys.mass) == 0);
+        Eref += crom_rods_eval(&R, sc.rod, s.t + h, x, NULL, NULL, 0);
+        CHECK(R.rest[0] > 0.5 && fabs(R.rest[0] - s.rod_rest[0]) < 1e-14);
+        crom_rods_free(&R);
         for (int j = 0; j < s.bc[0].n; j++) { /* the pin */
             int v = s.bc[0].idx[j];
             for (int c = 0; c < 3; c++) {

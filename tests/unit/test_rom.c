@@ -90,6 +90,8 @@ static void test_derivatives(void)
     crom_scenario_option(&sc, 0x1000 + 8, "right=0.5,-1,0@0:0.3"); /* --velocity */
     crom_scenario_option(&sc, 0x1000 + 9, "y>0.1=0,0,40");          /* --force */
     crom_scenario_option(&sc, 0x1000 + 10, "0,1,0,-0.16,0.4");       /* --plane */
+    /* a rod, compressed (its transverse stiffness negative) with a moving rest length */
+    CHECK(crom_rod_parse("--rod", "x<-0.3/x>0.3&y>0.05=800,1.2,0.1,0.3,0.2", &sc.rod[sc.nrod++]) == 0);
     crom_rsim s;
     double q0[R], qd0[R];
     crom_rng_seed(&rng, 7);
