@@ -282,6 +282,50 @@ def hetero(out, rows, stiff):
               f"{diff_error(f'{out}/diff-{r}.txt'):.3g} |")
 
 
+def puppet(out, rows, frames):
+    """pipelines/puppet.mk: each subspace's run of the rod-driven puppet against the full one"""
+    import meshio
+    names = {"modes": "linear modes", "mderiv": "modes + modal derivatives",
+             "neuralmodes": "neural modes (seeded with the derivatives)",
+             "nmcub": "the same neural modes over a cubature"}
+    full = h5py.File(f"{out}/full.h5", "r")
+    X, U = full["mesh/vertices"][()], full["frames/displacement"]
+    hands = [(X[:, 0] > 0.55) & (X[:, 1] > 0.09), (X[:, 0] < -0.55) & (X[:, 1] > 0.09)]
+    shoulders = [(np.abs(X[:, 0] - 0.15) < 0.012) & (X[:, 1] > 0.1), (np.abs(X[:, 0] + 0.15) < 0.012) & (X[:, 1] > 0.1)]
+
+    def arms(u):
+        """the arms' shoulder-to-hand lengths and the hands' swing (z) at displacement u"""
+        x = X + u
+        length = [np.linalg.norm(x[h].mean(axis=0) - x[s].mean(axis=0)) for h, s in zip(hands, shoulders)]
+        return np.array(length), np.array([u[h, 2].mean() for h in hands])
+
+    rest = arms(np.zeros_like(X))[0]
+    ks = [int(k) for k in frames]
+    swing = max(np.abs(arms(U[k])[1]).max() for k in ks)
+    print(f"The puppet: six rods swing the arms and nod the head, the torso held; {U.shape[0] - 1} steps of "
+          f"{float(full.attrs['dt']):g} s, {X.shape[0]} vertices. Full run: hands swing up to {swing:.3g} m, the arms "
+          f"keep their length within {max(np.abs(arms(U[k])[0] / rest - 1).max() for k in ks):.2%}.\n")
+    med = lambda path: float(np.median(col(path, "seconds")))
+    print(f"crom-fullsim: {1e3 * med(f'{out}/full.csv'):.1f} ms per step (median)\n")
+    print("| subspace | dimension | build (s) | error over the run | arm length change (largest) | hand swing | "
+          "ms per step |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    for r in rows:
+        m = h5py.File(f"{out}/{r}.h5", "r")
+        secs = m.attrs.get("training_seconds")
+        secs = f"{float(secs):.3g}" if secs is not None else "(an eigensolve)"
+        if r == "nmcub":
+            c = h5py.File(f"{out}/cub-neuralmodes.h5", "r")
+            secs = f"+ {c['elements'].shape[0]} tets"
+        worst, sw = 0.0, 0.0
+        for k in ks:
+            u = meshio.read(f"{out}/frames-{r}/f{k}.vtu").point_data["displacement"]
+            length, z = arms(u)
+            worst, sw = max(worst, np.abs(length / rest - 1).max()), max(sw, np.abs(z).max())
+        print(f"| {names.get(r, r)} | {int(m.attrs['rank'])} | {secs} | {diff_error(f'{out}/diff-{r}.txt'):.3g} | "
+              f"{worst:.1%} | {sw:.3g} m | {1e3 * med(f'{out}/red-{r}.csv'):.2f} |")
+
+
 if __name__ == "__main__":
     if sys.argv[1] == "tables":
         tables(sys.argv[2], sys.argv[3].split(), sys.argv[4].split())
@@ -295,5 +339,7 @@ if __name__ == "__main__":
         mpi(sys.argv[2], int(sys.argv[3]))
     elif sys.argv[1] == "hetero":
         hetero(sys.argv[2], sys.argv[3].split(), sys.argv[4])
+    elif sys.argv[1] == "puppet":
+        puppet(sys.argv[2], sys.argv[3].split(), sys.argv[4].split())
     else:
-        sys.exit("usage: benchtab.py tables|training|datafree|scale|mpi|hetero DIR ...")
+        sys.exit("usage: benchtab.py tables|training|datafree|scale|mpi|hetero|puppet DIR ...")

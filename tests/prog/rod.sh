@@ -7,7 +7,8 @@
 # length); the scenario attribute keeps the rod and replays the same run;
 # crom-reducedstep over a cubature and through --model (the nonlinear
 # path) follow the full run in a POD basis of it to round-off; crom-live
-# runs a rod too; bad rods are one line.
+# runs a rod too; the puppet experiment runs at a small size; bad rods are
+# one line.
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 cat > two.geo <<'EOF'
@@ -68,6 +69,32 @@ done
 printf 'step 800\nquit\n' | crom-live --cubature cub.h5 "${SC[@]}" --no-clock -q > live.h5
 e=$(crom-diff --model pod.h5 --mesh two.h5 red.h5 live.h5 2>&1 | sed -n 's/^relative displacement error \([^ ]*\) .*/\1/p')
 close "$e" 0 1e-12 "crom-live against crom-reducedstep"
+
+# the puppet (pipelines/puppet.mk, Neural Modes §5) at a small size: six
+# rods swing the arms; modes with their derivatives follow the full run
+# far better than the linear modes, whose arms lock (they swing less than
+# half as far); a filmstrip per subspace. (Eigensolves and training: not
+# under the sanitizers, like materials.sh's experiment.)
+if [ "${CROM_SANITIZE:-0}" != 1 ]; then
+  make -s -f "$CROM_TOP/pipelines/puppet.mk" OUT="$TMP/pup" SIZE=0.06 STEPS=30 TMINUTES=0.03 QUIET=-q \
+    BINDIR="$CROM_BINDIR" >pup.txt 2>pup.err || fail "puppet.mk: $(cat pup.err)"
+  cat pup.txt
+  [ "$(grep -c '^| [lmnt]' pup.txt)" -eq 4 ] || fail "puppet.mk: the table lacks rows"; ok
+  $PY - pup.txt <<'PYEOF' || fail "puppet.mk: modal derivatives not better than the linear modes"
+import sys
+rows = {l.split("|")[1].strip(): l.split("|") for l in open(sys.argv[1]) if l.startswith("| ") and "subspace" not in l}
+err = {k: float(v[4]) for k, v in rows.items()}
+swing = {k: float(v[6].split()[0]) for k, v in rows.items()}
+print(err, swing)
+if not (err["modes + modal derivatives"] < 0.6 * err["linear modes"] and
+        swing["modes + modal derivatives"] > 2 * swing["linear modes"]):
+    raise SystemExit("modal derivatives do not beat the locked linear modes")
+PYEOF
+  ok
+  for r in modes mderiv neuralmodes; do
+    [ "$(head -c 8 "$TMP/pup/strip-$r.png" | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] || fail "strip-$r.png"; ok
+  done
+fi
 
 # bad rods
 O=$TMP/out.h5
