@@ -39,7 +39,7 @@
 enum { O_RANK = 300, O_ENCODER, O_BASIS, O_EPOCHS, O_MINUTES, O_LR, O_BATCH, O_PPS, O_ENCPTS,
        O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX, O_BOXSC,
        O_ORTHO, O_STEPS, O_FEATURES, O_TETS, O_PINW, O_OPTIM, O_RESAMPLE, O_TANW, O_TANF, O_HANDLES, O_WEIGHTS,
-       O_SURFACE, O_CLOUD, O_SPOINTS, O_COORDS, O_COORDTOL, O_DERIV, O_SUPERV, O_TANANCHOR, O_VISIT, O_SHARDS, O_LAST };
+       O_SURFACE, O_CLOUD, O_SPOINTS, O_COORDS, O_COORDTOL, O_DERIV, O_SUPERV, O_TANANCHOR, O_VISIT, O_SHARDS, O_COND, O_LAST };
 
 /* --objective skinning (lib/datafree/dfskin.h), next to the CROM_DATAFREE_* codes */
 #define OBJ_SKINNING 100
@@ -81,6 +81,7 @@ static const crom_opt df_opts[] = {
     {"derivatives", O_DERIV, NULL, "neuralmodes: seed the map with the modal derivatives Psi_ij of its --rank modes (Barbic and James 2005, computed here on --mesh with the material and pins): x(z) = X + Phi z + 1/2 sum_{i<=j} Psi_ij z_i z_j + y(z). The second-order term is the in-plane shortening that keeps bent modes of a shell or a slender body from stretching (locking), which y alone learns slowly; the model stores Psi."},
     {"tangent-anchor", O_TANANCHOR, NULL, "neuralmodes: anchor the correction's tangent too: y(z) = N(z) - N(0) - J_N(0) z, zero to first order, so that the map leaves rest along the modes exactly as the constrained equilibria do (a learned first-order part stiffens small deflections). Trained with J_N(0) z as a central difference of step 0.01 z; the model (tangent_anchored) evaluates it exactly."},
     {"supervised", O_SUPERV, "EQ", "neuralmodes: the supervised baseline of Wang et al. (their 'L2 supervised'): the same map fitted to the constrained equilibria of EQ (crom-fullsim --equilibria in the same modes, on --mesh) by the mean squared mass-weighted distance, instead of trained on the energy; batches are drawn from the equilibria."},
+    {"condition", O_COND, "NAME=LO:HI", "energy: a conditional map (Sharp et al. 3.5): the network takes [z, c] and each batch is trained at a c drawn uniformly from LO:HI. NAME: ratio:REGION, the Young's modulus of REGION's tets over the body's (a region of another material); gravity:x|y|z, that component of gravity (m/s^2). Repeatable (at most 4). crom-reducedstep --model takes --condition NAME=VALUE[@T] to run the map at a condition, or change it at time T."},
     {"latents", O_VISIT, "RUN", "neuralmodes: sample along a run: every other sample of a batch is drawn near the modal coordinates of a frame of RUN (a crom/latent of a reduced run in the same modes, e.g. crom-reducedstep --model of the untrained map, --steps 0), moved by up to 15% of max(box half-width, |z_k|) per coordinate; the others from the box. For deformations whose coordinates lie outside the box (a soft body sagging far under its load). Still data-free: no full simulation."},
     {"box-scaling", O_BOXSC, "KIND", "neuralmodes: frequency (default): mode k is drawn from [-A f_1/f_k, A f_1/f_k], the same linear energy at every edge, so that the stiff modes do not swamp the energy of the soft ones; uniform: every mode from [-A, A] (Wang et al.)."},
     {"optimizer", O_OPTIM, "KIND", "energy, neuralmodes: adam (default): Adam on a fresh batch every step. lbfgs: L-BFGS with a backtracking line search (Wang et al.), --resample iterations on each batch."},
@@ -224,6 +225,8 @@ typedef struct {
     int df_only;                 /* a data-free-only option given (its key) */
     int mpi;                     /* started by an MPI launcher: MPI_Init was called */
     int remote;                  /* the run stopped because another MPI rank failed */
+    int ncond;                   /* energy: --condition NAME=LO:HI */
+    crom_scenario_cond cond[CROM_MODEL_MAXCOND];
 } args;
 
 #define GIVEN(a, key) ((a)->given[(key) - O_RANK])
@@ -333,6 +336,16 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_DERIV: a->derivatives = 1; return 0;
     case O_SUPERV: a->supervised = v; return 0;
     case O_VISIT: a->visit = v; return 0;
+    case O_COND:
+        if (a->ncond == CROM_MODEL_MAXCOND)
+            return crom_err(CROM_EUSAGE, "--condition: at most %d", CROM_MODEL_MAXCOND);
+        if (crom_scenario_cond_parse("--condition", v, 1, &a->cond[a->ncond]))
+            return CROM_EUSAGE;
+        for (int k = 0; k < a->ncond; k++)
+            if (crom_scenario_cond_same(&a->cond[k], &a->cond[a->ncond]))
+                return crom_err(CROM_EUSAGE, "--condition %s: given twice", v);
+        a->ncond++;
+        return 0;
     case O_TANANCHOR: a->df.tangent_anchor = 1; return 0;
     case O_SPOINTS: return int_opt(key, v, 1, 100000000L, &a->sample_points);
     /* 0 parses, so that the training reports it as a count it cannot use */
@@ -448,6 +461,8 @@ static void check_datafree(crom_cli *cli, const args *a)
         usage_exit(cli, crom_err(CROM_EUSAGE, "%s applies to --objective neuralmodes",
                                  a->derivatives ? "--derivatives" : a->supervised ? "--supervised" :
                                  a->visit ? "--latents" : "--tangent-anchor"));
+    if (a->ncond && a->objective != CROM_DATAFREE_ENERGY)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--condition applies to --objective energy"));
     if (a->supervised && a->visit)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--latents samples the energy along a run; --supervised fits equilibria: "
                                  "give one"));
@@ -837,13 +852,21 @@ static int run_datafree(crom_cli *cli, args *a)
     long solves = 0;
     crom_model_clear(&out);
     memset(&log, 0, sizeof log);
-    int rc = load_body(cli, a, &b);
+    int rc = 0;
+    for (int k = 0; k < a->ncond && !rc; k++) /* the body at the middle of each range (a ratio's region) */
+        rc = crom_scenario_cond_apply(&a->sc, &a->cond[k], 0.5 * (a->cond[k].lo + a->cond[k].hi));
+    if (!rc)
+        rc = load_body(cli, a, &b);
     if (!rc && a->objective == CROM_DATAFREE_NEURALMODES)
         rc = load_modes(cli, a, &b);
     if (!rc)
         rc = crom_body_pins(&b, &a->sc, skin);
     if (!rc && !skin)
         rc = crom_body_map_problem(&b, &a->sc, a->objective, a->df.rank, &P);
+    if (!rc && !skin) {
+        P.ncond = a->ncond;
+        P.cond = a->cond;
+    }
     if (!rc && a->derivatives)
         rc = crom_body_derivatives(&b, &P, a->df.rank);
     if (!rc && a->supervised)

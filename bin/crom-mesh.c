@@ -12,12 +12,13 @@
 #include "mesh/meshgen.h"
 
 enum { O_SIZE = 'S' + 256, O_DIMS, O_RADIUS, O_HEIGHT, O_EXP, O_REGION, O_ALGO, O_NOOPT,
-       O_REMESH, O_KEEP, O_TIMEOUT, O_THICK, O_UNSTRUCT };
+       O_REMESH, O_KEEP, O_TIMEOUT, O_THICK, O_UNSTRUCT, O_PLANE };
 
 static const crom_opt mesh_opts[] = {
     {"output", 'o', "OUT", "Write the mesh to OUT (default: stdout, which must not be a terminal)."},
     {"size", O_SIZE, "H", "Target edge length in metres (default 0.1)."},
     {"dims", O_DIMS, "X,Y,Z", "Extents of box, plate and superquadric, centred at the origin (default 1,1,1; plate 1,0.05,1). sheet: X by Y in the xy-plane (Z is not used)."},
+    {"plane-strain", O_PLANE, NULL, "sheet, disk, import of a surface in z = 0: make a 2-D solid in plane strain instead of a shell: the triangles are a body of depth --thickness (default 0.001) whose every section deforms alike (stable neo-Hookean in plane strain, no bending term beyond the triangles'; crom-fullsim, crom-modes, crom-fitfield energy|neuralmodes, crom-reducedstep --model and crom-export take it like a shell)."},
     {"unstructured", O_UNSTRUCT, NULL, "sheet: mesh the rectangle with gmsh (unstructured triangles of edge about --size) instead of regular rows."},
     {"thickness", O_THICK, "T", "Make a thin shell of this thickness in metres: sheet, disk (default 0.001), or import of an .stl/.obj surface, open or closed, whose triangles become the shell's (subdivided until no edge exceeds --size), or of the 3-node triangles of a gmsh .msh surface, kept as they are, its physical groups becoming regions."},
     {"radius", O_RADIUS, "R", "Radius of sphere, cylinder and disk (default 0.5)."},
@@ -69,7 +70,7 @@ typedef struct {
     int nregions;
     double size, dims[3], radius, height, exponent, timeout, thickness;
     int exponent_given;
-    int algorithm, no_optimize, remesh, unstructured;
+    int algorithm, no_optimize, remesh, unstructured, plane;
 } args;
 
 static int on_opt(void *ctx, int key, const char *v)
@@ -123,6 +124,7 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_TIMEOUT: return crom_parse_positive(v, "--timeout", &a->timeout);
     case O_THICK: return crom_parse_positive(v, "--thickness", &a->thickness);
     case O_UNSTRUCT: a->unstructured = 1; return 0;
+    case O_PLANE: a->plane = 1; return 0;
     }
     return crom_err(CROM_EINTERNAL, "unhandled option");
 }
@@ -148,6 +150,10 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
                  a->shape);
     else if (a->unstructured && shape != CROM_MESHGEN_SHEET)
         crom_err(CROM_EUSAGE, "--unstructured is for a sheet");
+    else if (a->plane && shape != CROM_MESHGEN_SHEET && shape != CROM_MESHGEN_DISK &&
+             !(shape == CROM_MESHGEN_IMPORT && a->thickness > 0))
+        crom_err(CROM_EUSAGE, "--plane-strain is for triangles in z = 0 (sheet, disk, or import --thickness); %s "
+                 "makes a solid", a->shape);
     else if (a->thickness > 0 && shape != CROM_MESHGEN_SHEET && shape != CROM_MESHGEN_DISK &&
              shape != CROM_MESHGEN_IMPORT)
         crom_err(CROM_EUSAGE, "--thickness is for a shell (sheet, disk, or import of a surface); %s makes a solid",
@@ -222,6 +228,13 @@ static int run(crom_cli *cli, args *a)
     alarm(0);
     if (rc)
         return rc;
+    if (a->plane) { /* a 2-D solid: the triangles must lie in z = 0 */
+        m.plane = 1;
+        for (int v = 0; v < m.nv && !rc; v++)
+            if (m.X[3 * (size_t)v + 2] != 0)
+                rc = crom_err(CROM_EDATA, "--plane-strain: vertex %d is at z = %g, not in the plane z = 0", v,
+                              m.X[3 * (size_t)v + 2]);
+    }
     for (int i = 0; i < a->nregions && !rc; i++)
         rc = crom_mesh_region_spec(&m, a->regions[i]);
     if (!rc)
@@ -231,7 +244,8 @@ static int run(crom_cli *cli, args *a)
         return rc;
     }
     if (cli->verbose && crom_mesh_is_surface(&m)) {
-        crom_cli_info(cli, "%d vertices, %d triangles, thickness %g m, %.2f s", m.nv, m.ntri, m.thickness,
+        crom_cli_info(cli, "%d vertices, %d triangles, %s %g m, %.2f s", m.nv, m.ntri,
+                      m.plane ? "a plane-strain solid of depth" : "thickness", m.thickness,
                       crom_clock_now() - t0);
         for (int r = 0; r < m.nregions; r++)
             crom_cli_info(cli, "region %s: %d vertices (%s)", m.regions[r].name, m.regions[r].n,

@@ -21,11 +21,12 @@
 #include "rom/schedule.h"
 
 enum { O_CUB = 300, O_INIT, O_SCHED, O_SOLVER, O_KAPPA, O_STATS, O_STREAM, O_HDF5, O_INITFRAME, O_BCTHR,
-       O_MODEL, O_MESH, O_IND, O_INDMESH, O_INDMODEL, O_WARN };
+       O_MODEL, O_MESH, O_IND, O_INDMESH, O_INDMODEL, O_WARN, O_COND };
 
 static const crom_opt red_opts[] = {
     {"cubature", O_CUB, "CUB", "The crom/cubature to integrate over (this or --model is required): its mesh, regions and cached W. With --model: a cubature crom-cubature made for that map, whose tets replace every tet in the elastic energy."},
     {"model", O_MODEL, "MODEL", "Simulate in the subspace of a model of ONE mesh instead of a cubature: a data-free map (energy, neuralmodes: the mesh is in the model) or a linear basis laid on its mesh (pod, modes; an mlp field needs --mesh). Implicit Euler over the latent with Gauss-Newton on the full-space incremental potential, the elastic energy summed over every tet of the mesh, or over the tets of --cubature. q in the output is the map's latent z."},
+    {"condition", O_COND, "NAME=VALUE[@T]", "With --model of a conditional map (crom-fitfield --condition): run it at this value of its condition NAME (ratio:REGION or gravity:AXIS; the scenario takes it too: the region's modulus, the gravity), from time T on (default 0: from the start; repeatable: a schedule of changes). Conditions not given run at the middle of their trained range. q carries over a change; the decoded shape moves to the map at the new value."},
     {"mesh", O_MESH, "MESH", "With --model: the mesh whose regions resolve --pin, --velocity and --force (it must have the model's vertices; default: the model's own mesh and regions), or the mesh to lay an mlp field on."},
     {"init", O_INIT, "LATENT", "Start from a frame of a crom/latent (crom-encode of a full state, or an earlier run): its q and qdot (default: rest)."},
     {"init-frame", O_INITFRAME, "K", "Which frame of --init (default -1, the last)."},
@@ -93,6 +94,11 @@ typedef struct {
     long init_frame;
     int solver, kind, bcthr_given, threads, indicator;
     double kappa, bc_threshold, warn_above;
+    int ncs;                  /* --condition NAME=VALUE[@T], in the order given */
+    struct {
+        crom_scenario_cond c;
+        double value, t;
+    } cs[32];
 } args;
 
 static int on_opt(void *ctx, int key, const char *v)
@@ -124,6 +130,26 @@ static int on_opt(void *ctx, int key, const char *v)
         if (crom_parse_double(v, "--bc-threshold", &a->bc_threshold) || a->bc_threshold < 0)
             return crom_err(CROM_EUSAGE, "--bc-threshold must be a number >= 0, got %s", v);
         return 0;
+    case O_COND: {
+        if (a->ncs == 32)
+            return crom_err(CROM_EUSAGE, "--condition: at most 32");
+        char buf[256];
+        const char *at = strrchr(v, '@');
+        size_t len = at ? (size_t)(at - v) : strlen(v);
+        if (len >= sizeof buf)
+            return crom_err(CROM_EUSAGE, "--condition: too long");
+        memcpy(buf, v, len);
+        buf[len] = 0;
+        a->cs[a->ncs].t = 0;
+        if (crom_scenario_cond_parse("--condition", buf, 0, &a->cs[a->ncs].c) ||
+            (at && crom_parse_double(at + 1, "--condition @T", &a->cs[a->ncs].t)))
+            return CROM_EUSAGE;
+        if (!(a->cs[a->ncs].t >= 0))
+            return crom_err(CROM_EUSAGE, "--condition %s: the time must be >= 0", v);
+        a->cs[a->ncs].value = a->cs[a->ncs].c.lo;
+        a->ncs++;
+        return 0;
+    }
     case O_STATS: a->stats = v; return 0;
     case O_IND: a->indicator = 1; return 0;
     case O_INDMESH: a->ind_mesh = v; return 0;
@@ -197,13 +223,21 @@ typedef struct {
     double initial[2];        /* the initial state's RMS distance from rest (m) and its velocity's (m/s) */
 } indicator;
 
+/* One frame; cond (NULL: none) the conditional map's condition, stored
+ * after the indicator's fields (start_output's order). */
 static int put_values(crom_out *o, double t, long nstep, const double *q, const double *qd, double K, double E,
-                      double W, const crom_rsim_stats *st, int entry, const indicator *ind)
+                      double W, const crom_rsim_stats *st, int entry, const indicator *ind, const double *cond)
 {
     double step = (double)nstep, tot = K + E + W, it = st->iterations, res = st->residual,
            cres = st->constraint_residual, cub = entry, secs = crom_clock_wall(st->seconds);
-    const double *vals[] = {&t, &step, q, qd, &K, &E, &W, &tot, &it, &res, &cres, &cub, &secs,
-                            ind->on ? &ind->rel : NULL, ind->on ? &ind->ind.err : NULL, ind->on ? &ind->ind.bc : NULL};
+    const double *vals[17] = {&t, &step, q, qd, &K, &E, &W, &tot, &it, &res, &cres, &cub, &secs};
+    int k = 13;
+    if (ind->on) {
+        vals[k++] = &ind->rel;
+        vals[k++] = &ind->ind.err;
+        vals[k++] = &ind->ind.bc;
+    }
+    vals[k] = cond;
     return crom_out_frame(o, vals);
 }
 
@@ -308,13 +342,13 @@ static int put_frame(crom_out *o, crom_rsim *s, const crom_rsim_stats *st, int e
     int rc = crom_rsim_energies(s, &K, &E, &W);
     if (rc)
         return rc;
-    return put_values(o, s->t, s->step, s->q, s->qd, K, E, W, st, entry, ind);
+    return put_values(o, s->t, s->step, s->q, s->qd, K, E, W, st, entry, ind, NULL);
 }
 
 /* The latent output's attributes and frame fields (kind: the model's basis,
  * NULL for a run over cubatures; units and descriptions are lib/io/schema.c's). */
 static int start_output(crom_out *o, const args *a, const char *model_id, int r, const char *solver,
-                        const char *kind, const indicator *ind)
+                        const char *kind, const indicator *ind, int ncond)
 {
     int rc = crom_h5_set_str(o->h5, ".", "model_id", model_id);
     if (!rc && ind->on)
@@ -336,9 +370,37 @@ static int start_output(crom_out *o, const args *a, const char *model_id, int r,
     size_t nf = sizeof f / sizeof *f - (ind->on ? 0 : 3);
     for (size_t i = 0; i < nf && !rc; i++)
         rc = crom_out_field(o, f[i].name, f[i].vec, &dr, kind);
+    hsize_t dc = (hsize_t)ncond;
+    if (!rc && ncond)
+        rc = crom_out_field(o, "condition", 1, &dc, kind);
     if (!rc)
         rc = crom_out_begin(o);
     return rc;
+}
+
+/* The values c [nc] of a conditional map's conditions at time t: each
+ * condition's last --condition with a time <= t (given in time order for
+ * that condition: the last given wins), else the middle of its range.
+ * CROM_EUSAGE for a --condition the model does not have. */
+static int conditions_at(const args *a, const crom_model *m, double t, double *c)
+{
+    for (int k = 0; k < m->ncond; k++)
+        c[k] = 0.5 * (m->cond[k].lo + m->cond[k].hi);
+    for (int i = 0; i < a->ncs; i++) {
+        int k = 0;
+        while (k < m->ncond && !crom_scenario_cond_same(&m->cond[k], &a->cs[i].c))
+            k++;
+        if (k == m->ncond) {
+            char name[200];
+            crom_scenario_cond_format(&a->cs[i].c, name, sizeof name);
+            *strchr(name, '=') = 0;
+            return crom_err(CROM_EUSAGE, "--condition %s: model %s %s", name, m->model_id,
+                            m->ncond ? "has no such condition" : "is not conditional (crom-fitfield --condition)");
+        }
+        if (a->cs[i].t <= t + 1e-12)
+            c[k] = a->cs[i].value;
+    }
+    return 0;
 }
 
 /* A run in the subspace of a one-mesh model (--model): Gauss–Newton over
@@ -384,6 +446,10 @@ static int run_map(crom_cli *cli, args *a)
     }
     if (a->init && (rc = read_init(a, model.model_id, r, q0, qd0)))
         goto out;
+    double cnow[CROM_MODEL_MAXCOND], cnext[CROM_MODEL_MAXCOND];
+    if ((rc = conditions_at(a, &model, 0, cnow)) ||
+        (model.ncond && (rc = crom_nlsim_set_condition(&s, &map, &a->sc, model.cond, cnow))))
+        goto out;
     if ((rc = crom_nlsim_init(&s, &map, &a->sc, a->kappa, a->init ? q0 : NULL, a->init ? qd0 : NULL, a->threads)))
         goto out;
     if (a->cub) {
@@ -416,12 +482,12 @@ static int run_map(crom_cli *cli, args *a)
     if ((rc = crom_out_create(&o, a->out, "crom/latent", 1, cli->cmdline, hist, a->kind)))
         goto out;
     have_out = 1;
-    if ((rc = start_output(&o, a, model.model_id, r, "gauss-newton", model.basis, &ind)))
+    if ((rc = start_output(&o, a, model.model_id, r, "gauss-newton", model.basis, &ind, model.ncond)))
         goto out;
     crom_rsim_stats st = {0, 0, crom_nlsim_constraint_residual(&s), 0, 1, 0};
     double K, E, W;
     if (!(rc = crom_nlsim_energies(&s, &K, &E, &W)))
-        rc = put_values(&o, s.t, s.step, s.q, s.qd, K, E, W, &st, 0, &ind);
+        rc = put_values(&o, s.t, s.step, s.q, s.qd, K, E, W, &st, 0, &ind, model.ncond ? cnow : NULL);
     if (!rc && a->stats && !(rc = crom_fileout_open(&csv, a->stats, 0)))
         fprintf(csv.f, "step,iterations,residual,constraint_residual,seconds,cubature_tets,vertex_evals%s\n",
                 ind.on ? ",error_estimate,displacement_rms" : "");
@@ -433,6 +499,14 @@ static int run_map(crom_cli *cli, args *a)
         int stored = k % a->sc.every == 0;
         if (stored && ind.on)
             crom_nlsim_positions(&s, ind.prev, ind.prevdot);
+        if (model.ncond) { /* a change of condition that falls in this step takes effect for it */
+            conditions_at(a, &model, (double)k * a->sc.dt, cnext);
+            if (memcmp(cnext, cnow, sizeof(double) * (size_t)model.ncond)) {
+                memcpy(cnow, cnext, sizeof cnow);
+                if ((rc = crom_nlsim_set_condition(&s, &map, &a->sc, model.cond, cnow)))
+                    break;
+            }
+        }
         if ((rc = crom_nlsim_step(&s, &st)))
             break;
         if (stored || csv.f)
@@ -447,7 +521,7 @@ static int run_map(crom_cli *cli, args *a)
         if (csv.f)
             indicator_csv(&csv, &ind, stored, k, &st, s.ne);
         if (stored && !(rc = crom_nlsim_energies(&s, &K, &E, &W)))
-            rc = put_values(&o, s.t, s.step, s.q, s.qd, K, E, W, &st, 0, &ind);
+            rc = put_values(&o, s.t, s.step, s.q, s.qd, K, E, W, &st, 0, &ind, model.ncond ? cnow : NULL);
         crom_cli_progress_update(&prog, k, NULL);
     }
     crom_cli_progress_end(&prog);
@@ -521,7 +595,7 @@ static int run(crom_cli *cli, args *a)
     rc = list ? crom_h5_set_str(o.h5, ".", "cubatures", list) : CROM_EINTERNAL;
     free(list);
     if (!rc)
-        rc = start_output(&o, a, e[0].cub.model_id, r, a->solver == CROM_RSIM_GD ? "gd" : "newton", NULL, &ind);
+        rc = start_output(&o, a, e[0].cub.model_id, r, a->solver == CROM_RSIM_GD ? "gd" : "newton", NULL, &ind, 0);
     crom_rsim_stats st = {0, 0, crom_rsim_constraint_residual(&s), 0, 1, 0};
     if (!rc)
         rc = put_frame(&o, &s, &st, 0, &ind);
@@ -602,6 +676,10 @@ int main(int argc, char **argv)
             return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--model runs on the model's mesh: %s does not apply", bad));
         if (a.solver == CROM_RSIM_GD)
             return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--solver gd needs a cubature; --model uses Gauss-Newton"));
+    } else if (a.ncs) {
+        return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--condition applies to --model (a conditional map)"));
+    }
+    if (a.model) {
         return crom_cli_exit(&cli, run_map(&cli, &a));
     }
     if (a.mesh)

@@ -326,6 +326,30 @@ def puppet(out, rows, frames):
               f"{worst:.1%} | {sw:.3g} m | {1e3 * med(f'{out}/red-{r}.csv'):.2f} |")
 
 
+def conditional(out, cases):
+    """pipelines/conditional.mk: one conditional map's static sag at each condition against crom-fullsim"""
+    import meshio
+    m = h5py.File(f"{out}/model.h5", "r")
+    conds = m.attrs["conditions"]
+    conds = (conds.decode() if isinstance(conds, bytes) else conds).strip().replace("\n", ", ")
+    secs = m.attrs.get("training_seconds")
+    print(f"One energy map of rank {int(m.attrs['rank'])} conditioned on {conds} "
+          f"({float(secs):.3g} s of training); static sag of the clamped bar at each case:\n")
+    print("| modulus ratio of the clamped half | gravity (m/s^2) | full tip sag (m) | reduced tip sag (m) | "
+          "static error | ms per step |")
+    print("|---:|---:|---:|---:|---:|---:|")
+    for c in cases:
+        ratio, g = c.split("_")
+        f = h5py.File(f"{out}/full-{c}.h5", "r")
+        X = f["mesh/vertices"][()]
+        tip = X[:, 0] > 0.499
+        full = f["frames/displacement"][-1][tip, 1].mean()
+        r = meshio.read(f"{out}/red-{c}.vtu")
+        red = r.point_data["displacement"][r.points[:, 0] > 0.499, 1].mean()
+        ms = 1e3 * float(np.median(col(f"{out}/red-{c}.csv", "seconds")))
+        print(f"| {ratio} | -{g} | {full:.4f} | {red:.4f} | {last_frame_error(f'{out}/diff-{c}.txt'):.3g} | {ms:.2f} |")
+
+
 if __name__ == "__main__":
     if sys.argv[1] == "tables":
         tables(sys.argv[2], sys.argv[3].split(), sys.argv[4].split())
@@ -341,5 +365,7 @@ if __name__ == "__main__":
         hetero(sys.argv[2], sys.argv[3].split(), sys.argv[4])
     elif sys.argv[1] == "puppet":
         puppet(sys.argv[2], sys.argv[3].split(), sys.argv[4].split())
+    elif sys.argv[1] == "conditional":
+        conditional(sys.argv[2], sys.argv[3].split())
     else:
-        sys.exit("usage: benchtab.py tables|training|datafree|scale|mpi|hetero|puppet DIR ...")
+        sys.exit("usage: benchtab.py tables|training|datafree|scale|mpi|hetero|puppet|conditional DIR ...")

@@ -68,7 +68,65 @@ void crom_datafree_ctx_free(crom_datafree_ctx *c)
     free(c->cb);
     free(c->half);
     free(c->tg);
+    free(c->cond);
+    free(c->cond_mat);
+    free(c->Ec);
+    free(c->dxf);
+    free(c->dcond);
     memset(c, 0, sizeof *c);
+}
+
+int crom_datafree_set_condition(crom_datafree_ctx *c, const double *cond)
+{
+    const crom_datafree_problem *p = &c->P;
+    memcpy(c->grav, p->gravity, sizeof c->grav);
+    for (int k = 0; k < p->ncond; k++) {
+        double v = cond[k];
+        if (!isfinite(v))
+            return crom_err(CROM_EDATA, "condition %d is not finite", k + 1);
+        c->cond[k] = v;
+        if (p->cond[k].kind == CROM_SCENARIO_COND_GRAVITY) {
+            c->grav[p->cond[k].axis] = v;
+            continue;
+        }
+        crom_material *m = &c->sys.mats[c->cond_mat[k]];
+        if (!(v > 0) || crom_material_init(m, v * p->mat.E, m->nu, m->rho))
+            return crom_err(CROM_EDATA, "ratio %g of region '%s': not a material", v, p->cond[k].ref);
+    }
+    return 0;
+}
+
+/* A conditional problem's materials: each ratio's place in sys.mats, and
+ * c at the middle of the ranges. */
+static int cond_init(crom_datafree_ctx *c, const crom_datafree_problem *p, size_t rows)
+{
+    int nc = p->ncond;
+    memcpy(c->grav, p->gravity, sizeof c->grav);
+    if (!nc)
+        return 0;
+    if (c->o.objective != CROM_DATAFREE_ENERGY)
+        return crom_err(CROM_EUSAGE, "--condition: only the energy objective is conditional");
+    c->cond = crom_malloc(sizeof(double) * (size_t)nc);
+    c->cond_mat = crom_malloc(sizeof(int) * (size_t)nc);
+    c->Ec = crom_calloc((size_t)c->maxbatch * nc, sizeof(double));
+    c->dxf = crom_malloc(sizeof(float) * rows * (size_t)c->in);
+    c->dcond = crom_calloc((size_t)nc, sizeof(double));
+    if (!c->cond || !c->cond_mat || !c->Ec || !c->dxf || !c->dcond)
+        return CROM_EINTERNAL;
+    double mid[CROM_MODEL_MAXCOND];
+    for (int k = 0; k < nc; k++) {
+        c->cond_mat[k] = -1;
+        mid[k] = 0.5 * (p->cond[k].lo + p->cond[k].hi);
+        if (p->cond[k].kind != CROM_SCENARIO_COND_RATIO)
+            continue;
+        for (int i = 0; p->materials && i < p->materials->nmat; i++)
+            if (!strcmp(p->materials->mat[i].ref, p->cond[k].ref))
+                c->cond_mat[k] = i + 1;
+        if (c->cond_mat[k] < 0 || !c->sys.mats)
+            return crom_err(CROM_EUSAGE, "--condition ratio:%s: the region has no material of its own",
+                            p->cond[k].ref);
+    }
+    return crom_datafree_set_condition(c, mid);
 }
 
 /* neuralmodes: M W / m, the box (half-width a for every mode, or a f_1 /
@@ -120,7 +178,9 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
     c->o = *o;
     c->net = net;
     const crom_nn_spec *sp = &net->spec;
-    int r = sp->width[0], n = 3 * p->mesh->nv, nm = o->objective == CROM_DATAFREE_NEURALMODES;
+    int r = sp->width[0] - p->ncond, n = 3 * p->mesh->nv, nm = o->objective == CROM_DATAFREE_NEURALMODES;
+    if (p->ncond < 0 || p->ncond > CROM_MODEL_MAXCOND || r < 1)
+        return crom_err(CROM_EUSAGE, "%d conditions for a network of %d inputs", p->ncond, sp->width[0]);
     if (sp->width[sp->nlayers] != n)
         return crom_err(CROM_EUSAGE, "the map's network outputs %d values, the mesh has 3nv = %d",
                         sp->width[sp->nlayers], n);
@@ -133,6 +193,7 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
     if (nm && !(o->box > 0))
         return crom_err(CROM_EUSAGE, "the latent box must be positive");
     c->r = r;
+    c->in = sp->width[0];
     c->n = n;
     c->maxbatch = maxbatch;
     c->B0 = !nm && o->tangent_weight > 0 ? r : 0; /* the secants along the r axes */
@@ -150,6 +211,8 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
         rc = crom_system_set_materials(&c->sys, p->materials, p->mesh);
     if (!rc)
         rc = crom_nn_ws_init(&c->ws, net, (int)rows, 1);
+    if (!rc)
+        rc = cond_init(c, p, rows);
     if (rc) {
         crom_datafree_ctx_free(c);
         return rc;
@@ -161,7 +224,7 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
     c->dY = crom_malloc(sizeof(double) * rows * n);
     c->E = crom_malloc(sizeof(double) * (size_t)maxbatch);
     c->xb = crom_malloc(sizeof(double) * (size_t)c->nthreads * n);
-    c->zf = crom_malloc(sizeof(float) * rows * r);
+    c->zf = crom_malloc(sizeof(float) * rows * (size_t)c->in);
     c->dyf = crom_malloc(sizeof(float) * rows * n);
     c->bad = crom_malloc(sizeof(int) * (size_t)maxbatch);
     c->cb = crom_malloc(sizeof(double) * (size_t)(r > c->B0 ? r : c->B0));
@@ -218,19 +281,22 @@ static int tangent_anchored(const crom_datafree_ctx *c)
  * − N(0); pinned outputs do not exist (the mask is part of the map). */
 static int map_outputs(crom_datafree_ctx *c, int B, const double *z)
 {
-    int r = c->r, n = c->n, Bt = B + c->B0, ta = tangent_anchored(c);
+    int r = c->r, n = c->n, Bt = B + c->B0, ta = tangent_anchored(c), in = c->in, rows = Bt + 1 + (ta ? 2 * B : 0);
     const unsigned char *fixed = c->P.fixed;
     for (int b = 0; b < Bt; b++)
         for (int k = 0; k < r; k++)
-            c->zf[(size_t)b * r + k] = (float)z[(size_t)b * r + k];
-    memset(c->zf + (size_t)Bt * r, 0, sizeof(float) * (size_t)r);
+            c->zf[(size_t)b * in + k] = (float)z[(size_t)b * r + k];
+    memset(c->zf + (size_t)Bt * in, 0, sizeof(float) * (size_t)r);
     for (int b = 0; ta && b < B; b++) /* rows Bt + 1 + b: +ε z_b; Bt + 1 + B + b: −ε z_b */
         for (int k = 0; k < r; k++) {
             float v = (float)(TANGENT_EPS * z[(size_t)b * r + k]);
-            c->zf[(size_t)(Bt + 1 + b) * r + k] = v;
-            c->zf[(size_t)(Bt + 1 + B + b) * r + k] = -v;
+            c->zf[(size_t)(Bt + 1 + b) * in + k] = v;
+            c->zf[(size_t)(Bt + 1 + B + b) * in + k] = -v;
         }
-    int rc = crom_nn_mlp_forward(c->net, &c->ws, Bt + 1 + (ta ? 2 * B : 0), c->zf, NULL);
+    for (int b = 0; b < rows; b++) /* a conditional map: the batch's c on every row, the anchor's too */
+        for (int k = r; k < in; k++)
+            c->zf[(size_t)b * in + k] = (float)c->cond[k - r];
+    int rc = crom_nn_mlp_forward(c->net, &c->ws, rows, c->zf, NULL);
     if (rc)
         return rc;
     const float *Yf = crom_nn_ws_output(&c->ws), *Y0 = Yf + (size_t)Bt * n;
@@ -258,7 +324,7 @@ static int sample_energy(crom_datafree_ctx *c, int b, const double *zb, double r
 {
     int r = c->r, n = c->n, nm = c->o.objective == CROM_DATAFREE_NEURALMODES, bad;
     const unsigned char *fixed = c->P.fixed;
-    const double *X = c->P.mesh->X, *Y = c->Y + (size_t)b * n, *g = c->P.gravity, *Wm = c->P.modes;
+    const double *X = c->P.mesh->X, *Y = c->Y + (size_t)b * n, *g = c->grav, *Wm = c->P.modes;
     const crom_system *sys = &c->sys;
     const crom_fem *fem = &sys->fem;
     double *G = c->G + (size_t)b * n, Eb = 0;
@@ -292,6 +358,23 @@ static int sample_energy(crom_datafree_ctx *c, int b, const double *zb, double r
             G[i] -= mg;
         }
     c->E[b] = Eb;
+    for (int k = 0; !bad && k < c->P.ncond; k++) { /* ∂E_b/∂c_k: the energy is linear in both */
+        double d = 0;
+        if (c->P.cond[k].kind == CROM_SCENARIO_COND_GRAVITY) {
+            for (int v = 0; v < n / 3; v++)
+                if (!(fixed && fixed[3 * v]))
+                    d -= sys->mass[v] * (x[3 * v + c->P.cond[k].axis] - X[3 * v + c->P.cond[k].axis]);
+        } else { /* the region's tets' energy over the ratio (Ψ is linear in E at a fixed ν) */
+            for (int t = 0; t < fem->nt; t++)
+                if (sys->tmat[t] == c->cond_mat[k]) {
+                    double xe[12];
+                    crom_fem_tet_positions(fem, x, t, xe);
+                    d += crom_system_elem_energy(sys, t, xe);
+                }
+            d /= c->cond[k];
+        }
+        c->Ec[(size_t)b * c->P.ncond + k] = d;
+    }
     return bad;
 }
 
@@ -469,7 +552,17 @@ int crom_datafree_loss(crom_datafree_ctx *c, int B, const double *z, double rho,
         }
     }
     memset(grad, 0, sizeof(float) * c->net->nparams);
-    return crom_nn_mlp_backward(c->net, &c->ws, all, c->dyf, grad, NULL);
+    if ((rc = crom_nn_mlp_backward(c->net, &c->ws, all, c->dyf, grad, c->P.ncond ? c->dxf : NULL)))
+        return rc;
+    for (int k = 0; k < c->P.ncond; k++) { /* dL/dc: through every row's input, and the energy's own */
+        double d = 0;
+        for (int b = 0; b < all; b++)
+            d += c->dxf[(size_t)b * c->in + r + k];
+        for (int b = 0; b < B && !(nm && c->P.nsup > 0); b++)
+            d += c->Ec[(size_t)b * c->P.ncond + k] / (B * c->Eref);
+        c->dcond[k] = d;
+    }
+    return 0;
 }
 
 /* ============================================================ training */
@@ -556,7 +649,7 @@ static int map_setup(map_trainer *T, const crom_datafree_problem *p)
     const crom_datafree_opts *o = &T->o;
     int n = 3 * p->mesh->nv, nm = o->objective == CROM_DATAFREE_NEURALMODES, rc;
     crom_nn_spec spec;
-    if ((rc = crom_dftrain_spec(&spec, o->rank, o->width, o->depth, n, o->act)))
+    if ((rc = crom_dftrain_spec(&spec, o->rank + p->ncond, o->width, o->depth, n, o->act)))
         return rc;
     T->np = crom_nn_spec_nparams(&spec);
     T->params = crom_calloc(T->np, sizeof(float));
@@ -627,6 +720,21 @@ static int map_loss(void *ctx, const double *z, double rho, int K, const int *te
         }
         z = T->zs;
     }
+    if (T->ctx.P.ncond) { /* the batch's condition, from its own latents (datafree.h) */
+        double cv[CROM_MODEL_MAXCOND];
+        int B = T->o.batch;
+        for (int k = 0; k < T->ctx.P.ncond; k++) {
+            double s = 0;
+            for (int b = 0; b < B; b++)
+                s += ((k / r + b) % 2 && k >= r ? -1 : 1) * z[(size_t)b * r + k % r];
+            double u = 0.5 * erfc(-s / sqrt(2.0 * B)); /* Φ(s/√B) */
+            const crom_scenario_cond *cd = &T->ctx.P.cond[k];
+            cv[k] = cd->lo + u * (cd->hi - cd->lo);
+        }
+        int rc = crom_datafree_set_condition(&T->ctx, cv);
+        if (rc)
+            return rc;
+    }
     return crom_datafree_loss(&T->ctx, T->o.batch, z, rho, K, tets, t, T->grad);
 }
 
@@ -657,6 +765,8 @@ static int map_store(const map_trainer *T, const crom_datafree_problem *p, crom_
 {
     int nm = T->o.objective == CROM_DATAFREE_NEURALMODES, r = T->o.rank;
     int rc = crom_model_from_map(out, nm ? "neuralmodes" : "energy", &T->net, p->mesh, nm ? p->modes : NULL);
+    if (!rc && p->ncond && !(rc = crom_model_set_conditions(out, p->ncond, p->cond)))
+        crom_model_id(out, out->model_id);
     if (!rc && nm && p->deriv) {
         size_t nd = (size_t)p->mesh->nv * 3 * ((size_t)r * (r + 1) / 2);
         if (!(out->deriv_v = crom_malloc(sizeof(double) * nd))) {

@@ -10,6 +10,14 @@
  * energy and neuralmodes learn a map of a latent q in R^r to the positions
  * of every vertex of ONE mesh (crom/model basis "energy" or "neuralmodes", lib/rom/map.h):
  *
+ * Conditional (Sharp et al. §3.5, problem.ncond > 0, energy only): the
+ * network takes [z, c], c a few scenario parameters (phys/scenario.h:
+ * the modulus ratio of a region, a gravity component); each batch draws
+ * one c uniformly from their ranges and the loss is the same at that c (the
+ * anchor too: x(0, c) = X for every c). The batch's c is taken from the
+ * batch's own latents, u_k = Φ(Σ_b ±z_{b,k mod r} / √B), uniform for z ~
+ * N(0, I), so it holds while L-BFGS iterates on a batch.
+ *
  * energy (Sharp et al. 2023, "Data-Free Learning of Reduced-Order
  * Kinematics", eq. 4 and §4.1): x(z) = X + N(z) − N(0), N an ELU MLP r ->
  * 3nv (5 hidden layers), trained on batches of z ~ N(0, I) to minimize
@@ -138,6 +146,10 @@ typedef struct {
     long nvisit;                 /* neuralmodes: modal coordinates a reduced run visited (0: none); */
     const double *visit_z;       /* [nvisit][r]: every other sample of a batch is drawn near one of them */
     const crom_scenario *materials; /* its regions of other materials (--youngs REGION=E), or NULL */
+    int ncond;                   /* energy: a conditional map (Sharp et al. §3.5) over ncond scenario
+                                  * parameters, cond [ncond] with the ranges they are drawn from;
+                                  * a ratio's region must be one of materials' regions */
+    const crom_scenario_cond *cond;
 } crom_datafree_problem;
 
 typedef struct {
@@ -200,7 +212,23 @@ typedef struct {
     double *half;            /* neuralmodes: [r] half-widths of the box per mode */
     double *tg;              /* [3 r r + r] the collapse floor's Gram matrix, gradient, scratch */
     const int *sup;          /* supervised: the equilibrium of each batch sample (set by the caller per batch) */
+    /* a conditional map: the network takes [z, c] (in = r + ncond inputs); the
+     * batch's c (crom_datafree_set_condition) sets the materials and the
+     * gravity the energy is taken with */
+    int in;
+    double *cond;            /* [ncond] c of the batch */
+    int *cond_mat;           /* [ncond] a ratio's material in sys.mats (−1: gravity) */
+    double grav[3];          /* the gravity of the batch */
+    double *Ec;              /* [maxbatch][ncond] ∂E_b/∂c_k, explicit */
+    float *dxf;              /* [rows][in] dL/d(network input) */
+    double *dcond;           /* [ncond] dL/dc of the last loss with a gradient */
 } crom_datafree_ctx;
+
+/* Set the batch's condition c [ncond] (energy objective, conditional):
+ * ratio k gives its region's tets the modulus c_k E (the region's own
+ * Poisson ratio), gravity sets its component. Returns 0 or CROM_EDATA for
+ * a ratio not positive or a value not finite. */
+int crom_datafree_set_condition(crom_datafree_ctx *c, const double *cond);
 
 /* Set up the loss of options o (objective, sigma, lambda, box, weights,
  * threads) on problem p for network net and batches of up to maxbatch

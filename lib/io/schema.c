@@ -22,6 +22,7 @@ static const crom_schema_attr common_attrs[] = {
 #define TETS_DESC "0-based vertex indices of each tetrahedron, positively oriented"
 #define TRIS_DESC "0-based vertex indices of each triangle of a shell surface (no tets then), consistently oriented"
 #define THICKNESS_DESC "the shell's thickness (m)"
+#define PLANE_DESC "1: the triangles are a 2-D solid in plane strain in z = 0 (crom-mesh --plane-strain), thickness its depth; absent or 0: a shell"
 #define ORTHO_DESC "a rigid-body scene: the weight w of each body's orthogonality potential, w times the squared Frobenius norm of R^T R - I (J)"
 /* a rigid-body scene (lib/mesh/scene.h), under the mesh's group P */
 #define SCENE_DSETS(P)                                                                                        \
@@ -54,6 +55,7 @@ static const crom_schema_attr mesh_attrs[] = {
 static const crom_schema_attr mesh_objattrs[] = {
     {"source", "str", 1, REGION_SOURCE, "regions/*"},
     {"thickness", "f64", 1, THICKNESS_DESC, "triangles"},
+    {"plane_strain", "i64", 0, PLANE_DESC, "triangles"},
     {"ortho_weight", "f64", 1, ORTHO_DESC, "scene"},
     {NULL, NULL, 0, NULL, NULL}};
 
@@ -96,6 +98,7 @@ static const crom_schema_attr traj_objattrs[] = {
     {"fields", "str", 1, FIELDS_DESC, "frames"},
     {"source", "str", 1, REGION_SOURCE, "mesh/regions/*"},
     {"thickness", "f64", 1, THICKNESS_DESC, "mesh/triangles"},
+    {"plane_strain", "i64", 0, PLANE_DESC, "mesh/triangles"},
     {"ortho_weight", "f64", 1, ORTHO_DESC, "mesh/scene"},
     {NULL, NULL, 0, NULL, NULL}};
 
@@ -135,6 +138,7 @@ static const crom_schema_attr samples_attrs[] = {
 static const crom_schema_attr samples_objattrs[] = {
     {"file", "str", 1, "the input the source came from: a path, or stdin", "sources/*"},
     {"thickness", "f64", 1, THICKNESS_DESC, "sources/*/triangles"},
+    {"plane_strain", "i64", 0, PLANE_DESC, "sources/*/triangles"},
     {NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_dset samples_dsets[] = {
@@ -174,6 +178,9 @@ static const crom_schema_attr model_attrs[] = {
     {"sigma", "f64", 0, "isometry scale: metres of RMS displacement per unit of latent distance (energy, energy-field)", NULL},
     {"isometry_weight", "f64", 0, "weight lambda of the isometry term (energy, energy-field)", NULL},
     {"gravity", "f64[3]", 0, "gravity of the training energy (m/s^2) (energy, energy-field)", NULL},
+    {"conditions", "str", 0, "a conditional energy map (crom-fitfield --condition): one NAME=LO:HI per line, the "
+                             "scenario parameters (ratio:REGION, gravity:AXIS) its network takes after the latent, "
+                             "and the ranges they were trained over", NULL},
     {"latent_box", "f64", 0, "half-width a of the training box of modal coordinates (m) (neuralmodes)", NULL},
     {"latent_box_scaling", "str", 0, "frequency: mode k's half-width is latent_box f_1/f_k; uniform: latent_box for every mode; any other value is refused (neuralmodes; absent: uniform)", NULL},
     {"ortho_weight", "f64", 0, "weight w_o of the M-orthogonality penalty (neuralmodes)", NULL},
@@ -197,6 +204,7 @@ static const crom_schema_attr model_attrs[] = {
 static const crom_schema_attr model_objattrs[] = {
     {"source", "str", 1, REGION_SOURCE, "field/mesh/regions/*"},
     {"thickness", "f64", 1, THICKNESS_DESC, "field/mesh/triangles"},
+    {"plane_strain", "i64", 0, PLANE_DESC, "field/mesh/triangles"},
     {"ortho_weight", "f64", 1, ORTHO_DESC, "field/mesh/scene"},
     {NULL, NULL, 0, NULL, NULL}};
 
@@ -312,6 +320,9 @@ static const crom_schema_dset latent_dsets[] = {
                                                   "estimated displacement error (0 at frame 0)", NULL},
     {"frames/bc_error", "f64", "F", 0, "m", "crom-reducedstep --indicator: the largest distance of a pinned or "
                                             "prescribed vertex of the decoded state from its target (0 at frame 0)", NULL},
+    {"frames/condition", "f64", "F,C", 0, "1", "crom-reducedstep --model of a conditional map: the values of its "
+                                               "conditions at the frame, in the order of the model's conditions "
+                                               "(a modulus ratio; gravity in m/s^2); decoders lay the map at them", NULL},
     {"frames/keyframe", "f64", "F", 0, "1", "crom-keyframe: the frame's place among the keys, s in [0, K-1] (an integer "
                                            "at a key, z(s) interpolates between keys floor(s) and floor(s)+1)", NULL},
     {"frames/lerp_energy", "f64", "F", 0, "J", "crom-keyframe: strain energy of the linear interpolation of the decoded "
@@ -334,6 +345,7 @@ static const crom_schema_attr cub_attrs[] = {
 static const crom_schema_attr cub_objattrs[] = {
     {"source", "str", 1, REGION_SOURCE, "mesh/regions/*"},
     {"thickness", "f64", 1, THICKNESS_DESC, "mesh/triangles"},
+    {"plane_strain", "i64", 0, PLANE_DESC, "mesh/triangles"},
     {NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_dset cub_dsets[] = {

@@ -454,6 +454,7 @@ int crom_mesh_copy(const crom_mesh *s, crom_mesh *d)
     d->nt = s->nt;
     d->ntri = s->ntri;
     d->thickness = s->thickness;
+    d->plane = s->plane;
     d->X = crom_malloc(sizeof(double) * 3 * (size_t)s->nv);
     d->tets = crom_malloc(sizeof(int) * 4 * (size_t)(s->nt ? s->nt : 1));
     d->tris = s->ntri ? crom_malloc(sizeof(int) * 3 * (size_t)s->ntri) : NULL;
@@ -642,6 +643,8 @@ int crom_mesh_write(hid_t loc, const crom_mesh *m)
         rc = crom_h5_put_i32(loc, "triangles", 2, dtri, m->tris);
         if (!rc)
             rc = crom_h5_set_f64(loc, "triangles", "thickness", &m->thickness, 1);
+        if (!rc && m->plane)
+            rc = crom_h5_set_i64(loc, "triangles", "plane_strain", 1);
     } else if (!rc) {
         rc = crom_h5_put_i32(loc, "tets", 2, dt, m->tets);
     }
@@ -728,6 +731,12 @@ static int read_mesh(hid_t loc, crom_mesh *m)
             rc = crom_err(CROM_EDATA, "'triangles' has no thickness attribute (a shell's thickness, m)");
         if (!rc)
             rc = crom_h5_get_f64(loc, "triangles", "thickness", &m->thickness, 1);
+        if (!rc && crom_h5_has_attr(loc, "triangles", "plane_strain")) {
+            long long pl = 0;
+            if ((rc = crom_h5_get_i64(loc, "triangles", "plane_strain", &pl)) || (pl != 0 && pl != 1))
+                rc = crom_err(CROM_EDATA, "'triangles': plane_strain must be 0 or 1");
+            m->plane = (int)pl;
+        }
         if (!rc && (dv[0] > INT32_MAX / 3 || dt[0] > INT32_MAX / 3))
             rc = crom_err(CROM_EDATA, "mesh too large");
         if (!rc)

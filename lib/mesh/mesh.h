@@ -32,6 +32,8 @@ typedef struct {
     int ntri;         /* a surface mesh: triangles instead of tets (nt = 0) */
     int *tris;        /* [ntri][3] vertex indices, consistently oriented */
     double thickness; /* of the shell (m); 0 for a solid */
+    int plane;        /* a surface mesh in z = 0 that is a 2-D solid in plane strain (thickness: its depth;
+                       * shell.h, crom_shell_material_plane), not a shell */
     crom_scene *scene; /* a rigid-body scene (scene.h): nv = 4 frame vertices per body, no tets or
                         * triangles; NULL for a solid or a shell */
 } crom_mesh;

@@ -58,6 +58,8 @@ int crom_modes_pins(const crom_mesh *m, int n, const char *const *refs, unsigned
     int c = 0;
     for (int v = 0; v < m->nv; v++)
         c += f[3 * (size_t)v] != 0;
+    for (int v = 0; m->plane && v < m->nv; v++) /* a 2-D solid: every z held (not counted as pinned) */
+        f[3 * (size_t)v + 2] = 1;
     *fixed = f;
     *npinned = c;
     return 0;

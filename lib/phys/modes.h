@@ -119,7 +119,8 @@ void crom_modes_free(crom_modes *m);
 
 /* The DOF mask fixed[3nv] (malloc'ed) of the vertices of n pin references
  * (region names or predicates, crom_mesh_select), and how many vertices it
- * holds. CROM_EUSAGE for an unknown region or an empty selection. */
+ * holds; on a 2-D solid (m->plane) every z DOF too, not counted. CROM_EUSAGE
+ * for an unknown region or an empty selection. */
 int crom_modes_pins(const crom_mesh *m, int n, const char *const *refs,
                     unsigned char **fixed, int *npinned);
 

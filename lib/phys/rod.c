@@ -106,7 +106,7 @@ double crom_rod_eval(double k, double L, const double d[3], double g[3], double 
     return 0.5 * k * s * s;
 }
 
-void crom_rods_free(crom_rods *R)
+void crom_rod_set_free(crom_rod_set *R)
 {
     if (!R)
         return;
@@ -117,14 +117,14 @@ void crom_rods_free(crom_rods *R)
     memset(R, 0, sizeof *R);
 }
 
-int crom_rods_init(crom_rods *R, int n, const crom_rod *rods, const crom_mesh *m, const double *mass)
+int crom_rod_set_init(crom_rod_set *R, int n, const crom_rod *rods, const crom_mesh *m, const double *mass)
 {
     memset(R, 0, sizeof *R);
     R->n = n;
     R->ptr = crom_calloc((size_t)2 * n + 1, sizeof(int));
     R->rest = crom_calloc((size_t)n + 1, sizeof(double));
     if (!R->ptr || !R->rest) {
-        crom_rods_free(R);
+        crom_rod_set_free(R);
         return CROM_EINTERNAL;
     }
     int total = 0;
@@ -133,7 +133,7 @@ int crom_rods_init(crom_rods *R, int n, const crom_rod *rods, const crom_mesh *m
         int *v, nv, rc = crom_mesh_select(m, ref, &v, &nv);
         if (rc) {
             crom_err_ctx("--rod");
-            crom_rods_free(R);
+            crom_rod_set_free(R);
             return rc;
         }
         int *ni = crom_realloc(R->idx, sizeof(int) * (size_t)(total + nv));
@@ -144,7 +144,7 @@ int crom_rods_init(crom_rods *R, int n, const crom_rod *rods, const crom_mesh *m
             R->w = nw;
         if (!ni || !nw) {
             free(v);
-            crom_rods_free(R);
+            crom_rod_set_free(R);
             return CROM_EINTERNAL;
         }
         double me = 0;
@@ -152,7 +152,7 @@ int crom_rods_init(crom_rods *R, int n, const crom_rod *rods, const crom_mesh *m
             me += mass[v[i]];
         if (!(me > 0)) {
             free(v);
-            crom_rods_free(R);
+            crom_rod_set_free(R);
             return crom_err(CROM_EUSAGE, "--rod: end '%s' has no mass", ref);
         }
         for (int i = 0; i < nv; i++) {
@@ -165,13 +165,13 @@ int crom_rods_init(crom_rods *R, int n, const crom_rod *rods, const crom_mesh *m
     }
     for (int k = 0; k < n; k++) {
         double d[3];
-        crom_rods_gap(R, k, m->X, d);
+        crom_rod_set_gap(R, k, m->X, d);
         R->rest[k] = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
     }
     return 0;
 }
 
-void crom_rods_gap(const crom_rods *R, int k, const double *x, double d[3])
+void crom_rod_set_gap(const crom_rod_set *R, int k, const double *x, double d[3])
 {
     d[0] = d[1] = d[2] = 0;
     for (int j = R->ptr[2 * k]; j < R->ptr[2 * k + 2]; j++)
@@ -179,13 +179,13 @@ void crom_rods_gap(const crom_rods *R, int k, const double *x, double d[3])
             d[c] += R->w[j] * x[3 * (size_t)R->idx[j] + c];
 }
 
-double crom_rods_eval(const crom_rods *R, const crom_rod *rods, double t, const double *x, double *g, double *Hd,
+double crom_rod_set_eval(const crom_rod_set *R, const crom_rod *rods, double t, const double *x, double *g, double *Hd,
                       int project)
 {
     double E = 0;
     for (int k = 0; k < R->n; k++) {
         double d[3], gd[3];
-        crom_rods_gap(R, k, x, d);
+        crom_rod_set_gap(R, k, x, d);
         E += crom_rod_eval(rods[k].k, crom_rod_length(&rods[k], R->rest[k], t), d, gd, Hd ? Hd + 9 * k : NULL,
                            project);
         for (int j = R->ptr[2 * k]; g && j < R->ptr[2 * k + 2]; j++)
@@ -195,7 +195,7 @@ double crom_rods_eval(const crom_rods *R, const crom_rod *rods, double t, const 
     return E;
 }
 
-void crom_rods_matvec(const crom_rods *R, const double *Hd, const unsigned char *fixed, const double *x, double *y)
+void crom_rod_set_matvec(const crom_rod_set *R, const double *Hd, const unsigned char *fixed, const double *x, double *y)
 {
     for (int k = 0; k < R->n; k++) {
         double dx[3] = {0, 0, 0}, hd[3];

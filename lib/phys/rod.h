@@ -60,28 +60,28 @@ typedef struct {
     int *idx;          /* the ends' vertices */
     double *w;         /* their signed weights */
     double *rest;      /* [n] the ends' distance at rest (m) */
-} crom_rods;
+} crom_rod_set;
 
 /* Resolve rods [n] on mesh m with lumped masses mass [nv]. Returns 0,
  * CROM_EUSAGE (an end not on the mesh, or without mass; the message names
  * the end) or CROM_EINTERNAL. On failure *R holds nothing to free. */
-int crom_rods_init(crom_rods *R, int n, const crom_rod *rods, const crom_mesh *m, const double *mass);
+int crom_rod_set_init(crom_rod_set *R, int n, const crom_rod *rods, const crom_mesh *m, const double *mass);
 
-void crom_rods_free(crom_rods *R);
+void crom_rod_set_free(crom_rod_set *R);
 
 /* The gap d = c_B − c_A of rod k at positions x [nv][3]. */
-void crom_rods_gap(const crom_rods *R, int k, const double *x, double d[3]);
+void crom_rod_set_gap(const crom_rod_set *R, int k, const double *x, double d[3]);
 
 /* The rods' energy at positions x and time t; g [3nv] (may be NULL) gets
  * their gradient added; Hd [n][9] (may be NULL) each rod's Hessian in its
- * gap (projected per project), for crom_rods_matvec. */
-double crom_rods_eval(const crom_rods *R, const crom_rod *rods, double t, const double *x, double *g, double *Hd,
+ * gap (projected per project), for crom_rod_set_matvec. */
+double crom_rod_set_eval(const crom_rod_set *R, const crom_rod *rods, double t, const double *x, double *g, double *Hd,
                       int project);
 
 /* y += Σ_k J_kᵀ Hd_k J_k x, J_k = ∂d_k/∂x, over the DOFs that fixed [3nv]
  * (may be NULL) does not mark: the rods' part of the Hessian, which joins
  * every vertex of one end to every vertex of the other and so stays out of
  * the sparse pattern. */
-void crom_rods_matvec(const crom_rods *R, const double *Hd, const unsigned char *fixed, const double *x, double *y);
+void crom_rod_set_matvec(const crom_rod_set *R, const double *Hd, const unsigned char *fixed, const double *x, double *y);
 
 #endif

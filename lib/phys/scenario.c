@@ -599,3 +599,75 @@ size_t crom_scenario_material_flags(const crom_scenario *s, char *buf, size_t ca
     }
     return l;
 }
+
+/* ---- conditions (scenario.h) ----------------------------------------- */
+
+int crom_scenario_cond_parse(const char *flag, const char *v, int range, crom_scenario_cond *c)
+{
+    memset(c, 0, sizeof *c);
+    const char *eq = strrchr(v, '=');
+    if (!eq)
+        return crom_err(CROM_EUSAGE, "%s '%s': expected NAME=%s (NAME ratio:REGION or gravity:x|y|z)", flag, v,
+                        range ? "LO:HI" : "VALUE");
+    size_t len = (size_t)(eq - v);
+    if (len > 6 && !strncmp(v, "ratio:", 6)) {
+        c->kind = CROM_SCENARIO_COND_RATIO;
+        if (len - 6 >= sizeof c->ref || check_ref(flag, v + 6, len - 6))
+            return crom_err(CROM_EUSAGE, "%s '%s': a bad region", flag, v);
+        memcpy(c->ref, v + 6, len - 6);
+    } else if (len == 9 && !strncmp(v, "gravity:", 8) && strchr("xyz", v[8]) && v[8]) {
+        c->kind = CROM_SCENARIO_COND_GRAVITY;
+        c->axis = v[8] - 'x';
+    } else {
+        return crom_err(CROM_EUSAGE, "%s '%.*s': not a condition (ratio:REGION or gravity:x|y|z)", flag, (int)len, v);
+    }
+    double d[2];
+    if (range) {
+        const char *colon = strchr(eq + 1, ':');
+        char a[64];
+        if (!colon || (size_t)(colon - eq - 1) >= sizeof a)
+            return crom_err(CROM_EUSAGE, "%s '%s': expected a range LO:HI after '='", flag, v);
+        memcpy(a, eq + 1, (size_t)(colon - eq - 1));
+        a[colon - eq - 1] = 0;
+        if (crom_parse_double(a, flag, &d[0]) || crom_parse_double(colon + 1, flag, &d[1]))
+            return CROM_EUSAGE;
+    } else if (crom_parse_double(eq + 1, flag, &d[0])) {
+        return CROM_EUSAGE;
+    } else {
+        d[1] = d[0];
+    }
+    if (!(d[0] <= d[1]))
+        return crom_err(CROM_EUSAGE, "%s '%s': the range is empty (%g > %g)", flag, v, d[0], d[1]);
+    if (c->kind == CROM_SCENARIO_COND_RATIO && !(d[0] > 0 && d[1] <= 1e6))
+        return crom_err(CROM_EUSAGE, "%s '%s': a modulus ratio must be in (0, 1e6]", flag, v);
+    if (c->kind == CROM_SCENARIO_COND_GRAVITY && !(fabs(d[0]) <= 1e4 && fabs(d[1]) <= 1e4))
+        return crom_err(CROM_EUSAGE, "%s '%s': gravity must be within 1e4 m/s^2", flag, v);
+    c->lo = d[0];
+    c->hi = d[1];
+    return 0;
+}
+
+int crom_scenario_cond_format(const crom_scenario_cond *c, char *buf, int cap)
+{
+    if (c->kind == CROM_SCENARIO_COND_RATIO)
+        return snprintf(buf, (size_t)cap, "ratio:%s=%.17g:%.17g", c->ref, c->lo, c->hi);
+    return snprintf(buf, (size_t)cap, "gravity:%c=%.17g:%.17g", 'x' + c->axis, c->lo, c->hi);
+}
+
+int crom_scenario_cond_same(const crom_scenario_cond *a, const crom_scenario_cond *b)
+{
+    return a->kind == b->kind && (a->kind == CROM_SCENARIO_COND_RATIO ? !strcmp(a->ref, b->ref) : a->axis == b->axis);
+}
+
+int crom_scenario_cond_apply(crom_scenario *s, const crom_scenario_cond *c, double value)
+{
+    if (c->kind == CROM_SCENARIO_COND_GRAVITY) {
+        s->gravity[c->axis] = value;
+        return 0;
+    }
+    if (!(value > 0))
+        return crom_err(CROM_EUSAGE, "ratio:%s: a modulus ratio must be positive, got %g", c->ref, value);
+    char v[160];
+    snprintf(v, sizeof v, "%s=%.17g", c->ref, value * s->youngs);
+    return parse_material(s, SC_YOUNGS, v);
+}

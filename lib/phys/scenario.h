@@ -99,6 +99,40 @@ int crom_scenario_uniform(const crom_scenario *s, const char *prog);
 
 int crom_scenario_materials(const crom_scenario *s, const crom_mesh *m, crom_material *mats, int *nmat, int **tmat);
 
+/* ---- Conditions: scenario parameters a subspace is trained over --------
+ * (Sharp et al. §3.5, conditional subspaces: the map takes [z, c]). A
+ * condition names one number of the scenario:
+ *   ratio:REGION   the Young's modulus of REGION's tets over the body's
+ *                  (a region of another material, --youngs REGION=E)
+ *   gravity:AXIS   the gravitational acceleration along x, y or z (m/s²)
+ * and, when trained over, the range [lo, hi] it was drawn from. */
+enum { CROM_SCENARIO_COND_RATIO = 1, CROM_SCENARIO_COND_GRAVITY = 2 };
+typedef struct {
+    int kind;
+    char ref[128];      /* ratio: the region */
+    int axis;           /* gravity: 0, 1, 2 */
+    double lo, hi;      /* the range (lo <= hi) */
+} crom_scenario_cond;
+
+/* Parse "NAME=LO:HI" (range 1) or "NAME=VALUE" (range 0: lo = hi =
+ * VALUE) of flag into c. Returns 0 or CROM_EUSAGE naming the problem (an
+ * unknown kind, an empty region, a bad axis, lo > hi, a ratio not
+ * positive, a value not finite). */
+int crom_scenario_cond_parse(const char *flag, const char *v, int range, crom_scenario_cond *c);
+
+/* "NAME=LO:HI" of c into buf (cap bytes, snprintf's way); returns the
+ * length it needs. */
+int crom_scenario_cond_format(const crom_scenario_cond *c, char *buf, int cap);
+
+/* 1 when a and b name the same parameter. */
+int crom_scenario_cond_same(const crom_scenario_cond *a, const crom_scenario_cond *b);
+
+/* Set the parameter c names to value in s: a ratio makes REGION's tets of
+ * modulus value × s->youngs (adding the region of another material if s
+ * lacks it), gravity sets its component. Returns 0 or CROM_EUSAGE (too
+ * many regions; a ratio not positive). */
+int crom_scenario_cond_apply(crom_scenario *s, const crom_scenario_cond *c, double value);
+
 /* Canonical flag text, one flag per line (malloc'ed). */
 char *crom_scenario_text(const crom_scenario *s);
 

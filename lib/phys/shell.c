@@ -41,6 +41,14 @@ int crom_shell_material_init(crom_shell_material *m, double E, double nu, double
     return CROM_OK;
 }
 
+void crom_shell_material_plane(crom_shell_material *m)
+{
+    m->plane = 1;
+    crom_material_init(&m->solid, m->E, m->nu < 0.5 ? m->nu : 0.4999, m->rho);
+    m->kz = 100 * m->E * m->thickness / 6;
+    m->D = 0;
+}
+
 /* ---- small vector helpers ---------------------------------------------- */
 
 static inline double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
@@ -102,8 +110,79 @@ static void cauchy_green(const double F[6], double C2[4])
         }
 }
 
+/* The plane-strain F = [[F2, 0], [0, 1]] of a plane triangle (F2: rows x, y of its 3×2 F). */
+static void plane_F(const double x[9], const double Dminv[4], double F3[9])
+{
+    double F[6];
+    crom_shell_tri_F(x, Dminv, F);
+    const double f[9] = {F[0], F[1], 0, F[2], F[3], 0, 0, 0, 1};
+    memcpy(F3, f, sizeof f);
+}
+
+/* A plane-strain triangle: t A Ψ(F) and the z springs (shell.h). */
+static int plane_eval(const crom_shell_material *m, const double x[9], const double Dminv[4], double A, int project,
+                      double *E, double g[9], double H[81])
+{
+    double F3[9], W = m->thickness * A, sum = 0;
+    plane_F(x, Dminv, F3);
+    double beta[3][2] = {{-Dminv[0] - Dminv[2], -Dminv[1] - Dminv[3]}, {Dminv[0], Dminv[1]}, {Dminv[2], Dminv[3]}};
+    if (E) {
+        *E = W * crom_fem_psi(&m->solid, F3);
+        for (int v = 0; v < 3; v++)
+            *E += 0.5 * m->kz * x[3 * v + 2] * x[3 * v + 2];
+        sum += *E;
+    }
+    if (g) {
+        double P[9];
+        crom_fem_pk1(&m->solid, F3, P);
+        for (int v = 0; v < 3; v++) {
+            for (int i = 0; i < 2; i++)
+                g[3 * v + i] = W * (P[3 * i] * beta[v][0] + P[3 * i + 1] * beta[v][1]);
+            g[3 * v + 2] = m->kz * x[3 * v + 2];
+            sum += g[3 * v] + g[3 * v + 1] + g[3 * v + 2];
+        }
+    }
+    if (H) {
+        double C[81]; /* the in-plane block of dP/dF (projected: a block of a PSD matrix is PSD) */
+        crom_fem_dPdF(&m->solid, F3, project, C);
+        memset(H, 0, sizeof(double) * 81);
+        for (int v = 0; v < 3; v++)
+            for (int i = 0; i < 2; i++)
+                for (int w = 0; w < 3; w++)
+                    for (int j = 0; j < 2; j++) {
+                        double h = 0;
+                        for (int a = 0; a < 2; a++)
+                            for (int b = 0; b < 2; b++)
+                                h += beta[v][a] * beta[w][b] * C[(3 * i + a) * 9 + 3 * j + b];
+                        H[(3 * v + i) * 9 + 3 * w + j] = W * h;
+                        sum += h;
+                    }
+        for (int v = 0; v < 3; v++)
+            H[(3 * v + 2) * 9 + 3 * v + 2] = m->kz;
+    }
+    return isfinite(sum) ? CROM_OK : CROM_EDATA;
+}
+
+/* von Mises of the plane-strain Cauchy stress σ = P Fᵀ / J (3×3). */
+static double plane_mises(const crom_shell_material *m, const double x[9], const double Dminv[4])
+{
+    double F3[9], P[9], s[9];
+    plane_F(x, Dminv, F3);
+    crom_fem_pk1(&m->solid, F3, P);
+    double J = F3[0] * F3[4] - F3[1] * F3[3];
+    if (!(J > 0))
+        return NAN;
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            s[3 * i + j] = (P[3 * i] * F3[3 * j] + P[3 * i + 1] * F3[3 * j + 1] + P[3 * i + 2] * F3[3 * j + 2]) / J;
+    double d0 = s[0] - s[4], d1 = s[4] - s[8], d2 = s[8] - s[0];
+    return sqrt(0.5 * (d0 * d0 + d1 * d1 + d2 * d2) + 3 * (s[1] * s[1] + s[2] * s[2] + s[5] * s[5]));
+}
+
 double crom_shell_tri_mises(const crom_shell_material *m, const double x[9], const double Dminv[4])
 {
+    if (m->plane)
+        return plane_mises(m, x, Dminv);
     double F[6], C2[4], S[4];
     crom_shell_tri_F(x, Dminv, F);
     cauchy_green(F, C2);
@@ -121,6 +200,8 @@ double crom_shell_tri_mises(const crom_shell_material *m, const double x[9], con
 int crom_shell_tri_eval(const crom_shell_material *m, const double x[9], const double Dminv[4], double A,
                         int project, double *E, double g[9], double H[81])
 {
+    if (m->plane)
+        return plane_eval(m, x, Dminv, A, project, E, g, H);
     double F[6], C2[4] = {0}, Eg[4], S[4], W = m->thickness * A, mu = m->mu, lam = m->lambda_ps;
     crom_shell_tri_F(x, Dminv, F);
     for (int a = 0; a < 2; a++)
@@ -517,13 +598,23 @@ int crom_shell_init(crom_shell *s, int nv, const double *X, int nt, const int *t
                           tv[2], s->area[t]);
             goto fail;
         }
+        if (mat->plane) { /* a 2-D solid: in the plane z = 0, its rest frame turning as x, y do */
+            double F3[9], *Di = s->Dminv + 4 * (size_t)t;
+            if (Xe[2] != 0 || Xe[5] != 0 || Xe[8] != 0) {
+                rc = crom_err(CROM_EDATA, "plane-strain triangle %d is not in the plane z = 0", t);
+                goto fail;
+            }
+            plane_F(Xe, Di, F3);
+            if (F3[0] * F3[4] - F3[1] * F3[3] < 0)
+                Di[1] = -Di[1], Di[3] = -Di[3];
+        }
         s->total_area += s->area[t];
         double mv = mat->rho * mat->thickness * s->area[t] / 3;
         for (int k = 0; k < 3; k++)
             s->mass[tv[k]] += mv;
     }
     s->total_mass = mat->rho * mat->thickness * s->total_area;
-    if ((rc = build_hinges(s, X)) || (rc = build_pattern(s)))
+    if ((!mat->plane && (rc = build_hinges(s, X))) || (rc = build_pattern(s)))
         goto fail;
     return CROM_OK;
 fail:

@@ -47,11 +47,29 @@ typedef struct {
     double mu;        /* Y / (2 (1 + ν)) */
     double lambda_ps; /* plane stress: Y ν / (1 − ν²) */
     double D;         /* bending stiffness Y t³ / (12 (1 − ν²)) */
+    int plane;        /* 1: a 2-D plane-strain solid instead (crom_shell_material_plane) */
+    crom_material solid; /* plane: the stable neo-Hookean material of its plane-strain triangles */
+    double kz;        /* plane: the spring (N/m) at each corner of a triangle that holds it in z = 0 */
 } crom_shell_material;
 
 /* Fill m. Returns CROM_OK, or CROM_EUSAGE naming the value that is not
  * finite, E <= 0, rho <= 0, thickness <= 0 or nu outside (-1, 0.5]. */
 int crom_shell_material_init(crom_shell_material *m, double E, double nu, double thickness, double rho);
+
+/* Make m a 2-D solid in PLANE STRAIN (issue 19 item 3; Sharp et al.'s
+ * bistable and conditional bars): the triangles of a mesh in the plane
+ * z = 0 are a body of thickness t (the out-of-plane depth) in plane
+ * strain, F = [[F2, 0], [0, 1]] with F2 the in-plane deformation gradient
+ * (F's rows x, y in the triangle's rest frame, oriented so that det F2 > 0
+ * at rest: crom_shell_init flips the frame where the triangle runs
+ * clockwise), and energy t A Ψ(F) with the stable neo-Hookean Ψ of fem.h,
+ * so the plane-strain modulus E/(1 − ν²) is the 3-D material's. No hinge,
+ * no bending beyond what the triangles carry. Every corner is held in its
+ * plane by a spring kz = 100 E t / 6 (N/m) on z: the z DOFs have no load
+ * and no coupling to x, y, so z stays 0 exactly, and their vibrations lie
+ * far above the in-plane ones (ω² = 100 E / (ρ h²) for an element of size
+ * h, against E / (ρ L²) for the body's size L). */
+void crom_shell_material_plane(crom_shell_material *m);
 
 /* ---- One membrane triangle --------------------------------------------- */
 

@@ -130,7 +130,7 @@ int crom_sim_init(crom_sim *s, const crom_mesh *mesh, const crom_scenario *sc)
     for (int b = 0; b < s->nforce; b++)
         for (int k = s->force_ptr[b]; k < s->force_ptr[b + 1]; k++)
             s->force_mass[b] += s->sys.mass[s->force_idx[k]];
-    if ((rc = crom_rods_init(&s->rods, sc->nrod, sc->rod, mesh, s->sys.mass)) ||
+    if ((rc = crom_rod_set_init(&s->rods, sc->nrod, sc->rod, mesh, s->sys.mass)) ||
         !(s->rod_H = crom_calloc((size_t)9 * sc->nrod + 1, sizeof(double)))) {
         crom_sim_free(s);
         return rc ? rc : CROM_EINTERNAL;
@@ -181,7 +181,7 @@ void crom_sim_free(crom_sim *s)
     free(s->force_ptr);
     free(s->force_idx);
     free(s->force_mass);
-    crom_rods_free(&s->rods);
+    crom_rod_set_free(&s->rods);
     free(s->rod_H);
     memset(s, 0, sizeof *s);
 }
@@ -230,7 +230,7 @@ static int potential(crom_sim *s, const double *x, double E, double *ip, double 
             con += crom_contact_eval(&sc->plane[p], sc->contact_stiffness, s->sys.mass[i], x + 3 * i,
                                      s->xn + 3 * i, s->lam[(size_t)p * s->nv + i],
                                      sc->friction_eps * h, NULL, NULL);
-    double rods = crom_rods_eval(&s->rods, sc->rod, s->t1, x, NULL, NULL, 0);
+    double rods = crom_rod_set_eval(&s->rods, sc->rod, s->t1, x, NULL, NULL, 0);
     *ip = kin / (2 * h * h) + sc->damping * damp / (2 * h) + E - ext + con + rods;
     if (noise)
         *noise = 64 * DBL_EPSILON * (fabs(*ip) + fabs(E) + extabs + con + rods + kin / (2 * h * h));
@@ -275,7 +275,7 @@ static int ip_gradient(crom_sim *s, const double *x, const crom_fem_opts *fo, do
     for (int i = 0; i < s->n; i++)
         g[i] += s->m3[i] * ((x[i] - s->xhat[i]) / (h * h) + sc->damping * (x[i] - s->xn[i]) / h) - s->fext[i];
     add_contact(s, x, g, H);
-    crom_rods_eval(&s->rods, sc->rod, s->t1, x, g, H ? s->rod_H : NULL, fo->project);
+    crom_rod_set_eval(&s->rods, sc->rod, s->t1, x, g, H ? s->rod_H : NULL, fo->project);
     for (int i = 0; i < s->n; i++)
         if (s->fixed[i])
             g[i] = 0;
@@ -389,7 +389,7 @@ static void newton_apply(void *ctx, const double *x, double *y)
 {
     newton_op *o = ctx;
     crom_sym_matvec(o->A, x, y);
-    crom_rods_matvec(&o->s->rods, o->s->rod_H, o->s->fixed, x, y);
+    crom_rod_set_matvec(&o->s->rods, o->s->rod_H, o->s->fixed, x, y);
 }
 
 /* CG on H d = -g (s->xt) from d = s->d, preconditioned with the factor;
@@ -618,7 +618,7 @@ int crom_sim_energies(crom_sim *s, double *kinetic, double *elastic, double *ext
         W -= s->fext[i] * (s->x[i] - s->mesh->X[i]);
     }
     *kinetic = K;
-    *external = W + crom_rods_eval(&s->rods, s->sc->rod, s->t, s->x, NULL, NULL, 0);
+    *external = W + crom_rod_set_eval(&s->rods, s->sc->rod, s->t, s->x, NULL, NULL, 0);
     return crom_system_energy(&s->sys, s->x, elastic);
 }
 

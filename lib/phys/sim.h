@@ -50,7 +50,7 @@ typedef struct {
     double *force_mass;               /* total mass of each force region */
     crom_chol *chol;
     int have_factor, refactor;
-    crom_rods rods;                   /* the scenario's rods (--rod) on the mesh */
+    crom_rod_set rods;                   /* the scenario's rods (--rod) on the mesh */
     double *rod_H;                    /* [nrod][9] their Hessians in their gaps, at the last assembly */
     double t1;                        /* the time the step in progress ends at */
 } crom_sim;

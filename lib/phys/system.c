@@ -29,8 +29,11 @@ int crom_system_init(crom_system *s, const crom_mesh *mesh, double E, double nu,
     }
     if (crom_mesh_is_surface(mesh)) {
         crom_shell_material sm;
-        if ((rc = crom_shell_material_init(&sm, E, nu, mesh->thickness, rho)) ||
-            (rc = crom_shell_init(&s->sh, mesh->nv, mesh->X, mesh->ntri, mesh->tris, &sm)))
+        if ((rc = crom_shell_material_init(&sm, E, nu, mesh->thickness, rho)))
+            return rc;
+        if (mesh->plane) /* a 2-D solid in plane strain */
+            crom_shell_material_plane(&sm);
+        if ((rc = crom_shell_init(&s->sh, mesh->nv, mesh->X, mesh->ntri, mesh->tris, &sm)))
             return rc;
         s->shell = 1;
         s->nv = s->sh.nv;

@@ -30,6 +30,11 @@ void crom_map_free(crom_map *map)
     free(map->t1);
     free(map->zs);
     free(map->ts);
+    free(map->cond);
+    free(map->w0);
+    free(map->wc);
+    free(map->b0);
+    free(map->bc);
     memset(map, 0, sizeof *map);
 }
 
@@ -108,6 +113,35 @@ static int load_net(crom_map *map, const crom_nn_mlp *net, const double *basis_v
         memcpy(Bi + o, map->w[L - 1] + (size_t)i * h, sizeof(double) * (size_t)h);
         Bi[map->p - 1] = map->b[L - 1][i];
     }
+    return 0;
+}
+
+/* A conditional map: the first layer split into its latent and condition
+ * columns (the latent is then the network's input as for any map), c at
+ * the middle of each trained range. */
+static int split_conditions(crom_map *map, const crom_model *model)
+{
+    int r = map->r, nc = model->ncond, in = r + nc, out = map->width[1];
+    map->nc = nc;
+    map->cond = crom_malloc(sizeof(double) * (size_t)nc);
+    map->w0 = crom_malloc(sizeof(double) * (size_t)out * r);
+    map->wc = crom_malloc(sizeof(double) * (size_t)out * nc);
+    map->b0 = crom_malloc(sizeof(double) * (size_t)out);
+    map->bc = crom_malloc(sizeof(double) * (size_t)out);
+    if (!map->cond || !map->w0 || !map->wc || !map->b0 || !map->bc)
+        return CROM_EINTERNAL;
+    for (int j = 0; j < out; j++) {
+        memcpy(map->w0 + (size_t)j * r, map->w[0] + (size_t)j * in, sizeof(double) * (size_t)r);
+        memcpy(map->wc + (size_t)j * nc, map->w[0] + (size_t)j * in + r, sizeof(double) * (size_t)nc);
+    }
+    memcpy(map->b0, map->b[0], sizeof(double) * (size_t)out);
+    map->w[0] = map->w0;
+    map->b[0] = map->bc;
+    map->width[0] = r;
+    for (int k = 0; k < nc; k++)
+        map->cond[k] = 0.5 * (model->cond[k].lo + model->cond[k].hi);
+    memcpy(map->bc, map->b0, sizeof(double) * (size_t)out);
+    cblas_dgemv(CblasRowMajor, CblasNoTrans, out, nc, 1.0, map->wc, nc, map->cond, 1, 1.0, map->bc, 1);
     return 0;
 }
 
@@ -195,6 +229,28 @@ static int fold_last_layer(crom_map *map)
     return 0;
 }
 
+/* The anchor a(0) of a nonlinear map (x(0) = X exactly) and, tangent-
+ * anchored, T(0) of the network's features, at the current condition. */
+static int set_anchor(crom_map *map)
+{
+    int r = map->r, rc;
+    free(map->anchor);
+    free(map->tan0);
+    map->anchor = map->tan0 = NULL;
+    double *zero = crom_calloc((size_t)r, sizeof(double)), *a0 = crom_malloc(sizeof(double) * (size_t)map->p);
+    double *T0 = map->tangent ? crom_malloc(sizeof(double) * (size_t)map->p * r) : NULL;
+    rc = zero && a0 && (T0 || !map->tangent) ? crom_map_features(map, zero, a0, T0) : CROM_EINTERNAL;
+    free(zero);
+    if (rc) {
+        free(a0);
+        free(T0);
+        return rc;
+    }
+    map->anchor = a0;
+    map->tan0 = T0;
+    return 0;
+}
+
 int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
 {
     memset(map, 0, sizeof *map);
@@ -227,6 +283,8 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
     map->n = 3 * map->nv;
     if (model->field == CROM_MODEL_FIELD_MAP) {
         rc = load_net(map, &model->mlp, model->basis_v, model->deriv_v);
+        if (!rc && model->ncond)
+            rc = split_conditions(map, model);
     } else if (model->field == CROM_MODEL_FIELD_CMAP) {
         if (!(rc = load_field_map(map, model)))
             rc = fold_last_layer(map);
@@ -244,28 +302,26 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
         if (!map->fa || !map->fT)
             rc = CROM_EINTERNAL;
     }
-    if (!rc && map->nonlinear) { /* the anchor a(0): x(0) = X exactly */
-        double *zero = crom_calloc((size_t)r, sizeof(double)), *a0 = crom_malloc(sizeof(double) * (size_t)map->p);
-        rc = zero && a0 ? crom_map_features(map, zero, a0, NULL) : CROM_EINTERNAL;
-        free(zero);
-        if (rc)
-            free(a0);
-        else
-            map->anchor = a0;
-        if (!rc && model->tangent_anchored && !map->phi) { /* T(0) of the network's features */
-            double *z0 = crom_calloc((size_t)r, sizeof(double));
-            double *T0 = crom_malloc(sizeof(double) * (size_t)map->p * r);
-            rc = z0 && T0 ? crom_map_features(map, z0, NULL, T0) : CROM_EINTERNAL;
-            free(z0);
-            if (rc)
-                free(T0);
-            else
-                map->tan0 = T0;
-        }
-    }
+    map->tangent = model->tangent_anchored && !map->phi;
+    if (!rc && map->nonlinear)
+        rc = set_anchor(map);
     if (rc)
         crom_map_free(map);
     return rc;
+}
+
+int crom_map_set_condition(crom_map *map, const double *c)
+{
+    if (!map->nc)
+        return crom_err(CROM_EUSAGE, "the map has no conditions");
+    for (int k = 0; k < map->nc; k++)
+        if (!isfinite(c[k]))
+            return crom_err(CROM_EDATA, "condition %d is not finite", k + 1);
+    int out = map->width[1];
+    memcpy(map->cond, c, sizeof(double) * (size_t)map->nc);
+    memcpy(map->bc, map->b0, sizeof(double) * (size_t)out);
+    cblas_dgemv(CblasRowMajor, CblasNoTrans, out, map->nc, 1.0, map->wc, map->nc, map->cond, 1, 1.0, map->bc, 1);
+    return set_anchor(map);
 }
 
 /* activation value and derivative at pre-activation v */

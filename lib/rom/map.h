@@ -77,6 +77,16 @@ typedef struct crom_map_s {
     double *tan0;        /* tangent-anchored neuralmodes: [p][r] T(0), subtracted from the network's features
                           * (a − T(0) q: the map's tangent at rest is W) */
     double *anchor;      /* [p] a(0), subtracted from the features of a nonlinear map (NULL: linear) */
+    int tangent;         /* tan0 is kept (a tangent-anchored neuralmodes map) */
+    /* a conditional map (Sharp et al. §3.5; the model's conditions): its
+     * network takes [q, c]; c enters the first layer only, as the bias
+     * b0 + Wc c, so B, and the features' form, do not change with c, and
+     * the anchor a(0) is taken at the current c (x(0, c) = X for every c) */
+    int nc;
+    double *cond;        /* [nc] the current c (crom_map_set_condition; at init the ranges' midpoints) */
+    double *w0;          /* [width1][r] the first layer's latent columns (map->w[0]) */
+    double *wc;          /* [width1][nc] its condition columns */
+    double *b0, *bc;     /* [width1] its bias, and b0 + Wc c (map->b[0]) */
 } crom_map;
 
 /* Build the map of a model. A map model (energy, neuralmodes) lives on its
@@ -111,6 +121,13 @@ int crom_map_curvature(crom_map *map, const double *q, const double *g, double *
  * (J non-NULL) their Jacobian rows J [3 nidx][r] = B_v T. */
 void crom_map_rows(const crom_map *map, const int *idx, int nidx, const double *a, const double *T, double *x,
                    double *J);
+
+/* Set the condition c [nc] of a conditional map (values of the model's
+ * conditions, in their order; outside the trained ranges is allowed:
+ * extrapolation): the features of every q change, the anchor follows, so
+ * x(0) = X still. CROM_EUSAGE for a map with no conditions, CROM_EDATA for
+ * a non-finite value or network. */
+int crom_map_set_condition(crom_map *map, const double *c);
 
 /* Release what init allocated (NULL-safe). */
 void crom_map_free(crom_map *map);

@@ -152,6 +152,11 @@ const char *crom_model_id(const crom_model *m, char id[17])
             fnv_bytes(&s, m->basis_v, sizeof(double) * 3 * (size_t)m->rank * m->mesh.nv);
         if (m->deriv_v)
             fnv_bytes(&s, m->deriv_v, sizeof(double) * 3 * (size_t)crom_model_nderiv(m) * m->mesh.nv);
+        for (int k = 0; k < m->ncond; k++) { /* a conditional map's inputs after q */
+            char c[200];
+            crom_scenario_cond_format(&m->cond[k], c, sizeof c);
+            fnv_bytes(&s, c, strlen(c) + 1);
+        }
     } else if (m->field == CROM_MODEL_FIELD_MESH) {
         fnv_i64(&s, m->mesh.nv);
         fnv_i64(&s, m->mesh.nt);
@@ -390,6 +395,60 @@ static int write_widths(hid_t loc, const char *name, const crom_nn_spec *s)
 
 /* The root attributes: what the model is, and the record of its training
  * and material when known. */
+int crom_model_set_conditions(crom_model *m, int n, const crom_scenario_cond *cond)
+{
+    if (m->field != CROM_MODEL_FIELD_MAP || n < 0 || n > CROM_MODEL_MAXCOND)
+        return crom_err(CROM_EUSAGE, "%d conditions: a map takes at most %d", n, CROM_MODEL_MAXCOND);
+    int r = m->mlp.spec.width[0] - n;
+    if (r < 1)
+        return crom_err(CROM_EUSAGE, "a network of %d inputs has no latent left after %d conditions",
+                        m->mlp.spec.width[0], n);
+    m->rank = r;
+    m->ncond = n;
+    memcpy(m->cond, cond, sizeof *cond * (size_t)n);
+    return 0;
+}
+
+/* The `conditions` attribute: one "NAME=LO:HI" per line (NULL: none). */
+static char *conditions_text(const crom_model *m)
+{
+    if (!m->ncond)
+        return NULL;
+    char *t = crom_malloc((size_t)m->ncond * 200 + 1);
+    if (!t)
+        return NULL;
+    t[0] = 0;
+    for (int k = 0; k < m->ncond; k++) {
+        size_t l = strlen(t);
+        crom_scenario_cond_format(&m->cond[k], t + l, 198);
+        strcat(t, "\n");
+    }
+    return t;
+}
+
+static int read_conditions(hid_t h, crom_model *m)
+{
+    if (!crom_h5_has_attr(h, ".", "conditions"))
+        return 0;
+    char *t = NULL;
+    int rc = crom_h5_get_str(h, ".", "conditions", &t);
+    for (char *line = t, *e; !rc && line && *line; line = e + 1) {
+        e = strchr(line, '\n');
+        if (!e)
+            e = line + strlen(line) - 1;
+        else
+            *e = 0;
+        if (!*line)
+            continue;
+        if (m->ncond == CROM_MODEL_MAXCOND)
+            rc = crom_err(CROM_EDATA, "conditions: more than %d", CROM_MODEL_MAXCOND);
+        else if (crom_scenario_cond_parse("conditions", line, 1, &m->cond[m->ncond++]))
+            rc = CROM_EDATA;
+    }
+    free(t);
+    return rc;
+}
+
 static int write_attrs(hid_t loc, const crom_model *m)
 {
     int rc = crom_h5_set_str(loc, ".", "basis", m->basis);
@@ -411,6 +470,11 @@ static int write_attrs(hid_t loc, const crom_model *m)
         rc = crom_h5_set_f64(loc, ".", "poisson", &m->poisson, 1);
     if (!rc && isfinite(m->density))
         rc = crom_h5_set_f64(loc, ".", "density", &m->density, 1);
+    if (!rc && m->ncond) {
+        char *t = conditions_text(m);
+        rc = t ? crom_h5_set_str(loc, ".", "conditions", t) : CROM_EINTERNAL;
+        free(t);
+    }
     return rc;
 }
 
@@ -784,9 +848,9 @@ static int read_map(hid_t h, crom_model *m, const char *act)
     crom_nn_spec spec;
     if (crom_nn_spec_set(&spec, nw, w, a))
         return crom_err(CROM_EDATA, "field/widths: %s", crom_errmsg());
-    if (w[0] != m->rank || w[nw - 1] != 3 * m->mesh.nv)
-        return crom_err(CROM_EDATA, "field/widths go %d -> %d, expected r -> 3nv = %d -> %d", w[0], w[nw - 1],
-                        m->rank, 3 * m->mesh.nv);
+    if (w[0] != m->rank + m->ncond || w[nw - 1] != 3 * m->mesh.nv)
+        return crom_err(CROM_EDATA, "field/widths go %d -> %d, expected r + conditions -> 3nv = %d -> %d", w[0],
+                        w[nw - 1], m->rank + m->ncond, 3 * m->mesh.nv);
     if ((rc = crom_model_read_net(h, "field/params", NULL, NULL, &spec, "the map", &m->mlp)))
         return rc;
     if (crom_h5_has(h, "field/basis")) {
@@ -921,7 +985,9 @@ int crom_model_read(crom_in *in, crom_model *m)
     } else if (m->field == CROM_MODEL_FIELD_MAP) {
         if (crom_h5_has_attr(h, ".", "activation"))
             crom_h5_get_str(h, ".", "activation", &act);
-        rc = read_map(h, m, act ? act : "elu");
+        rc = read_conditions(h, m);
+        if (!rc)
+            rc = read_map(h, m, act ? act : "elu");
     } else if (m->field == CROM_MODEL_FIELD_MLP || m->field == CROM_MODEL_FIELD_CMAP) {
         if (crom_h5_has_attr(h, ".", "activation"))
             crom_h5_get_str(h, ".", "activation", &act);

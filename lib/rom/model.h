@@ -73,6 +73,7 @@
 #include "mesh/locate.h"
 #include "mesh/mesh.h"
 #include "nn/nn.h"
+#include "phys/scenario.h"
 
 #define CROM_MODEL_SCHEMA "crom/model"
 #define CROM_MODEL_VERSION 1
@@ -82,6 +83,8 @@ enum {
     CROM_MODEL_FIELD_SKIN = 5
 };
 enum { CROM_MODEL_ENC_NONE = 0, CROM_MODEL_ENC_LSQ = 1, CROM_MODEL_ENC_POINTNET = 2 };
+
+#define CROM_MODEL_MAXCOND 4 /* conditions of a conditional map */
 
 typedef struct {
     char basis[16];      /* the `basis` attribute: mlp, pod, modes, ... */
@@ -136,7 +139,19 @@ typedef struct {
                             * written by the trainer's record) */
     double gravity[3];   /* the training gravity (m/s²) */
     int has_gravity;
+    /* a conditional map (Sharp et al. §3.5; CROM_MODEL_FIELD_MAP, energy):
+     * its network takes [q, c], the latent then ncond scenario parameters
+     * (attribute `conditions`, one "NAME=LO:HI" per line, the ranges trained
+     * over; crom_map_set_condition) */
+    int ncond;
+    crom_scenario_cond cond[CROM_MODEL_MAXCOND];
 } crom_model;
+
+/* Make a map model conditional on n scenario parameters cond [n] (after
+ * crom_model_from_map with a network of rank + n inputs: the rank becomes
+ * its inputs less n). CROM_EUSAGE for too many conditions or a network
+ * with no latent left. */
+int crom_model_set_conditions(crom_model *m, int n, const crom_scenario_cond *cond);
 
 /* An empty model (safe to free), with NAN training figures. */
 void crom_model_clear(crom_model *m);

@@ -462,6 +462,24 @@ fail:
     return rc;
 }
 
+int crom_nlsim_set_condition(crom_nlsim *s, crom_map *map, crom_scenario *sc, const crom_scenario_cond *conds,
+                             const double *c)
+{
+    int rc = 0;
+    for (int k = 0; k < map->nc && !rc; k++)
+        rc = crom_scenario_cond_apply(sc, &conds[k], c[k]);
+    if (rc || (rc = crom_map_set_condition(map, c)) || !s->map)
+        return rc;
+    if (sc->nmat && (rc = crom_system_set_materials(&s->sys, sc, &map->mesh)))
+        return rc;
+    /* the state's features and their velocity at the new c */
+    if ((rc = crom_map_features(map, s->q, s->an, s->T)))
+        return rc;
+    cblas_dgemv(CblasRowMajor, CblasNoTrans, s->p, s->r, 1.0, s->T, s->r, s->qd, 1, 0.0, s->va, 1);
+    s->fac_ok = 0;
+    return 0;
+}
+
 /* fa = Bᵀ f_ext(t): gravity through Bg, the region forces through their
  * vertices' rows */
 static void feature_loads(crom_nlsim *s, double t, double *fa)

@@ -121,6 +121,17 @@ typedef struct {
 int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, double kappa, const double *q0,
                     const double *qd0, int nthreads);
 
+/* A conditional map (map.h, crom_map_set_condition) at condition c [nc],
+ * the values of conds [nc] (the model's conditions, in order): sc, the
+ * scenario s borrows, gets them (crom_scenario_cond_apply: a ratio's
+ * region material, a gravity component), the map its c, and the body's
+ * materials follow. The state q, q̇ is kept: x(q) moves to the map at the
+ * new c (at q = 0 it stays at rest). Call before crom_nlsim_init (s
+ * zeroed: only sc and the map change) or between steps. Returns 0 or the
+ * errors of the calls. */
+int crom_nlsim_set_condition(crom_nlsim *s, crom_map *map, crom_scenario *sc, const crom_scenario_cond *conds,
+                             const double *c);
+
 /* Integrate the elastic energy over k energy elements elem [k] (indices
  * into the system of the map's mesh: tets, or a shell's triangles then
  * hinges) with weights weight [k] instead of every element (a crom/cubature

@@ -155,6 +155,10 @@ static int adopt_latent(crom_result *res, const char *mesh_path, const char *mod
     if (res->ft < 0 || res->fu < 0)
         return CROM_EDATA;
     res->fv = crom_in_field(in, "qdot");
+    res->fc = -1;
+    for (int i = 0; i < in->nfields; i++)
+        if (!strcmp(in->fields[i].name, "condition"))
+            res->fc = i;
     crom_err_clear();
     crom_model model;
     if ((rc = crom_model_load(model_path, &model)))
@@ -167,6 +171,9 @@ static int adopt_latent(crom_result *res, const char *mesh_path, const char *mod
         if ((int)in->fields[res->fu].count != res->r)
             rc = crom_err(CROM_EDATA, "%s: q has %zu entries, the model's rank is %d", in->name,
                           in->fields[res->fu].count, res->r);
+        else if (res->fc >= 0 && (int)in->fields[res->fc].count != model.ncond)
+            rc = crom_err(CROM_EDATA, "%s: a condition of %zu values, model %s has %d conditions", in->name,
+                          in->fields[res->fc].count, model.model_id, model.ncond);
         else if (crom_model_is_nonlinear(&model))
             rc = latent_map(res, &model, mesh_path);
         else
@@ -304,6 +311,12 @@ int crom_result_next(crom_result *res, double *t, double *u, double *v)
     if (res->map) { /* u = x(q) − X, v = J(q) q̇ (a scene's: at its frame vertices, then shown) */
         int sc = res->scene_nv > 0, nm = sc ? 3 * res->scene_nv : n;
         double *uu = sc ? res->uf : u, *vv = sc ? res->uf + nm : v;
+        if (res->fc >= 0 && res->map->nc) { /* a conditional map at the frame's condition */
+            const double *c = crom_in_get(&res->in, res->fc);
+            if (memcmp(c, res->map->cond, sizeof(double) * (size_t)res->map->nc) &&
+                (rc = crom_map_set_condition(res->map, c)))
+                return rc;
+        }
         rc = crom_map_eval(res->map, crom_in_get(&res->in, res->fu), uu, v ? res->J : NULL);
         if (rc)
             return rc;

@@ -27,6 +27,8 @@ typedef struct {
     double *J;          /* map: [3nv][r] Jacobian scratch */
     char model_id[17];
     int ft, fu, fv;     /* frame fields: time, displacement or q, velocity or qdot */
+    int fc;             /* a conditional map's latent: the field `condition` (−1: none; the map's
+                         * middle condition then), laid on the map frame by frame */
     size_t outside;     /* latent: mesh vertices outside a mesh-field model */
     /* a trajectory of a rigid-body scene: mesh is its display surface
      * (crom_rigidsys_display), each frame mapped from the frame vertices */

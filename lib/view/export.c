@@ -740,6 +740,8 @@ static long shell_measures(const crom_mesh *m, const double *u, const crom_mater
 {
     crom_shell_material sm;
     int have = mat && crom_shell_material_init(&sm, mat->E, mat->nu, m->thickness, 1000) == CROM_OK;
+    if (have && m->plane)
+        crom_shell_material_plane(&sm);
     long bad = 0;
     if (mat && !have) /* cannot happen for a material and mesh that passed their checks: no psi then */
         crom_err_clear();

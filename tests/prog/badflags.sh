@@ -58,6 +58,8 @@ for f in --youngs --poisson --density; do
   try crom-metrics $f X --samples 3 --mesh m.h5 modes.h5
 done
 try crom-fitfield --youngs X --objective energy --mesh m.h5 --rank 2 --steps 2 -o "$OUT"
+try crom-fitfield --condition 'gravity:y=X:1' --objective energy --mesh m.h5 --rank 2 --steps 2 -o "$OUT"
+try crom-fitfield --condition 'ratio:top=1:X' --objective energy --mesh m.h5 --rank 2 --steps 2 -o "$OUT"
 
 # the out-of-range values of issue 15, each with the flag and its range named
 once crom-fullsim --youngs 1e308 "--youngs: 1e308 is out of range" -o "$OUT" m.h5

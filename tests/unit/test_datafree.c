@@ -131,7 +131,7 @@ static void gradient_check(int objective)
         for (int i = 0; i < 3 * m.nv * 6; i++)
             Psi[i] = fixed[i / 6] ? 0 : 0.2 * crom_rng_normal(&qr);
     }
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, W, freq, Psi, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, W, freq, Psi, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
     /* supervised: 4 made-up equilibria u = W z + v, v random and
      * M-orthogonal to the modes (so that W^T M u / m = z), zero at the pins */
     double zsup[4 * 3], *usup = NULL;
@@ -384,7 +384,7 @@ static void gradient_check_field(void)
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
     unsigned char *fixed = clamp_mask(&m);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
     crom_datafree_opts o;
     field_check_opts(&o);
     o.pin_length = 0.3; /* a wide mask: many vertices inside it */
@@ -475,7 +475,7 @@ static void gradient_check_field_basis(void)
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
     unsigned char *fixed = clamp_mask(&m);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
     crom_datafree_opts o;
     field_check_opts(&o);
     int r = 2, pf = 5, B = 4, pw[] = {r, 10, pf};
@@ -593,6 +593,138 @@ static double check_map_curvature(crom_map *map, double *q, unsigned seed)
 /* A map model with a random network (and modes for neuralmodes): its
  * double Jacobian against differences, the curvature of its features, its positions against the float
  * network, pins exactly at rest after zeroing their rows. */
+/* A conditional energy map (Sharp et al. §3.5): the network takes [z, c]
+ * with c the modulus ratio of the bar's far half and the gravity along y.
+ * dL/dc (through the network's input and the energy's own dependence: the
+ * far half's energy over the ratio, −Σ m u_y for gravity) against central
+ * differences of the loss in c; the batch's materials follow c (the far
+ * half's tets at c E); the stored map holds x(0, c) = X exactly at every
+ * c, and x(z, c) − X is the trainer's Y at the same c. */
+static void test_conditional(void)
+{
+    crom_mesh m;
+    make_bar(&m, 0.2);
+    unsigned char *fixed = clamp_mask(&m);
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    sc.youngs = 1e6;
+    sc.poisson = 0.3;
+    crom_scenario_cond cond[2];
+    CHECK(crom_scenario_cond_parse("--condition", "ratio:x>0=1:10", 1, &cond[0]) == 0);
+    CHECK(crom_scenario_cond_parse("--condition", "gravity:y=-15:-5", 1, &cond[1]) == 0);
+    CHECK(crom_scenario_cond_apply(&sc, &cond[0], 5.5) == 0 && sc.nmat == 1 && sc.mat[0].youngs == 5.5e6);
+    /* the flag's forms: a value, a range, the names */
+    crom_scenario_cond t;
+    char buf[200];
+    CHECK(crom_scenario_cond_parse("--condition", "gravity:z=-3", 0, &t) == 0 && t.axis == 2 && t.lo == -3 &&
+          t.hi == -3);
+    crom_scenario_cond_format(&cond[0], buf, sizeof buf);
+    CHECK(!strcmp(buf, "ratio:x>0=1:10") && crom_scenario_cond_same(&cond[1], &t) == 0);
+    const char *bad[] = {"ratio:x>0=0:2", "ratio:=1:2", "gravity:w=1:2", "stiff=1:2", "ratio:x>0=3:1", "gravity:y=1"};
+    for (int i = 0; i < 6; i++) {
+        CHECK_MSG(crom_scenario_cond_parse("--condition", bad[i], 1, &t) == CROM_EUSAGE, "'%s' accepted", bad[i]);
+        crom_err_clear();
+    }
+    crom_material mat;
+    crom_material_init(&mat, sc.youngs, sc.poisson, sc.density);
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, &sc, 2, cond};
+    crom_datafree_opts o;
+    crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
+    int r = 3, B = 5, widths[] = {r + 2, 12, 12, 3 * m.nv};
+    o.rank = r;
+    o.sigma = 0.04;
+    o.lambda = 0.7;
+    o.tangent_weight = 0.5;
+    o.tangent_floor = 1;
+    crom_nn_spec spec;
+    CHECK(crom_nn_spec_set(&spec, 4, widths, o.act) == 0);
+    crom_nn_mlp net;
+    crom_rng rng;
+    crom_rng_seed(&rng, 41);
+    CHECK(crom_nn_mlp_init(&net, &spec, NULL, &rng) == 0);
+    crom_nn_layer *ly = &net.layer[2];
+    for (int i = 0; i < ly->out * ly->in; i++)
+        ly->W[i] *= 0.3f;
+    for (int i = 0; i < net.layer[0].out; i++)
+        net.layer[0].b[i] = (float)(0.5 * crom_rng_normal(&rng));
+    crom_datafree_ctx c;
+    CHECK_MSG(crom_datafree_ctx_init(&c, &P, &o, &net, B) == 0, "ctx: %s", crom_errmsg());
+    double z[8 * 3], cv[2] = {3.7, -8.2}, cp[2];
+    for (int i = 0; i < B * r; i++)
+        z[i] = crom_rng_normal(&rng);
+    for (int i = B * r; i < (B + c.B0) * r; i++)
+        z[i] = (i - B * r) % (r + 1) == 0 ? 0.1 : 0;
+    CHECK(crom_datafree_set_condition(&c, cv) == 0);
+    CHECK_REL(c.sys.mats[1].E, 3.7e6, 1e-15);
+    CHECK(c.grav[1] == -8.2 && c.grav[0] == 0);
+    float *g = malloc(sizeof(float) * net.nparams);
+    crom_dftrain_terms tm;
+    CHECK(crom_datafree_loss(&c, B, z, 0.8, 0, NULL, &tm, g) == 0);
+    double dc[2] = {c.dcond[0], c.dcond[1]}, worst = 0;
+    for (int k = 0; k < 2; k++) {
+        double h = 1e-2 * fabs(cv[k]), L[2]; /* the network runs in float: a step well above its rounding */
+        for (int sgn = 0; sgn < 2; sgn++) {
+            memcpy(cp, cv, sizeof cp);
+            cp[k] += sgn ? -h : h;
+            CHECK(crom_datafree_set_condition(&c, cp) == 0);
+            CHECK(crom_datafree_loss(&c, B, z, 0.8, 0, NULL, &tm, NULL) == 0);
+            L[sgn] = tm.objective;
+        }
+        double fd = (L[0] - L[1]) / (2 * h);
+        fprintf(stderr, "conditional energy map: dL/dc_%d = %.6g, central difference %.6g\n", k, dc[k], fd);
+        worst = fmax(worst, fabs(fd - dc[k]) / fmax(fabs(fd), 1e-12));
+    }
+    CHECK_LT(worst, 3e-3);
+    /* the stored map at two conditions: rest exact, the trainer's Y */
+    crom_model model;
+    crom_map map;
+    CHECK(crom_model_from_map(&model, "energy", &net, &m, NULL) == 0);
+    CHECK(crom_model_set_conditions(&model, 2, cond) == 0 && model.rank == r);
+    CHECK(crom_map_init(&map, &model, NULL) == 0 && map.nc == 2);
+    CHECK(map.cond[0] == 5.5 && map.cond[1] == -10); /* the middles of the ranges */
+    int n = 3 * m.nv;
+    double *x = malloc(sizeof(double) * n), z0[3] = {0, 0, 0}, dmax = 0, ymax = 0, rest = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        double cc[2] = {pass ? 9.0 : 1.5, pass ? -6.0 : -14.0};
+        CHECK(crom_map_set_condition(&map, cc) == 0 && crom_datafree_set_condition(&c, cc) == 0);
+        CHECK(crom_map_eval(&map, z0, x, NULL) == 0);
+        for (int i = 0; i < n; i++)
+            rest = fmax(rest, fabs(x[i] - m.X[i]));
+        CHECK(crom_datafree_loss(&c, B, z, 1, 0, NULL, &tm, NULL) == 0);
+        for (int b = 0; b < B; b++) {
+            CHECK(crom_map_eval(&map, z + b * r, x, NULL) == 0);
+            for (int i = 0; i < n; i++)
+                if (!fixed[i]) {
+                    dmax = fmax(dmax, fabs(x[i] - m.X[i] - c.Y[(size_t)b * n + i]));
+                    ymax = fmax(ymax, fabs(c.Y[(size_t)b * n + i]));
+                }
+        }
+    }
+    fprintf(stderr, "conditional energy map: |x(0, c) - X| %.1e; x(z, c) - X against the trainer's %.1e of %.1e m\n",
+            rest, dmax, ymax);
+    CHECK(rest == 0);
+    CHECK_LT(dmax, 1e-5 * ymax);
+    double one[1] = {2};
+    crom_map_free(&map);
+    CHECK(crom_map_init(&map, &model, NULL) == 0);
+    CHECK(crom_map_set_condition(&map, (double[]){NAN, 1}) == CROM_EDATA);
+    crom_err_clear();
+    crom_map_free(&map);
+    crom_model_free(&model);
+    /* an unconditional map refuses a condition */
+    CHECK(crom_model_from_map(&model, "energy", &net, &m, NULL) == 0 && model.rank == r + 2);
+    CHECK(crom_map_init(&map, &model, NULL) == 0 && crom_map_set_condition(&map, one) == CROM_EUSAGE);
+    crom_err_clear();
+    crom_map_free(&map);
+    crom_model_free(&model);
+    free(x);
+    free(g);
+    crom_datafree_ctx_free(&c);
+    crom_nn_mlp_free(&net);
+    free(fixed);
+    crom_mesh_free(&m);
+}
+
 static void test_map(void)
 {
     crom_mesh m;
@@ -822,7 +954,7 @@ static crom_model g_energy_model; /* trained once, used by the dynamics tests */
  * pins stay exactly at rest, and so does a run with no load. */
 static void test_energy_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -883,7 +1015,7 @@ static void test_energy_subspace(bar_case *b)
  * load stays at rest. */
 static void test_neuralmodes_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_NEURALMODES);
     o.rank = b->nmodes;
@@ -1014,7 +1146,7 @@ static void test_neuralmodes_visit(bar_case *b)
     visit[0] = 0.3;       /* mode 1 at 3 times the box, */
     visit[r + 0] = 0.25;  /* and near it with mode 2 */
     visit[r + 1] = 0.05;
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_NEURALMODES);
     o.rank = r;
@@ -1051,7 +1183,7 @@ static void test_neuralmodes_visit(bar_case *b)
 
 static void test_field_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_FIELD);
     o.rank = 2;
@@ -1150,7 +1282,7 @@ static void test_field_subspace(bar_case *b)
  * its samples have less energy than the two lowest linear modes'. */
 static void test_skin_field(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
     crom_model sm;
     int rc = crom_dfskin_eigen(&b->mesh, &b->mat, b->fixed, 4, &sm, NULL);
     CHECK_MSG(rc == 0, "eigen: %s", crom_errmsg());
@@ -1380,11 +1512,11 @@ static void test_dynamics(bar_case *b)
             double mi = s.sys.mass[i / 3], a = x[i] - xn[i] - h * vn[i], bb = x[i] - xn[i];
             Eref += 0.5 * mi * (cin * a * a + cd * bb * bb) - fext[i] * bb;
         }
-        crom_rods R; /* the rod */
-        CHECK(crom_rods_init(&R, 1, sc.rod, &map.mesh, s.sys.mass) == 0);
-        Eref += crom_rods_eval(&R, sc.rod, s.t + h, x, NULL, NULL, 0);
+        crom_rod_set R; /* the rod */
+        CHECK(crom_rod_set_init(&R, 1, sc.rod, &map.mesh, s.sys.mass) == 0);
+        Eref += crom_rod_set_eval(&R, sc.rod, s.t + h, x, NULL, NULL, 0);
         CHECK(R.rest[0] > 0.5 && fabs(R.rest[0] - s.rod_rest[0]) < 1e-14);
-        crom_rods_free(&R);
+        crom_rod_set_free(&R);
         for (int j = 0; j < s.bc[0].n; j++) { /* the pin */
             int v = s.bc[0].idx[j];
             for (int c = 0; c < 3; c++) {
@@ -1479,7 +1611,7 @@ static void test_shell_map(void)
     CHECK(crom_modes_pins(&mesh, 1, clamp, &fixed, &npinned) == 0 && npinned > 0);
     crom_material mat;
     crom_material_init(&mat, 1e7, 0.3, 500);
-    crom_datafree_problem P = {&mesh, mat, {0, 0, -9.81}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&mesh, mat, {0, 0, -9.81}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -1862,7 +1994,7 @@ static void test_lbfgs(bar_case *bc)
     CHECK_LT(errs[0], 1e-6);
     CHECK_LT(errs[0], 1e-4 * errs[1]);
 
-    crom_datafree_problem P = {&bc->mesh, bc->mat, {0, -9.81, 0}, bc->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&bc->mesh, bc->mat, {0, -9.81, 0}, bc->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -1940,6 +2072,7 @@ int main(void)
     g_quadratic = 0;
     gradient_check_field();
     gradient_check_field_basis();
+    test_conditional();
     test_map();
     bar_case b;
     bar_setup(&b, 3);

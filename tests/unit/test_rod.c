@@ -112,8 +112,8 @@ static void test_mesh_rods(void)
     double *mass = malloc(sizeof(double) * m.nv);
     for (int v = 0; v < m.nv; v++)
         mass[v] = 0.5 + crom_rng_uniform(&rng);
-    crom_rods R;
-    CHECK(crom_rods_init(&R, 2, rods, &m, mass) == 0);
+    crom_rod_set R;
+    CHECK(crom_rod_set_init(&R, 2, rods, &m, mass) == 0);
     size_t n = 3 * (size_t)m.nv;
     double *x = malloc(sizeof(double) * n), *g = calloc(n, sizeof(double)), *gp = calloc(n, sizeof(double)),
            *gm = calloc(n, sizeof(double)), *p = malloc(sizeof(double) * n), *Hp = calloc(n, sizeof(double)), Hd[18];
@@ -122,25 +122,25 @@ static void test_mesh_rods(void)
         p[i] = crom_rng_uniform(&rng) - 0.5;
     }
     double t = 0.37;
-    crom_rods_eval(&R, rods, t, x, g, Hd, 0);
+    crom_rod_set_eval(&R, rods, t, x, g, Hd, 0);
     double worst = 0, e = 1e-6;
     for (size_t i = 0; i < n; i++) {
         double xi = x[i];
         x[i] = xi + e;
-        double Ep = crom_rods_eval(&R, rods, t, x, NULL, NULL, 0);
+        double Ep = crom_rod_set_eval(&R, rods, t, x, NULL, NULL, 0);
         x[i] = xi - e;
-        double Em = crom_rods_eval(&R, rods, t, x, NULL, NULL, 0);
+        double Em = crom_rod_set_eval(&R, rods, t, x, NULL, NULL, 0);
         x[i] = xi;
         worst = fmax(worst, fabs((Ep - Em) / (2 * e) - g[i]));
     }
     CHECK_LT(worst, 1e-7);
-    crom_rods_matvec(&R, Hd, NULL, p, Hp);
+    crom_rod_set_matvec(&R, Hd, NULL, p, Hp);
     for (size_t i = 0; i < n; i++)
         x[i] += e * p[i];
-    crom_rods_eval(&R, rods, t, x, gp, NULL, 0);
+    crom_rod_set_eval(&R, rods, t, x, gp, NULL, 0);
     for (size_t i = 0; i < n; i++)
         x[i] -= 2 * e * p[i];
-    crom_rods_eval(&R, rods, t, x, gm, NULL, 0);
+    crom_rod_set_eval(&R, rods, t, x, gm, NULL, 0);
     worst = 0;
     for (size_t i = 0; i < n; i++)
         worst = fmax(worst, fabs((gp[i] - gm[i]) / (2 * e) - Hp[i]));
@@ -148,9 +148,9 @@ static void test_mesh_rods(void)
     /* the rest length at rest, and an end not on the mesh */
     CHECK(R.rest[1] > 0 && crom_rod_length(&rods[1], R.rest[1], 5) == R.rest[1]);
     CHECK_NEAR(crom_rod_length(&rods[0], 0, 0.125), 0.25, 1e-15);
-    crom_rods_free(&R);
+    crom_rod_set_free(&R);
     CHECK(crom_rod_parse("--rod", "left/nowhere=1,1", &rods[0]) == 0);
-    CHECK(crom_rods_init(&R, 1, rods, &m, mass) == CROM_EUSAGE && strstr(crom_errmsg(), "nowhere"));
+    CHECK(crom_rod_set_init(&R, 1, rods, &m, mass) == CROM_EUSAGE && strstr(crom_errmsg(), "nowhere"));
     crom_err_clear();
     free(x), free(g), free(gp), free(gm), free(p), free(Hp), free(mass);
     crom_mesh_free(&m);
@@ -188,7 +188,7 @@ static void driven(double w, double h, double *amp, double *lag, double *amp_d, 
         double t = n * h, d[3];
         if (t < 10)
             continue;
-        crom_rods_gap(&s.rods, 0, s.x, d);
+        crom_rod_set_gap(&s.rods, 0, s.x, d);
         double xx = d[0] - s.rods.rest[0], sn = sin(w * t), cs = cos(w * t);
         Sss += sn * sn, Scc += cs * cs, Ssc += sn * cs, Sxs += xx * sn, Sxc += xx * cs;
     }
