@@ -9,6 +9,7 @@
 #include "cli/cli.h"
 #include "io/io.h"
 #include "mesh/mesh.h"
+#include "rom/map.h"
 #include "rom/model.h"
 #include "rom/project.h"
 #include "rom/result.h"
@@ -40,7 +41,11 @@ static const crom_cli_doc doc = {
     "Each frame's reconstruction_error is |W q - u| / |u| in that mass-weighted norm (0 for "
     "a frame at rest); the overall error sqrt(sum |W q - u|^2 / sum |u|^2) over all frames is "
     "printed on stderr as one line. The output carries the model's model_id and rank and "
-    "streams into a pipe frame by frame as the input arrives.",
+    "streams into a pipe frame by frame as the input arrives.\n\n"
+    "A neuralmodes map (crom-fitfield --objective neuralmodes) encodes a state by its modal "
+    "coordinates, the same projection onto the map's linear modes (its correction is M-orthogonal "
+    "to them), on the map's own mesh; reconstruction_error is then that of the modes alone. Other "
+    "data-free maps have no encoder.",
     groups,
     "crom-encode --model model.h5 -o run.latent.h5 run.h5\n"
     "crom-fullsim @scene.flags < other_mesh.h5 | crom-encode --model model.h5 > q.h5",
@@ -150,8 +155,24 @@ static int run(crom_cli *cli, args *a)
         goto out;
     }
     size_t nout = 0;
-    if ((rc = crom_project_init(&P, &M, &m, &nout)))
+    if (!strcmp(M.basis, "neuralmodes") && M.basis_v) {
+        /* a neural-modes map's latent is the modal coordinates (Wang et al.: the
+         * correction y is M-orthogonal to the modes): project onto its modes */
+        crom_model lin;
+        if (crom_map_same_mesh(&m, &M.mesh)) {
+            rc = crom_err(CROM_EUSAGE, "%s is a neuralmodes map of another mesh: its modal coordinates are taken "
+                          "on its own mesh (%d vertices)", a->model, M.mesh.nv);
+            goto out;
+        }
+        if ((rc = crom_model_from_mesh(&lin, "modes", &M.mesh, M.basis_v, M.rank)))
+            goto out;
+        rc = crom_project_init(&P, &lin, &m, &nout);
+        crom_model_free(&lin);
+        if (rc)
+            goto out;
+    } else if ((rc = crom_project_init(&P, &M, &m, &nout))) {
         goto out;
+    }
     if (nout && cli->verbose)
         crom_cli_info(cli, "%zu of %d vertices lie outside the model's mesh: W is extended there", nout, m.nv);
     /* the output series */

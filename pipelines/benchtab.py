@@ -350,6 +350,31 @@ def conditional(out, cases):
         print(f"| {ratio} | -{g} | {full:.4f} | {red:.4f} | {last_frame_error(f'{out}/diff-{c}.txt'):.3g} | {ms:.2f} |")
 
 
+def bistable(out, rows):
+    """pipelines/bistable.mk: the arch's two equilibria in full space and in each subspace"""
+    names = {"modes": "linear modes", "mderiv": "modes + modal derivatives",
+             "neuralmodes": "neural modes (seeded with the derivatives)", "energy": "data-free energy map"}
+    full = {k: h5py.File(f"{out}/full-{k}.h5", "r") for k in ("push", "nudge")}
+    X = full["push"]["mesh/vertices"][()]
+    crown = (np.abs(X[:, 0]) < 0.03) & (X[:, 1] > 0.09)
+    y = {k: (X[crown, 1] + f["frames/displacement"][-1][crown, 1]).mean() for k, f in full.items()}
+    E = {k: float(f["frames/elastic_energy"][-1]) for k, f in full.items()}
+    print(f"crom-fullsim: pushed, the arch snaps and stays (crown at y = {y['push']:.4f} m from {X[crown, 1].mean():.4f}, "
+          f"elastic energy {E['push']:.4g} J); nudged, it returns (crown {y['nudge']:.4f} m, {E['nudge']:.2g} J).\n")
+    print("| subspace | dimension | energy after the push (J) | at the snapped state's modal coordinates (J) | "
+          "relaxed from there (J) |")
+    print("|---|---:|---:|---:|---:|")
+    for r in rows:
+        m = h5py.File(f"{out}/{r}.h5", "r")
+        ep = float(h5py.File(f"{out}/push-{r}.h5", "r")["frames/elastic_energy"][-1])
+        try:
+            e = h5py.File(f"{out}/snapq-{r}.h5", "r")["frames/elastic_energy"][()]
+            at, rel = f"{e[0]:.4g}", f"{e[-1]:.4g}"
+        except OSError:
+            at, rel = "(no encoder)", ""
+        print(f"| {names.get(r, r)} | {int(m.attrs['rank'])} | {ep:.4g} | {at} | {rel} |")
+
+
 if __name__ == "__main__":
     if sys.argv[1] == "tables":
         tables(sys.argv[2], sys.argv[3].split(), sys.argv[4].split())
@@ -367,5 +392,7 @@ if __name__ == "__main__":
         puppet(sys.argv[2], sys.argv[3].split(), sys.argv[4].split())
     elif sys.argv[1] == "conditional":
         conditional(sys.argv[2], sys.argv[3].split())
+    elif sys.argv[1] == "bistable":
+        bistable(sys.argv[2], sys.argv[3].split())
     else:
-        sys.exit("usage: benchtab.py tables|training|datafree|scale|mpi|hetero|puppet|conditional DIR ...")
+        sys.exit("usage: benchtab.py tables|training|datafree|scale|mpi|hetero|puppet|conditional|bistable DIR ...")
