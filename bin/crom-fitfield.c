@@ -519,8 +519,7 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     crom_datafree_defaults(&a->df, CROM_DATAFREE_ENERGY);
     crom_scenario_defaults(&a->sc);
     crom_cli_parse(cli, &doc, argc, argv, on_opt, a);
-    if (a->objective != CROM_DATAFREE_ENERGY && a->objective != CROM_DATAFREE_NEURALMODES && /* (maps of one mesh) */
-        crom_scenario_uniform(&a->sc, a->objective ? "this --objective of crom-fitfield" : "crom-fitfield on samples"))
+    if (!a->objective && crom_scenario_uniform(&a->sc, "crom-fitfield on samples")) /* (data-free: every objective) */
         usage_exit(cli, CROM_EUSAGE);
     if (a->pod && GIVEN(a, O_ENCODER) && a->fit.encoder == CROM_MODEL_ENC_POINTNET)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--basis pod has no neural encoder: its q is the lsq projection (drop "
@@ -875,14 +874,14 @@ static int run_datafree(crom_cli *cli, args *a)
         rc = crom_body_visit(&b, a->visit, a->df.rank, &P);
     double t0 = crom_clock_now();
     if (!rc && skin && a->eigen) {
-        rc = crom_dfskin_eigen(&b.mesh, &b.mat, b.fixed, so.handles, &out, &solves);
+        rc = crom_dfskin_eigen(&b.mesh, &b.mat, a->sc.nmat ? &a->sc : NULL, b.fixed, so.handles, &out, &solves);
     } else if (!rc) {
         crom_cli_progress prog;
         crom_cli_progress_start(&prog, cli, "fitfield", 1000);
         so.progress = a->df.progress = on_df_progress;
         so.progress_ctx = a->df.progress_ctx = &prog;
         if (skin)
-            rc = crom_body_train_skin(&b, &so, &out, &log);
+            rc = crom_body_train_skin(&b, a->sc.nmat ? &a->sc : NULL, &so, &out, &log);
         else if (a->objective == CROM_DATAFREE_FIELD && GIVEN(a, O_HANDLES))
             rc = crom_body_train_skin_field(&b, &P, &a->df, so.handles, &out, &log, &solves);
         else

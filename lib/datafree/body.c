@@ -223,12 +223,14 @@ int crom_body_derivatives(crom_body *b, crom_datafree_problem *P, int rank)
     return rc;
 }
 
-int crom_body_train_skin(const crom_body *b, const crom_dfskin_opts *o, crom_model *out, crom_dftrain_log *log)
+int crom_body_train_skin(const crom_body *b, const crom_scenario *materials, const crom_dfskin_opts *o,
+                         crom_model *out, crom_dftrain_log *log)
 {
     int rc;
     if (b->cloud.n && (rc = crom_dfskin_check_handles(&b->mesh, b->fixed, o->handles)))
         return rc;
-    crom_dfskin_problem P = {&b->mesh, b->mat, b->fixed, b->cloud.n > 0, b->npin, b->pinX, b->ntri, b->triX};
+    crom_dfskin_problem P = {&b->mesh, b->mat, b->fixed, b->cloud.n > 0, b->npin, b->pinX, b->ntri, b->triX,
+                             materials};
     return crom_dfskin_train(&P, o, out, log);
 }
 
@@ -251,7 +253,7 @@ int crom_body_train_skin_field(const crom_body *b, const crom_datafree_problem *
     crom_nn_mlp phi;
     memset(&phi, 0, sizeof phi);
     double t0 = crom_clock_now();
-    int rc = crom_dfskin_eigen(&b->mesh, &b->mat, b->fixed, H, out, solves);
+    int rc = crom_dfskin_eigen(&b->mesh, &b->mat, P->materials, b->fixed, H, out, solves);
     if (!rc)
         rc = crom_body_skin_coordinates(b, out, 1e-6);
     int p = out->rank, nv = b->mesh.nv;

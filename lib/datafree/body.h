@@ -121,7 +121,8 @@ int crom_body_derivatives(crom_body *b, crom_datafree_problem *P, int rank);
 
 /* Train skinning weights on b (after crom_body_pins with cloud_pins):
  * crom_dfskin_train, after checking the handle count of a sampled body. */
-int crom_body_train_skin(const crom_body *b, const crom_dfskin_opts *o, crom_model *out, crom_dftrain_log *log);
+int crom_body_train_skin(const crom_body *b, const crom_scenario *materials, const crom_dfskin_opts *o,
+                         crom_model *out, crom_dftrain_log *log);
 
 /* Orthonormal coordinates for a skinning model over b's training geometry:
  * the mesh's vertices with their lumped volumes, or the sampled points

@@ -18,6 +18,8 @@ void crom_dffield_ctx_free(crom_dffield_ctx *c)
     if (!c)
         return;
     crom_fem_free(&c->fem);
+    free(c->mats);
+    free(c->tmat);
     crom_nn_ws_free(&c->wsW);
     crom_nn_ws_free(&c->wsP);
     crom_dfloss_cub_free(&c->cub);
@@ -123,6 +125,8 @@ int crom_dffield_ctx_init(crom_dffield_ctx *c, const crom_datafree_problem *p, c
     c->maxtets = maxtets;
     c->nthreads = crom_dftrain_threads(o->threads);
     int rc = crom_fem_init(&c->fem, p->mesh, &p->mat);
+    if (!rc)
+        rc = crom_dfloss_materials(&c->fem, p->materials, p->mesh, &c->mats, &c->tmat);
     if (!rc && W) /* (a fixed basis holds the pins itself) */
         rc = pin_mask(c, p, o);
     if (!rc)

@@ -44,6 +44,8 @@ typedef struct {
     const crom_nn_mlp *W, *phi; /* 3 -> 3p (NULL over a fixed basis) and r -> p */
     const double *basis;     /* a fixed basis [nv][3][p] in place of W(X_v), or NULL */
     crom_fem fem;
+    crom_material *mats;     /* the problem's regions of other materials (dfloss.h), lent to fem */
+    int *tmat;
     crom_nn_ws wsW, wsP;
     int r, p, maxbatch, maxtets, maxrows, nthreads, npins;
     int B0;                  /* tangent samples after the batch (0: none) */

@@ -213,3 +213,22 @@ double crom_dfloss_rest_floor(int r, const double *G, double tau, double w, doub
         A[(size_t)i * r + i] -= w * (r / (T * T)) * s;
     return val;
 }
+
+int crom_dfloss_materials(crom_fem *fem, const crom_scenario *sc, const crom_mesh *m, crom_material **mats,
+                          int **tmat)
+{
+    *mats = NULL;
+    *tmat = NULL;
+    if (!sc || !sc->nmat)
+        return 0;
+    int nmat, rc;
+    if (!(*mats = crom_malloc(sizeof **mats * (CROM_SCENARIO_MAX + 1))))
+        return CROM_EINTERNAL;
+    if ((rc = crom_scenario_materials(sc, m, *mats, &nmat, tmat)) || (rc = crom_fem_set_materials(fem, *mats, nmat, *tmat))) {
+        free(*mats);
+        free(*tmat);
+        *mats = NULL;
+        *tmat = NULL;
+    }
+    return rc;
+}

@@ -22,6 +22,7 @@
 #include "datafree/dftrain.h"
 #include "mesh/mesh.h"
 #include "phys/fem.h"
+#include "phys/scenario.h"
 
 /* The drawn tets' vertices and their lumped masses. */
 typedef struct {
@@ -86,6 +87,14 @@ int crom_dfloss_thread(void);
 
 /* Whether vertex v has a pinned DOF in fixed [3nv] (NULL: nothing pinned). */
 int crom_dfloss_pinned(const unsigned char *fixed, int v);
+
+/* The regions of other materials of scenario sc (--youngs REGION=E; NULL
+ * or none: nothing to do) on the tets of fem, a solid of mesh m: *mats and
+ * *tmat (malloc'ed, the caller frees them after fem) are lent to fem
+ * (crom_fem_set_materials). Returns 0 or the errors of
+ * crom_scenario_materials. */
+int crom_dfloss_materials(crom_fem *fem, const crom_scenario *sc, const crom_mesh *m, crom_material **mats,
+                          int **tmat);
 
 /* The pinned part of mesh m under fixed: its vertices with a pinned DOF
  * (*pinX [npins][3]) and its boundary triangles whose three vertices are

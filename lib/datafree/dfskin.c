@@ -69,6 +69,8 @@ void crom_dfskin_ctx_free(crom_dfskin_ctx *c)
     if (!c)
         return;
     crom_fem_free(&c->fem);
+    free(c->mats);
+    free(c->tmat);
     crom_nn_ws_free(&c->ws);
     crom_dfloss_cub_free(&c->cub);
     void *bufs[] = {c->pinX, c->triX, c->mask, c->bad, c->xf, c->dwf, c->w, c->xh, c->wh, c->L, c->U, c->gu, c->dw,
@@ -144,7 +146,8 @@ int crom_dfskin_ctx_init(crom_dfskin_ctx *c, const crom_dfskin_problem *p, const
     c->maxrows = 4 * maxtets < nv ? 4 * maxtets : nv;
     c->nthreads = crom_dftrain_threads(o->threads);
     c->pin_length = o->pin_length;
-    if ((rc = crom_fem_init(&c->fem, p->mesh, &p->mat)) || (rc = pinned_part(c, p))) {
+    if ((rc = crom_fem_init(&c->fem, p->mesh, &p->mat)) ||
+        (rc = crom_dfloss_materials(&c->fem, p->materials, p->mesh, &c->mats, &c->tmat)) || (rc = pinned_part(c, p))) {
         crom_dfskin_ctx_free(c);
         return rc;
     }
@@ -705,7 +708,8 @@ static void eigen_weights(double sm, int nv, const int *vmap, int nf, int H, int
     }
 }
 
-int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const unsigned char *fixed, int H,
+int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const crom_scenario *materials,
+                      const unsigned char *fixed, int H,
                    crom_model *out, long *solves)
 {
     crom_model_clear(out);
@@ -717,6 +721,10 @@ int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const uns
     crom_system fem; /* a solid or a shell: its rest Hessian and lumped masses */
     if ((rc = crom_system_init(&fem, mesh, mat->E, mat->nu, mat->rho)))
         return rc;
+    if (materials && (rc = crom_system_set_materials(&fem, materials, mesh))) {
+        crom_system_free(&fem);
+        return rc;
+    }
     int nv = mesh->nv, nf = 0, np = 0, *vmap = crom_malloc(sizeof(int) * (size_t)nv);
     int *cp = NULL, *ri = NULL;
     double *Kv = crom_malloc(sizeof(double) * (size_t)fem.nnz), *Ks = NULL, *mf = NULL, *R = NULL;

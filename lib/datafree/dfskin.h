@@ -77,6 +77,7 @@ typedef struct {
     const double *pinX;
     int ntri;                     /* pinned triangles for the mask (a sampled */
     const double *triX;           /* surface's), [ntri][3][3] */
+    const crom_scenario *materials; /* regions of other materials (--youngs REGION=E), or NULL */
 } crom_dfskin_problem;
 
 typedef struct {
@@ -110,6 +111,8 @@ typedef struct {
     crom_dfskin_opts o;
     const crom_nn_mlp *net;   /* 3 -> H' */
     crom_fem fem;
+    crom_material *mats;      /* the problem's regions of other materials (dfloss.h), lent to fem */
+    int *tmat;
     crom_nn_ws ws;
     int H, Ht, constant, maxbatch, maxtets, maxrows, nthreads;
     double F[12];             /* body frame */
@@ -146,12 +149,13 @@ int crom_dfskin_loss(crom_dfskin_ctx *c, int B, const double *q, int K, const in
  * handle count), CROM_EDATA (training diverged), CROM_EINTERNAL. */
 int crom_dfskin_train(const crom_dfskin_problem *p, const crom_dfskin_opts *o, crom_model *out, crom_dftrain_log *log);
 
-/* Skinning eigenmodes of a tet mesh: H handles for material mat with the
- * DOFs fixed [3nv] (NULL: a free body) pinned. out gets an "eigen"
- * skinning model on that mesh; *solves (may be NULL) the factor solves.
- * CROM_EUSAGE (handle count), CROM_EDATA (bad mesh), CROM_EINTERNAL. */
-int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const unsigned char *fixed, int H,
-                   crom_model *out, long *solves);
+/* Skinning eigenmodes of a tet mesh: H handles for material mat (and the
+ * regions of other materials of materials, may be NULL) with the DOFs fixed
+ * [3nv] (NULL: a free body) pinned. out gets an "eigen" skinning model on
+ * that mesh; *solves (may be NULL) the factor solves. CROM_EUSAGE (handle
+ * count; a bad region), CROM_EDATA (bad mesh), CROM_EINTERNAL. */
+int crom_dfskin_eigen(const crom_mesh *mesh, const crom_material *mat, const crom_scenario *materials,
+                      const unsigned char *fixed, int H, crom_model *out, long *solves);
 
 /* Write what a skinning model records beyond its basis (after
  * crom_model_write): the body's mass and, for trained weights (log not

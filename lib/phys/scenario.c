@@ -20,7 +20,7 @@ enum {
 };
 
 const crom_opt crom_scenario_opts[] = {
-    {"youngs", SC_YOUNGS, "[REGION=]E", "Young's modulus in Pa (default 2.5e6, LiCROM Table 1). With REGION=, the modulus of the tets whose four corners are in REGION (repeatable: regions of other materials; where they overlap the last given wins; crom-fullsim, crom-reducedstep, crom-live and crom-modes)."},
+    {"youngs", SC_YOUNGS, "[REGION=]E", "Young's modulus in Pa (default 2.5e6, LiCROM Table 1). With REGION=, the modulus of the tets whose four corners are in REGION (repeatable: regions of other materials; where they overlap the last given wins; crom-fullsim, crom-reducedstep, crom-live, crom-modes and crom-fitfield's data-free objectives)."},
     {"poisson", SC_POISSON, "[REGION=]NU", "Poisson ratio in (-1, 0.5) (default 0.25). With REGION=, that of the tets of REGION, as --youngs REGION=E."},
     {"density", SC_DENSITY, "RHO", "Density in kg/m^3 (default 1000)."},
     {"dt", SC_DT, "H", "Time step in s (default 0.01)."},
@@ -579,7 +579,7 @@ int crom_scenario_uniform(const crom_scenario *s, const char *prog)
     if (!s->nmat)
         return 0;
     return crom_err(CROM_EUSAGE, "--%s %s=: %s takes one material for the whole body (regions of other materials: "
-                    "crom-fullsim, crom-reducedstep, crom-live, crom-modes)", isnan(s->mat[0].youngs) ? "poisson" : "youngs",
+                    "crom-fullsim, crom-reducedstep, crom-live, crom-modes, crom-fitfield's data-free objectives)", isnan(s->mat[0].youngs) ? "poisson" : "youngs",
                     s->mat[0].ref, prog);
 }
 

@@ -18,8 +18,9 @@
 #     and record them, and the energy map's reduced run responds less with
 #     the stiff half than without;
 #   - the Fig. 8 experiment (pipelines/hetero.mk) runs at a small size;
-#   - bad regions, bad values, and what takes one material (crom-fitfield's
-#     continuous objectives and samples, crom-metrics) refuse with one line.
+#   - the continuous objectives (skinning eigenmodes, fields) take them too;
+#   - bad regions, bad values, and what takes one material (crom-fitfield on
+#     samples, crom-metrics) refuse with one line.
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 crom-mesh box --dims 1,0.1,0.1 --size 0.04 --region clamp='x<-0.499' --region tip='x>0.499' -q -o bar.h5
@@ -111,6 +112,28 @@ print('energy map, reduced: |q| %.4g with the stiff half, %.4g without' % (a, b)
 sys.exit(0 if a < 0.9 * b else 'the stiff half did not stiffen the reduced run')" || fail "crom_nlsim with regions"; ok
 fi
 
+# ---- the continuous objectives: the skinning eigenvalues of the two-material
+# bar lie between the soft and the stiff bar's (49.3K, 55.5K, 197K 1/s^2 for
+# the lowest), and a trained field records the region
+crom-fitfield --objective skinning --weights eigen --mesh bar.h5 --poisson 0 --youngs 1e7 "${HET[@]}" --pin clamp \
+  --handles 3 -q -o skh.h5
+crom-fitfield --objective skinning --weights eigen --mesh bar.h5 --poisson 0 --youngs 1e7 --pin clamp --handles 3 -q -o sk1.h5
+crom-fitfield --objective skinning --weights eigen --mesh bar.h5 --poisson 0 --youngs 4e7 --pin clamp --handles 3 -q -o sk4.h5
+$PY - <<'EOF2' || fail "skinning eigenmodes with regions"
+import h5py, numpy as np, sys
+e = {k: h5py.File(k + ".h5", "r")["skin/eigenvalues"][()] for k in ("sk1", "skh", "sk4")}
+print("skinning eigenvalues (1/s^2): soft %s, two materials %s, stiff %s" % (e["sk1"], e["skh"], e["sk4"]))
+s = h5py.File("skh.h5", "r").attrs["scenario"]
+s = s.decode() if isinstance(s, bytes) else s
+if not (np.all(e["sk1"] < e["skh"]) and np.all(e["skh"] < e["sk4"]) and "--youngs x>0=40000000" in s):
+    sys.exit("not between; scenario %r" % s)
+EOF2
+ok
+crom-fitfield --objective field --mesh bar.h5 --poisson 0 --youngs 1e7 "${HET[@]}" --pin clamp --rank 2 --steps 20 \
+  --features 4 --tets 32 -q -o fh.h5
+$PY -c "import h5py, sys; s = h5py.File('fh.h5')['/'].attrs['scenario']; s = s.decode() if isinstance(s, bytes) else s; \
+sys.exit(0 if '--youngs x>0=40000000' in s else 'scenario: ' + s)" || fail "fh.h5 does not record the region"; ok
+
 # ---- the experiment (pipelines/hetero.mk, Sharp Fig. 8) at a small size:
 # every subspace's reduced run comes to rest (the maps' too: crom_nlsim with
 # regions) and the table has its four rows; modal derivatives hold the
@@ -135,7 +158,7 @@ expect_error 64 "region 'nowhere'|unknown region" - -- crom-fullsim "${BASE[@]}"
 expect_error 64 "--youngs x>0=: a positive modulus" - -- crom-fullsim "${BASE[@]}" --youngs 'x>0=-1' -o x.h5 bar.h5
 expect_error 64 "--poisson x>0=: must be in" - -- crom-fullsim "${BASE[@]}" --poisson 'x>0=0.5' -o x.h5 bar.h5
 expect_error 64 "holds no whole tet" - -- crom-fullsim "${BASE[@]}" --youngs 'tip=2e7' -o x.h5 bar.h5
-expect_error 64 "this --objective of crom-fitfield takes one material" - -- crom-fitfield --objective field --mesh bar.h5 --youngs 'x>0=2e7' -o x.h5
+expect_error 64 "crom-fitfield on samples takes one material" - -- crom-fitfield --youngs 'x>0=2e7' --rank 2 -o x.h5 s.h5
 crom-mesh sheet --size 0.1 -q -o sheet.h5
 expect_error 64 "for tet meshes" - -- crom-fullsim --youngs 'x>0=2e7' --steps 1 -o x.h5 sheet.h5
 done_checks

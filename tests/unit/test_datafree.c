@@ -1284,7 +1284,7 @@ static void test_skin_field(bar_case *b)
 {
     crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
     crom_model sm;
-    int rc = crom_dfskin_eigen(&b->mesh, &b->mat, b->fixed, 4, &sm, NULL);
+    int rc = crom_dfskin_eigen(&b->mesh, &b->mat, NULL, b->fixed, 4, &sm, NULL);
     CHECK_MSG(rc == 0, "eigen: %s", crom_errmsg());
     if (rc)
         return;

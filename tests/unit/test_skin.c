@@ -348,7 +348,7 @@ static void test_eigen(const crom_mesh *m, const crom_mesh *other, const crom_ma
     crom_model free_m, pin_m;
     long solves = 0;
     /* a free body: the constant and H - 1 eigenvectors */
-    int rc = crom_dfskin_eigen(m, mat, NULL, 5, &free_m, &solves);
+    int rc = crom_dfskin_eigen(m, mat, NULL, NULL, 5, &free_m, &solves);
     CHECK_MSG(rc == 0, "eigen: %s", crom_errmsg());
     CHECK(free_m.handles == 5 && free_m.skin_constant == 1 && free_m.rank == 60 && free_m.skin_w);
     int nv = m->nv, H = 5;
@@ -435,7 +435,7 @@ static void test_eigen(const crom_mesh *m, const crom_mesh *other, const crom_ma
     /* a clamped bar: every weight exactly 0 on the clamp, also laid on
      * another mesh (interpolated from the clamped face) */
     unsigned char *fixed = clamp_mask(m);
-    rc = crom_dfskin_eigen(m, mat, fixed, 4, &pin_m, NULL);
+    rc = crom_dfskin_eigen(m, mat, NULL, fixed, 4, &pin_m, NULL);
     CHECK_MSG(rc == 0, "eigen (clamped): %s", crom_errmsg());
     CHECK(pin_m.skin_constant == 0 && pin_m.rank == 48);
     double wpin = 0, wother = 0, wfar = 0;
@@ -459,11 +459,11 @@ static void test_eigen(const crom_mesh *m, const crom_mesh *other, const crom_ma
     CHECK(wfar > 1);
     /* handle counts: none, and more than the free DOFs allow */
     crom_model bad;
-    CHECK(crom_dfskin_eigen(m, mat, fixed, 0, &bad, NULL) == CROM_EUSAGE);
+    CHECK(crom_dfskin_eigen(m, mat, NULL, fixed, 0, &bad, NULL) == CROM_EUSAGE);
     int nfree = 0;
     for (int v = 0; v < nv; v++)
         nfree += !fixed[3 * v];
-    CHECK(crom_dfskin_eigen(m, mat, fixed, nfree / 4 + 1, &bad, NULL) == CROM_EUSAGE);
+    CHECK(crom_dfskin_eigen(m, mat, NULL, fixed, nfree / 4 + 1, &bad, NULL) == CROM_EUSAGE);
     CHECK(strstr(crom_errmsg(), "free degrees of freedom") != NULL);
     free(wo);
     free(fixed);
@@ -495,7 +495,7 @@ static double loss_at(const double *x, void *v)
 static void gradient_check(const crom_mesh *m, const crom_material *mat, int pinned)
 {
     unsigned char *fixed = pinned ? clamp_mask(m) : NULL;
-    crom_dfskin_problem P = {m, *mat, fixed, 0, 0, NULL, 0, NULL};
+    crom_dfskin_problem P = {m, *mat, fixed, 0, 0, NULL, 0, NULL, NULL};
     crom_dfskin_opts o;
     crom_dfskin_defaults(&o);
     o.handles = 3;
@@ -620,7 +620,7 @@ static void gradient_check(const crom_mesh *m, const crom_material *mat, int pin
  * exact, whatever the network learned; a clamped one holds its clamp */
 static void test_trained(const crom_mesh *m, const crom_mesh *other, const crom_material *mat)
 {
-    crom_dfskin_problem P = {m, *mat, NULL, 0, 0, NULL, 0, NULL};
+    crom_dfskin_problem P = {m, *mat, NULL, 0, 0, NULL, 0, NULL, NULL};
     crom_dfskin_opts o;
     crom_dfskin_defaults(&o);
     o.handles = 4;
@@ -766,7 +766,7 @@ static void test_cloud(void)
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
     CHECK(crom_cloud_pins(&c, 1, p1, &npin, &pX, &ntri, &tX) == 0);
-    crom_dfskin_problem P = {&vm, mat, NULL, 1, npin, pX, ntri, tX};
+    crom_dfskin_problem P = {&vm, mat, NULL, 1, npin, pX, ntri, tX, NULL};
     crom_dfskin_opts o;
     crom_dfskin_defaults(&o);
     o.handles = 3;
