@@ -1023,15 +1023,20 @@ static int build_colors(crom_fem *fem)
 
 int crom_fem_set_materials(crom_fem *fem, const crom_material *mats, int nmat, const int *tmat)
 {
-    for (int k = 0; tmat && k < nmat; k++)
-        if (mats[k].rho != fem->mat.rho)
-            return crom_err(CROM_EUSAGE, "material %d has density %g, the body %g: regions of other materials share "
-                            "the body's density", k, mats[k].rho, fem->mat.rho);
     for (int t = 0; tmat && t < fem->nt; t++)
         if (tmat[t] < 0 || tmat[t] >= nmat)
             return crom_err(CROM_EUSAGE, "tet %d: material %d of %d", t, tmat[t], nmat);
     fem->mats = tmat ? mats : NULL;
     fem->tmat = tmat;
+    /* the lumped masses ρ_t V_t / 4 of each tet's own density */
+    memset(fem->mass, 0, sizeof *fem->mass * (size_t)fem->nv);
+    fem->total_mass = 0;
+    for (int t = 0; t < fem->nt; t++) {
+        double mv = 0.25 * crom_fem_tet_material(fem, t)->rho * fem->vol[t];
+        for (int k = 0; k < 4; k++)
+            fem->mass[fem->tets[4 * (size_t)t + k]] += mv;
+        fem->total_mass += 4 * mv;
+    }
     return 0;
 }
 

@@ -145,8 +145,9 @@ static inline const crom_material *crom_fem_tet_material(const crom_fem *fem, in
 
 /* Regions of other materials (scenario.h crom_scenario_materials): tet t
  * takes mats[tmat[t]] (both borrowed, kept until the operator is freed;
- * NULL tmat: the material of init for all). Every material must have the
- * density of init's (the lumped masses stay). Returns 0 or CROM_EUSAGE. */
+ * NULL tmat: the material of init for all), its density too: the lumped
+ * masses become Σ ρ_t V_t / 4 over each vertex's tets. Returns 0 or
+ * CROM_EUSAGE. */
 int crom_fem_set_materials(crom_fem *fem, const crom_material *mats, int nmat, const int *tmat);
 
 /* Build the operator from a mesh and a material: rest shapes, volumes,

@@ -22,7 +22,7 @@ enum {
 const crom_opt crom_scenario_opts[] = {
     {"youngs", SC_YOUNGS, "[REGION=]E", "Young's modulus in Pa (default 2.5e6, LiCROM Table 1). With REGION=, the modulus of the tets whose four corners are in REGION (repeatable: regions of other materials; where they overlap the last given wins; crom-fullsim, crom-reducedstep, crom-live, crom-modes and crom-fitfield's data-free objectives)."},
     {"poisson", SC_POISSON, "[REGION=]NU", "Poisson ratio in (-1, 0.5) (default 0.25). With REGION=, that of the tets of REGION, as --youngs REGION=E."},
-    {"density", SC_DENSITY, "RHO", "Density in kg/m^3 (default 1000)."},
+    {"density", SC_DENSITY, "[REGION=]RHO", "Density in kg/m^3 (default 1000). With REGION=, that of the tets of REGION, as --youngs REGION=E (the lumped masses follow)."},
     {"dt", SC_DT, "H", "Time step in s (default 0.01)."},
     {"steps", SC_STEPS, "N", "Number of time steps (default 100)."},
     {"every", SC_EVERY, "K", "Store every K-th step (default 1); frame 0 is the initial state."},
@@ -99,7 +99,8 @@ static int check_ref(const char *flag, const char *ref, size_t len)
  * (the value after the last '=', so a predicate may hold one) */
 static int parse_material(crom_scenario *s, int key, const char *v)
 {
-    const char *flag = key == SC_YOUNGS ? "--youngs" : "--poisson", *eq = strrchr(v, '=');
+    const char *flag = key == SC_YOUNGS ? "--youngs" : key == SC_DENSITY ? "--density" : "--poisson",
+               *eq = strrchr(v, '=');
     size_t len = (size_t)(eq - v);
     if (!len || len >= sizeof s->mat[0].ref)
         return crom_err(CROM_EUSAGE, "%s: empty or too long region in '%s'", flag, v);
@@ -113,6 +114,9 @@ static int parse_material(crom_scenario *s, int key, const char *v)
                         (int)len, v, x);
     if (key == SC_POISSON && !(x > -1 && x < 0.5))
         return crom_err(CROM_EUSAGE, "%s %.*s=: must be in (-1, 0.5), got %g", flag, (int)len, v, x);
+    if (key == SC_DENSITY && !(x > 0 && x <= 1e6))
+        return crom_err(CROM_EUSAGE, "%s %.*s=: a positive density in kg/m^3, got %g (allowed (0, 1e6])", flag,
+                        (int)len, v, x);
     int i = 0;
     while (i < s->nmat && (strlen(s->mat[i].ref) != len || strncmp(s->mat[i].ref, v, len)))
         i++;
@@ -121,11 +125,13 @@ static int parse_material(crom_scenario *s, int key, const char *v)
             return crom_err(CROM_EUSAGE, "%s: at most %d regions of other materials", flag, CROM_SCENARIO_MAX);
         memcpy(s->mat[i].ref, v, len);
         s->mat[i].ref[len] = 0;
-        s->mat[i].youngs = s->mat[i].poisson = NAN;
+        s->mat[i].youngs = s->mat[i].poisson = s->mat[i].density = NAN;
         s->nmat++;
     }
     if (key == SC_YOUNGS)
         s->mat[i].youngs = x;
+    else if (key == SC_DENSITY)
+        s->mat[i].density = x;
     else
         s->mat[i].poisson = x;
     return 0;
@@ -143,7 +149,10 @@ static int parse_option(crom_scenario *s, int key, const char *v)
             return parse_material(s, key, v);
         return crom_parse_double(v, key == SC_YOUNGS ? "--youngs" : "--poisson",
                                  key == SC_YOUNGS ? &s->youngs : &s->poisson);
-    case SC_DENSITY: return crom_parse_double(v, "--density", &s->density);
+    case SC_DENSITY:
+        if (strchr(v, '='))
+            return parse_material(s, key, v);
+        return crom_parse_double(v, "--density", &s->density);
     case SC_DT: return crom_parse_positive(v, "--dt", &s->dt);
     case SC_STEPS:
         if (crom_parse_int(v, "--steps", 0, 100000000L, &n))
@@ -378,7 +387,7 @@ char *crom_scenario_text(const crom_scenario *s)
     appendf(&b, &l, &c, "--youngs %.17g\n--poisson %.17g\n--density %.17g\n", s->youngs,
             s->poisson, s->density);
     if (s->nmat) {
-        char mb[CROM_SCENARIO_MAX * 2 * 180];
+        char mb[CROM_SCENARIO_MAX * 3 * 180];
         crom_scenario_material_flags(s, mb, sizeof mb);
         appendf(&b, &l, &c, "%s", mb);
     }
@@ -540,8 +549,9 @@ int crom_scenario_materials(const crom_scenario *s, const crom_mesh *m, crom_mat
     }
     for (int k = 0; !rc && k < s->nmat; k++) {
         const crom_scenario_material *o = &s->mat[k];
-        double E = isnan(o->youngs) ? s->youngs : o->youngs, nu = isnan(o->poisson) ? s->poisson : o->poisson;
-        if ((rc = crom_material_init(&mats[k + 1], E, nu, s->density))) {
+        double E = isnan(o->youngs) ? s->youngs : o->youngs, nu = isnan(o->poisson) ? s->poisson : o->poisson,
+               rho = isnan(o->density) ? s->density : o->density;
+        if ((rc = crom_material_init(&mats[k + 1], E, nu, rho))) {
             crom_err(rc, "region '%s': %s", o->ref, crom_errmsg());
             break;
         }
@@ -579,7 +589,7 @@ int crom_scenario_uniform(const crom_scenario *s, const char *prog)
     if (!s->nmat)
         return 0;
     return crom_err(CROM_EUSAGE, "--%s %s=: %s takes one material for the whole body (regions of other materials: "
-                    "crom-fullsim, crom-reducedstep, crom-live, crom-modes, crom-fitfield's data-free objectives)", isnan(s->mat[0].youngs) ? "poisson" : "youngs",
+                    "crom-fullsim, crom-reducedstep, crom-live, crom-modes, crom-fitfield's data-free objectives)", !isnan(s->mat[0].youngs) ? "youngs" : !isnan(s->mat[0].poisson) ? "poisson" : "density",
                     s->mat[0].ref, prog);
 }
 
@@ -596,6 +606,9 @@ size_t crom_scenario_material_flags(const crom_scenario *s, char *buf, size_t ca
         if (!isnan(o->poisson))
             l += (size_t)snprintf(buf + (l < cap ? l : cap), l < cap ? cap - l : 0, "--poisson %s=%.17g\n", o->ref,
                                   o->poisson);
+        if (!isnan(o->density))
+            l += (size_t)snprintf(buf + (l < cap ? l : cap), l < cap ? cap - l : 0, "--density %s=%.17g\n", o->ref,
+                                  o->density);
     }
     return l;
 }

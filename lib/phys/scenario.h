@@ -19,11 +19,12 @@
 
 #define CROM_SCENARIO_MAX 32 /* pins, velocities, forces, planes: at most this many of each */
 
-/* A region of another material (--youngs REGION=E, --poisson REGION=NU):
- * the tets whose four corners are all in the region; NaN: the run's. */
+/* A region of another material (--youngs REGION=E, --poisson REGION=NU,
+ * --density REGION=RHO): the tets whose four corners are all in the
+ * region; NaN: the run's. */
 typedef struct {
     char ref[128];
-    double youngs, poisson;
+    double youngs, poisson, density;
 } crom_scenario_material;
 
 typedef struct {

@@ -87,6 +87,7 @@ int crom_system_set_materials(crom_system *s, const crom_scenario *sc, const cro
     free(s->tmat);
     s->mats = mats;
     s->tmat = tmat;
+    s->total_mass = s->fem.total_mass; /* (a region's density changes the lumped masses) */
     return 0;
 }
 

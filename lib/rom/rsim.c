@@ -42,6 +42,8 @@ static void free_cub_data(crom_rsim *s)
     s->kmat = NULL;
     s->el.kmat = NULL;
     free(s->Mr);
+    free(s->vm);
+    s->vm = NULL;
     free(s->fg);
     free(s->G);
     free(s->Gfac);
@@ -76,8 +78,9 @@ static void free_cub_data(crom_rsim *s)
     s->nbc = s->nforce = 0;
 }
 
-/* mass-weighted sums over a vertex set: P = Σ m W_vᵀW_v, S = Σ m W_vᵀ */
-static int region_sums(const crom_cubature *c, double rho, const char *ref, crom_rsim_bc *b)
+/* mass-weighted sums over a vertex set: P = Σ m W_vᵀW_v, S = Σ m W_vᵀ
+ * (vm [nv]: the vertices' lumped masses) */
+static int region_sums(const crom_cubature *c, const double *vm, const char *ref, crom_rsim_bc *b)
 {
     int r = c->r, rc = crom_mesh_select(&c->mesh, ref, &b->idx, &b->n);
     if (rc)
@@ -88,7 +91,7 @@ static int region_sums(const crom_cubature *c, double rho, const char *ref, crom
         return CROM_EINTERNAL;
     for (int k = 0; k < b->n; k++) {
         int v = b->idx[k];
-        double m = rho * c->vvol[v];
+        double m = vm[v];
         const double *Wv = c->W + (size_t)v * 3 * r; /* 3 × r */
         b->mass += m;
         cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, r, 3, m, Wv, r, 1.0, b->P, r);
@@ -102,11 +105,48 @@ static int region_sums(const crom_cubature *c, double rho, const char *ref, crom
     return 0;
 }
 
+/* The lumped masses s->vm [nv] of the cubature's mesh: ρ V_v, or with
+ * regions of other densities Σ ρ_t V_t / 4 over each vertex's tets
+ * (s->dense set). */
+static int vertex_masses(crom_rsim *s)
+{
+    const crom_cubature *c = s->cub;
+    const crom_scenario *sc = s->sc;
+    int nv = c->mesh.nv, dense = 0, rc = 0;
+    for (int i = 0; i < sc->nmat; i++)
+        dense |= !isnan(sc->mat[i].density);
+    if (!(s->vm = crom_malloc(sizeof(double) * (size_t)(nv ? nv : 1))))
+        return CROM_EINTERNAL;
+    s->dense = dense && c->mesh.nt > 0 && !crom_mesh_is_surface(&c->mesh);
+    if (!s->dense) {
+        for (int v = 0; v < nv; v++)
+            s->vm[v] = sc->density * c->vvol[v];
+        return 0;
+    }
+    crom_material *mats = crom_malloc(sizeof *mats * (CROM_SCENARIO_MAX + 1));
+    int nmat, *tmat = NULL;
+    if (!mats || (rc = crom_scenario_materials(sc, &c->mesh, mats, &nmat, &tmat))) {
+        free(mats);
+        return rc ? rc : CROM_EINTERNAL;
+    }
+    memset(s->vm, 0, sizeof(double) * (size_t)nv);
+    for (int t = 0; t < c->mesh.nt; t++) {
+        const int *e = c->mesh.tets + 4 * (size_t)t;
+        const double *X = c->mesh.X;
+        double V = fabs(crom_mesh_tet_volume(X + 3 * e[0], X + 3 * e[1], X + 3 * e[2], X + 3 * e[3]));
+        for (int k = 0; k < 4; k++)
+            s->vm[e[k]] += 0.25 * mats[tmat ? tmat[t] : 0].rho * V;
+    }
+    free(mats);
+    free(tmat);
+    return 0;
+}
+
 /* A drag's region sums and rest centroid on the current cubature's mesh. */
 static int drag_resolve(crom_rsim *s, crom_rsim_drag *d)
 {
     const crom_cubature *c = s->cub;
-    int rc = region_sums(c, s->sc->density, d->ref, &d->b);
+    int rc = region_sums(c, s->vm, d->ref, &d->b);
     if (rc)
         return rc;
     if (!(d->b.mass > 0))
@@ -114,7 +154,7 @@ static int drag_resolve(crom_rsim *s, crom_rsim_drag *d)
     d->xbar[0] = d->xbar[1] = d->xbar[2] = 0;
     for (int k = 0; k < d->b.n; k++) {
         int v = d->b.idx[k];
-        double m = s->sc->density * c->vvol[v];
+        double m = s->vm[v];
         for (int j = 0; j < 3; j++)
             d->xbar[j] += m * c->mesh.X[3 * (size_t)v + j] / d->b.mass;
     }
@@ -141,7 +181,7 @@ static int rods_build(crom_rsim *s)
             const char *ref = e ? sc->rod[k].b : sc->rod[k].a;
             crom_rsim_bc b;
             memset(&b, 0, sizeof b);
-            if ((rc = region_sums(c, sc->density, ref, &b))) {
+            if ((rc = region_sums(c, s->vm, ref, &b))) {
                 crom_err_ctx("--rod");
             } else if (!(b.mass > 0)) {
                 rc = crom_err(CROM_EUSAGE, "--rod: end '%s' has no mass", ref);
@@ -150,7 +190,7 @@ static int rods_build(crom_rsim *s)
                 for (int j = 0; j < b.n; j++) {
                     int v = b.idx[j];
                     for (int a = 0; a < 3; a++)
-                        rd->d0[a] += sg * sc->density * c->vvol[v] * c->mesh.X[3 * (size_t)v + a] / b.mass;
+                        rd->d0[a] += sg * s->vm[v] * c->mesh.X[3 * (size_t)v + a] / b.mass;
                 }
                 for (int i = 0; i < r; i++)
                     for (int a = 0; a < 3; a++)
@@ -226,7 +266,9 @@ static int constrain_directions(crom_rsim *s)
         rc = CROM_EINTERNAL;
         goto out;
     }
-    double mbc = 0, mtot = s->sc->density * s->cub->mesh_volume;
+    double mbc = 0, mtot = 0;
+    for (int v = 0; v < s->cub->mesh.nv; v++)
+        mtot += s->vm[v];
     for (int b = 0; b < s->nbc; b++) {
         for (size_t i = 0; i < rr; i++)
             P[i] += s->bc[b].P[i];
@@ -321,28 +363,42 @@ static int build(crom_rsim *s)
         free(tmat);
         s->el.kmat = s->kmat;
     }
-    for (size_t i = 0; i < rr; i++)
-        s->Mr[i] = rho * c->WtVW[i];
-    for (int i = 0; i < r; i++)
-        for (int k = 0; k < 3; k++)
-            s->fg[i] += rho * c->WtV[i * 3 + k] * sc->gravity[k];
+    if ((rc = vertex_masses(s)))
+        return rc;
+    if (!s->dense) { /* one density: the cubature's volume-weighted sums */
+        for (size_t i = 0; i < rr; i++)
+            s->Mr[i] = rho * c->WtVW[i];
+        for (int i = 0; i < r; i++)
+            for (int k = 0; k < 3; k++)
+                s->fg[i] += rho * c->WtV[i * 3 + k] * sc->gravity[k];
+    } else { /* regions of other densities: M_r = Σ m_v W_vᵀW_v, f_g = Σ m_v W_vᵀ g */
+        memset(s->Mr, 0, sizeof(double) * rr);
+        for (int v = 0; v < c->mesh.nv; v++) {
+            const double *Wv = c->W + (size_t)v * 3 * r;
+            cblas_dsyrk(CblasRowMajor, CblasUpper, CblasTrans, r, 3, s->vm[v], Wv, r, 1.0, s->Mr, r);
+            cblas_dgemv(CblasRowMajor, CblasTrans, 3, r, s->vm[v], Wv, r, sc->gravity, 1, 1.0, s->fg, 1);
+        }
+        for (int i = 0; i < r; i++)
+            for (int j = 0; j < i; j++)
+                s->Mr[i * r + j] = s->Mr[j * r + i];
+    }
     double lo[3], hi[3];
     crom_mesh_bbox(&c->mesh, lo, hi);
     s->L = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
                 (hi[2] - lo[2]) * (hi[2] - lo[2]));
     /* boundary conditions: pins and prescribed velocities share the penalty */
     for (int i = 0; i < sc->npins && !rc; i++) {
-        rc = region_sums(c, rho, sc->pins[i], &s->bc[s->nbc]);
+        rc = region_sums(c, s->vm, sc->pins[i], &s->bc[s->nbc]);
         s->nbc++;
     }
     for (int i = 0; i < sc->nvel && !rc; i++) {
         s->bc[s->nbc].bc = &sc->vel[i];
-        rc = region_sums(c, rho, sc->vel[i].ref, &s->bc[s->nbc]);
+        rc = region_sums(c, s->vm, sc->vel[i].ref, &s->bc[s->nbc]);
         s->nbc++;
     }
     for (int i = 0; i < sc->nforce && !rc; i++) {
         s->force[s->nforce].bc = &sc->force[i];
-        rc = region_sums(c, rho, sc->force[i].ref, &s->force[s->nforce]);
+        rc = region_sums(c, s->vm, sc->force[i].ref, &s->force[s->nforce]);
         s->nforce++;
     }
     if (rc) {
@@ -416,7 +472,7 @@ static int initial_velocity(crom_rsim *s)
     for (int v = 0; v < nv; v++) {
         double vel[3];
         crom_scenario_initial_velocity(sc, cen, c->mesh.X + 3 * v, vel);
-        cblas_dgemv(CblasRowMajor, CblasTrans, 3, r, sc->density * c->vvol[v], c->W + (size_t)v * 3 * r, r, vel,
+        cblas_dgemv(CblasRowMajor, CblasTrans, 3, r, s->vm[v], c->W + (size_t)v * 3 * r, r, vel,
                     1, 1.0, s->qd, 1);
     }
     int info = LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', r, 1, M, r, s->qd, 1);
@@ -559,7 +615,7 @@ int crom_rsim_sync_forces(crom_rsim *s)
         crom_rsim_bc *b = &s->force[s->nforce];
         memset(b, 0, sizeof *b);
         b->bc = &sc->force[s->nforce];
-        int rc = region_sums(s->cub, sc->density, b->bc->ref, b);
+        int rc = region_sums(s->cub, s->vm, b->bc->ref, b);
         if (rc) {
             free_bc(b);
             return crom_err_ctx("force");
@@ -646,7 +702,7 @@ void crom_rsim_begin_step(crom_rsim *s)
             memcpy(x, c->mesh.X + 3 * (size_t)v, sizeof x);
             cblas_dgemv(CblasRowMajor, CblasNoTrans, 3, r, 1.0, c->W + (size_t)v * 3 * r, r, s->qn, 1, 1.0, x, 1);
             s->lam[(size_t)p * c->nsurf + k] =
-                sc->contact_stiffness * sc->density * c->vvol[v] * crom_contact_depth(&sc->plane[p], x);
+                sc->contact_stiffness * s->vm[v] * crom_contact_depth(&sc->plane[p], x);
         }
 }
 
@@ -688,7 +744,7 @@ int crom_rsim_objective(crom_rsim *s, const double *q, double *Eout, double *g, 
             memcpy(xp, c->mesh.X + 3 * (size_t)v, sizeof xp);
             cblas_dgemv(CblasRowMajor, CblasNoTrans, 3, r, 1.0, Wv, r, s->qn, 1, 1.0, xp, 1);
             double gc[3] = {0, 0, 0}, Hc[9] = {0}, WH[3 * 64];
-            E += crom_contact_eval(&sc->plane[p], sc->contact_stiffness, sc->density * c->vvol[v], x, xp, lam,
+            E += crom_contact_eval(&sc->plane[p], sc->contact_stiffness, s->vm[v], x, xp, lam,
                                    sc->friction_eps * sc->dt, g ? gc : NULL, H ? Hc : NULL);
             if (g)
                 cblas_dgemv(CblasRowMajor, CblasTrans, 3, r, 1.0, Wv, r, gc, 1, 1.0, g, 1);

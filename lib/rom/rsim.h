@@ -112,6 +112,8 @@ typedef struct {
     int fac_ok;         /* Hfac holds a factor */
     int fac_iters;      /* iterations of this step since it was made */
     int fac_slow;       /* the last step needed more than its share: refresh (rsim.c) */
+    double *vm;         /* [nv] lumped vertex masses of the cubature's mesh (kg) */
+    int dense;          /* 1: regions of other densities set vm (M_r and gravity are summed from it) */
     int nrod;           /* the scenario's rods, rebuilt per cubature */
     crom_rsim_rod *rod;
     int ndrag;          /* drags (crom_rsim_drag_set), kept across cubatures */
