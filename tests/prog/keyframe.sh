@@ -8,6 +8,7 @@
 # store far less strain energy than the linear interpolation of the
 # keyframes' positions, which shortens the bending bar. A keys file gives
 # the same frames as the flags; bad input is one line.
+# asan: skip (training; tests/unit/test_keyframe.c runs the library code under ASan)
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 crom-mesh box --dims 1,0.2,0.2 --size 0.1 --region clamp='x<-0.49' -o bar.h5

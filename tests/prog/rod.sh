@@ -76,7 +76,7 @@ close "$e" 0 1e-12 "crom-live against crom-reducedstep"
 # half as far); a filmstrip per subspace. (Eigensolves and training: not
 # under the sanitizers, like materials.sh's experiment.)
 if [ "${CROM_SANITIZE:-0}" != 1 ]; then
-  make -s -f "$CROM_TOP/pipelines/puppet.mk" OUT="$TMP/pup" SIZE=0.06 STEPS=30 TMINUTES=0.03 QUIET=-q \
+  make -s -f "$CROM_TOP/pipelines/puppet.mk" OUT="$TMP/pup" SIZE=0.07 STEPS=24 TMINUTES=0.02 QUIET=-q \
     BINDIR="$CROM_BINDIR" >pup.txt 2>pup.err || fail "puppet.mk: $(cat pup.err)"
   cat pup.txt
   [ "$(grep -c '^| [lmnt]' pup.txt)" -eq 4 ] || fail "puppet.mk: the table lacks rows"; ok
