@@ -6,7 +6,9 @@
 #include "base/err.h"
 #include "rom/keyframe.h"
 
-void crom_keyframe_latent(int nkeys, int r, const double *keys, int interp, double s, double *q)
+/* The segment k (from key k to k + 1) that parameter s falls in, clamped
+ * to [0, nkeys − 1] (NaN: 0), and the fraction a of it. */
+static int segment(int nkeys, double s, double *a)
 {
     if (!(s > 0))
         s = 0; /* NaN too */
@@ -15,7 +17,14 @@ void crom_keyframe_latent(int nkeys, int r, const double *keys, int interp, doub
     int k = (int)floor(s);
     if (k > nkeys - 2)
         k = nkeys - 2;
-    double a = s - k;
+    *a = s - k;
+    return k;
+}
+
+void crom_keyframe_latent(int nkeys, int r, const double *keys, int interp, double s, double *q)
+{
+    double a;
+    int k = segment(nkeys, s, &a);
     const double *z0 = keys + (size_t)k * r, *z1 = z0 + r;
     if (interp != CROM_KEYFRAME_CUBIC) {
         for (int i = 0; i < r; i++)
@@ -92,11 +101,8 @@ int crom_keyframe_eval(crom_keyframe *k, double s, double *q, double *E_latent, 
     if (!E_pos)
         return 0;
     /* the same parameter, linearly between the decoded keyframes */
-    double t = fmin(fmax(s, 0), k->nkeys - 1);
-    int i = (int)floor(t);
-    if (i > k->nkeys - 2)
-        i = k->nkeys - 2;
-    double a = t - i;
+    double a;
+    int i = segment(k->nkeys, s, &a);
     const double *x0 = k->xkeys + (size_t)i * k->n, *x1 = x0 + k->n;
     for (int j = 0; j < k->n; j++)
         k->x[j] = (1 - a) * x0[j] + a * x1[j];

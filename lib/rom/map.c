@@ -116,6 +116,14 @@ static int load_net(crom_map *map, const crom_nn_mlp *net, const double *basis_v
     return 0;
 }
 
+/* The first layer's bias at the condition map->cond: b0 + Wc c. */
+static void fold_condition(crom_map *map)
+{
+    int out = map->width[1];
+    memcpy(map->bc, map->b0, sizeof(double) * (size_t)out);
+    cblas_dgemv(CblasRowMajor, CblasNoTrans, out, map->nc, 1.0, map->wc, map->nc, map->cond, 1, 1.0, map->bc, 1);
+}
+
 /* A conditional map: the first layer split into its latent and condition
  * columns (the latent is then the network's input as for any map), c at
  * the middle of each trained range. */
@@ -140,8 +148,7 @@ static int split_conditions(crom_map *map, const crom_model *model)
     map->width[0] = r;
     for (int k = 0; k < nc; k++)
         map->cond[k] = 0.5 * (model->cond[k].lo + model->cond[k].hi);
-    memcpy(map->bc, map->b0, sizeof(double) * (size_t)out);
-    cblas_dgemv(CblasRowMajor, CblasNoTrans, out, nc, 1.0, map->wc, nc, map->cond, 1, 1.0, map->bc, 1);
+    fold_condition(map);
     return 0;
 }
 
@@ -317,10 +324,8 @@ int crom_map_set_condition(crom_map *map, const double *c)
     for (int k = 0; k < map->nc; k++)
         if (!isfinite(c[k]))
             return crom_err(CROM_EDATA, "condition %d is not finite", k + 1);
-    int out = map->width[1];
     memcpy(map->cond, c, sizeof(double) * (size_t)map->nc);
-    memcpy(map->bc, map->b0, sizeof(double) * (size_t)out);
-    cblas_dgemv(CblasRowMajor, CblasNoTrans, out, map->nc, 1.0, map->wc, map->nc, map->cond, 1, 1.0, map->bc, 1);
+    fold_condition(map);
     return set_anchor(map);
 }
 

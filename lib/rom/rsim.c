@@ -106,28 +106,22 @@ static int region_sums(const crom_cubature *c, const double *vm, const char *ref
 }
 
 /* The lumped masses s->vm [nv] of the cubature's mesh: ρ V_v, or with
- * regions of other densities Σ ρ_t V_t / 4 over each vertex's tets
- * (s->dense set). */
-static int vertex_masses(crom_rsim *s)
+ * regions of other densities Σ ρ_t V_t / 4 over each vertex's tets, tet t
+ * of material s->mats[tmat[t]] (s->dense set). */
+static int vertex_masses(crom_rsim *s, const int *tmat)
 {
     const crom_cubature *c = s->cub;
     const crom_scenario *sc = s->sc;
-    int nv = c->mesh.nv, dense = 0, rc = 0;
+    int nv = c->mesh.nv, dense = 0;
     for (int i = 0; i < sc->nmat; i++)
         dense |= !isnan(sc->mat[i].density);
     if (!(s->vm = crom_malloc(sizeof(double) * (size_t)(nv ? nv : 1))))
         return CROM_EINTERNAL;
-    s->dense = dense && c->mesh.nt > 0 && !crom_mesh_is_surface(&c->mesh);
+    s->dense = dense && tmat;
     if (!s->dense) {
         for (int v = 0; v < nv; v++)
             s->vm[v] = sc->density * c->vvol[v];
         return 0;
-    }
-    crom_material *mats = crom_malloc(sizeof *mats * (CROM_SCENARIO_MAX + 1));
-    int nmat, *tmat = NULL;
-    if (!mats || (rc = crom_scenario_materials(sc, &c->mesh, mats, &nmat, &tmat))) {
-        free(mats);
-        return rc ? rc : CROM_EINTERNAL;
     }
     memset(s->vm, 0, sizeof(double) * (size_t)nv);
     for (int t = 0; t < c->mesh.nt; t++) {
@@ -135,11 +129,19 @@ static int vertex_masses(crom_rsim *s)
         const double *X = c->mesh.X;
         double V = fabs(crom_mesh_tet_volume(X + 3 * e[0], X + 3 * e[1], X + 3 * e[2], X + 3 * e[3]));
         for (int k = 0; k < 4; k++)
-            s->vm[e[k]] += 0.25 * mats[tmat ? tmat[t] : 0].rho * V;
+            s->vm[e[k]] += 0.25 * s->mats[tmat[t]].rho * V;
     }
-    free(mats);
-    free(tmat);
     return 0;
+}
+
+/* The mass-weighted rest centroid of the vertices of region sums b. */
+static void region_centroid(const crom_rsim *s, const crom_rsim_bc *b, double xbar[3])
+{
+    const double *X = s->cub->mesh.X;
+    xbar[0] = xbar[1] = xbar[2] = 0;
+    for (int k = 0; k < b->n; k++)
+        for (int j = 0; j < 3; j++)
+            xbar[j] += s->vm[b->idx[k]] * X[3 * (size_t)b->idx[k] + j] / b->mass;
 }
 
 /* A drag's region sums and rest centroid on the current cubature's mesh. */
@@ -151,13 +153,7 @@ static int drag_resolve(crom_rsim *s, crom_rsim_drag *d)
         return rc;
     if (!(d->b.mass > 0))
         return crom_err(CROM_EUSAGE, "region '%s' has no mass to drag", d->ref);
-    d->xbar[0] = d->xbar[1] = d->xbar[2] = 0;
-    for (int k = 0; k < d->b.n; k++) {
-        int v = d->b.idx[k];
-        double m = s->vm[v];
-        for (int j = 0; j < 3; j++)
-            d->xbar[j] += m * c->mesh.X[3 * (size_t)v + j] / d->b.mass;
-    }
+    region_centroid(s, &d->b, d->xbar);
     return 0;
 }
 
@@ -186,12 +182,10 @@ static int rods_build(crom_rsim *s)
             } else if (!(b.mass > 0)) {
                 rc = crom_err(CROM_EUSAGE, "--rod: end '%s' has no mass", ref);
             } else {
-                double sg = e ? 1 : -1;
-                for (int j = 0; j < b.n; j++) {
-                    int v = b.idx[j];
-                    for (int a = 0; a < 3; a++)
-                        rd->d0[a] += sg * s->vm[v] * c->mesh.X[3 * (size_t)v + a] / b.mass;
-                }
+                double sg = e ? 1 : -1, xbar[3];
+                region_centroid(s, &b, xbar);
+                for (int a = 0; a < 3; a++)
+                    rd->d0[a] += sg * xbar[a];
                 for (int i = 0; i < r; i++)
                     for (int a = 0; a < 3; a++)
                         rd->D[a * r + i] += sg * b.S[i * 3 + a] / b.mass;
@@ -350,8 +344,9 @@ static int build(crom_rsim *s)
         return CROM_EINTERNAL;
     if ((rc = crom_elastic_init(&s->el, c)) || (rc = crom_newton_memory_init(&s->mem, r, PAIRS)))
         return rc;
-    if (sc->nmat) { /* each cubature tet's material (its mesh tet's: crom_scenario_materials) */
-        int nmat, *tmat = NULL;
+    int *tmat = NULL; /* each mesh tet's material (crom_scenario_materials): the cubature tets', the masses' */
+    if (sc->nmat) {
+        int nmat;
         s->mats = crom_malloc(sizeof *s->mats * (CROM_SCENARIO_MAX + 1));
         s->kmat = crom_malloc(sizeof *s->kmat * (size_t)(c->k ? c->k : 1));
         if (!s->mats || !s->kmat)
@@ -360,10 +355,11 @@ static int build(crom_rsim *s)
             return rc;
         for (int k = 0; k < c->k; k++)
             s->kmat[k] = &s->mats[tmat[c->elem[k]]];
-        free(tmat);
         s->el.kmat = s->kmat;
     }
-    if ((rc = vertex_masses(s)))
+    rc = vertex_masses(s, tmat);
+    free(tmat);
+    if (rc)
         return rc;
     if (!s->dense) { /* one density: the cubature's volume-weighted sums */
         for (size_t i = 0; i < rr; i++)
