@@ -117,6 +117,10 @@ expect_error 64 "--condition gravity:y: model .* has no such condition" $O -- cr
 crom-modes "${MAT[@]}" --pin clamp --count 2 -q -o modes.h5 bar.h5
 expect_error 64 "--condition ratio:x<0: model .* is not conditional" $O -- crom-reducedstep --model modes.h5 --pin clamp --condition 'ratio:x<0=2' -o $O
 expect_error 64 "--condition applies to --model" $O -- crom-reducedstep --cubature nope.h5 --condition 'ratio:x<0=2' -o $O
+# a model whose conditions attribute is not one (the reader refuses it in one line)
+cp cmap.h5 badc.h5
+$PY -c "import h5py; h5py.File('badc.h5', 'r+').attrs['conditions'] = 'stiff=1:2\n'"
+expect_error 65 "conditions 'stiff': not a condition" $O -- crom-reducedstep --model badc.h5 --pin clamp -o $O
 expect_error 64 "--condition .*: the time must be >= 0" $O -- crom-reducedstep --model cmap.h5 --condition 'ratio:x<0=2@-1' -o $O
 expect_error 64 "predicate 'x<-5' selects no vertex" $O -- crom-fitfield --objective energy --mesh bar.h5 --pin clamp --condition 'ratio:x<-5=1:2' -o $O
 done_checks

@@ -88,6 +88,9 @@ ok
 # bad input
 O=$TMP/out.h5
 expect_error 64 "--plane-strain is for triangles in z = 0" $O -- crom-mesh box --plane-strain -o $O
+cp bar.h5 badplane.h5
+$PY -c "import h5py; h5py.File('badplane.h5', 'r+')['triangles'].attrs['plane_strain'] = 7"
+expect_error 65 "plane_strain must be 0 or 1" $O -- crom-fullsim --steps 1 -o $O badplane.h5
 printf 'v 0 0 0\nv 1 0 0\nv 0 1 0.5\nf 1 2 3\n' > tilted.obj
 expect_error 65 "--plane-strain: vertex 2 is at z = 0.5" $O -- crom-mesh import tilted.obj --thickness 0.1 --plane-strain -o $O
 done_checks
