@@ -39,7 +39,7 @@
 enum { O_RANK = 300, O_ENCODER, O_BASIS, O_EPOCHS, O_MINUTES, O_LR, O_BATCH, O_PPS, O_ENCPTS,
        O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX, O_BOXSC,
        O_ORTHO, O_STEPS, O_FEATURES, O_TETS, O_PINW, O_OPTIM, O_RESAMPLE, O_TANW, O_TANF, O_HANDLES, O_WEIGHTS,
-       O_SURFACE, O_CLOUD, O_SPOINTS, O_COORDS, O_COORDTOL, O_DERIV, O_SUPERV, O_TANANCHOR, O_VISIT, O_SHARDS, O_COND, O_LAST };
+       O_SURFACE, O_CLOUD, O_SPOINTS, O_COORDS, O_COORDTOL, O_DERIV, O_SUPERV, O_TANANCHOR, O_VISIT, O_SHARDS, O_COND, O_SEEDST, O_SEEDFR, O_LAST };
 
 /* --objective skinning (lib/datafree/dfskin.h), next to the CROM_DATAFREE_* codes */
 #define OBJ_SKINNING 100
@@ -74,7 +74,7 @@ static const crom_opt df_opts[] = {
     {"steps", O_STEPS, "N", "Training steps of a data-free objective (energy, neuralmodes: default 4000 of --batch 8 samples at --lr 3e-3; field, skinning: 2000 of 32 (skinning: 16) at 1e-3). The learning rate is halved after each quarter of the steps (or of --minutes). neuralmodes takes 0: no training, y = 0 (with --derivatives: the quadratic manifold X + Phi z + 1/2 sum Psi_ij z_i z_j of Barbic and James)."},
     {"sigma", O_SIGMA, "S", "energy: isometry scale in metres: the subspace should move the body by S (RMS displacement) per unit of latent distance, |f(z) - f(z')|_M / sqrt(m) ~ S |z - z'|, z ~ N(0, I) (default 0.05 times the bounding-box diagonal; field --handles: 0.15). Sharp et al.'s sigma divided by sqrt(body mass). skinning: the RMS displacement in metres of the random handle poses the weights are trained on (default 0.01 times the diagonal)."},
     {"lambda", O_LAMBDA, "L", "energy: weight of the isometry term, the squared log-ratio of mass-norm distances to S |z - z'| over all pairs of a batch, against the energy in units of E V (Young's modulus times volume) (default 0.03; field: 1, with --handles 0.03). A weaker isometry lets the energy shape the subspace: 1 keeps the map near-isometric but leaves the static sag of a soft body 40-80% off."},
-    {"ramp", O_RAMP, "F", "energy: the seed-state blend rho grows linearly from 0 to 1 over the first fraction F of the steps, then stays 1 (default 0.5; Sharp et al. §4.1). The seed state is the rest shape."},
+    {"ramp", O_RAMP, "F", "energy: the seed-state blend rho grows linearly from 0 to 1 over the first fraction F of the steps, then stays 1 (default 0.5; Sharp et al. §4.1). The seed state is the rest shape, or --seed-state."},
     {"tangent-weight", O_TANW, "W", "energy, field: weight of the collapse floor at rest (Neural Modes §4.4's mode-collapse measure made a loss): the secants z = 0.1 e_k from rest along the r latent axes give the Gram matrix G = J^T M J / m of the map at rest, and every eigenvalue mu of r G / tr G below --tangent-floor adds log^2(mu / floor), so that no latent direction collapses at rest, where every run starts (default 0.03; field with --handles: 0.1; 0: none)."},
     {"tangent-floor", O_TANF, "F", "energy, field: the floor of --tangent-weight, in (0, 1]: normalized eigenvalues above it cost nothing (default 0.03; crom-metrics counts a dimension below 0.01 as collapsed). On the soft bar of the benchmarks a floor of 0.1 made the first step from rest 13-15% off for the skin-field and the energy map; 0.03 keeps every direction above 0.01 and the skin-field's first step at 4-7%."},
     {"box", O_BOX, "A", "neuralmodes: half-width of the box the modal coordinates z are drawn from, in metres of RMS displacement: [-A, A] for the lowest mode (default 0.2 times the bounding-box diagonal; see --box-scaling)."},
@@ -82,6 +82,8 @@ static const crom_opt df_opts[] = {
     {"tangent-anchor", O_TANANCHOR, NULL, "neuralmodes: anchor the correction's tangent too: y(z) = N(z) - N(0) - J_N(0) z, zero to first order, so that the map leaves rest along the modes exactly as the constrained equilibria do (a learned first-order part stiffens small deflections). Trained with J_N(0) z as a central difference of step 0.01 z; the model (tangent_anchored) evaluates it exactly."},
     {"supervised", O_SUPERV, "EQ", "neuralmodes: the supervised baseline of Wang et al. (their 'L2 supervised'): the same map fitted to the constrained equilibria of EQ (crom-fullsim --equilibria in the same modes, on --mesh) by the mean squared mass-weighted distance, instead of trained on the energy; batches are drawn from the equilibria."},
     {"condition", O_COND, "NAME=LO:HI", "energy: a conditional map (Sharp et al. 3.5): the network takes [z, c] and each batch is trained at a c drawn uniformly from LO:HI. NAME: ratio:REGION, the Young's modulus of REGION's tets over the body's (a region of another material); gravity:x|y|z, that component of gravity (m/s^2). Repeatable (at most 4). crom-reducedstep --model takes --condition NAME=VALUE[@T] to run the map at a condition, or change it at time T."},
+    {"seed-state", O_SEEDST, "RUN", "energy: grow the map from a seed state instead of the rest shape (Sharp et al. 4.1): the displacement of a frame of RUN, a crom-fullsim trajectory of --mesh (e.g. the equilibrium of a bar compressed by --velocity on its ends, their regions then pinned here where the seed holds them). The map is anchored there, x(0) = X + u_seed (field/seed in the model): a reduced run starts from it, and its pins and prescribed motions are taken from it."},
+    {"seed-frame", O_SEEDFR, "K", "--seed-state: which frame (default -1, the last; negative counts from the end)."},
     {"latents", O_VISIT, "RUN", "neuralmodes: sample along a run: every other sample of a batch is drawn near the modal coordinates of a frame of RUN (a crom/latent of a reduced run in the same modes, e.g. crom-reducedstep --model of the untrained map, --steps 0), moved by up to 15% of max(box half-width, |z_k|) per coordinate; the others from the box. For deformations whose coordinates lie outside the box (a soft body sagging far under its load). Still data-free: no full simulation."},
     {"box-scaling", O_BOXSC, "KIND", "neuralmodes: frequency (default): mode k is drawn from [-A f_1/f_k, A f_1/f_k], the same linear energy at every edge, so that the stiff modes do not swamp the energy of the soft ones; uniform: every mode from [-A, A] (Wang et al.)."},
     {"optimizer", O_OPTIM, "KIND", "energy, neuralmodes: adam (default): Adam on a fresh batch every step. lbfgs: L-BFGS with a backtracking line search (Wang et al.), --resample iterations on each batch."},
@@ -214,7 +216,8 @@ typedef struct {
     crom_fit_opts fit;
     /* data-free */
     int objective;               /* 0: samples, else CROM_DATAFREE_* or OBJ_SKINNING */
-    const char *mesh, *modes, *surface, *cloud, *supervised, *visit;
+    const char *mesh, *modes, *surface, *cloud, *supervised, *visit, *seed_state;
+    long seed_frame;
     int sample_points, handles, eigen, raw_coords, derivatives;
     double coord_tol;
     crom_datafree_opts df;
@@ -336,6 +339,8 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_DERIV: a->derivatives = 1; return 0;
     case O_SUPERV: a->supervised = v; return 0;
     case O_VISIT: a->visit = v; return 0;
+    case O_SEEDST: a->seed_state = v; return 0;
+    case O_SEEDFR: return crom_parse_int(v, "--seed-frame", -100000000L, 100000000L, &a->seed_frame);
     case O_COND:
         if (a->ncond == CROM_MODEL_MAXCOND)
             return crom_err(CROM_EUSAGE, "--condition: at most %d", CROM_MODEL_MAXCOND);
@@ -463,6 +468,10 @@ static void check_datafree(crom_cli *cli, const args *a)
                                  a->visit ? "--latents" : "--tangent-anchor"));
     if (a->ncond && a->objective != CROM_DATAFREE_ENERGY)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--condition applies to --objective energy"));
+    if ((a->seed_state || GIVEN(a, O_SEEDFR)) && a->objective != CROM_DATAFREE_ENERGY)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--seed-state applies to --objective energy"));
+    if (GIVEN(a, O_SEEDFR) && !a->seed_state)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--seed-frame picks a frame of --seed-state RUN: give it"));
     if (a->supervised && a->visit)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--latents samples the energy along a run; --supervised fits equilibria: "
                                  "give one"));
@@ -518,6 +527,7 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     crom_fit_defaults(&a->fit);
     crom_datafree_defaults(&a->df, CROM_DATAFREE_ENERGY);
     crom_scenario_defaults(&a->sc);
+    a->seed_frame = -1;
     crom_cli_parse(cli, &doc, argc, argv, on_opt, a);
     if (!a->objective && crom_scenario_uniform(&a->sc, "crom-fitfield on samples")) /* (data-free: every objective) */
         usage_exit(cli, CROM_EUSAGE);
@@ -872,6 +882,8 @@ static int run_datafree(crom_cli *cli, args *a)
         rc = crom_body_supervise(&b, a->supervised, a->df.rank, &P);
     if (!rc && a->visit)
         rc = crom_body_visit(&b, a->visit, a->df.rank, &P);
+    if (!rc && a->seed_state)
+        rc = crom_body_seed(&b, a->seed_state, a->seed_frame, &P);
     double t0 = crom_clock_now();
     if (!rc && skin && a->eigen) {
         rc = crom_dfskin_eigen(&b.mesh, &b.mat, a->sc.nmat ? &a->sc : NULL, b.fixed, so.handles, &out, &solves);

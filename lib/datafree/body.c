@@ -13,6 +13,7 @@
 #include "phys/modes.h"
 #include "rom/equil.h"
 #include "rom/map.h"
+#include "rom/result.h"
 #include "phys/mderiv.h"
 #include "phys/system.h"
 #include "rom/skin.h"
@@ -62,6 +63,7 @@ void crom_body_free(crom_body *b)
     free(b->freq);
     crom_result_equilibria_free(&b->eq);
     free(b->visit);
+    free(b->seed);
     memset(b, 0, sizeof *b);
 }
 
@@ -89,6 +91,51 @@ int crom_body_visit(crom_body *b, const char *path, int rank, crom_datafree_prob
     snprintf(b->visit_what, sizeof b->visit_what, "%ld modal coordinates of %s", b->nvisit, base ? base + 1 : path);
     P->nvisit = b->nvisit;
     P->visit_z = b->visit;
+    return 0;
+}
+
+int crom_body_seed(crom_body *b, const char *path, long frame, crom_datafree_problem *P)
+{
+    crom_result res;
+    int rc = crom_result_open(&res, path, NULL, NULL), got = 0;
+    if (rc)
+        return crom_err_ctx("--seed-state");
+    size_t n = 3 * (size_t)b->mesh.nv;
+    long k = 0, want = frame;
+    double t, *u = NULL, *ring = NULL;
+    if (crom_map_same_mesh(&res.mesh, &b->mesh))
+        rc = crom_err(CROM_EUSAGE, "--seed-state %s: a trajectory of another mesh", path);
+    else if (res.latent)
+        rc = crom_err(CROM_EUSAGE, "--seed-state %s: a latent, not a full state (decode it with crom-export --vtu "
+                                   "or give crom-fullsim's run)", path);
+    else if (frame < -100000000L)
+        rc = crom_err(CROM_EUSAGE, "--seed-frame %ld is out of range", frame);
+    /* the last -frame frames in a ring (frame < 0), or up to frame */
+    long keep = frame < 0 ? -frame : 1;
+    if (!rc && !(ring = crom_malloc(sizeof(double) * n * (size_t)keep)))
+        rc = CROM_EINTERNAL;
+    while (!rc && (frame < 0 || k <= want) && (got = crom_result_next(&res, &t, ring + n * (size_t)(k % keep), NULL)) == 1)
+        k++;
+    if (!rc && got > 1)
+        rc = crom_err_ctx("--seed-state");
+    else if (!rc && (frame < 0 ? k < keep : k <= want))
+        rc = crom_err(CROM_EUSAGE, "--seed-frame %ld: %s has %ld frames", frame, path, k);
+    if (!rc) {
+        long at = frame < 0 ? k + frame : want;
+        if (!(u = crom_malloc(sizeof(double) * n)))
+            rc = CROM_EINTERNAL;
+        else
+            memcpy(u, ring + n * (size_t)(at % keep), sizeof(double) * n);
+        const char *base = strrchr(path, '/');
+        snprintf(b->seed_what, sizeof b->seed_what, "frame %ld of %s", at, base ? base + 1 : path);
+    }
+    free(ring);
+    crom_result_close(&res);
+    if (rc)
+        return rc;
+    free(b->seed);
+    b->seed = u;
+    P->seed = u;
     return 0;
 }
 
@@ -339,6 +386,8 @@ int crom_body_write_map(const crom_body *b, const crom_scenario *sc, crom_model 
     }
     if (!rc && nm && P->nvisit > 0)
         rc = crom_h5_set_str(out.h5, ".", "sampled_along", b->visit_what);
+    if (!rc && P->seed)
+        rc = crom_h5_set_str(out.h5, ".", "seed_state", b->seed_what);
     return finish(&out, rc);
 }
 

@@ -59,6 +59,8 @@ typedef struct {
     double *visit;           /* neuralmodes sampled along a run: [nvisit][r] its coordinates (crom_body_visit) */
     long nvisit;
     char visit_what[160];    /* where they came from (the model's record) */
+    double *seed;            /* energy from a seed state: its displacement [3nv] (crom_body_seed) */
+    char seed_what[200];     /* where it came from (the model's record) */
 } crom_body;
 
 /* Load the geometry of src into b (cleared first; free it with
@@ -83,6 +85,14 @@ int crom_body_supervise(crom_body *b, const char *path, int rank, crom_datafree_
  * them). Returns 0, CROM_EUSAGE (another rank) or the reader's error with
  * "--latents" as context. */
 int crom_body_visit(crom_body *b, const char *path, int rank, crom_datafree_problem *P);
+
+/* An energy map grown from a seed state (Sharp et al. §4.1; datafree.h):
+ * the displacement of frame `frame` (negative: from the end, −1 the last)
+ * of the trajectory at path (e.g. crom-fullsim's equilibrium of a
+ * compressed bar), on b's mesh, into P->seed (b keeps it). Returns 0,
+ * CROM_EUSAGE (another mesh, no such frame) or the reader's error with
+ * "--seed-state" as context. */
+int crom_body_seed(crom_body *b, const char *path, long frame, crom_datafree_problem *P);
 
 /* The body's volume (the mesh's, or the sampled points') and mass (m³, kg;
  * the mass after crom_body_pins). */

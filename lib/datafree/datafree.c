@@ -316,8 +316,8 @@ static int map_outputs(crom_datafree_ctx *c, int B, const double *z)
     return 0;
 }
 
-/* Sample b's potential energy E_b and its gradient G_b at x = X + W z_b +
- * ρ Y_b (x scratch [n]): the elastic energy over every tet (tets NULL) or
+/* Sample b's potential energy E_b and its gradient G_b at x = X + u_s + W z_b +
+ * ρ Y_b (x scratch [n]; u_s the seed state, or 0): the elastic energy over every tet (tets NULL) or
  * the K drawn ones, and (energy objective) gravity, −Σ_v m_v g·u_v.
  * Returns 1 where it is not defined. */
 static int sample_energy(crom_datafree_ctx *c, int b, const double *zb, double rho, int K, const int *tets, double *x)
@@ -337,7 +337,7 @@ static int sample_energy(crom_datafree_ctx *c, int b, const double *zb, double r
         for (int k = 0, cq = 0; Psi && k < r; k++) /* ½ Σ_{k<=l} Ψ_kl z_k z_l */
             for (int l = k; l < r; l++, cq++)
                 u += 0.5 * Psi[((size_t)i * r * (r + 1)) / 2 + cq] * zb[k] * zb[l];
-        x[i] = X[i] + u;
+        x[i] = X[i] + (c->P.seed ? c->P.seed[i] : 0) + u;
     }
     if (!tets) {
         crom_fem_opts fo = {0, 0, fixed, 1};
@@ -776,6 +776,15 @@ static int map_store(const map_trainer *T, const crom_datafree_problem *p, crom_
         memcpy(out->deriv_v, p->deriv, sizeof(double) * nd);
         crom_model_id(out, out->model_id);
     }
+    if (!rc && p->seed) { /* anchored at the seed state (map.h) */
+        size_t ns = (size_t)p->mesh->nv * 3;
+        if (!(out->seed_v = crom_malloc(sizeof(double) * ns))) {
+            crom_model_free(out);
+            return CROM_EINTERNAL;
+        }
+        memcpy(out->seed_v, p->seed, sizeof(double) * ns);
+        crom_model_id(out, out->model_id);
+    }
     if (rc || !nm || !p->freq)
         return rc;
     out->frequencies = crom_malloc(sizeof(double) * (size_t)r);
@@ -793,6 +802,8 @@ int crom_datafree_train(const crom_datafree_problem *p, const crom_datafree_opts
 {
     crom_model_clear(out);
     memset(log, 0, sizeof *log);
+    if (p->seed && o->objective != CROM_DATAFREE_ENERGY)
+        return crom_err(CROM_EUSAGE, "a seed state is for the energy objective (Sharp et al. §4.1)");
     if (o->objective == CROM_DATAFREE_FIELD)
         return crom_dffield_train(p, o, out, log);
     double t0 = crom_clock_now();

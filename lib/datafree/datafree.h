@@ -150,6 +150,11 @@ typedef struct {
                                   * parameters, cond [ncond] with the ranges they are drawn from;
                                   * a ratio's region must be one of materials' regions */
     const crom_scenario_cond *cond;
+    const double *seed;          /* energy: [3nv] the seed state's displacement u_s (Sharp et al. §4.1; a
+                                  * low-energy state, e.g. a buckled equilibrium from crom-fullsim, whose
+                                  * pinned vertices are where the pins hold them), or NULL: the rest
+                                  * shape. The map is anchored there, x(z) = X + u_s + N(z) − N(0), and
+                                  * the energy is taken at X + u_s + ρ Y (the seed blend of §4.1) */
 } crom_datafree_problem;
 
 typedef struct {

@@ -190,6 +190,8 @@ static const crom_schema_attr model_attrs[] = {
                                    "that its tangent at rest is the modes' (crom-fitfield --tangent-anchor)", NULL},
     {"supervised", "str", 0, "a neuralmodes map fitted to constrained equilibria by the geometric loss (crom-fitfield "
                              "--supervised, Wang et al.'s L2 supervised baseline): how many, in which modes", NULL},
+    {"seed_state", "str", 0, "an energy map grown from a seed state (crom-fitfield --seed-state): which frame of which "
+                             "run", NULL},
     {"sampled_along", "str", 0, "a neuralmodes map trained with every other sample near the modal coordinates a "
                                 "reduced run visited (crom-fitfield --latents): how many, from which file", NULL},
     {"cubature_tets", "i64", 0, "tets of the random cubature drawn at every training step (energy-field)", NULL},
@@ -220,6 +222,8 @@ static const crom_schema_dset model_dsets[] = {
     {"field/derivatives", "f64", "nv,3,D", 0, "1/m", "modal derivatives Psi_ij (i <= j, D = r(r+1)/2) of a neuralmodes "
                                                      "map's quadratic part 1/2 sum Psi_ij z_i z_j (fitfield --derivatives)",
      NULL},
+    {"field/seed", "f64", "nv,3", 0, "m", "an energy map's seed state u_s (Sharp et al. 4.1; fitfield --seed-state): the "
+                                          "map is anchored there, x(0) = X + u_s, and a reduced run starts from it", NULL},
     {"field/mesh/triangles", "i32", "ntri,3", 0, "1", "a shell's triangles instead of tets (modes, energy, neuralmodes on a "
                                                      "surface mesh), as crom/mesh", NULL},
     {"field/mesh/regions/*", "i32", "?", 0, "1", REGION_DESC, NULL},

@@ -17,6 +17,7 @@ void crom_map_free(crom_map *map)
     if (!map)
         return;
     crom_mesh_free(&map->mesh);
+    free(map->x0);
     free(map->B);
     free(map->fa);
     free(map->fT);
@@ -303,11 +304,15 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
         map->B = crom_malloc(sizeof(double) * (size_t)map->n * r);
         rc = map->B ? crom_model_eval(model, (size_t)map->nv, map->mesh.X, map->B, NULL) : CROM_EINTERNAL;
     }
-    if (!rc) { /* crom_map_eval's features */
+    if (!rc) { /* crom_map_eval's features, and the positions at q = 0 */
         map->fa = crom_malloc(sizeof(double) * (size_t)map->p);
         map->fT = crom_malloc(sizeof(double) * (size_t)map->p * r);
-        if (!map->fa || !map->fT)
+        map->x0 = crom_malloc(sizeof(double) * (size_t)map->n);
+        if (!map->fa || !map->fT || !map->x0)
             rc = CROM_EINTERNAL;
+        else
+            for (int i = 0; i < map->n; i++)
+                map->x0[i] = map->mesh.X[i] + (model->seed_v ? model->seed_v[i] : 0);
     }
     map->tangent = model->tangent_anchored && !map->phi;
     if (!rc && map->nonlinear)
@@ -537,7 +542,7 @@ void crom_map_rows(const crom_map *map, const int *idx, int nidx, const double *
                    double *J)
 {
     int p = map->p, r = map->r;
-    const double *X = map->mesh.X;
+    const double *X = map->x0;
     if (!idx) { /* every vertex: two BLAS calls */
         int n = map->n;
         if (x) {

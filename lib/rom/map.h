@@ -21,6 +21,9 @@
  *
  * and x(0) = X exactly, to the last bit, whatever the network: a run from
  * rest starts at q = 0 and a run with no load stays there (lib/nlrom.h).
+ * An energy map trained from a seed state u_s (Sharp et al. §4.1 and Fig.
+ * 3: a compressed, buckled bar has no rest shape to grow from) is anchored
+ * there instead: x(q) = X + u_s + N(q) − N(0), and x0 below is X + u_s.
  * The data-free trainers (lib/datafree.h) train this same anchored map.
  *
  * The network N runs in double precision from the stored float32 weights
@@ -43,6 +46,8 @@ typedef struct crom_map_s {
     int nv, n;           /* vertices and 3 nv */
     int nonlinear;       /* 1 if N is present */
     crom_mesh mesh;      /* the mesh (owned copy, with regions) */
+    double *x0;          /* [n] the positions at q = 0: X, or X + the seed state of a seeded energy map
+                          * (Sharp et al. §4.1, crom-fitfield --seed-state); x(q) = x0 + B a(q) */
     /* The map as a linear basis over features a(q) in R^p:
      *     x(q) = X + B a(q),   J(q) = B T(q),  T = da/dq [p][r],
      * a = [q (if W) | ½ q_i q_j (if Ψ) | the last hidden layer h of N | 1 (if
@@ -116,7 +121,7 @@ int crom_map_features(crom_map *map, const double *q, double *a, double *T);
  * 0 or CROM_EDATA when the network is not finite at q. */
 int crom_map_curvature(crom_map *map, const double *q, const double *g, double *C);
 
-/* Positions x [nidx][3] = X_v + B_v a of the vertices idx [nidx] (all
+/* Positions x [nidx][3] = x0_v + B_v a of the vertices idx [nidx] (all
  * vertices when idx is NULL, nidx then ignored) at features a [p], and
  * (J non-NULL) their Jacobian rows J [3 nidx][r] = B_v T. */
 void crom_map_rows(const crom_map *map, const int *idx, int nidx, const double *a, const double *T, double *x,

@@ -30,6 +30,7 @@ void crom_model_free(crom_model *m)
     crom_mesh_free(&m->mesh);
     free(m->basis_v);
     free(m->deriv_v);
+    free(m->seed_v);
     free(m->frequencies);
     free(m->skin_w);
     free(m->skin_eig);
@@ -152,6 +153,8 @@ const char *crom_model_id(const crom_model *m, char id[17])
             fnv_bytes(&s, m->basis_v, sizeof(double) * 3 * (size_t)m->rank * m->mesh.nv);
         if (m->deriv_v)
             fnv_bytes(&s, m->deriv_v, sizeof(double) * 3 * (size_t)crom_model_nderiv(m) * m->mesh.nv);
+        if (m->seed_v)
+            fnv_bytes(&s, m->seed_v, sizeof(double) * 3 * (size_t)m->mesh.nv);
         for (int k = 0; k < m->ncond; k++) { /* a conditional map's inputs after q */
             char c[200];
             crom_scenario_cond_format(&m->cond[k], c, sizeof c);
@@ -501,6 +504,10 @@ static int write_map(hid_t loc, const crom_model *m)
     if (!rc && m->deriv_v) {
         hsize_t dd[3] = {(hsize_t)m->mesh.nv, 3, (hsize_t)crom_model_nderiv(m)};
         rc = crom_h5_put_f64(loc, "field/derivatives", 3, dd, m->deriv_v);
+    }
+    if (!rc && m->seed_v) {
+        hsize_t ds[2] = {(hsize_t)m->mesh.nv, 3};
+        rc = crom_h5_put_f64(loc, "field/seed", 2, ds, m->seed_v);
     }
     if (!rc && m->frequencies)
         rc = crom_h5_put_f64(loc, "frequencies", 1, &dr, m->frequencies);
@@ -879,6 +886,18 @@ static int read_map(hid_t h, crom_model *m, const char *act)
                             m->mesh.nv, nd);
         if (!all_finite_d(m->deriv_v, (size_t)m->mesh.nv * 3 * nd))
             return crom_err(CROM_EDATA, "field/derivatives has non-finite values");
+    }
+    if (crom_h5_has(h, "field/seed")) {
+        hsize_t d[2];
+        if (strcmp(m->basis, "energy"))
+            return crom_err(CROM_EDATA, "field/seed belongs to an energy map, not to basis '%s'", m->basis);
+        if ((rc = crom_h5_read_f64(h, "field/seed", 2, d, &m->seed_v)))
+            return rc;
+        if (d[0] != (hsize_t)m->mesh.nv || d[1] != 3)
+            return crom_err(CROM_EDATA, "field/seed is [%llu, %llu], expected [%d, 3]", (unsigned long long)d[0],
+                            (unsigned long long)d[1], m->mesh.nv);
+        if (!all_finite_d(m->seed_v, (size_t)m->mesh.nv * 3))
+            return crom_err(CROM_EDATA, "field/seed has non-finite values");
     }
     if (crom_h5_has(h, "frequencies")) {
         m->frequencies = crom_malloc(sizeof(double) * (size_t)m->rank);

@@ -122,7 +122,7 @@ static int rods_setup(crom_nlsim *s)
                 int v = b.idx[j];
                 double w = (e ? 1 : -1) * s->sys.mass[v] / b.mass;
                 for (int c = 0; c < 3; c++) {
-                    d0[c] += w * map->mesh.X[3 * (size_t)v + c];
+                    d0[c] += w * map->x0[3 * (size_t)v + c];
                     cblas_daxpy(p, w, map->B + (3 * (size_t)v + c) * p, 1, D + (size_t)c * p, 1);
                 }
             }
@@ -180,7 +180,7 @@ static int initial_velocity(crom_nlsim *s)
     if (!(sc->v0[0] || sc->v0[1] || sc->v0[2] || sc->spin[0] || sc->spin[1] || sc->spin[2]))
         return 0;
     double c[3] = {0, 0, 0}, m = 0;
-    const double *X = s->map->mesh.X;
+    const double *X = s->map->x0;
     for (int v = 0; v < s->map->nv; v++) {
         m += s->sys.mass[v];
         for (int k = 0; k < 3; k++)
@@ -265,7 +265,7 @@ static int set_elastic(crom_nlsim *s, int k, const int *elem, const double *weig
             return CROM_EINTERNAL;
         for (int i = 0; i < ncv; i++) {
             memcpy(s->Bc + (size_t)i * 3 * p, s->map->B + (size_t)cv[i] * 3 * p, sizeof(double) * 3 * (size_t)p);
-            memcpy(s->Xc + 3 * (size_t)i, s->map->mesh.X + 3 * (size_t)cv[i], sizeof(double) * 3);
+            memcpy(s->Xc + 3 * (size_t)i, s->map->x0 + 3 * (size_t)cv[i], sizeof(double) * 3);
         }
     }
     return 0;
@@ -523,7 +523,7 @@ void crom_nlsim_begin_step(crom_nlsim *s)
             double e[3];
             crom_map_rows(map, &v, 1, s->an, NULL, e, NULL);
             for (int c = 0; c < 3; c++)
-                e[c] -= map->mesh.X[3 * v + c] + u[c];
+                e[c] -= map->x0[3 * v + c] + u[c];
             rows_t(map, v, s->kappa * m[v], e, s->bq);
             c0 += 0.5 * s->kappa * m[v] * (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
         }
@@ -976,7 +976,7 @@ int crom_nlsim_step(crom_nlsim *s, crom_rsim_stats *st)
 
 double crom_nlsim_constraint_residual(const crom_nlsim *s)
 {
-    const double *X = s->map->mesh.X;
+    const double *X = s->map->x0;
     double worst = 0;
     for (int k = 0; k < s->nbc; k++) {
         double u[3] = {0, 0, 0};
@@ -1000,21 +1000,42 @@ void crom_nlsim_positions(const crom_nlsim *s, double *x, double *v)
 {
     const crom_map *map = s->map;
     if (x) {
-        memcpy(x, map->mesh.X, sizeof(double) * (size_t)s->n);
+        memcpy(x, map->x0, sizeof(double) * (size_t)s->n);
         cblas_dgemv(CblasRowMajor, CblasNoTrans, s->n, s->p, 1.0, map->B, s->p, s->an, 1, 1.0, x, 1);
     }
     if (v)
         cblas_dgemv(CblasRowMajor, CblasNoTrans, s->n, s->p, 1.0, map->B, s->p, s->va, 1, 0.0, v, 1);
 }
 
+/* The loads' work on the displacement at q = 0, f·(x0 − X): zero but for
+ * a seeded map (map.h), whose potential is then taken from the rest shape
+ * like crom-fullsim's. */
+static double seed_work(const crom_nlsim *s, double t)
+{
+    const crom_map *map = s->map;
+    const double *g = s->sc->gravity, *m = s->sys.mass;
+    double w = 0;
+    for (int i = 0; i < s->n; i++)
+        w += m[i / 3] * g[i % 3] * (map->x0[i] - map->mesh.X[i]);
+    for (int b = 0; b < s->nforce; b++) {
+        const crom_nlsim_bc *fb = &s->force[b];
+        double F[3];
+        crom_bc_force(fb->bc, t, F);
+        for (int k = 0; k < fb->n; k++)
+            for (int c = 0, v = fb->idx[k]; c < 3; c++)
+                w += m[v] / fb->mass * F[c] * (map->x0[3 * (size_t)v + c] - map->mesh.X[3 * (size_t)v + c]);
+    }
+    return w;
+}
+
 int crom_nlsim_energies(crom_nlsim *s, double *kinetic, double *elastic_e, double *external)
 {
     int p = s->p;
-    /* K = ½ vaᵀ BᵀMB va; W = −f·(x − X) = −(Bᵀf)·a */
+    /* K = ½ vaᵀ BᵀMB va; W = −f·(x − X) = −(Bᵀf)·a − f·(x0 − X) */
     cblas_dsymv(CblasRowMajor, CblasUpper, p, 1.0, s->A0, p, s->va, 1, 0.0, s->fa, 1);
     double K = 0.5 * cblas_ddot(p, s->va, 1, s->fa, 1);
     feature_loads(s, s->t, s->fa);
-    double W = -cblas_ddot(p, s->fa, 1, s->an, 1);
+    double W = -cblas_ddot(p, s->fa, 1, s->an, 1) - seed_work(s, s->t);
     /* the elastic energy as the steps see it: over the elastic tets */
     memcpy(s->a, s->an, sizeof(double) * (size_t)p);
     double Ee = 0;

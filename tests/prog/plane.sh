@@ -5,8 +5,8 @@
 # Timoshenko's plane-strain beam predicts for the small load; crom-modes
 # finds in-plane modes first; crom-export writes the triangles with their
 # cell fields; an energy map trained on it runs in crom-reducedstep --model
-# and stays in the plane; a neural-modes map too; a shallow arch has two
-# stable equilibria in crom-fullsim; bad input is one line.
+# and stays in the plane; a neural-modes map too; bad input is one line.
+# (The bistable bar: tests/prog/bistable.sh.)
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 crom-mesh sheet --dims 1,0.1,1 --size 0.02 --thickness 0.1 --plane-strain --region clamp='x<-0.499' \
@@ -61,30 +61,6 @@ for m in e3 nm; do
     || fail "$m: the reduced sag leaves the plane or does not sag"; ok
 done
 fi
-# a bistable body (pipelines/bistable.mk): a shallow clamped arch pushed at
-# its crown snaps through and stays; nudged, it comes back
-$PY "$CROM_TOP/pipelines/arch.py" 1 0.1 0.01 80 3 > arch.obj
-crom-mesh import arch.obj --thickness 0.05 --plane-strain --size 1 --region left='x<-0.49' --region right='x>0.49' \
-  --region crown='x>-0.03&x<0.03&y>0.09' -q -o arch.h5
-ARCH=(--youngs 1e6 --poisson 0.3 --density 1000 --gravity 0,0,0 --pin left --pin right --dt 0.01 --steps 400 --damping 30 --max-iter 200)
-crom-fullsim "${ARCH[@]}" --force crown=0,-5,0@0:0.8 -q -o push.h5 arch.h5
-crom-fullsim "${ARCH[@]}" --force crown=0,-0.5,0@0:0.8 -q -o nudge.h5 arch.h5
-$PY - <<'PYEOF' || fail "the arch's two equilibria"
-import h5py, numpy as np
-out = {}
-for k in ("push", "nudge"):
-    f = h5py.File(k + ".h5")
-    X = f["mesh/vertices"][()]
-    c = (np.abs(X[:, 0]) < 0.03) & (X[:, 1] > 0.09)
-    out[k] = ((X[c, 1] + f["frames/displacement"][-1][c, 1]).mean(), f["frames/elastic_energy"][-1],
-              f["frames/kinetic_energy"][-1])
-print("arch: pushed, crown at %.4f m with %.4g J (kinetic %.2g); nudged, %.4f m with %.2g J" % (out["push"] + out["nudge"][:2]))
-if not (out["push"][0] < 0 and 0.02 < out["push"][1] < 0.03 and out["push"][2] < 1e-2 * out["push"][1]
-        and abs(out["nudge"][0] - 0.0999) < 1e-3 and out["nudge"][1] < 1e-9):
-    raise SystemExit("not bistable")
-PYEOF
-ok
-
 # bad input
 O=$TMP/out.h5
 expect_error 64 "--plane-strain is for triangles in z = 0" $O -- crom-mesh box --plane-strain -o $O

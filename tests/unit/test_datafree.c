@@ -33,6 +33,7 @@
 #include "base/lbfgs.h"
 #include "base/rng.h"
 #include "datafree/datafree.h"
+#include "io/io.h"
 #include "datafree/dffield.h"
 #include "datafree/dfskin.h"
 #include "mesh/meshgen.h"
@@ -111,6 +112,7 @@ static double loss_at(const double *x, void *v)
 static int g_quadratic; /* gradient_check: neuralmodes with a quadratic part ½ Σ Ψ z z */
 static int g_supervised; /* gradient_check: neuralmodes fitted to (made-up) equilibria */
 static int g_tangent;    /* gradient_check: neuralmodes with its tangent anchored, y = N(z) − N(0) − J_N(0) z */
+static int g_seeded;     /* gradient_check: an energy map grown from a seed state (Sharp §4.1) */
 
 static void gradient_check(int objective)
 {
@@ -131,7 +133,18 @@ static void gradient_check(int objective)
         for (int i = 0; i < 3 * m.nv * 6; i++)
             Psi[i] = fixed[i / 6] ? 0 : 0.2 * crom_rng_normal(&qr);
     }
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, W, freq, Psi, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, W, freq, Psi, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    double *useed = NULL;
+    if (g_seeded) { /* a seed state: a bend of 2 cm at the free end, zero at the clamp */
+        useed = malloc(sizeof(double) * 3 * m.nv);
+        for (int v = 0; v < m.nv; v++) {
+            double s = m.X[3 * v] + 0.5;
+            useed[3 * v] = -0.01 * s * m.X[3 * v + 1];
+            useed[3 * v + 1] = 0.02 * s * s;
+            useed[3 * v + 2] = 0;
+        }
+        P.seed = useed;
+    }
     /* supervised: 4 made-up equilibria u = W z + v, v random and
      * M-orthogonal to the modes (so that W^T M u / m = z), zero at the pins */
     double zsup[4 * 3], *usup = NULL;
@@ -284,8 +297,10 @@ static void gradient_check(int objective)
         CHECK_LT(e, FD_TOL);
         CHECK(tm.penalty > 0);
         CHECK(objective == CROM_DATAFREE_ENERGY ? tm.tangent > 0 : tm.tangent == 0);
-        if (k == 3) /* the loss is the tangent term alone */
+        if (k == 3 && !g_seeded) /* the loss is the tangent term alone */
             CHECK_REL(tm.objective, 10 * tm.tangent, 1e-12);
+        else if (k == 3) /* and the seed state's energy (checked below) */
+            CHECK(tm.objective > 10 * tm.tangent);
         /* pinned outputs get no gradient: the last layer's pinned rows */
         double gp = 0;
         for (int i = 0; i < 3 * m.nv; i++)
@@ -327,6 +342,25 @@ static void gradient_check(int objective)
         crom_map_free(&map);
         crom_model_free(&model);
     }
+    if (g_seeded) { /* at rho 0 every sample is the seed state: its potential, gravity from rest */
+        crom_dftrain_terms tm;
+        c.o.lambda = 0.7;
+        CHECK(crom_datafree_loss(&c, B, z, 0.0, 0, NULL, &tm, NULL) == 0);
+        int nd = 3 * m.nv;
+        double *xs = malloc(sizeof(double) * nd), *gs = malloc(sizeof(double) * nd), Es = 0;
+        for (int i = 0; i < nd; i++)
+            xs[i] = m.X[i] + useed[i];
+        crom_fem_opts fo = {0, 0, fixed, 1};
+        CHECK(crom_system_assemble(&c.sys, xs, &fo, &Es, gs, NULL) == 0);
+        for (int i = 0; i < nd; i++)
+            if (!fixed[i])
+                Es -= c.sys.mass[i / 3] * P.gravity[i % 3] * useed[i];
+        fprintf(stderr, "seeded energy map: the samples at rho 0 have %.6g J, the seed state %.6g J\n", c.E[0], Es);
+        CHECK(Es > 0);
+        for (int b = 0; b < B; b++)
+            CHECK_REL(c.E[b], Es, 1e-12);
+        free(xs), free(gs);
+    }
     crom_datafree_ctx_free(&c);
     crom_nn_mlp_free(&net);
     free(g);
@@ -337,6 +371,7 @@ static void gradient_check(int objective)
     free(freq);
     free(Psi);
     free(usup);
+    free(useed);
     free(tets);
     free(fixed);
     crom_mesh_free(&m);
@@ -384,7 +419,7 @@ static void gradient_check_field(void)
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
     unsigned char *fixed = clamp_mask(&m);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     field_check_opts(&o);
     o.pin_length = 0.3; /* a wide mask: many vertices inside it */
@@ -475,7 +510,7 @@ static void gradient_check_field_basis(void)
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
     unsigned char *fixed = clamp_mask(&m);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     field_check_opts(&o);
     int r = 2, pf = 5, B = 4, pw[] = {r, 10, pf};
@@ -627,7 +662,7 @@ static void test_conditional(void)
     }
     crom_material mat;
     crom_material_init(&mat, sc.youngs, sc.poisson, sc.density);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, &sc, 2, cond};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, &sc, 2, cond, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     int r = 3, B = 5, widths[] = {r + 2, 12, 12, 3 * m.nv};
@@ -954,7 +989,7 @@ static crom_model g_energy_model; /* trained once, used by the dynamics tests */
  * pins stay exactly at rest, and so does a run with no load. */
 static void test_energy_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -1005,6 +1040,107 @@ static void test_energy_subspace(bar_case *b)
     crom_dftrain_log_free(&log);
 }
 
+static void scenario_bar(crom_scenario *sc);
+
+/* An energy map grown from a seed state (Sharp et al. §4.1; map.h): a
+ * random map whose pinned rows are zero, seeded with a bend and a shift
+ * that moves the clamp too. x(0) is X + u_s bit for bit, pinned vertices
+ * stay at the seed for any q, a reduced run starts there with its pins
+ * satisfied and takes gravity's potential from rest (−Σ m g·u_s), and the
+ * seed survives a write and read (and changes the model's id). */
+static void test_seeded_map(bar_case *b)
+{
+    const crom_mesh *m = &b->mesh;
+    int r = 2, n = 3 * m->nv;
+    int widths[] = {r, 16, n};
+    crom_nn_spec spec;
+    CHECK(crom_nn_spec_set(&spec, 3, widths, CROM_NN_ELU) == 0);
+    crom_nn_mlp net;
+    crom_rng rng;
+    crom_rng_seed(&rng, 41);
+    CHECK(crom_nn_mlp_init(&net, &spec, NULL, &rng) == 0);
+    crom_nn_layer *ly = &net.layer[1];
+    for (int i = 0; i < n; i++) /* the trainer's mask: pinned rows zero */
+        for (int j = 0; b->fixed[i] && j < ly->in; j++)
+            ly->W[(size_t)i * ly->in + j] = 0;
+    for (int i = 0; i < n; i++)
+        if (b->fixed[i])
+            ly->b[i] = 0;
+    double *us = malloc(sizeof(double) * n);
+    for (int v = 0; v < m->nv; v++) {
+        double t = m->X[3 * v] + 0.5;
+        us[3 * v] = 0.004 - 0.01 * t * m->X[3 * v + 1];
+        us[3 * v + 1] = 0.03 * t * t;
+        us[3 * v + 2] = 0.001;
+    }
+    crom_model plain, seeded;
+    CHECK(crom_model_from_map(&plain, "energy", &net, m, NULL) == 0);
+    CHECK(crom_model_from_map(&seeded, "energy", &net, m, NULL) == 0);
+    seeded.seed_v = malloc(sizeof(double) * n);
+    memcpy(seeded.seed_v, us, sizeof(double) * n);
+    crom_model_id(&seeded, seeded.model_id);
+    CHECK(strcmp(plain.model_id, seeded.model_id) != 0);
+    const char *path = "build/tests/test_datafree_seeded.h5";
+    crom_out o;
+    int rc = crom_out_create(&o, path, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, NULL, NULL, CROM_OUT_PLAIN);
+    if (!rc && (rc = crom_model_write(o.h5, &seeded)))
+        crom_out_fail(&o);
+    else if (!rc)
+        rc = crom_out_commit(&o);
+    CHECK_MSG(rc == 0, "write: %s", crom_errmsg());
+    crom_model back;
+    rc = crom_model_load(path, &back);
+    CHECK_MSG(rc == 0, "read: %s", crom_errmsg());
+    if (rc)
+        return;
+    int same = back.seed_v && !strcmp(back.model_id, seeded.model_id);
+    for (int i = 0; same && i < n; i++)
+        same = back.seed_v[i] == us[i];
+    CHECK(same);
+    crom_map map;
+    CHECK(crom_map_init(&map, &back, NULL) == 0);
+    double *x = malloc(sizeof(double) * n), q0[2] = {0, 0}, q[2] = {1.3, -0.7}, dpin = 0;
+    CHECK(crom_map_eval(&map, q0, x, NULL) == 0);
+    same = 1;
+    for (int i = 0; i < n; i++)
+        same &= x[i] == m->X[i] + us[i];
+    CHECK(same);
+    CHECK(crom_map_eval(&map, q, x, NULL) == 0);
+    for (int i = 0; i < n; i++)
+        if (b->fixed[i])
+            dpin = fmax(dpin, fabs(x[i] - (m->X[i] + us[i])));
+    CHECK(dpin == 0);
+    crom_scenario sc;
+    scenario_bar(&sc);
+    crom_nlsim s;
+    rc = crom_nlsim_init(&s, &map, &sc, 0, NULL, NULL, 1);
+    CHECK_MSG(rc == 0, "nlsim: %s", crom_errmsg());
+    if (!rc) {
+        double K, Ee, W, Wref = 0;
+        crom_nlsim_positions(&s, x, NULL);
+        same = 1;
+        for (int i = 0; i < n; i++)
+            same &= x[i] == m->X[i] + us[i];
+        CHECK(same);
+        CHECK(crom_nlsim_constraint_residual(&s) == 0);
+        CHECK(crom_nlsim_energies(&s, &K, &Ee, &W) == 0);
+        for (int i = 0; i < n; i++)
+            Wref -= s.sys.mass[i / 3] * sc.gravity[i % 3] * us[i];
+        fprintf(stderr, "seeded map: starts at the seed (pins held there), potential of gravity %.6g J (direct %.6g J)\n",
+                W, Wref);
+        CHECK_REL(W, Wref, 1e-12);
+        CHECK(K == 0);
+        crom_nlsim_free(&s);
+    }
+    free(x), free(us);
+    crom_map_free(&map);
+    crom_model_free(&back);
+    crom_model_free(&plain);
+    crom_model_free(&seeded);
+    crom_nn_mlp_free(&net);
+    remove(path);
+}
+
 /* Wang et al.: Neural Modes on the 3 lowest modes, 400 steps of 16 samples
  * in the box [-0.1, 0.1]^3 m. No latent dimension collapses (§4.4: the
  * smallest eigenvalue of r JᵀMJ / tr at 0 is above 0.8; measured 0.98, the
@@ -1015,7 +1151,7 @@ static void test_energy_subspace(bar_case *b)
  * load stays at rest. */
 static void test_neuralmodes_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_NEURALMODES);
     o.rank = b->nmodes;
@@ -1146,7 +1282,7 @@ static void test_neuralmodes_visit(bar_case *b)
     visit[0] = 0.3;       /* mode 1 at 3 times the box, */
     visit[r + 0] = 0.25;  /* and near it with mode 2 */
     visit[r + 1] = 0.05;
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_NEURALMODES);
     o.rank = r;
@@ -1183,7 +1319,7 @@ static void test_neuralmodes_visit(bar_case *b)
 
 static void test_field_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_FIELD);
     o.rank = 2;
@@ -1282,7 +1418,7 @@ static void test_field_subspace(bar_case *b)
  * its samples have less energy than the two lowest linear modes'. */
 static void test_skin_field(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_model sm;
     int rc = crom_dfskin_eigen(&b->mesh, &b->mat, NULL, b->fixed, 4, &sm, NULL);
     CHECK_MSG(rc == 0, "eigen: %s", crom_errmsg());
@@ -1611,7 +1747,7 @@ static void test_shell_map(void)
     CHECK(crom_modes_pins(&mesh, 1, clamp, &fixed, &npinned) == 0 && npinned > 0);
     crom_material mat;
     crom_material_init(&mat, 1e7, 0.3, 500);
-    crom_datafree_problem P = {&mesh, mat, {0, 0, -9.81}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&mesh, mat, {0, 0, -9.81}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -1994,7 +2130,7 @@ static void test_lbfgs(bar_case *bc)
     CHECK_LT(errs[0], 1e-6);
     CHECK_LT(errs[0], 1e-4 * errs[1]);
 
-    crom_datafree_problem P = {&bc->mesh, bc->mat, {0, -9.81, 0}, bc->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL};
+    crom_datafree_problem P = {&bc->mesh, bc->mat, {0, -9.81, 0}, bc->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -2070,6 +2206,9 @@ int main(void)
     gradient_check(CROM_DATAFREE_NEURALMODES);
     g_tangent = 0;
     g_quadratic = 0;
+    g_seeded = 1;
+    gradient_check(CROM_DATAFREE_ENERGY);
+    g_seeded = 0;
     gradient_check_field();
     gradient_check_field_basis();
     test_conditional();
@@ -2077,6 +2216,7 @@ int main(void)
     bar_case b;
     bar_setup(&b, 3);
     test_energy_subspace(&b);
+    test_seeded_map(&b);
     test_neuralmodes_subspace(&b);
     test_neuralmodes_visit(&b);
     test_field_subspace(&b);
