@@ -326,15 +326,19 @@ def puppet(out, rows, frames):
               f"{worst:.1%} | {sw:.3g} m | {1e3 * med(f'{out}/red-{r}.csv'):.2f} |")
 
 
-def conditional(out, cases):
-    """pipelines/conditional.mk: one conditional map's static sag at each condition against crom-fullsim"""
-    import meshio
-    m = h5py.File(f"{out}/model.h5", "r")
+def conditional_model(path, what):
+    m = h5py.File(path, "r")
     conds = m.attrs["conditions"]
     conds = (conds.decode() if isinstance(conds, bytes) else conds).strip().replace("\n", ", ")
     secs = m.attrs.get("training_seconds")
     print(f"One energy map of rank {int(m.attrs['rank'])} conditioned on {conds} "
-          f"({float(secs):.3g} s of training); static sag of the clamped bar at each case:\n")
+          f"({float(secs):.3g} s of training); static sag of {what} at each case:\n")
+
+
+def conditional(out, cases, pcases):
+    """pipelines/conditional.mk: two conditional maps' static sag at each condition against crom-fullsim"""
+    import meshio
+    conditional_model(f"{out}/model.h5", "the clamped bar")
     print("| modulus ratio of the clamped half | gravity (m/s^2) | full tip sag (m) | reduced tip sag (m) | "
           "static error | ms per step |")
     print("|---:|---:|---:|---:|---:|---:|")
@@ -348,6 +352,21 @@ def conditional(out, cases):
         red = r.point_data["displacement"][r.points[:, 0] > 0.499, 1].mean()
         ms = 1e3 * float(np.median(col(f"{out}/red-{c}.csv", "seconds")))
         print(f"| {ratio} | -{g} | {full:.4f} | {red:.4f} | {last_frame_error(f'{out}/diff-{c}.txt'):.3g} | {ms:.2f} |")
+    print()
+    conditional_model(f"{out}/model-pin.h5", "the bar pinned at both ends, its far end moved along y")
+    print("| modulus ratio of the clamped half | far end at y (m) | full sag at the middle (m) | "
+          "reduced sag at the middle (m) | static error | ms per step |")
+    print("|---:|---:|---:|---:|---:|---:|")
+    for c in pcases:
+        ratio, pin = c.split("_")
+        f = h5py.File(f"{out}/pfull-{c}.h5", "r")
+        X = f["mesh/vertices"][()]
+        mid = np.abs(X[:, 0]) < 0.03
+        full = f["frames/displacement"][-1][mid, 1].mean()
+        r = meshio.read(f"{out}/pred-{c}.vtu")
+        red = r.point_data["displacement"][np.abs(r.points[:, 0]) < 0.03, 1].mean()
+        ms = 1e3 * float(np.median(col(f"{out}/pred-{c}.csv", "seconds")))
+        print(f"| {ratio} | {pin} | {full:.4f} | {red:.4f} | {last_frame_error(f'{out}/pdiff-{c}.txt'):.3g} | {ms:.2f} |")
 
 
 def bistable(out, pushes):
@@ -393,7 +412,7 @@ if __name__ == "__main__":
     elif sys.argv[1] == "puppet":
         puppet(sys.argv[2], sys.argv[3].split(), sys.argv[4].split())
     elif sys.argv[1] == "conditional":
-        conditional(sys.argv[2], sys.argv[3].split())
+        conditional(sys.argv[2], sys.argv[3].split(), sys.argv[4].split())
     elif sys.argv[1] == "bistable":
         bistable(sys.argv[2], sys.argv[3].split())
     else:

@@ -4,7 +4,11 @@
 # range) and gravity along y (GRAVITY range), trained TMINUTES; then the
 # static sag at conditions drawn as such by no batch (CASES: RATIO_G pairs,
 # g in m/s² downward) against crom-fullsim with the same region modulus
-# and gravity. Output: OUT/table.md (static error and tip sag per case).
+# and gravity. Then Sharp's own pair of conditions: a second map of the bar
+# pinned at both ends, over the modulus ratio and where its far end is
+# pinned (pin:tip:y, PIN range, m), against crom-fullsim moving that end
+# there (--velocity over the first 0.5 s, then held) at PCASES (RATIO_PIN).
+# Output: OUT/table.md (static error and sag per case, both maps).
 #
 #   make -f pipelines/conditional.mk -j2
 #   make -f pipelines/conditional.mk SIZE=0.1 TMINUTES=0.2     # a quick look
@@ -18,10 +22,14 @@ E ?= 2e5
 RATIO ?= 1:10
 GRAVITY ?= -15:-5
 CASES ?= 1.5_6 3_12 6_8 9_14
+PIN ?= -0.2:0.2
+PCASES ?= 1.5_0.05 3_-0.12 6_0.15 9_-0.03
 MAT = --youngs $(E) --poisson 0.45 --density 1000
 STATIC = --pin clamp --dt 0.02 --steps 150 --damping 20 --max-iter 200
 ratio = $(word 1,$(subst _, ,$1))
 grav = $(word 2,$(subst _, ,$1))
+pin = $(word 2,$(subst _, ,$1))
+PSTATIC = --gravity 0,-9.81,0 --dt 0.02 --steps 150 --damping 20 --max-iter 200
 
 .PHONY: all
 all: $(OUT)/table.md
@@ -44,5 +52,21 @@ $(OUT)/diff-%.txt: $(OUT)/red-%.h5 $(OUT)/full-%.h5 $(OUT)/model.h5
 	crom-diff $< $(OUT)/full-$*.h5 --model $(OUT)/model.h5 $(ATOMIC)
 $(OUT)/red-%.vtu: $(OUT)/red-%.h5 $(OUT)/model.h5
 	crom-export --format vtu --model $(OUT)/model.h5 $(QUIET) -o $@ $<
-$(OUT)/table.md: $(foreach c,$(CASES),$(OUT)/diff-$(c).txt $(OUT)/red-$(c).vtu $(OUT)/full-$(c).h5)
-	/usr/bin/python3 $(TOP)/pipelines/benchtab.py conditional $(OUT) "$(CASES)" $(ATOMIC)
+# the pinned end's place as a condition
+$(OUT)/model-pin.h5: $(OUT)/mesh.h5
+	crom-fitfield --objective energy --mesh $< $(MAT) --pin clamp --pin tip --gravity 0,-9.81,0 --rank $(R) \
+	  --condition 'ratio:x<0=$(RATIO)' --condition 'pin:tip:y=$(PIN)' --steps 100000000 --minutes $(TMINUTES) \
+	  --seed $(SEED) --threads 1 $(QUIET) -o $@
+$(OUT)/pfull-%.h5: $(OUT)/mesh.h5
+	crom-fullsim $(MAT) --youngs 'x<0=$(shell awk 'BEGIN {print $(E) * $(call ratio,$*)}')' $(PSTATIC) --pin clamp \
+	  --velocity tip=0,$(shell awk 'BEGIN {print $(call pin,$*) / 0.5}'),0@0:0.5 --threads 1 $(QUIET) -o $@ $<
+$(OUT)/pred-%.h5: $(OUT)/model-pin.h5
+	crom-reducedstep --model $< $(MAT) $(PSTATIC) --pin clamp --pin tip --condition 'ratio:x<0=$(call ratio,$*)' \
+	  --condition 'pin:tip:y=$(call pin,$*)' --threads 1 $(QUIET) --stats $(OUT)/pred-$*.csv -o $@
+$(OUT)/pdiff-%.txt: $(OUT)/pred-%.h5 $(OUT)/pfull-%.h5 $(OUT)/model-pin.h5
+	crom-diff $< $(OUT)/pfull-$*.h5 --model $(OUT)/model-pin.h5 $(ATOMIC)
+$(OUT)/pred-%.vtu: $(OUT)/pred-%.h5 $(OUT)/model-pin.h5
+	crom-export --format vtu --model $(OUT)/model-pin.h5 $(QUIET) -o $@ $<
+$(OUT)/table.md: $(foreach c,$(CASES),$(OUT)/diff-$(c).txt $(OUT)/red-$(c).vtu $(OUT)/full-$(c).h5) \
+                 $(foreach c,$(PCASES),$(OUT)/pdiff-$(c).txt $(OUT)/pred-$(c).vtu $(OUT)/pfull-$(c).h5)
+	/usr/bin/python3 $(TOP)/pipelines/benchtab.py conditional $(OUT) "$(CASES)" "$(PCASES)" $(ATOMIC)

@@ -11,6 +11,7 @@
 #include "base/rng.h"
 #include "datafree/datafree.h"
 #include "datafree/dffield.h"
+#include "phys/mderiv.h"
 #include "datafree/dfloss.h"
 #include "io/io.h"
 #include "phys/modes.h"
@@ -73,6 +74,12 @@ void crom_datafree_ctx_free(crom_datafree_ctx *c)
     free(c->Ec);
     free(c->dxf);
     free(c->dcond);
+    for (int k = 0; c->cond_idx && k < c->P.ncond; k++)
+        free(c->cond_idx[k]);
+    free(c->cond_idx);
+    free(c->cond_n);
+    free(c->pinoff);
+    free(c->lift);
     memset(c, 0, sizeof *c);
 }
 
@@ -89,11 +96,57 @@ int crom_datafree_set_condition(crom_datafree_ctx *c, const double *cond)
             c->grav[p->cond[k].axis] = v;
             continue;
         }
+        if (p->cond[k].kind == CROM_SCENARIO_COND_PIN)
+            continue;
         crom_material *m = &c->sys.mats[c->cond_mat[k]];
         if (!(v > 0) || crom_material_init(m, v * p->mat.E, m->nu, m->rho))
             return crom_err(CROM_EDATA, "ratio %g of region '%s': not a material", v, p->cond[k].ref);
     }
+    if (c->pinoff) { /* the pins where c holds them, and the body's static lift */
+        memset(c->pinoff, 0, sizeof(double) * (size_t)c->n);
+        for (int k = 0; k < p->ncond; k++)
+            if (p->cond[k].kind == CROM_SCENARIO_COND_PIN)
+                cblas_daxpy(c->n, c->cond[k], c->lift + (size_t)k * c->n, 1, c->pinoff, 1);
+    }
     return 0;
+}
+
+/* A pin condition's region: its vertices, every one pinned along the axis. */
+static int pin_region(crom_datafree_ctx *c, const crom_datafree_problem *p, int k)
+{
+    const crom_scenario_cond *cd = &p->cond[k];
+    int rc = crom_mesh_select(p->mesh, cd->ref, &c->cond_idx[k], &c->cond_n[k]);
+    if (rc)
+        return crom_err_ctx("--condition pin:%s:%c", cd->ref, 'x' + cd->axis);
+    for (int j = 0; j < c->cond_n[k]; j++)
+        if (!(p->fixed && p->fixed[3 * (size_t)c->cond_idx[k][j] + cd->axis]))
+            return crom_err(CROM_EUSAGE, "--condition pin:%s:%c: the region is not pinned (give --pin %s)", cd->ref,
+                            'x' + cd->axis, cd->ref);
+    return 0;
+}
+
+/* The static lift of each pin condition (phys/mderiv.h): the body's
+ * small-displacement equilibrium with the region moved by 1 m along its
+ * axis, at the middle of the ranges; zero for the other conditions. */
+static int pin_lifts(crom_datafree_ctx *c, const crom_datafree_problem *p)
+{
+    int n = c->n, nc = p->ncond;
+    double *e = crom_calloc((size_t)n * nc, sizeof(double));
+    c->lift = crom_calloc((size_t)n * nc, sizeof(double));
+    c->pinoff = crom_calloc((size_t)n, sizeof(double));
+    if (!e || !c->lift || !c->pinoff) {
+        free(e);
+        return CROM_EINTERNAL;
+    }
+    for (int k = 0; k < nc; k++)
+        for (int j = 0; j < c->cond_n[k]; j++)
+            e[(size_t)k * n + 3 * (size_t)c->cond_idx[k][j] + p->cond[k].axis] = 1;
+    int rc = crom_mderiv_lift(&c->sys, p->mesh->X, p->fixed, nc, e, c->lift);
+    free(e);
+    for (int k = 0; !rc && k < nc; k++) /* (the solve's round-off off the pins and away from the pin conditions) */
+        if (p->cond[k].kind != CROM_SCENARIO_COND_PIN)
+            memset(c->lift + (size_t)k * n, 0, sizeof(double) * (size_t)n);
+    return rc ? crom_err_ctx("--condition pin") : 0;
 }
 
 /* A conditional problem's materials: each ratio's place in sys.mats, and
@@ -111,12 +164,17 @@ static int cond_init(crom_datafree_ctx *c, const crom_datafree_problem *p, size_
     c->Ec = crom_calloc((size_t)c->maxbatch * nc, sizeof(double));
     c->dxf = crom_malloc(sizeof(float) * rows * (size_t)c->in);
     c->dcond = crom_calloc((size_t)nc, sizeof(double));
-    if (!c->cond || !c->cond_mat || !c->Ec || !c->dxf || !c->dcond)
+    c->cond_idx = crom_calloc((size_t)nc, sizeof(int *));
+    c->cond_n = crom_calloc((size_t)nc, sizeof(int));
+    if (!c->cond || !c->cond_mat || !c->Ec || !c->dxf || !c->dcond || !c->cond_idx || !c->cond_n)
         return CROM_EINTERNAL;
-    double mid[CROM_MODEL_MAXCOND];
+    double mid[CROM_MODEL_MAXCOND] = {0};
     for (int k = 0; k < nc; k++) {
         c->cond_mat[k] = -1;
         mid[k] = 0.5 * (p->cond[k].lo + p->cond[k].hi);
+        int rc = p->cond[k].kind == CROM_SCENARIO_COND_PIN ? pin_region(c, p, k) : 0;
+        if (rc)
+            return rc;
         if (p->cond[k].kind != CROM_SCENARIO_COND_RATIO)
             continue;
         for (int i = 0; p->materials && i < p->materials->nmat; i++)
@@ -126,6 +184,11 @@ static int cond_init(crom_datafree_ctx *c, const crom_datafree_problem *p, size_
             return crom_err(CROM_EUSAGE, "--condition ratio:%s: the region has no material of its own",
                             p->cond[k].ref);
     }
+    int rc = crom_datafree_set_condition(c, mid), pins = 0;
+    for (int k = 0; k < nc; k++)
+        pins |= p->cond[k].kind == CROM_SCENARIO_COND_PIN;
+    if (rc || !pins || (rc = pin_lifts(c, p))) /* (at the middle's materials) */
+        return rc;
     return crom_datafree_set_condition(c, mid);
 }
 
@@ -337,17 +400,14 @@ static int sample_energy(crom_datafree_ctx *c, int b, const double *zb, double r
         for (int k = 0, cq = 0; Psi && k < r; k++) /* ½ Σ_{k<=l} Ψ_kl z_k z_l */
             for (int l = k; l < r; l++, cq++)
                 u += 0.5 * Psi[((size_t)i * r * (r + 1)) / 2 + cq] * zb[k] * zb[l];
-        x[i] = X[i] + (c->P.seed ? c->P.seed[i] : 0) + u;
+        x[i] = X[i] + (c->P.seed ? c->P.seed[i] : 0) + (c->pinoff ? c->pinoff[i] : 0) + u;
     }
-    if (!tets) {
-        crom_fem_opts fo = {0, 0, fixed, 1};
+    if (!tets) { /* (a pin condition needs the force on the pinned DOFs too) */
+        crom_fem_opts fo = {0, 0, c->pinoff ? NULL : fixed, 1};
         bad = crom_system_assemble(sys, x, &fo, &Eb, G, NULL);
     } else { /* K random tets, each standing for nt/K of them */
         memset(G, 0, sizeof(double) * (size_t)n);
         bad = crom_dfloss_tets(fem, K, tets, (double)fem->nt / K, NULL, x, NULL, &Eb, G);
-        for (int i = 0; fixed && i < n; i++)
-            if (fixed[i])
-                G[i] = 0;
     }
     if (!nm) /* gravity: -Σ m_v g·u_v */
         for (int i = 0; i < n; i++) {
@@ -357,9 +417,17 @@ static int sample_energy(crom_datafree_ctx *c, int b, const double *zb, double r
             Eb -= mg * (x[i] - X[i]);
             G[i] -= mg;
         }
+    for (int k = 0; !bad && k < c->P.ncond; k++) /* ∂E_b/∂c_k of a pin: along its lift, pinned DOFs too */
+        if (c->P.cond[k].kind == CROM_SCENARIO_COND_PIN)
+            c->Ec[(size_t)b * c->P.ncond + k] = cblas_ddot(n, G, 1, c->lift + (size_t)k * n, 1);
+    for (int i = 0; fixed && (tets || c->pinoff) && i < n; i++)
+        if (fixed[i])
+            G[i] = 0;
     c->E[b] = Eb;
     for (int k = 0; !bad && k < c->P.ncond; k++) { /* ∂E_b/∂c_k: the energy is linear in both */
         double d = 0;
+        if (c->P.cond[k].kind == CROM_SCENARIO_COND_PIN)
+            continue;
         if (c->P.cond[k].kind == CROM_SCENARIO_COND_GRAVITY) {
             for (int v = 0; v < n / 3; v++)
                 if (!(fixed && fixed[3 * v]))
@@ -774,6 +842,15 @@ static int map_store(const map_trainer *T, const crom_datafree_problem *p, crom_
             return CROM_EINTERNAL;
         }
         memcpy(out->deriv_v, p->deriv, sizeof(double) * nd);
+        crom_model_id(out, out->model_id);
+    }
+    if (!rc && T->ctx.lift) { /* the pin conditions' static lifts (map.h) */
+        size_t nl = (size_t)p->ncond * 3 * p->mesh->nv;
+        if (!(out->lift_v = crom_malloc(sizeof(double) * nl))) {
+            crom_model_free(out);
+            return CROM_EINTERNAL;
+        }
+        memcpy(out->lift_v, T->ctx.lift, sizeof(double) * nl);
         crom_model_id(out, out->model_id);
     }
     if (!rc && p->seed) { /* anchored at the seed state (map.h) */

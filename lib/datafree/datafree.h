@@ -227,11 +227,18 @@ typedef struct {
     double *Ec;              /* [maxbatch][ncond] ∂E_b/∂c_k, explicit */
     float *dxf;              /* [rows][in] dL/d(network input) */
     double *dcond;           /* [ncond] dL/dc of the last loss with a gradient */
+    int **cond_idx, *cond_n; /* [ncond] a pin condition's region: its vertices (else NULL, 0) */
+    double *lift;            /* [ncond][3nv] a pin condition's static lift (phys/mderiv.h; 0 for the others) */
+    double *pinoff;          /* [3nv] Σ_k c_k lift_k: the pins moved and the body's lift at the batch's c
+                              * (NULL: no pin condition) */
 } crom_datafree_ctx;
 
 /* Set the batch's condition c [ncond] (energy objective, conditional):
  * ratio k gives its region's tets the modulus c_k E (the region's own
- * Poisson ratio), gravity sets its component. Returns 0 or CROM_EDATA for
+ * Poisson ratio), gravity sets its component, a pin moves its (pinned)
+ * region by c_k along its axis and the body with it by c_k times its static
+ * lift (the small-displacement equilibrium of a unit move; the energy's
+ * ∂E/∂c_k is then its gradient along the lift, the pins' DOFs included). Returns 0 or CROM_EDATA for
  * a ratio not positive or a value not finite. */
 int crom_datafree_set_condition(crom_datafree_ctx *c, const double *cond);
 

@@ -222,6 +222,11 @@ static const crom_schema_dset model_dsets[] = {
     {"field/derivatives", "f64", "nv,3,D", 0, "1/m", "modal derivatives Psi_ij (i <= j, D = r(r+1)/2) of a neuralmodes "
                                                      "map's quadratic part 1/2 sum Psi_ij z_i z_j (fitfield --derivatives)",
      NULL},
+    {"field/lifts", "f64", "ncond,nv,3", 0, "1", "a conditional map's static lifts (fitfield --condition "
+                                                   "pin:REGION:AXIS): per condition, the body's small-displacement "
+                                                   "equilibrium at rest with that pinned region moved by 1 m along "
+                                                   "its axis (zero for the other kinds); x(0, c) = X + sum_k c_k "
+                                                   "lift_k", NULL},
     {"field/seed", "f64", "nv,3", 0, "m", "an energy map's seed state u_s (Sharp et al. 4.1; fitfield --seed-state): the "
                                           "map is anchored there, x(0) = X + u_s, and a reduced run starts from it", NULL},
     {"field/mesh/triangles", "i32", "ntri,3", 0, "1", "a shell's triangles instead of tets (modes, energy, neuralmodes on a "

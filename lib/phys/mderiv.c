@@ -98,6 +98,40 @@ int crom_mderiv_compute(const crom_system *s, const double *X, const unsigned ch
     return rc;
 }
 
+int crom_mderiv_lift(const crom_system *s, const double *X, const unsigned char *fixed, int nl, const double *e,
+                     double *u)
+{
+    int n = s->n, rc;
+    double *K = crom_malloc(sizeof(double) * (size_t)s->nnz), *Kf = crom_malloc(sizeof(double) * (size_t)s->nnz);
+    double *ep = crom_malloc(sizeof(double) * (size_t)n), *y = crom_malloc(sizeof(double) * (size_t)n);
+    crom_chol *ch = NULL;
+    crom_fem_opts whole = {0, 0, NULL, 1};
+    if (!K || !Kf || !ep || !y)
+        rc = CROM_EINTERNAL;
+    else if (!(rc = crom_system_assemble(s, X, &whole, NULL, NULL, Kf)))
+        rc = factor_rest(s, X, fixed, K, &ch);
+    crom_sym Ks = {n, s->colptr, s->rowind, Kf};
+    for (int l = 0; !rc && l < nl; l++) { /* b = e on the fixed DOFs, −K e on the free ones */
+        double *b = u + (size_t)l * n;
+        for (int d = 0; d < n; d++)
+            ep[d] = fixed && fixed[d] ? e[(size_t)l * n + d] : 0;
+        crom_sym_matvec(&Ks, ep, y);
+        for (int d = 0; d < n; d++)
+            b[d] = fixed && fixed[d] ? ep[d] : -y[d];
+    }
+    if (!rc)
+        rc = crom_chol_solve_many(ch, nl, u, u);
+    for (size_t i = 0; !rc && i < (size_t)n * nl; i++)
+        if (!isfinite(u[i]))
+            rc = crom_err(CROM_EDATA, "a pin's static lift is not finite");
+    if (rc == CROM_EDATA && crom_errmsg() && strstr(crom_errmsg(), "modal derivatives: the stiffness"))
+        rc = crom_err(CROM_EDATA, "the stiffness at rest is singular on the free degrees of freedom (pin the body so "
+                                  "that it cannot move rigidly)");
+    crom_chol_free(ch);
+    free(K), free(Kf), free(ep), free(y);
+    return rc;
+}
+
 int crom_mderiv_basis(const crom_system *s, const double *X, const unsigned char *fixed, const double *phi, int k,
                       double **out, int *kout, double **freq)
 {

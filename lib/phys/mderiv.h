@@ -30,6 +30,17 @@
 
 #include "phys/system.h"
 
+/* Static lifts of moved pins (Craig–Bampton's constraint modes, the same
+ * factor of K at rest): for each of nl displacements e [nl][n] of fixed
+ * DOFs (their free entries ignored), u [nl][n] equal to e on the fixed
+ * DOFs and solving K_ff u_f = −K_fp e_p on the free ones, the
+ * small-displacement equilibrium of the body with its pins moved so (a
+ * conditional map's start where a pin condition moves a pin,
+ * lib/datafree/datafree.h). Returns 0, CROM_EDATA (K singular on the free
+ * DOFs: the body is not held), CROM_EINTERNAL. */
+int crom_mderiv_lift(const crom_system *s, const double *X, const unsigned char *fixed, int nl, const double *e,
+                     double *u);
+
 /* The modal derivatives themselves, psi [n][k(k+1)/2] (row-major; column
  * c for the pair (j, i >= j) in the order (0,0), (0,1) … (0,k−1), (1,1) …),
  * of the k modes phi [n][k] of system s at rest positions X [n] with fixed

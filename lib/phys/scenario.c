@@ -620,8 +620,8 @@ int crom_scenario_cond_parse(const char *flag, const char *v, int range, crom_sc
     memset(c, 0, sizeof *c);
     const char *eq = strrchr(v, '=');
     if (!eq)
-        return crom_err(CROM_EUSAGE, "%s '%s': expected NAME=%s (NAME ratio:REGION or gravity:x|y|z)", flag, v,
-                        range ? "LO:HI" : "VALUE");
+        return crom_err(CROM_EUSAGE, "%s '%s': expected NAME=%s (NAME ratio:REGION, gravity:x|y|z or "
+                        "pin:REGION:x|y|z)", flag, v, range ? "LO:HI" : "VALUE");
     size_t len = (size_t)(eq - v);
     if (len > 6 && !strncmp(v, "ratio:", 6)) {
         c->kind = CROM_SCENARIO_COND_RATIO;
@@ -631,8 +631,17 @@ int crom_scenario_cond_parse(const char *flag, const char *v, int range, crom_sc
     } else if (len == 9 && !strncmp(v, "gravity:", 8) && strchr("xyz", v[8]) && v[8]) {
         c->kind = CROM_SCENARIO_COND_GRAVITY;
         c->axis = v[8] - 'x';
+    } else if (len > 6 && !strncmp(v, "pin:", 4)) { /* pin:REGION:AXIS */
+        c->kind = CROM_SCENARIO_COND_PIN;
+        if (!(len >= 7 && v[len - 2] == ':' && strchr("xyz", v[len - 1]) && v[len - 1]))
+            return crom_err(CROM_EUSAGE, "%s '%s': expected pin:REGION:x|y|z", flag, v);
+        c->axis = v[len - 1] - 'x';
+        if (len - 6 >= sizeof c->ref || check_ref(flag, v + 4, len - 6))
+            return crom_err(CROM_EUSAGE, "%s '%s': a bad region", flag, v);
+        memcpy(c->ref, v + 4, len - 6);
     } else {
-        return crom_err(CROM_EUSAGE, "%s '%.*s': not a condition (ratio:REGION or gravity:x|y|z)", flag, (int)len, v);
+        return crom_err(CROM_EUSAGE, "%s '%.*s': not a condition (ratio:REGION, gravity:x|y|z or pin:REGION:x|y|z)",
+                        flag, (int)len, v);
     }
     double d[2];
     if (range) {
@@ -655,21 +664,39 @@ int crom_scenario_cond_parse(const char *flag, const char *v, int range, crom_sc
         return crom_err(CROM_EUSAGE, "%s '%s': a modulus ratio must be in (0, 1e6]", flag, v);
     if (c->kind == CROM_SCENARIO_COND_GRAVITY && !(fabs(d[0]) <= 1e4 && fabs(d[1]) <= 1e4))
         return crom_err(CROM_EUSAGE, "%s '%s': gravity must be within 1e4 m/s^2", flag, v);
+    if (c->kind == CROM_SCENARIO_COND_PIN && !(fabs(d[0]) <= 1e3 && fabs(d[1]) <= 1e3))
+        return crom_err(CROM_EUSAGE, "%s '%s': a pin's displacement must be within 1e3 m", flag, v);
     c->lo = d[0];
     c->hi = d[1];
     return 0;
 }
 
+/* v with the fewest digits (15 to 17) that read back as v */
+static void shortest(double v, char out[32])
+{
+    for (int d = 15; d <= 17; d++) {
+        snprintf(out, 32, "%.*g", d, v);
+        if (strtod(out, NULL) == v)
+            return;
+    }
+}
+
 int crom_scenario_cond_format(const crom_scenario_cond *c, char *buf, int cap)
 {
+    char lo[32], hi[32];
+    shortest(c->lo, lo);
+    shortest(c->hi, hi);
     if (c->kind == CROM_SCENARIO_COND_RATIO)
-        return snprintf(buf, (size_t)cap, "ratio:%s=%.17g:%.17g", c->ref, c->lo, c->hi);
-    return snprintf(buf, (size_t)cap, "gravity:%c=%.17g:%.17g", 'x' + c->axis, c->lo, c->hi);
+        return snprintf(buf, (size_t)cap, "ratio:%s=%s:%s", c->ref, lo, hi);
+    if (c->kind == CROM_SCENARIO_COND_PIN)
+        return snprintf(buf, (size_t)cap, "pin:%s:%c=%s:%s", c->ref, 'x' + c->axis, lo, hi);
+    return snprintf(buf, (size_t)cap, "gravity:%c=%s:%s", 'x' + c->axis, lo, hi);
 }
 
 int crom_scenario_cond_same(const crom_scenario_cond *a, const crom_scenario_cond *b)
 {
-    return a->kind == b->kind && (a->kind == CROM_SCENARIO_COND_RATIO ? !strcmp(a->ref, b->ref) : a->axis == b->axis);
+    return a->kind == b->kind && (a->kind == CROM_SCENARIO_COND_GRAVITY || !strcmp(a->ref, b->ref)) &&
+           (a->kind == CROM_SCENARIO_COND_RATIO || a->axis == b->axis);
 }
 
 int crom_scenario_cond_apply(crom_scenario *s, const crom_scenario_cond *c, double value)
@@ -678,6 +705,8 @@ int crom_scenario_cond_apply(crom_scenario *s, const crom_scenario_cond *c, doub
         s->gravity[c->axis] = value;
         return 0;
     }
+    if (c->kind == CROM_SCENARIO_COND_PIN)
+        return 0;
     if (!(value > 0))
         return crom_err(CROM_EUSAGE, "ratio:%s: a modulus ratio must be positive, got %g", c->ref, value);
     char v[160];

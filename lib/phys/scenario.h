@@ -106,12 +106,15 @@ int crom_scenario_materials(const crom_scenario *s, const crom_mesh *m, crom_mat
  *   ratio:REGION   the Young's modulus of REGION's tets over the body's
  *                  (a region of another material, --youngs REGION=E)
  *   gravity:AXIS   the gravitational acceleration along x, y or z (m/s²)
+ *   pin:REGION:AXIS where a pinned REGION is held: displaced by the value
+ *                  (m) along x, y or z from rest (Sharp's pinned endpoints;
+ *                  the map moves it, lib/rom/map.h: no scenario flag does)
  * and, when trained over, the range [lo, hi] it was drawn from. */
-enum { CROM_SCENARIO_COND_RATIO = 1, CROM_SCENARIO_COND_GRAVITY = 2 };
+enum { CROM_SCENARIO_COND_RATIO = 1, CROM_SCENARIO_COND_GRAVITY = 2, CROM_SCENARIO_COND_PIN = 3 };
 typedef struct {
     int kind;
-    char ref[128];      /* ratio: the region */
-    int axis;           /* gravity: 0, 1, 2 */
+    char ref[128];      /* ratio, pin: the region */
+    int axis;           /* gravity, pin: 0, 1, 2 */
     double lo, hi;      /* the range (lo <= hi) */
 } crom_scenario_cond;
 
@@ -130,8 +133,9 @@ int crom_scenario_cond_same(const crom_scenario_cond *a, const crom_scenario_con
 
 /* Set the parameter c names to value in s: a ratio makes REGION's tets of
  * modulus value × s->youngs (adding the region of another material if s
- * lacks it), gravity sets its component. Returns 0 or CROM_EUSAGE (too
- * many regions; a ratio not positive). */
+ * lacks it), gravity sets its component; a pin's place is the map's, and
+ * leaves s as it is. Returns 0 or CROM_EUSAGE (too many regions; a ratio
+ * not positive). */
 int crom_scenario_cond_apply(crom_scenario *s, const crom_scenario_cond *c, double value);
 
 /* Canonical flag text, one flag per line (malloc'ed). */

@@ -18,6 +18,8 @@ void crom_map_free(crom_map *map)
         return;
     crom_mesh_free(&map->mesh);
     free(map->x0);
+    free(map->xs);
+    free(map->lift);
     free(map->B);
     free(map->fa);
     free(map->fT);
@@ -150,6 +152,38 @@ static int split_conditions(crom_map *map, const crom_model *model)
     for (int k = 0; k < nc; k++)
         map->cond[k] = 0.5 * (model->cond[k].lo + model->cond[k].hi);
     fold_condition(map);
+    return 0;
+}
+
+/* x0 at the current c: xs plus each pin condition's c times its static
+ * lift (nothing to do without one) */
+static void pins_to_x0(crom_map *map)
+{
+    if (!map->xs)
+        return;
+    memcpy(map->x0, map->xs, sizeof(double) * (size_t)map->n);
+    for (int k = 0; k < map->nc; k++)
+        cblas_daxpy(map->n, map->cond[k], map->lift + (size_t)k * map->n, 1, map->x0, 1);
+}
+
+/* A conditional map's pin conditions: their static lifts. */
+static int pin_conditions(crom_map *map, const crom_model *model)
+{
+    int pins = 0;
+    for (int k = 0; k < model->ncond; k++)
+        pins |= model->cond[k].kind == CROM_SCENARIO_COND_PIN;
+    if (!pins)
+        return 0;
+    if (!model->lift_v)
+        return crom_err(CROM_EDATA, "model %s: a pin condition without its static lifts", model->model_id);
+    size_t nl = (size_t)map->nc * map->n;
+    map->lift = crom_malloc(sizeof(double) * nl);
+    map->xs = crom_malloc(sizeof(double) * (size_t)map->n);
+    if (!map->lift || !map->xs)
+        return CROM_EINTERNAL;
+    memcpy(map->lift, model->lift_v, sizeof(double) * nl);
+    memcpy(map->xs, map->x0, sizeof(double) * (size_t)map->n);
+    pins_to_x0(map);
     return 0;
 }
 
@@ -314,6 +348,8 @@ int crom_map_init(crom_map *map, const crom_model *model, const crom_mesh *mesh)
             for (int i = 0; i < map->n; i++)
                 map->x0[i] = map->mesh.X[i] + (model->seed_v ? model->seed_v[i] : 0);
     }
+    if (!rc && model->ncond)
+        rc = pin_conditions(map, model);
     map->tangent = model->tangent_anchored && !map->phi;
     if (!rc && map->nonlinear)
         rc = set_anchor(map);
@@ -331,6 +367,7 @@ int crom_map_set_condition(crom_map *map, const double *c)
             return crom_err(CROM_EDATA, "condition %d is not finite", k + 1);
     memcpy(map->cond, c, sizeof(double) * (size_t)map->nc);
     fold_condition(map);
+    pins_to_x0(map);
     return set_anchor(map);
 }
 

@@ -92,6 +92,12 @@ typedef struct crom_map_s {
     double *w0;          /* [width1][r] the first layer's latent columns (map->w[0]) */
     double *wc;          /* [width1][nc] its condition columns */
     double *b0, *bc;     /* [width1] its bias, and b0 + Wc c (map->b[0]) */
+    /* its pin conditions (pin:REGION:AXIS): x0 is xs (X, or X + the seed)
+     * plus Σ_k c_k lift_k, lift_k the static lift of condition k (its pinned
+     * region moved by 1 m along its axis and the body with it at rest,
+     * the model's field/lifts; zero for the other kinds); NULL when there
+     * is none */
+    double *xs, *lift;
 } crom_map;
 
 /* Build the map of a model. A map model (energy, neuralmodes) lives on its
@@ -130,7 +136,7 @@ void crom_map_rows(const crom_map *map, const int *idx, int nidx, const double *
 /* Set the condition c [nc] of a conditional map (values of the model's
  * conditions, in their order; outside the trained ranges is allowed:
  * extrapolation): the features of every q change, the anchor follows, so
- * x(0) = X still. CROM_EUSAGE for a map with no conditions, CROM_EDATA for
+ * x(0) = x0 still, and a pin condition moves x0 along its lift. CROM_EUSAGE for a map with no conditions, CROM_EDATA for
  * a non-finite value or network. */
 int crom_map_set_condition(crom_map *map, const double *c);
 

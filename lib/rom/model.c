@@ -31,6 +31,7 @@ void crom_model_free(crom_model *m)
     free(m->basis_v);
     free(m->deriv_v);
     free(m->seed_v);
+    free(m->lift_v);
     free(m->frequencies);
     free(m->skin_w);
     free(m->skin_eig);
@@ -155,6 +156,8 @@ const char *crom_model_id(const crom_model *m, char id[17])
             fnv_bytes(&s, m->deriv_v, sizeof(double) * 3 * (size_t)crom_model_nderiv(m) * m->mesh.nv);
         if (m->seed_v)
             fnv_bytes(&s, m->seed_v, sizeof(double) * 3 * (size_t)m->mesh.nv);
+        if (m->lift_v)
+            fnv_bytes(&s, m->lift_v, sizeof(double) * 3 * (size_t)m->mesh.nv * m->ncond);
         for (int k = 0; k < m->ncond; k++) { /* a conditional map's inputs after q */
             char c[200];
             crom_scenario_cond_format(&m->cond[k], c, sizeof c);
@@ -508,6 +511,10 @@ static int write_map(hid_t loc, const crom_model *m)
     if (!rc && m->seed_v) {
         hsize_t ds[2] = {(hsize_t)m->mesh.nv, 3};
         rc = crom_h5_put_f64(loc, "field/seed", 2, ds, m->seed_v);
+    }
+    if (!rc && m->lift_v) {
+        hsize_t dl[3] = {(hsize_t)m->ncond, (hsize_t)m->mesh.nv, 3};
+        rc = crom_h5_put_f64(loc, "field/lifts", 3, dl, m->lift_v);
     }
     if (!rc && m->frequencies)
         rc = crom_h5_put_f64(loc, "frequencies", 1, &dr, m->frequencies);
@@ -898,6 +905,24 @@ static int read_map(hid_t h, crom_model *m, const char *act)
                             (unsigned long long)d[1], m->mesh.nv);
         if (!all_finite_d(m->seed_v, (size_t)m->mesh.nv * 3))
             return crom_err(CROM_EDATA, "field/seed has non-finite values");
+    }
+    int pins = 0;
+    for (int k = 0; k < m->ncond; k++)
+        pins |= m->cond[k].kind == CROM_SCENARIO_COND_PIN;
+    if (crom_h5_has(h, "field/lifts")) {
+        hsize_t d[3];
+        if (!pins)
+            return crom_err(CROM_EDATA, "field/lifts belongs to a map with a pin condition");
+        if ((rc = crom_h5_read_f64(h, "field/lifts", 3, d, &m->lift_v)))
+            return rc;
+        if (d[0] != (hsize_t)m->ncond || d[1] != (hsize_t)m->mesh.nv || d[2] != 3)
+            return crom_err(CROM_EDATA, "field/lifts is [%llu, %llu, %llu], expected [%d, %d, 3]",
+                            (unsigned long long)d[0], (unsigned long long)d[1], (unsigned long long)d[2], m->ncond,
+                            m->mesh.nv);
+        if (!all_finite_d(m->lift_v, (size_t)m->ncond * m->mesh.nv * 3))
+            return crom_err(CROM_EDATA, "field/lifts has non-finite values");
+    } else if (pins) {
+        return crom_err(CROM_EDATA, "a map with a pin condition needs its static lifts field/lifts");
     }
     if (crom_h5_has(h, "frequencies")) {
         m->frequencies = crom_malloc(sizeof(double) * (size_t)m->rank);

@@ -116,6 +116,8 @@ typedef struct {
     double *basis_v;     /* [nv][3][r] W at the vertices (MAP: linear part or NULL) */
     double *deriv_v;     /* neuralmodes: [nv][3][r(r+1)/2] the modal derivatives Ψ_ij (i <= j) of
                           * the quadratic part ½ Σ Ψ_ij q_i q_j, or NULL (lib/phys/mderiv.h) */
+    double *lift_v;      /* a conditional map with a pin condition: [ncond][nv][3] each condition's static
+                          * lift (zero but for pin conditions; lib/rom/map.h), or NULL */
     double *seed_v;      /* energy maps: [nv][3] the seed state's displacement (Sharp et al. §4.1):
                           * the map is anchored there, x(0) = X + seed_v, or NULL (at rest) */
     crom_locator loc;    /* point location on mesh */

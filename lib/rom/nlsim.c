@@ -109,7 +109,7 @@ static int rods_setup(crom_nlsim *s)
     if (!s->rod_d0 || !s->rod_rest || !s->rod_D)
         return CROM_EINTERNAL;
     for (int k = 0; k < nr && !rc; k++) {
-        double *d0 = s->rod_d0 + 3 * k, *D = s->rod_D + (size_t)3 * k * p;
+        double *d0 = s->rod_d0 + 3 * k, *D = s->rod_D + (size_t)3 * k * p, l0[3] = {0, 0, 0};
         for (int e = 0; e < 2 && !rc; e++) {
             crom_nlsim_bc b;
             memset(&b, 0, sizeof b);
@@ -123,12 +123,13 @@ static int rods_setup(crom_nlsim *s)
                 double w = (e ? 1 : -1) * s->sys.mass[v] / b.mass;
                 for (int c = 0; c < 3; c++) {
                     d0[c] += w * map->x0[3 * (size_t)v + c];
+                    l0[c] += w * map->mesh.X[3 * (size_t)v + c];
                     cblas_daxpy(p, w, map->B + (3 * (size_t)v + c) * p, 1, D + (size_t)c * p, 1);
                 }
             }
             free(b.idx);
         }
-        s->rod_rest[k] = sqrt(d0[0] * d0[0] + d0[1] * d0[1] + d0[2] * d0[2]);
+        s->rod_rest[k] = sqrt(l0[0] * l0[0] + l0[1] * l0[1] + l0[2] * l0[2]); /* the ends' distance at rest */
     }
     return rc;
 }
@@ -472,6 +473,14 @@ int crom_nlsim_set_condition(crom_nlsim *s, crom_map *map, crom_scenario *sc, co
         return rc;
     if (sc->nmat && (rc = crom_system_set_materials(&s->sys, sc, &map->mesh)))
         return rc;
+    if (map->xs) { /* a pin condition moved x0: the cached rows of it */
+        for (int i = 0; s->cv && i < s->ncv; i++)
+            memcpy(s->Xc + 3 * (size_t)i, map->x0 + 3 * (size_t)s->cv[i], sizeof(double) * 3);
+        free(s->rod_d0), free(s->rod_rest), free(s->rod_D);
+        s->rod_d0 = s->rod_rest = s->rod_D = NULL;
+        if ((rc = rods_setup(s)))
+            return rc;
+    }
     /* the state's features and their velocity at the new c */
     if ((rc = crom_map_features(map, s->q, s->an, s->T)))
         return rc;

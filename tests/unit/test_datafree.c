@@ -40,6 +40,7 @@
 #include "nn/nn.h"
 #include "phys/fem.h"
 #include "phys/modes.h"
+#include "phys/sym.h"
 #include "rom/cubature.h"
 #include "rom/map.h"
 #include "rom/metrics.h"
@@ -755,6 +756,183 @@ static void test_conditional(void)
     free(x);
     free(g);
     crom_datafree_ctx_free(&c);
+    crom_nn_mlp_free(&net);
+    free(fixed);
+    crom_mesh_free(&m);
+}
+
+/* A pin condition (Sharp et al.'s conditional bar: where its pinned
+ * endpoints are): the bar clamped at x = -0.5 and pinned at x = +0.5, the
+ * far pin moved along y by c. dL/dc (through the network's input and the
+ * energy's own dependence: the elastic force holding the far pin, along y)
+ * against central differences; the stored map holds x(0, c) = X with the
+ * far pin moved by c, every z keeps both pins where c puts them; a reduced
+ * run over a cubature of half the tets starts there with its pins
+ * satisfied, and after the condition changes its elastic energy at q = 0 is
+ * that of the moved pin (the cubature's cached rows follow); a pin on a
+ * region that is not pinned is refused. */
+static void test_conditional_pin(void)
+{
+    crom_mesh m;
+    make_bar(&m, 0.2);
+    CHECK(crom_mesh_region_spec(&m, "far=x>0.49") == 0);
+    int n = 3 * m.nv;
+    unsigned char *fixed = clamp_mask(&m);
+    for (int v = 0; v < m.nv; v++)
+        if (m.X[3 * v] > 0.49)
+            memset(fixed + 3 * v, 1, 3);
+    crom_scenario_cond cond[2], t;
+    CHECK(crom_scenario_cond_parse("--condition", "pin:far:y=-0.1:0.1", 1, &cond[0]) == 0);
+    CHECK(cond[0].kind == CROM_SCENARIO_COND_PIN && cond[0].axis == 1 && !strcmp(cond[0].ref, "far"));
+    CHECK(crom_scenario_cond_parse("--condition", "gravity:y=-15:-5", 1, &cond[1]) == 0);
+    char buf[200];
+    crom_scenario_cond_format(&cond[0], buf, sizeof buf);
+    CHECK(!strcmp(buf, "pin:far:y=-0.1:0.1"));
+    CHECK(crom_scenario_cond_parse("--condition", "pin:far:x=0.2", 0, &t) == 0 && !crom_scenario_cond_same(&t, &cond[0]));
+    CHECK(crom_scenario_cond_parse("--condition", "pin:far:y=0.2", 0, &t) == 0 && crom_scenario_cond_same(&t, &cond[0]));
+    const char *bad[] = {"pin:far=0:1", "pin::y=0:1", "pin:far:w=0:1", "pin:far:y=0:2e3"};
+    for (int i = 0; i < 4; i++) {
+        CHECK_MSG(crom_scenario_cond_parse("--condition", bad[i], 1, &t) == CROM_EUSAGE, "'%s' accepted", bad[i]);
+        crom_err_clear();
+    }
+    crom_material mat;
+    crom_material_init(&mat, 1e6, 0.3, 1000);
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 2, cond, NULL};
+    crom_datafree_opts o;
+    crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
+    int r = 3, B = 5, widths[] = {r + 2, 12, 12, n};
+    o.rank = r;
+    o.sigma = 0.04;
+    o.lambda = 0.7;
+    o.tangent_weight = 0.5;
+    o.tangent_floor = 1;
+    crom_nn_spec spec;
+    CHECK(crom_nn_spec_set(&spec, 4, widths, o.act) == 0);
+    crom_nn_mlp net;
+    crom_rng rng;
+    crom_rng_seed(&rng, 43);
+    CHECK(crom_nn_mlp_init(&net, &spec, NULL, &rng) == 0);
+    crom_nn_layer *ly = &net.layer[2];
+    for (int i = 0; i < ly->out; i++) /* the trainer's mask: pinned rows zero, the rest small */
+        for (int j = 0; j < ly->in; j++)
+            ly->W[(size_t)i * ly->in + j] = fixed[i] ? 0 : 0.3f * ly->W[(size_t)i * ly->in + j];
+    for (int i = 0; i < net.layer[0].out; i++)
+        net.layer[0].b[i] = (float)(0.5 * crom_rng_normal(&rng));
+    crom_datafree_ctx c;
+    CHECK_MSG(crom_datafree_ctx_init(&c, &P, &o, &net, B) == 0, "ctx: %s", crom_errmsg());
+    double z[8 * 3], cv[2] = {0.04, -8.2}, cp[2];
+    for (int i = 0; i < B * r; i++)
+        z[i] = crom_rng_normal(&rng);
+    for (int i = B * r; i < (B + c.B0) * r; i++)
+        z[i] = (i - B * r) % (r + 1) == 0 ? 0.1 : 0;
+    CHECK(crom_datafree_set_condition(&c, cv) == 0);
+    float *g = malloc(sizeof(float) * net.nparams);
+    crom_dftrain_terms tm;
+    CHECK(crom_datafree_loss(&c, B, z, 0.8, 0, NULL, &tm, g) == 0);
+    double dc = c.dcond[0], L[2], h = 1e-2; /* the network runs in float: a step well above its rounding */
+    for (int sgn = 0; sgn < 2; sgn++) {
+        memcpy(cp, cv, sizeof cp);
+        cp[0] += sgn ? -h : h;
+        CHECK(crom_datafree_set_condition(&c, cp) == 0);
+        CHECK(crom_datafree_loss(&c, B, z, 0.8, 0, NULL, &tm, NULL) == 0);
+        L[sgn] = tm.objective;
+    }
+    double fd = (L[0] - L[1]) / (2 * h);
+    fprintf(stderr, "pin condition: dL/dc = %.8g, central difference %.8g\n", dc, fd);
+    CHECK(fabs(dc) > 0);
+    CHECK_LT(fabs(fd - dc), 3e-3 * fabs(fd));
+    /* the static lift: 1 m along y on the far pin, 0 on the clamp, and the
+     * linear equilibrium at rest on the free DOFs (K lift = 0 there) */
+    const double *lift = c.lift;
+    double pinmiss = 0, kf = 0, kp = 0, *y = malloc(sizeof(double) * n), *Kv = malloc(sizeof(double) * c.sys.nnz);
+    for (int i = 0; i < n; i++)
+        if (fixed[i])
+            pinmiss = fmax(pinmiss, fabs(lift[i] - (m.X[3 * (i / 3)] > 0.49 && i % 3 == 1)));
+    crom_fem_opts whole = {0, 0, NULL, 1};
+    CHECK(crom_system_assemble(&c.sys, m.X, &whole, NULL, NULL, Kv) == 0);
+    crom_sym Ks = {n, c.sys.colptr, c.sys.rowind, Kv};
+    crom_sym_matvec(&Ks, lift, y);
+    for (int i = 0; i < n; i++) {
+        if (fixed[i])
+            kp = fmax(kp, fabs(y[i]));
+        else
+            kf = fmax(kf, fabs(y[i]));
+    }
+    fprintf(stderr, "pin condition: the lift's pins off by %.1e; |K lift| on the free DOFs %.2e, on the pins %.2e\n",
+            pinmiss, kf, kp);
+    CHECK(pinmiss == 0);
+    CHECK_LT(kf, 1e-9 * kp);
+    free(y), free(Kv);
+    /* the stored map: x(0, c) = X + c lift; the pins hold for every z */
+    crom_model model;
+    crom_map map;
+    CHECK(crom_model_from_map(&model, "energy", &net, &m, NULL) == 0);
+    CHECK(crom_model_set_conditions(&model, 2, cond) == 0);
+    CHECK(crom_map_init(&map, &model, NULL) == CROM_EDATA); /* a pin condition without its lifts */
+    crom_err_clear();
+    model.lift_v = malloc(sizeof(double) * 2 * n);
+    memcpy(model.lift_v, lift, sizeof(double) * 2 * n);
+    CHECK(crom_map_init(&map, &model, NULL) == 0 && map.nc == 2 && map.cond[0] == 0);
+    double *x = malloc(sizeof(double) * n), z0[3] = {0, 0, 0}, miss = 0, cc[2] = {0.07, -6};
+    CHECK(crom_map_set_condition(&map, cc) == 0);
+    for (int b = -1; b < B; b++) {
+        CHECK(crom_map_eval(&map, b < 0 ? z0 : z + b * r, x, NULL) == 0);
+        for (int i = 0; i < n; i++)
+            if (b < 0 || fixed[i])
+                miss = fmax(miss, fabs(x[i] - (m.X[i] + 0.07 * lift[i])));
+    }
+    CHECK_LT(miss, 1e-15);
+    /* a reduced run over half the tets, then the condition changes */
+    crom_scenario sc;
+    crom_scenario_defaults(&sc);
+    sc.youngs = 1e6;
+    sc.poisson = 0.3;
+    sc.gravity[1] = -6;
+    strcpy(sc.pins[sc.npins++], "clamp");
+    strcpy(sc.pins[sc.npins++], "far");
+    crom_nlsim s;
+    int rc = crom_nlsim_init(&s, &map, &sc, 0, NULL, NULL, 1);
+    CHECK_MSG(rc == 0, "nlsim: %s", crom_errmsg());
+    int K = m.nt / 2, *el = malloc(sizeof(int) * K);
+    double *w = malloc(sizeof(double) * K);
+    for (int k = 0; k < K; k++)
+        el[k] = 2 * k, w[k] = 2;
+    if (!rc) {
+        CHECK(crom_nlsim_use_cubature(&s, K, el, w) == 0);
+        CHECK(crom_nlsim_constraint_residual(&s) == 0);
+        double c2[2] = {-0.05, -6}, Kk, Ee, W, Eref = 0;
+        CHECK(crom_nlsim_set_condition(&s, &map, &sc, cond, c2) == 0);
+        CHECK(crom_nlsim_constraint_residual(&s) == 0);
+        CHECK(crom_nlsim_energies(&s, &Kk, &Ee, &W) == 0);
+        crom_nlsim_positions(&s, x, NULL);
+        crom_system sys;
+        CHECK(crom_system_init(&sys, &m, 1e6, 0.3, 1000) == 0);
+        for (int k = 0; k < K; k++) {
+            double xe[12];
+            crom_fem_tet_positions(&sys.fem, x, el[k], xe);
+            Eref += 2 * crom_system_elem_energy(&sys, el[k], xe);
+        }
+        fprintf(stderr, "pin condition: the run's elastic energy at q = 0 after the pin moves to -0.05 m: %.8g J "
+                        "(direct %.8g J)\n", Ee, Eref);
+        CHECK(Eref > 0);
+        CHECK_REL(Ee, Eref, 1e-12);
+        crom_system_free(&sys);
+        crom_nlsim_free(&s);
+    }
+    free(el), free(w);
+    crom_map_free(&map);
+    crom_model_free(&model);
+    crom_datafree_ctx_free(&c);
+    /* a pin condition on a region that is not pinned */
+    unsigned char *clamp = clamp_mask(&m);
+    P.fixed = clamp;
+    CHECK(crom_datafree_ctx_init(&c, &P, &o, &net, B) == CROM_EUSAGE);
+    CHECK(strstr(crom_errmsg(), "pin:far:y: the region is not pinned (give --pin far)") != NULL);
+    crom_err_clear();
+    crom_datafree_ctx_free(&c);
+    free(clamp);
+    free(x);
+    free(g);
     crom_nn_mlp_free(&net);
     free(fixed);
     crom_mesh_free(&m);
@@ -2212,6 +2390,7 @@ int main(void)
     gradient_check_field();
     gradient_check_field_basis();
     test_conditional();
+    test_conditional_pin();
     test_map();
     bar_case b;
     bar_setup(&b, 3);
