@@ -6,6 +6,7 @@
 # other proportions) and on the trained bar with a 4x softer material: the
 # indicator ranks the runs as their true errors rank, stays within a small
 # factor of them, and warns only where the subspace is out of its depth.
+# asan: skip (full and reduced runs of four bars, 31 s under ASan; tests/unit/test_rom.c covers the indicator code there)
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 SC=(--pin clamp --gravity 0,-9.81,0 --youngs 2e5 --poisson 0.3 --dt 0.02 --steps 25)

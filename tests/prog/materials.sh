@@ -23,6 +23,7 @@
 #   - the continuous objectives (skinning eigenmodes, fields) take them too;
 #   - bad regions, bad values, and what takes one material (crom-fitfield on
 #     samples, crom-metrics) refuse with one line.
+# asan: skip (full, reduced and live runs of bars, 27 s under ASan; tests/unit/test_sim.c and test_fem.c cover the materials code there)
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 crom-mesh box --dims 1,0.1,0.1 --size 0.04 --region clamp='x<-0.499' --region tip='x>0.499' -q -o bar.h5

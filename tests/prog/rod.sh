@@ -9,6 +9,7 @@
 # path) follow the full run in a POD basis of it to round-off; crom-live
 # runs a rod too; the puppet experiment runs at a small size; bad rods are
 # one line.
+# asan: skip (full and reduced runs of driven blocks, 18 s under ASan; tests/unit/test_rod.c, test_rom.c and test_datafree.c cover the rod code there)
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 cat > two.geo <<'EOF'
