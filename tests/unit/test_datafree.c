@@ -629,6 +629,32 @@ static double check_map_curvature(crom_map *map, double *q, unsigned seed)
 /* A map model with a random network (and modes for neuralmodes): its
  * double Jacobian against differences, the curvature of its features, its positions against the float
  * network, pins exactly at rest after zeroing their rows. */
+/* The loss options and a random network of the two conditional tests: a
+ * map of rank r and 2 conditions to n outputs, its last layer small (and
+ * zero on the rows of mask, the trainer's pins, unless NULL), its first
+ * biases away from ELU's kink. */
+static void cond_case(crom_datafree_opts *o, crom_nn_mlp *net, crom_rng *rng, int r, int n, uint64_t seed,
+                      const unsigned char *mask)
+{
+    crom_datafree_defaults(o, CROM_DATAFREE_ENERGY);
+    int widths[] = {r + 2, 12, 12, n};
+    o->rank = r;
+    o->sigma = 0.04;
+    o->lambda = 0.7;
+    o->tangent_weight = 0.5;
+    o->tangent_floor = 1;
+    crom_nn_spec spec;
+    CHECK(crom_nn_spec_set(&spec, 4, widths, o->act) == 0);
+    crom_rng_seed(rng, seed);
+    CHECK(crom_nn_mlp_init(net, &spec, NULL, rng) == 0);
+    crom_nn_layer *ly = &net->layer[2];
+    for (int i = 0; i < ly->out; i++)
+        for (int j = 0; j < ly->in; j++)
+            ly->W[(size_t)i * ly->in + j] = mask && mask[i] ? 0 : 0.3f * ly->W[(size_t)i * ly->in + j];
+    for (int i = 0; i < net->layer[0].out; i++)
+        net->layer[0].b[i] = (float)(0.5 * crom_rng_normal(rng));
+}
+
 /* A conditional energy map (Sharp et al. §3.5): the network takes [z, c]
  * with c the modulus ratio of the bar's far half and the gravity along y.
  * dL/dc (through the network's input and the energy's own dependence: the
@@ -665,24 +691,10 @@ static void test_conditional(void)
     crom_material_init(&mat, sc.youngs, sc.poisson, sc.density);
     crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, &sc, 2, cond, NULL};
     crom_datafree_opts o;
-    crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
-    int r = 3, B = 5, widths[] = {r + 2, 12, 12, 3 * m.nv};
-    o.rank = r;
-    o.sigma = 0.04;
-    o.lambda = 0.7;
-    o.tangent_weight = 0.5;
-    o.tangent_floor = 1;
-    crom_nn_spec spec;
-    CHECK(crom_nn_spec_set(&spec, 4, widths, o.act) == 0);
     crom_nn_mlp net;
     crom_rng rng;
-    crom_rng_seed(&rng, 41);
-    CHECK(crom_nn_mlp_init(&net, &spec, NULL, &rng) == 0);
-    crom_nn_layer *ly = &net.layer[2];
-    for (int i = 0; i < ly->out * ly->in; i++)
-        ly->W[i] *= 0.3f;
-    for (int i = 0; i < net.layer[0].out; i++)
-        net.layer[0].b[i] = (float)(0.5 * crom_rng_normal(&rng));
+    int r = 3, B = 5;
+    cond_case(&o, &net, &rng, r, 3 * m.nv, 41, NULL);
     crom_datafree_ctx c;
     CHECK_MSG(crom_datafree_ctx_init(&c, &P, &o, &net, B) == 0, "ctx: %s", crom_errmsg());
     double z[8 * 3], cv[2] = {3.7, -8.2}, cp[2];
@@ -799,25 +811,10 @@ static void test_conditional_pin(void)
     crom_material_init(&mat, 1e6, 0.3, 1000);
     crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 2, cond, NULL};
     crom_datafree_opts o;
-    crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
-    int r = 3, B = 5, widths[] = {r + 2, 12, 12, n};
-    o.rank = r;
-    o.sigma = 0.04;
-    o.lambda = 0.7;
-    o.tangent_weight = 0.5;
-    o.tangent_floor = 1;
-    crom_nn_spec spec;
-    CHECK(crom_nn_spec_set(&spec, 4, widths, o.act) == 0);
     crom_nn_mlp net;
     crom_rng rng;
-    crom_rng_seed(&rng, 43);
-    CHECK(crom_nn_mlp_init(&net, &spec, NULL, &rng) == 0);
-    crom_nn_layer *ly = &net.layer[2];
-    for (int i = 0; i < ly->out; i++) /* the trainer's mask: pinned rows zero, the rest small */
-        for (int j = 0; j < ly->in; j++)
-            ly->W[(size_t)i * ly->in + j] = fixed[i] ? 0 : 0.3f * ly->W[(size_t)i * ly->in + j];
-    for (int i = 0; i < net.layer[0].out; i++)
-        net.layer[0].b[i] = (float)(0.5 * crom_rng_normal(&rng));
+    int r = 3, B = 5;
+    cond_case(&o, &net, &rng, r, n, 43, fixed);
     crom_datafree_ctx c;
     CHECK_MSG(crom_datafree_ctx_init(&c, &P, &o, &net, B) == 0, "ctx: %s", crom_errmsg());
     double z[8 * 3], cv[2] = {0.04, -8.2}, cp[2];
