@@ -369,17 +369,28 @@ def conditional(out, cases, pcases):
         print(f"| {ratio} | {pin} | {full:.4f} | {red:.4f} | {last_frame_error(f'{out}/pdiff-{c}.txt'):.3g} | {ms:.2f} |")
 
 
-def bistable(out, pushes):
+def bistable(out, pushes, rounds):
     """pipelines/bistable.mk: the compressed bar's two buckled equilibria, full and in the seeded energy map"""
     import meshio
-    m = h5py.File(f"{out}/energy.h5", "r")
+    m0 = h5py.File(f"{out}/model-0.h5", "r")
     mesh = h5py.File(f"{out}/mesh.h5", "r")
     X = mesh["vertices"][()]
     mid = np.abs(X[:, 0]) < 0.02
+    secs = [float(h5py.File(f"{out}/model-{k}.h5", "r").attrs["training_seconds"]) for k in rounds]
+    full_up = h5py.File(f"{out}/full-up.h5", "r")["frames"]
+    eu = float(full_up["elastic_energy"][-1] + full_up["external_energy"][-1])
     print(f"A {len(X)}-vertex 2-D bar compressed by its ends and buckled under gravity; an energy map of rank "
-          f"{int(m.attrs['rank'])} grown from the down state ({m.attrs['seed_state']}), "
-          f"{float(m.attrs['training_seconds']):.0f} s of training at sigma {float(m.attrs['sigma']):g} m. "
-          "Final states after each push (potential = elastic + gravity, from rest):\n")
+          f"{int(m0.attrs['rank'])} grown from the down state ({m0.attrs['seed_state']}), "
+          f"{secs[0]:.0f} s of training at sigma {float(m0.attrs['sigma']):g} m, then refined along its own push "
+          f"run {len(rounds) - 1} times ({', '.join(f'{s:.0f} s' for s in secs[1:])}). The up state after the push "
+          "in each round's map:\n")
+    print("| round | subspace potential (J) | full (J) | off by |")
+    print("|---:|---:|---:|---:|")
+    for k in rounds:
+        r = h5py.File(f"{out}/probe-{k}.h5", "r")["frames"]
+        er = float(r["elastic_energy"][-1] + r["external_energy"][-1])
+        print(f"| {k} | {er:.4g} | {eu:.4g} | {100 * (er - eu) / eu:+.1f} % |")
+    print("\nFinal states after each push in the last map (potential = elastic + gravity, from rest):\n")
     print("| push | full: middle at (m) | full potential (J) | subspace: middle at (m) | subspace potential (J) | "
           "potential off by | displacement error, last frame |")
     print("|---|---:|---:|---:|---:|---:|---:|")
@@ -414,6 +425,6 @@ if __name__ == "__main__":
     elif sys.argv[1] == "conditional":
         conditional(sys.argv[2], sys.argv[3].split(), sys.argv[4].split())
     elif sys.argv[1] == "bistable":
-        bistable(sys.argv[2], sys.argv[3].split())
+        bistable(sys.argv[2], sys.argv[3].split(), sys.argv[4].split())
     else:
         sys.exit("usage: benchtab.py tables|training|datafree|scale|mpi|hetero|puppet|conditional|bistable DIR ...")

@@ -64,6 +64,7 @@ void crom_body_free(crom_body *b)
     crom_result_equilibria_free(&b->eq);
     free(b->visit);
     free(b->seed);
+    crom_model_free(&b->init);
     memset(b, 0, sizeof *b);
 }
 
@@ -137,6 +138,48 @@ int crom_body_seed(crom_body *b, const char *path, long frame, crom_datafree_pro
     b->seed = u;
     P->seed = u;
     return 0;
+}
+
+int crom_body_refine(crom_body *b, const char *path, const char *latents, int rank, crom_datafree_problem *P)
+{
+    crom_model *m = &b->init;
+    crom_model_free(m);
+    int rc = crom_model_load(path, m);
+    if (rc)
+        return crom_err_ctx("--init-model");
+    if (strcmp(m->basis, "energy"))
+        return crom_err(CROM_EUSAGE, "--init-model %s is a %s model, not an energy map", path, m->basis);
+    if (crom_map_same_mesh(&m->mesh, &b->mesh))
+        return crom_err(CROM_EUSAGE, "--init-model %s maps another mesh", path);
+    if (m->rank != rank)
+        return crom_err(CROM_EUSAGE, "--init-model %s has rank %d, not %d", path, m->rank, rank);
+    int same = m->ncond == P->ncond;
+    for (int k = 0; same && k < m->ncond; k++)
+        same = crom_scenario_cond_same(&m->cond[k], &P->cond[k]) && m->cond[k].lo == P->cond[k].lo &&
+               m->cond[k].hi == P->cond[k].hi;
+    if (!same)
+        return crom_err(CROM_EUSAGE, "--init-model %s was trained over other conditions (give its --condition flags)",
+                        path);
+    if (P->seed)
+        return crom_err(CROM_EUSAGE, "--init-model brings its own seed state: drop --seed-state");
+    P->init = &m->mlp;
+    P->seed = m->seed_v;
+    if (m->seed_v)
+        snprintf(b->seed_what, sizeof b->seed_what, "the seed state of model %s", m->model_id);
+    if (!latents)
+        return 0;
+    crom_in in;
+    char *id = NULL;
+    if ((rc = crom_in_open(&in, latents)))
+        return crom_err_ctx("--latents");
+    if ((rc = crom_in_expect(&in, "crom/latent", 1)) || (rc = crom_h5_get_str(in.h5, ".", "model_id", &id)))
+        crom_err_ctx("--latents");
+    else if (strcmp(id, m->model_id))
+        rc = crom_err(CROM_EUSAGE, "--latents %s is a run of model %s, not of --init-model %s (%s)", latents, id, path,
+                      m->model_id);
+    free(id);
+    crom_in_close(&in);
+    return rc ? rc : crom_body_visit(b, latents, rank, P);
 }
 
 double crom_body_volume(const crom_body *b)
@@ -384,8 +427,10 @@ int crom_body_write_map(const crom_body *b, const crom_scenario *sc, crom_model 
         snprintf(what, sizeof what, "%d constrained equilibria in the modes %s", b->eq.K, b->eq.model_id);
         rc = crom_h5_set_str(out.h5, ".", "supervised", what);
     }
-    if (!rc && nm && P->nvisit > 0)
+    if (!rc && P->nvisit > 0)
         rc = crom_h5_set_str(out.h5, ".", "sampled_along", b->visit_what);
+    if (!rc && P->init)
+        rc = crom_h5_set_str(out.h5, ".", "refined_from", b->init.model_id);
     if (!rc && P->seed)
         rc = crom_h5_set_str(out.h5, ".", "seed_state", b->seed_what);
     return finish(&out, rc);

@@ -727,6 +727,16 @@ static int map_setup(map_trainer *T, const crom_datafree_problem *p)
     crom_dftrain_seed(o->seed, &T->irng, &T->srng);
     if ((rc = crom_nn_mlp_init(&T->net, &spec, T->params, &T->irng)))
         return rc;
+    if (p->init) { /* a trained map's network (refined along a run) */
+        if (nm)
+            return crom_err(CROM_EUSAGE, "a network to start from is for the energy objective");
+        if (p->init->nparams != T->np || p->init->spec.nlayers != spec.nlayers ||
+            memcmp(p->init->spec.width, spec.width, sizeof(int) * (size_t)(spec.nlayers + 1)) ||
+            p->init->spec.act != spec.act)
+            return crom_err(CROM_EUSAGE, "the map to start from has another shape (rank, conditions, --width, "
+                                         "--depth, activation)");
+        memcpy(T->params, p->init->params, sizeof(float) * T->np);
+    }
     /* the last layer: pinned outputs stay exactly 0; neuralmodes starts
      * from the linear modes (y = 0) */
     crom_nn_layer *ly = &T->net.layer[T->net.spec.nlayers - 1];
@@ -743,10 +753,13 @@ static int map_setup(map_trainer *T, const crom_datafree_problem *p)
         if (!T->sup || !T->zs)
             return CROM_EINTERNAL;
         T->ctx.sup = T->sup;
-    } else if (nm && p->nvisit > 0) {
+    } else if (p->nvisit > 0) {
+        if (!nm && !p->init)
+            return crom_err(CROM_EUSAGE, "an energy map samples along a run of the map it starts from: give it");
         T->nvisit = p->nvisit;
         T->visit_z = p->visit_z;
-        if (!(T->zs = crom_malloc(sizeof(double) * (size_t)o->batch * o->rank)))
+        /* (energy: the batch, then the collapse floor's r secants) */
+        if (!(T->zs = crom_malloc(sizeof(double) * (size_t)(o->batch + o->rank) * o->rank)))
             return CROM_EINTERNAL;
     }
     rc = crom_datafree_ctx_init(&T->ctx, p, o, &T->net, o->batch);
@@ -766,6 +779,24 @@ static int map_loss(void *ctx, const double *z, double rho, int K, const int *te
             T->sup[b] = k < 0 ? 0 : k >= T->nsup ? T->nsup - 1 : k;
             memcpy(T->zs + (size_t)b * r, T->sup_z + (size_t)T->sup[b] * r, sizeof(double) * (size_t)r);
         }
+        z = T->zs;
+    } else if (T->nvisit && T->o.objective == CROM_DATAFREE_ENERGY) { /* along a run (datafree.h): the
+                             * visited point from the normal draw's first coordinate, Φ(z_0) uniform */
+        for (int b = 0; b < T->o.batch; b++) {
+            const double *zb = z + (size_t)b * r;
+            double *y = T->zs + (size_t)b * r;
+            if (b % 2 == 0) {
+                memcpy(y, zb, sizeof(double) * (size_t)r);
+                continue;
+            }
+            double u = 0.5 * erfc(-zb[0] / sqrt(2.0)) * (double)T->nvisit;
+            long k = (long)u;
+            k = k < 0 ? 0 : k >= T->nvisit ? T->nvisit - 1 : k;
+            const double *v = T->visit_z + (size_t)k * r;
+            for (int a = 0; a < r; a++) /* (coordinate 0's jitter from the rest of its draw) */
+                y[a] = v[a] + VISIT_JITTER * (a ? zb[a] : 2 * (u - (double)k) - 1);
+        }
+        memcpy(T->zs + (size_t)T->o.batch * r, z + (size_t)T->o.batch * r, sizeof(double) * (size_t)T->ctx.B0 * r);
         z = T->zs;
     } else if (T->nvisit) { /* along a run: every other sample near a visited point, drawn from the
                              * loop's uniform sample (so the batch stays fixed while L-BFGS iterates) */
@@ -821,7 +852,7 @@ static int map_train(map_trainer *T, const crom_datafree_problem *p, crom_dftrai
     crom_dftrain_loop L = {
         .loss = map_loss, .ctx = T, .nblocks = 1, .params = {T->params}, .grad = {T->grad}, .nparams = {T->np},
         .rng = &T->srng, .batch = o->batch, .tangent = T->ctx.B0, .r = o->rank, .scale = nm ? T->ctx.half : NULL,
-        .uniform = nm, .tangent_radius = o->tangent_radius, .K = K, .nt = nt, .ramp = nm ? 0 : o->ramp,
+        .uniform = nm, .tangent_radius = o->tangent_radius, .K = K, .nt = nt, .ramp = nm || p->init ? 0 : o->ramp,
         .steps = o->steps, .minutes = o->minutes, .lr = o->lr, .lbfgs = o->optimizer == CROM_DATAFREE_LBFGS,
         .resample = o->resample, .hint = " (try a smaller --lr)", .progress = o->progress,
         .progress_ctx = o->progress_ctx};

@@ -88,6 +88,14 @@
  * coordinate; the loss is the same energy, so the map learns the
  * constrained equilibria where the run goes (still data-free).
  *
+ * Refining an energy map along a run (problem.init and nvisit, beyond the
+ * paper): training starts from a trained map's network at ρ = 1, and every
+ * other sample of a batch is a latent a reduced run of that map visited,
+ * picked uniformly, plus VISIT_JITTER times a N(0, I) draw: the map's
+ * energy is lowered where the run went (a bistable bar's second
+ * equilibrium, which the samples of N(0, I) seldom reach). Still data-free:
+ * the run is in the subspace.
+ *
  * field (beyond both papers): a CONTINUOUS data-free subspace x(X, z) = X
  * + W(X) (φ(z) − φ(0)), W a neural field over the body, trained on the
  * energy loss above integrated by a random cubature of the mesh: dffield.h.
@@ -143,7 +151,8 @@ typedef struct {
     int nsup;                    /* neuralmodes supervised by nsup constrained equilibria (0: data-free) */
     const double *sup_z;         /* [nsup][r] their modal coordinates (m) */
     const double *sup_u;         /* [nsup][3nv] their displacements (m) */
-    long nvisit;                 /* neuralmodes: modal coordinates a reduced run visited (0: none); */
+    long nvisit;                 /* neuralmodes: modal coordinates a reduced run visited (0: none); energy
+                                  * (with init): latents a reduced run of init visited; */
     const double *visit_z;       /* [nvisit][r]: every other sample of a batch is drawn near one of them */
     const crom_scenario *materials; /* its regions of other materials (--youngs REGION=E), or NULL */
     int ncond;                   /* energy: a conditional map (Sharp et al. §3.5) over ncond scenario
@@ -155,6 +164,8 @@ typedef struct {
                                   * pinned vertices are where the pins hold them), or NULL: the rest
                                   * shape. The map is anchored there, x(z) = X + u_s + N(z) − N(0), and
                                   * the energy is taken at X + u_s + ρ Y (the seed blend of §4.1) */
+    const crom_nn_mlp *init;     /* energy: start from this network (a trained map of the same problem and
+                                  * shape: crom-fitfield --init-model) at ρ = 1, no seed blend; or NULL */
 } crom_datafree_problem;
 
 typedef struct {

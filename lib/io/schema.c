@@ -193,7 +193,10 @@ static const crom_schema_attr model_attrs[] = {
     {"seed_state", "str", 0, "an energy map grown from a seed state (crom-fitfield --seed-state): which frame of which "
                              "run", NULL},
     {"sampled_along", "str", 0, "a neuralmodes map trained with every other sample near the modal coordinates a "
-                                "reduced run visited (crom-fitfield --latents): how many, from which file", NULL},
+                                "reduced run visited (crom-fitfield --latents), or an energy map refined near the "
+                                "latents a run of its --init-model visited: how many, from which file", NULL},
+    {"refined_from", "str", 0, "an energy map refined from another (crom-fitfield --init-model): that map's model_id",
+     NULL},
     {"cubature_tets", "i64", 0, "tets of the random cubature drawn at every training step (energy-field)", NULL},
     {"handles", "i64", 0, "H, the affine handles of a skinning subspace (12 coordinates each)", NULL},
     {"constant_handle", "i64", 0, "1 if handle 0 is the constant weight 1 (a free body), else 0 (skinning)", NULL},

@@ -134,7 +134,7 @@ static void gradient_check(int objective)
         for (int i = 0; i < 3 * m.nv * 6; i++)
             Psi[i] = fixed[i / 6] ? 0 : 0.2 * crom_rng_normal(&qr);
     }
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, W, freq, Psi, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, W, freq, Psi, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
     double *useed = NULL;
     if (g_seeded) { /* a seed state: a bend of 2 cm at the free end, zero at the clamp */
         useed = malloc(sizeof(double) * 3 * m.nv);
@@ -420,7 +420,7 @@ static void gradient_check_field(void)
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
     unsigned char *fixed = clamp_mask(&m);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
     crom_datafree_opts o;
     field_check_opts(&o);
     o.pin_length = 0.3; /* a wide mask: many vertices inside it */
@@ -511,7 +511,7 @@ static void gradient_check_field_basis(void)
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
     unsigned char *fixed = clamp_mask(&m);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
     crom_datafree_opts o;
     field_check_opts(&o);
     int r = 2, pf = 5, B = 4, pw[] = {r, 10, pf};
@@ -689,7 +689,7 @@ static void test_conditional(void)
     }
     crom_material mat;
     crom_material_init(&mat, sc.youngs, sc.poisson, sc.density);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, &sc, 2, cond, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, &sc, 2, cond, NULL, NULL};
     crom_datafree_opts o;
     crom_nn_mlp net;
     crom_rng rng;
@@ -809,7 +809,7 @@ static void test_conditional_pin(void)
     }
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 2, cond, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 2, cond, NULL, NULL};
     crom_datafree_opts o;
     crom_nn_mlp net;
     crom_rng rng;
@@ -1164,7 +1164,7 @@ static crom_model g_energy_model; /* trained once, used by the dynamics tests */
  * pins stay exactly at rest, and so does a run with no load. */
 static void test_energy_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -1256,12 +1256,12 @@ static void test_seeded_map(bar_case *b)
     crom_model_id(&seeded, seeded.model_id);
     CHECK(strcmp(plain.model_id, seeded.model_id) != 0);
     const char *path = "build/tests/test_datafree_seeded.h5";
-    crom_out o;
-    int rc = crom_out_create(&o, path, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, NULL, NULL, CROM_OUT_PLAIN);
-    if (!rc && (rc = crom_model_write(o.h5, &seeded)))
-        crom_out_fail(&o);
+    crom_out out;
+    int rc = crom_out_create(&out, path, CROM_MODEL_SCHEMA, CROM_MODEL_VERSION, NULL, NULL, CROM_OUT_PLAIN);
+    if (!rc && (rc = crom_model_write(out.h5, &seeded)))
+        crom_out_fail(&out);
     else if (!rc)
-        rc = crom_out_commit(&o);
+        rc = crom_out_commit(&out);
     CHECK_MSG(rc == 0, "write: %s", crom_errmsg());
     crom_model back;
     rc = crom_model_load(path, &back);
@@ -1307,6 +1307,36 @@ static void test_seeded_map(bar_case *b)
         CHECK(K == 0);
         crom_nlsim_free(&s);
     }
+    /* refining it (--init-model): training starts from its network (one
+     * step at a vanishing rate leaves it), and another shape is refused */
+    crom_datafree_problem P = {m, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, us, NULL};
+    P.init = &net;
+    crom_datafree_opts o;
+    crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
+    o.rank = r;
+    o.width = 16;
+    o.depth = 2;
+    o.steps = 1;
+    o.lr = 1e-12;
+    o.sigma = 0.05;
+    crom_model ref;
+    crom_dftrain_log log;
+    rc = crom_datafree_train(&P, &o, &ref, &log);
+    CHECK_MSG(rc == 0, "refine: %s", crom_errmsg());
+    double dp = 0, pmax = 0;
+    for (size_t i = 0; !rc && i < net.nparams; i++) {
+        dp = fmax(dp, fabs(ref.mlp.params[i] - net.params[i]));
+        pmax = fmax(pmax, fabs(net.params[i]));
+    }
+    fprintf(stderr, "refined map: one step at rate 1e-12 moves its parameters by %.1e (largest %.2g)\n", dp, pmax);
+    CHECK(!rc && dp <= 1e-9 * pmax && ref.seed_v && ref.seed_v[5] == us[5]);
+    crom_model_free(&ref);
+    crom_dftrain_log_free(&log);
+    o.width = 17;
+    CHECK(crom_datafree_train(&P, &o, &ref, &log) == CROM_EUSAGE && strstr(crom_errmsg(), "another shape"));
+    crom_err_clear();
+    crom_model_free(&ref);
+    crom_dftrain_log_free(&log);
     free(x), free(us);
     crom_map_free(&map);
     crom_model_free(&back);
@@ -1326,7 +1356,7 @@ static void test_seeded_map(bar_case *b)
  * load stays at rest. */
 static void test_neuralmodes_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_NEURALMODES);
     o.rank = b->nmodes;
@@ -1457,7 +1487,7 @@ static void test_neuralmodes_visit(bar_case *b)
     visit[0] = 0.3;       /* mode 1 at 3 times the box, */
     visit[r + 0] = 0.25;  /* and near it with mode 2 */
     visit[r + 1] = 0.05;
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_NEURALMODES);
     o.rank = r;
@@ -1494,7 +1524,7 @@ static void test_neuralmodes_visit(bar_case *b)
 
 static void test_field_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_FIELD);
     o.rank = 2;
@@ -1593,7 +1623,7 @@ static void test_field_subspace(bar_case *b)
  * its samples have less energy than the two lowest linear modes'. */
 static void test_skin_field(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
     crom_model sm;
     int rc = crom_dfskin_eigen(&b->mesh, &b->mat, NULL, b->fixed, 4, &sm, NULL);
     CHECK_MSG(rc == 0, "eigen: %s", crom_errmsg());
@@ -1922,7 +1952,7 @@ static void test_shell_map(void)
     CHECK(crom_modes_pins(&mesh, 1, clamp, &fixed, &npinned) == 0 && npinned > 0);
     crom_material mat;
     crom_material_init(&mat, 1e7, 0.3, 500);
-    crom_datafree_problem P = {&mesh, mat, {0, 0, -9.81}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&mesh, mat, {0, 0, -9.81}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -2305,7 +2335,7 @@ static void test_lbfgs(bar_case *bc)
     CHECK_LT(errs[0], 1e-6);
     CHECK_LT(errs[0], 1e-4 * errs[1]);
 
-    crom_datafree_problem P = {&bc->mesh, bc->mat, {0, -9.81, 0}, bc->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL};
+    crom_datafree_problem P = {&bc->mesh, bc->mat, {0, -9.81, 0}, bc->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
