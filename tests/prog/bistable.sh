@@ -102,6 +102,12 @@ echo "refined: down $Erd2 J (full $Ed J), up $Eru2 J (full $Eu J; before refinin
 close "$Erd2" "$Ed" 1e-7 "the refined map's run with no load against the full equilibrium"
 $PY -c "import sys; E,E0,Ef=map(float,sys.argv[1:]); sys.exit(0 if abs(E/Ef-1)<min(0.12,abs(E0/Ef-1)) else 1)" \
   "$Eru2" "$Eru" "$Eu" || fail "refining does not bring the up state closer"; ok
+# a model whose seed state is not one (the reader refuses it in one line)
+cp seeded.h5 badseed.h5
+$PY -c "
+import h5py
+f = h5py.File('badseed.h5', 'r+'); s = f['field/seed'][()]; del f['field/seed']; f['field/seed'] = s[:-1]"
+expect_error 65 "field/seed is \[410, 3\], expected \[411, 3\]" $O -- crom-reducedstep --model badseed.h5 --pin left --pin right --steps 1 -o $O
 # bad refinements
 expect_error 64 "--init-model brings its own seed state: drop --seed-state" $O -- crom-fitfield "${TR[@]}" --init-model seeded.h5 --seed-state full-down.h5 -o $O
 expect_error 65 "--latents: full-up.h5 is crom/trajectory v1, expected crom/latent" $O -- crom-fitfield "${TR[@]}" --init-model seeded.h5 --latents full-up.h5 -o $O

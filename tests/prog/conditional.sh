@@ -173,6 +173,7 @@ expect_error 64 "--condition applies to --model" $O -- crom-reducedstep --cubatu
 cp cmap.h5 badc.h5
 $PY -c "import h5py; h5py.File('badc.h5', 'r+').attrs['conditions'] = 'stiff=1:2\n'"
 expect_error 65 "conditions 'stiff': not a condition" $O -- crom-reducedstep --model badc.h5 --pin clamp -o $O
+crom-info --check pmap.h5 >/dev/null || fail "crom-info --check pmap.h5"; ok
 cp pmap.h5 nolift.h5
 $PY -c "import h5py; del h5py.File('nolift.h5', 'r+')['field/lifts']"
 expect_error 65 "a map with a pin condition needs its static lifts field/lifts" $O -- crom-reducedstep --model nolift.h5 --pin clamp --pin tip -o $O
