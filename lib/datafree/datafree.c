@@ -11,9 +11,9 @@
 #include "base/rng.h"
 #include "datafree/datafree.h"
 #include "datafree/dffield.h"
-#include "phys/mderiv.h"
 #include "datafree/dfloss.h"
 #include "io/io.h"
+#include "phys/mderiv.h"
 #include "phys/modes.h"
 
 void crom_datafree_defaults(crom_datafree_opts *o, int objective)
