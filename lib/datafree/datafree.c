@@ -780,26 +780,10 @@ static int map_loss(void *ctx, const double *z, double rho, int K, const int *te
             memcpy(T->zs + (size_t)b * r, T->sup_z + (size_t)T->sup[b] * r, sizeof(double) * (size_t)r);
         }
         z = T->zs;
-    } else if (T->nvisit && T->o.objective == CROM_DATAFREE_ENERGY) { /* along a run (datafree.h): the
-                             * visited point from the normal draw's first coordinate, Φ(z_0) uniform */
-        for (int b = 0; b < T->o.batch; b++) {
-            const double *zb = z + (size_t)b * r;
-            double *y = T->zs + (size_t)b * r;
-            if (b % 2 == 0) {
-                memcpy(y, zb, sizeof(double) * (size_t)r);
-                continue;
-            }
-            double u = 0.5 * erfc(-zb[0] / sqrt(2.0)) * (double)T->nvisit;
-            long k = (long)u;
-            k = k < 0 ? 0 : k >= T->nvisit ? T->nvisit - 1 : k;
-            const double *v = T->visit_z + (size_t)k * r;
-            for (int a = 0; a < r; a++) /* (coordinate 0's jitter from the rest of its draw) */
-                y[a] = v[a] + VISIT_JITTER * (a ? zb[a] : 2 * (u - (double)k) - 1);
-        }
-        memcpy(T->zs + (size_t)T->o.batch * r, z + (size_t)T->o.batch * r, sizeof(double) * (size_t)T->ctx.B0 * r);
-        z = T->zs;
-    } else if (T->nvisit) { /* along a run: every other sample near a visited point, drawn from the
-                             * loop's uniform sample (so the batch stays fixed while L-BFGS iterates) */
+    } else if (T->nvisit) { /* along a run (datafree.h): every other sample near a visited point, picked by
+                             * the draw's first coordinate (so the batch stays fixed while L-BFGS iterates):
+                             * neuralmodes' uniform one in the box, or the energy's normal one, Φ(z_0) */
+        int en = T->o.objective == CROM_DATAFREE_ENERGY;
         const double *half = T->ctx.half;
         for (int b = 0; b < T->o.batch; b++) {
             const double *zb = z + (size_t)b * r;
@@ -808,15 +792,17 @@ static int map_loss(void *ctx, const double *z, double rho, int K, const int *te
                 memcpy(y, zb, sizeof(double) * (size_t)r);
                 continue;
             }
-            double u = 0.5 * (zb[0] / half[0] + 1) * (double)T->nvisit; /* in [0, nvisit] */
+            double u = (en ? 0.5 * erfc(-zb[0] / sqrt(2.0)) : 0.5 * (zb[0] / half[0] + 1)) * (double)T->nvisit;
             long k = (long)u;
             k = k < 0 ? 0 : k >= T->nvisit ? T->nvisit - 1 : k;
             const double *v = T->visit_z + (size_t)k * r;
-            for (int a = 0; a < r; a++) {
-                double w = a ? zb[a] / half[a] : 2 * (u - (double)k) - 1; /* in [-1, 1] */
-                y[a] = v[a] + VISIT_JITTER * w * fmax(half[a], fabs(v[a]));
+            for (int a = 0; a < r; a++) { /* (coordinate 0's jitter from the rest of its draw, in [-1, 1]) */
+                double w = a ? (en ? zb[a] : zb[a] / half[a]) : 2 * (u - (double)k) - 1;
+                y[a] = v[a] + VISIT_JITTER * w * (en ? 1 : fmax(half[a], fabs(v[a])));
             }
         }
+        if (en) /* the collapse floor's secants after the batch */
+            memcpy(T->zs + (size_t)T->o.batch * r, z + (size_t)T->o.batch * r, sizeof(double) * (size_t)T->ctx.B0 * r);
         z = T->zs;
     }
     if (T->ctx.P.ncond) { /* the batch's condition, from its own latents (datafree.h) */
