@@ -13,7 +13,8 @@
 # within 5 % of the full minimum. Then REFINE rounds of refinement along
 # the subspace's own push run (crom-fitfield --init-model --latents, LR,
 # RSTEPS steps each: every other sample near a latent the run visited;
-# still data-free). Output: OUT/table.md.
+# still data-free). Output: OUT/table.md and OUT/strip-up.png (the push
+# in the subspace over the full run).
 #
 #   make -f pipelines/bistable.mk -j2
 include $(dir $(lastword $(MAKEFILE_LIST)))common.mk
@@ -37,7 +38,7 @@ F_up = $(PUSH)
 CASES = down nudge up
 
 .PHONY: all
-all: $(OUT)/table.md
+all: $(OUT)/table.md $(OUT)/strip-up.png
 	@cat $<
 
 $(OUT)/mesh.h5:
@@ -71,6 +72,10 @@ $(OUT)/red-%.vtu: $(OUT)/red-%.h5 $(OUT)/energy.h5
 	crom-export --format vtu --model $(OUT)/energy.h5 $(QUIET) -o $@ $<
 $(OUT)/diff-%.txt: $(OUT)/red-%.h5 $(OUT)/full-%.h5 $(OUT)/energy.h5
 	crom-diff --model $(OUT)/energy.h5 $(OUT)/red-$*.h5 $(OUT)/full-$*.h5 $(ATOMIC)
+# the push in the subspace (top) over the full run (bottom)
+$(OUT)/strip-up.png: $(OUT)/red-up.h5 $(OUT)/full-up.h5 $(OUT)/energy.h5
+	crom-export --format strip --columns 6 --panel 300x200 --model $(OUT)/energy.h5 --mesh $(OUT)/mesh.h5 \
+	  --compare $(OUT)/full-up.h5 $(QUIET) -o $@ $<
 ROUNDS = $(shell seq 0 $(REFINE))
 $(OUT)/table.md: $(foreach c,$(CASES),$(OUT)/diff-$(c).txt $(OUT)/red-$(c).vtu) \
                  $(foreach k,$(ROUNDS),$(OUT)/probe-$(k).h5)
