@@ -95,6 +95,9 @@ int crom_body_visit(crom_body *b, const char *path, int rank, crom_datafree_prob
     return 0;
 }
 
+/* frames a seed state may be from the end of a stream (a ring of them is kept) */
+#define SEED_RING 64
+
 int crom_body_seed(crom_body *b, const char *path, long frame, crom_datafree_problem *P)
 {
     crom_result res;
@@ -109,9 +112,14 @@ int crom_body_seed(crom_body *b, const char *path, long frame, crom_datafree_pro
     else if (res.latent)
         rc = crom_err(CROM_EUSAGE, "--seed-state %s: a latent, not a full state (decode it with crom-export --vtu "
                                    "or give crom-fullsim's run)", path);
-    else if (frame < -100000000L)
-        rc = crom_err(CROM_EUSAGE, "--seed-frame %ld is out of range", frame);
-    /* the last -frame frames in a ring (frame < 0), or up to frame */
+    else if (frame < 0 && res.in.form == CROM_IO_H5) { /* a file knows its length: count from the start */
+        if (frame + res.in.nframes < 0)
+            rc = crom_err(CROM_EUSAGE, "--seed-frame %ld: %s has %ld frames", frame, path, res.in.nframes);
+        want = frame = frame + res.in.nframes;
+    } else if (frame < -SEED_RING)
+        rc = crom_err(CROM_EUSAGE, "--seed-frame %ld: a stream is read once, so at most %d frames from its end",
+                      frame, SEED_RING);
+    /* a stream's last -frame frames in a ring (frame < 0), or up to frame */
     long keep = frame < 0 ? -frame : 1;
     if (!rc && !(ring = crom_malloc(sizeof(double) * n * (size_t)keep)))
         rc = CROM_EINTERNAL;
