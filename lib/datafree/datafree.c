@@ -74,10 +74,6 @@ void crom_datafree_ctx_free(crom_datafree_ctx *c)
     free(c->Ec);
     free(c->dxf);
     free(c->dcond);
-    for (int k = 0; c->cond_idx && k < c->P.ncond; k++)
-        free(c->cond_idx[k]);
-    free(c->cond_idx);
-    free(c->cond_n);
     free(c->pinoff);
     free(c->lift);
     memset(c, 0, sizeof *c);
@@ -111,18 +107,23 @@ int crom_datafree_set_condition(crom_datafree_ctx *c, const double *cond)
     return 0;
 }
 
-/* A pin condition's region: its vertices, every one pinned along the axis. */
-static int pin_region(crom_datafree_ctx *c, const crom_datafree_problem *p, int k)
+/* Pin condition k's unit move, e [3nv] (zeroed): 1 on the axis of its
+ * region's vertices, every one of which must be pinned along it. */
+static int pin_move(const crom_datafree_problem *p, int k, double *e)
 {
     const crom_scenario_cond *cd = &p->cond[k];
-    int rc = crom_mesh_select(p->mesh, cd->ref, &c->cond_idx[k], &c->cond_n[k]);
+    int *idx = NULL, nidx = 0, rc = crom_mesh_select(p->mesh, cd->ref, &idx, &nidx);
     if (rc)
         return crom_err_ctx("--condition pin:%s:%c", cd->ref, 'x' + cd->axis);
-    for (int j = 0; j < c->cond_n[k]; j++)
-        if (!(p->fixed && p->fixed[3 * (size_t)c->cond_idx[k][j] + cd->axis]))
-            return crom_err(CROM_EUSAGE, "--condition pin:%s:%c: the region is not pinned (give --pin %s)", cd->ref,
-                            'x' + cd->axis, cd->ref);
-    return 0;
+    for (int j = 0; !rc && j < nidx; j++) {
+        size_t i = 3 * (size_t)idx[j] + cd->axis;
+        if (!(p->fixed && p->fixed[i]))
+            rc = crom_err(CROM_EUSAGE, "--condition pin:%s:%c: the region is not pinned (give --pin %s)", cd->ref,
+                          'x' + cd->axis, cd->ref);
+        e[i] = 1;
+    }
+    free(idx);
+    return rc;
 }
 
 /* The static lift of each pin condition (phys/mderiv.h): the body's
@@ -138,14 +139,16 @@ static int pin_lifts(crom_datafree_ctx *c, const crom_datafree_problem *p)
         free(e);
         return CROM_EINTERNAL;
     }
-    for (int k = 0; k < nc; k++)
-        for (int j = 0; j < c->cond_n[k]; j++)
-            e[(size_t)k * n + 3 * (size_t)c->cond_idx[k][j] + p->cond[k].axis] = 1;
-    int rc = crom_mderiv_lift(&c->sys, p->mesh->X, p->fixed, nc, e, c->lift);
-    free(e);
-    for (int k = 0; !rc && k < nc; k++) /* (the solve's round-off off the pins and away from the pin conditions) */
-        if (p->cond[k].kind != CROM_SCENARIO_COND_PIN)
-            memset(c->lift + (size_t)k * n, 0, sizeof(double) * (size_t)n);
+    int rc = 0;
+    for (int k = 0; !rc && k < nc; k++)
+        if (p->cond[k].kind == CROM_SCENARIO_COND_PIN)
+            rc = pin_move(p, k, e + (size_t)k * n);
+    if (rc) {
+        free(e);
+        return rc;
+    }
+    rc = crom_mderiv_lift(&c->sys, p->mesh->X, p->fixed, nc, e, c->lift);
+    free(e); /* (the other conditions' columns: a zero move, a zero lift) */
     return rc ? crom_err_ctx("--condition pin") : 0;
 }
 
@@ -164,17 +167,12 @@ static int cond_init(crom_datafree_ctx *c, const crom_datafree_problem *p, size_
     c->Ec = crom_calloc((size_t)c->maxbatch * nc, sizeof(double));
     c->dxf = crom_malloc(sizeof(float) * rows * (size_t)c->in);
     c->dcond = crom_calloc((size_t)nc, sizeof(double));
-    c->cond_idx = crom_calloc((size_t)nc, sizeof(int *));
-    c->cond_n = crom_calloc((size_t)nc, sizeof(int));
-    if (!c->cond || !c->cond_mat || !c->Ec || !c->dxf || !c->dcond || !c->cond_idx || !c->cond_n)
+    if (!c->cond || !c->cond_mat || !c->Ec || !c->dxf || !c->dcond)
         return CROM_EINTERNAL;
     double mid[CROM_MODEL_MAXCOND] = {0};
     for (int k = 0; k < nc; k++) {
         c->cond_mat[k] = -1;
         mid[k] = 0.5 * (p->cond[k].lo + p->cond[k].hi);
-        int rc = p->cond[k].kind == CROM_SCENARIO_COND_PIN ? pin_region(c, p, k) : 0;
-        if (rc)
-            return rc;
         if (p->cond[k].kind != CROM_SCENARIO_COND_RATIO)
             continue;
         for (int i = 0; p->materials && i < p->materials->nmat; i++)

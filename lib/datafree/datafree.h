@@ -238,7 +238,6 @@ typedef struct {
     double *Ec;              /* [maxbatch][ncond] ∂E_b/∂c_k, explicit */
     float *dxf;              /* [rows][in] dL/d(network input) */
     double *dcond;           /* [ncond] dL/dc of the last loss with a gradient */
-    int **cond_idx, *cond_n; /* [ncond] a pin condition's region: its vertices (else NULL, 0) */
     double *lift;            /* [ncond][3nv] a pin condition's static lift (phys/mderiv.h; 0 for the others) */
     double *pinoff;          /* [3nv] Σ_k c_k lift_k: the pins moved and the body's lift at the batch's c
                               * (NULL: no pin condition) */

@@ -629,12 +629,13 @@ static double check_map_curvature(crom_map *map, double *q, unsigned seed)
 /* A map model with a random network (and modes for neuralmodes): its
  * double Jacobian against differences, the curvature of its features, its positions against the float
  * network, pins exactly at rest after zeroing their rows. */
-/* The loss options and a random network of the two conditional tests: a
- * map of rank r and 2 conditions to n outputs, its last layer small (and
- * zero on the rows of mask, the trainer's pins, unless NULL), its first
- * biases away from ELU's kink. */
+/* The loss options, a random network and the loss of problem P of the two
+ * conditional tests: a map of rank r and 2 conditions to n outputs, its last
+ * layer small (and zero on the rows of mask, the trainer's pins, unless
+ * NULL), its first biases away from ELU's kink; and z [B + B0][r], a batch
+ * of B normal draws then the secants 0.1 e_k as the trainer draws them. */
 static void cond_case(crom_datafree_opts *o, crom_nn_mlp *net, crom_rng *rng, int r, int n, uint64_t seed,
-                      const unsigned char *mask)
+                      const unsigned char *mask, const crom_datafree_problem *P, int B, crom_datafree_ctx *c, double *z)
 {
     crom_datafree_defaults(o, CROM_DATAFREE_ENERGY);
     int widths[] = {r + 2, 12, 12, n};
@@ -653,6 +654,11 @@ static void cond_case(crom_datafree_opts *o, crom_nn_mlp *net, crom_rng *rng, in
             ly->W[(size_t)i * ly->in + j] = mask && mask[i] ? 0 : 0.3f * ly->W[(size_t)i * ly->in + j];
     for (int i = 0; i < net->layer[0].out; i++)
         net->layer[0].b[i] = (float)(0.5 * crom_rng_normal(rng));
+    CHECK_MSG(crom_datafree_ctx_init(c, P, o, net, B) == 0, "ctx: %s", crom_errmsg());
+    for (int i = 0; i < B * r; i++)
+        z[i] = crom_rng_normal(rng);
+    for (int i = B * r; i < (B + c->B0) * r; i++)
+        z[i] = (i - B * r) % (r + 1) == 0 ? 0.1 : 0;
 }
 
 /* A conditional energy map (Sharp et al. §3.5): the network takes [z, c]
@@ -694,14 +700,9 @@ static void test_conditional(void)
     crom_nn_mlp net;
     crom_rng rng;
     int r = 3, B = 5;
-    cond_case(&o, &net, &rng, r, 3 * m.nv, 41, NULL);
     crom_datafree_ctx c;
-    CHECK_MSG(crom_datafree_ctx_init(&c, &P, &o, &net, B) == 0, "ctx: %s", crom_errmsg());
     double z[8 * 3], cv[2] = {3.7, -8.2}, cp[2];
-    for (int i = 0; i < B * r; i++)
-        z[i] = crom_rng_normal(&rng);
-    for (int i = B * r; i < (B + c.B0) * r; i++)
-        z[i] = (i - B * r) % (r + 1) == 0 ? 0.1 : 0;
+    cond_case(&o, &net, &rng, r, 3 * m.nv, 41, NULL, &P, B, &c, z);
     CHECK(crom_datafree_set_condition(&c, cv) == 0);
     CHECK_REL(c.sys.mats[1].E, 3.7e6, 1e-15);
     CHECK(c.grav[1] == -8.2 && c.grav[0] == 0);
@@ -814,14 +815,9 @@ static void test_conditional_pin(void)
     crom_nn_mlp net;
     crom_rng rng;
     int r = 3, B = 5;
-    cond_case(&o, &net, &rng, r, n, 43, fixed);
     crom_datafree_ctx c;
-    CHECK_MSG(crom_datafree_ctx_init(&c, &P, &o, &net, B) == 0, "ctx: %s", crom_errmsg());
     double z[8 * 3], cv[2] = {0.04, -8.2}, cp[2];
-    for (int i = 0; i < B * r; i++)
-        z[i] = crom_rng_normal(&rng);
-    for (int i = B * r; i < (B + c.B0) * r; i++)
-        z[i] = (i - B * r) % (r + 1) == 0 ? 0.1 : 0;
+    cond_case(&o, &net, &rng, r, n, 43, fixed, &P, B, &c, z);
     CHECK(crom_datafree_set_condition(&c, cv) == 0);
     float *g = malloc(sizeof(float) * net.nparams);
     crom_dftrain_terms tm;
@@ -859,6 +855,10 @@ static void test_conditional_pin(void)
             pinmiss, kf, kp);
     CHECK(pinmiss == 0);
     CHECK_LT(kf, 1e-9 * kp);
+    int zero = 1; /* the gravity condition's lift */
+    for (int i = 0; i < n; i++)
+        zero &= lift[n + i] == 0;
+    CHECK(zero);
     free(y), free(Kv);
     /* the stored map: x(0, c) = X + c lift; the pins hold for every z */
     crom_model model;

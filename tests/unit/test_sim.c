@@ -262,6 +262,19 @@ static double bar_x(const crom_mesh *m, const crom_sim *s, const char *region)
     return d / r->n;
 }
 
+/* The 1 x 0.1 x 0.1 bar of the material tests (20 x 2 x 2 cubes of 0.05,
+ * from the origin along x), its regions (spec strings, NULL-terminated) and
+ * a scenario read from flag text. */
+static void material_bar(crom_mesh *m, const char *const *regions, const char *text, crom_scenario *sc)
+{
+    const double lo[3] = {0, 0, 0};
+    fx_box_mesh(m, 20, 2, 2, lo, 0.05, 0, NULL, NULL);
+    for (int i = 0; regions[i]; i++)
+        CHECK(crom_mesh_region_spec(m, regions[i]) == 0);
+    crom_scenario_defaults(sc);
+    CHECK(crom_scenario_parse_text(text, sc) == 0);
+}
+
 /* Two densities: a bar hanging from its end x = 1 under gravity along −x,
  * its lower half (x < 0.5) of density ρ2, the upper ρ1, ν = 0: the lumped
  * masses sum to ρ1 V1 + ρ2 V2 exactly, and the free end x = 0 drops by
@@ -270,13 +283,11 @@ static double bar_x(const crom_mesh *m, const crom_sim *s, const char *region)
 static void test_two_densities(void)
 {
     crom_mesh m;
-    const double lo[3] = {0, 0, 0}, E = 1e6, g = 9.81, r1 = 1000, r2 = 3000;
-    fx_box_mesh(&m, 20, 2, 2, lo, 0.05, 0, NULL, NULL);
-    CHECK(crom_mesh_region_spec(&m, "top=x>0.999999") == 0 && crom_mesh_region_spec(&m, "end=x<1e-9") == 0);
+    const double E = 1e6, g = 9.81, r1 = 1000, r2 = 3000;
     crom_scenario sc;
-    crom_scenario_defaults(&sc);
-    CHECK(crom_scenario_parse_text("--youngs 1e6\n--poisson 0\n--density 1000\n--gravity -9.81,0,0\n--dt 1e3\n"
-                                   "--steps 1\n--tol 1e-11\n--pin top\n--density x<0.500001=3000\n", &sc) == 0);
+    material_bar(&m, (const char *[]){"top=x>0.999999", "end=x<1e-9", NULL},
+                 "--youngs 1e6\n--poisson 0\n--density 1000\n--gravity -9.81,0,0\n--dt 1e3\n--steps 1\n--tol 1e-11\n"
+                 "--pin top\n--density x<0.500001=3000\n", &sc);
     CHECK(sc.nmat == 1 && sc.mat[0].density == r2 && isnan(sc.mat[0].youngs));
     char *text = crom_scenario_text(&sc);
     CHECK(text && strstr(text, "--density x<0.500001=3000\n"));
@@ -296,15 +307,11 @@ static void test_two_densities(void)
 static void test_two_materials(void)
 {
     crom_mesh m;
-    const double lo[3] = {0, 0, 0}, L = 1, b = 0.1, F = 100, E1 = 1e7, E2 = 4e7;
-    fx_box_mesh(&m, 20, 2, 2, lo, 0.05, 0, NULL, NULL);
-    CHECK(crom_mesh_region_spec(&m, "clamp=x<1e-9") == 0);
-    CHECK(crom_mesh_region_spec(&m, "mid=x>0.499999&x<0.500001") == 0);
-    CHECK(crom_mesh_region_spec(&m, "tip=x>0.999999") == 0);
+    const double L = 1, b = 0.1, F = 100, E1 = 1e7, E2 = 4e7;
     crom_scenario sc;
-    crom_scenario_defaults(&sc);
-    CHECK(crom_scenario_parse_text("--youngs 1e7\n--poisson 0\n--gravity 0,0,0\n--dt 1e3\n--steps 1\n--tol 1e-10\n"
-                                   "--pin clamp\n--force tip=100,0,0\n--youngs x>0.499999=4e7\n", &sc) == 0);
+    material_bar(&m, (const char *[]){"clamp=x<1e-9", "mid=x>0.499999&x<0.500001", "tip=x>0.999999", NULL},
+                 "--youngs 1e7\n--poisson 0\n--gravity 0,0,0\n--dt 1e3\n--steps 1\n--tol 1e-10\n--pin clamp\n"
+                 "--force tip=100,0,0\n--youngs x>0.499999=4e7\n", &sc);
     CHECK(sc.nmat == 1 && sc.mat[0].youngs == E2 && isnan(sc.mat[0].poisson));
     char *text = crom_scenario_text(&sc);
     crom_scenario back;
@@ -368,13 +375,11 @@ static void test_two_materials(void)
 static void test_interface_patch(void)
 {
     crom_mesh m;
-    const double lo[3] = {0, 0, 0}, L = 1, E1 = 1e7, E2 = 4e7, delta = 1e-6;
-    fx_box_mesh(&m, 20, 2, 2, lo, 0.05, 0, NULL, NULL);
-    CHECK(crom_mesh_region_spec(&m, "clamp=x<1e-9") == 0 && crom_mesh_region_spec(&m, "tip=x>0.999999") == 0);
+    const double L = 1, E1 = 1e7, E2 = 4e7, delta = 1e-6;
     crom_scenario sc;
-    crom_scenario_defaults(&sc);
-    CHECK(crom_scenario_parse_text("--youngs 1e7\n--poisson 0\n--gravity 0,0,0\n--dt 1e3\n--steps 1\n--tol 1e-12\n"
-                                   "--pin clamp\n--velocity tip=1e-9,0,0@0:1000\n--youngs x>0.499999=4e7\n", &sc) == 0);
+    material_bar(&m, (const char *[]){"clamp=x<1e-9", "tip=x>0.999999", NULL},
+                 "--youngs 1e7\n--poisson 0\n--gravity 0,0,0\n--dt 1e3\n--steps 1\n--tol 1e-12\n--pin clamp\n"
+                 "--velocity tip=1e-9,0,0@0:1000\n--youngs x>0.499999=4e7\n", &sc);
     crom_sim s;
     crom_sim_stats st;
     CHECK(crom_sim_init(&s, &m, &sc) == 0);
