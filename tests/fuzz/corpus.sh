@@ -55,13 +55,19 @@ crom-scene chain --links 2 -q -o minichain.h5
 crom-scene stewart -q -o stewart.h5
 crom-fullsim --steps 2 -q -o scenerun.h5 minichain.h5
 crom-fitfield --objective energy --mesh minichain.h5 --rank 2 --steps 2 --width 4 --depth 2 -q -o scenemap.h5
+# energy maps with a seed state (field/seed) and with a pin condition
+# (field/lifts, the conditions attribute)
+crom-fitfield --objective energy --mesh box.h5 --pin top --pin bottom --seed-state run.h5 --rank 2 --steps 2 \
+  --width 4 --depth 2 -q -o seedmap.h5
+crom-fitfield --objective energy --mesh box.h5 --pin bottom --condition 'pin:bottom:y=-0.01:0.01' --rank 2 --steps 2 \
+  --width 4 --depth 2 -q -o pinmap.h5
 cp box.h5 sphere.h5 run.h5 run1.h5 cub.h5 sheet.h5 sheetrun.h5 minichain.h5 stewart.h5 scenerun.h5 "$OUT/mesh/"
 cp run.h5 run1.h5 sheetrun.h5 scenerun.h5 "$OUT/traj/"
 cp samples.h5 samples_all.h5 samples_two.h5 "$OUT/samples/"
-cp pod.h5 mlp.h5 modes.h5 skin.h5 sheetmodes.h5 sheetnm.h5 scenemap.h5 "$OUT/model/"
+cp pod.h5 mlp.h5 modes.h5 skin.h5 sheetmodes.h5 sheetnm.h5 scenemap.h5 seedmap.h5 pinmap.h5 "$OUT/model/"
 cp cub.h5 cub_modes.h5 sheetcub.h5 "$OUT/cubature/"
 cp box.h5 run.h5 samples.h5 pod.h5 latent.h5 modes.h5 cub.h5 sheet.h5 sheetrun.h5 sheetnm.h5 sheetcub.h5 stewart.h5 \
-  scenerun.h5 scenemap.h5 "$OUT/check/"
+  scenerun.h5 scenemap.h5 seedmap.h5 pinmap.h5 "$OUT/check/"
 cp run.stream latent.stream "$OUT/stream/"
 
 # ---- frame records after the fuzz_frames header (crom/latent: time, q[3],
