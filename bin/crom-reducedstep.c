@@ -21,12 +21,13 @@
 #include "rom/schedule.h"
 
 enum { O_CUB = 300, O_INIT, O_SCHED, O_SOLVER, O_KAPPA, O_STATS, O_STREAM, O_HDF5, O_INITFRAME, O_BCTHR,
-       O_MODEL, O_MESH, O_IND, O_INDMESH, O_INDMODEL, O_WARN, O_COND };
+       O_MODEL, O_MESH, O_IND, O_INDMESH, O_INDMODEL, O_WARN, O_COND, O_FRAME };
 
 static const crom_opt red_opts[] = {
     {"cubature", O_CUB, "CUB", "The crom/cubature to integrate over (this or --model is required): its mesh, regions and cached W. With --model: a cubature crom-cubature made for that map, whose tets replace every tet in the elastic energy."},
     {"model", O_MODEL, "MODEL", "Simulate in the subspace of a model of ONE mesh instead of a cubature: a data-free map (energy, neuralmodes: the mesh is in the model) or a linear basis laid on its mesh (pod, modes; an mlp field needs --mesh). Implicit Euler over the latent with Gauss-Newton on the full-space incremental potential, the elastic energy summed over every tet of the mesh, or over the tets of --cubature. q in the output is the map's latent z."},
     {"condition", O_COND, "NAME=VALUE[@T]", "With --model of a conditional map (crom-fitfield --condition): run it at this value of its condition NAME (ratio:REGION, gravity:AXIS or pin:REGION:AXIS; the scenario takes it too: the region's modulus, the gravity; a pin moves the map's start, and the pin's target, with its region), from time T on (default 0: from the start; repeatable: a schedule of changes). Conditions not given run at the middle of their trained range. q carries over a change; the decoded shape moves to the map at the new value."},
+    {"rigid-frame", O_FRAME, NULL, "With --model: add six rigid degrees of freedom to the model's subspace, x = R(θ) x_model(q) + t (Wang et al. §5: the puppet's 5 neural modes + 6 rigid DoFs), so that a body whose model was made with a region held can move and turn freely. q in the output is [q | θ | t]: three Euler angles (rad, R = Rz Ry Rx about the mesh's origin) and a translation (m); the file records rigid_frame = 1 and crom-export and crom-diff decode it the same way. A cubature of the model serves the frame too (the elastic energy does not change under a rigid motion)."},
     {"mesh", O_MESH, "MESH", "With --model: the mesh whose regions resolve --pin, --velocity and --force (it must have the model's vertices; default: the model's own mesh and regions), or the mesh to lay an mlp field on."},
     {"init", O_INIT, "LATENT", "Start from a frame of a crom/latent (crom-encode of a full state, or an earlier run): its q and qdot (default: rest)."},
     {"init-frame", O_INITFRAME, "K", "Which frame of --init (default -1, the last)."},
@@ -92,7 +93,7 @@ typedef struct {
     crom_scenario sc;
     const char *cub, *init, *sched, *out, *stats, *model, *mesh, *ind_mesh, *ind_model;
     long init_frame;
-    int solver, kind, bcthr_given, threads, indicator;
+    int solver, kind, bcthr_given, threads, indicator, frame;
     double kappa, bc_threshold, warn_above;
     int ncs;                  /* --condition NAME=VALUE[@T], in the order given */
     struct {
@@ -158,6 +159,7 @@ static int on_opt(void *ctx, int key, const char *v)
         if (crom_parse_double(v, "--warn-above", &a->warn_above) || !(a->warn_above >= 0))
             return crom_err(CROM_EUSAGE, "--warn-above must be a number >= 0, got %s", v);
         return 0;
+    case O_FRAME: a->frame = 1; return 0;
     case O_STREAM: a->kind = CROM_OUT_SERIES_STREAM; return 0;
     case O_HDF5: a->kind = CROM_OUT_SERIES_H5; return 0;
     }
@@ -355,6 +357,8 @@ static int start_output(crom_out *o, const args *a, const char *model_id, int r,
         rc = crom_h5_set_f64(o->h5, ".", "initial_error", ind->initial, 2);
     if (!rc)
         rc = crom_h5_set_i64(o->h5, ".", "rank", r);
+    if (!rc && a->frame) /* --rigid-frame: q = [q' | θ | t] */
+        rc = crom_h5_set_i64(o->h5, ".", "rigid_frame", 1);
     if (!rc)
         rc = crom_scenario_write_attrs(o->h5, &a->sc);
     if (!rc)
@@ -435,9 +439,10 @@ static int run_map(crom_cli *cli, args *a)
     }
     if (a->mesh && (rc = crom_mesh_load(a->mesh, CROM_MESH_CARRIERS | CROM_MESH_SURFACES, &mesh, NULL)))
         goto out;
-    if ((rc = crom_map_init(&map, &model, a->mesh ? &mesh : NULL)))
+    if ((rc = crom_map_init(&map, &model, a->mesh ? &mesh : NULL)) || (a->frame && (rc = crom_map_add_frame(&map))))
         goto out;
     int r = map.r;
+    const crom_map *core = map.inner ? map.inner : &map; /* the model's own map (a cubature's) */
     q0 = crom_calloc((size_t)r, sizeof(double));
     qd0 = crom_calloc((size_t)r, sizeof(double));
     if (!q0 || !qd0) {
@@ -456,7 +461,8 @@ static int run_map(crom_cli *cli, args *a)
         crom_cubature cub;
         if ((rc = crom_cubature_load(a->cub, &cub, NULL)))
             goto out;
-        if (strcmp(cub.model_id, model.model_id) || cub.map_rank != (map.nonlinear ? r : 0) || (cub.r != map.p && cub.r != map.p_model) ||
+        if (strcmp(cub.model_id, model.model_id) || cub.map_rank != (core->nonlinear ? core->r : 0) ||
+            (cub.r != core->p && cub.r != core->p_model) ||
             crom_map_same_mesh(&cub.mesh, &map.mesh))
             rc = crom_err(CROM_EDATA, "--cubature %s is not a cubature of this map (model %s, rank %d, %d vertices): "
                           "make one with crom-cubature --model %s", a->cub, cub.model_id, cub.map_rank, cub.mesh.nv,
@@ -676,8 +682,8 @@ int main(int argc, char **argv)
             return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--model runs on the model's mesh: %s does not apply", bad));
         if (a.solver == CROM_RSIM_GD)
             return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--solver gd needs a cubature; --model uses Gauss-Newton"));
-    } else if (a.ncs) {
-        return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--condition applies to --model (a conditional map)"));
+    } else if (a.ncs || a.frame) {
+        return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "%s applies to --model", a.ncs ? "--condition" : "--rigid-frame"));
     }
     if (a.model) {
         return crom_cli_exit(&cli, run_map(&cli, &a));

@@ -283,15 +283,17 @@ def hetero(out, rows, stiff):
 
 
 def puppet(out, rows, frames):
-    """pipelines/puppet.mk: each subspace's run of the rod-driven puppet against the full one"""
+    """pipelines/puppet.mk: each subspace's run of the free, rod-driven puppet against the full one"""
     import meshio
-    names = {"modes": "linear modes", "mderiv": "modes + modal derivatives",
+    names = {"modes": "linear modes", "modes10": "linear modes, ten more",
+             "mderiv": "modes + modal derivatives",
              "neuralmodes": "neural modes (seeded with the derivatives)",
              "nmcub": "the same neural modes over a cubature"}
     full = h5py.File(f"{out}/full.h5", "r")
     X, U = full["mesh/vertices"][()], full["frames/displacement"]
     hands = [(X[:, 0] > 0.55) & (X[:, 1] > 0.09), (X[:, 0] < -0.55) & (X[:, 1] > 0.09)]
     shoulders = [(np.abs(X[:, 0] - 0.15) < 0.012) & (X[:, 1] > 0.1), (np.abs(X[:, 0] + 0.15) < 0.012) & (X[:, 1] > 0.1)]
+    torso = (np.abs(X[:, 0]) < 0.15) & (X[:, 1] > -0.2) & (X[:, 1] < 0.22) & (np.abs(X[:, 2]) < 0.1)
 
     def arms(u):
         """the arms' shoulder-to-hand lengths and the hands' swing (z) at displacement u"""
@@ -299,17 +301,28 @@ def puppet(out, rows, frames):
         length = [np.linalg.norm(x[h].mean(axis=0) - x[s].mean(axis=0)) for h, s in zip(hands, shoulders)]
         return np.array(length), np.array([u[h, 2].mean() for h in hands])
 
+    def turn(u):
+        """the torso's rotation (degrees, the best-fit rotation of its vertices, Kabsch) at displacement u"""
+        a, b = X[torso], X[torso] + u[torso]
+        H = (a - a.mean(axis=0)).T @ (b - b.mean(axis=0))
+        W, _, Vt = np.linalg.svd(H)
+        R = Vt.T @ W.T
+        return np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1)))
+
     rest = arms(np.zeros_like(X))[0]
     ks = [int(k) for k in frames]
     swing = max(np.abs(arms(U[k])[1]).max() for k in ks)
-    print(f"The puppet: six rods swing the arms and nod the head, the torso held; {U.shape[0] - 1} steps of "
+    print(f"The free puppet: six rods swing the arms and nod the head, nothing held; {U.shape[0] - 1} steps of "
           f"{float(full.attrs['dt']):g} s, {X.shape[0]} vertices. Full run: hands swing up to {swing:.3g} m, the arms "
-          f"keep their length within {max(np.abs(arms(U[k])[0] / rest - 1).max() for k in ks):.2%}.\n")
+          f"keep their length within {max(np.abs(arms(U[k])[0] / rest - 1).max() for k in ks):.2%}, the torso "
+          f"turns up to {max(turn(U[k]) for k in ks):.2g} degrees (at the frames below).\n")
     med = lambda path: float(np.median(col(path, "seconds")))
     print(f"crom-fullsim: {1e3 * med(f'{out}/full.csv'):.1f} ms per step (median)\n")
     print("| subspace | dimension | build (s) | error over the run | arm length change (largest) | hand swing | "
-          "ms per step |")
-    print("|---|---:|---:|---:|---:|---:|---:|")
+          "torso turn | ms per step |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    print(f"| crom-fullsim | {U.shape[1] * 3} | | | | {swing:.3g} m | {max(turn(U[k]) for k in ks):.2g}° | "
+          f"{1e3 * med(f'{out}/full.csv'):.1f} |")
     for r in rows:
         m = h5py.File(f"{out}/{r}.h5", "r")
         secs = m.attrs.get("training_seconds")
@@ -317,13 +330,15 @@ def puppet(out, rows, frames):
         if r == "nmcub":
             c = h5py.File(f"{out}/cub-neuralmodes.h5", "r")
             secs = f"+ {c['elements'].shape[0]} tets"
-        worst, sw = 0.0, 0.0
+        worst, sw, tw = 0.0, 0.0, 0.0
         for k in ks:
             u = meshio.read(f"{out}/frames-{r}/f{k}.vtu").point_data["displacement"]
             length, z = arms(u)
-            worst, sw = max(worst, np.abs(length / rest - 1).max()), max(sw, np.abs(z).max())
-        print(f"| {names.get(r, r)} | {int(m.attrs['rank'])} | {secs} | {diff_error(f'{out}/diff-{r}.txt'):.3g} | "
-              f"{worst:.1%} | {sw:.3g} m | {1e3 * med(f'{out}/red-{r}.csv'):.2f} |")
+            worst, sw, tw = max(worst, np.abs(length / rest - 1).max()), max(sw, np.abs(z).max()), max(tw, turn(u))
+        red = h5py.File(f"{out}/red-{r}.h5", "r")
+        dim = f"{int(m.attrs['rank'])} + 6" if int(red.attrs.get("rigid_frame", 0)) else f"{int(m.attrs['rank'])}"
+        print(f"| {names.get(r, r)} | {dim} | {secs} | {diff_error(f'{out}/diff-{r}.txt'):.3g} | "
+              f"{worst:.1%} | {sw:.3g} m | {tw:.2g}° | {1e3 * med(f'{out}/red-{r}.csv'):.2f} |")
 
 
 def conditional_model(path, what):

@@ -285,6 +285,8 @@ static const crom_schema_attr latent_attrs[] = {
                             "then its path", NULL},
     {"initial_error", "f64[2]", 0, "crom-reducedstep --indicator: the initial state's mass-weighted RMS distance from rest "
                                 "(m) and from the scenario's initial velocity field (m/s)", NULL},
+    {"rigid_frame", "i64", 0, "crom-reducedstep --rigid-frame: 1 when q = [q' | θ | t], the model's latent q' then three "
+                              "Euler angles (rad, R = Rz Ry Rx) and a translation (m) of x = R x_model(q') + t", NULL},
     SCENARIO_ATTRS(0),
     {NULL, NULL, 0, NULL, NULL}};
 

@@ -31,7 +31,8 @@ int crom_equil_box(const crom_model *model, const crom_mesh *m, double box, int 
                    int *scaled);
 
 /* The latent q [r] of every frame of the crom/latent at path into *Z
- * [count][r] (malloc'ed). CROM_EUSAGE for another rank, CROM_EDATA for no
+ * [count][r] (malloc'ed); of a run with a rigid frame, q = [q' | θ | t],
+ * the model's part q'. CROM_EUSAGE for another rank, CROM_EDATA for no
  * frame or a non-finite q, or the reader's errors. */
 int crom_equil_latents(const char *path, int r, double **Z, long *count);
 

@@ -38,6 +38,12 @@ void crom_map_free(crom_map *map)
     free(map->wc);
     free(map->b0);
     free(map->bc);
+    if (map->inner)
+        crom_map_free(map->inner);
+    free(map->inner);
+    free(map->ia);
+    free(map->iT);
+    free(map->ig);
     memset(map, 0, sizeof *map);
 }
 
@@ -439,9 +445,14 @@ static void hidden_forward(crom_map *map, const double *q, int J, int keep, doub
     *tout = t;
 }
 
+static int frame_features(crom_map *map, const double *q, double *a, double *T);
+static int frame_curvature(crom_map *map, const double *q, const double *g, double *C);
+
 int crom_map_features(crom_map *map, const double *q, double *a, double *T)
 {
     int r = map->r, p = map->p;
+    if (map->inner)
+        return frame_features(map, q, a, T);
     if (!map->nonlinear) {
         if (a)
             memcpy(a, q, sizeof(double) * (size_t)r);
@@ -522,6 +533,8 @@ static inline double act_f2(crom_nn_act a, double om, double v)
  * keeps z_l and dz_l/dq, the adjoint pass ∂ψ/∂h_l, from the last layer down. */
 int crom_map_curvature(crom_map *map, const double *q, const double *g, double *C)
 {
+    if (map->inner)
+        return frame_curvature(map, q, g, C);
     int r = map->r, L = map->nlayers;
     size_t rr = (size_t)r * r;
     memset(C, 0, sizeof(double) * rr);
@@ -614,4 +627,197 @@ int crom_map_eval(crom_map *map, const double *q, double *x, double *J)
             if (!isfinite(x[i]))
                 return crom_err(CROM_EDATA, "the map gives a non-finite position");
     return 0;
+}
+
+/* ---- A rigid frame x = R(θ) y(q') + t (crom_map_add_frame) ---------------- */
+
+/* The rotation about axis ax (0 x, 1 y, 2 z) by angle th, differentiated
+ * k times in th, into M [9]: the plane (i, j) of the axis carries
+ * cos(th + kπ/2) and sin(th + kπ/2), the axis itself 1 (k = 0) or 0. */
+static void axis_rot(int ax, double th, int k, double M[9])
+{
+    static const int pl[3][2] = {{1, 2}, {2, 0}, {0, 1}};
+    int i = pl[ax][0], j = pl[ax][1];
+    double c = cos(th + k * M_PI_2), s = sin(th + k * M_PI_2);
+    memset(M, 0, sizeof(double) * 9);
+    M[ax * 4] = k ? 0 : 1;
+    M[i * 4] = M[j * 4] = c;
+    M[i * 3 + j] = -s;
+    M[j * 3 + i] = s;
+}
+
+static void mul3(const double *A, const double *B, double *C)
+{
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            C[i * 3 + j] = A[i * 3] * B[j] + A[i * 3 + 1] * B[3 + j] + A[i * 3 + 2] * B[6 + j];
+}
+
+/* ∂^{k_x + k_y + k_z} R / ∂θ_1^{k_x} ∂θ_2^{k_y} ∂θ_3^{k_z} of R = R_z R_y R_x
+ * (k [3]) into D [9] */
+static void euler_deriv(const double th[3], const int k[3], double D[9])
+{
+    double Mx[9], My[9], Mz[9], T[9];
+    axis_rot(0, th[0], k[0], Mx);
+    axis_rot(1, th[1], k[1], My);
+    axis_rot(2, th[2], k[2], Mz);
+    mul3(Mz, My, T);
+    mul3(T, Mx, D);
+}
+
+/* R (NULL to skip), its first derivatives dR [3][9] (NULL to skip) and its
+ * second d2R [3][3][9] (NULL to skip) at θ */
+static void euler(const double th[3], double *R, double *dR, double *d2R)
+{
+    int k[3] = {0, 0, 0};
+    if (R)
+        euler_deriv(th, k, R);
+    for (int a = 0; a < 3; a++) {
+        if (dR) {
+            k[a] = 1;
+            euler_deriv(th, k, dR + 9 * a);
+            k[a] = 0;
+        }
+        for (int b = 0; d2R && b < 3; b++) {
+            k[a]++;
+            k[b]++;
+            euler_deriv(th, k, d2R + 9 * (3 * a + b));
+            k[a] = k[b] = 0;
+        }
+    }
+}
+
+int crom_map_add_frame(crom_map *map)
+{
+    if (map->inner)
+        return crom_err(CROM_EUSAGE, "the map has a rigid frame already");
+    if (map->nc)
+        return crom_err(CROM_EUSAGE, "a rigid frame over a conditional map is not supported");
+    crom_map *in = crom_malloc(sizeof *in);
+    if (!in) {
+        crom_map_free(map);
+        return CROM_EINTERNAL;
+    }
+    *in = *map;
+    memset(map, 0, sizeof *map);
+    map->inner = in;
+    int ri = in->r, pi = in->p, r = ri + 6, pb = pi + 1, p = 9 * pb + 3;
+    map->r = r;
+    map->nv = in->nv;
+    map->n = in->n;
+    map->nonlinear = 1;
+    map->p = map->p_model = p;
+    int rc = crom_mesh_copy(&in->mesh, &map->mesh);
+    map->B = crom_calloc((size_t)map->n * p, sizeof(double));
+    map->x0 = crom_malloc(sizeof(double) * (size_t)map->n);
+    map->fa = crom_malloc(sizeof(double) * (size_t)p);
+    map->fT = crom_malloc(sizeof(double) * (size_t)p * r);
+    map->ia = crom_malloc(sizeof(double) * (size_t)pi);
+    map->iT = crom_malloc(sizeof(double) * (size_t)pi * ri);
+    map->ig = crom_malloc(sizeof(double) * (size_t)pi);
+    if (rc || !map->B || !map->x0 || !map->fa || !map->fT || !map->ia || !map->iT || !map->ig) {
+        crom_map_free(map);
+        return rc ? rc : CROM_EINTERNAL;
+    }
+    memcpy(map->x0, in->x0, sizeof(double) * (size_t)map->n);
+    for (int v = 0; v < map->nv; v++) /* row 3v + k: Σ_l R_kl (x0_l + B'_l a') + t_k */
+        for (int k = 0; k < 3; k++) {
+            double *row = map->B + (3 * (size_t)v + k) * p;
+            for (int l = 0; l < 3; l++) {
+                double *blk = row + (3 * k + l) * pb;
+                blk[0] = in->x0[3 * (size_t)v + l];
+                memcpy(blk + 1, in->B + (3 * (size_t)v + l) * pi, sizeof(double) * (size_t)pi);
+            }
+            row[9 * pb + k] = 1;
+        }
+    return 0;
+}
+
+static int frame_features(crom_map *map, const double *q, double *a, double *T)
+{
+    crom_map *in = map->inner;
+    int ri = in->r, pi = in->p, r = map->r, pb = pi + 1, rc;
+    if ((rc = crom_map_features(in, q, map->ia, T ? map->iT : NULL)))
+        return rc;
+    const double *th = q + ri, *ai = map->ia;
+    double R[9], dR[27];
+    euler(th, R, T ? dR : NULL, NULL);
+    for (int kl = 0; a && kl < 9; kl++) {
+        double *blk = a + kl * pb;
+        blk[0] = R[kl] - (kl % 4 == 0);
+        for (int j = 0; j < pi; j++)
+            blk[1 + j] = R[kl] * ai[j];
+    }
+    if (a)
+        memcpy(a + 9 * pb, q + ri + 3, sizeof(double) * 3);
+    if (!T)
+        return 0;
+    memset(T, 0, sizeof(double) * (size_t)map->p * r);
+    for (int kl = 0; kl < 9; kl++) {
+        double *row = T + (size_t)kl * pb * r;
+        for (int c = 0; c < 3; c++)
+            row[ri + c] = dR[9 * c + kl];
+        for (int j = 0; j < pi; j++) {
+            row += r;
+            const double *Tj = map->iT + (size_t)j * ri;
+            for (int b = 0; b < ri; b++)
+                row[b] = R[kl] * Tj[b];
+            for (int c = 0; c < 3; c++)
+                row[ri + c] = dR[9 * c + kl] * ai[j];
+        }
+    }
+    for (int k = 0; k < 3; k++)
+        T[((size_t)9 * pb + k) * r + ri + 3 + k] = 1;
+    return 0;
+}
+
+/* ψ = gᵀa with a's rotation blocks Σ_kl R_kl (g_kl0 + Σ_j g_klj a'_j):
+ * ∂²ψ/∂q'² is the inner map's curvature along u_j = Σ_kl R_kl g_klj,
+ * ∂²ψ/∂θ_c∂q' = Σ_kl ∂_c R_kl Σ_j g_klj T'_j, ∂²ψ/∂θ_c∂θ_e = Σ_kl
+ * ∂_ce R_kl (g_kl0 + Σ_j g_klj a'_j); t enters linearly. */
+static int frame_curvature(crom_map *map, const double *q, const double *g, double *C)
+{
+    crom_map *in = map->inner;
+    int ri = in->r, pi = in->p, r = map->r, pb = pi + 1, rc;
+    if ((rc = crom_map_features(in, q, map->ia, map->iT)))
+        return rc;
+    double R[9], dR[27], d2R[81], *Ci = crom_malloc(sizeof(double) * (size_t)ri * ri);
+    if (!Ci)
+        return CROM_EINTERNAL;
+    euler(q + ri, R, dR, d2R);
+    memset(map->ig, 0, sizeof(double) * (size_t)pi);
+    for (int kl = 0; kl < 9; kl++)
+        cblas_daxpy(pi, R[kl], g + kl * pb + 1, 1, map->ig, 1);
+    if ((rc = crom_map_curvature(in, q, map->ig, Ci))) {
+        free(Ci);
+        return rc;
+    }
+    memset(C, 0, sizeof(double) * (size_t)r * r);
+    for (int i = 0; i < ri; i++)
+        memcpy(C + (size_t)i * r, Ci + (size_t)i * ri, sizeof(double) * (size_t)ri);
+    free(Ci);
+    double Gkl[9]; /* g_kl0 + Σ_j g_klj a'_j */
+    for (int kl = 0; kl < 9; kl++)
+        Gkl[kl] = g[kl * pb] + cblas_ddot(pi, g + kl * pb + 1, 1, map->ia, 1);
+    for (int c = 0; c < 3; c++) {
+        memset(map->ig, 0, sizeof(double) * (size_t)pi); /* w_c = Σ_kl ∂_c R_kl g_kl· */
+        for (int kl = 0; kl < 9; kl++)
+            cblas_daxpy(pi, dR[9 * c + kl], g + kl * pb + 1, 1, map->ig, 1);
+        for (int b = 0; b < ri; b++) {
+            double s = 0;
+            for (int j = 0; j < pi; j++)
+                s += map->ig[j] * map->iT[(size_t)j * ri + b];
+            C[(size_t)(ri + c) * r + b] = C[(size_t)b * r + ri + c] = s;
+        }
+        for (int e = 0; e < 3; e++) {
+            double s = 0;
+            for (int kl = 0; kl < 9; kl++)
+                s += d2R[9 * (3 * c + e) + kl] * Gkl[kl];
+            C[(size_t)(ri + c) * r + ri + e] = s;
+        }
+    }
+    double sum = 0;
+    for (size_t i = 0; i < (size_t)r * r; i++)
+        sum += C[i];
+    return isfinite(sum) ? 0 : crom_err(CROM_EDATA, "the map's frame is not finite at this latent");
 }

@@ -98,6 +98,10 @@ typedef struct crom_map_s {
      * the model's field/lifts; zero for the other kinds); NULL when there
      * is none */
     double *xs, *lift;
+    /* a rigid frame (crom_map_add_frame): this map is x = R(θ) y(q') + t
+     * over the map y = *inner, with q = [q' | θ | t]; NULL: none */
+    struct crom_map_s *inner;
+    double *ia, *iT, *ig; /* scratch: inner features [p'], their Jacobian [p'][r'], a covector [p'] */
 } crom_map;
 
 /* Build the map of a model. A map model (energy, neuralmodes) lives on its
@@ -139,6 +143,23 @@ void crom_map_rows(const crom_map *map, const int *idx, int nidx, const double *
  * x(0) = x0 still, and a pin condition moves x0 along its lift. CROM_EUSAGE for a map with no conditions, CROM_EDATA for
  * a non-finite value or network. */
 int crom_map_set_condition(crom_map *map, const double *c);
+
+/* Add six rigid degrees of freedom to map (Wang et al. 2024 §5: the
+ * puppet's subspace is "5 DoFs corresponding to Neural Modes, and 6 DoFs
+ * for rigid transformations"): the map y(q') of rank r' becomes
+ *
+ *     x(q', θ, t) = R(θ) y(q') + t,   R(θ) = R_z(θ_3) R_y(θ_2) R_x(θ_1),
+ *
+ * of rank r' + 6 (latent [q' | θ (rad) | t (m)]; x(0) = y(0) = x0). R is
+ * taken about the origin of the mesh's coordinates, by Euler angles: no
+ * singularity while |θ_2| < π/2. The result is linear in the features
+ *     a = [ (R_kl − δ_kl, R_kl a'(q'))_{kl} | t ]   (9 (p' + 1) + 3 of them)
+ * over B = [e_k ⊗ (x0_l, B'_l) | I], so everything built on the features
+ * (nlsim.h's quadratic forms, rows and curvature) applies unchanged. The
+ * elastic energy is invariant under the frame: a cubature of y serves x.
+ * CROM_EUSAGE for a conditional map or one that has a frame already,
+ * CROM_EINTERNAL when out of memory (map is then freed). */
+int crom_map_add_frame(crom_map *map);
 
 /* Release what init allocated (NULL-safe). */
 void crom_map_free(crom_map *map);

@@ -105,6 +105,8 @@ static int latent_map(crom_result *res, const crom_model *model, const char *mes
         if (rc && mesh_path)
             crom_err_ctx("--mesh %s", mesh_path);
     }
+    if (!rc && res->frame)
+        rc = crom_map_add_frame(res->map);
     crom_mesh_free(&given);
     if (!rc)
         rc = crom_mesh_copy(&res->map->mesh, &res->mesh);
@@ -167,16 +169,21 @@ static int adopt_latent(crom_result *res, const char *mesh_path, const char *mod
         rc = crom_err(CROM_EDATA, "%s holds coordinates of model %s, but --model %s is model %s", in->name,
                       res->model_id, model_path, model.model_id);
     } else {
-        res->r = model.rank;
-        if ((int)in->fields[res->fu].count != res->r)
+        /* a run with crom-reducedstep --rigid-frame: q = [q' | θ | t] */
+        long long frame = 0;
+        if (crom_h5_has_attr(in->h5, ".", "rigid_frame") && (rc = crom_h5_get_i64(in->h5, ".", "rigid_frame", &frame)))
+            crom_err_ctx("%s", in->name);
+        res->frame = frame != 0;
+        res->r = model.rank + (res->frame ? 6 : 0);
+        if (!rc && (int)in->fields[res->fu].count != res->r)
             rc = crom_err(CROM_EDATA, "%s: q has %zu entries, the model's rank is %d", in->name,
                           in->fields[res->fu].count, res->r);
-        else if (res->fc >= 0 && (int)in->fields[res->fc].count != model.ncond)
+        else if (!rc && res->fc >= 0 && (int)in->fields[res->fc].count != model.ncond)
             rc = crom_err(CROM_EDATA, "%s: a condition of %zu values, model %s has %d conditions", in->name,
                           in->fields[res->fc].count, model.model_id, model.ncond);
-        else if (crom_model_is_nonlinear(&model))
+        else if (!rc && (crom_model_is_nonlinear(&model) || res->frame))
             rc = latent_map(res, &model, mesh_path);
-        else
+        else if (!rc)
             rc = latent_basis(res, &model, mesh_path);
     }
     crom_model_free(&model);

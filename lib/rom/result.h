@@ -24,6 +24,7 @@ typedef struct {
     int r;
     double *W;          /* latent: [nv][3][r] */
     struct crom_map_s *map; /* latent of a nonlinear map model: its evaluator (else NULL) */
+    int frame;          /* latent of a run with a rigid frame (crom_map_add_frame): q = [q' | θ | t] */
     double *J;          /* map: [3nv][r] Jacobian scratch */
     char model_id[17];
     int ft, fu, fv;     /* frame fields: time, displacement or q, velocity or qdot */

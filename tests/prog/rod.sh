@@ -71,25 +71,33 @@ printf 'step 800\nquit\n' | crom-live --cubature cub.h5 "${SC[@]}" --no-clock -q
 e=$(crom-diff --model pod.h5 --mesh two.h5 red.h5 live.h5 2>&1 | sed -n 's/^relative displacement error \([^ ]*\) .*/\1/p')
 close "$e" 0 1e-12 "crom-live against crom-reducedstep"
 
-# the puppet (pipelines/puppet.mk, Neural Modes §5) at a small size: six
-# rods swing the arms; modes with their derivatives follow the full run
-# far better than the linear modes, whose arms lock (they swing less than
-# half as far); a filmstrip per subspace. (Eigensolves and training: not
+# the puppet (pipelines/puppet.mk, Neural Modes §5) at a small size, free:
+# six rods swing the arms and turn the torso; every subspace has the six
+# rigid DoFs of --rigid-frame; modes with their derivatives follow the full
+# run far better than the linear modes, whose arms lock (they swing less
+# than half as far), and the frame turns the torso as the full run does
+# (within half); a filmstrip per subspace. (Eigensolves and training: not
 # under the sanitizers, like materials.sh's experiment.)
 if [ "${CROM_SANITIZE:-0}" != 1 ]; then
   make -s -f "$CROM_TOP/pipelines/puppet.mk" OUT="$TMP/pup" SIZE=0.07 STEPS=24 TMINUTES=0.02 QUIET=-q \
     BINDIR="$CROM_BINDIR" >pup.txt 2>pup.err || fail "puppet.mk: $(cat pup.err)"
   cat pup.txt
-  [ "$(grep -c '^| [lmnt]' pup.txt)" -eq 4 ] || fail "puppet.mk: the table lacks rows"; ok
+  [ "$(grep -c '^| [lmnt]' pup.txt)" -eq 5 ] || fail "puppet.mk: the table lacks rows"; ok
   $PY - pup.txt <<'PYEOF' || fail "puppet.mk: modal derivatives not better than the linear modes"
 import sys
 rows = {l.split("|")[1].strip(): l.split("|") for l in open(sys.argv[1]) if l.startswith("| ") and "subspace" not in l}
+full = rows.pop("crom-fullsim")
 err = {k: float(v[4]) for k, v in rows.items()}
 swing = {k: float(v[6].split()[0]) for k, v in rows.items()}
-print(err, swing)
+turn = {k: float(v[7].strip().rstrip("°")) for k, v in list(rows.items()) + [("full", full)]}
+print(err, swing, turn)
+if not all(v[2].strip().endswith("+ 6") for v in rows.values()):
+    raise SystemExit("every subspace should have the rigid frame")
 if not (err["modes + modal derivatives"] < 0.6 * err["linear modes"] and
         swing["modes + modal derivatives"] > 2 * swing["linear modes"]):
     raise SystemExit("modal derivatives do not beat the locked linear modes")
+if not (turn["full"] > 0 and abs(turn["modes + modal derivatives"] / turn["full"] - 1) < 0.5):
+    raise SystemExit("the frame does not turn the torso as the full run does")
 PYEOF
   ok
   for r in modes mderiv neuralmodes; do

@@ -2072,6 +2072,117 @@ static void test_shell_map(void)
     crom_mesh_free(&mesh);
 }
 
+/* A rigid frame over a map (crom_map_add_frame: x = R(θ) y(q') + t), on
+ * the modes of the clamped bar (a linear map) and on the trained energy
+ * map: the Jacobian and the features' curvature against differences; x is
+ * y moved rigidly (every distance kept); x(0) = x0 bit for bit. Then the
+ * bar, no longer clamped, in its modes plus the frame: it falls under
+ * gravity with its centre of mass exactly on implicit Euler's free fall
+ * (the elastic forces are internal and t is in the subspace), and an
+ * initial spin turns it about z by ω t. */
+static void test_frame(bar_case *b)
+{
+    crom_model lm;
+    modes_model(b, &lm);
+    const crom_model *models[2] = {&lm, &g_energy_model};
+    for (int mi = 0; mi < 2; mi++) {
+        if (!models[mi]->rank)
+            continue;
+        crom_map map;
+        int rc = crom_map_init(&map, models[mi], &b->mesh);
+        CHECK_MSG(rc == 0, "map: %s", crom_errmsg());
+        if (rc)
+            continue;
+        int ri = map.r;
+        CHECK(crom_map_add_frame(&map) == 0 && map.r == ri + 6 && map.inner);
+        CHECK(crom_map_add_frame(&map) == CROM_EUSAGE);
+        int r = map.r, n = map.n;
+        double q[16] = {0}, q0[16] = {0};
+        for (int k = 0; k < ri; k++)
+            q[k] = 0.2 * (k + 1) * (k % 2 ? -1 : 1);
+        q[ri] = 0.3, q[ri + 1] = -0.4, q[ri + 2] = 0.7, q[ri + 3] = 0.1, q[ri + 4] = -0.2, q[ri + 5] = 0.05;
+        double *x = malloc(sizeof(double) * n), *y = malloc(sizeof(double) * n);
+        double *J = malloc(sizeof(double) * n * r), *Jfd = malloc(sizeof(double) * n * r);
+        CHECK(crom_map_eval(&map, q, x, J) == 0 && crom_map_eval(map.inner, q, y, NULL) == 0);
+        map_case mc = {&map, NULL};
+        check_fd_jacobian(map_at, &mc, q, r, n, 1e-6, Jfd);
+        double ej = check_relerr(J, Jfd, n * r, 1e-12), ec = check_map_curvature(&map, q, 17), dist = 0, moved = 0;
+        for (int i = 0; i < map.nv; i += 7) /* distances between vertices kept, the body moved */
+            for (int j = i + 3; j < map.nv; j += 11) {
+                double dx = 0, dy = 0;
+                for (int c = 0; c < 3; c++) {
+                    dx += (x[3 * i + c] - x[3 * j + c]) * (x[3 * i + c] - x[3 * j + c]);
+                    dy += (y[3 * i + c] - y[3 * j + c]) * (y[3 * i + c] - y[3 * j + c]);
+                }
+                dist = fmax(dist, fabs(sqrt(dx) - sqrt(dy)));
+            }
+        for (int i = 0; i < n; i++)
+            moved = fmax(moved, fabs(x[i] - y[i]));
+        CHECK(crom_map_eval(&map, q0, x, NULL) == 0);
+        int rest = 1;
+        for (int i = 0; i < n; i++)
+            rest &= x[i] == map.x0[i];
+        fprintf(stderr, "%s map in a rigid frame: Jacobian vs FD %.2e, curvature vs FD %.2e, distances kept to "
+                "%.2e m (moved %.3g m), x(0) = x0 %s\n", mi ? "energy" : "modes", ej, ec, dist, moved,
+                rest ? "exactly" : "NOT");
+        CHECK_LT(ej, 1e-7);
+        CHECK_LT(ec, 1e-6);
+        CHECK_LT(dist, 1e-12);
+        CHECK(moved > 0.1 && rest);
+        if (mi == 0) { /* the free bar falling and spinning in its modes plus the frame */
+            for (int spin = 0; spin < 2; spin++) {
+                crom_scenario sc;
+                scenario_bar(&sc);
+                sc.tol = 1e-11;
+                if (spin) {
+                    sc.gravity[1] = 0;
+                    sc.spin[2] = 2;
+                }
+                crom_nlsim s;
+                rc = crom_nlsim_init(&s, &map, &sc, 0, NULL, NULL, 1);
+                CHECK_MSG(rc == 0, "frame run: %s", crom_errmsg());
+                if (rc)
+                    break;
+                int steps = 20;
+                for (int k = 0; k < steps && !rc; k++) {
+                    crom_rsim_stats st;
+                    rc = crom_nlsim_step(&s, &st);
+                }
+                CHECK_MSG(rc == 0, "frame run: %s", crom_errmsg());
+                crom_nlsim_positions(&s, x, NULL);
+                double c[3] = {0, 0, 0}, c0[3] = {0, 0, 0}, M = 0;
+                for (int v = 0; v < map.nv; v++) {
+                    M += b->fem.mass[v];
+                    for (int k = 0; k < 3; k++) {
+                        c[k] += b->fem.mass[v] * x[3 * v + k];
+                        c0[k] += b->fem.mass[v] * b->mesh.X[3 * v + k];
+                    }
+                }
+                double h = sc.dt, T = steps * h;
+                if (!spin) { /* implicit Euler: y_n = y_0 + g h² n (n + 1) / 2 */
+                    double want = sc.gravity[1] * h * h * steps * (steps + 1) / 2, got = (c[1] - c0[1]) / M;
+                    fprintf(stderr, "  free fall in the frame, %d steps: centre of mass fell %.9f m, implicit Euler "
+                            "%.9f m (apart %.1e); |q'| %.2e\n", steps, got, want, fabs(got - want), fabs(s.q[0]) + fabs(s.q[1]) + fabs(s.q[2]));
+                    CHECK_LT(fabs(got - want), 1e-9 * fabs(want));
+                } else {
+                    double ang = s.q[ri + 2];
+                    fprintf(stderr, "  spin 2 rad/s about z, %d steps: the frame turned %.5f rad (ω t = %.5f); centre "
+                            "of mass moved %.2e m\n", steps, ang, 2 * T, fabs(c[0] - c0[0]) / M + fabs(c[1] - c0[1]) / M);
+                    CHECK_LT(fabs(ang - 2 * T) / (2 * T), 0.01);
+                    CHECK_LT(fabs(c[0] - c0[0]) / M + fabs(c[1] - c0[1]) / M, 1e-9);
+                }
+                crom_nlsim_free(&s);
+            }
+        }
+        free(x);
+        free(y);
+        free(J);
+        free(Jfd);
+        crom_map_free(&map);
+    }
+    crom_model_free(&lm);
+}
+
 /* A cubature of the energy map through its features (crom-cubature
  * --model on a map): optimized NNLS weights fitted to the latent forces
  * T(q)ᵀ B_eᵀ f_e at samples of the training distribution reproduce the
@@ -2429,6 +2540,7 @@ int main(void)
     test_skin_field(&b);
     test_dynamics(&b);
     test_map_cubature(&b);
+    test_frame(&b);
     test_linear_equivalence(&b);
     test_lbfgs(&b);
     test_shell_map();
