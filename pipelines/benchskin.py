@@ -41,6 +41,7 @@ def collapsed(path):
 
 
 MAP_NAMES = {"sfield": "continuous field over skinning eigenmodes (skin-field)",
+             "sfref": "skin-field trained 1 min, then refined along its static run (--init-model --latents)",
              "field": "continuous field, trained W(X) (energy-field)",
              "energy": "energy map (Sharp et al.)", "neuralmodes": "neural modes (Wang et al.)",
              "nmseed": "neural modes seeded with modal derivatives, untrained (quadratic manifold)",

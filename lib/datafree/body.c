@@ -148,15 +148,19 @@ int crom_body_seed(crom_body *b, const char *path, long frame, crom_datafree_pro
     return 0;
 }
 
-int crom_body_refine(crom_body *b, const char *path, const char *latents, int rank, crom_datafree_problem *P)
+int crom_body_refine(crom_body *b, const char *path, const char *latents, int rank, const char *basis,
+                     crom_datafree_problem *P)
 {
     crom_model *m = &b->init;
     crom_model_free(m);
     int rc = crom_model_load(path, m);
     if (rc)
         return crom_err_ctx("--init-model");
-    if (strcmp(m->basis, "energy"))
-        return crom_err(CROM_EUSAGE, "--init-model %s is a %s model, not an energy map", path, m->basis);
+    b->init_path = path;
+    int field = !strcmp(basis, "skin-field");
+    if (strcmp(m->basis, basis))
+        return crom_err(CROM_EUSAGE, "--init-model %s is a %s model, not %s", path, m->basis,
+                        field ? "a field over skinning eigenmodes (skin-field)" : "an energy map");
     if (crom_map_same_mesh(&m->mesh, &b->mesh))
         return crom_err(CROM_EUSAGE, "--init-model %s maps another mesh", path);
     if (m->rank != rank)
@@ -170,7 +174,7 @@ int crom_body_refine(crom_body *b, const char *path, const char *latents, int ra
                         path);
     if (P->seed)
         return crom_err(CROM_EUSAGE, "--init-model brings its own seed state: drop --seed-state");
-    P->init = &m->mlp;
+    P->init = field ? &m->latent : &m->mlp;
     P->seed = m->seed_v;
     if (m->seed_v)
         snprintf(b->seed_what, sizeof b->seed_what, "the seed state of model %s", m->model_id);
@@ -345,6 +349,30 @@ int crom_body_skin_coordinates(const crom_body *b, crom_model *m, double tol)
     return rc;
 }
 
+/* Whether the skinning basis [nv][3][p] at b's vertices is that of the
+ * skin-field b refines (b->init): the eigensolve is deterministic, so the
+ * same mesh, material, pins and handles give it again. */
+static int same_basis(const crom_body *b, const double *basis, int p)
+{
+    const crom_model *m = &b->init;
+    size_t n = 3 * (size_t)b->mesh.nv * p;
+    int pm = m->latent.spec.width[m->latent.spec.nlayers];
+    if (pm != p)
+        return crom_err(CROM_EUSAGE, "--init-model %s is a field over another skinning basis (%d functions, not %d: "
+                        "other --handles?)", b->init_path, pm, p);
+    double *w = crom_malloc(sizeof(double) * n), d = 0, s = 0;
+    int rc = w ? crom_skin_eval(m, (size_t)b->mesh.nv, b->mesh.X, w, NULL) : CROM_EINTERNAL;
+    for (size_t i = 0; !rc && i < n; i++) {
+        d = fmax(d, fabs(w[i] - basis[i]));
+        s = fmax(s, fabs(basis[i]));
+    }
+    free(w);
+    if (!rc && !(d <= 1e-8 * s))
+        rc = crom_err(CROM_EUSAGE, "--init-model %s is a field over another skinning basis (%.3g apart: other "
+                      "material or pins?)", b->init_path, d / s);
+    return rc;
+}
+
 int crom_body_train_skin_field(const crom_body *b, const crom_datafree_problem *P, const crom_datafree_opts *o,
                                int H, crom_model *out, crom_dftrain_log *log, long *solves)
 {
@@ -360,6 +388,8 @@ int crom_body_train_skin_field(const crom_body *b, const crom_datafree_problem *
         rc = CROM_EINTERNAL;
     if (!rc)
         rc = crom_skin_eval(out, (size_t)nv, b->mesh.X, basis, NULL);
+    if (!rc && P->init) /* refining: the basis of the field it starts from, to round-off */
+        rc = same_basis(b, basis, p);
     if (!rc)
         rc = crom_dffield_train_latent(P, o, basis, p, &phi, log);
     if (!rc)

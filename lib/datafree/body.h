@@ -60,7 +60,8 @@ typedef struct {
     long nvisit;
     char visit_what[160];    /* where they came from (the model's record) */
     double *seed;            /* energy from a seed state: its displacement [3nv] (crom_body_seed) */
-    crom_model init;         /* energy refined along a run: the map it starts from (crom_body_refine) */
+    crom_model init;         /* energy or skin-field refined along a run: the model it starts from (crom_body_refine) */
+    const char *init_path;   /* and where it came from (borrowed) */
     char seed_what[200];     /* where it came from (the model's record) */
 } crom_body;
 
@@ -95,14 +96,17 @@ int crom_body_visit(crom_body *b, const char *path, int rank, crom_datafree_prob
  * "--seed-state" as context. */
 int crom_body_seed(crom_body *b, const char *path, long frame, crom_datafree_problem *P);
 
-/* Refine an energy map (datafree.h): the map at path (basis energy, b's
- * mesh, the conditions of P) becomes P->init, its seed state P->seed, and,
+/* Refine an energy map or a skin-field (datafree.h): the model at path
+ * (basis `basis`: "energy", b's mesh and the conditions of P; or
+ * "skin-field", its φ then refined over the same skinning basis,
+ * crom_body_train_skin_field) becomes P->init, its seed state P->seed, and,
  * with latents (may be NULL), the latents its reduced run at that path
  * visited become P's samples along a run. Returns 0, CROM_EUSAGE (another
  * kind, mesh or conditions; a seed state given too; a run of another
  * model) or the reader's error with "--init-model" or "--latents" as
  * context. */
-int crom_body_refine(crom_body *b, const char *path, const char *latents, int rank, crom_datafree_problem *P);
+int crom_body_refine(crom_body *b, const char *path, const char *latents, int rank, const char *basis,
+                     crom_datafree_problem *P);
 
 /* The body's volume (the mesh's, or the sampled points') and mass (m³, kg;
  * the mass after crom_body_pins). */

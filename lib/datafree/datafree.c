@@ -328,6 +328,30 @@ int crom_datafree_ctx_init(crom_datafree_ctx *c, const crom_datafree_problem *p,
  * point it is drawn near, relative to max(a_k, |z_k|) (datafree.h). */
 #define VISIT_JITTER 0.15
 
+void crom_datafree_visit_draw(int normal, int B, int B0, int r, const double *z, const double *half, long nvisit,
+                              const double *visit_z, double *out)
+{
+    for (int b = 0; b < B; b++) {
+        const double *zb = z + (size_t)b * r;
+        double *y = out + (size_t)b * r;
+        if (b % 2 == 0) {
+            memcpy(y, zb, sizeof(double) * (size_t)r);
+            continue;
+        }
+        /* the visited point, picked by the draw's first coordinate (so the batch stays fixed while L-BFGS
+         * iterates on it): Φ(z_0) of a normal draw, or a uniform one in the box */
+        double u = (normal ? 0.5 * erfc(-zb[0] / sqrt(2.0)) : 0.5 * (zb[0] / half[0] + 1)) * (double)nvisit;
+        long k = (long)u;
+        k = k < 0 ? 0 : k >= nvisit ? nvisit - 1 : k;
+        const double *v = visit_z + (size_t)k * r;
+        for (int a = 0; a < r; a++) { /* (coordinate 0's jitter from the rest of its draw, in [-1, 1]) */
+            double w = a ? (normal ? zb[a] : zb[a] / half[a]) : 2 * (u - (double)k) - 1;
+            y[a] = v[a] + VISIT_JITTER * w * (normal ? 1 : fmax(half[a], fabs(v[a])));
+        }
+    }
+    memcpy(out + (size_t)B * r, z + (size_t)B * r, sizeof(double) * (size_t)B0 * r); /* the samples after the batch */
+}
+
 /* The step of the central difference that stands for J_N(0) z in a
  * tangent-anchored map's training (relative to z; datafree.h). */
 #define TANGENT_EPS 1e-2
@@ -778,29 +802,9 @@ static int map_loss(void *ctx, const double *z, double rho, int K, const int *te
             memcpy(T->zs + (size_t)b * r, T->sup_z + (size_t)T->sup[b] * r, sizeof(double) * (size_t)r);
         }
         z = T->zs;
-    } else if (T->nvisit) { /* along a run (datafree.h): every other sample near a visited point, picked by
-                             * the draw's first coordinate (so the batch stays fixed while L-BFGS iterates):
-                             * neuralmodes' uniform one in the box, or the energy's normal one, Φ(z_0) */
+    } else if (T->nvisit) { /* along a run (datafree.h) */
         int en = T->o.objective == CROM_DATAFREE_ENERGY;
-        const double *half = T->ctx.half;
-        for (int b = 0; b < T->o.batch; b++) {
-            const double *zb = z + (size_t)b * r;
-            double *y = T->zs + (size_t)b * r;
-            if (b % 2 == 0) {
-                memcpy(y, zb, sizeof(double) * (size_t)r);
-                continue;
-            }
-            double u = (en ? 0.5 * erfc(-zb[0] / sqrt(2.0)) : 0.5 * (zb[0] / half[0] + 1)) * (double)T->nvisit;
-            long k = (long)u;
-            k = k < 0 ? 0 : k >= T->nvisit ? T->nvisit - 1 : k;
-            const double *v = T->visit_z + (size_t)k * r;
-            for (int a = 0; a < r; a++) { /* (coordinate 0's jitter from the rest of its draw, in [-1, 1]) */
-                double w = a ? (en ? zb[a] : zb[a] / half[a]) : 2 * (u - (double)k) - 1;
-                y[a] = v[a] + VISIT_JITTER * w * (en ? 1 : fmax(half[a], fabs(v[a])));
-            }
-        }
-        if (en) /* the collapse floor's secants after the batch */
-            memcpy(T->zs + (size_t)T->o.batch * r, z + (size_t)T->o.batch * r, sizeof(double) * (size_t)T->ctx.B0 * r);
+        crom_datafree_visit_draw(en, T->o.batch, en ? T->ctx.B0 : 0, r, z, T->ctx.half, T->nvisit, T->visit_z, T->zs);
         z = T->zs;
     }
     if (T->ctx.P.ncond) { /* the batch's condition, from its own latents (datafree.h) */

@@ -152,7 +152,7 @@ typedef struct {
     const double *sup_z;         /* [nsup][r] their modal coordinates (m) */
     const double *sup_u;         /* [nsup][3nv] their displacements (m) */
     long nvisit;                 /* neuralmodes: modal coordinates a reduced run visited (0: none); energy
-                                  * (with init): latents a reduced run of init visited; */
+                                  * and field (with init): latents a reduced run of init visited; */
     const double *visit_z;       /* [nvisit][r]: every other sample of a batch is drawn near one of them */
     const crom_scenario *materials; /* its regions of other materials (--youngs REGION=E), or NULL */
     int ncond;                   /* energy: a conditional map (Sharp et al. §3.5) over ncond scenario
@@ -165,7 +165,8 @@ typedef struct {
                                   * shape. The map is anchored there, x(z) = X + u_s + N(z) − N(0), and
                                   * the energy is taken at X + u_s + ρ Y (the seed blend of §4.1) */
     const crom_nn_mlp *init;     /* energy: start from this network (a trained map of the same problem and
-                                  * shape: crom-fitfield --init-model) at ρ = 1, no seed blend; or NULL */
+                                  * shape: crom-fitfield --init-model) at ρ = 1, no seed blend; field over
+                                  * a fixed basis (dffield.h): φ of the same shape to start from; or NULL */
 } crom_datafree_problem;
 
 typedef struct {
@@ -287,5 +288,15 @@ int crom_datafree_train(const crom_datafree_problem *p, const crom_datafree_opts
 int crom_datafree_write_record(hid_t loc, const crom_datafree_opts *o, const crom_datafree_problem *p,
                          const crom_dftrain_log *log, double mass, const char *modes_id);
 
+
+/* A batch drawn along a run (datafree.h: sampling along a run, refining):
+ * z [B + B0][r] the loop's draws (normal != 0: N(0, I), else uniform in
+ * the box of half-widths half [r]); out gets them with every odd sample of
+ * the batch moved to a point of visit_z [nvisit][r] (picked by the draw's
+ * first coordinate) plus VISIT_JITTER times the rest of the draw (times
+ * max(half_k, |z_k|) for a box), and the B0 samples after the batch as they
+ * are. */
+void crom_datafree_visit_draw(int normal, int B, int B0, int r, const double *z, const double *half, long nvisit,
+                              const double *visit_z, double *out);
 
 #endif

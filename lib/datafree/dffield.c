@@ -461,6 +461,9 @@ typedef struct {
     crom_dffield_ctx ctx;
     int K;                   /* tets of the cubature */
     crom_rng irng, srng;
+    long nvisit;             /* refining along a run (datafree.h): the latents visited, */
+    const double *visit_z;
+    double *zs;              /* and the batch drawn near them */
 } field_trainer;
 
 static void field_free(field_trainer *T)
@@ -470,6 +473,7 @@ static void field_free(field_trainer *T)
     crom_nn_mlp_free(&T->phi);
     free(T->gW);
     free(T->gP);
+    free(T->zs);
 }
 
 /* The networks: W 3 -> field_width x (field_depth - 1) -> 3p with the input
@@ -493,6 +497,24 @@ static int field_setup(field_trainer *T, const crom_datafree_problem *p)
     if ((rc = crom_dffield_ctx_init(&T->ctx, p, o, W, T->basis, &T->phi, o->batch, T->K)) ||
         (rc = init_scale(&T->ctx, &T->W, &T->phi, &T->srng)))
         return rc;
+    if (p->init) { /* refining a trained φ over the same basis (datafree.h) */
+        const crom_nn_spec *is = &p->init->spec;
+        if (!T->basis)
+            return crom_err(CROM_EUSAGE, "a network to start from is for a field over a fixed basis (--handles)");
+        if (p->init->nparams != T->phi.nparams || is->nlayers != pspec.nlayers ||
+            memcmp(is->width, pspec.width, sizeof(int) * (size_t)(pspec.nlayers + 1)) || is->act != pspec.act)
+            return crom_err(CROM_EUSAGE, "the field to start from has another shape (rank, --width, --depth, "
+                                         "activation)");
+        memcpy(T->phi.params, p->init->params, sizeof(float) * T->phi.nparams);
+    }
+    if (p->nvisit > 0) {
+        if (!p->init)
+            return crom_err(CROM_EUSAGE, "a field samples along a run of the field it starts from: give it");
+        T->nvisit = p->nvisit;
+        T->visit_z = p->visit_z;
+        if (!(T->zs = crom_malloc(sizeof(double) * (size_t)(o->batch + T->ctx.B0) * o->rank)))
+            return CROM_EINTERNAL;
+    }
     T->gW = W ? crom_malloc(sizeof(float) * T->W.nparams) : NULL;
     T->gP = crom_malloc(sizeof(float) * T->phi.nparams);
     return (T->gW || !W) && T->gP ? 0 : CROM_EINTERNAL;
@@ -501,6 +523,10 @@ static int field_setup(field_trainer *T, const crom_datafree_problem *p)
 static int field_loss(void *ctx, const double *z, double rho, int K, const int *tets, crom_dftrain_terms *t)
 {
     field_trainer *T = ctx;
+    if (T->nvisit) { /* every other sample near a latent the run visited */
+        crom_datafree_visit_draw(1, T->o.batch, T->ctx.B0, T->o.rank, z, NULL, T->nvisit, T->visit_z, T->zs);
+        z = T->zs;
+    }
     return crom_dffield_loss(&T->ctx, T->o.batch, z, rho, K, tets, t, T->gW, T->gP);
 }
 
@@ -514,7 +540,8 @@ static int field_train(field_trainer *T, const crom_datafree_problem *p, crom_df
     crom_dftrain_loop L = {
         .loss = field_loss, .ctx = T, .nblocks = 2, .params = {T->W.params, T->phi.params}, .grad = {T->gW, T->gP},
         .nparams = {T->W.nparams, T->phi.nparams}, .rng = &T->srng, .batch = o->batch, .tangent = T->ctx.B0,
-        .r = o->rank, .tangent_radius = o->tangent_radius, .K = T->K, .nt = p->mesh->nt, .ramp = o->ramp,
+        .r = o->rank, .tangent_radius = o->tangent_radius, .K = T->K, .nt = p->mesh->nt,
+        .ramp = p->init ? 0 : o->ramp,
         .steps = o->steps, .minutes = o->minutes, .lr = o->lr, .hint = " (try a smaller --lr)",
         .progress = o->progress, .progress_ctx = o->progress_ctx};
     if (T->basis) { /* φ alone */

@@ -1723,6 +1723,63 @@ static void test_skin_field(bar_case *b)
     crom_metrics_free(&res);
     crom_map_free(&lin);
     crom_model_free(&lm);
+    /* refining φ over the same basis (crom-fitfield --objective field
+     * --init-model): training starts from it (one step at a vanishing
+     * rate leaves it), another shape is refused, and along a run its
+     * potential energy at the visited latent goes down */
+    crom_datafree_problem P2 = P;
+    P2.init = &phi;
+    crom_datafree_opts o2 = o;
+    o2.steps = 1;
+    o2.lr = 1e-12;
+    crom_nn_mlp phi2;
+    crom_dftrain_log log2;
+    rc = crom_dffield_train_latent(&P2, &o2, basis, p, &phi2, &log2);
+    CHECK_MSG(rc == 0, "refine: %s", crom_errmsg());
+    double dp = 0, pmax = 0;
+    for (size_t i = 0; !rc && i < phi.nparams; i++) {
+        dp = fmax(dp, fabs(phi2.params[i] - phi.params[i]));
+        pmax = fmax(pmax, fabs(phi.params[i]));
+    }
+    CHECK(!rc && dp <= 1e-9 * pmax);
+    crom_nn_mlp_free(&phi2);
+    crom_dftrain_log_free(&log2);
+    o2.width = 33;
+    CHECK(crom_dffield_train_latent(&P2, &o2, basis, p, &phi2, &log2) == CROM_EUSAGE &&
+          strstr(crom_errmsg(), "another shape"));
+    crom_err_clear();
+    crom_dftrain_log_free(&log2);
+    double zv[2] = {2.5, -2.0}, Epot[2] = {0, 0};
+    P2.nvisit = 1;
+    P2.visit_z = zv;
+    o2 = o;
+    o2.steps = 300;
+    rc = crom_dffield_train_latent(&P2, &o2, basis, p, &phi2, &log2);
+    CHECK_MSG(rc == 0, "refine along a run: %s", crom_errmsg());
+    for (int k = 0; k < 2 && !rc; k++) { /* E + the potential of gravity at x(zv), before and after */
+        crom_model mk;
+        crom_map mp;
+        CHECK(crom_dfskin_eigen(&b->mesh, &b->mat, NULL, b->fixed, 4, &mk, NULL) == 0);
+        double *mv = malloc(sizeof(double) * b->mesh.nv);
+        for (int v = 0; v < b->mesh.nv; v++)
+            mv[v] = b->fem.mass[v];
+        CHECK(crom_skin_orthonormalize(&mk, (size_t)b->mesh.nv, b->mesh.X, mv, 1e-6) == 0);
+        CHECK(crom_model_skin_field(&mk, k ? &phi2 : &phi) == 0 && crom_map_init(&mp, &mk, NULL) == 0);
+        double *xv = malloc(sizeof(double) * mp.n), Ee = 0, Wg = 0;
+        CHECK(crom_map_eval(&mp, zv, xv, NULL) == 0 && crom_fem_energy(&b->fem, xv, &Ee) == 0);
+        for (int i = 0; i < mp.n; i++)
+            Wg += mv[i / 3] * 9.81 * (i % 3 == 1) * (xv[i] - b->mesh.X[i]);
+        Epot[k] = Ee + Wg;
+        free(xv);
+        free(mv);
+        crom_map_free(&mp);
+        crom_model_free(&mk);
+    }
+    fprintf(stderr, "skin-field refined 300 steps along a run through z = (2.5, -2): potential energy there %.4g J "
+            "(before %.4g J)\n", Epot[1], Epot[0]);
+    CHECK(!rc && Epot[1] < Epot[0]);
+    crom_nn_mlp_free(&phi2);
+    crom_dftrain_log_free(&log2);
     crom_map_free(&map);
     crom_map_free(&fmap);
     crom_mesh_free(&fine);
