@@ -84,7 +84,7 @@ static const crom_opt df_opts[] = {
     {"condition", O_COND, "NAME=LO:HI", "energy: a conditional map (Sharp et al. 3.5): the network takes [z, c] and each batch is trained at a c drawn uniformly from LO:HI. NAME: ratio:REGION, the Young's modulus of REGION's tets over the body's (a region of another material); gravity:x|y|z, that component of gravity (m/s^2); pin:REGION:x|y|z, where a pinned REGION (give --pin REGION) is held, displaced along that axis (m): the map then starts from the body's static lift at rest with the pin moved so (field/lifts). Repeatable (at most 4). crom-reducedstep --model takes --condition NAME=VALUE[@T] to run the map at a condition, or change it at time T."},
     {"seed-state", O_SEEDST, "RUN", "energy: grow the map from a seed state instead of the rest shape (Sharp et al. 4.1): the displacement of a frame of RUN, a crom-fullsim trajectory of --mesh (e.g. the equilibrium of a bar compressed by --velocity on its ends, their regions then pinned here where the seed holds them). The map is anchored there, x(0) = X + u_seed (field/seed in the model): a reduced run starts from it, and its pins and prescribed motions are taken from it."},
     {"seed-frame", O_SEEDFR, "K", "--seed-state: which frame (default -1, the last; negative counts from the end)."},
-    {"init-model", O_INITM, "MODEL", "energy: refine the energy map MODEL (of --mesh, with the same --rank, --condition, --width and --depth) instead of training from scratch: training starts from its network at rho = 1 (no seed blend) and keeps its seed state; with --latents RUN (a crom-reducedstep --model MODEL run), every other sample is drawn near a latent the run visited (plus 0.15 N(0, I)), so the map's energy is lowered where the run went (e.g. a bistable bar's second equilibrium). Still data-free: the run is in the subspace. The model records refined_from. field with --handles: refine the skin-field MODEL the same way (its latent network phi over the same skinning eigenmodes, which the same mesh, material, pins and --handles give again; checked), e.g. along its static run under the load it must hold (a smaller --lr refines better: 1e-4 took a soft bar's static sag error from 19% to 4.4% in 7500 steps, where the default 1e-3 made it worse; README)."},
+    {"init-model", O_INITM, "MODEL", "energy: refine the energy map MODEL (of --mesh, with the same --rank, --condition, --width and --depth) instead of training from scratch: training starts from its network at rho = 1 (no seed blend) and keeps its seed state; with --latents RUN (a crom-reducedstep --model MODEL run), every other sample is drawn near a latent the run visited (plus 0.15 N(0, I)), so the map's energy is lowered where the run went (e.g. a bistable bar's second equilibrium). Still data-free: the run is in the subspace. The model records refined_from. field: refine the continuous field MODEL the same way (its phi and W(X), on any mesh of the body); with --handles, the skin-field MODEL (its latent network phi over the same skinning eigenmodes, which the same mesh, material, pins and --handles give again; checked), e.g. along its static run under the load it must hold (a smaller --lr refines better: 1e-4 took a soft bar's static sag error from 19% to 4.4% in 7500 steps, where the default 1e-3 made it worse; README)."},
     {"latents", O_VISIT, "RUN", "neuralmodes: sample along a run: every other sample of a batch is drawn near the modal coordinates of a frame of RUN (a crom/latent of a reduced run in the same modes, e.g. crom-reducedstep --model of the untrained map, --steps 0), moved by up to 15% of max(box half-width, |z_k|) per coordinate; the others from the box. For deformations whose coordinates lie outside the box (a soft body sagging far under its load). Still data-free: no full simulation. energy and field: with --init-model only (see there)."},
     {"box-scaling", O_BOXSC, "KIND", "neuralmodes: frequency (default): mode k is drawn from [-A f_1/f_k, A f_1/f_k], the same linear energy at every edge, so that the stiff modes do not swamp the energy of the soft ones; uniform: every mode from [-A, A] (Wang et al.)."},
     {"optimizer", O_OPTIM, "KIND", "energy, neuralmodes: adam (default): Adam on a fresh batch every step. lbfgs: L-BFGS with a backtracking line search (Wang et al.), --resample iterations on each batch."},
@@ -464,7 +464,7 @@ static void check_datafree(crom_cli *cli, const args *a)
                                  "MODEL (from crom-modes on the same mesh)"));
     if (a->objective != CROM_DATAFREE_NEURALMODES && a->modes)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--modes applies to --objective neuralmodes"));
-    int refine_field = a->init_model && a->objective == CROM_DATAFREE_FIELD && GIVEN(a, O_HANDLES);
+    int refine_field = a->init_model && a->objective == CROM_DATAFREE_FIELD;
     if (a->objective != CROM_DATAFREE_NEURALMODES &&
         (a->derivatives || a->supervised || a->df.tangent_anchor || (a->visit && !a->init_model)))
         usage_exit(cli, crom_err(CROM_EUSAGE, "%s applies to --objective neuralmodes%s",
@@ -475,7 +475,7 @@ static void check_datafree(crom_cli *cli, const args *a)
     if (a->ncond && a->objective != CROM_DATAFREE_ENERGY)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--condition applies to --objective energy"));
     if (a->init_model && a->objective != CROM_DATAFREE_ENERGY && !refine_field)
-        usage_exit(cli, crom_err(CROM_EUSAGE, "--init-model applies to --objective energy, or field with --handles"));
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--init-model applies to --objective energy or field"));
     if ((a->seed_state || GIVEN(a, O_SEEDFR)) && a->objective != CROM_DATAFREE_ENERGY)
         usage_exit(cli, crom_err(CROM_EUSAGE, "--seed-state applies to --objective energy"));
     if (GIVEN(a, O_SEEDFR) && !a->seed_state)
@@ -892,7 +892,8 @@ static int run_datafree(crom_cli *cli, args *a)
         rc = crom_body_seed(&b, a->seed_state, a->seed_frame, &P);
     if (!rc && a->init_model)
         rc = crom_body_refine(&b, a->init_model, a->visit, a->df.rank,
-                              a->objective == CROM_DATAFREE_FIELD ? "skin-field" : "energy", &P);
+                              a->objective != CROM_DATAFREE_FIELD ? "energy" :
+                              GIVEN(a, O_HANDLES) ? "skin-field" : "energy-field", &P);
     else if (!rc && a->visit)
         rc = crom_body_visit(&b, a->visit, a->df.rank, &P);
     double t0 = crom_clock_now();

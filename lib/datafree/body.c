@@ -157,11 +157,12 @@ int crom_body_refine(crom_body *b, const char *path, const char *latents, int ra
     if (rc)
         return crom_err_ctx("--init-model");
     b->init_path = path;
-    int field = !strcmp(basis, "skin-field");
+    int skin = !strcmp(basis, "skin-field"), cfield = !strcmp(basis, "energy-field");
     if (strcmp(m->basis, basis))
         return crom_err(CROM_EUSAGE, "--init-model %s is a %s model, not %s", path, m->basis,
-                        field ? "a field over skinning eigenmodes (skin-field)" : "an energy map");
-    if (crom_map_same_mesh(&m->mesh, &b->mesh))
+                        skin ? "a field over skinning eigenmodes (skin-field)" :
+                        cfield ? "a continuous field with a trained W(X) (energy-field)" : "an energy map");
+    if (!cfield && crom_map_same_mesh(&m->mesh, &b->mesh)) /* (a trained W(X) lays on any mesh of the body) */
         return crom_err(CROM_EUSAGE, "--init-model %s maps another mesh", path);
     if (m->rank != rank)
         return crom_err(CROM_EUSAGE, "--init-model %s has rank %d, not %d", path, m->rank, rank);
@@ -174,7 +175,8 @@ int crom_body_refine(crom_body *b, const char *path, const char *latents, int ra
                         path);
     if (P->seed)
         return crom_err(CROM_EUSAGE, "--init-model brings its own seed state: drop --seed-state");
-    P->init = field ? &m->latent : &m->mlp;
+    P->init = skin || cfield ? &m->latent : &m->mlp;
+    P->init_field = cfield ? &m->mlp : NULL;
     P->seed = m->seed_v;
     if (m->seed_v)
         snprintf(b->seed_what, sizeof b->seed_what, "the seed state of model %s", m->model_id);

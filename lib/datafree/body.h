@@ -96,10 +96,11 @@ int crom_body_visit(crom_body *b, const char *path, int rank, crom_datafree_prob
  * "--seed-state" as context. */
 int crom_body_seed(crom_body *b, const char *path, long frame, crom_datafree_problem *P);
 
-/* Refine an energy map or a skin-field (datafree.h): the model at path
- * (basis `basis`: "energy", b's mesh and the conditions of P; or
+/* Refine an energy map or a continuous field (datafree.h): the model at
+ * path (basis `basis`: "energy", b's mesh and the conditions of P;
  * "skin-field", its φ then refined over the same skinning basis,
- * crom_body_train_skin_field) becomes P->init, its seed state P->seed, and,
+ * crom_body_train_skin_field; or "energy-field", its φ and W(X), on any
+ * mesh of the body) becomes P->init (and P->init_field), its seed state P->seed, and,
  * with latents (may be NULL), the latents its reduced run at that path
  * visited become P's samples along a run. Returns 0, CROM_EUSAGE (another
  * kind, mesh or conditions; a seed state given too; a run of another

@@ -167,6 +167,7 @@ typedef struct {
     const crom_nn_mlp *init;     /* energy: start from this network (a trained map of the same problem and
                                   * shape: crom-fitfield --init-model) at ρ = 1, no seed blend; field over
                                   * a fixed basis (dffield.h): φ of the same shape to start from; or NULL */
+    const crom_nn_mlp *init_field; /* field (with init, its φ): the feature field W(X) to start from, or NULL */
 } crom_datafree_problem;
 
 typedef struct {

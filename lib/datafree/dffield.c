@@ -476,6 +476,15 @@ static void field_free(field_trainer *T)
     free(T->zs);
 }
 
+/* Whether network net has the layers of spec sp. */
+static int same_shape(const crom_nn_mlp *net, const crom_nn_spec *sp)
+{
+    const crom_nn_spec *s = &net->spec;
+    return s->nlayers == sp->nlayers && s->act == sp->act &&
+           !memcmp(s->width, sp->width, sizeof(int) * (size_t)(sp->nlayers + 1)) &&
+           net->nparams == crom_nn_spec_nparams(sp);
+}
+
 /* The networks: W 3 -> field_width x (field_depth - 1) -> 3p with the input
  * normalized to the bounding box, φ r -> width x (depth - 1) -> p; the
  * loss; W scaled to the isometry. */
@@ -497,15 +506,19 @@ static int field_setup(field_trainer *T, const crom_datafree_problem *p)
     if ((rc = crom_dffield_ctx_init(&T->ctx, p, o, W, T->basis, &T->phi, o->batch, T->K)) ||
         (rc = init_scale(&T->ctx, &T->W, &T->phi, &T->srng)))
         return rc;
-    if (p->init) { /* refining a trained φ over the same basis (datafree.h) */
-        const crom_nn_spec *is = &p->init->spec;
-        if (!T->basis)
-            return crom_err(CROM_EUSAGE, "a network to start from is for a field over a fixed basis (--handles)");
-        if (p->init->nparams != T->phi.nparams || is->nlayers != pspec.nlayers ||
-            memcmp(is->width, pspec.width, sizeof(int) * (size_t)(pspec.nlayers + 1)) || is->act != pspec.act)
+    if (p->init) { /* refining a trained field: φ, and W unless the basis is fixed (datafree.h) */
+        if (!T->basis != !!p->init_field)
+            return crom_err(CROM_EUSAGE, "a field to start from needs its feature field W(X) unless the basis is "
+                                         "fixed (--handles), and only then");
+        if (!same_shape(p->init, &pspec) || (p->init_field && !same_shape(p->init_field, &wspec)))
             return crom_err(CROM_EUSAGE, "the field to start from has another shape (rank, --width, --depth, "
-                                         "activation)");
+                                         "--features, --field-width, --field-depth, activation)");
         memcpy(T->phi.params, p->init->params, sizeof(float) * T->phi.nparams);
+        if (p->init_field) {
+            memcpy(T->W.params, p->init_field->params, sizeof(float) * T->W.nparams);
+            if ((rc = crom_nn_mlp_set_norm(&T->W, p->init_field->shift, p->init_field->scale)))
+                return rc;
+        }
     }
     if (p->nvisit > 0) {
         if (!p->init)

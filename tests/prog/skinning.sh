@@ -291,7 +291,7 @@ expect_error 64 "crom-fitfield: --init-model sfield.h5 is a field over another s
 expect_error 64 "crom-fitfield: --init-model eig4.h5 is a skinning model, not a field over skinning eigenmodes" out/x.h5 -- \
   crom-fitfield --objective field --handles 4 --mesh bar.h5 "${MAT[@]}" --pin clamp --rank 2 --init-model eig4.h5 \
   -o out/x.h5
-expect_error 64 "crom-fitfield: --init-model applies to --objective energy, or field with --handles" out/x.h5 -- \
+expect_error 64 "crom-fitfield: --init-model sfield.h5 is a skin-field model, not a continuous field with a trained W\(X\)" out/x.h5 -- \
   crom-fitfield --objective field --mesh bar.h5 "${MAT[@]}" --pin clamp --init-model sfield.h5 -o out/x.h5
 expect_error 64 "crom-fitfield: --features does not apply to --objective field --handles" out/x.h5 -- \
   crom-fitfield --objective field --handles 4 --features 8 --mesh bar.h5 "${MAT[@]}" --pin clamp -o out/x.h5

@@ -134,7 +134,7 @@ static void gradient_check(int objective)
         for (int i = 0; i < 3 * m.nv * 6; i++)
             Psi[i] = fixed[i / 6] ? 0 : 0.2 * crom_rng_normal(&qr);
     }
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, W, freq, Psi, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, W, freq, Psi, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL, NULL};
     double *useed = NULL;
     if (g_seeded) { /* a seed state: a bend of 2 cm at the free end, zero at the clamp */
         useed = malloc(sizeof(double) * 3 * m.nv);
@@ -420,7 +420,7 @@ static void gradient_check_field(void)
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
     unsigned char *fixed = clamp_mask(&m);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL, NULL};
     crom_datafree_opts o;
     field_check_opts(&o);
     o.pin_length = 0.3; /* a wide mask: many vertices inside it */
@@ -511,7 +511,7 @@ static void gradient_check_field_basis(void)
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
     unsigned char *fixed = clamp_mask(&m);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL, NULL};
     crom_datafree_opts o;
     field_check_opts(&o);
     int r = 2, pf = 5, B = 4, pw[] = {r, 10, pf};
@@ -695,7 +695,7 @@ static void test_conditional(void)
     }
     crom_material mat;
     crom_material_init(&mat, sc.youngs, sc.poisson, sc.density);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, &sc, 2, cond, NULL, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, &sc, 2, cond, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_nn_mlp net;
     crom_rng rng;
@@ -810,7 +810,7 @@ static void test_conditional_pin(void)
     }
     crom_material mat;
     crom_material_init(&mat, 1e6, 0.3, 1000);
-    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 2, cond, NULL, NULL};
+    crom_datafree_problem P = {&m, mat, {0, -9.81, 0}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 2, cond, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_nn_mlp net;
     crom_rng rng;
@@ -1164,7 +1164,7 @@ static crom_model g_energy_model; /* trained once, used by the dynamics tests */
  * pins stay exactly at rest, and so does a run with no load. */
 static void test_energy_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -1309,7 +1309,7 @@ static void test_seeded_map(bar_case *b)
     }
     /* refining it (--init-model): training starts from its network (one
      * step at a vanishing rate leaves it), and another shape is refused */
-    crom_datafree_problem P = {m, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, us, NULL};
+    crom_datafree_problem P = {m, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, us, NULL, NULL};
     P.init = &net;
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
@@ -1356,7 +1356,7 @@ static void test_seeded_map(bar_case *b)
  * load stays at rest. */
 static void test_neuralmodes_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_NEURALMODES);
     o.rank = b->nmodes;
@@ -1487,7 +1487,7 @@ static void test_neuralmodes_visit(bar_case *b)
     visit[0] = 0.3;       /* mode 1 at 3 times the box, */
     visit[r + 0] = 0.25;  /* and near it with mode 2 */
     visit[r + 1] = 0.05;
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, 0, 0}, b->fixed, b->modes, b->freq, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_NEURALMODES);
     o.rank = r;
@@ -1524,7 +1524,7 @@ static void test_neuralmodes_visit(bar_case *b)
 
 static void test_field_subspace(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_FIELD);
     o.rank = 2;
@@ -1603,6 +1603,43 @@ static void test_field_subspace(bar_case *b)
     CHECK_LT(rb.worst, 1e-6 * rb.scale);
     CHECK_LT(rb.cres, 0.01 * fres.rms_mean);
     crom_nlsim_free(&s);
+    /* refining it (crom-fitfield --objective field --init-model): training
+     * starts from both networks (one step at a vanishing rate leaves them),
+     * W alone or another shape is refused */
+    crom_datafree_problem P2 = P;
+    P2.init = &fm.latent;
+    P2.init_field = &fm.mlp;
+    crom_datafree_opts o2 = o;
+    o2.steps = 1;
+    o2.lr = 1e-12;
+    crom_model rm;
+    crom_dftrain_log log2;
+    rc = crom_datafree_train(&P2, &o2, &rm, &log2);
+    CHECK_MSG(rc == 0, "refine: %s", crom_errmsg());
+    double dw = 0, wmax = 0, dphi = 0, pmax = 0;
+    for (size_t i = 0; !rc && i < fm.mlp.nparams; i++) {
+        dw = fmax(dw, fabs(rm.mlp.params[i] - fm.mlp.params[i]));
+        wmax = fmax(wmax, fabs(fm.mlp.params[i]));
+    }
+    for (size_t i = 0; !rc && i < fm.latent.nparams; i++) {
+        dphi = fmax(dphi, fabs(rm.latent.params[i] - fm.latent.params[i]));
+        pmax = fmax(pmax, fabs(fm.latent.params[i]));
+    }
+    fprintf(stderr, "refined continuous field: one step at rate 1e-12 moves W by %.1e (largest %.2g), phi by %.1e "
+            "(largest %.2g)\n", dw, wmax, dphi, pmax);
+    CHECK(!rc && dw <= 1e-9 * wmax && dphi <= 1e-9 * pmax);
+    CHECK(!rc && rm.mlp.shift[0] == fm.mlp.shift[0] && rm.mlp.scale[2] == fm.mlp.scale[2]);
+    crom_model_free(&rm);
+    crom_dftrain_log_free(&log2);
+    o2.field_width = 33;
+    CHECK(crom_datafree_train(&P2, &o2, &rm, &log2) == CROM_EUSAGE && strstr(crom_errmsg(), "another shape"));
+    crom_err_clear();
+    crom_dftrain_log_free(&log2);
+    o2.field_width = o.field_width;
+    P2.init_field = NULL;
+    CHECK(crom_datafree_train(&P2, &o2, &rm, &log2) == CROM_EUSAGE && strstr(crom_errmsg(), "needs its feature field"));
+    crom_err_clear();
+    crom_dftrain_log_free(&log2);
     crom_metrics_free(&res);
     crom_metrics_free(&fres);
     crom_map_free(&map);
@@ -1623,7 +1660,7 @@ static void test_field_subspace(bar_case *b)
  * its samples have less energy than the two lowest linear modes'. */
 static void test_skin_field(bar_case *b)
 {
-    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
+    crom_datafree_problem P = {&b->mesh, b->mat, {0, -9.81, 0}, b->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL, NULL};
     crom_model sm;
     int rc = crom_dfskin_eigen(&b->mesh, &b->mat, NULL, b->fixed, 4, &sm, NULL);
     CHECK_MSG(rc == 0, "eigen: %s", crom_errmsg());
@@ -2009,7 +2046,7 @@ static void test_shell_map(void)
     CHECK(crom_modes_pins(&mesh, 1, clamp, &fixed, &npinned) == 0 && npinned > 0);
     crom_material mat;
     crom_material_init(&mat, 1e7, 0.3, 500);
-    crom_datafree_problem P = {&mesh, mat, {0, 0, -9.81}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
+    crom_datafree_problem P = {&mesh, mat, {0, 0, -9.81}, fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
@@ -2503,7 +2540,7 @@ static void test_lbfgs(bar_case *bc)
     CHECK_LT(errs[0], 1e-6);
     CHECK_LT(errs[0], 1e-4 * errs[1]);
 
-    crom_datafree_problem P = {&bc->mesh, bc->mat, {0, -9.81, 0}, bc->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL};
+    crom_datafree_problem P = {&bc->mesh, bc->mat, {0, -9.81, 0}, bc->fixed, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, 0, NULL, NULL, NULL, NULL};
     crom_datafree_opts o;
     crom_datafree_defaults(&o, CROM_DATAFREE_ENERGY);
     o.rank = 2;
