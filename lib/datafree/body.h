@@ -60,7 +60,7 @@ typedef struct {
     long nvisit;
     char visit_what[160];    /* where they came from (the model's record) */
     double *seed;            /* energy from a seed state: its displacement [3nv] (crom_body_seed) */
-    crom_model init;         /* energy or skin-field refined along a run: the model it starts from (crom_body_refine) */
+    crom_model init;         /* energy map or field refined along a run: the model it starts from (crom_body_refine) */
     const char *init_path;   /* and where it came from (borrowed) */
     char seed_what[200];     /* where it came from (the model's record) */
 } crom_body;

@@ -94,7 +94,10 @@
  * picked uniformly, plus VISIT_JITTER times a N(0, I) draw: the map's
  * energy is lowered where the run went (a bistable bar's second
  * equilibrium, which the samples of N(0, I) seldom reach). Still data-free:
- * the run is in the subspace.
+ * the run is in the subspace. A continuous field (dffield.h) is refined the
+ * same way: φ (and W(X) unless the basis is fixed) from the trained field,
+ * every other sample near a latent its run visited (a soft bar's static
+ * sag error from 19% to 4.4% for the field over skinning eigenmodes).
  *
  * field (beyond both papers): a CONTINUOUS data-free subspace x(X, z) = X
  * + W(X) (φ(z) − φ(0)), W a neural field over the body, trained on the

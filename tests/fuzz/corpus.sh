@@ -2,8 +2,9 @@
 # corpus.sh — the seed corpus of the fuzz harnesses, made by the programs at
 # tiny sizes: a coarse mesh, a few full-simulation steps (as a file and as a
 # stream through a pipe), samples, a POD model and its latent, linear modes,
-# a data-free skinning model, cubatures, surfaces written by crom-export plus
-# a few by hand, point clouds, and the flag lines of pipelines/*.mk.
+# a data-free skinning model, a run with a rigid frame, cubatures, surfaces
+# written by crom-export plus a few by hand, point clouds, and the flag lines
+# of pipelines/*.mk.
 # Usage: tests/fuzz/corpus.sh BINDIR OUTDIR   (OUTDIR/NAME/ per harness)
 # Remade only when a program is newer than OUTDIR/.done.
 set -euo pipefail
@@ -61,14 +62,19 @@ crom-fitfield --objective energy --mesh box.h5 --pin top --pin bottom --seed-sta
   --width 4 --depth 2 -q -o seedmap.h5
 crom-fitfield --objective energy --mesh box.h5 --pin bottom --condition 'pin:bottom:y=-0.01:0.01' --rank 2 --steps 2 \
   --width 4 --depth 2 -q -o pinmap.h5
+# a run in the modes plus a rigid frame (rigid_frame, q = [q | θ | t]), as a
+# file and as a stream
+crom-reducedstep --model modes.h5 --rigid-frame --youngs 1e6 --initial-velocity 0.1,0,0 --spin 0,0,1 --steps 2 -q \
+  -o framerun.h5
+crom-reducedstep --model modes.h5 --rigid-frame --youngs 1e6 --spin 0,0,1 --steps 2 -q | cat > framerun.stream
 cp box.h5 sphere.h5 run.h5 run1.h5 cub.h5 sheet.h5 sheetrun.h5 minichain.h5 stewart.h5 scenerun.h5 "$OUT/mesh/"
 cp run.h5 run1.h5 sheetrun.h5 scenerun.h5 "$OUT/traj/"
 cp samples.h5 samples_all.h5 samples_two.h5 "$OUT/samples/"
 cp pod.h5 mlp.h5 modes.h5 skin.h5 sheetmodes.h5 sheetnm.h5 scenemap.h5 seedmap.h5 pinmap.h5 "$OUT/model/"
 cp cub.h5 cub_modes.h5 sheetcub.h5 "$OUT/cubature/"
 cp box.h5 run.h5 samples.h5 pod.h5 latent.h5 modes.h5 cub.h5 sheet.h5 sheetrun.h5 sheetnm.h5 sheetcub.h5 stewart.h5 \
-  scenerun.h5 scenemap.h5 seedmap.h5 pinmap.h5 "$OUT/check/"
-cp run.stream latent.stream "$OUT/stream/"
+  scenerun.h5 scenemap.h5 seedmap.h5 pinmap.h5 framerun.h5 "$OUT/check/"
+cp run.stream latent.stream framerun.stream "$OUT/stream/"
 
 # ---- frame records after the fuzz_frames header (crom/latent: time, q[3],
 # qdot[3] = 7 doubles): complete, incomplete, cut short, no end record
