@@ -11,6 +11,7 @@
 #include "io/io.h"
 #include "mesh/mesh.h"
 #include "phys/scenario.h"
+#include "rom/condsched.h"
 #include "rom/cubature.h"
 #include "rom/indicator.h"
 #include "rom/map.h"
@@ -95,11 +96,7 @@ typedef struct {
     long init_frame;
     int solver, kind, bcthr_given, threads, indicator, frame;
     double kappa, bc_threshold, warn_above;
-    int ncs;                  /* --condition NAME=VALUE[@T], in the order given */
-    struct {
-        crom_scenario_cond c;
-        double value, t;
-    } cs[32];
+    crom_condsched cs;        /* --condition NAME=VALUE[@T], in the order given */
 } args;
 
 static int on_opt(void *ctx, int key, const char *v)
@@ -131,26 +128,7 @@ static int on_opt(void *ctx, int key, const char *v)
         if (crom_parse_double(v, "--bc-threshold", &a->bc_threshold) || a->bc_threshold < 0)
             return crom_err(CROM_EUSAGE, "--bc-threshold must be a number >= 0, got %s", v);
         return 0;
-    case O_COND: {
-        if (a->ncs == 32)
-            return crom_err(CROM_EUSAGE, "--condition: at most 32");
-        char buf[256];
-        const char *at = strrchr(v, '@');
-        size_t len = at ? (size_t)(at - v) : strlen(v);
-        if (len >= sizeof buf)
-            return crom_err(CROM_EUSAGE, "--condition: too long");
-        memcpy(buf, v, len);
-        buf[len] = 0;
-        a->cs[a->ncs].t = 0;
-        if (crom_scenario_cond_parse("--condition", buf, 0, &a->cs[a->ncs].c) ||
-            (at && crom_parse_double(at + 1, "--condition @T", &a->cs[a->ncs].t)))
-            return CROM_EUSAGE;
-        if (!(a->cs[a->ncs].t >= 0))
-            return crom_err(CROM_EUSAGE, "--condition %s: the time must be >= 0", v);
-        a->cs[a->ncs].value = a->cs[a->ncs].c.lo;
-        a->ncs++;
-        return 0;
-    }
+    case O_COND: return crom_condsched_add(&a->cs, "--condition", v);
     case O_STATS: a->stats = v; return 0;
     case O_IND: a->indicator = 1; return 0;
     case O_INDMESH: a->ind_mesh = v; return 0;
@@ -382,31 +360,6 @@ static int start_output(crom_out *o, const args *a, const char *model_id, int r,
     return rc;
 }
 
-/* The values c [nc] of a conditional map's conditions at time t: each
- * condition's last --condition with a time <= t (given in time order for
- * that condition: the last given wins), else the middle of its range.
- * CROM_EUSAGE for a --condition the model does not have. */
-static int conditions_at(const args *a, const crom_model *m, double t, double *c)
-{
-    for (int k = 0; k < m->ncond; k++)
-        c[k] = 0.5 * (m->cond[k].lo + m->cond[k].hi);
-    for (int i = 0; i < a->ncs; i++) {
-        int k = 0;
-        while (k < m->ncond && !crom_scenario_cond_same(&m->cond[k], &a->cs[i].c))
-            k++;
-        if (k == m->ncond) {
-            char name[200];
-            crom_scenario_cond_format(&a->cs[i].c, name, sizeof name);
-            *strchr(name, '=') = 0;
-            return crom_err(CROM_EUSAGE, "--condition %s: model %s %s", name, m->model_id,
-                            m->ncond ? "has no such condition" : "is not conditional (crom-fitfield --condition)");
-        }
-        if (a->cs[i].t <= t + 1e-12)
-            c[k] = a->cs[i].value;
-    }
-    return 0;
-}
-
 /* A run in the subspace of a one-mesh model (--model): Gauss–Newton over
  * its latent on every tet of its mesh, or on the tets of --cubature (a
  * cubature crom-cubature made for this model). */
@@ -452,7 +405,7 @@ static int run_map(crom_cli *cli, args *a)
     if (a->init && (rc = read_init(a, model.model_id, r, q0, qd0)))
         goto out;
     double cnow[CROM_MODEL_MAXCOND], cnext[CROM_MODEL_MAXCOND];
-    if ((rc = conditions_at(a, &model, 0, cnow)) ||
+    if ((rc = crom_condsched_at(&a->cs, &model, 0, cnow)) ||
         (model.ncond && (rc = crom_nlsim_set_condition(&s, &map, &a->sc, model.cond, cnow))))
         goto out;
     if ((rc = crom_nlsim_init(&s, &map, &a->sc, a->kappa, a->init ? q0 : NULL, a->init ? qd0 : NULL, a->threads)))
@@ -506,7 +459,7 @@ static int run_map(crom_cli *cli, args *a)
         if (stored && ind.on)
             crom_nlsim_positions(&s, ind.prev, ind.prevdot);
         if (model.ncond) { /* a change of condition that falls in this step takes effect for it */
-            conditions_at(a, &model, (double)k * a->sc.dt, cnext);
+            crom_condsched_at(&a->cs, &model, (double)k * a->sc.dt, cnext);
             if (memcmp(cnext, cnow, sizeof(double) * (size_t)model.ncond)) {
                 memcpy(cnow, cnext, sizeof cnow);
                 if ((rc = crom_nlsim_set_condition(&s, &map, &a->sc, model.cond, cnow)))
@@ -682,8 +635,8 @@ int main(int argc, char **argv)
             return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--model runs on the model's mesh: %s does not apply", bad));
         if (a.solver == CROM_RSIM_GD)
             return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "--solver gd needs a cubature; --model uses Gauss-Newton"));
-    } else if (a.ncs || a.frame) {
-        return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "%s applies to --model", a.ncs ? "--condition" : "--rigid-frame"));
+    } else if (a.cs.n || a.frame) {
+        return crom_cli_exit(&cli, crom_err(CROM_EUSAGE, "%s applies to --model", a.cs.n ? "--condition" : "--rigid-frame"));
     }
     if (a.model) {
         return crom_cli_exit(&cli, run_map(&cli, &a));

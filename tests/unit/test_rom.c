@@ -18,6 +18,7 @@
 #include "mesh/remesh.h"
 #include "phys/fem.h"
 #include "phys/system.h"
+#include "rom/condsched.h"
 #include "rom/cubature.h"
 #include "io/io.h"
 #include "rom/newton.h"
@@ -1118,9 +1119,47 @@ static void test_schedule(void)
     CHECK(system(cmd) == 0);
 }
 
+/* The conditions of a run over time (crom-reducedstep --condition
+ * NAME=VALUE[@T]): the middle of each range until an entry takes effect,
+ * entries at their times, the last of one condition winning; bad entries
+ * and conditions the model does not have are one-line errors. */
+static void test_condsched(void)
+{
+    crom_model m;
+    memset(&m, 0, sizeof m);
+    strcpy(m.model_id, "0123456789abcdef");
+    m.ncond = 2;
+    CHECK(crom_scenario_cond_parse("--condition", "ratio:stiff=1:5", 1, &m.cond[0]) == 0);
+    CHECK(crom_scenario_cond_parse("--condition", "gravity:y=-12:-8", 1, &m.cond[1]) == 0);
+    crom_condsched s = {0};
+    double c[2];
+    CHECK(crom_condsched_at(&s, &m, 0, c) == 0 && c[0] == 3 && c[1] == -10);
+    CHECK(crom_condsched_add(&s, "--condition", "gravity:y=-9") == 0);
+    CHECK(crom_condsched_add(&s, "--condition", "ratio:stiff=2@0.5") == 0);
+    CHECK(crom_condsched_add(&s, "--condition", "ratio:stiff=4.5@1.25") == 0);
+    CHECK(crom_condsched_at(&s, &m, 0, c) == 0 && c[0] == 3 && c[1] == -9);
+    CHECK(crom_condsched_at(&s, &m, 0.5, c) == 0 && c[0] == 2 && c[1] == -9);
+    CHECK(crom_condsched_at(&s, &m, 1.0, c) == 0 && c[0] == 2);
+    CHECK(crom_condsched_at(&s, &m, 2.0, c) == 0 && c[0] == 4.5);
+    CHECK(crom_condsched_add(&s, "--condition", "ratio:stiff=2@-1") == CROM_EUSAGE &&
+          strstr(crom_errmsg(), "the time must be >= 0"));
+    CHECK(crom_condsched_add(&s, "--condition", "ratio:stiff=2@x") == CROM_EUSAGE);
+    CHECK(crom_condsched_add(&s, "--condition", "spin:z=2") == CROM_EUSAGE);
+    CHECK(s.n == 3);
+    CHECK(crom_condsched_add(&s, "--condition", "gravity:x=1") == 0);
+    CHECK(crom_condsched_at(&s, &m, 0, c) == CROM_EUSAGE && strstr(crom_errmsg(), "has no such condition"));
+    crom_err_clear();
+    s.n = 0;
+    for (int i = 0; i < CROM_CONDSCHED_MAX; i++)
+        CHECK(crom_condsched_add(&s, "--condition", "gravity:y=-9") == 0);
+    CHECK(crom_condsched_add(&s, "--condition", "gravity:y=-9") == CROM_EUSAGE && strstr(crom_errmsg(), "at most"));
+    crom_err_clear();
+}
+
 int main(void)
 {
     check_begin("test_rom");
+    test_condsched();
     test_crack_opens();
     test_derivatives();
     test_objective_value();
