@@ -741,9 +741,15 @@ int crom_nlsim_objective(crom_nlsim *s, const double *q, double *Eout, double *g
     E += Ee;
     if (g) /* g += Tᵀ ga */
         cblas_dgemv(CblasRowMajor, CblasTrans, p, r, 1.0, s->T, r, s->ga, 1, 1.0, g, 1);
-    if (H) { /* H += Tᵀ A T; Gm = Tᵀ A0 T / m */
-        sandwich(s, s->Aq, H, 1.0, 1.0);
+    if (H) { /* H += Tᵀ A T; Gm = Tᵀ A0 T / m (with no BC penalty A = cq A0: one product serves both) */
         sandwich(s, s->A0, s->Gm, 1 / s->sys.total_mass, 0.0);
+        if (s->nbc) {
+            sandwich(s, s->Aq, H, 1.0, 1.0);
+        } else {
+            double cq = (1 / (h * h) + sc->damping / h) * s->sys.total_mass;
+            for (size_t i = 0; i < rr; i++)
+                H[i] += cq * s->Gm[i];
+        }
         for (int i = 0; i < r; i++) /* exactly symmetric */
             for (int j = 0; j < i; j++) {
                 H[i * r + j] = H[j * r + i] = 0.5 * (H[i * r + j] + H[j * r + i]);
