@@ -416,6 +416,8 @@ int crom_nlsim_init(crom_nlsim *s, crom_map *map, const crom_scenario *sc, doubl
         crom_nlsim_free(s);
         return CROM_EUSAGE;
     }
+    if (map->inner && map->p == 9 * (map->inner->p + 1) + 3) /* a rigid frame (sandwich_frame) */
+        s->frame_pb = map->inner->p + 1;
     if ((rc = rods_setup(s)) || (rc = quadratic_setup(s)) || (rc = set_elastic(s, s->sys.nenergy, NULL, NULL))) {
         crom_nlsim_free(s);
         return rc;
@@ -690,6 +692,33 @@ static void sandwich(crom_nlsim *s, const double *A, double *out, double alpha, 
     cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, r, p, alpha, s->T, r, s->AT, r, beta, out, r);
 }
 
+/* The same for A = A0 of a map in a rigid frame, whose features are three
+ * rotation blocks k of 3 pb (rows k of R times [x0_l, B'_l], map.c) and
+ * the translation t: A0 = Σ_k (e_k e_kᵀ ⊗ G) plus g (G's coupling to t_k)
+ * and the mass M on t_k, the same G, g and M for every k (the rows of
+ * vertex component k carry block k and t_k only). Tᵀ A0 T = Σ_k (T_kᵀ G
+ * T_k + T_kᵀ g τ_kᵀ + τ_k gᵀ T_k + M τ_k τ_kᵀ), T_k the rows of block k,
+ * τ_k that of t_k: a third of the dense product's work. */
+static void sandwich_frame(crom_nlsim *s, double *out, double alpha, double beta)
+{
+    int p = s->p, r = s->r, nb = 3 * s->frame_pb, t0 = 3 * nb;
+    const double *G = s->A0, *g = s->A0 + t0, M = s->A0[(size_t)t0 * p + t0];
+    for (size_t i = 0; i < (size_t)r * r; i++)
+        out[i] *= beta;
+    for (int k = 0; k < 3; k++) {
+        const double *Tk = s->T + (size_t)k * nb * r, *tau = s->T + (size_t)(t0 + k) * r;
+        cblas_dsymm(CblasRowMajor, CblasLeft, CblasUpper, nb, r, 1.0, G, p, Tk, r, 0.0, s->AT, r);
+        /* AT += g τᵀ (rows of G T_k plus the coupling to t_k), then out += α T_kᵀ AT */
+        cblas_dger(CblasRowMajor, nb, r, 1.0, g, p, tau, 1, s->AT, r);
+        cblas_dgemm(CblasRowMajor, CblasTrans, CblasNoTrans, r, r, nb, alpha, Tk, r, s->AT, r, 1.0, out, r);
+        /* out += α τ (gᵀ T_k + M τᵀ) */
+        double *w = s->AT + (size_t)nb * r;
+        cblas_dgemv(CblasRowMajor, CblasTrans, nb, r, 1.0, Tk, r, g, p, 0.0, w, 1);
+        cblas_daxpy(r, M, tau, 1, w, 1);
+        cblas_dger(CblasRowMajor, r, r, alpha, tau, 1, w, 1, out, r);
+    }
+}
+
 int crom_nlsim_objective(crom_nlsim *s, const double *q, double *Eout, double *g, double *H, int project)
 {
     const crom_scenario *sc = s->sc;
@@ -742,7 +771,10 @@ int crom_nlsim_objective(crom_nlsim *s, const double *q, double *Eout, double *g
     if (g) /* g += Tᵀ ga */
         cblas_dgemv(CblasRowMajor, CblasTrans, p, r, 1.0, s->T, r, s->ga, 1, 1.0, g, 1);
     if (H) { /* H += Tᵀ A T; Gm = Tᵀ A0 T / m (with no BC penalty A = cq A0: one product serves both) */
-        sandwich(s, s->A0, s->Gm, 1 / s->sys.total_mass, 0.0);
+        if (s->frame_pb)
+            sandwich_frame(s, s->Gm, 1 / s->sys.total_mass, 0.0);
+        else
+            sandwich(s, s->A0, s->Gm, 1 / s->sys.total_mass, 0.0);
         if (s->nbc) {
             sandwich(s, s->Aq, H, 1.0, 1.0);
         } else {

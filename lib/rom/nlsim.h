@@ -109,6 +109,11 @@ typedef struct {
     double *rod_d0;     /* [nrod][3] the gaps at rest */
     double *rod_rest;   /* [nrod] their lengths */
     double *rod_D;      /* [nrod][3][p] Σ_v w_v B_v over both ends (w_v = ±m_v / m_end) */
+    /* a map in a rigid frame (map.h, crom_map_add_frame): its features'
+     * mass Gram is I3 ⊗ G over the three rotation blocks of 3 pb features
+     * (pb = p' + 1) plus the translation's, so Tᵀ A0 T is formed block by
+     * block (nlsim.c) */
+    int frame_pb;       /* pb, or 0: no frame */
 } crom_nlsim;
 
 /* Set up on map (borrowed; its mesh's regions resolve the scenario's) with

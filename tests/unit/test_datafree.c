@@ -2238,6 +2238,21 @@ static void test_frame(bar_case *b)
                 if (rc)
                     break;
                 int steps = 20;
+                if (spin) { /* the Gauss-Newton matrix by frame blocks (nlsim.c) against the dense product */
+                    double qt[16], Ha[256], Hb[256], E;
+                    for (int k = 0; k < r; k++)
+                        qt[k] = q[k];
+                    crom_nlsim_begin_step(&s);
+                    int pb = s.frame_pb;
+                    CHECK(pb == map.inner->p + 1);
+                    CHECK(crom_nlsim_objective(&s, qt, &E, NULL, Ha, 0) == 0);
+                    s.frame_pb = 0;
+                    CHECK(crom_nlsim_objective(&s, qt, &E, NULL, Hb, 0) == 0);
+                    s.frame_pb = pb;
+                    double eh = check_relerr(Ha, Hb, r * r, 1e-300);
+                    fprintf(stderr, "  Gauss-Newton matrix by frame blocks vs dense: %.2e\n", eh);
+                    CHECK_LT(eh, 1e-12);
+                }
                 for (int k = 0; k < steps && !rc; k++) {
                     crom_rsim_stats st;
                     rc = crom_nlsim_step(&s, &st);
