@@ -97,7 +97,7 @@
  * the run is in the subspace. A continuous field (dffield.h) is refined the
  * same way: φ (and W(X) unless the basis is fixed) from the trained field,
  * every other sample near a latent its run visited (a soft bar's static
- * sag error from 19% to 4.4% for the field over skinning eigenmodes).
+ * sag error from 18-19% to 4.4-9.3% for the field over skinning eigenmodes).
  *
  * field (beyond both papers): a CONTINUOUS data-free subspace x(X, z) = X
  * + W(X) (φ(z) − φ(0)), W a neural field over the body, trained on the
