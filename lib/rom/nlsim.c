@@ -704,7 +704,7 @@ static void sandwich_frame(crom_nlsim *s, double *out, double alpha, double beta
     int p = s->p, r = s->r, nb = 3 * s->frame_pb, t0 = 3 * nb;
     const double *G = s->A0, *g = s->A0 + t0, M = s->A0[(size_t)t0 * p + t0];
     for (size_t i = 0; i < (size_t)r * r; i++)
-        out[i] *= beta;
+        out[i] = beta == 0 ? 0 : beta * out[i];
     for (int k = 0; k < 3; k++) {
         const double *Tk = s->T + (size_t)k * nb * r, *tau = s->T + (size_t)(t0 + k) * r;
         cblas_dsymm(CblasRowMajor, CblasLeft, CblasUpper, nb, r, 1.0, G, p, Tk, r, 0.0, s->AT, r);
