@@ -45,7 +45,7 @@ RODS = --rod 'box:0.08,0.1,0.09,0.15,0.2,0.1/x>0.55&y>0.09=40,rest,0.12,3,0' \
 SCENARIO = $(MAT) --gravity 0,0,0 --dt 0.02 --steps $(STEPS) --damping 3 $(RODS)
 NM = --objective neuralmodes --mesh $(OUT)/mesh.h5 --modes $(OUT)/modes.h5 --derivatives --tangent-anchor $(MAT) \
      --pin '$(TORSO)' --gravity 0,0,0 --seed $(SEED) --threads 1
-ROWS = modes modes10 mderiv neuralmodes nmcub
+ROWS ?= modes modes10 mderiv neuralmodes nmcub
 CUBCOUNT ?= 200
 
 .PHONY: all

@@ -7,6 +7,7 @@
 # and is decoded the same way by crom-diff (from a file or a pipe),
 # crom-export and crom-info --check; --rigid-frame without --model is one
 # line.
+# asan: skip (eigensolves and full and reduced runs, 11 s under ASan; tests/unit/test_datafree.c covers the frame's map and steps there)
 . "$CROM_TOP/tests/prog/common.bash"
 cd "$TMP"
 crom-mesh box --dims 1,0.2,0.2 --size 0.1 --region mid='x>-0.15&x<0.15' -o bar.h5
