@@ -752,9 +752,7 @@ static int map_setup(map_trainer *T, const crom_datafree_problem *p)
     if (p->init) { /* a trained map's network (refined along a run) */
         if (nm)
             return crom_err(CROM_EUSAGE, "a network to start from is for the energy objective");
-        if (p->init->nparams != T->np || p->init->spec.nlayers != spec.nlayers ||
-            memcmp(p->init->spec.width, spec.width, sizeof(int) * (size_t)(spec.nlayers + 1)) ||
-            p->init->spec.act != spec.act)
+        if (!crom_nn_mlp_has_spec(p->init, &spec))
             return crom_err(CROM_EUSAGE, "the map to start from has another shape (rank, conditions, --width, "
                                          "--depth, activation)");
         memcpy(T->params, p->init->params, sizeof(float) * T->np);

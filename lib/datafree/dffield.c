@@ -476,15 +476,6 @@ static void field_free(field_trainer *T)
     free(T->zs);
 }
 
-/* Whether network net has the layers of spec sp. */
-static int same_shape(const crom_nn_mlp *net, const crom_nn_spec *sp)
-{
-    const crom_nn_spec *s = &net->spec;
-    return s->nlayers == sp->nlayers && s->act == sp->act &&
-           !memcmp(s->width, sp->width, sizeof(int) * (size_t)(sp->nlayers + 1)) &&
-           net->nparams == crom_nn_spec_nparams(sp);
-}
-
 /* The networks: W 3 -> field_width x (field_depth - 1) -> 3p with the input
  * normalized to the bounding box, φ r -> width x (depth - 1) -> p; the
  * loss; W scaled to the isometry. */
@@ -510,7 +501,8 @@ static int field_setup(field_trainer *T, const crom_datafree_problem *p)
         if (!T->basis != !!p->init_field)
             return crom_err(CROM_EUSAGE, "a field to start from needs its feature field W(X) unless the basis is "
                                          "fixed (--handles), and only then");
-        if (!same_shape(p->init, &pspec) || (p->init_field && !same_shape(p->init_field, &wspec)))
+        if (!crom_nn_mlp_has_spec(p->init, &pspec) ||
+            (p->init_field && !crom_nn_mlp_has_spec(p->init_field, &wspec)))
             return crom_err(CROM_EUSAGE, "the field to start from has another shape (rank, --width, --depth, "
                                          "--features, --field-width, --field-depth, activation)");
         memcpy(T->phi.params, p->init->params, sizeof(float) * T->phi.nparams);

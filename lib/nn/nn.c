@@ -259,6 +259,14 @@ size_t crom_nn_spec_nparams(const crom_nn_spec *spec)
     return n;
 }
 
+int crom_nn_mlp_has_spec(const crom_nn_mlp *net, const crom_nn_spec *spec)
+{
+    const crom_nn_spec *s = &net->spec;
+    return s->nlayers == spec->nlayers && s->act == spec->act &&
+           !memcmp(s->width, spec->width, sizeof(int) * (size_t)(spec->nlayers + 1)) &&
+           net->nparams == crom_nn_spec_nparams(spec);
+}
+
 /* ---- MLP construction ----------------------------------------------------- */
 
 /* Re-record the current message, prefixed with what, as CROM_EDATA (a stored

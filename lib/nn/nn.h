@@ -159,6 +159,11 @@ int crom_nn_spec_check(const crom_nn_spec *spec);
 /* Number of parameters of an MLP of this shape; 0 (with a message) if invalid. */
 size_t crom_nn_spec_nparams(const crom_nn_spec *spec);
 
+/* 1 if net has the shape of spec (layers, widths, hidden activation, and
+ * so the parameter count), else 0: whether its parameters can start a
+ * network of that spec. */
+int crom_nn_mlp_has_spec(const crom_nn_mlp *net, const crom_nn_spec *spec);
+
 /* ---- MLP ------------------------------------------------------------------ */
 
 /* Build an MLP of shape *spec on storage (NULL: allocate and own it). With an

@@ -8,6 +8,7 @@
 #include "io/io.h"
 #include "phys/modes.h"
 #include "rom/equil.h"
+#include "rom/result.h"
 
 int crom_equil_modes(const crom_model *model, const crom_mesh *m, crom_map *map, double **W)
 {
@@ -60,11 +61,11 @@ int crom_equil_latents(const char *path, int r, double **Z, long *count)
     *Z = NULL;
     *count = 0;
     int rc = crom_in_open(&in, path), fq = -1;
-    long long frame = 0; /* a run with a rigid frame (crom-reducedstep --rigid-frame): q = [q' | θ | t], q' kept */
+    int frame = 0; /* a run with a rigid frame (crom-reducedstep --rigid-frame): q = [q' | θ | t], q' kept */
     if (rc)
         return rc;
-    if (!(rc = crom_in_expect(&in, "crom/latent", 1)) && crom_h5_has_attr(in.h5, ".", "rigid_frame"))
-        rc = crom_h5_get_i64(in.h5, ".", "rigid_frame", &frame);
+    if (!(rc = crom_in_expect(&in, "crom/latent", 1)))
+        rc = crom_result_latent_frame(in.h5, &frame);
     if (!rc && (fq = crom_in_field(&in, "q")) >= 0 && in.fields[fq].count != (size_t)r + (frame ? 6 : 0))
         rc = crom_err(CROM_EUSAGE, "%s has %zu latent coordinates, the model's rank is %d%s", in.name,
                       in.fields[fq].count, r, frame ? " (+ 6 of its rigid frame)" : "");

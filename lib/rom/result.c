@@ -169,11 +169,8 @@ static int adopt_latent(crom_result *res, const char *mesh_path, const char *mod
         rc = crom_err(CROM_EDATA, "%s holds coordinates of model %s, but --model %s is model %s", in->name,
                       res->model_id, model_path, model.model_id);
     } else {
-        /* a run with crom-reducedstep --rigid-frame: q = [q' | θ | t] */
-        long long frame = 0;
-        if (crom_h5_has_attr(in->h5, ".", "rigid_frame") && (rc = crom_h5_get_i64(in->h5, ".", "rigid_frame", &frame)))
+        if ((rc = crom_result_latent_frame(in->h5, &res->frame)))
             crom_err_ctx("%s", in->name);
-        res->frame = frame != 0;
         res->r = model.rank + (res->frame ? 6 : 0);
         if (!rc && (int)in->fields[res->fu].count != res->r)
             rc = crom_err(CROM_EDATA, "%s: q has %zu entries, the model's rank is %d", in->name,
@@ -444,5 +441,13 @@ out:
     crom_result_close(&res);
     if (rc)
         crom_result_equilibria_free(eq);
+    return rc;
+}
+
+int crom_result_latent_frame(hid_t h5, int *frame)
+{
+    long long f = 0;
+    int rc = crom_h5_has_attr(h5, ".", "rigid_frame") ? crom_h5_get_i64(h5, ".", "rigid_frame", &f) : 0;
+    *frame = !rc && f != 0;
     return rc;
 }

@@ -89,4 +89,9 @@ void crom_result_equilibria_free(crom_result_equilibria *eq);
  * a non-finite FIELD (at vertex V | at index I)". */
 int crom_result_check_frame(const crom_in *in, const double *frame, long k);
 
+/* Whether the crom/latent open at h5 is a run with a rigid frame
+ * (crom-reducedstep --rigid-frame: q = [q' | θ | t], the attribute
+ * rigid_frame): *frame 1 or 0. Returns 0 or the reader's error. */
+int crom_result_latent_frame(hid_t h5, int *frame);
+
 #endif

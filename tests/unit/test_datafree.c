@@ -1217,6 +1217,21 @@ static void test_energy_subspace(bar_case *b)
 
 static void scenario_bar(crom_scenario *sc);
 
+/* How far a network's parameters moved from those of net (largest
+ * |after - before|), with the largest |before| in *largest: a refinement
+ * that starts from net moves them by round-off in one step at a vanishing
+ * rate. after is NULL when training failed (0 is returned). */
+static double params_moved(const crom_nn_mlp *net, const float *after, double *largest)
+{
+    double d = 0, m = 0;
+    for (size_t i = 0; after && i < net->nparams; i++) {
+        d = fmax(d, fabs(after[i] - net->params[i]));
+        m = fmax(m, fabs(net->params[i]));
+    }
+    *largest = m;
+    return d;
+}
+
 /* An energy map grown from a seed state (Sharp et al. §4.1; map.h): a
  * random map whose pinned rows are zero, seeded with a bend and a shift
  * that moves the clamp too. x(0) is X + u_s bit for bit, pinned vertices
@@ -1323,11 +1338,7 @@ static void test_seeded_map(bar_case *b)
     crom_dftrain_log log;
     rc = crom_datafree_train(&P, &o, &ref, &log);
     CHECK_MSG(rc == 0, "refine: %s", crom_errmsg());
-    double dp = 0, pmax = 0;
-    for (size_t i = 0; !rc && i < net.nparams; i++) {
-        dp = fmax(dp, fabs(ref.mlp.params[i] - net.params[i]));
-        pmax = fmax(pmax, fabs(net.params[i]));
-    }
+    double pmax, dp = params_moved(&net, rc ? NULL : ref.mlp.params, &pmax);
     fprintf(stderr, "refined map: one step at rate 1e-12 moves its parameters by %.1e (largest %.2g)\n", dp, pmax);
     CHECK(!rc && dp <= 1e-9 * pmax && ref.seed_v && ref.seed_v[5] == us[5]);
     crom_model_free(&ref);
@@ -1616,15 +1627,8 @@ static void test_field_subspace(bar_case *b)
     crom_dftrain_log log2;
     rc = crom_datafree_train(&P2, &o2, &rm, &log2);
     CHECK_MSG(rc == 0, "refine: %s", crom_errmsg());
-    double dw = 0, wmax = 0, dphi = 0, pmax = 0;
-    for (size_t i = 0; !rc && i < fm.mlp.nparams; i++) {
-        dw = fmax(dw, fabs(rm.mlp.params[i] - fm.mlp.params[i]));
-        wmax = fmax(wmax, fabs(fm.mlp.params[i]));
-    }
-    for (size_t i = 0; !rc && i < fm.latent.nparams; i++) {
-        dphi = fmax(dphi, fabs(rm.latent.params[i] - fm.latent.params[i]));
-        pmax = fmax(pmax, fabs(fm.latent.params[i]));
-    }
+    double wmax, pmax, dw = params_moved(&fm.mlp, rc ? NULL : rm.mlp.params, &wmax);
+    double dphi = params_moved(&fm.latent, rc ? NULL : rm.latent.params, &pmax);
     fprintf(stderr, "refined continuous field: one step at rate 1e-12 moves W by %.1e (largest %.2g), phi by %.1e "
             "(largest %.2g)\n", dw, wmax, dphi, pmax);
     CHECK(!rc && dw <= 1e-9 * wmax && dphi <= 1e-9 * pmax);
@@ -1773,11 +1777,7 @@ static void test_skin_field(bar_case *b)
     crom_dftrain_log log2;
     rc = crom_dffield_train_latent(&P2, &o2, basis, p, &phi2, &log2);
     CHECK_MSG(rc == 0, "refine: %s", crom_errmsg());
-    double dp = 0, pmax = 0;
-    for (size_t i = 0; !rc && i < phi.nparams; i++) {
-        dp = fmax(dp, fabs(phi2.params[i] - phi.params[i]));
-        pmax = fmax(pmax, fabs(phi.params[i]));
-    }
+    double pmax, dp = params_moved(&phi, rc ? NULL : phi2.params, &pmax);
     CHECK(!rc && dp <= 1e-9 * pmax);
     crom_nn_mlp_free(&phi2);
     crom_dftrain_log_free(&log2);

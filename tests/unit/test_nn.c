@@ -1154,9 +1154,25 @@ static void test_bad_input(void)
     crom_nn_mlp_free(&net);
 }
 
+/* crom_nn_mlp_has_spec: a network matches its own spec, and not one with
+ * another width, depth or activation. */
+static void test_has_spec(void)
+{
+    int w[] = {3, 8, 8, 5}, w2[] = {3, 8, 9, 5};
+    crom_nn_spec a, b, c, d;
+    CHECK(crom_nn_spec_set(&a, 4, w, CROM_NN_ELU) == CROM_OK && crom_nn_spec_set(&b, 4, w2, CROM_NN_ELU) == CROM_OK &&
+          crom_nn_spec_set(&c, 3, w, CROM_NN_ELU) == CROM_OK && crom_nn_spec_set(&d, 4, w, CROM_NN_GELU) == CROM_OK);
+    crom_nn_mlp net;
+    CHECK(crom_nn_mlp_init(&net, &a, NULL, NULL) == CROM_OK);
+    CHECK(crom_nn_mlp_has_spec(&net, &a) && !crom_nn_mlp_has_spec(&net, &b) && !crom_nn_mlp_has_spec(&net, &c) &&
+          !crom_nn_mlp_has_spec(&net, &d));
+    crom_nn_mlp_free(&net);
+}
+
 int main(void)
 {
     check_begin("test_nn");
+    test_has_spec();
     test_dense_values();
     test_dense_gradients();
     test_pointnet_gradients();
