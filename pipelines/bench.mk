@@ -102,13 +102,18 @@ df2_kind = $(firstword $(subst -, ,$(1)))
 # not trained (the quadratic manifold), and nmrun, the same seed tangent-
 # anchored and trained DF_MINUTES with every other sample near the modal
 # coordinates the seed's static run visited (crom-fitfield --latents)
-DF2_MAPS = sfield-all sfield-opt sfref-all sfref-opt field-all field-opt energy-all neuralmodes-all nmseed-all nmrun-all \
+DF2_MAPS = sfield-all sfield-opt sfref-all sfref-opt field-all field-opt energy-all emref-all neuralmodes-all nmseed-all nmrun-all \
   modes-all mderiv-all
 # sfref: a skin-field trained DF2_REFINE_MINUTES (sfbase), then refined
 # DF2_REFINE_STEPS steps along its own static run (crom-fitfield
 # --init-model --latents; no full simulation): about 2 min in all
 DF2_REFINE_MINUTES ?= 1
 DF2_REFINE_STEPS ?= 7500
+# emref: the energy map trained DF2_EM_BASE_STEPS steps (embase), then
+# refined DF2_EM_REFINE_STEPS steps along its own static run: 4.6 min in all
+# on one core (the energy row's budget is 5)
+DF2_EM_BASE_STEPS ?= 10000
+DF2_EM_REFINE_STEPS ?= 3000
 # mderiv: DF2_DMODES linear modes and their modal derivatives (crom-modes --derivatives;
 # 5: modes 4 and 5 are a pair of equal frequency, both or neither)
 DF2_DMODES ?= 5
@@ -456,7 +461,7 @@ $(OUT)/df2-sdiff-%.txt: $(OUT)/df2-sred-%.h5 $(OUT)/df2-sfull.h5 $$(OUT)/df2-ski
 	  --threads 1 $(ATOMIC)
 $(OUT)/df2-metrics-%.txt: $(OUT)/df2-skin-%.h5 $(OUT)/df-mesh.h5
 	crom-metrics --mesh $(OUT)/df-mesh.h5 --samples $(DF_SAMPLES) --seed $(SEED) --threads 1 $< $(ATOMIC)
-$(eval $(call stamp_rule,df2-maps,$(DF2_MAT) $(DF2_HANDLES) $(DF2_MINUTES) $(DF_MINUTES) $(DF_RANK) $(DF2_DMODES) $(DF2_REFINE_MINUTES) $(SEED)))
+$(eval $(call stamp_rule,df2-maps,$(DF2_MAT) $(DF2_HANDLES) $(DF2_MINUTES) $(DF_MINUTES) $(DF_RANK) $(DF2_DMODES) $(DF2_REFINE_MINUTES) $(DF2_EM_BASE_STEPS) $(SEED)))
 $(OUT)/df2-map-sfield.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
 	crom-fitfield --objective field --handles $(DF2_HANDLES) --rank $(DF_RANK) --mesh $< $(DF2_MAT) $(DF_BC) \
 	  --steps 1000000 --minutes $(DF2_MINUTES) --seed $(SEED) --threads 1 $(QUIET) -o $@
@@ -473,6 +478,13 @@ $(OUT)/df2-map-field.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
 $(OUT)/df2-map-energy.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
 	crom-fitfield --objective energy --rank $(DF_RANK) --mesh $< $(DF2_MAT) $(DF_BC) \
 	  --steps 1000000 --minutes $(DF_MINUTES) --seed $(SEED) --threads 1 $(QUIET) -o $@
+$(OUT)/df2-map-embase.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
+	crom-fitfield --objective energy --rank $(DF_RANK) --mesh $< $(DF2_MAT) $(DF_BC) \
+	  --steps $(DF2_EM_BASE_STEPS) --seed $(SEED) --threads 1 $(QUIET) -o $@
+$(OUT)/df2-map-emref.h5: $(OUT)/df-mesh.h5 $(OUT)/df2-map-embase.h5 $(OUT)/df2-msred-embase-all.h5
+	crom-fitfield --objective energy --rank $(DF_RANK) --mesh $< $(DF2_MAT) $(DF_BC) \
+	  --init-model $(OUT)/df2-map-embase.h5 --latents $(OUT)/df2-msred-embase-all.h5 --lr 1e-4 \
+	  --steps $(DF2_EM_REFINE_STEPS) --seed $(SEED) --threads 1 $(QUIET) -o $@
 $(OUT)/df2-map-modes.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
 	crom-modes $(DF2_MAT) --pin clamp --count $(DF_RANK) --threads 1 $(QUIET) -o $@ $<
 $(OUT)/df2-map-mderiv.h5: $(OUT)/df-mesh.h5 $(call stamp,df2-maps)
