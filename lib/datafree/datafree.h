@@ -93,11 +93,13 @@
  * other sample of a batch is a latent a reduced run of that map visited,
  * picked uniformly, plus VISIT_JITTER times a N(0, I) draw: the map's
  * energy is lowered where the run went (a bistable bar's second
- * equilibrium, which the samples of N(0, I) seldom reach). Still data-free:
- * the run is in the subspace. A continuous field (dffield.h) is refined the
- * same way: φ (and W(X) unless the basis is fixed) from the trained field,
- * every other sample near a latent its run visited (a soft bar's static
- * sag error from 18-19% to 4.4-9.3% for the field over skinning eigenmodes).
+ * equilibrium, which the samples of N(0, I) seldom reach; a soft bar's
+ * static sag error from 6-28% to 1.5-7.6% over four seeds). Still
+ * data-free: the run is in the subspace. A continuous field (dffield.h) is
+ * refined the same way: φ (and W(X) unless the basis is fixed) from the
+ * trained field, every other sample near a latent its run visited (a soft
+ * bar's static sag error from 18-19% to 4.4-9.3% for the field over
+ * skinning eigenmodes).
  *
  * field (beyond both papers): a CONTINUOUS data-free subspace x(X, z) = X
  * + W(X) (φ(z) − φ(0)), W a neural field over the body, trained on the
