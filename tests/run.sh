@@ -57,8 +57,10 @@ if [ "${CROM_TEST_SANITIZED_ELSEWHERE:-0}" = 1 ]; then
   done
   list=("${sel[@]}")
 fi
-# the slowest first (measured in CI), so that two jobs end together
-slow=(faults pipelines_more badflags robust_check datafree skinning learn reduced schemas remesh robust_input)
+# the slowest first (measured in CI's two passes), so that two jobs end together
+slow=(robust_check faults datafree badflags slurm pipelines_more reduced shell_subspace bistable equilibria
+      shell_export export_more pipelines rod schemas conditional robust_input skinning test_datafree mpi view
+      materials scene learn_badinput shell remesh export_cells fullsim live learn)
 ord=()
 for n in "${slow[@]}"; do for t in "${list[@]}"; do [ "$(basename "${t%.sh}")" = "$n" ] && ord+=("$t"); done; done
 for t in "${list[@]}"; do [[ " ${slow[*]} " == *" $(basename "${t%.sh}") "* ]] || ord+=("$t"); done
