@@ -719,11 +719,17 @@ static int mpi_exit(crom_cli *cli, args *a, int rc)
                     who = r;
         int code = who < 0 ? 0 : all[2 * who];
         free(all);
+        /* the reporting rank writes its line before any rank may exit:
+         * mpirun aborts the job when a rank exits non-zero, which could
+         * kill the reporter before it had written it */
+        int out = who == a->fit.proc ? crom_cli_exit(cli, rc) : 0;
+        MPI_Barrier(MPI_COMM_WORLD);
         MPI_Finalize();
         if (who != a->fit.proc) {
-            int out = crom_cli_exit(cli, 0);
+            out = crom_cli_exit(cli, 0);
             return code ? code : out;
         }
+        return out;
     }
 #endif
     return crom_cli_exit(cli, rc);
