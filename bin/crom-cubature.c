@@ -25,7 +25,7 @@ static const crom_opt cub_opts[] = {
     {"candidates", O_CAND, "N", "optimized: tets scored per greedy pick (default 256)."},
     {"youngs", O_YOUNGS, "E", "optimized: Young's modulus of the forces fitted (default 2.5e6)."},
     {"poisson", O_POISSON, "NU", "optimized: Poisson ratio of the forces fitted (default 0.25)."},
-    {"crack-offset", O_SHRINK, "S", "Vertices that share their rest position with another (the copies crom-remesh cut makes along a crack) sample W a fraction S of the way toward the centroid of their own tets (default 0.25; 0 = at X). At X both copies would get the same displacement and the crack could never open; on their own sides they follow the jump a basis learned from cut data."},
+    {"crack-offset", O_SHRINK, "S", "Vertices that share their rest position with another (the copies crom-remesh cut makes along a crack) sample W a fraction S of the way toward the centroid of their own tets (default 1: at that centroid, which lies on the copy's side of a cut that follows element faces; 0 = at X). At X both copies would get the same displacement and the crack could never open; on their own sides they follow the jump a basis learned from cut data."},
     {"output", 'o', "OUT", "Write the cubature to OUT (default stdout)."},
     {NULL, 0, NULL, NULL}};
 
@@ -116,8 +116,8 @@ static int on_opt(void *ctx, int key, const char *v)
         return 0;
     case O_YOUNGS: a->material_given = 1; return crom_parse_positive(v, "--youngs", &a->o.youngs);
     case O_SHRINK:
-        if (crom_parse_double(v, "--crack-offset", &a->crack_offset) || !(a->crack_offset >= 0 && a->crack_offset < 1))
-            return crom_err(CROM_EUSAGE, "--crack-offset must be in [0, 1), got %s", v);
+        if (crom_parse_double(v, "--crack-offset", &a->crack_offset) || !(a->crack_offset >= 0 && a->crack_offset <= 1))
+            return crom_err(CROM_EUSAGE, "--crack-offset must be in [0, 1], got %s", v);
         return 0;
     case O_POISSON: a->material_given = 1; return crom_parse_double(v, "--poisson", &a->o.poisson);
     }
@@ -330,17 +330,11 @@ static int run(crom_cli *cli, args *a)
         W = crom_malloc(sizeof(double) * 3 * (size_t)r * (size_t)m.nv);
         size_t outside = 0;
         int nshift = 0;
-        double *P = crom_mesh_is_surface(&m) ? crom_malloc(sizeof(double) * 3 * (size_t)m.nv) /* a shell: its vertices */
-                                             : crom_mesh_field_points(&m, a->crack_offset, &nshift); /* see --crack-offset */
-        if (P && crom_mesh_is_surface(&m))
-            memcpy(P, m.X, sizeof(double) * 3 * (size_t)m.nv);
-        if (!W || !P) {
-            free(P);
+        if (!W) {
             rc = CROM_EINTERNAL;
             goto out;
         }
-        rc = crom_model_eval(&model, (size_t)m.nv, P, W, &outside);
-        free(P);
+        rc = crom_model_eval_mesh(&model, &m, a->crack_offset, W, &outside, &nshift); /* see --crack-offset */
         if (rc)
             goto out;
         if (nshift)

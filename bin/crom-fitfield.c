@@ -24,6 +24,7 @@
 #include <unistd.h>
 
 #include "base/err.h"
+#include "base/parse.h"
 #include "cli/cli.h"
 #include "datafree/body.h"
 #include "datafree/datafree.h"
@@ -39,7 +40,7 @@
 enum { O_RANK = 300, O_ENCODER, O_BASIS, O_EPOCHS, O_MINUTES, O_LR, O_BATCH, O_PPS, O_ENCPTS,
        O_ACT, O_WIDTH, O_DEPTH, O_TIK, O_OBJECTIVE, O_MESH, O_MODES, O_SIGMA, O_LAMBDA, O_RAMP, O_BOX, O_BOXSC,
        O_ORTHO, O_STEPS, O_FEATURES, O_TETS, O_PINW, O_OPTIM, O_RESAMPLE, O_TANW, O_TANF, O_HANDLES, O_WEIGHTS,
-       O_SURFACE, O_CLOUD, O_SPOINTS, O_COORDS, O_COORDTOL, O_DERIV, O_SUPERV, O_TANANCHOR, O_VISIT, O_SHARDS, O_COND, O_SEEDST, O_SEEDFR, O_INITM, O_LAST };
+       O_SURFACE, O_CLOUD, O_SPOINTS, O_COORDS, O_COORDTOL, O_DERIV, O_SUPERV, O_TANANCHOR, O_VISIT, O_SHARDS, O_COND, O_SEEDST, O_SEEDFR, O_INITM, O_CUTSEG, O_CUTAXIS, O_LAST };
 
 /* --objective skinning (lib/datafree/dfskin.h), next to the CROM_DATAFREE_* codes */
 #define OBJ_SKINNING 100
@@ -59,6 +60,8 @@ static const crom_opt fit_opts[] = {
     {"rank", O_RANK, "R", "Number of basis fields r, the latent dimension (default 20; energy: 8; neuralmodes: every mode of --modes). At most the number of frames with a non-zero displacement (for pod: the numerical rank of the snapshots; data-free: the free degrees of freedom; neuralmodes: the modes in --modes)."},
     {"basis", O_BASIS, "KIND", "mlp (default): a neural field W(X), usable on any mesh. pod: classic POD of samples of ONE mesh taken with crom-sample --points all, stored as a piecewise-linear field on that mesh."},
     {"encoder", O_ENCODER, "KIND", "How q is found for a frame during and after training (mlp only). lsq (default): the least-squares fit of W to the frame's samples, re-solved at every step (variable projection; fast). pointnet: the paper's PointNet encoder, trained jointly with W (LiCROM eq. 4) and stored in the model."},
+    {"cut-segment", O_CUTSEG, "AU,AV,BU,BV", "A field that can jump across a cut (mlp; LiCROM's tearing): the segment from A to B of a ribbon of the cut the training data was made with, in crom-remesh cut's coordinates (the other two axes of --cut-axis, in x,y,z order); repeatable, at most 16. The field then takes, after X, one feature per segment: the angle the segment subtends at X over pi, which jumps from +1 to -1 across the segment and nowhere else. A smooth field of X alone cannot open a crack: its best fit stretches the elements beside it and the reduced step keeps the crack shut (README, tearing)."},
+    {"cut-axis", O_CUTAXIS, "x|y|z", "The axis the ribbons of --cut-segment are extruded along (default y, as crom-remesh cut)."},
     {NULL, 0, NULL, NULL}};
 
 static const crom_opt df_opts[] = {
@@ -231,6 +234,7 @@ typedef struct {
     int remote;                  /* the run stopped because another MPI rank failed */
     int ncond;                   /* energy: --condition NAME=LO:HI */
     crom_scenario_cond cond[CROM_MODEL_MAXCOND];
+    crom_cutfeat cut;            /* --cut-segment, --cut-axis */
 } args;
 
 #define GIVEN(a, key) ((a)->given[(key) - O_RANK])
@@ -319,7 +323,7 @@ static int on_opt(void *ctx, int key, const char *v)
     if (in_opts(df_opts, key))
         a->df_only = key;
     else if (key == O_EPOCHS || key == O_BASIS || key == O_ENCODER || key == O_PPS || key == O_ENCPTS || key == O_TIK ||
-             key == O_SHARDS)
+             key == O_SHARDS || key == O_CUTSEG || key == O_CUTAXIS)
         a->samples_only = key;
     switch (key) {
     case 0:
@@ -381,6 +385,21 @@ static int on_opt(void *ctx, int key, const char *v)
     case O_RESAMPLE: return int_opt(key, v, 1, 1000000L, &a->df.resample);
     case O_ORTHO: return nonneg_opt(key, v, &a->df.ortho_weight);
     case O_RANK: return int_opt(key, v, 1, 10000, &a->fit.rank);
+    case O_CUTSEG:
+        if (a->cut.nseg == CROM_CUTFEAT_MAX)
+            return crom_err(CROM_EUSAGE, "too many --cut-segment (at most %d)", CROM_CUTFEAT_MAX);
+        if (crom_parse_doubles(v, "--cut-segment", 4, a->cut.seg[a->cut.nseg]))
+            return CROM_EUSAGE;
+        if (a->cut.seg[a->cut.nseg][0] == a->cut.seg[a->cut.nseg][2] &&
+            a->cut.seg[a->cut.nseg][1] == a->cut.seg[a->cut.nseg][3])
+            return crom_err(CROM_EUSAGE, "--cut-segment %s has zero length", v);
+        a->cut.nseg++;
+        return 0;
+    case O_CUTAXIS:
+        if (strlen(v) != 1 || v[0] < 'x' || v[0] > 'z')
+            return crom_err(CROM_EUSAGE, "--cut-axis: '%s' is not x, y or z", v);
+        a->cut.axis = v[0] - 'x';
+        return 0;
     case O_BASIS: return choice_opt(key, v, basis, &a->pod);
     case O_ENCODER:
         if ((rc = choice_opt(key, v, encoders, &i)))
@@ -536,7 +555,14 @@ static void parse_args(crom_cli *cli, args *a, int argc, char **argv)
     crom_datafree_defaults(&a->df, CROM_DATAFREE_ENERGY);
     crom_scenario_defaults(&a->sc);
     a->seed_frame = -1;
+    a->cut.axis = 1;
     crom_cli_parse(cli, &doc, argc, argv, on_opt, a);
+    if (GIVEN(a, O_CUTAXIS) && !a->cut.nseg)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--cut-axis needs --cut-segment"));
+    if (a->pod && a->cut.nseg)
+        usage_exit(cli, crom_err(CROM_EUSAGE, "--cut-segment is for a neural field (--basis mlp): a POD basis lives "
+                                 "on one mesh, with its cut"));
+    a->fit.cut = a->cut.nseg ? &a->cut : NULL;
     if (!a->objective && crom_scenario_uniform(&a->sc, "crom-fitfield on samples")) /* (data-free: every objective) */
         usage_exit(cli, CROM_EUSAGE);
     if (a->pod && GIVEN(a, O_ENCODER) && a->fit.encoder == CROM_MODEL_ENC_POINTNET)

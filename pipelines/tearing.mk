@@ -20,13 +20,19 @@ SCENARIO = --youngs $(YOUNGS) --pin 'x<-0.49' --pin 'x>0.49' --pin 'z<-0.49' --p
            --gravity 0,-9.81,0 --dt $(DT) --steps $(STEPS)
 # the Y: a stem from z = -0.35 up to the fork at the centre, two branches to the far side
 Y = --segment 0,-0.35,0,0 --segment 0,0,-0.25,0.3 --segment 0,0,0.25,0.3
+# CUT_FEATURES=1 (default): the field takes, besides X, one feature per segment
+# of the Y that jumps across it (crom-fitfield --cut-segment), so that it can
+# open the crack; 0: a field of X alone, as in the paper
+CUT_FEATURES ?= 1
+FIT_FLAGS += $(if $(filter 1,$(CUT_FEATURES)),$(subst --segment,--cut-segment,$(Y)) --cut-axis y)
 
 .PHONY: all
 all: $(OUT)/summary.txt
 # the closing report, remade (and shown) only when what it reports changes,
 # so a finished run has nothing left to do, not even under make -n
-$(OUT)/summary.txt: $(OUT)/table.md $(OUT)/strip.png $(OUT)/tear.pvd
-	@( cat $(OUT)/table.md; echo "pictures: $(OUT)/strip.png; ParaView: $(OUT)/tear.pvd" ) > $@.tmp && mv $@.tmp $@ && cat $@
+$(OUT)/summary.txt: $(OUT)/table.md $(OUT)/strip.png $(OUT)/basis.png $(OUT)/tear.pvd
+	@( cat $(OUT)/table.md; echo "pictures: $(OUT)/strip.png, the basis fields $(OUT)/basis.png; ParaView: $(OUT)/tear.pvd" ) \
+	  > $@.tmp && mv $@.tmp $@ && cat $@
 
 $(OUT)/intact.h5:
 	@mkdir -p $(@D)
@@ -86,5 +92,12 @@ $(OUT)/table.md: $(OUT)/rows.txt
 $(OUT)/strip.png: $(OUT)/tear.h5 $(OUT)/full-cut.h5 $(OUT)/full-intact.h5
 	crom-export --format strip --model $(OUT)/model.h5 --follow-schedule --compare $(OUT)/full-cut.h5 \
 	  --compare $(OUT)/full-intact.h5 --columns 5 $(QUIET) -o $@ $<
+# the first four basis fields (at most the rank) on the cut plate, each as the
+# displacement of 8 cm of its latent (LiCROM Fig. 8: the field jumps across the cut)
+$(OUT)/basis.png: $(OUT)/model.h5 $(OUT)/cut.h5
+	crom-keyframe --model $< --mesh $(OUT)/cut.h5 --between 0 $(QUIET) -o $(OUT)/basis-keys.h5 \
+	  $$(for k in $$(seq 0 $$(( $(RANK) < 4 ? $(RANK) - 1 : 3 ))); do \
+	       printf -- '--key %s ' "$$(awk -v r=$(RANK) -v k=$$k 'BEGIN { for (i = 0; i < r; i++) printf "%s%s", i ? "," : "", i == k ? "0.08" : "0" }')"; done)
+	crom-export --format strip --model $< --mesh $(OUT)/cut.h5 --columns 4 $(QUIET) -o $@ $(OUT)/basis-keys.h5
 $(OUT)/tear.pvd: $(OUT)/tear.h5
 	crom-export --format pvd --model $(OUT)/model.h5 --follow-schedule $(QUIET) -o $@ $<

@@ -204,6 +204,7 @@ static const crom_schema_attr model_attrs[] = {
      NULL},
     {"skin_weights", "str", 0, "trained (an MLP weight field) or eigen (skinning eigenmodes on field/mesh) (skinning)",
      NULL},
+    {"cut_axis", "str", 0, "x, y or z: the axis of the ribbons of field/cut_segments (mlp with cut features)", NULL},
     {NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_attr model_objattrs[] = {
@@ -214,11 +215,18 @@ static const crom_schema_attr model_objattrs[] = {
     {NULL, NULL, 0, NULL, NULL}};
 
 static const crom_schema_dset model_dsets[] = {
-    {"field/widths", "i32", "L", 0, "1", "layer widths of the MLP, input first: R^3 -> R^(3r) (mlp), R^3 -> R^(3p) "
-                                         "(energy-field), R^r -> R^(3nv) (energy, neuralmodes)", NULL},
+    {"field/widths", "i32", "L", 0, "1", "layer widths of the MLP, input first: R^3 -> R^(3r) (mlp; R^(3+K) with K "
+                                         "cut features), R^3 -> R^(3p) (energy-field), R^r -> R^(3nv) (energy, "
+                                         "neuralmodes)", NULL},
     {"field/params", "f32", "P", 0, "1", "all MLP weights and biases, layer by layer (W row-major [out][in], then b)", NULL},
-    {"field/input_shift", "f64", "3", 0, "m", "input normalization: X_hat = (X - shift) / scale (mlp, energy-field)", NULL},
-    {"field/input_scale", "f64", "3", 0, "m", "input normalization scale", NULL},
+    {"field/input_shift", "f64", "?", 0, "m", "input normalization: X_hat = (X - shift) / scale (mlp, energy-field); "
+                                              "3 values, then 3 + K with K cut features (0 and scale 1 for each)", NULL},
+    {"field/input_scale", "f64", "?", 0, "m", "input normalization scale", NULL},
+    {"field/cut_segments", "f64", "?,4", 0, "m", "a field that can jump across a cut (mlp; crom-fitfield "
+                                                 "--cut-segment): the K segments A_u, A_v, B_u, B_v of the cut's "
+                                                 "ribbons in the plane perpendicular to cut_axis (as crom-remesh "
+                                                 "cut); the field takes after X one feature per segment, the angle "
+                                                 "it subtends divided by pi (lib/mesh/cutfeat.h)", NULL},
     {"field/mesh/vertices", "f64", "nv,3", 0, "m", "rest positions X of the mesh of a piecewise-linear basis (pod, modes) "
                                                    "or of a map (energy, neuralmodes)", NULL},
     {"field/mesh/tets", "i32", "nt,4", 0, "1", "tetrahedra of that mesh: 0-based vertex indices, positively oriented", NULL},

@@ -35,6 +35,7 @@ void crom_fit_ctx_free(crom_fit_ctx *c)
     free(c->dy);
     free(c->qf);
     free(c->dqf);
+    free(c->Xin);
     memset(c, 0, sizeof *c);
 }
 
@@ -44,8 +45,8 @@ int crom_fit_ctx_init(crom_fit_ctx *c, const crom_nn_mlp *W, const crom_nn_point
 {
     memset(c, 0, sizeof *c);
     int out = W->spec.width[W->spec.nlayers];
-    if (W->spec.width[0] != 3 || out < 3 || out % 3)
-        return crom_err(CROM_EUSAGE, "the field must map 3 inputs to 3r outputs");
+    if (W->spec.width[0] < 3 || out < 3 || out % 3)
+        return crom_err(CROM_EUSAGE, "the field must map 3 inputs (and its cut features) to 3r outputs");
     if (maxrows < 1 || maxframes < 1 || maxcells < 1 || (P && enc_points < 1))
         return crom_err(CROM_EUSAGE, "loss buffers of %d rows, %d frames, %d cells are invalid",
                         maxrows, maxframes, maxcells);
@@ -88,6 +89,20 @@ int crom_fit_ctx_init(crom_fit_ctx *c, const crom_nn_mlp *W, const crom_nn_point
         crom_fit_ctx_free(c);
         return CROM_EINTERNAL;
     }
+    return 0;
+}
+
+int crom_fit_ctx_set_cut(crom_fit_ctx *c, const crom_cutfeat *cut)
+{
+    int K = cut ? cut->nseg : 0;
+    if (c->W->spec.width[0] != 3 + K)
+        return crom_err(CROM_EUSAGE, "the field takes %d inputs, a cut of %d segments needs %d", c->W->spec.width[0],
+                        K, 3 + K);
+    free(c->Xin);
+    c->Xin = NULL;
+    c->cut = K ? cut : NULL;
+    if (K && !(c->Xin = crom_malloc(sizeof(float) * (size_t)(3 + K) * (size_t)c->maxrows)))
+        return CROM_EINTERNAL;
     return 0;
 }
 
@@ -306,7 +321,11 @@ int crom_fit_loss(crom_fit_ctx *c, const crom_fit_batch *b, double *objective, d
         cells += (size_t)b->rows[g] * b->frames[g];
     if (cells > (size_t)c->maxcells)
         return crom_err(CROM_EUSAGE, "batch of %zu samples exceeds the loss buffers", cells);
-    int rc = crom_nn_mlp_forward(c->W, &c->ws, b->nrows, b->X, NULL);
+    if (c->W->spec.width[0] != 3 + (c->cut ? c->cut->nseg : 0))
+        return crom_err(CROM_EUSAGE, "the field takes %d inputs: set its cut", c->W->spec.width[0]);
+    if (c->cut)
+        crom_cutfeat_inputs_f(c->cut, (size_t)b->nrows, b->X, b->S, c->Xin);
+    int rc = crom_nn_mlp_forward(c->W, &c->ws, b->nrows, c->cut ? c->Xin : b->X, NULL);
     if (rc)
         return rc;
     const float *Y = crom_nn_ws_output(&c->ws);
@@ -365,6 +384,50 @@ void crom_fit_defaults(crom_fit_opts *o)
     o->nprocs = 1;
 }
 
+float *crom_fit_side_points(const crom_samples *S, const crom_cutfeat *cut)
+{
+    size_t n = (size_t)S->F * S->N;
+    float *side = crom_malloc(sizeof(float) * 3 * (n ? n : 1));
+    if (!side)
+        return NULL;
+    memcpy(side, S->X, sizeof(float) * 3 * n);
+    for (int k = 0; k < S->nsources; k++) {
+        const crom_mesh *m = &S->src[k];
+        if (m->nt < 1) /* a shell: no tets, the samples as they are */
+            continue;
+        crom_locator L;
+        if (crom_locate_init(&L, m)) {
+            free(side);
+            return NULL;
+        }
+        for (int f = 0; f < S->F; f++) {
+            if (S->source[f] != k)
+                continue;
+            for (int i = 0; i < S->N; i++) {
+                size_t j = (size_t)f * S->N + i;
+                if (S->vertex[j] >= 0)
+                    continue;
+                double p[3] = {S->X[3 * j], S->X[3 * j + 1], S->X[3 * j + 2]}, c[3] = {0, 0, 0}, bary[4];
+                double fp[CROM_CUTFEAT_MAX], fc[CROM_CUTFEAT_MAX];
+                int t;
+                crom_locate_point(&L, p, &t, bary, NULL);
+                for (int a = 0; a < 4; a++)
+                    for (int d = 0; d < 3; d++)
+                        c[d] += 0.25 * m->X[3 * m->tets[4 * t + a] + d];
+                crom_cutfeat_point(cut, p, fp);
+                crom_cutfeat_point(cut, c, fc);
+                int across = 0;
+                for (int s = 0; s < cut->nseg; s++)
+                    across |= fabs(fc[s]) > 0.5 && (fc[s] > 0) != (fp[s] > 0);
+                for (int d = 0; across && d < 3; d++)
+                    side[3 * j + d] = (float)c[d];
+            }
+        }
+        crom_locate_free(&L);
+    }
+    return side;
+}
+
 int crom_fit_check(const crom_samples *S, int rank)
 {
     if (S->F == 0)
@@ -393,6 +456,7 @@ typedef struct {
     int r, shared, P, Pe, B;
     double s;            /* displacement scale (m) */
     float *Xsrc;         /* source vertices as float, concatenated */
+    float *side;         /* [F][N][3] where the cut features of each sample are taken, or NULL */
     size_t *xoff;        /* [nsources] offset of each source in Xsrc (vertices) */
     int *vsz;            /* [nsources] vertices per step of each source (shared mode) */
     int *sv, *si;        /* [F][N] sample vertices sorted, and their sample indices */
@@ -412,6 +476,8 @@ typedef struct {
 static void trainer_free(trainer *t)
 {
     free(t->Xsrc);
+    free(t->side);
+    free(t->b.S);
     free(t->xoff);
     free(t->vsz);
     free(t->sv);
@@ -615,6 +681,12 @@ static int trainer_init(trainer *t, const crom_samples *S, const crom_fit_opts *
     } else {
         t->maxrows = t->B * t->P;
         t->maxcells = t->B * t->P;
+        if (o->cut && o->cut->nseg) { /* interior samples: their features from their own side */
+            t->side = crom_fit_side_points(S, o->cut);
+            t->b.S = crom_malloc(sizeof(float) * 3 * (size_t)t->maxrows);
+            if (!t->side || !t->b.S)
+                return t->side ? CROM_EINTERNAL : crom_errcode();
+        }
     }
     return alloc_batches(t, pn);
 }
@@ -739,6 +811,8 @@ static void build_batch(trainer *t, const int *fr, int nf, int fill)
                 size_t idx = (size_t)f * N + t->permN[i];
                 size_t row = (size_t)j * P + i;
                 memcpy(b->X + 3 * row, S->X + 3 * idx, sizeof(float) * 3);
+                if (b->S)
+                    memcpy(b->S + 3 * row, t->side + 3 * idx, sizeof(float) * 3);
                 for (int d = 0; d < 3; d++)
                     b->U[3 * row + d] = S->U[3 * idx + d] * is;
                 b->M[row] = 1;
@@ -865,8 +939,20 @@ static int orthonormalize(trainer *t, crom_nn_mlp *W, crom_nn_pointnet *P)
         for (size_t i = 0; i < npts; i++)
             memcpy(pts + 3 * i, S->X + 3 * (i * stride), sizeof(float) * 3);
     }
+    float *side = NULL; /* the same points' side points (cut features) */
+    if (!t->shared && t->side && (side = crom_malloc(sizeof(float) * 3 * npts)))
+        for (size_t i = 0; i < npts; i++)
+            memcpy(side + 3 * i, t->side + 3 * (i * stride), sizeof(float) * 3);
+    if (!t->shared && t->side && !side) {
+        free(pts);
+        return CROM_EINTERNAL;
+    }
     crom_nn_ws ws;
+    const crom_cutfeat *cut = t->o.cut && t->o.cut->nseg ? t->o.cut : NULL;
     int chunk = 4096, rc = crom_nn_ws_init(&ws, W, chunk, 1);
+    float *in = cut ? crom_malloc(sizeof(float) * (size_t)(3 + cut->nseg) * (size_t)chunk) : NULL;
+    if (!rc && cut && !in)
+        rc = CROM_EINTERNAL;
     double *G = crom_calloc(rr, sizeof(double)), *Wd = crom_malloc(sizeof(double) * 3 * r * chunk);
     double *A = crom_malloc(sizeof(double) * rr), *Ai = crom_malloc(sizeof(double) * rr);
     double *ev = crom_malloc(sizeof(double) * r);
@@ -874,7 +960,9 @@ static int orthonormalize(trainer *t, crom_nn_mlp *W, crom_nn_pointnet *P)
         rc = CROM_EINTERNAL;
     for (size_t s0 = 0; !rc && s0 < npts; s0 += (size_t)chunk) {
         int m = (int)(npts - s0 < (size_t)chunk ? npts - s0 : (size_t)chunk);
-        if ((rc = crom_nn_mlp_forward(W, &ws, m, pts + 3 * s0, NULL)))
+        if (cut)
+            crom_cutfeat_inputs_f(cut, (size_t)m, pts + 3 * s0, side ? side + 3 * s0 : NULL, in);
+        if ((rc = crom_nn_mlp_forward(W, &ws, m, cut ? in : pts + 3 * s0, NULL)))
             break;
         const float *Y = crom_nn_ws_output(&ws);
         for (size_t i = 0; i < (size_t)m * 3 * r; i++)
@@ -906,6 +994,8 @@ static int orthonormalize(trainer *t, crom_nn_mlp *W, crom_nn_pointnet *P)
             fold_head(P, Ai, r);
     }
     crom_nn_ws_free(&ws);
+    free(in);
+    free(side);
     free(G);
     free(Wd);
     free(A);
@@ -997,7 +1087,7 @@ static int make_networks(fitrun *R)
     const crom_fit_opts *o = &R->o;
     crom_nn_spec ws_, ps, hs;
     int widths[CROM_NN_MAX_LAYERS + 1], rc;
-    widths[0] = 3;
+    widths[0] = 3 + (o->cut ? o->cut->nseg : 0);
     for (int l = 1; l < o->depth; l++)
         widths[l] = o->width;
     widths[o->depth] = 3 * o->rank;
@@ -1043,9 +1133,13 @@ static int set_input_norm(fitrun *R, const crom_samples *S)
             box[3 + d] = fmin(box[3 + d], u);
             box[9 + d] = fmax(box[9 + d], u);
         }
-    float sh[6], sc[6];
+    float sh[3 + CROM_CUTFEAT_MAX], sc[3 + CROM_CUTFEAT_MAX];
     double xb[6] = {box[0], box[1], box[2], box[6], box[7], box[8]};
     int rc = crom_nn_norm_fit(xb, 2, 3, sh, sc);
+    for (int k = 0; R->o.cut && k < R->o.cut->nseg; k++) { /* the cut features lie in [-1, 1] already */
+        sh[3 + k] = 0;
+        sc[3 + k] = 1;
+    }
     if (!rc)
         rc = crom_nn_mlp_set_norm(&R->W, sh, sc);
     if (!rc && R->pn) {
@@ -1062,6 +1156,8 @@ static int make_optimizer(fitrun *R)
     const crom_fit_opts *o = &R->o;
     int rc = crom_fit_ctx_init(&R->ctx, &R->W, R->pn ? &R->P : NULL, R->t.maxrows, R->t.B, R->t.maxcells,
                                R->pn ? R->t.Pe : 1, o->tikhonov, o->threads);
+    if (!rc)
+        rc = crom_fit_ctx_set_cut(&R->ctx, o->cut);
     if (rc || (rc = crom_nn_adam_init(&R->adam, R->nW + R->nP)))
         return rc;
     R->loss = crom_malloc(sizeof(double) * (size_t)o->epochs);
@@ -1295,7 +1391,7 @@ static int canonicalize(fitrun *R, const crom_samples *S)
         return CROM_EINTERNAL;
     crom_model tmp;
     double err;
-    if ((rc = crom_model_from_mlp(&tmp, &R->W, R->pn ? &R->P : NULL))) {
+    if ((rc = crom_model_from_mlp(&tmp, &R->W, R->o.cut, R->pn ? &R->P : NULL))) {
         free(Qall);
         return rc;
     }
@@ -1312,7 +1408,7 @@ static int canonicalize(fitrun *R, const crom_samples *S)
 static int make_model(fitrun *R, const crom_samples *S, double t0, crom_model *out)
 {
     double err;
-    int rc = crom_model_from_mlp(out, &R->W, R->pn ? &R->P : NULL);
+    int rc = crom_model_from_mlp(out, &R->W, R->o.cut, R->pn ? &R->P : NULL);
     if (rc)
         return rc;
     if ((rc = crom_fit_error(out, S, R->o.tikhonov, R->pn, R->t.Pe ? R->t.Pe : 1, &err, NULL, NULL))) {
@@ -1528,7 +1624,14 @@ int crom_fit_error(const crom_model *m, const crom_samples *S, double tik, int u
     double *G = crom_malloc(sizeof(double) * rr), *q = crom_malloc(sizeof(double) * r);
     double *pts = enc ? crom_malloc(sizeof(double) * 6 * (size_t)N) : NULL;
     int *perm = enc ? crom_malloc(sizeof(int) * (size_t)N) : NULL;
-    if (!cache || !Wf || !Xd || !u || !G || !q || (enc && (!pts || !perm))) {
+    /* a field with cut features: each sample's features from its side (as in training) */
+    float *side = m->field == CROM_MODEL_FIELD_MLP && m->cut.nseg ? crom_fit_side_points(S, &m->cut) : NULL;
+    double *Sd = side ? crom_malloc(sizeof(double) * (size_t)N * 3) : NULL;
+    if (m->field == CROM_MODEL_FIELD_MLP && m->cut.nseg && !side) {
+        rc = crom_errcode();
+        goto done;
+    }
+    if (!cache || !Wf || !Xd || !u || !G || !q || (enc && (!pts || !perm)) || (side && !Sd)) {
         rc = CROM_EINTERNAL;
         goto done;
     }
@@ -1547,20 +1650,19 @@ int crom_fit_error(const crom_model *m, const crom_samples *S, double tik, int u
                 rc = CROM_EINTERNAL;
                 goto done;
             }
-            double *fp = crom_mesh_field_points(sm, CROM_MESH_CRACK_OFFSET, NULL);
-            rc = fp ? crom_model_eval(m, (size_t)sm->nv, fp, cache[k], NULL) : CROM_EINTERNAL;
-            free(fp);
-            if (rc)
+            if ((rc = crom_model_eval_mesh(m, sm, CROM_MESH_CRACK_OFFSET, cache[k], NULL, NULL)))
                 goto done;
         }
         for (size_t i = 0; i < 3 * (size_t)N; i++) {
             Xd[i] = S->X[(size_t)f * N * 3 + i];
             u[i] = S->U[(size_t)f * N * 3 + i];
+            if (Sd)
+                Sd[i] = side[(size_t)f * N * 3 + i];
         }
         if (gather) {
             for (int i = 0; i < N; i++)
                 memcpy(Wf + (size_t)i * 3 * r, cache[k] + (size_t)vx[i] * 3 * r, sizeof(double) * 3 * r);
-        } else if ((rc = crom_model_eval(m, (size_t)N, Xd, Wf, NULL))) {
+        } else if ((rc = crom_model_eval_sided(m, (size_t)N, Xd, Sd, Wf, NULL))) {
             goto done;
         }
         if (enc) {
@@ -1613,5 +1715,7 @@ done:
     free(q);
     free(pts);
     free(perm);
+    free(side);
+    free(Sd);
     return rc;
 }

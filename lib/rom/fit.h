@@ -56,6 +56,7 @@ typedef struct {
     int *frames;    /* [ngroups] frames of each group */
     int *dense;     /* [ngroups] 1: every frame has a sample at every point (M unused) */
     float *X;       /* [nrows][3] points (m) */
+    float *S;       /* [nrows][3] where a field's cut features are taken (crom_fit_side_points), or NULL: at X */
     double *U;      /* per group, concatenated: [rows][3][frames] scaled displacement, 0 where missing */
     double *M;      /* per group, concatenated: [rows][frames] 1 where frame has the point, else 0 */
     int enc_points; /* points per frame the encoder sees */
@@ -78,15 +79,24 @@ typedef struct {
     crom_nn_pointnet_ws pws;
     double *Wd, *dW, *R, *K, *G, *Bm, *Q, *qn, *cvec, *lam;
     float *dy, *qf, *dqf;
+    const crom_cutfeat *cut; /* the field's cut features (crom_fit_ctx_set_cut), or NULL */
+    float *Xin;              /* [maxrows][3 + K] X and its features */
 } crom_fit_ctx;
 
-/* Set up a loss context for field W (3 -> 3r) and optional encoder P (6 ->
+/* Set up a loss context for field W (3 -> 3r, or 3 + K -> 3r for a
+ * field with cut features: then crom_fit_ctx_set_cut) and optional encoder P (6 ->
  * r, NULL for lsq). nthreads splits the MLP passes (nn.h). Returns 0,
  * CROM_EUSAGE on bad sizes, CROM_EINTERNAL when out of memory. */
 int crom_fit_ctx_init(crom_fit_ctx *c, const crom_nn_mlp *W, const crom_nn_pointnet *P,
                       int maxrows, int maxframes, int maxcells, int enc_points,
                       double tikhonov, int nthreads);
 void crom_fit_ctx_free(crom_fit_ctx *c);
+
+/* A field that takes the K features of a cut after X (lib/mesh/cutfeat.h;
+ * borrowed, keep it alive): W maps 3 + K inputs. The batches still give X
+ * [nrows][3]; the loss adds the features. CROM_EUSAGE if W's input width is
+ * not 3 + K, CROM_EINTERNAL when out of memory. */
+int crom_fit_ctx_set_cut(crom_fit_ctx *c, const crom_cutfeat *cut);
 
 /* The loss of a batch: with n the number of (frame, point) samples present,
  *   objective = (1/n) [ sum_f sum_i m_fi |W(X_i) q_f - u_fi|^2 + sum_f lambda_f |q_f|^2 ]
@@ -131,6 +141,9 @@ typedef struct {
     int proc, nprocs;       /* this process and the number of them (0, 1) */
     int (*allreduce)(void *ctx, double *buf, size_t n);
     void *allreduce_ctx;
+    /* a field that can jump across a cut: its K features are inputs after
+     * X (lib/mesh/cutfeat.h; NULL or nseg 0: none) */
+    const crom_cutfeat *cut;
     /* statistics of the run (may be NULL) */
     struct crom_fit_stats *stats;
     /* progress: called after every epoch (frac = progress in [0,1]) */
@@ -164,6 +177,17 @@ typedef struct crom_fit_stats {
  * batch, encoder subsample 2500), encoder lsq; epochs and learning rate
  * resolved per encoder (above) when left 0. */
 void crom_fit_defaults(crom_fit_opts *o);
+
+/* Where the cut features of each sample of S are taken, [F][N][3]
+ * (malloc'ed): at the sample, except for an interior sample whose tet (in
+ * its source mesh) has its centroid on the other side of a segment of cut
+ * (|feature| > 1/2 there): then at that centroid. A cut follows element
+ * faces (crom-remesh cut), so such a tet lies across the segment's line but
+ * moves with the side of its centroid; vertices on a crack take their
+ * features from their own tets' centroid likewise (crom_model_eval_mesh).
+ * NULL when out of memory or a source mesh has a degenerate tet (error
+ * recorded). */
+float *crom_fit_side_points(const crom_samples *S, const crom_cutfeat *cut);
 
 /* Check a sample set can give a rank-r basis: at least 2 frames, r no more
  * than the frames with non-zero displacement. CROM_EDATA with a message

@@ -32,7 +32,7 @@ int crom_indicator_init(crom_indicator *ind, const crom_mesh *mesh, const crom_s
     ind->r = model->rank;
     size_t outside = 0;
     ind->W = crom_malloc(sizeof(double) * n * (size_t)model->rank);
-    rc = ind->W ? crom_model_eval(model, (size_t)mesh->nv, mesh->X, ind->W, &outside) : CROM_EINTERNAL;
+    rc = ind->W ? crom_model_eval_mesh(model, mesh, CROM_MESH_CRACK_OFFSET, ind->W, &outside, NULL) : CROM_EINTERNAL;
     if (!rc && outside)
         rc = crom_err(CROM_EDATA, "%zu of the %d vertices lie outside the model's mesh field", outside, mesh->nv);
     if (rc)

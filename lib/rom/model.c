@@ -117,15 +117,21 @@ const char *crom_model_id(const crom_model *m, char id[17])
         }
         const char *act = crom_nn_act_name(sp->act);
         fnv_bytes(&s, act, strlen(act) + 1);
-        for (int i = 0; i < 3; i++) {
+        for (int i = 0; i < sp->width[0]; i++) {
             double v = m->mlp.shift[i];
             fnv_bytes(&s, &v, 8);
         }
-        for (int i = 0; i < 3; i++) {
+        for (int i = 0; i < sp->width[0]; i++) {
             double v = m->mlp.scale[i];
             fnv_bytes(&s, &v, 8);
         }
         fnv_bytes(&s, m->mlp.params, sizeof(float) * m->mlp.nparams);
+        if (m->cut.nseg) {
+            fnv_bytes(&s, "cut", 4);
+            fnv_i64(&s, m->cut.axis);
+            fnv_i64(&s, m->cut.nseg);
+            fnv_bytes(&s, m->cut.seg, sizeof(double) * 4 * (size_t)m->cut.nseg);
+        }
         if (m->field == CROM_MODEL_FIELD_CMAP) {
             fnv_latent(&s, &m->latent);
             fnv_i64(&s, m->npin_points);
@@ -183,13 +189,17 @@ static int copy_pointnet(crom_nn_pointnet *dst, const crom_nn_pointnet *src)
                                         src->nparams, src->point.shift, src->point.scale);
 }
 
-int crom_model_from_mlp(crom_model *m, const crom_nn_mlp *W, const crom_nn_pointnet *enc)
+int crom_model_from_mlp(crom_model *m, const crom_nn_mlp *W, const crom_cutfeat *cut, const crom_nn_pointnet *enc)
 {
     crom_model_clear(m);
-    int out = W->spec.width[W->spec.nlayers];
-    if (W->spec.width[0] != 3 || out < 3 || out % 3)
-        return crom_err(CROM_EUSAGE, "a field MLP maps 3 inputs to 3r outputs (got %d -> %d)",
+    int out = W->spec.width[W->spec.nlayers], K = cut ? cut->nseg : 0;
+    if (cut && crom_cutfeat_check(cut))
+        return CROM_EUSAGE;
+    if (W->spec.width[0] != 3 + K || out < 3 || out % 3)
+        return crom_err(CROM_EUSAGE, "a field MLP maps 3 inputs and %d cut features to 3r outputs (got %d -> %d)", K,
                         W->spec.width[0], out);
+    if (cut)
+        m->cut = *cut;
     snprintf(m->basis, sizeof m->basis, "mlp");
     m->field = CROM_MODEL_FIELD_MLP;
     m->rank = out / 3;
@@ -536,12 +546,13 @@ static int write_latent(hid_t loc, const crom_nn_mlp *phi)
 static int write_mlp(hid_t loc, const crom_model *m)
 {
     const crom_nn_mlp *W = &m->mlp;
-    double sh[3], sc[3];
-    for (int i = 0; i < 3; i++) {
+    double sh[3 + CROM_CUTFEAT_MAX], sc[3 + CROM_CUTFEAT_MAX];
+    int din = W->spec.width[0];
+    for (int i = 0; i < din && i < 3 + CROM_CUTFEAT_MAX; i++) {
         sh[i] = W->shift[i];
         sc[i] = W->scale[i];
     }
-    hsize_t np = W->nparams, d3 = 3;
+    hsize_t np = W->nparams, d3 = (hsize_t)din;
     int rc = crom_h5_set_str(loc, ".", "activation", crom_nn_act_name(W->spec.act));
     if (!rc)
         rc = write_widths(loc, "field/widths", &W->spec);
@@ -551,6 +562,13 @@ static int write_mlp(hid_t loc, const crom_model *m)
         rc = crom_h5_put_f64(loc, "field/input_shift", 1, &d3, sh);
     if (!rc)
         rc = crom_h5_put_f64(loc, "field/input_scale", 1, &d3, sc);
+    if (!rc && m->cut.nseg) {
+        hsize_t dc[2] = {(hsize_t)m->cut.nseg, 4};
+        char ax[2] = {(char)('x' + m->cut.axis), 0};
+        rc = crom_h5_put_f64(loc, "field/cut_segments", 2, dc, &m->cut.seg[0][0]);
+        if (!rc)
+            rc = crom_h5_set_str(loc, ".", "cut_axis", ax);
+    }
     if (rc || m->field != CROM_MODEL_FIELD_CMAP)
         return rc;
     rc = write_latent(loc, &m->latent);
@@ -701,14 +719,18 @@ int crom_model_read_net(hid_t h, const char *params, const char *shift, const ch
                         const char *what, crom_nn_mlp *out)
 {
     hsize_t np;
-    float *par = NULL, fsh[3], fsc[3];
-    double sh[3], sc[3];
+    enum { MAXIN = 3 + CROM_CUTFEAT_MAX };
+    float *par = NULL, fsh[MAXIN], fsc[MAXIN];
+    double sh[MAXIN], sc[MAXIN];
+    int din = spec->width[0];
+    if (shift && din > MAXIN)
+        return crom_err(CROM_EDATA, "%s takes %d inputs, at most %d are known", what, din, (int)MAXIN);
     int rc = crom_h5_read_f32(h, params, 1, &np, &par);
-    if (!rc && shift && !(rc = read_vec(h, shift, 3, sh, 1)))
-        rc = read_vec(h, scale, 3, sc, 1);
-    if (!rc && (!all_finite_f(par, np) || (shift && (!all_finite_d(sh, 3) || !all_finite_d(sc, 3)))))
+    if (!rc && shift && !(rc = read_vec(h, shift, din, sh, 1)))
+        rc = read_vec(h, scale, din, sc, 1);
+    if (!rc && (!all_finite_f(par, np) || (shift && (!all_finite_d(sh, din) || !all_finite_d(sc, din)))))
         rc = crom_err(CROM_EDATA, "%s has non-finite parameters", what);
-    for (int i = 0; shift && !rc && i < 3; i++) {
+    for (int i = 0; shift && !rc && i < din; i++) {
         fsh[i] = (float)sh[i];
         fsc[i] = (float)sc[i];
     }
@@ -762,6 +784,38 @@ static int read_skin_field(hid_t h, crom_model *m, const char *act)
     return rc;
 }
 
+/* The cut a field takes features of (field/cut_segments, attribute
+ * cut_axis), if any, into m->cut. */
+static int read_cut(hid_t h, crom_model *m)
+{
+    int has = crom_h5_has(h, "field/cut_segments"), hasax = crom_h5_has_attr(h, ".", "cut_axis");
+    if (!has && !hasax)
+        return 0;
+    if (!has || !hasax)
+        return crom_err(CROM_EDATA, "a field with cut features needs both field/cut_segments and the attribute "
+                        "cut_axis");
+    char *ax = NULL;
+    hsize_t d[2];
+    double *seg = NULL;
+    int rc = crom_h5_get_str(h, ".", "cut_axis", &ax);
+    if (!rc && (strlen(ax) != 1 || ax[0] < 'x' || ax[0] > 'z'))
+        rc = crom_err(CROM_EDATA, "cut_axis '%s' is not x, y or z", ax);
+    if (!rc)
+        rc = crom_h5_read_f64(h, "field/cut_segments", 2, d, &seg);
+    if (!rc && (d[1] != 4 || d[0] < 1 || d[0] > CROM_CUTFEAT_MAX))
+        rc = crom_err(CROM_EDATA, "field/cut_segments must be [K][4] with 1 <= K <= %d", CROM_CUTFEAT_MAX);
+    if (!rc) {
+        m->cut.axis = ax[0] - 'x';
+        m->cut.nseg = (int)d[0];
+        memcpy(m->cut.seg, seg, sizeof(double) * 4 * d[0]);
+        if (crom_cutfeat_check(&m->cut))
+            rc = crom_err(CROM_EDATA, "field/cut_segments: %s", crom_errmsg());
+    }
+    free(ax);
+    free(seg);
+    return rc;
+}
+
 static int read_mlp(hid_t h, crom_model *m, char *act)
 {
     int w[CROM_NN_MAX_LAYERS + 1], nw;
@@ -802,8 +856,11 @@ static int read_mlp(hid_t h, crom_model *m, char *act)
             m->npin_triangles = (int)d3[0];
         }
     }
-    if (w[0] != 3 || w[nw - 1] != 3 * p)
-        return crom_err(CROM_EDATA, "field/widths go %d -> %d, expected 3 -> %d", w[0], w[nw - 1], 3 * p);
+    if (m->field == CROM_MODEL_FIELD_MLP && (rc = read_cut(h, m)))
+        return rc;
+    if (w[0] != 3 + m->cut.nseg || w[nw - 1] != 3 * p)
+        return crom_err(CROM_EDATA, "field/widths go %d -> %d, expected %d -> %d", w[0], w[nw - 1], 3 + m->cut.nseg,
+                        3 * p);
     return crom_model_read_net(h, "field/params", "field/input_shift", "field/input_scale", &spec, "the field",
                                &m->mlp);
 }
@@ -1115,6 +1172,39 @@ int crom_model_load(const char *path, crom_model *m)
 int crom_model_eval(const crom_model *m, size_t n, const double *X, double *W,
                     size_t *noutside)
 {
+    return crom_model_eval_sided(m, n, X, NULL, W, noutside);
+}
+
+/* 1 if the n points X are mesh's vertices (to round-off). */
+static int at_vertices(const crom_mesh *mesh, size_t n, const double *X)
+{
+    int same = n == (size_t)mesh->nv;
+    for (size_t i = 0; same && i < 3 * n; i++)
+        same = fabs(X[i] - mesh->X[i]) <= 1e-9 * (1 + fabs(X[i]));
+    return same;
+}
+
+int crom_model_eval_mesh(const crom_model *m, const crom_mesh *mesh, double s, double *W, size_t *noutside,
+                         int *nshifted)
+{
+    if (nshifted)
+        *nshifted = 0;
+    size_t n = (size_t)mesh->nv;
+    if (crom_mesh_is_surface(mesh) ||
+        (m->field == CROM_MODEL_FIELD_MESH && at_vertices(&m->mesh, n, mesh->X)))
+        return crom_model_eval(m, n, mesh->X, W, noutside);
+    double *P = crom_mesh_field_points(mesh, s, nshifted);
+    if (!P)
+        return CROM_EINTERNAL;
+    int rc = m->field == CROM_MODEL_FIELD_MLP && m->cut.nseg ? crom_model_eval_sided(m, n, mesh->X, P, W, noutside)
+                                                             : crom_model_eval(m, n, P, W, noutside);
+    free(P);
+    return rc;
+}
+
+int crom_model_eval_sided(const crom_model *m, size_t n, const double *X, const double *S, double *W,
+                          size_t *noutside)
+{
     if (noutside)
         *noutside = 0;
     if (n == 0)
@@ -1123,10 +1213,7 @@ int crom_model_eval(const crom_model *m, size_t n, const double *X, double *W,
         /* at its own vertices a mesh field is its values, exactly (zero at
          * the pins: interpolation would leave round-off there); a shell's
          * basis lives at its own vertices only */
-        int same = n == (size_t)m->mesh.nv;
-        for (size_t i = 0; same && i < 3 * n; i++)
-            same = fabs(X[i] - m->mesh.X[i]) <= 1e-9 * (1 + fabs(X[i]));
-        if (same) {
+        if (at_vertices(&m->mesh, n, X)) {
             memcpy(W, m->basis_v, sizeof(double) * 3 * (size_t)m->rank * n);
             return 0;
         }
@@ -1152,7 +1239,24 @@ int crom_model_eval(const crom_model *m, size_t n, const double *X, double *W,
     int rc = crom_nn_ws_init(&ws, &m->mlp, n < 4096 ? (int)n : 4096, 1);
     if (rc)
         return rc;
-    rc = crom_nn_mlp_eval(&m->mlp, &ws, n, X, W, NULL);
+    if (!m->cut.nseg) {
+        rc = crom_nn_mlp_eval(&m->mlp, &ws, n, X, W, NULL);
+        crom_nn_ws_free(&ws);
+        return rc;
+    }
+    /* X and its cut features, a chunk at a time */
+    size_t chunk = 4096, din = 3 + (size_t)m->cut.nseg, out = 3 * (size_t)m->rank;
+    double *in = crom_malloc(sizeof(double) * din * (n < chunk ? n : chunk));
+    rc = in ? 0 : CROM_EINTERNAL;
+    for (size_t s = 0; !rc && s < n; s += chunk) {
+        size_t k = n - s < chunk ? n - s : chunk;
+        crom_cutfeat_inputs_d(&m->cut, k, X + 3 * s, in);
+        if (S) /* the features from the side points */
+            for (size_t i = 0; i < k; i++)
+                crom_cutfeat_point(&m->cut, S + 3 * (s + i), in + din * i + 3);
+        rc = crom_nn_mlp_eval(&m->mlp, &ws, k, in, W + out * s, NULL);
+    }
+    free(in);
     crom_nn_ws_free(&ws);
     return rc;
 }

@@ -49,7 +49,9 @@
  * model_id: 16 lowercase hex digits, the 64-bit FNV-1a digest of the basis:
  * the `basis` string (with its NUL), the rank (int64), then for an MLP the
  * widths (int32), the activation name (with its NUL), input shift and scale
- * (float64) and the parameters (float32); for a mesh field nv and nt (int64),
+ * (float64) and the parameters (float32), then for a field with cut
+ * features "cut" (with its NUL), the axis and K (int64) and the segments
+ * (float64); for a mesh field nv and nt (int64),
  * the vertices (float64), the tets (int32) and the basis (float64); for a map
  * the widths, the activation name, the parameters, then nv and nt, the
  * vertices, the tets and (neuralmodes) the linear basis; for a continuous
@@ -70,6 +72,7 @@
 #include <hdf5.h>
 
 #include "io/io.h"
+#include "mesh/cutfeat.h"
 #include "mesh/locate.h"
 #include "mesh/mesh.h"
 #include "nn/nn.h"
@@ -95,6 +98,8 @@ typedef struct {
     /* CROM_MODEL_FIELD_MLP (CROM_MODEL_FIELD_MAP: the map's network r -> 3nv;
      * CROM_MODEL_FIELD_CMAP: the feature field 3 -> 3p) */
     crom_nn_mlp mlp;     /* 3 -> ... -> 3r, owns its parameters */
+    crom_cutfeat cut;    /* CROM_MODEL_FIELD_MLP: a field that can jump across a cut (lib/mesh/cutfeat.h):
+                          * its inputs are X then cut.nseg features, 3 + K -> ... -> 3r (nseg 0: none) */
     crom_nn_mlp latent;  /* CROM_MODEL_FIELD_CMAP: φ, r -> ... -> p */
     int npin_points;     /* CROM_MODEL_FIELD_CMAP: the pin mask (lib/datafree/datafree.h): */
     double *pin_points;  /* [npin_points][3] pinned training vertices (m) */
@@ -160,11 +165,13 @@ int crom_model_set_conditions(crom_model *m, int n, const crom_scenario_cond *co
 /* An empty model (safe to free), with NAN training figures. */
 void crom_model_clear(crom_model *m);
 
-/* Make an MLP model from a trained field (copied: widths 3 -> ... -> 3r) and
+/* Make an MLP model from a trained field (copied: widths 3 + K -> ... -> 3r),
+ * the cut whose K features it takes after X (copied; NULL: none, K = 0) and
  * an optional PointNet encoder (copied; NULL: encoder "lsq"). CROM_EUSAGE if
- * the output width is not a positive multiple of 3 or the encoder does not
- * output r values; CROM_EINTERNAL when out of memory. */
-int crom_model_from_mlp(crom_model *m, const crom_nn_mlp *W, const crom_nn_pointnet *enc);
+ * the input width is not 3 + K, the output width is not a positive
+ * multiple of 3 or the encoder does not output r values; CROM_EINTERNAL
+ * when out of memory. */
+int crom_model_from_mlp(crom_model *m, const crom_nn_mlp *W, const crom_cutfeat *cut, const crom_nn_pointnet *enc);
 
 /* Make a mesh-field model of kind `basis` ("pod", "modes") from a mesh
  * (copied, regions dropped) and W at its vertices, basis [nv][3][r]
@@ -264,6 +271,22 @@ const char *crom_model_id(const crom_model *m, char id[17]);
  * (out of memory). */
 int crom_model_eval(const crom_model *m, size_t n, const double *X, double *W,
                     size_t *noutside);
+
+/* crom_model_eval with the cut features of a field (m->cut) taken at the
+ * points S [n][3] instead of X (NULL: at X): a vertex on a crack face is
+ * evaluated at its own position with the features of its own side. */
+int crom_model_eval_sided(const crom_model *m, size_t n, const double *X, const double *S, double *W,
+                          size_t *noutside);
+
+/* W at the vertices of a mesh, [nv][3][r], as every program evaluates a
+ * basis on a mesh: a mesh field on its own mesh (or a shell's basis) at
+ * the vertices, exactly (the copies of a cut keep their own values); a
+ * field with cut features at the vertices, with each copy's features from
+ * its field point (crom_mesh_field_points with offset s); any other field
+ * at the field points, where the copies a cut made sample W on their own
+ * sides. Errors as crom_model_eval. */
+int crom_model_eval_mesh(const crom_model *m, const crom_mesh *mesh, double s, double *W, size_t *noutside,
+                         int *nshifted);
 
 /* Encode one frame with the model's PointNet: n points pts [n][6] = (X, u) in
  * metres into q [r] (metres). CROM_EUSAGE if the model has no PointNet. */

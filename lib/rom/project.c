@@ -55,10 +55,8 @@ int crom_project_init(crom_project *p, const crom_model *model, const crom_mesh 
     p->wf = crom_malloc(sizeof(double) * n3);
     if (!p->W || !p->w || !p->L || !p->wf)
         rc = CROM_EINTERNAL;
-    double *fp = rc ? NULL : crom_mesh_field_points(mesh, CROM_MESH_CRACK_OFFSET, NULL); /* see mesh.h */
-    if (!rc)
-        rc = fp ? crom_model_eval(model, (size_t)mesh->nv, fp, p->W, &nout) : CROM_EINTERNAL;
-    free(fp);
+    if (!rc) /* see crom_mesh_field_points */
+        rc = crom_model_eval_mesh(model, mesh, CROM_MESH_CRACK_OFFSET, p->W, &nout, NULL);
     if (!rc) {
         double vol = crom_mesh_vertex_volumes(mesh, p->w);
         for (int v = 0; v < mesh->nv; v++)

@@ -128,10 +128,8 @@ static int latent_basis(crom_result *res, const crom_model *model, const char *m
     res->W = crom_malloc(sizeof(double) * 3 * (size_t)res->r * (size_t)res->mesh.nv);
     if (res->W && crom_mesh_is_surface(&model->mesh)) /* its own shell: W at its vertices */
         return crom_model_eval(model, (size_t)res->mesh.nv, res->mesh.X, res->W, &res->outside);
-    double *P = crom_mesh_field_points(&res->mesh, CROM_MESH_CRACK_OFFSET, NULL);
-    rc = res->W && P ? crom_model_eval(model, (size_t)res->mesh.nv, P, res->W, &res->outside) : CROM_EINTERNAL;
-    free(P);
-    return rc;
+    return res->W ? crom_model_eval_mesh(model, &res->mesh, CROM_MESH_CRACK_OFFSET, res->W, &res->outside, NULL)
+                  : CROM_EINTERNAL;
 }
 
 /* A crom/latent: its fields, the model at model_path (required), which

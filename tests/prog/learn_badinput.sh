@@ -71,6 +71,14 @@ expect_error 64 "--basis pod has no neural encoder" "$O/m.h5" -- crom-fitfield -
 expect_error 64 "--rank" "$O/m.h5" -- crom-fitfield --rank 0 -o "$O/m.h5" s.h5
 expect_error 64 "--basis: 'svd' is not mlp or pod" "$O/m.h5" -- crom-fitfield --basis svd -o "$O/m.h5" s.h5
 expect_error 64 "--activation: 'relu' is not elu or sine" "$O/m.h5" -- crom-fitfield --activation relu -o "$O/m.h5" s.h5
+expect_error 64 "--cut-segment 0.1,0,0.1,0 has zero length" "$O/m.h5" -- crom-fitfield --cut-segment 0.1,0,0.1,0 -o "$O/m.h5" s.h5
+expect_error 64 "--cut-segment" "$O/m.h5" -- crom-fitfield --cut-segment 0,0,1 -o "$O/m.h5" s.h5
+expect_error 64 "--cut-segment" "$O/m.h5" -- crom-fitfield --cut-segment 0,0,inf,1 -o "$O/m.h5" s.h5
+expect_error 64 "--cut-axis: 'w' is not x, y or z" "$O/m.h5" -- crom-fitfield --cut-segment 0,0,1,1 --cut-axis w -o "$O/m.h5" s.h5
+expect_error 64 "--cut-axis needs --cut-segment" "$O/m.h5" -- crom-fitfield --cut-axis x -o "$O/m.h5" s.h5
+expect_error 64 "--cut-segment is for a neural field" "$O/m.h5" -- crom-fitfield --basis pod --cut-segment 0,0,1,1 -o "$O/m.h5" sall.h5
+cs=(); for k in $(seq 17); do cs+=(--cut-segment "0,0,1,$k"); done
+expect_error 64 "too many --cut-segment \(at most 16\)" "$O/m.h5" -- crom-fitfield "${cs[@]}" -o "$O/m.h5" s.h5
 
 # ---- crom-encode
 expect_error 64 "--model M is required" "$O/l.h5" -- crom-encode -o "$O/l.h5" t.h5

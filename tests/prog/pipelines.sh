@@ -57,22 +57,28 @@ $MK/shapes.mk OUT="$S" TRAIN="2 box" TEST="4" SIZE=0.18 STEPS=12 EPOCHS=800 RANK
 [ "$(stat -c %Y "$S/cub-box.h5")" != "$c0" ] || fail "the cubature was not rebuilt"; ok
 crom-info "$S/cub-box.h5" | grep -q "scheme *metis" || fail "cubature scheme not switched"; ok
 
-# tearing: intact and Y-cut plate, the cut grown during the reduced run
+# tearing: intact and Y-cut plate, the cut grown during the reduced run (a
+# small plate, 0.3 s, the flaps of the Y falling through the cut). Issue 18's
+# bounds: the intact plate within 10% of its full run, the cut one within 15%
+# (measured 7.3% and 9.1%; a field of X alone, CUT_FEATURES=0, is 46% off on
+# the cut plate).
 P="$TMP/tearing"
-$MK/tearing.mk OUT="$P" SIZE=0.1 STEPS=14 STAGES=2 EPOCHS=800 RANK=8 COUNT=40 POINTS=200 QUIET=-q >"$TMP/tearing.log" 2>&1 \
-  || { tail -20 "$TMP/tearing.log"; fail "tearing pipeline"; }
+$MK/tearing.mk OUT="$P" SIZE=0.0625 STEPS=30 STAGES=2 EPOCHS=1500 RANK=12 COUNT=60 POINTS=500 QUIET=-q \
+  >"$TMP/tearing.log" 2>&1 || { tail -20 "$TMP/tearing.log"; fail "tearing pipeline"; }
 T="$P/rows.txt.csv"
+below "$(cell "$T" intact 6)" 0.10 "tearing: the intact plate's relative error"
+below "$(cell "$T" Y-cut 6)" 0.15 "tearing: the Y-cut plate's relative error"
 for r in intact Y-cut; do
-  below "$(cell "$T" $r 6)" 0.4 "tearing $r relative error"
   above "$(cell "$T" $r 5)" 3 "tearing $r speedup"
 done
+crom-info "$P/model.h5" | grep -qE "cut_axis +y" || fail "the tearing field has no cut features"; ok
 $PY -c "
 import h5py, numpy as np, sys
 t = h5py.File(sys.argv[1]); c = t['frames/cubature'][()]
 if not (c[0] == 0 and c[-1] == 2 and np.all(np.diff(c) >= 0)): raise SystemExit('check failed: ' + str(c))   # the cut grew in two stages
 if not np.all(np.isfinite(t['frames/total_energy'][()])): raise SystemExit('check failed: non-finite energy')
 " "$P/tear.h5" || fail "progressive tear schedule"; ok
-[ -s "$P/strip.png" ] && [ -s "$P/tear.pvd" ] || fail "tearing pictures"; ok
+[ -s "$P/strip.png" ] && [ -s "$P/basis.png" ] && [ -s "$P/tear.pvd" ] || fail "tearing pictures"; ok
 # the ParaView frames follow the cut: the last frame's mesh has the duplicated
 # crack vertices the first one lacks
 n0=$(grep -o 'NumberOfPoints="[0-9]*"' "$P/tear/tear_00000.vtu" | tr -dc 0-9)

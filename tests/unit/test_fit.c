@@ -92,11 +92,14 @@ static void free_batch(crom_fit_batch *b)
     free(b->enc);
 }
 
-static void check_gradient(const char *label, int pointnet, double tik, uint64_t seed)
+static void check_gradient(const char *label, int pointnet, double tik, int withcut, uint64_t seed)
 {
     crom_rng rng;
     crom_rng_seed(&rng, seed);
-    int widths[] = {3, 7, 7, 9}; /* r = 3 */
+    /* withcut: a field with the features of a wall at x = 3 (the points lie
+     * in [1.4, 4.6]^3), taken at side points of their own */
+    crom_cutfeat cut = {2, 1, {{3, 1, 3, 5}}};
+    int widths[] = {3 + (withcut ? 1 : 0), 7, 7, 9}; /* r = 3 */
     crom_nn_spec spec, ps, hs;
     CHECK(crom_nn_spec_set(&spec, 4, widths, CROM_NN_ELU) == 0);
     const int pw[] = {6, 8, 8}, hw[] = {8, 6, 3};
@@ -109,7 +112,7 @@ static void check_gradient(const char *label, int pointnet, double tik, uint64_t
     crom_nn_mlp W;
     crom_nn_pointnet P;
     CHECK(crom_nn_mlp_init(&W, &spec, params, &rng) == 0);
-    float sh[3] = {3, 4, 5}, sc[3] = {0.7f, 0.8f, 0.9f};
+    float sh[4] = {3, 4, 5, 0}, sc[4] = {0.7f, 0.8f, 0.9f, 1};
     CHECK(crom_nn_mlp_set_norm(&W, sh, sc) == 0);
     if (pointnet)
         CHECK(crom_nn_pointnet_init(&P, &ps, &hs, params + nW, &rng) == 0);
@@ -117,6 +120,13 @@ static void check_gradient(const char *label, int pointnet, double tik, uint64_t
     make_batch(&b, &rng, pointnet);
     crom_fit_ctx ctx;
     CHECK(crom_fit_ctx_init(&ctx, &W, pointnet ? &P : NULL, 14, 7, 50, pointnet ? 5 : 1, tik, 1) == 0);
+    if (withcut) {
+        CHECK(crom_fit_ctx_set_cut(&ctx, NULL) == CROM_EUSAGE); /* 4 inputs need the cut */
+        CHECK(crom_fit_ctx_set_cut(&ctx, &cut) == 0);
+        b.S = malloc(sizeof(float) * 3 * 14);
+        for (int i = 0; i < 3 * 14; i++)
+            b.S[i] = b.X[i] + (i % 3 == 0 ? 0.3f : 0);
+    }
     double obj, mis, q[7 * 3];
     CHECK(crom_fit_loss(&ctx, &b, &obj, &mis, gf, q) == 0);
     CHECK(isfinite(obj) && obj >= mis && mis > 0);
@@ -143,6 +153,7 @@ static void check_gradient(const char *label, int pointnet, double tik, uint64_t
     free(params);
     free(gf);
     free_batch(&b);
+    free(b.S);
     crom_fit_ctx_free(&ctx);
     if (pointnet)
         crom_nn_pointnet_free(&P);
@@ -152,9 +163,10 @@ static void check_gradient(const char *label, int pointnet, double tik, uint64_t
 static void test_gradients(void)
 {
     printf("training losses: gradients vs finite differences\n");
-    check_gradient("lsq (variable projection)", 0, 0, 41);
-    check_gradient("lsq with Tikhonov 0.05", 0, 0.05, 42);
-    check_gradient("joint PointNet + field (eq. 4)", 1, 0, 43);
+    check_gradient("lsq (variable projection)", 0, 0, 0, 41);
+    check_gradient("lsq with Tikhonov 0.05", 0, 0.05, 0, 42);
+    check_gradient("joint PointNet + field (eq. 4)", 1, 0, 0, 43);
+    check_gradient("lsq, a field with cut features", 0, 0, 1, 44);
 }
 
 /* A sample set of F frames of K analytic modes on an n^3 box of side 1. */

@@ -244,7 +244,7 @@ static void test_mlp_model(void)
     float psh[6] = {0, 0, 0, 0.01f, 0, 0}, psc[6] = {1, 1, 1, 0.05f, 0.05f, 0.05f};
     CHECK(crom_nn_mlp_set_norm(&P.point, psh, psc) == 0);
     crom_model M;
-    CHECK(crom_model_from_mlp(&M, &W, &P) == 0);
+    CHECK(crom_model_from_mlp(&M, &W, NULL, &P) == 0);
     CHECK(M.rank == r && M.encoder == CROM_MODEL_ENC_POINTNET);
     M.reconstruction_error = 0.125;
     M.nepochs = 2;
@@ -302,6 +302,55 @@ static void test_mlp_model(void)
     crom_nn_pointnet_free(&P);
 }
 
+/* A field with cut features: round trip, its features in the digest, and
+ * a file whose cut does not fit its network refused. */
+static void test_cut_model(void)
+{
+    crom_rng rng;
+    crom_rng_seed(&rng, 16);
+    int widths[] = {5, 8, 3 * 2};
+    crom_nn_spec spec;
+    CHECK(crom_nn_spec_set(&spec, 3, widths, CROM_NN_ELU) == 0);
+    crom_nn_mlp W;
+    CHECK(crom_nn_mlp_init(&W, &spec, NULL, &rng) == 0);
+    crom_cutfeat cut = {1, 2, {{0, -0.3, 0, 0}, {0, 0, 0.2, 0.25}}};
+    crom_model M, N, R;
+    CHECK(crom_model_from_mlp(&M, &W, NULL, NULL) == CROM_EUSAGE); /* 5 inputs need 2 features */
+    CHECK(crom_model_from_mlp(&M, &W, &cut, NULL) == 0);
+    cut.seg[1][3] = 0.3;
+    CHECK(crom_model_from_mlp(&N, &W, &cut, NULL) == 0);
+    CHECK(strcmp(M.model_id, N.model_id) != 0); /* the cut is part of the basis */
+    crom_model_free(&N);
+    double X[3 * 20], Wa[20 * 6], Wb[20 * 6], S[3 * 20];
+    for (int i = 0; i < 60; i++) {
+        X[i] = crom_rng_uniform(&rng) - 0.5;
+        S[i] = -X[i];
+    }
+    CHECK(crom_model_eval(&M, 20, X, Wa, NULL) == 0);
+    char path[256];
+    snprintf(path, sizeof path, "%s/cut.h5", dir);
+    CHECK(write_model(path, &M) == 0);
+    CHECK(crom_model_load(path, &R) == 0);
+    CHECK(!strcmp(R.model_id, M.model_id) && R.cut.nseg == 2 && R.cut.axis == 1);
+    CHECK(crom_model_eval(&R, 20, X, Wb, NULL) == 0);
+    CHECK(memcmp(Wa, Wb, sizeof Wa) == 0);
+    /* sided: X's own features again when S = X; others differ */
+    CHECK(crom_model_eval_sided(&R, 20, X, X, Wb, NULL) == 0);
+    CHECK(memcmp(Wa, Wb, sizeof Wa) == 0);
+    CHECK(crom_model_eval_sided(&R, 20, X, S, Wb, NULL) == 0);
+    CHECK(memcmp(Wa, Wb, sizeof Wa) != 0);
+    crom_model_free(&R);
+    /* a file without its cut_axis: refused, naming it */
+    hid_t f = H5Fopen(path, H5F_ACC_RDWR, H5P_DEFAULT);
+    H5Adelete(f, "cut_axis");
+    H5Fclose(f);
+    CHECK(crom_model_load(path, &R) == CROM_EDATA);
+    CHECK_MSG(strstr(crom_errmsg(), "cut_axis") != NULL, "%s", crom_errmsg());
+    crom_model_free(&R);
+    crom_model_free(&M);
+    crom_nn_mlp_free(&W);
+}
+
 int main(void)
 {
     check_begin("test_model");
@@ -316,6 +365,7 @@ int main(void)
     test_vertex_volumes();
     test_mesh_model();
     test_mlp_model();
+    test_cut_model();
     char cmd[300];
     snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
     if (system(cmd) != 0)
