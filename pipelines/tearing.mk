@@ -14,6 +14,9 @@ STEPS ?= 60
 DT ?= 0.01
 STAGES ?= 5
 COUNT ?= 150
+# interior (default): random points in the tets; vertices (with POINTS at most
+# the intact plate's 1675 vertices): the field trains 3.6x faster, as well (README)
+SAMPLE_MODE ?= interior
 YOUNGS ?= 1e5
 # the plate lies in the xz-plane, thin along y; its border is clamped
 SCENARIO = --youngs $(YOUNGS) --pin 'x<-0.49' --pin 'x>0.49' --pin 'z<-0.49' --pin 'z>0.49' \
@@ -49,7 +52,7 @@ $(OUT)/full-%.h5 $(OUT)/full-%.csv &: $(OUT)/%.h5
 	crom-fullsim $(SCENARIO) $(QUIET) --stats $(OUT)/full-$*.csv -o $(OUT)/full-$*.h5 $<
 
 $(OUT)/samples.h5: $(OUT)/full-intact.h5 $(OUT)/full-cut.h5
-	crom-sample --points $(POINTS) --mode interior --seed $(SEED) -o $@ $^
+	crom-sample --points $(POINTS) --mode $(SAMPLE_MODE) --seed $(SEED) -o $@ $^
 
 $(OUT)/model.h5: $(OUT)/samples.h5
 	crom-fitfield $(FIT_FLAGS) -o $@ < $<

@@ -457,6 +457,8 @@ typedef struct {
     double s;            /* displacement scale (m) */
     float *Xsrc;         /* source vertices as float, concatenated */
     float *side;         /* [F][N][3] where the cut features of each sample are taken, or NULL */
+    float *Ssrc;         /* shared mode, a field with cut features: each source vertex's field point
+                          * (crom_mesh_field_points; its copies on a crack: their own side), as Xsrc */
     size_t *xoff;        /* [nsources] offset of each source in Xsrc (vertices) */
     int *vsz;            /* [nsources] vertices per step of each source (shared mode) */
     int *sv, *si;        /* [F][N] sample vertices sorted, and their sample indices */
@@ -477,6 +479,7 @@ static void trainer_free(trainer *t)
 {
     free(t->Xsrc);
     free(t->side);
+    free(t->Ssrc);
     free(t->b.S);
     free(t->xoff);
     free(t->vsz);
@@ -610,6 +613,31 @@ static int init_shared(trainer *t)
     return 0;
 }
 
+/* Shared mode with cut features: the field point of every source vertex
+ * (Ssrc) and the batch's side points: a crack's copies take the features
+ * of their own side at their own position. */
+static int init_shared_sides(trainer *t)
+{
+    const crom_samples *S = t->S;
+    size_t tot = 0;
+    for (int k = 0; k < S->nsources; k++)
+        tot += (size_t)S->src[k].nv;
+    t->Ssrc = crom_malloc(sizeof(float) * 3 * (tot ? tot : 1));
+    t->b.S = crom_malloc(sizeof(float) * 3 * (size_t)(t->maxrows ? t->maxrows : 1));
+    if (!t->Ssrc || !t->b.S)
+        return CROM_EINTERNAL;
+    for (int k = 0; k < S->nsources; k++) {
+        const crom_mesh *m = &S->src[k];
+        double *fp = crom_mesh_field_points(m, CROM_MESH_CRACK_OFFSET, NULL);
+        if (!fp)
+            return CROM_EINTERNAL;
+        for (size_t i = 0; i < 3 * (size_t)m->nv; i++)
+            t->Ssrc[3 * t->xoff[k] + i] = (float)fp[i];
+        free(fp);
+    }
+    return 0;
+}
+
 /* The batch buffers (pn: with the encoder's points) and the epoch plan. */
 static int alloc_batches(trainer *t, int pn)
 {
@@ -678,6 +706,8 @@ static int trainer_init(trainer *t, const crom_samples *S, const crom_fit_opts *
     if (t->shared) {
         if ((rc = init_shared(t)))
             return rc;
+        if (o->cut && o->cut->nseg && (rc = init_shared_sides(t)))
+            return rc;
     } else {
         t->maxrows = t->B * t->P;
         t->maxcells = t->B * t->P;
@@ -743,6 +773,8 @@ static void fill_shared(trainer *t, const int *fr, int nf, int k, const int *per
     const float *Xs = t->Xsrc + 3 * t->xoff[k];
     for (int i = 0; i < v; i++)
         memcpy(b->X + 3 * (size_t)i, Xs + 3 * (size_t)t->Vbuf[i], sizeof(float) * 3);
+    for (int i = 0; t->Ssrc && i < v; i++)
+        memcpy(b->S + 3 * (size_t)i, t->Ssrc + 3 * (t->xoff[k] + (size_t)t->Vbuf[i]), sizeof(float) * 3);
     memset(b->U, 0, sizeof(double) * 3 * (size_t)v * nf);
     memset(b->M, 0, sizeof(double) * (size_t)v * nf);
     size_t present = 0;
@@ -940,6 +972,7 @@ static int orthonormalize(trainer *t, crom_nn_mlp *W, crom_nn_pointnet *P)
             memcpy(pts + 3 * i, S->X + 3 * (i * stride), sizeof(float) * 3);
     }
     float *side = NULL; /* the same points' side points (cut features) */
+    const float *sides = t->shared ? t->Ssrc : NULL;
     if (!t->shared && t->side && (side = crom_malloc(sizeof(float) * 3 * npts)))
         for (size_t i = 0; i < npts; i++)
             memcpy(side + 3 * i, t->side + 3 * (i * stride), sizeof(float) * 3);
@@ -961,7 +994,8 @@ static int orthonormalize(trainer *t, crom_nn_mlp *W, crom_nn_pointnet *P)
     for (size_t s0 = 0; !rc && s0 < npts; s0 += (size_t)chunk) {
         int m = (int)(npts - s0 < (size_t)chunk ? npts - s0 : (size_t)chunk);
         if (cut)
-            crom_cutfeat_inputs_f(cut, (size_t)m, pts + 3 * s0, side ? side + 3 * s0 : NULL, in);
+            crom_cutfeat_inputs_f(cut, (size_t)m, pts + 3 * s0,
+                                  side ? side + 3 * s0 : sides ? sides + 3 * s0 : NULL, in);
         if ((rc = crom_nn_mlp_forward(W, &ws, m, cut ? in : pts + 3 * s0, NULL)))
             break;
         const float *Y = crom_nn_ws_output(&ws);
