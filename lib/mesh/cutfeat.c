@@ -60,14 +60,15 @@ void crom_cutfeat_inputs_f(const crom_cutfeat *c, size_t n, const float *X, cons
     }
 }
 
-void crom_cutfeat_inputs_d(const crom_cutfeat *c, size_t n, const double *X, double *in)
+void crom_cutfeat_inputs_d(const crom_cutfeat *c, size_t n, const double *X, const double *S, double *in)
 {
     int w = 3 + c->nseg;
+    const double *P = S ? S : X;
     for (size_t i = 0; i < n; i++) {
         double *o = in + (size_t)w * i;
         o[0] = X[3 * i];
         o[1] = X[3 * i + 1];
         o[2] = X[3 * i + 2];
-        crom_cutfeat_point(c, X + 3 * i, o + 3);
+        crom_cutfeat_point(c, P + 3 * i, o + 3);
     }
 }

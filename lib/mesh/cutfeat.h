@@ -46,6 +46,6 @@ void crom_cutfeat_point(const crom_cutfeat *c, const double X[3], double *f);
  * features at S [n][3] (NULL: at X; float, as the networks take them). */
 void crom_cutfeat_inputs_f(const crom_cutfeat *c, size_t n, const float *X, const float *S, float *in);
 /* The same from double points into double inputs. */
-void crom_cutfeat_inputs_d(const crom_cutfeat *c, size_t n, const double *X, double *in);
+void crom_cutfeat_inputs_d(const crom_cutfeat *c, size_t n, const double *X, const double *S, double *in);
 
 #endif

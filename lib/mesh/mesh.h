@@ -97,10 +97,13 @@ int crom_mesh_boundary(const crom_mesh *m, int *ntri, int **tris, int **tri_tet)
  * toward the centroid of its own tets. At X both copies of a crack vertex would get
  * the same displacement and the crack could never open; on their own sides
  * they follow the jump a basis learned from cut data, while an intact body
- * still sees the jump through its shared vertices. Every program that
- * evaluates a field at mesh vertices uses this, so sampling, training,
- * cubature, encoding and decoding agree. *nshifted (may be NULL) gets how
- * many vertices moved; NULL when out of memory.
+ * still sees the jump through its shared vertices. Vertex sampling uses
+ * this, and every program evaluates a basis on a mesh through
+ * crom_model_eval_mesh (lib/rom/model.h), which samples a neural field
+ * here (a field with cut features takes only its features here, X at the
+ * vertex) and a mesh field on its own mesh at the vertices themselves, so
+ * sampling, training, cubature, encoding and decoding agree. *nshifted
+ * (may be NULL) gets how many vertices moved; NULL when out of memory.
  *
  * The default s = 1 samples at the centroid of the copy's own tets: a cut
  * follows element faces, so it is jagged at the element scale, and a copy

@@ -1250,10 +1250,7 @@ int crom_model_eval_sided(const crom_model *m, size_t n, const double *X, const 
     rc = in ? 0 : CROM_EINTERNAL;
     for (size_t s = 0; !rc && s < n; s += chunk) {
         size_t k = n - s < chunk ? n - s : chunk;
-        crom_cutfeat_inputs_d(&m->cut, k, X + 3 * s, in);
-        if (S) /* the features from the side points */
-            for (size_t i = 0; i < k; i++)
-                crom_cutfeat_point(&m->cut, S + 3 * (s + i), in + din * i + 3);
+        crom_cutfeat_inputs_d(&m->cut, k, X + 3 * s, S ? S + 3 * s : NULL, in);
         rc = crom_nn_mlp_eval(&m->mlp, &ws, k, in, W + out * s, NULL);
     }
     free(in);
